@@ -1,0 +1,253 @@
+"""A unit's identity and liveness over time (spec 5, 5.1): agent-uuid stability (HB-006), one
+live agent per name (HB-011), silences (HB-010), stale retained messages (MSG-007), and every
+declared level backed by its info message (HB-008)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+from conformance.checks.base import CheckContext, UnitState, check
+from conformance.client import Message
+from conformance.topics import INFO_KIND_OF_LEVEL, TopicKind
+from conformance.validator import Validation
+from conformance.violation import Violation
+
+HB = TopicKind.HEARTBEAT
+REBOOT_SILENCE_PERIODS = 2.0  # HB-006's decision
+SILENCE_PERIODS = 3.0  # HB-010's decision
+STALE_PERIODS = 3.0  # MSG-007's decision
+LEVEL_INFO_PERIODS = 3.0  # HB-008: wait at least 3 declared heartbeat periods (and info_wait)
+
+
+def _uuid(v: Validation) -> str | None:
+    m = v.message
+    u = m.get("agent-uuid") if isinstance(m, dict) else None
+    return u if isinstance(u, str) else None
+
+
+def _previous_live(unit: UnitState) -> float | None:
+    """Arrival of the previous heartbeat, when it was live (a retained one's time is unknown)."""
+    if unit.heartbeat_retained:
+        return None
+    return unit.last_heartbeat
+
+
+# The heartbeat checks run on every heartbeat: they return a list or None (no generator), and
+# count examinations straight into ``unit.examined`` (what ``unit.examine`` does).
+
+@check("HB-006", on=(HB,))
+def agent_uuid_stays_the_same(ctx: CheckContext, unit: UnitState, msg: Message,
+                              v: Validation) -> list[Violation] | None:
+    """5.1: agent-uuid 'should change when rebooting', and only then: a new agent-uuid must
+    follow a silence of more than two declared periods (a reboot)."""
+    m = v.message  # _uuid(v) and _previous_live(unit), inline: this runs on every heartbeat
+    uuid = m.get("agent-uuid") if isinstance(m, dict) else None
+    if not isinstance(uuid, str):
+        uuid = None
+    prev = unit.agent_uuid
+    last = None if unit.heartbeat_retained else unit.last_heartbeat
+    if uuid is None or prev is None or msg.retain or last is None:
+        if uuid is not None and prev is None:
+            unit.note("HB-006", "only one heartbeat with an agent-uuid seen")
+        return None
+    examined = unit.examined
+    examined["HB-006"] = examined.get("HB-006", 0) + 1
+    if uuid == prev or uuid in unit.agent_uuids:  # a return to an earlier uuid is HB-011's
+        return None
+    period = unit.period(HB)
+    silence = msg.time - last
+    if period is None or silence > REBOOT_SILENCE_PERIODS * period or ctx.in_gap(last, msg.time):
+        return None  # a reboot (or the observer was away and cannot tell)
+    return [Violation.of(
+        "HB-006", expected=f"agent-uuid {prev} until a reboot (a silence over "
+                           f"{REBOOT_SILENCE_PERIODS:g} declared periods, "
+                           f"{REBOOT_SILENCE_PERIODS * period:.2f} s)",
+        observed=f"agent-uuid {uuid} after only {silence:.3f} s", topic=msg.topic, path="$.agent-uuid",
+        time=msg.time, payload=msg.payload,
+        detail="generate the agent-uuid once per process start, not per message")]
+
+
+@check("HB-011", on=(HB,))
+def one_agent_per_name(ctx: CheckContext, unit: UnitState, msg: Message,
+                       v: Validation) -> list[Violation] | None:
+    """Two processes under one name alternate agent-uuids without silence (HB-011)."""
+    m = v.message  # _uuid(v) and _previous_live(unit), inline: this runs on every heartbeat
+    uuid = m.get("agent-uuid") if isinstance(m, dict) else None
+    if not isinstance(uuid, str):
+        uuid = None
+    prev = unit.agent_uuid
+    last = None if unit.heartbeat_retained else unit.last_heartbeat
+    if uuid is None or prev is None or msg.retain or last is None:
+        return None
+    examined = unit.examined
+    examined["HB-011"] = examined.get("HB-011", 0) + 1
+    if uuid == prev or uuid not in unit.agent_uuids:
+        return None
+    period = unit.period(HB)
+    silence = msg.time - last
+    if period is not None and silence > REBOOT_SILENCE_PERIODS * period:
+        return None
+    if ctx.in_gap(last, msg.time):
+        return None
+    return [Violation.of(
+        "HB-011", expected=f"one agent-uuid under {unit.address.name}",
+        observed=f"agent-uuid {uuid} again, {silence:.3f} s after a heartbeat of {prev}",
+        topic=msg.topic, path="$.agent-uuid", time=msg.time, payload=msg.payload,
+        detail="two agents publish under one unit name; give each its own UNIT name (3.1)")]
+
+
+@check("HB-010", on=(HB,))
+def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
+                              v: Validation) -> list[Violation] | None:
+    """5.1: the heartbeat registers availability; a silence over 3 declared periods warns,
+    saying whether the unit came back with the same agent-uuid (resumed) or a new one."""
+    last = None if unit.heartbeat_retained else unit.last_heartbeat  # _previous_live, inline
+    if msg.retain or last is None:
+        return None
+    period = unit.period(HB)
+    if period is None:
+        unit.note("HB-010", "no valid declared heartbeat rate")
+        return None
+    examined = unit.examined
+    examined["HB-010"] = examined.get("HB-010", 0) + 1
+    silence = msg.time - last
+    if silence <= SILENCE_PERIODS * period or ctx.in_gap(last, msg.time):
+        return None
+    uuid = _uuid(v)
+    if uuid is None:
+        came_back = "came back (its agent-uuid unreadable)"
+    elif uuid == unit.agent_uuid:
+        came_back = "came back with the same agent-uuid (resumed)"
+    else:
+        came_back = f"came back with a new agent-uuid {uuid} (a reboot)"
+    return [Violation.of(
+        "HB-010", expected=f"a heartbeat at least every {SILENCE_PERIODS * period:.2f} s "
+                           f"({SILENCE_PERIODS:g} declared periods)",
+        observed=f"silent for {silence:.2f} s ({silence / period:.1f} periods), then {came_back}",
+        topic=msg.topic, time=last, payload=msg.payload,
+        detail="a silence makes the unit look gone to every commander")]
+
+
+@check("HB-010", finish=True)
+def unit_is_not_silent_at_the_end(ctx: CheckContext, unit: UnitState, now: float,
+                                  findings: Any) -> Iterator[Violation]:
+    last = unit.last_heartbeat
+    period = unit.period(HB)
+    if last is None or period is None:
+        return
+    findings.examine("HB-010")
+    silence = now - last
+    if silence > SILENCE_PERIODS * period and not ctx.in_gap(last, now):
+        yield Violation.of(
+            "HB-010", expected=f"a heartbeat at least every {SILENCE_PERIODS * period:.2f} s",
+            observed=f"no heartbeat for the last {silence:.2f} s of the run "
+                     f"({silence / period:.1f} periods); it did not come back",
+            topic=unit.address.topic("heartbeat"), time=last)
+
+
+@check("MSG-007", on=(HB, TopicKind.SENSOR_INFO, TopicKind.DIRECT_EXECUTION_INFO,
+                      TopicKind.TST_EXECUTION_INFO))
+def retained_message_is_not_stale(ctx: CheckContext, unit: UnitState, msg: Message,
+                                  v: Validation) -> list[Violation] | None:
+    """A retained heartbeat or info message older than 3 declared periods makes a dead unit
+    look alive to every new subscriber (MSG-007)."""
+    if not msg.retain:
+        return None
+    m = v.message
+    if not isinstance(m, dict):
+        return None
+    stamp, rate = m.get("stamp"), m.get("rate")
+    if not (_number(stamp) and _number(rate) and rate > 0):
+        unit.note("MSG-007", "a retained message without a numeric stamp and rate")
+        return None
+    unit.examine("MSG-007")
+    age = msg.time - stamp
+    if age <= STALE_PERIODS / rate:
+        return None
+    return [Violation.of(
+        "MSG-007", expected=f"a retained message at most {STALE_PERIODS / rate:.2f} s old "
+                            f"({STALE_PERIODS:g} declared periods), or none",
+        observed=f"retained, stamped {age:.1f} s before it arrived", topic=msg.topic,
+        path="$.stamp", time=msg.time, payload=msg.payload,
+        detail="publish heartbeat and info messages without the retain flag, or clear the "
+               "retained message when the unit stops")]
+
+
+def _number(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _level_since(unit: UnitState) -> dict[str, float]:
+    d = unit.private.get("levels_since")
+    if d is None:
+        d = unit.private["levels_since"] = {}
+    return d  # type: ignore[no-any-return]
+
+
+def _info_seen(unit: UnitState, kind: TopicKind) -> bool:
+    return unit.kinds_seen.get(kind, 0) > 0
+
+
+@check("HB-008", on=(HB,))
+def declared_level_has_info(ctx: CheckContext, unit: UnitState, msg: Message,
+                            v: Validation) -> None:
+    """Remembers when each level that has an info message was first declared; HB-008 is
+    decided at finish, over the whole observation (spec 5: info messages may come 'with less
+    update rate than the general HeartBeat', and a lint may join mid-stream)."""
+    m = v.message
+    levels = m.get("levels") if type(m) is dict else None
+    if type(levels) is not list or levels == unit.private.get("hb008_levels"):
+        return None  # unchanged since the last heartbeat (the usual case): nothing new
+    unit.private["hb008_levels"] = levels
+    since = _level_since(unit)
+    for lv in levels:
+        if isinstance(lv, str):
+            level = lv.replace("_", " ")
+            if level in INFO_KIND_OF_LEVEL and level not in since:
+                since[level] = msg.time
+    return None
+
+
+def info_wait(ctx: CheckContext, unit: UnitState) -> float:
+    """Seconds a declared level may go without its info message: the profile's info_wait,
+    and at least 3 declared heartbeat periods (HB-008's decision)."""
+    period = unit.period(HB)
+    return max(ctx.profile.info_wait, LEVEL_INFO_PERIODS * period if period else 0.0)
+
+
+@check("HB-008", finish=True)
+def declared_level_has_info_at_end(ctx: CheckContext, unit: UnitState, now: float,
+                                   findings: Any) -> Iterator[Violation]:
+    """Each level declared in the latest heartbeat is backed by its info message, seen at any
+    time of the observation. Without one, the level fails only once it was observed for
+    ``info_wait`` (time the observer was disconnected not counted); before that it is not
+    judged, and says how long it was observed and how long it needs."""
+    if unit.levels is None:
+        return
+    since = _level_since(unit)
+    need = info_wait(ctx, unit)
+    undecided: list[str] = []
+    for level, first in since.items():
+        kind = INFO_KIND_OF_LEVEL[level]
+        if not unit.claims(level) or _info_seen(unit, kind):
+            continue
+        observed = now - first - ctx.gap_overlap(first, now)
+        if observed >= need:
+            yield _missing_info(unit, level, kind, observed, need, now)
+        else:
+            undecided.append(f"'{level}' declared without {kind.value}: observed "
+                             f"{max(observed, 0.0):.1f} s; need {need:.1f} s to judge")
+    if undecided:
+        findings.note("HB-008", "; ".join(undecided))
+    else:
+        findings.examine("HB-008")
+
+
+def _missing_info(unit: UnitState, level: str, kind: TopicKind, observed: float, need: float,
+                  t: float) -> Violation:
+    return Violation.of(
+        "HB-008", expected=f"{kind.value} within {need:.1f} s of declaring level '{level}'",
+        observed=f"no {kind.value} in {observed:.1f} s", topic=unit.address.topic(kind.value),
+        path="$.levels", time=t,
+        detail=f"publish {unit.address.topic(kind.value)}, or do not declare '{level}'")

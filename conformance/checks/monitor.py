@@ -1,0 +1,478 @@
+"""The Monitor: passive checks over a stream of messages, per unit, feeding one set of results.
+
+The same object serves the linter (``kind="lint"``) and the certification suite
+(``kind="certification"``), which also records its active scenarios into it (``record``).
+
+``feed`` runs on every message of a fleet (bench/bench_lint.py), so what depends on the topic
+alone is worked out once per topic (a ``_Route``: the unit's entry, the checks of its kind,
+caches of the rules the validator examined by message shape), and the rules examined are
+counted per shape and expanded into per-rule counts only when a report is made.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time as _time
+from collections.abc import Collection
+from typing import Any
+
+from conformance.checks.base import (
+    AT_FINISH,
+    ON_KIND,
+    ON_MESSAGE,
+    REINTERPRET,
+    CheckContext,
+    UnitState,
+)
+from conformance.checks.examined import dispatch_roots, examined_group, shape_fields
+from conformance.client import Message
+from conformance.profile import Profile
+from conformance.results import RunReport, UnitReport, judge_rule, skip_reason
+from conformance.rules import CATALOGUE
+from conformance.topics import TopicKind, UnitAddress, parse_topic
+from conformance.validator import Validation, Validator
+from conformance.violation import Verdict, Violation
+
+MAX_EVIDENCE = 20
+"""Violations kept as evidence per rule and unit; the rest are only counted (bounded memory)."""
+MAX_UNITS = 4096
+"""Units tracked at once; messages of further units are counted as unexamined."""
+MAX_TOPICS = 65536
+"""Topics whose unit is cached; further ones are looked up each time (still correct)."""
+MAX_SHAPES = 64
+"""Message shapes whose examined rules are kept per topic (more are looked up globally)."""
+UNATTRIBUTED = "(unattributed)"
+"""The report entry for topics that name no unit (``waraps/foo``, ``waraps/unit/air``)."""
+
+class _RuleRecord:
+    """What was recorded for one rule of one unit: a count and the first few violations."""
+
+    __slots__ = ("count", "evidence", "explicit", "reason")
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.evidence: list[Violation] = []
+        self.explicit: Verdict | None = None
+        self.reason = ""
+
+    def add(self, v: Violation) -> None:
+        self.count += 1
+        if len(self.evidence) < MAX_EVIDENCE:
+            self.evidence.append(v)
+
+
+class Findings:
+    """What the finish checks found for one unit: kept apart, so a provisional report (before
+    ``finish``) and a repeated ``finish`` never count twice."""
+
+    __slots__ = ("examined", "notes", "violations")
+
+    def __init__(self) -> None:
+        self.examined: dict[str, int] = {}
+        self.notes: dict[str, str] = {}
+        self.violations: list[Violation] = []
+
+    def examine(self, rule: str, times: int = 1) -> None:
+        self.examined[rule] = self.examined.get(rule, 0) + times
+
+    def note(self, rule: str, why: str) -> None:
+        self.notes[rule] = why
+
+
+class _Entry:
+    __slots__ = ("state", "records", "groups", "final", "unit")
+
+    def __init__(self, state: UnitState) -> None:
+        self.state = state
+        self.unit = "" if state.address.prefix == UNATTRIBUTED else str(state.address)
+        self.records: dict[str, _RuleRecord] = {}
+        self.groups: dict[tuple[str, ...], int] = {}
+        """Rule groups examined by the validator -> messages (expanded at report time)."""
+        self.final: Findings | None = None
+
+
+_IGNORED = _Entry(UnitState(UnitAddress(UNATTRIBUTED, "", "", "ignored")))
+_OVERFLOW = _Entry(UnitState(UnitAddress(UNATTRIBUTED, "", "", "overflow")))
+
+
+class _Route:
+    """Where the messages of one topic go, worked out once per topic: the unit's entry, the
+    checks that re-read the validator's violations, and the message checks of the topic's kind
+    (plus those of its validation kind where the topic fixes it: ``sensor/position``)."""
+
+    __slots__ = ("entry", "reinterpret", "checks", "kind", "topic_kind", "scalar_groups",
+                 "shape_fields", "shape_groups", "dispatch_roots", "last_dispatch")
+
+    def __init__(self, entry: _Entry, topic: str) -> None:
+        parsed = parse_topic(topic)
+        self.entry = entry
+        self.topic_kind = parsed.kind
+        if parsed.kind is TopicKind.SENSOR:
+            self.kind: str | None = sys.intern(f"sensor/{parsed.sensor}")  # as the validator's
+        elif parsed.kind in (TopicKind.EXEC_COMMAND, TopicKind.TST_COMMAND):
+            self.kind = None  # exec/command/<command>: the message says
+        else:
+            self.kind = parsed.kind.value
+        self.reinterpret = tuple(c.fn for c in REINTERPRET.get(parsed.kind, ()))
+        self.checks = self.checks_for(self.kind)
+        self.scalar_groups: dict[type, Any] = {}
+        """Type of a scalar message (a sensor value) -> the rules the validator examined on
+        it: for a scalar they follow from the topic and the type alone (checks/examined.py)."""
+        self.shape_fields = (shape_fields(self.kind, parsed.kind)
+                             if self.kind is not None and parsed.unit is not None else None)
+        self.shape_groups: dict[tuple[Any, ...], Any] = {}
+        """The same for JSON objects, by shape (top-level keys, which are empty, the types
+        of ``shape_fields``), where nothing else decides (``examined.shape_fields``)."""
+        self.dispatch_roots = dispatch_roots(self.kind) if self.shape_fields is not None else ()
+        """Where values decide too (``examined.dispatch_roots``): then the last message's
+        shape, values there and group are kept, (shape, values, group)."""
+        self.last_dispatch: tuple[Any, Any, Any] | None = None
+
+    def checks_for(self, kind: str | None) -> tuple[Any, ...]:
+        """The message checks of a message of validation kind ``kind`` on this topic."""
+        narrower = ON_KIND.get(kind or "")
+        return tuple(c.fn for c in ON_MESSAGE.get(self.topic_kind, ())) + (
+            tuple(c.fn for c in narrower) if narrower else ())
+
+
+_IGNORED_ROUTE = _Route(_IGNORED, "")
+_OVERFLOW_ROUTE = _Route(_OVERFLOW, "")
+
+
+class Monitor:
+    """Passive checks over a stream of messages, per unit: the same code in the linter and in
+    the certification suite (DESIGN: 'Passive checks').
+
+    ``units`` limits the observation to those units (None: every unit seen). Times are the
+    messages' arrival times (Unix seconds); the monitor never reads the clock while feeding, so a
+    recording replays exactly as it was observed.
+    """
+
+    def __init__(self, profile: Profile | None = None, *, validator: Validator | None = None,
+                 units: Collection[UnitAddress] | None = None, kind: str = "lint") -> None:
+        if kind not in ("lint", "certification"):
+            raise ValueError(f"kind must be 'lint' or 'certification', got {kind!r}")
+        self.profile = profile or (validator.profile if validator is not None else Profile())
+        self.validator = validator or Validator(self.profile)
+        self.kind = kind
+        self.ctx = CheckContext(self.profile, kind)
+        self._only = frozenset(units) if units is not None else None
+        self._entries: dict[UnitAddress | None, _Entry] = {}
+        self._by_topic: dict[str, _Route] = {}
+        # Whether the validator says itself which rules it examined (Validation.examined).
+        self._validator_says_examined = "examined" in getattr(
+            Validation, "__dataclass_fields__", {}) or hasattr(Validation, "examined")
+        self._unexamined = 0
+        self._last_time: float | None = None
+        self._finished: float | None = None
+        self.created = _time.time()
+
+    # -- the stream -----------------------------------------------------------------------
+
+    def feed(self, message: Message) -> list[Violation]:
+        """Validate one message, run the checks that can decide now, record everything;
+        the violations this message shows (stateful ones included)."""
+        topic = message.topic
+        route = self._by_topic.get(topic)
+        if route is None:
+            route = self._route_for_topic(topic)
+        entry = route.entry
+        if entry is _IGNORED:
+            return []
+        if entry is _OVERFLOW:
+            self._unexamined += 1
+            return []
+        t = message.time
+        v = self.validator.validate(topic, message.payload, t)
+        ctx = self.ctx
+        if ctx.started is None:
+            ctx.started = t
+        if self._last_time is None or t > self._last_time:
+            self._last_time = t
+        same_kind = v.kind == route.kind and v.topic.kind is route.topic_kind
+        # Counted by shape, expanded to rules at report time.
+        if self._validator_says_examined:
+            examined = v.examined
+        else:
+            m = v.message
+            m_type = m.__class__
+            fields = route.shape_fields
+            if m_type is dict and fields is not None and same_kind and len(m) <= 64:
+                key = (tuple(m), tuple(map(bool, m.values())),
+                       tuple(map(type, map(m.get, fields))))
+                roots = route.dispatch_roots
+                if roots:  # values decide too: the same as the last message's?
+                    values = tuple(map(m.get, roots))
+                    last = route.last_dispatch
+                    if last is not None and last[0] == key and last[1] == values:
+                        examined = last[2]
+                    else:
+                        examined = examined_group(v)
+                        route.last_dispatch = (key, values, examined)
+                else:
+                    examined = route.shape_groups.get(key)
+                    if examined is None:
+                        examined = examined_group(v)
+                        if len(route.shape_groups) < MAX_SHAPES:
+                            route.shape_groups[key] = examined
+            elif (m_type is float or m_type is int) and same_kind:
+                examined = route.scalar_groups.get(m_type)
+                if examined is None:
+                    examined = route.scalar_groups[m_type] = examined_group(v)
+            else:
+                examined = examined_group(v)
+        groups = entry.groups
+        groups[examined] = groups.get(examined, 0) + 1
+        state = entry.state
+        violations = v.violations
+        found = list(violations) if violations else None
+        if route.reinterpret and v.topic.kind is route.topic_kind:
+            for fn in route.reinterpret:
+                found = fn(ctx, state, message, v, found or [])
+        if same_kind:
+            checks = route.checks
+        else:  # a command (its kind is in its content), or a validator of its own mind
+            checks = (route.checks_for(v.kind) if v.topic.kind is route.topic_kind
+                      else self._checks_for(v))
+        for fn in checks:
+            out = fn(ctx, state, message, v)
+            if out:
+                if found is None:
+                    found = list(out)
+                else:
+                    found.extend(out)
+        state.observe(message, v)
+        if found is None:
+            return []
+        if found:
+            unit = entry.unit
+            found = [f if f.unit or not unit else dataclasses.replace(f, unit=unit) for f in found]
+            for f in found:
+                self._add(entry, f)
+        return found
+
+    @staticmethod
+    def _checks_for(v: Validation) -> tuple[Any, ...]:
+        return (tuple(c.fn for c in ON_MESSAGE.get(v.topic.kind, ()))
+                + tuple(c.fn for c in ON_KIND.get(v.kind, ())))
+
+    def _route_for_topic(self, topic: str) -> _Route:
+        """The route of a topic not seen before (cached: topic strings hash fast, unit
+        addresses do not)."""
+        entry = self._entry_for_topic(topic)
+        if entry is _IGNORED:
+            route = _IGNORED_ROUTE
+        elif entry is _OVERFLOW:
+            route = _OVERFLOW_ROUTE
+        else:
+            route = _Route(entry, topic)
+        if len(self._by_topic) < MAX_TOPICS:
+            self._by_topic[topic] = route
+        return route
+
+    def _entry_for_topic(self, topic: str) -> _Entry:
+        """The entry of the unit a topic belongs to."""
+        address = parse_topic(topic).unit
+        if self._only is not None and address not in self._only:
+            return _IGNORED
+        found = self._entries.get(address)
+        return found if found is not None else (self._new_entry(address) or _OVERFLOW)
+
+    def connection_gap(self, start: float, end: float) -> None:
+        """The observer was disconnected from ``start`` to ``end`` (Unix seconds): intervals
+        over that time are not judged (rates, silence, uuid changes). Call it before feeding
+        the messages received after the reconnect."""
+        self.ctx.add_gap(float(start), float(end))
+
+    def unexamined(self, count: int) -> None:
+        """``count`` messages the observer could not examine (dropped, queue overflow)."""
+        self._unexamined += int(count)
+
+    def finish(self, now: float | None = None) -> None:
+        """End-of-run judgements at ``now`` (Unix seconds; default: the latest arrival time
+        seen, so a replay ends where the recording ended). Calling it again re-judges."""
+        now = self._now(now)
+        for entry in self._entries.values():
+            entry.final = self._run_finish(entry, now)
+        self._finished = now
+
+    # -- what the active suite reads and writes -------------------------------------------
+
+    def units(self) -> list[UnitAddress]:
+        """Every unit seen (or recorded into), in address order."""
+        return sorted(a for a in self._entries if a is not None)
+
+    def state(self, unit: UnitAddress) -> UnitState:
+        """What is known about ``unit`` (an empty state when nothing was seen yet)."""
+        entry = self._entries.get(unit)
+        if entry is None:
+            entry = self._new_entry(unit, force=True)
+        assert entry is not None
+        return entry.state
+
+    def record(self, unit: UnitAddress, rule: str, *, violation: Violation | None = None,
+               verdict: Verdict | None = None, reason: str = "") -> None:
+        """Record an active scenario's outcome for ``rule``: a violation; or an explicit
+        skip / could-not-test / fail / warn with its reason; or ``verdict=PASS``: examined."""
+        if rule not in CATALOGUE:
+            from conformance.rules import get
+
+            get(rule)  # raises naming close ids
+        entry = self._entries.get(unit) or self._new_entry(unit, force=True)
+        assert entry is not None
+        if violation is not None:
+            if violation.rule != rule:
+                violation = dataclasses.replace(violation, rule=rule)
+            if not violation.unit:
+                violation = dataclasses.replace(violation, unit=str(unit))
+            self._add(entry, violation)
+        if verdict is Verdict.PASS:
+            entry.state.examine(rule)
+        elif verdict is not None:
+            rec = entry.records.get(rule)
+            if rec is None:
+                rec = entry.records[rule] = _RuleRecord()
+            if rec.explicit is None or verdict.rank >= rec.explicit.rank:
+                rec.explicit, rec.reason = verdict, reason
+        elif violation is None:
+            entry.state.examine(rule)
+        if reason and verdict in (None, Verdict.PASS):
+            entry.state.note(rule, reason)
+
+    def report(self, **meta: Any) -> RunReport:
+        """The results so far as a ``RunReport``. Before ``finish`` the end-of-run checks are
+        judged provisionally at the latest arrival time, without being stored.
+
+        Known keys: broker, started, finished, suite_version, schemas_hash; any other key goes
+        to ``meta`` as text.
+        """
+        now = self._finished if self._finished is not None else self._now(None)
+        units: dict[str, UnitReport] = {}
+        for address, entry in sorted(self._entries.items(),
+                                     key=lambda kv: (kv[0] is None, str(kv[0] or ""))):
+            final = entry.final if entry.final is not None else self._run_finish(entry, now)
+            report = self._unit_report(address, entry, final)
+            units[report.unit] = report
+        started = meta.pop("started", None)
+        if started is None:
+            started = min([self.ctx.started or self.created, self.created])
+        return RunReport(
+            kind=self.kind, started=float(started),
+            finished=meta.pop("finished", self._finished),
+            broker=str(meta.pop("broker", "")), profile=self.profile.name,
+            suite_version=str(meta.pop("suite_version", "") or _suite_version()),
+            schemas_hash=str(meta.pop("schemas_hash", "") or _schemas_hash()),
+            units=units, gaps=list(self.ctx.gaps), unexamined=self._unexamined,
+            meta={k: str(v) for k, v in meta.items()},
+        )
+
+    # -- internals ------------------------------------------------------------------------
+
+    def _now(self, now: float | None) -> float:
+        if now is not None:
+            return float(now)
+        return self._last_time if self._last_time is not None else _time.time()
+
+    def _new_entry(self, address: UnitAddress | None, force: bool = False) -> _Entry | None:
+        if not force and len(self._entries) >= MAX_UNITS:
+            return None
+        state_address = address or UnitAddress(UNATTRIBUTED, "", "", "")
+        entry = self._entries[address] = _Entry(UnitState(state_address))
+        return entry
+
+    def _add(self, entry: _Entry, v: Violation) -> None:
+        rec = entry.records.get(v.rule)
+        if rec is None:
+            rec = entry.records[v.rule] = _RuleRecord()
+        rec.add(v)
+
+    def _run_finish(self, entry: _Entry, now: float) -> Findings:
+        findings = Findings()
+        if entry.state.address.prefix == UNATTRIBUTED:
+            return findings
+        unit = str(entry.state.address)
+        for c in AT_FINISH:
+            out = c.fn(self.ctx, entry.state, now, findings)
+            if out:
+                findings.violations.extend(
+                    v if v.unit else dataclasses.replace(v, unit=unit) for v in out)
+        return findings
+
+    def _unit_report(self, address: UnitAddress | None, entry: _Entry,
+                     final: Findings) -> UnitReport:
+        from conformance.checks.rates import rate_stats
+
+        state = entry.state
+        examined = dict(state.examined)
+        for group, n in entry.groups.items():
+            for rule in group:
+                examined[rule] = examined.get(rule, 0) + n
+        for rule, n in final.examined.items():
+            examined[rule] = examined.get(rule, 0) + n
+        notes = {**state.notes, **final.notes}
+        extra: dict[str, list[Violation]] = {}
+        for v in final.violations:
+            extra.setdefault(v.rule, []).append(v)
+        unit = str(address) if address is not None else UNATTRIBUTED
+        if address is None:  # no unit: only the rules that were examined or broken
+            rule_ids = sorted(set(examined) | set(entry.records))
+        else:
+            rule_ids = list(CATALOGUE)
+        rules = {}
+        counts = {}
+        for rid in rule_ids:
+            rule = CATALOGUE.get(rid)
+            if rule is None:
+                continue
+            rec = entry.records.get(rid)
+            evidence = (rec.evidence if rec else []) + extra.get(rid, [])
+            count = (rec.count if rec else 0) + len(extra.get(rid, ()))
+            if count:
+                counts[rid] = count
+            rules[rid] = judge_rule(
+                rule, severity=self.profile.severity_of(rid), violations=evidence[:MAX_EVIDENCE],
+                count=count, examined=examined.get(rid, 0),
+                explicit=rec.explicit if rec else None, explicit_reason=rec.reason if rec else "",
+                default_reason=skip_reason(rule, kind=self.kind, unit=unit,
+                                           levels=state.levels, note=notes.get(rid, "")))
+        facts: dict[str, Any] = {
+            "declared_rates": dict(state.declared_rates),
+            "sensors_listed": list(state.sensors_listed or ()),
+            "sensors_seen": dict(state.sensors_seen),
+            "tasks_available": {k: list(v) for k, v in state.tasks_available.items()},
+            "tasks_executing": dict(state.tasks_executing),
+            "position": list(state.position) if state.position else None,
+            "message_counts": dict(state.counts),
+        }
+        return UnitReport(
+            unit=unit, agent_type=address.agent_type if address else "",
+            role=address.role if address else "", name=address.name if address else "",
+            agent_uuids=list(state.agent_uuids), levels=list(state.levels or ()),
+            message_count=state.message_count, first_seen=state.first_seen,
+            last_seen=state.last_seen, rules=rules,
+            rates=rate_stats(self.ctx, state) if address is not None else [],
+            examined={k: examined[k] for k in sorted(examined)}, violation_counts=counts,
+            facts=facts)
+
+
+def _suite_version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("waraps-conformance")
+    except Exception:  # not installed: the source tree's version
+        from conformance import __version__
+
+        return __version__
+
+
+def _schemas_hash() -> str:
+    try:
+        from conformance.schema import schemas_hash  # type: ignore[attr-defined]
+    except Exception:  # the schema module is not there (yet)
+        return ""
+    try:
+        return str(schemas_hash())
+    except Exception:
+        return ""

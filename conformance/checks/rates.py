@@ -1,0 +1,248 @@
+"""Rates of the periodic messages (HB-003, SI-002, DEI-002, TEI-002): measured vs declared.
+
+A rate is judged over at least ``profile.min_intervals`` intervals: the mean period must be
+within ``profile.rate_tolerance`` of the declared one, and no single interval may exceed
+``profile.max_gap_periods`` declared periods (FIELD-NOTES 'Timing jitter': this raised no false
+alarm at 1 and 10 Hz). Intervals that overlap a connection gap of the observer are left out.
+Intervals over 3 declared periods are silences (HB-010: a boat out of range may fall silent);
+they are left out of the mean while the other intervals are enough to judge, and counted in
+otherwise (a unit that is always "silent" simply publishes far slower than it declares).
+
+Memory is bounded: running sums, min and max, and a series of at most 600 points.
+"""
+
+from __future__ import annotations
+
+from array import array
+from collections.abc import Iterator
+from operator import add
+
+from conformance.checks.base import CheckContext, UnitState, check
+from conformance.client import Message
+from conformance.results import RateStat
+from conformance.topics import TopicKind
+from conformance.validator import Validation
+from conformance.violation import Verdict, Violation
+
+RATE_RULES = {
+    TopicKind.HEARTBEAT: "HB-003",
+    TopicKind.SENSOR_INFO: "SI-002",
+    TopicKind.DIRECT_EXECUTION_INFO: "DEI-002",
+    TopicKind.TST_EXECUTION_INFO: "TEI-002",
+}
+SILENCE_PERIODS = 3.0  # HB-010's decision
+MAX_SERIES = 600
+MAX_CLOSED_SEGMENTS = 8
+
+
+class _Series:
+    """(time, rate in Hz) points for a plot, at most MAX_SERIES: when full, pairs of points
+    merge and each new point covers twice as many intervals. Kept in arrays of machine
+    numbers (24 bytes a point, not a tuple of three objects): a fleet has thousands."""
+
+    __slots__ = ("times", "sums", "counts", "stride", "acc_n", "acc_sum")
+
+    def __init__(self) -> None:
+        self.times = array("d")  # end time of each point
+        self.sums = array("d")  # sum of its intervals, seconds
+        self.counts = array("q")  # number of its intervals
+        self.stride = 1
+        self.acc_n = 0
+        self.acc_sum = 0.0
+
+    def add(self, t: float, interval: float) -> None:
+        self.acc_n += 1
+        self.acc_sum += interval
+        if self.acc_n < self.stride:
+            return
+        self.times.append(t)
+        self.sums.append(self.acc_sum)
+        self.counts.append(self.acc_n)
+        self.acc_n, self.acc_sum = 0, 0.0
+        if len(self.times) >= MAX_SERIES:
+            sums, counts = self.sums, self.counts
+            self.times = self.times[1::2]  # each pair ends where its second point ended
+            self.sums = array("d", map(add, sums[0::2], sums[1::2]))
+            self.counts = array("q", map(add, counts[0::2], counts[1::2]))
+            self.stride *= 2
+
+    def rates(self) -> list[tuple[float, float]]:
+        return [(t, n / s if s > 0 else 0.0)
+                for t, s, n in zip(self.times, self.sums, self.counts, strict=True)]
+
+
+class RateTracker:
+    """Running interval statistics of one periodic message of one unit, for one declared rate."""
+
+    __slots__ = ("kind", "rule", "topic", "declared", "last", "start", "end", "n", "total",
+                 "min", "max", "max_at", "silences", "all_n", "all_total", "all_max",
+                 "all_max_at", "excluded", "series")
+
+    def __init__(self, kind: TopicKind, topic: str, declared: float | None) -> None:
+        self.kind = kind
+        self.rule = RATE_RULES[kind]
+        self.topic = topic
+        self.declared = declared
+        self.last: float | None = None
+        self.start: float | None = None
+        self.end: float | None = None
+        self.n = 0
+        self.total = 0.0
+        self.min = float("inf")
+        self.max = 0.0
+        self.max_at = 0.0
+        self.silences = 0
+        self.all_n = 0
+        self.all_total = 0.0
+        self.all_max = 0.0
+        self.all_max_at = 0.0
+        self.excluded = 0
+        self.series = _Series()
+
+    def add(self, ctx: CheckContext, t: float) -> None:
+        last = self.last
+        self.last = t
+        if self.start is None:
+            self.start = t
+        self.end = t
+        if last is None:
+            return
+        dt = t - last
+        if dt < 0:  # out of order (a replay merged from two files): not an interval
+            return
+        if ctx.gaps and ctx.in_gap(last, t):
+            self.excluded += 1
+            return
+        self.all_n += 1
+        self.all_total += dt
+        if dt > self.all_max:
+            self.all_max, self.all_max_at = dt, t
+        self.series.add(t, dt)
+        if self.declared and dt > SILENCE_PERIODS / self.declared:
+            self.silences += 1
+            return
+        self.n += 1
+        self.total += dt
+        if dt < self.min:
+            self.min = dt
+        if dt > self.max:
+            self.max, self.max_at = dt, t
+
+    def judge(self, ctx: CheckContext, unit: str) -> tuple[RateStat, list[Violation]]:
+        """The rate's statistics and verdict, and its violations (pure: changes nothing)."""
+        profile = ctx.profile
+        need = profile.min_intervals
+        declared = self.declared
+        if self.n >= need:
+            n, total, lo, hi, hi_at = self.n, self.total, self.min, self.max, self.max_at
+            silences_in = 0
+        else:
+            n, total, hi, hi_at = self.all_n, self.all_total, self.all_max, self.all_max_at
+            lo = min(self.min, hi) if n else float("inf")
+            silences_in = self.silences
+        mean = total / n if n else None
+        stat = RateStat(
+            unit=unit, kind=self.kind.value, topic=self.topic, declared_hz=declared,
+            measured_hz=(1.0 / mean if mean else None), intervals=n, mean_interval=mean,
+            min_interval=(lo if n else None), max_interval=(hi if n else None),
+            verdict=Verdict.SKIP, series=self.series.rates(), rule=self.rule,
+            silences=self.silences, start=self.start, end=self.end,
+            tolerance=profile.rate_tolerance)
+        if not declared:
+            stat.reason = f"no valid declared rate in {self.kind.value}.rate"
+            return stat, []
+        if n < need:
+            stat.reason = f"only {n} intervals observed; need {need}"
+            return stat, []
+        period = 1.0 / declared
+        found: list[Violation] = []
+        silences = f", {silences_in} silences counted in" if silences_in else ""
+        window = (f"over {n} intervals (min {lo:.3f} s, max {hi:.3f} s{silences})")
+        assert mean is not None
+        if abs(mean - period) > profile.rate_tolerance * period:
+            found.append(Violation.of(
+                self.rule,
+                expected=f"{declared:.2f} Hz +-{profile.rate_tolerance:.0%} "
+                         f"(declared in {self.kind.value}.rate)",
+                observed=f"{1.0 / mean:.2f} Hz {window}" if mean > 0 else f"0 s mean {window}",
+                topic=self.topic, time=self.end, unit=unit,
+                detail=f"mean interval {mean:.3f} s, declared period {period:.3f} s: publish at "
+                       f"the declared rate, or declare the rate actually used"))
+        if hi > profile.max_gap_periods * period:
+            found.append(Violation.of(
+                self.rule,
+                expected=f"no interval over {profile.max_gap_periods:g} declared periods "
+                         f"({profile.max_gap_periods * period:.3f} s)",
+                observed=f"an interval of {hi:.3f} s ({hi / period:.1f} periods)",
+                topic=self.topic, time=hi_at, unit=unit,
+                detail=f"{window}; a single late message means the publisher stalls"))
+        stat.verdict = Verdict.FAIL if found else Verdict.PASS
+        stat.reason = (f"{len(found)} violation{'s' if len(found) > 1 else ''}" if found
+                       else f"min {lo:.3f} s, max {hi:.3f} s{silences}")
+        return stat, found
+
+
+def _trackers(unit: UnitState) -> dict[TopicKind, RateTracker]:
+    t = unit.private.get("rates")
+    if t is None:
+        t = unit.private["rates"] = {}
+    return t  # type: ignore[no-any-return]
+
+
+def _closed(unit: UnitState) -> list[RateStat]:
+    c = unit.private.get("rates_closed")
+    if c is None:
+        c = unit.private["rates_closed"] = []
+    return c  # type: ignore[no-any-return]
+
+
+@check("HB-003", "SI-002", "DEI-002", "TEI-002", on=tuple(RATE_RULES))
+def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
+                          v: Validation) -> list[Violation] | None:
+    """Each periodic message is measured against the rate it declares; a change of the
+    declared rate closes the window measured so far (judged then) and starts a new one.
+    (Runs on every periodic message: returns a list or None, not a generator.)"""
+    if msg.retain:  # a retained copy arrives at subscription time, not at its publication
+        return None
+    kind = v.topic.kind
+    m = v.message
+    rate = m.get("rate") if type(m) is dict else None
+    declared = float(rate) if (type(rate) is float or type(rate) is int) and rate > 0 else (
+        unit.declared_rates.get(kind))
+    trackers = unit.private.get("rates")
+    if trackers is None:
+        trackers = _trackers(unit)
+    tracker = trackers.get(kind)
+    found = None
+    if tracker is not None and declared is not None and tracker.declared != declared:
+        stat, found = tracker.judge(ctx, str(unit.address))
+        if stat.verdict is not Verdict.SKIP:
+            unit.examine(tracker.rule)
+        closed = _closed(unit)
+        closed.append(stat)
+        del closed[:-MAX_CLOSED_SEGMENTS]
+        tracker = None
+    if tracker is None:
+        tracker = trackers[kind] = RateTracker(kind, msg.topic, declared)
+    tracker.add(ctx, msg.time)
+    return found
+
+
+@check("HB-003", "SI-002", "DEI-002", "TEI-002", finish=True)
+def rate_matches_declared_at_end(ctx: CheckContext, unit: UnitState, now: float,
+                                 findings) -> Iterator[Violation]:  # type: ignore[no-untyped-def]
+    for tracker in _trackers(unit).values():
+        stat, found = tracker.judge(ctx, str(unit.address))
+        if stat.verdict is Verdict.SKIP:
+            findings.note(tracker.rule, stat.reason)
+        else:
+            findings.examine(tracker.rule)
+        yield from found
+
+
+def rate_stats(ctx: CheckContext, unit: UnitState) -> list[RateStat]:
+    """Every measured window of every periodic message of the unit, closed ones first."""
+    out = list(_closed(unit))
+    for tracker in _trackers(unit).values():
+        out.append(tracker.judge(ctx, str(unit.address))[0])
+    return out

@@ -1,0 +1,217 @@
+"""Sensors over time (spec 5.2, 6): every listed sensor published (SI-003), the mandatory four
+listed and published (SI-004), no unlisted sensor topics (SI-005), and positions that move no
+faster than the reported speed allows (SENS-005)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from typing import Any
+
+from conformance.checks.base import CheckContext, UnitState, check, geopoint
+from conformance.client import Message
+from conformance.topics import MANDATORY_SENSORS, TopicKind
+from conformance.validator import Validation
+from conformance.violation import Violation
+
+SI = TopicKind.SENSOR_INFO
+PUBLISH_WINDOW_PERIODS = 3.0
+"""A listed sensor is judged unpublished only after 3 declared periods of the slower of
+heartbeat and sensor_info since the first sensor_info (sensors declare no rate of their own)."""
+MIN_JUMP_INTERVAL = 0.5
+"""SENS-005 compares positions at least 0.5 s apart: arrival-time jitter (FIELD-NOTES: up to
+tens of ms) over a shorter interval would turn metre-level noise into absurd speeds."""
+EARTH_RADIUS = 6_371_000.0  # metres
+_RADIANS = math.pi / 180
+
+
+def _listed(v: Validation) -> list[str] | None:
+    m = v.message
+    listed = m.get("sensor-data-provided") if isinstance(m, dict) else None
+    if not isinstance(listed, list):
+        return None
+    return [s for s in listed if isinstance(s, str)]
+
+
+@check("SI-004", on=(SI,))
+def mandatory_sensors_listed(ctx: CheckContext, unit: UnitState, msg: Message,
+                             v: Validation) -> list[Violation] | None:
+    """6.1: position, heading, course and speed are mandatory: each sensor_info lists them
+    (a violation per distinct list, not per message)."""
+    listed = _listed(v)
+    if listed is None:
+        return None
+    unit.examine("SI-004")
+    missing = [s for s in MANDATORY_SENSORS if s not in listed]
+    key = tuple(listed)
+    if not missing or unit.private.get("si004_last") == key:
+        return None
+    unit.private["si004_last"] = key
+    return [Violation.of(
+        "SI-004", expected=f"sensor-data-provided lists {', '.join(MANDATORY_SENSORS)}",
+        observed=f"missing {', '.join(missing)}", topic=msg.topic, path="$.sensor-data-provided",
+        time=msg.time, payload=msg.payload,
+        detail="6.1 spells 'positon' once; the topic is sensor/position")]
+
+
+def _window(unit: UnitState) -> float | None:
+    periods = [p for p in (unit.period(SI), unit.period(TopicKind.HEARTBEAT)) if p]
+    return PUBLISH_WINDOW_PERIODS * max(periods) if periods else None
+
+
+@check("SI-003", "SI-004", finish=True)
+def listed_sensors_published(ctx: CheckContext, unit: UnitState, now: float,
+                             findings: Any) -> Iterator[Violation]:
+    """5.2: 'The string in sensor-data-provided is the string used in sensor topic': each
+    listed sensor (and each mandatory one) is published within the window after sensor_info."""
+    listed = unit.sensors_listed
+    first = unit.first_by_kind.get(SI)
+    if listed is None or first is None:
+        why = ("no sensor_info seen" if listed is None
+               else "only a retained sensor_info seen (its time is unknown)")
+        findings.note("SI-003", why)
+        return
+    seen = unit.sensors_seen
+    window = _window(unit)
+    observed = now - first
+    unpublished = [s for s in listed if s not in seen]
+    unpublished_mandatory = [s for s in MANDATORY_SENSORS if s not in seen]
+    if window is None or observed < window:
+        need = f"{window:.1f} s" if window else "a declared rate"
+        if unpublished:
+            findings.note("SI-003", f"observed only {observed:.1f} s since sensor_info; "
+                                    f"need {need}")
+        else:
+            findings.examine("SI-003")
+        if not unpublished_mandatory:
+            findings.examine("SI-004")
+        return
+    findings.examine("SI-003")
+    findings.examine("SI-004")
+    topic = unit.address.topic("sensor/")
+    if unpublished:
+        yield Violation.of(
+            "SI-003", expected="a message on sensor/<name> for every sensor listed",
+            observed=f"nothing on {', '.join(unpublished)} in {observed:.1f} s",
+            topic=topic + "<name>", time=now,
+            detail="publish every sensor listed in sensor-data-provided, or stop listing it")
+    if unpublished_mandatory:
+        yield Violation.of(
+            "SI-004", expected=f"messages on sensor/{{{','.join(MANDATORY_SENSORS)}}}",
+            observed=f"nothing on {', '.join(unpublished_mandatory)} in {observed:.1f} s",
+            topic=topic + "<name>", time=now)
+
+
+def _reported(unit: UnitState) -> set[str]:
+    s = unit.private.get("si005_reported")
+    if s is None:
+        s = unit.private["si005_reported"] = set()
+    return s  # type: ignore[no-any-return]
+
+
+def _unlisted(unit: UnitState, name: str, t: float, topic: str,
+              payload: bytes | None) -> Violation:
+    return Violation.of(
+        "SI-005", expected=f"only sensors listed in sensor_info "
+                           f"({', '.join(unit.sensors_listed or ()) or 'none'})",
+        observed=f"sensor/{name} published", topic=topic, time=t, payload=payload,
+        detail="add it to sensor-data-provided (5.2), or stop publishing it")
+
+
+@check("SI-005", on=(TopicKind.SENSOR,))
+def sensor_is_listed(ctx: CheckContext, unit: UnitState, msg: Message,
+                     v: Validation) -> list[Violation] | None:
+    """5.2: sensor_info lists the sensors provided: an unlisted sensor topic warns (once per
+    sensor name). (Runs on every sensor message: returns a list, not a generator.)"""
+    listed = unit.sensors_listed
+    if listed is None:
+        unit.note("SI-005", "no sensor_info seen before the sensor messages")
+        return None
+    examined = unit.examined
+    examined["SI-005"] = examined.get("SI-005", 0) + 1
+    name = v.topic.sensor
+    if name in listed:
+        return None
+    reported = _reported(unit)
+    if name in reported or len(reported) >= 256:
+        return None
+    reported.add(name)
+    return [_unlisted(unit, name, msg.time, msg.topic, msg.payload)]
+
+
+@check("SI-005", finish=True)
+def sensors_seen_before_the_list_are_listed(ctx: CheckContext, unit: UnitState, now: float,
+                                            findings: Any) -> Iterator[Violation]:
+    listed = unit.sensors_listed
+    if listed is None:
+        return
+    reported = _reported(unit)
+    findings.examine("SI-005")
+    for name in unit.sensors_seen:
+        if name not in listed and name not in reported:
+            yield _unlisted(unit, name, now, unit.address.topic(f"sensor/{name}"), None)
+
+
+def _distance_bound(a: tuple[float, float, float | None],
+                    b: tuple[float, float, float | None]) -> float:
+    """An upper bound of ``distance(a, b)`` without trigonometry: a path north-south, then
+    east-west along a parallel (never longer than along the equator), then up or down, is
+    never shorter than the great circle."""
+    dlon = abs(b[1] - a[1])
+    if dlon > 180.0:
+        dlon = 360.0 - dlon
+    ground = EARTH_RADIUS * _RADIANS * (abs(b[0] - a[0]) + dlon)
+    if a[2] is None or b[2] is None:
+        return ground
+    return ground + abs(b[2] - a[2])
+
+
+def distance(a: tuple[float, float, float | None], b: tuple[float, float, float | None]) -> float:
+    """Great-circle distance in metres between two (latitude, longitude, altitude) points,
+    altitude difference included when both have one."""
+    lat1, lat2 = a[0] * _RADIANS, b[0] * _RADIANS
+    s_lat = math.sin((lat2 - lat1) / 2)
+    s_lon = math.sin((b[1] - a[1]) * _RADIANS / 2)
+    h = s_lat * s_lat + math.cos(lat1) * math.cos(lat2) * s_lon * s_lon
+    ground = 2 * EARTH_RADIUS * math.asin(min(1.0, math.sqrt(h)))
+    if a[2] is None or b[2] is None:
+        return ground
+    return math.hypot(ground, b[2] - a[2])
+
+
+@check("SENS-005", on=("sensor/position",))
+def position_moves_plausibly(ctx: CheckContext, unit: UnitState, msg: Message,
+                             v: Validation) -> list[Violation] | None:
+    """Position jumps faster than 3x the largest reported speed + 5 m/s warn (SENS-005: speed
+    in km/h, or degrees and radians mixed up). (Runs on every position: a list or None.)"""
+    if msg.retain:
+        return None
+    private = unit.private
+    anchor = private.get("sens005_anchor")
+    t = msg.time
+    if anchor is not None and t - anchor[1] < MIN_JUMP_INTERVAL:
+        return None  # too close to the last position compared to judge (a point is not read)
+    point = geopoint(v.message)
+    if point is None:
+        return None
+    if anchor is None:
+        private["sens005_anchor"] = (point, t)
+        unit.note("SENS-005", "only one position seen")
+        return None
+    prev, t0 = anchor
+    dt = t - t0
+    private["sens005_anchor"] = (point, t)
+    examined = unit.examined
+    examined["SENS-005"] = examined.get("SENS-005", 0) + 1
+    limit = 3 * unit.max_speed + 5.0
+    if _distance_bound(prev, point) <= limit * dt:
+        return None  # cannot be too fast: the exact distance (trigonometry) is not needed
+    d = distance(prev, point)
+    if d <= limit * dt:
+        return None
+    return [Violation.of(
+        "SENS-005", expected=f"at most {limit:.1f} m/s (3x the largest reported speed "
+                             f"{unit.max_speed:.1f} m/s, + 5 m/s)",
+        observed=f"moved {d:.1f} m in {dt:.2f} s ({d / dt:.1f} m/s)", topic=msg.topic,
+        time=t, payload=msg.payload,
+        detail="check units: speed in m/s (6.1), latitude/longitude in degrees")]

@@ -1,0 +1,65 @@
+"""The console script ``waraps-conformance``: one subcommand per product part.
+
+Each subcommand lives in the module that owns it and exposes ``main(argv) -> int``; this module
+only dispatches, so ``waraps-conformance --help`` stays fast (no amqtt, paho or schema import).
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+# name -> (module exposing main(argv), one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "demo": ("conformance.demo", "certify the bundled reference unit on the embedded broker"),
+    "lint": ("conformance.lint", "lint live or recorded traffic of a whole fleet (never publishes)"),
+    "record": ("conformance.recording", "record live traffic to a JSON Lines file"),
+    "sim": ("conformance.sim.cli", "run the reference unit (or a fleet of them), with faults"),
+    "broker": ("conformance.broker_cli", "run the embedded amqtt broker on loopback"),
+    "rules": ("conformance.rules_cli", "print the rule catalogue"),
+    "schemas": ("conformance.specgen", "generate the JSON Schemas and task docs (schemas generate)"),
+    "validate": ("conformance.validator_cli", "validate one message: TOPIC [PAYLOAD-FILE|-]"),
+}
+
+
+def usage() -> str:
+    width = max(map(len, COMMANDS))
+    lines = ["usage: waraps-conformance COMMAND [options]", "", "commands:"]
+    lines += [f"  {name:<{width}}  {help_}" for name, (_, help_) in COMMANDS.items()]
+    lines += ["", "Certify one unit with pytest: pytest --unit waraps/unit/air/simulation/dji0 "
+              "--broker mqtt://127.0.0.1:1883",
+              "Run 'waraps-conformance COMMAND --help' for a command's options."]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if not argv or argv[0] in ("-h", "--help", "help"):
+        print(usage())
+        return 0
+    if argv[0] in ("-V", "--version"):
+        from conformance import __version__
+
+        print(__version__)
+        return 0
+    name, rest = argv[0], argv[1:]
+    if name not in COMMANDS:
+        import difflib
+
+        close = difflib.get_close_matches(name, COMMANDS, n=1)
+        hint = f" Did you mean {close[0]!r}?" if close else ""
+        print(f"waraps-conformance: unknown command {name!r}.{hint}\n\n{usage()}", file=sys.stderr)
+        return 2
+    module = importlib.import_module(COMMANDS[name][0])
+    try:
+        return int(module.main(rest) or 0)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:  # `... | head`: the reader left; not an error of ours
+        sys.stderr.close()
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,333 @@
+"""MQTT through paho-mqtt 2.x: the only module that imports paho.
+
+A small typed API in the manner of aiomqtt: ``BrokerURL`` (parsed, password only from the
+environment), ``Message`` (arrival time in Unix seconds, topic, raw bytes), and ``MqttClient``
+whose every wait is bounded, whose subscriptions survive a reconnect, which records the
+connection gaps it lived through, and which refuses to publish where it may not (the linter's
+client may publish nowhere; the suite's only to the unit under test).
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import ssl
+import threading
+import time
+import uuid
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field, replace
+from typing import NamedTuple
+from urllib.parse import urlsplit
+
+import paho.mqtt.client as paho
+
+SCHEMES = ("mqtt", "mqtts", "embedded")
+LOOPBACK = ("127.", "localhost", "::1")
+
+
+class BrokerError(RuntimeError):
+    """The broker cannot be reached or refused us; the message says which and how to fix it."""
+
+
+class PublishRefused(PermissionError):
+    """A publish the safety rules forbid (DESIGN: safety). Never caught to carry on."""
+
+
+@dataclass(frozen=True)
+class BrokerURL:
+    """Where the broker is: ``mqtt://host:port``, ``mqtts://host:port`` or ``embedded``.
+
+    Username and password come from the environment (``WARAPS_USERNAME``,
+    ``WARAPS_PASSWORD``), never from the URL or the command line; ``repr`` hides the password.
+    """
+
+    scheme: str
+    host: str = "127.0.0.1"
+    port: int = 1883
+    username: str | None = None
+    password: str | None = field(default=None, repr=False)
+    ca_file: str | None = None
+    cert_file: str | None = None
+    key_file: str | None = None
+    insecure: bool = False
+    """mqtts without verifying the broker's certificate (a test broker with its own CA)."""
+
+    @classmethod
+    def parse(cls, text: str, env: dict[str, str] | None = None) -> BrokerURL:
+        """Parse a broker URL; credentials are read from ``env`` (default ``os.environ``)."""
+        env = os.environ if env is None else env
+        text = text.strip()
+        if text == "embedded":
+            return cls("embedded")
+        parts = urlsplit(text if "://" in text else f"mqtt://{text}")
+        if parts.scheme not in ("mqtt", "mqtts"):
+            raise ValueError(
+                f"broker URL {text!r}: scheme {parts.scheme!r} is not one of mqtt, mqtts, "
+                f"embedded (for example mqtt://127.0.0.1:1883)")
+        if parts.password:
+            raise ValueError(
+                f"broker URL {text!r} carries a password: put it in WARAPS_PASSWORD instead, "
+                f"so it never appears on a command line or in a report")
+        try:
+            port = parts.port or (8883 if parts.scheme == "mqtts" else 1883)
+        except ValueError:
+            raise ValueError(
+                f"broker URL {text!r}: the port is not a number from 1 to 65535") from None
+        if not parts.hostname:
+            raise ValueError(f"broker URL {text!r} has no host (for example mqtt://127.0.0.1:1883)")
+        return cls(parts.scheme, parts.hostname, port,
+                   username=parts.username or env.get("WARAPS_USERNAME") or None,
+                   password=env.get("WARAPS_PASSWORD") or None)
+
+    @classmethod
+    def from_env(cls, env: dict[str, str] | None = None) -> BrokerURL | None:
+        """The arena's own variables: WARAPS_BROKER, WARAPS_PORT, WARAPS_TLS_CONNECTION, ..."""
+        env = os.environ if env is None else env
+        host = env.get("WARAPS_BROKER")
+        if not host:
+            return None
+        tls = env.get("WARAPS_TLS_CONNECTION", "").strip().lower() in ("1", "true", "yes", "on")
+        port = env.get("WARAPS_PORT") or ("8883" if tls else "1883")
+        if not port.isdigit():
+            raise ValueError(f"WARAPS_PORT={port!r} is not a port number")
+        return cls.parse(f"{'mqtts' if tls else 'mqtt'}://{host}:{port}", env)
+
+    def with_tls_files(self, ca_file: str | None = None, cert_file: str | None = None,
+                       key_file: str | None = None, insecure: bool = False) -> BrokerURL:
+        return replace(self, ca_file=ca_file, cert_file=cert_file, key_file=key_file,
+                       insecure=insecure)
+
+    @property
+    def is_loopback(self) -> bool:
+        return self.scheme == "embedded" or self.host.startswith(LOOPBACK)
+
+    def __str__(self) -> str:
+        if self.scheme == "embedded":
+            return "embedded"
+        user = f"{self.username}@" if self.username else ""
+        return f"{self.scheme}://{user}{self.host}:{self.port}"
+
+
+class Message(NamedTuple):
+    """One received message. ``time`` is the arrival time in Unix seconds, taken by paho on
+    receipt (FIELD-NOTES: timing inside the callback lags by up to 2 ms).
+
+    Immutable. A NamedTuple, not a frozen dataclass: it is made for every message, and a
+    frozen dataclass costs 2-3 times as much to create (bench/bench_lint.py)."""
+
+    time: float
+    topic: str
+    payload: bytes
+    qos: int = 0
+    retain: bool = False
+
+
+@dataclass(frozen=True)
+class Gap:
+    """A time the client was not connected: from ``start`` to ``end`` (Unix seconds)."""
+
+    start: float
+    end: float | None
+    reason: str
+
+    @property
+    def duration(self) -> float | None:
+        return None if self.end is None else self.end - self.start
+
+
+PublishPolicy = Callable[[str], bool]
+"""Decides whether a topic may be published to (DESIGN: safety)."""
+
+
+def publish_nowhere(topic: str) -> bool:
+    """The linter's policy: it never publishes."""
+    return False
+
+
+class MqttClient:
+    """A connected MQTT 3.1.1 client (amqtt refuses MQTT 5).
+
+    ``on_message`` runs on paho's network thread and must be quick; without it, messages are
+    queued and read with ``messages()`` / ``get()``. Every wait takes a timeout in seconds.
+    """
+
+    def __init__(self, broker: BrokerURL, *, client_id: str | None = None,
+                 on_message: Callable[[Message], None] | None = None,
+                 may_publish: PublishPolicy = publish_nowhere,
+                 on_connection_change: Callable[[bool, str], None] | None = None,
+                 keepalive: int = 30) -> None:
+        if broker.scheme == "embedded":
+            raise BrokerError("start the embedded broker first (conformance.broker) and pass "
+                              "its mqtt:// URL")
+        self.broker = broker
+        self.client_id = client_id or f"waraps-conformance-{uuid.uuid4().hex[:12]}"
+        self.may_publish = may_publish
+        self._on_message = on_message
+        self._on_connection_change = on_connection_change
+        self._queue: queue.Queue[Message] = queue.Queue()
+        self._subscriptions: dict[str, int] = {}
+        self._connected = threading.Event()
+        self._connect_failure: str | None = None
+        self._connack = threading.Event()  # any CONNACK, accepted or refused: ends connect()'s wait
+        self._lock = threading.Lock()
+        self.gaps: list[Gap] = []
+        self.received = 0
+        # paho stamps msg.timestamp with time.monotonic(); convert once to Unix seconds.
+        self._mono_to_unix = time.time() - time.monotonic()
+        self._keepalive = keepalive
+        self._closing = False
+
+        c = paho.Client(paho.CallbackAPIVersion.VERSION2, client_id=self.client_id,
+                        protocol=paho.MQTTv311, clean_session=True)
+        c.enable_logger(None)
+        if broker.username:
+            c.username_pw_set(broker.username, broker.password)
+        if broker.scheme == "mqtts":
+            c.tls_set(ca_certs=broker.ca_file, certfile=broker.cert_file,
+                      keyfile=broker.key_file, cert_reqs=ssl.CERT_NONE if broker.insecure
+                      else ssl.CERT_REQUIRED)
+            if broker.insecure:
+                c.tls_insecure_set(True)
+        c.reconnect_delay_set(min_delay=1, max_delay=30)  # backoff after a dropped connection
+        # QoS 1 publishes from a suite are few; bound the unacknowledged window anyway
+        # (FIELD-NOTES: paho overwrites past 65,535 in flight).
+        c.max_inflight_messages_set(1000)
+        c.on_connect = self._handle_connect
+        c.on_disconnect = self._handle_disconnect
+        c.on_message = self._handle_message
+        self._paho = c
+
+    # --- connection -------------------------------------------------------------------------
+    def connect(self, timeout: float = 5.0) -> MqttClient:
+        """Connect and start the network thread; raise ``BrokerError`` saying what failed."""
+        b = self.broker
+        try:
+            self._paho.connect(b.host, b.port, keepalive=self._keepalive)
+        except ssl.SSLError as e:
+            raise BrokerError(f"TLS handshake with {b} failed: {e.reason or e}. Check the CA "
+                              f"file (--ca-file) and that the broker speaks TLS on this port"
+                              ) from None
+        except OSError as e:
+            raise BrokerError(f"cannot reach the broker at {b}: {e.strerror or e}. Is it "
+                              f"running and listening there? (--broker, WARAPS_BROKER/"
+                              f"WARAPS_PORT)") from None
+        self._paho.loop_start()
+        self._connack.wait(timeout)
+        if not self._connected.is_set():
+            self._paho.loop_stop()
+            reason = self._connect_failure or f"no CONNACK within {timeout:.1f} s"
+            raise BrokerError(f"the broker at {b} did not accept the connection: {reason}")
+        return self
+
+    def _handle_connect(self, client, userdata, flags, reason_code, properties) -> None:
+        if reason_code.is_failure:
+            self._connect_failure = str(reason_code)
+            if str(reason_code).lower().startswith(("not authorized", "bad user")):
+                self._connect_failure += (" (check WARAPS_USERNAME / WARAPS_PASSWORD)")
+            self._connack.set()
+            return
+        with self._lock:
+            subs = list(self._subscriptions.items())
+            if self.gaps and self.gaps[-1].end is None:
+                self.gaps[-1] = replace(self.gaps[-1], end=time.time())
+        for topic, qos in subs:  # clean session: subscriptions do not survive a reconnect
+            client.subscribe(topic, qos)
+        self._connected.set()
+        self._connack.set()
+        if self._on_connection_change:
+            self._on_connection_change(True, "connected")
+
+    def _handle_disconnect(self, client, userdata, flags, reason_code, properties) -> None:
+        self._connected.clear()
+        if self._closing:
+            return
+        with self._lock:
+            self.gaps.append(Gap(time.time(), None, str(reason_code)))
+        if self._on_connection_change:
+            self._on_connection_change(False, str(reason_code))
+
+    @property
+    def is_connected(self) -> bool:
+        return self._connected.is_set()
+
+    def wait_connected(self, timeout: float) -> bool:
+        return self._connected.wait(timeout)
+
+    def close(self, timeout: float = 2.0) -> None:
+        """Disconnect cleanly (before an embedded broker shuts down: FIELD-NOTES)."""
+        self._closing = True
+        try:
+            self._paho.disconnect()
+        finally:
+            self._paho.loop_stop()
+
+    def __enter__(self) -> MqttClient:
+        if not self.is_connected:
+            self.connect()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # --- messages ---------------------------------------------------------------------------
+    def subscribe(self, topic: str, qos: int = 0, timeout: float = 5.0) -> None:
+        """Subscribe and wait for the SUBACK, so nothing published afterwards is missed."""
+        done = threading.Event()
+        result: list[object] = []
+
+        def on_subscribe(client, userdata, mid, reason_codes, properties) -> None:
+            result.append(reason_codes)
+            done.set()
+
+        with self._lock:
+            self._subscriptions[topic] = qos
+        self._paho.on_subscribe = on_subscribe
+        rc, _ = self._paho.subscribe(topic, qos)
+        if rc != paho.MQTT_ERR_SUCCESS:
+            raise BrokerError(f"subscribe to {topic!r} failed: {paho.error_string(rc)}")
+        if not done.wait(timeout):
+            raise BrokerError(f"no SUBACK for {topic!r} within {timeout:.1f} s")
+        codes = result[0] if result else []
+        if any(getattr(c, "is_failure", False) for c in codes):  # type: ignore[union-attr]
+            raise BrokerError(f"the broker refused the subscription to {topic!r}: {codes} "
+                              f"(an ACL may forbid it)")
+
+    def _handle_message(self, client, userdata, msg) -> None:
+        self.received += 1
+        m = Message(msg.timestamp + self._mono_to_unix, msg.topic, msg.payload, msg.qos,
+                    bool(msg.retain))
+        if self._on_message is not None:
+            self._on_message(m)
+        else:
+            self._queue.put(m)
+
+    def get(self, timeout: float) -> Message | None:
+        """The next queued message, or None after ``timeout`` seconds."""
+        try:
+            return self._queue.get(timeout=max(0.0, timeout))
+        except queue.Empty:
+            return None
+
+    def messages(self, timeout: float) -> Iterator[Message]:
+        """Queued messages until ``timeout`` seconds have passed (a deadline, not a sleep)."""
+        deadline = time.monotonic() + timeout
+        while (left := deadline - time.monotonic()) > 0:
+            m = self.get(left)
+            if m is not None:
+                yield m
+
+    def publish(self, topic: str, payload: bytes | str, qos: int = 1, retain: bool = False,
+                timeout: float = 5.0) -> None:
+        """Publish where the policy allows; with QoS > 0 wait for the broker's ack."""
+        if not self.may_publish(topic):
+            raise PublishRefused(f"refusing to publish to {topic!r}: not a command topic of "
+                                 f"the unit under test (DESIGN: safety)")
+        info = self._paho.publish(topic, payload, qos=qos, retain=retain)
+        if info.rc != paho.MQTT_ERR_SUCCESS and info.rc != paho.MQTT_ERR_NO_CONN:
+            raise BrokerError(f"publish to {topic!r} failed: {paho.error_string(info.rc)}")
+        if qos > 0:
+            try:
+                info.wait_for_publish(timeout)
+            except (RuntimeError, ValueError) as e:
+                raise BrokerError(f"publish to {topic!r} not acknowledged: {e}") from None

@@ -1,0 +1,187 @@
+"""The linter: feeds every message and capture event to the passive checks (``Monitor``) and
+keeps the running tallies the scorecard shows. The checks themselves live in
+``conformance.checks`` (one implementation per rule, shared with the certification suite).
+"""
+
+from __future__ import annotations
+
+from collections import Counter, deque
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from conformance.client import Message
+from conformance.profile import Profile
+from conformance.recording import Event
+from conformance.rules import Severity
+from conformance.topics import parse_topic
+from conformance.violation import Violation
+
+FLEET_RULES = ("HB-010", "HB-011", "HB-006", "EXEC-006", "EXEC-008", "MSG-007")
+"""Observations about the fleet over time (silence, identity, commands and answers, retained
+state): the scorecard lists them as they happen."""
+NOT_A_UNIT = "(unattributed)"
+"""Violations of topics that name no unit (the Monitor's report uses the same name)."""
+OTHER_UNITS = "(other units)"
+MAX_UNITS = 5000
+"""Units tallied one by one; a flood of invented unit names is tallied together beyond this
+(bounded memory)."""
+MAX_TOPIC_CACHE = 20_000
+
+
+class MonitorLike(Protocol):
+    """The contract of ``conformance.checks.Monitor`` that the linter relies on."""
+
+    def feed(self, message: Message) -> list[Violation]: ...
+    def connection_gap(self, start: float, end: float) -> None: ...
+    def unexamined(self, n: int) -> None: ...
+    def finish(self, now: float) -> Any: ...
+    def units(self) -> Iterable[Any]: ...
+    def state(self, unit: Any) -> Any: ...
+    def report(self, **meta: Any) -> Any: ...
+
+
+@dataclass(frozen=True)
+class Gap:
+    """A time the linter could not see the broker: ``start`` to ``end`` in Unix seconds."""
+
+    start: float
+    end: float | None
+    reason: str = ""
+
+    @property
+    def duration(self) -> float | None:
+        return None if self.end is None else self.end - self.start
+
+
+class Linter:
+    """Feeds a Monitor and tallies violations per unit and rule (bounded memory).
+
+    ``fresh`` holds the first violation of each (unit, rule) not yet shown, ``fleet`` the
+    latest fleet observations, ``events`` capture events not yet shown.
+    """
+
+    def __init__(self, monitor: MonitorLike, profile: Profile | None = None) -> None:
+        self.monitor = monitor
+        self.profile = profile or Profile()
+        self.messages = 0
+        self.violations = 0
+        self.unexamined = 0
+        self.first_time: float | None = None
+        self.last_time: float | None = None
+        self.by_unit: dict[str, Counter[str]] = {}
+        self.fresh: list[tuple[Violation, float | None]] = []
+        """(violation, the arrival time of the message that showed it)."""
+        self.fleet: deque[Violation] = deque(maxlen=50)
+        self.events: list[Event] = []
+        self.gaps: list[Gap] = []
+        self._open_gap: Gap | None = None
+        self._unit_of_topic: dict[str, str] = {}
+
+    # --- feeding ----------------------------------------------------------------------------
+    def feed(self, messages: list[Message]) -> None:
+        """Examine a batch of messages (arrival order)."""
+        if not messages:
+            return
+        feed = self.monitor.feed
+        for m in messages:
+            found = feed(m)
+            if found:
+                self._tally(found, m.time)
+        self.messages += len(messages)
+        if self.first_time is None:
+            self.first_time = messages[0].time
+        self.last_time = messages[-1].time
+
+    def feed_one(self, m: Message) -> None:
+        found = self.monitor.feed(m)
+        if found:
+            self._tally(found, m.time)
+        self.messages += 1
+        if self.first_time is None:
+            self.first_time = m.time
+        self.last_time = m.time
+
+    def event(self, event: Event) -> None:
+        """A capture event: a lost or regained connection, or messages not examined."""
+        if event.kind == "disconnected":
+            if self._open_gap is None:
+                self._open_gap = Gap(event.time, None, event.detail)
+        elif event.kind == "connected":
+            if self._open_gap is not None:
+                self._close_gap(event.time)
+        elif event.kind == "unexamined" and event.count > 0:
+            self.unexamined += event.count
+            self.monitor.unexamined(event.count)
+        self.events.append(event)
+        del self.events[:-100]
+
+    def _close_gap(self, end: float) -> None:
+        gap = self._open_gap
+        assert gap is not None
+        self._open_gap = None
+        closed = Gap(gap.start, max(end, gap.start), gap.reason)
+        self.gaps.append(closed)
+        # Rates over a time we could not see are not judged (the Monitor leaves it out).
+        self.monitor.connection_gap(closed.start, closed.end)  # type: ignore[arg-type]
+
+    @property
+    def open_gap(self) -> Gap | None:
+        return self._open_gap
+
+    def finish(self, now: float) -> None:
+        """End of the run at ``now`` (Unix seconds): close an open gap, run the finish checks
+        (their findings are in the Monitor's report)."""
+        if self._open_gap is not None:
+            self._close_gap(now)
+        self.monitor.finish(now)
+
+    # --- tallies ----------------------------------------------------------------------------
+    def unit_of(self, v: Violation) -> str:
+        """The unit a violation is about (its ``unit``, else the unit of its topic)."""
+        if v.unit:
+            return v.unit
+        cache = self._unit_of_topic
+        unit = cache.get(v.topic)
+        if unit is None:
+            parsed = parse_topic(v.topic)
+            unit = parsed.unit.base if parsed.unit is not None else NOT_A_UNIT
+            if len(cache) >= MAX_TOPIC_CACHE:
+                cache.clear()
+            cache[v.topic] = unit
+        return unit
+
+    def _tally(self, found: list[Violation], when: float | None) -> None:
+        by_unit = self.by_unit
+        for v in found:
+            self.violations += 1
+            unit = self.unit_of(v)
+            counts = by_unit.get(unit)
+            if counts is None:
+                if len(by_unit) >= MAX_UNITS:
+                    unit = OTHER_UNITS
+                    counts = by_unit.setdefault(unit, Counter())
+                else:
+                    counts = by_unit[unit] = Counter()
+            if v.rule not in counts:
+                self.fresh.append((v, v.time if v.time is not None else when))
+            counts[v.rule] += 1
+            if v.rule in FLEET_RULES:
+                self.fleet.append(v)
+
+    def take_fresh(self) -> list[tuple[Violation, float | None]]:
+        """First violations of each (unit, rule) since the last call."""
+        fresh, self.fresh = self.fresh, []
+        return fresh
+
+    def take_events(self) -> list[Event]:
+        events, self.events = self.events, []
+        return events
+
+    def is_error(self, rule: str) -> bool:
+        return self.profile.severity_of(rule) is Severity.ERROR
+
+    def failing_units(self) -> list[str]:
+        """Units with a violation of a rule of severity error so far."""
+        return sorted(u for u, counts in self.by_unit.items()
+                      if any(self.is_error(r) for r in counts))

@@ -1,0 +1,198 @@
+"""The pytest11 entry point: ``pytest --unit waraps/unit/air/simulation/dji0`` certifies a unit.
+
+Importing this module is cheap and changes nothing unless ``--unit`` is given: the options
+are declared, and that is all. With ``--unit``, a ``Certification`` (``conformance.suite``) is
+registered for the run; with ``--unit`` and no test paths, pytest runs exactly the conformance
+suite packaged in ``conformance.suite``, from any working directory.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from typing import TYPE_CHECKING, Any
+
+import pytest
+
+if TYPE_CHECKING:
+    from conformance.suite.session import Certification
+
+SUITE_PACKAGE = "conformance.suite"
+PLUGIN_NAME = "waraps-conformance-certification"
+BROKER_EXIT = pytest.ExitCode.USAGE_ERROR
+"""Exit status when the broker cannot be reached or refuses the connection."""
+NOT_ALIVE_EXIT = pytest.ExitCode.TESTS_FAILED
+"""Exit status when the unit sends no heartbeat: the certification fails."""
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    group = parser.getgroup("waraps-conformance", "WARA-PS conformance (certify one unit)")
+    group.addoption("--unit", dest="waraps_unit", default=None, metavar="ADDRESS",
+                    help="certify this unit, e.g. waraps/unit/air/simulation/dji0 (switches the "
+                         "plugin on; without test paths, runs the packaged conformance suite)")
+    group.addoption("--broker", dest="waraps_broker", default=None, metavar="URL",
+                    help="mqtt://HOST:PORT, mqtts://HOST:PORT or embedded (the embedded broker "
+                         "with the bundled reference unit). Default: WARAPS_BROKER, WARAPS_PORT, "
+                         "WARAPS_TLS_CONNECTION. User and password: WARAPS_USERNAME, "
+                         "WARAPS_PASSWORD (never on the command line)")
+    group.addoption("--ca-file", dest="waraps_ca_file", default=None, metavar="PEM",
+                    help="CA certificate to verify an mqtts:// broker")
+    group.addoption("--cert-file", dest="waraps_cert_file", default=None, metavar="PEM",
+                    help="client certificate for an mqtts:// broker")
+    group.addoption("--key-file", dest="waraps_key_file", default=None, metavar="PEM",
+                    help="client key for an mqtts:// broker")
+    group.addoption("--tls-insecure", dest="waraps_tls_insecure", action="store_true",
+                    default=False, help="do not verify the mqtts:// broker's certificate")
+    group.addoption("--profile", dest="waraps_profile", default=None, metavar="NAME|FILE",
+                    help="what the unit claims and how to test it: a built-in profile "
+                         "(default, strict, ...) or a YAML file")
+    group.addoption("--timing-scale", dest="waraps_timing_scale", default=None, metavar="X",
+                    help="multiply every deadline by X (slow links); default 1")
+    group.addoption("--reboot-cmd", dest="waraps_reboot_cmd", default=None, metavar="CMD",
+                    help="shell command that reboots the unit (REBOOT-*; without it they are "
+                         "could-not-test)")
+    group.addoption("--allow-motion", dest="waraps_allow_motion", action="store_true",
+                    default=False, help="let the suite start the profile's motion-tasks on a "
+                                        "'real' unit")
+    group.addoption("--dry-run", dest="waraps_dry_run", action="store_true", default=False,
+                    help="publish nothing; print what would be published")
+    group.addoption("--reports-dir", dest="waraps_reports_dir", default=None, metavar="DIR",
+                    help="where the JSON and HTML certification reports go (default reports/)")
+    group.addoption("--seed", dest="waraps_seed", default=None, metavar="N",
+                    help="seed for generated task parameters (the header shows each run's)")
+    group.addoption("--sim-fault", dest="waraps_sim_faults", action="append", default=None,
+                    metavar="FAULT", help="with --broker embedded: switch on a fault of the "
+                                          "bundled reference unit (repeatable)")
+    group.addoption("--sim-rate", dest="waraps_sim_rate", type=float, default=None,
+                    metavar="HZ", help="with --broker embedded: the reference unit's rate")
+    for name, help_ in (
+            ("waraps_broker", "default for --broker"), ("waraps_profile", "default for --profile"),
+            ("waraps_timing_scale", "default for --timing-scale"),
+            ("waraps_reboot_cmd", "default for --reboot-cmd"),
+            ("waraps_reports_dir", "default for --reports-dir"),
+            ("waraps_ca_file", "default for --ca-file"),
+            ("waraps_cert_file", "default for --cert-file"),
+            ("waraps_key_file", "default for --key-file")):
+        parser.addini(name, help_, default="")
+    for name, help_ in (("waraps_allow_motion", "default for --allow-motion"),
+                        ("waraps_dry_run", "default for --dry-run"),
+                        ("waraps_tls_insecure", "default for --tls-insecure")):
+        parser.addini(name, help_, type="bool", default=False)
+
+
+def pytest_addhooks(pluginmanager: pytest.PytestPluginManager) -> None:
+    from conformance.suite import hooks
+
+    pluginmanager.add_hookspecs(hooks)
+
+
+def suite_path() -> str:
+    """The folder of the packaged conformance suite (found without importing it)."""
+    spec = importlib.util.find_spec(SUITE_PACKAGE)
+    assert spec is not None and spec.submodule_search_locations
+    return list(spec.submodule_search_locations)[0]
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_load_initial_conftests(early_config: pytest.Config, parser: pytest.Parser,
+                                  args: list[str]) -> None:
+    """``--unit`` without test paths: collect the packaged suite, not the project's testpaths
+    (pytest would otherwise take ``testpaths`` or the current directory: ArgsSource)."""
+    ns = early_config.known_args_namespace
+    if getattr(ns, "waraps_unit", None) and not ns.file_or_dir:
+        path = suite_path()
+        args.append(path)
+        ns.file_or_dir = [path]
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    if not config.getoption("waraps_unit", None):
+        return
+    if config.getoption("numprocesses", None) or config.getoption("dist", "no") != "no":
+        raise pytest.UsageError("the certification suite drives one unit from one process: "
+                                "leave out -n/--dist (pytest-xdist)")
+    from conformance.suite.session import CERTIFICATION, Certification
+    from conformance.suite.settings import read
+
+    config.addinivalue_line("markers", "waraps_rule(rule_id): the rule this test judges")
+    certification = Certification(config, read(config))
+    config.stash[CERTIFICATION] = certification
+    config.pluginmanager.register(_CertificationPlugin(certification), PLUGIN_NAME)
+
+
+class _CertificationPlugin:
+    """The hooks of one certification run (registered only with ``--unit``)."""
+
+    def __init__(self, certification: Certification) -> None:
+        self.certification = certification
+        self.finished = False
+
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_sessionstart(self, session: pytest.Session) -> None:
+        """Before anything else: the broker is reachable and the unit alive. Otherwise ONE
+        clear error, not a wall of failures."""
+        from conformance.client import BrokerError
+        from conformance.suite.session import NotAlive
+
+        c = self.certification
+        if session.config.getoption("collectonly", False):
+            c.collect_only = True  # listing the tests needs no broker and no unit
+            return
+        try:
+            c.start()
+        except BrokerError as e:
+            c.error = str(e)
+            pytest.exit(f"waraps-conformance: {e}", returncode=BROKER_EXIT)
+        except NotAlive as e:
+            c.error = str(e)
+            pytest.exit(f"waraps-conformance: {e}", returncode=NOT_ALIVE_EXIT)
+
+    def pytest_report_header(self, config: pytest.Config) -> list[str]:
+        return self.certification.header()
+
+    @pytest.hookimpl(trylast=True)
+    def pytest_collection_modifyitems(self, items: list[pytest.Item]) -> None:
+        """Active scenarios first, in the order of ``SCENARIOS`` (reboot last: it wipes the
+        unit's history); the passive rules at the end, over the whole observation."""
+        from conformance.scenarios import RULE_SCENARIO, SCENARIOS
+
+        order = {name: i for i, name in enumerate(SCENARIOS)}
+
+        def key(item: pytest.Item) -> tuple[int, int]:
+            marker = item.get_closest_marker("waraps_rule")
+            if marker is None:
+                return (0, 0)
+            rule = marker.args[0]
+            if rule in RULE_SCENARIO:
+                return (1, order[RULE_SCENARIO[rule]])
+            return (2, 0)
+
+        items.sort(key=key)  # stable: the file order within each group stays
+
+    def pytest_sessionfinish(self, session: pytest.Session, exitstatus: int) -> None:
+        """Abort every task the suite started (also after a failure or Ctrl-C), then write
+        the final reports."""
+        self.finished = True
+        self.certification.finish(interrupted=exitstatus == pytest.ExitCode.INTERRUPTED,
+                                  exitstatus=int(exitstatus))
+
+    def pytest_unconfigure(self, config: pytest.Config) -> None:
+        # pytest.exit in sessionstart skips sessionfinish: still write what is known.
+        if not self.finished:
+            self.finished = True
+            self.certification.finish(interrupted=False, exitstatus=-1)
+
+    def pytest_terminal_summary(self, terminalreporter: Any) -> None:
+        c = self.certification
+        if c.collect_only:
+            return
+        tr = terminalreporter
+        tr.section("waraps-conformance")
+        for event in c.events:
+            tr.line(event)
+        report = c.report()
+        counts = ", ".join(f"{n} {v}" for v, n in report.verdict_counts().items() if n)
+        tr.line(f"{c.unit}: {counts} (worst: {report.worst().value})")
+        if c.report_paths:
+            for kind, path in sorted(c.report_paths.items()):
+                tr.line(f"{kind} report: {path}")
+        tr.line(f"repeat this run: {c.rerun_command()}")

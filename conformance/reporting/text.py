@@ -1,0 +1,105 @@
+"""Reports for people, as text: one violation in STYLE.md's form, and a run's summary."""
+
+from __future__ import annotations
+
+import re
+import shlex
+from datetime import datetime, timezone
+from typing import Any
+
+from conformance.rules import CATALOGUE, Rule, Severity
+from conformance.violation import Verdict, Violation
+
+_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u2028\u2029\ud800-\udfff\ufffe\uffff]")
+TITLE_WIDTH = 64
+
+
+def printable(text: object) -> str:
+    """``text`` with control characters shown as ``\\xNN`` (wire data may hold anything)."""
+    return _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}" if ord(m.group()) < 0x100
+                        else f"\\u{ord(m.group()):04x}", str(text))
+
+
+def iso_time(t: float | None) -> str:
+    """A Unix time as ISO 8601 UTC with milliseconds, '' for None."""
+    if t is None:
+        return ""
+    try:
+        return datetime.fromtimestamp(t, timezone.utc).isoformat(timespec="milliseconds")
+    except (OverflowError, OSError, ValueError):
+        return repr(t)
+
+
+def rerun_command(report: Any, unit: str, rule_id: str) -> str:
+    """How to repeat what found a violation of ``rule_id`` on ``unit``: for a lint report
+    ``waraps-conformance lint --from <recording> --unit <unit>`` (or ``--broker <url>`` when
+    it linted live traffic); for a certification (or no report) ``pytest --unit <unit> -k
+    <rule>``. ``report`` is a ``RunReport``: its kind, broker and meta say which."""
+    if getattr(report, "kind", "certification") != "lint":
+        return f"pytest --unit {unit} -k {rule_id}"
+    meta = getattr(report, "meta", {}) or {}
+    source = meta.get("source", "")
+    broker = getattr(report, "broker", "")
+    if broker and "recording_lines" not in meta:  # live traffic (the URL has no password)
+        return f"waraps-conformance lint --broker {shlex.quote(broker)} --unit {unit}"
+    if not source or source in ("-", "<stdin>") or source.startswith("live "):
+        source = "<recording>"
+    else:
+        source = shlex.quote(source)
+    return f"waraps-conformance lint --from {source} --unit {unit}"
+
+
+def render_violation(rule: str | Rule, violation: Violation, unit: str = "",
+                     rerun_hint: str | None = None, verdict: Verdict | None = None,
+                     report: Any = None) -> str:
+    """One violation for a person (STYLE.md): rule id, title and verdict; expected; observed;
+    topic; spec section; how to rerun. ``rerun_hint`` None gives the command for the unit
+    (``rerun_command``: the lint command for a lint ``report``, else pytest), '' leaves the
+    line out. ``verdict`` defaults to the rule's own severity."""
+    r = rule if isinstance(rule, Rule) else CATALOGUE.get(rule)
+    rule_id = r.id if r else str(rule)
+    title = r.title if r else ""
+    if verdict is None:
+        verdict = Verdict.WARN if r is not None and r.severity is Severity.WARNING else Verdict.FAIL
+    unit = unit or violation.unit
+    head = f"{rule_id} {printable(title)}"
+    lines = [f"{head:<{TITLE_WIDTH}} [{verdict.value}]"]
+
+    def line(label: str, value: object) -> None:
+        if value not in ("", None):
+            lines.append(f"  {label:<9} {printable(value)}")
+
+    line("expected", violation.expected)
+    line("observed", violation.observed)
+    line("topic", violation.topic)
+    line("path", violation.path)
+    line("at", iso_time(violation.time))
+    line("payload", violation.excerpt)
+    line("spec", r.section if r else "")
+    line("hint", violation.detail)
+    if rerun_hint is None and unit:
+        rerun_hint = rerun_command(report, unit, rule_id)
+    line("rerun", rerun_hint or "")
+    return "\n".join(lines)
+
+
+def render_summary(report: object) -> str:
+    """A few lines per unit: verdict counts and the failing and warning rules."""
+    from conformance.results import RunReport
+
+    assert isinstance(report, RunReport)
+    counts = report.verdict_counts()
+    out = [f"{report.kind} report, profile {report.profile}, broker {report.broker or '-'}: "
+           + ", ".join(f"{n} {v}" for v, n in counts.items() if n)]
+    for name, unit in report.units.items():
+        c = unit.verdict_counts()
+        out.append(f"  {printable(name)}  [{unit.worst().value}]  "
+                   + ", ".join(f"{n} {v}" for v, n in c.items() if n))
+        for r in unit.rules.values():
+            if r.verdict in (Verdict.FAIL, Verdict.WARN):
+                rule = CATALOGUE.get(r.rule)
+                out.append(f"    {r.rule:<16} {r.verdict.value:<5} "
+                           f"{printable(rule.title if rule else '')} ({r.reason})")
+    if report.unexamined:
+        out.append(f"  {report.unexamined} messages could not be examined")
+    return "\n".join(out)

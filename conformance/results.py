@@ -1,0 +1,255 @@
+"""Results: the verdict of every rule for every unit, rate statistics, and the run report.
+
+The one place verdicts are aggregated (DESIGN 'Semantics'). For one rule and one unit:
+
+- any violation, and the rule's severity under the profile is ``error`` -> fail;
+- violations, all under ``warning`` severity -> warn;
+- examined at least once without a violation -> pass;
+- set explicitly to skip or could-not-test (an active scenario) -> that, with its reason;
+- never examined -> skip, with the reason (not claimed, needs a stimulus, too few intervals...).
+
+A rule passes only when it was actually examined: a skip never becomes a pass.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any
+
+from conformance.rules import CATALOGUE, Level, Mode, Rule, Severity
+from conformance.violation import RuleResult, Verdict, Violation
+
+KINDS = ("certification", "lint")
+
+# The level a rule belongs to, as written in the heartbeat's `levels` (5.1).
+LEVEL_NAMES = {Level.SENSOR: "sensor", Level.DIRECT_EXECUTION: "direct execution",
+               Level.TST_EXECUTION: "tst execution"}
+
+
+def judge_rule(rule: Rule, *, severity: Severity, violations: list[Violation], count: int = -1,
+               examined: int = 0, explicit: Verdict | None = None, explicit_reason: str = "",
+               default_reason: str = "") -> RuleResult:
+    """The verdict of one rule for one unit from what was recorded (module docstring).
+
+    ``count`` is the number of violations seen (``violations`` holds the first few as evidence;
+    -1 means ``len(violations)``); ``examined`` how many times the rule was examined.
+    """
+    count = len(violations) if count < 0 else count
+    if count:
+        verdict = Verdict.FAIL if severity is Severity.ERROR else Verdict.WARN
+        if explicit is not None and explicit.rank > verdict.rank:
+            verdict = explicit
+        noun = "violation" if count == 1 else "violations"
+        reason = f"{count} {noun}" + (f" ({explicit_reason})" if explicit_reason else "")
+        return RuleResult(rule.id, verdict, reason, list(violations))
+    if explicit in (Verdict.FAIL, Verdict.WARN):
+        return RuleResult(rule.id, explicit, explicit_reason, [])
+    if examined:
+        noun = "time" if examined == 1 else "times"
+        return RuleResult(rule.id, Verdict.PASS, f"examined {examined} {noun}", [])
+    if explicit in (Verdict.SKIP, Verdict.COULD_NOT_TEST):
+        return RuleResult(rule.id, explicit, explicit_reason or default_reason, [])
+    return RuleResult(rule.id, Verdict.SKIP, default_reason or "not examined", [])
+
+
+def skip_reason(rule: Rule, *, kind: str, unit: str, levels: tuple[str, ...] | None,
+                note: str = "") -> str:
+    """Why a rule that was never examined is skipped (the reason a person reads).
+
+    ``levels`` is what the unit declares in its heartbeat, or None when no heartbeat was seen;
+    ``note`` is what the check itself said (``only 3 intervals observed; need 10``).
+    """
+    if rule.mode is Mode.ACTIVE and kind == "lint":
+        return f"needs a stimulus: run pytest --unit {unit}"
+    level = LEVEL_NAMES.get(rule.level)
+    if level is not None and note == "":
+        if levels is None:
+            return f"no heartbeat seen: cannot tell whether the unit claims the '{level}' level"
+        if level not in levels:
+            return f"not claimed: unit declares no '{level}' level"
+    if note:
+        return note
+    if rule.mode is Mode.ACTIVE:
+        return "not run in this session"
+    return "no message this rule applies to was seen"
+
+
+def redact_broker(url: str) -> str:
+    """A broker URL fit for a report: never with a password (``mqtts://user@host:8883``)."""
+    return re.sub(r"^([a-z][a-z0-9+.-]*://)([^:@/]*):[^@/]*@", r"\1\2@", url or "", flags=re.I)
+
+
+@dataclass
+class RateStat:
+    """The measured rate of one periodic message of one unit against the rate it declares.
+
+    Intervals are in seconds, rates in Hz. ``series`` is (arrival time, rate in Hz) at most
+    600 points, downsampled for plots. ``verdict`` is skip with ``reason`` while fewer than the
+    profile's minimum number of intervals were observed.
+    """
+
+    unit: str
+    kind: str
+    topic: str
+    declared_hz: float | None
+    measured_hz: float | None
+    intervals: int
+    mean_interval: float | None
+    min_interval: float | None
+    max_interval: float | None
+    verdict: Verdict
+    series: list[tuple[float, float]] = field(default_factory=list)
+    rule: str = ""
+    reason: str = ""
+    silences: int = 0
+    """Intervals longer than 3 declared periods (HB-010), left out of the mean when others
+    are enough to judge."""
+    start: float | None = None
+    end: float | None = None
+    tolerance: float | None = None
+    """The profile's rate tolerance (0.2 = 20 % of the declared period)."""
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dict(self.__dict__)
+        d["verdict"] = self.verdict.value
+        d["series"] = [[round(t, 6), round(r, 6)] for t, r in self.series]
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> RateStat:
+        d = dict(d)
+        d["verdict"] = Verdict(d["verdict"])
+        d["series"] = [(float(t), float(r)) for t, r in d.get("series", [])]
+        return cls(**d)
+
+
+@dataclass
+class UnitReport:
+    """Everything a run found about one unit: a verdict for every applicable rule, its rates."""
+
+    unit: str
+    agent_type: str
+    role: str
+    name: str
+    agent_uuids: list[str] = field(default_factory=list)
+    levels: list[str] = field(default_factory=list)
+    message_count: int = 0
+    first_seen: float | None = None
+    last_seen: float | None = None
+    rules: dict[str, RuleResult] = field(default_factory=dict)
+    rates: list[RateStat] = field(default_factory=list)
+    examined: dict[str, int] = field(default_factory=dict)
+    """How many times each rule was examined."""
+    violation_counts: dict[str, int] = field(default_factory=dict)
+    """How many violations of each rule were seen (``rules`` keeps the first few as evidence)."""
+    facts: dict[str, Any] = field(default_factory=dict)
+    """What the unit declared and did, for people: sensors listed and seen, tasks, position."""
+
+    def verdict_counts(self) -> dict[str, int]:
+        counts = Counter(r.verdict.value for r in self.rules.values())
+        return {v.value: counts.get(v.value, 0) for v in Verdict}
+
+    def worst(self) -> Verdict:
+        return Verdict.worst([r.verdict for r in self.rules.values()])
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dict(self.__dict__)
+        d["rules"] = {rid: _rule_result_to_dict(r) for rid, r in self.rules.items()}
+        d["rates"] = [r.to_dict() for r in self.rates]
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> UnitReport:
+        d = dict(d)
+        d["rules"] = {rid: _rule_result_from_dict(r) for rid, r in d.get("rules", {}).items()}
+        d["rates"] = [RateStat.from_dict(r) for r in d.get("rates", [])]
+        return cls(**d)
+
+
+def _rule_result_to_dict(r: RuleResult) -> dict[str, Any]:
+    return {"rule": r.rule, "verdict": r.verdict.value, "reason": r.reason,
+            "violations": [v.to_dict() for v in r.violations]}
+
+
+def _rule_result_from_dict(d: dict[str, Any]) -> RuleResult:
+    return RuleResult(d["rule"], Verdict(d["verdict"]), d.get("reason", ""),
+                      [Violation(**v) for v in d.get("violations", [])])
+
+
+@dataclass
+class RunReport:
+    """One run (a certification or a lint): its context and a report per unit.
+
+    Times are Unix seconds. ``broker`` never carries a password. ``gaps`` are the times the
+    observer was disconnected; ``unexamined`` counts messages it could not examine.
+    """
+
+    kind: str
+    started: float
+    finished: float | None
+    broker: str = ""
+    profile: str = "default"
+    suite_version: str = ""
+    schemas_hash: str = ""
+    units: dict[str, UnitReport] = field(default_factory=dict)
+    gaps: list[tuple[float, float]] = field(default_factory=list)
+    unexamined: int = 0
+    meta: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.broker = redact_broker(self.broker)
+
+    def verdict_counts(self) -> dict[str, int]:
+        """Number of (unit, rule) results per verdict, every verdict present."""
+        total: Counter[str] = Counter()
+        for unit in self.units.values():
+            total.update(unit.verdict_counts())
+        return {v.value: total.get(v.value, 0) for v in Verdict}
+
+    def worst(self) -> Verdict:
+        return Verdict.worst([u.worst() for u in self.units.values()])
+
+    def exit_code(self) -> int:
+        """0 when no rule failed, 1 otherwise (warn, skip and could-not-test exit 0)."""
+        return 1 if self.worst() is Verdict.FAIL else 0
+
+    def failures(self) -> list[tuple[str, RuleResult]]:
+        """(unit, result) for every failed or warned rule, failures first."""
+        out = [(u, r) for u, rep in self.units.items() for r in rep.rules.values()
+               if r.verdict in (Verdict.FAIL, Verdict.WARN)]
+        return sorted(out, key=lambda ur: (-ur[1].verdict.rank, ur[0], ur[1].rule))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "format": "waraps-conformance-report/1",
+            "kind": self.kind, "started": self.started, "finished": self.finished,
+            "broker": self.broker, "profile": self.profile, "suite_version": self.suite_version,
+            "schemas_hash": self.schemas_hash,
+            "verdict_counts": self.verdict_counts(), "worst": self.worst().value,
+            "units": {name: u.to_dict() for name, u in self.units.items()},
+            "gaps": [list(g) for g in self.gaps], "unexamined": self.unexamined,
+            "meta": dict(self.meta),
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> RunReport:
+        return cls(
+            kind=d["kind"], started=d["started"], finished=d.get("finished"),
+            broker=d.get("broker", ""), profile=d.get("profile", "default"),
+            suite_version=d.get("suite_version", ""), schemas_hash=d.get("schemas_hash", ""),
+            units={n: UnitReport.from_dict(u) for n, u in d.get("units", {}).items()},
+            gaps=[(float(a), float(b)) for a, b in d.get("gaps", [])],
+            unexamined=int(d.get("unexamined", 0)), meta=dict(d.get("meta", {})),
+        )
+
+
+def rule_title(rule_id: str) -> str:
+    rule = CATALOGUE.get(rule_id)
+    return rule.title if rule else rule_id
+
+
+def rule_section(rule_id: str) -> str:
+    rule = CATALOGUE.get(rule_id)
+    return rule.section if rule else ""

@@ -1,0 +1,343 @@
+"""The rule catalogue: one entry per normative statement of the WARA-PS Core System API v0.7.
+
+Every check, fault switch and report speaks of rules by these ids. An id is stable: never
+renumber, only add. The spec's own errors are entries too (``ERR-*``), each with the decision
+taken; by default the readings found in practice pass with a warning (severity ``warning``)
+and the built-in ``strict`` profile turns them into failures.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+
+
+class Severity(str, enum.Enum):
+    """How a violation of a rule counts: ``error`` fails, ``warning`` warns."""
+
+    ERROR = "error"
+    WARNING = "warning"
+
+
+class Level(str, enum.Enum):
+    """The API level a rule belongs to (spec 5.1 levels, plus topic naming and any message)."""
+
+    TOPIC = "topic"
+    ANY = "any"
+    SENSOR = "sensor"
+    DIRECT_EXECUTION = "direct execution"
+    TST_EXECUTION = "tst execution"
+
+
+class Mode(str, enum.Enum):
+    """Whether a rule is judged from observed traffic alone or needs a command sent."""
+
+    PASSIVE = "passive"
+    ACTIVE = "active"
+
+
+@dataclass(frozen=True)
+class Rule:
+    id: str
+    title: str
+    section: str
+    severity: Severity
+    level: Level
+    mode: Mode
+    decision: str = ""
+    """For errata and unclear points: what this suite decided, and why."""
+
+    @property
+    def is_erratum(self) -> bool:
+        return self.id.startswith("ERR-")
+
+
+E, W = Severity.ERROR, Severity.WARNING
+T, A, S, D, X = Level.TOPIC, Level.ANY, Level.SENSOR, Level.DIRECT_EXECUTION, Level.TST_EXECUTION
+P, C = Mode.PASSIVE, Mode.ACTIVE
+
+_CATALOGUE: tuple[Rule, ...] = (
+    # --- 3 Topics JSON/MQTT ---------------------------------------------------------------
+    Rule("TOPIC-001", "topic does not start with '/'", "3.2 Naming Conventions", E, T, P),
+    Rule("TOPIC-002", "topic is all lowercase", "3.2 Naming Conventions", E, T, P),
+    Rule("TOPIC-003", "topic words are joined by '_' (no '-', '.', spaces or camelCase)",
+         "3.2 Naming Conventions", E, T, P),
+    Rule("TOPIC-004", "unit topic has the form PREFIX1/unit/TYPE/ROLE/UNIT/...",
+         "3.1 Topic Naming Scheme", E, T, P,
+         "A topic under PREFIX1/unit/ with fewer than five non-empty levels, or an empty "
+         "level anywhere, cannot be attributed to a unit and fails."),
+    Rule("TOPIC-005", "agent type in the topic is air, ground, surface or subsurface",
+         "3.1 Topic Naming Scheme", E, T, P),
+    Rule("TOPIC-006", "role in the topic is real, simulation or playback",
+         "3.1 Topic Naming Scheme", W, T, P,
+         "3.1 lists 'real, simulation, playback...': the list is open, so another role "
+         "warns instead of failing."),
+    Rule("TOPIC-007", "subtopic is one the spec defines", "3.1 Topic Naming Scheme", W, T, P,
+         "Known: heartbeat, sensor_info, direct_execution_info, tst_execution_info, "
+         "sensor/<name>, exec/{command,response,feedback}, tst/{command,response,feedback}. "
+         "Anything else is reported (warn) and otherwise left alone."),
+    Rule("TOPIC-008", "topic has no wildcard, control character, space or non-ASCII character",
+         "3.2 Naming Conventions", E, T, P),
+    # --- every message ----------------------------------------------------------------------
+    Rule("MSG-001", "payload is UTF-8 text", "12 Direct Execution API JSON", E, A, P),
+    Rule("MSG-002", "payload is valid JSON (RFC 8259: no NaN, Infinity or trailing commas)",
+         "12 Direct Execution API JSON", E, A, P),
+    Rule("MSG-003", "payload is a JSON object where the message is an object",
+         "5 Heartbeat/Info", E, A, P),
+    Rule("MSG-004", "payload is within the examinable size and nesting depth",
+         "2 WARAPS API Specifications", E, A, P,
+         "Not in the spec: a payload over 1 MiB or nested deeper than 64 levels is not "
+         "examined further and fails; no WARA-PS message comes near either limit."),
+    Rule("MSG-005", "stamp is Unix time in seconds (a double) close to the receive time",
+         "5.1 General Heartbeat Message", E, A, P,
+         "5.1: 'Time stamp in double (time.time() in Python, seconds in double)'. A stamp "
+         "more than the profile's clock tolerance (default 30 s) from the arrival time fails; "
+         "the message says when it looks like milliseconds or nanoseconds."),
+    Rule("MSG-006", "name in the message equals the UNIT of its topic", "5 Heartbeat/Info",
+         E, A, P),
+    # --- 5.1 heartbeat ----------------------------------------------------------------------
+    Rule("HB-001", "heartbeat has every field of 5.1 with its type", "5.1 General Heartbeat Message",
+         E, A, P),
+    Rule("HB-002", "heartbeat type is 'HeartBeat'", "5.1 General Heartbeat Message", E, A, P),
+    Rule("HB-003", "heartbeat rate matches its declared rate", "5.1 General Heartbeat Message",
+         E, A, P,
+         "Mean period over at least 10 intervals within the profile's tolerance (default "
+         "20 %), and no single gap over 1.5 declared periods (FIELD-NOTES timing jitter)."),
+    Rule("HB-004", "agent-type is air, ground, surface or subsurface and matches the topic",
+         "5.1 General Heartbeat Message", E, A, P),
+    Rule("HB-005", "agent-uuid is a UUID", "5.1 General Heartbeat Message", E, A, P),
+    Rule("HB-006", "agent-uuid stays the same while the unit lives",
+         "5 Heartbeat/Info", E, A, P,
+         "An agent-uuid may only change across a reboot (a silence of more than two declared "
+         "periods before the new one); a flip-flop or a change without silence fails."),
+    Rule("HB-007", "levels are among: sensor, direct execution, tst execution, delegation",
+         "5.1 General Heartbeat Message", E, A, P),
+    Rule("HB-008", "every declared level is backed by its info message",
+         "5 Heartbeat/Info", E, A, P,
+         "sensor -> sensor_info, direct execution -> direct_execution_info, tst execution -> "
+         "tst_execution_info; delegation has no info message in v0.7 and is not checked. "
+         "Decided at the end over the whole observation: info messages may come slower than "
+         "the heartbeat (5), so a level fails only when observed for the profile's info_wait "
+         "(30 s; at least 3 heartbeat periods) without its info message, else it is skipped."),
+    Rule("HB-009", "rate is a positive number of Hz", "5.1 General Heartbeat Message", E, A, P),
+    Rule("HB-010", "the unit does not fall silent (no heartbeat for 3 declared periods)",
+         "5.1 General Heartbeat Message", W, A, P,
+         "5.1: the heartbeat registers availability. A silence of more than 3 declared periods "
+         "warns (a boat out of range is allowed to fall silent); coming back with the same "
+         "agent-uuid is a resumption, with a new one a reboot (HB-006)."),
+    Rule("HB-011", "one unit name is used by one live agent (not two agent-uuids at once)",
+         "5 Heartbeat/Info", E, A, P,
+         "Two processes publishing under one unit name alternate agent-uuids without silence; "
+         "commanders cannot tell them apart."),
+    Rule("MSG-007", "retained messages are not stale", "5 Heartbeat/Info", W, A, P,
+         "Not in the spec: a retained heartbeat or info message whose stamp is older than 3 "
+         "declared periods makes a dead unit look alive to every new subscriber."),
+    # --- 5.2 sensor_info / 6 sensors ---------------------------------------------------------
+    Rule("SI-001", "sensor_info has every field of 5.2 with its type (type 'SensorInfo')",
+         "5.2 Sensor Level Message", E, S, P),
+    Rule("SI-002", "sensor_info rate matches its declared rate", "5.2 Sensor Level Message",
+         E, S, P),
+    Rule("SI-003", "every sensor listed in sensor-data-provided is published",
+         "5.2 Sensor Level Message", E, S, P),
+    Rule("SI-004", "the mandatory sensors position, heading, course and speed are provided",
+         "6.1 Mandatory Sensors", E, S, P),
+    Rule("SI-005", "no sensor topic is published that sensor_info does not list",
+         "5.2 Sensor Level Message", W, S, P),
+    Rule("SENS-001", "sensor/position is a GeoPoint (latitude, longitude, altitude in range)",
+         "6.1 Mandatory Sensors", E, S, P),
+    Rule("SENS-002", "sensor/heading and sensor/course are numbers in degrees [0, 360)",
+         "6.1 Mandatory Sensors", E, S, P,
+         "The spec says float; degrees are implied by every angle in section 9. A value "
+         "outside [0, 360) fails (negative or radians-looking headings are common bugs)."),
+    Rule("SENS-003", "sensor/speed is a non-negative number (m/s)", "6.1 Mandatory Sensors",
+         E, S, P),
+    Rule("SENS-004", "URL sensors (camera_url, videoserver_url, *_url) are strings",
+         "6.2 Optional Sensors", E, S, P),
+    Rule("SENS-005", "position moves no faster than the reported speed allows",
+         "6.1 Mandatory Sensors", W, S, P,
+         "Not stated by the spec; a plausibility check of units (e.g. speed in km/h): the "
+         "distance between two positions over their interval exceeding 3x the largest "
+         "reported speed plus 5 m/s warns."),
+    # --- 5.3 direct_execution_info ------------------------------------------------------------
+    Rule("DEI-001", "direct_execution_info has every field of 5.3 with its type",
+         "5.3 Direct Execution Level Info", E, D, P),
+    Rule("DEI-002", "direct_execution_info rate matches its declared rate",
+         "5.3 Direct Execution Level Info", E, D, P),
+    Rule("DEI-003", "signals starting with '$' are the built-in $enough, $pause, $continue, $abort",
+         "12.2.2 signal-task", E, D, P),
+    Rule("DEI-004", "tasks-executing lists exactly the tasks that run",
+         "5.3 Direct Execution Level Info", E, D, C),
+    Rule("TEI-001", "tst_execution_info is an object with name, rate, stamp and type",
+         "2.2/3.1 (tst_execution_info is named, not defined)", E, X, P,
+         "v0.7 names the topic without defining the message; the suite accepts any object "
+         "with name, rate, stamp, type (see ERR-011)."),
+    Rule("TEI-002", "tst_execution_info rate matches its declared rate", "3.1 Topic Naming Scheme",
+         E, X, P),
+    # --- 12 direct execution --------------------------------------------------------------------
+    Rule("EXEC-001", "exec/command matches the schema of its command", "12.2 Task Command Messages",
+         E, D, P),
+    Rule("EXEC-002", "exec/response has agent-uuid, com-uuid, response and response-to",
+         "12.3 Response Messages", E, D, P),
+    Rule("EXEC-003", "response value is one the spec defines for the command",
+         "12.1 Commands", E, D, P),
+    Rule("EXEC-004", "response agent-uuid equals the unit's heartbeat agent-uuid",
+         "12.1 Commands", E, D, P),
+    Rule("EXEC-005", "response has a fresh com-uuid of its own (not the command's)",
+         "12.1 Commands", E, D, P,
+         "2: 'Use UUID to identify a communication message': a response reusing the command's "
+         "com-uuid breaks resend detection on the commander's side."),
+    Rule("EXEC-006", "every response answers a command that was sent (response-to)",
+         "12.1 Commands", E, D, P),
+    Rule("EXEC-007", "a failed response carries a non-empty fail-reason", "12.1 Commands",
+         E, D, P),
+    Rule("EXEC-008", "a commander does not reuse a com-uuid for a different command",
+         "2 WARAPS API Specifications", E, D, P,
+         "2: 'Use UUID to identify a communication message' and 12.1's resend reuses it for "
+         "the same command; the same com-uuid with other content makes a resend ambiguous."),
+    Rule("EXEC-PING-001", "ping is answered with a pong within the deadline", "12.2.1 ping",
+         E, D, C),
+    Rule("EXEC-PING-002", "pong response-to is the ping's com-uuid", "12.3.1 ping response",
+         E, D, C),
+    Rule("EXEC-START-001", "start-task is answered running or failed (with a reason)",
+         "12.3.3 start-task response", E, D, C),
+    Rule("EXEC-START-002", "start-task response carries the task-uuid sent, or a generated one",
+         "12.1 Commands", E, D, C),
+    Rule("EXEC-START-003", "a started task sends feedback until a final status",
+         "12.4 Feedback Messages", E, D, C),
+    Rule("EXEC-START-004", "start-task with invalid parameters is refused with a reason",
+         "12.1 Commands", E, D, C),
+    Rule("EXEC-START-005", "start-task of a task not in tasks-available is refused",
+         "5.3 Direct Execution Level Info", E, D, C),
+    Rule("EXEC-SIG-001", "signal-task is answered", "12.2.2 signal-task", E, D, C,
+         "12.3.2 is empty; the suite expects a response like start-task's (see ERR-013)."),
+    Rule("EXEC-SIG-002", "$abort ends the task with feedback 'aborted'", "12.2.2 signal-task",
+         E, D, C),
+    Rule("EXEC-SIG-003", "$pause gives feedback 'paused' and $continue 'running'",
+         "12.2.2 signal-task", E, D, C),
+    Rule("EXEC-SIG-004", "$enough ends the task with feedback 'finished'", "12.2.2 signal-task",
+         E, D, C),
+    Rule("EXEC-SIG-005", "a signal for an unknown task-uuid is answered 'failed'",
+         "12.2.2 signal-task", E, D, C),
+    Rule("EXEC-QUERY-001", "query-status answers the task's status over the whole history",
+         "12.1 Commands", E, D, C),
+    Rule("EXEC-QUERY-002", "query-status of a task never seen answers 'unknown'", "12.1 Commands",
+         E, D, C),
+    Rule("EXEC-RESEND-001", "a command resent with the same com-uuid is not executed twice",
+         "12.1 Commands", E, D, C),
+    Rule("EXEC-RESEND-002", "a command resent with the same com-uuid is answered again",
+         "12.1 Commands", W, D, C,
+         "12.1 says the commander resends until a response arrives, so the unit should "
+         "answer again (DESIGN: 'should'): a missing second answer warns."),
+    Rule("EXEC-FB-001", "exec/feedback has agent-uuid, com-uuid, task-uuid and status",
+         "12.4 Feedback Messages", E, D, P),
+    Rule("EXEC-FB-002", "feedback status is a standard status or a declared task-specific one",
+         "12.4 Feedback Messages", E, D, P,
+         "Task-specific strings are allowed (12.4), so an unknown status warns; one that is a "
+         "near miss of a standard status (case, a typo) fails."),
+    Rule("EXEC-FB-003", "feedback agent-uuid equals the unit's heartbeat agent-uuid",
+         "12.4 Feedback Messages", E, D, P),
+    Rule("EXEC-FB-004", "no feedback for a task after its final status", "12.4 Feedback Messages",
+         E, D, P),
+    Rule("EXEC-ROBUST-001", "malformed or unknown commands do not stop the unit (it still pings)",
+         "12.1 Commands", E, D, C),
+    Rule("EXEC-ROBUST-002", "a malformed command with a readable com-uuid is answered 'failed'",
+         "12.1 Commands", W, D, C),
+    Rule("REBOOT-001", "a reboot gives a new agent-uuid", "5 Heartbeat/Info", E, A, C),
+    Rule("REBOOT-002", "after a reboot that changed agent-uuid, earlier tasks are unknown; "
+         "with the same agent-uuid they are still known", "12.1 Commands", E, D, C,
+         "12.1: the changing agent-uuid tells the commander that history was lost; a unit "
+         "that keeps its uuid but forgets its history fails."),
+    # --- 14 TST execution --------------------------------------------------------------------
+    Rule("TST-001", "tst/command matches the schema of its command", "14.3 TST Command Messages",
+         E, X, P),
+    Rule("TST-002", "tst/response matches the schema of its response", "14.4 Response Messages",
+         E, X, P),
+    Rule("TST-003", "tst/feedback matches the schema and its status is a TST status",
+         "14.5 Feedback Messages", E, X, P),
+    Rule("TASK-001", "task parameters match the task's specification", "9 Tasks", E, D, P),
+    Rule("TASK-002", "task name is a task of section 9", "9 Tasks", W, D, P,
+         "Units may implement tasks beyond section 9 (5.3 tasks-available is open), so an "
+         "unknown name warns; its params are then not checked."),
+    Rule("TASK-003", "no parameter that the task does not define", "9 Tasks", W, D, P),
+    # --- errata: the spec contradicts itself ---------------------------------------------------
+    Rule("ERR-001", "sensor level topic is 'sensor_info', not 'sensor.info'",
+         "5.2 vs 3.1", W, S, P,
+         "5.2 says 'UNIT/sensor.info', 3.1's examples and 3.2's convention say sensor_info. "
+         "sensor_info is canonical; sensor.info is accepted with a warning (strict: fail)."),
+    Rule("ERR-002", "messages are valid JSON even where the spec's examples are not",
+         "5.2, 5.3, 10.1.8, 12.2.2", E, A, P,
+         "The examples have unquoted 'signal: $abort', trailing commas and unbalanced braces. "
+         "They are read as typos: the schemas say what is meant, and a unit that copies them "
+         "sends invalid JSON (MSG-002)."),
+    Rule("ERR-003", "look-at-bearing's parameter is 'use-absolute-bearing'",
+         "9.3 vs 10.1.1", W, D, P,
+         "10.1.1 writes 'use_absoiute_bearing'. 9.3 is canonical; the example's spelling is "
+         "accepted with a warning and ignored (strict: fail)."),
+    Rule("ERR-004", "observe-position's geopoint is a GeoPoint and speed a string",
+         "9.8 vs 10.1.6, 11.1.6", W, D, P,
+         "The examples give 'geopoint' as a one-element list and 'speed' as [7.0]. 9.8 is "
+         "canonical; the example forms are accepted with a warning (strict: fail)."),
+    Rule("ERR-005", "TST node 'look-at-angle' with pan parameters is not a defined task",
+         "11.1.1 vs 9", W, X, P,
+         "11.1.1 uses look-at-angle/pan, which section 9 does not define (look-at-bearing "
+         "is the closest). Unknown TST node names warn (TASK-002)."),
+    Rule("ERR-006", "query-status answers 'finished' for a completed task",
+         "12.1", W, D, P,
+         "12.1 lists query-status results running, failed, success, unknown while responses "
+         "say finished. 'finished' is canonical (as responses and feedback); 'success' is "
+         "accepted with a warning (strict: fail)."),
+    Rule("ERR-007", "'signal-executor' with 'uuid' is not one of the four commands",
+         "12.2.2 vs 12.1", W, D, P,
+         "12.2.2 shows signal-executor, 12.1 lists four commands. It is treated as an unknown "
+         "command: a unit may refuse it; a commander sending it warns."),
+    Rule("ERR-008", "level names are written with a space ('direct execution')",
+         "5.1", W, A, P,
+         "5.1's example writes 'direct execution' and its prose 'tst execution'. The spaced "
+         "form is canonical; 'direct_execution' is accepted with a warning (strict: fail)."),
+    Rule("ERR-009", "a TST node's common parameters are under 'common_params'",
+         "11, 14.3.4", W, X, P,
+         "Every example writes common_params although all other keys use hyphens. common_params "
+         "is canonical; 'common-params' is accepted with a warning (strict: fail)."),
+    Rule("ERR-010", "GeoPoints are tagged \"rostype\": \"GeoPoint\"", "6.1, 10, 11", W, A, P,
+         "Every example tags rostype; 'type': 'GeoPoint' or no tag are found in practice and "
+         "accepted with a warning (strict: fail). A tag with another value fails (SENS-001/"
+         "TASK-001)."),
+    Rule("ERR-011", "tst_execution_info is named but not defined", "3.1", W, X, P,
+         "Accept an object with name, rate, stamp, type (TEI-001); nothing more is checked."),
+    Rule("ERR-012", "info messages carry agent-uuid", "5 vs 5.2, 5.3", W, A, P,
+         "5 says info messages 'should have an agent-uuid field'; the examples of 5.2 and 5.3 "
+         "have none. Missing agent-uuid in an info message warns (strict: fail)."),
+    Rule("ERR-013", "signal-task response has the form of a start-task response",
+         "12.3.2 (empty)", W, D, P,
+         "12.3.2 is empty. The suite expects agent-uuid, com-uuid, response-to and response "
+         "(running, finished, failed, ok, paused, aborted); fail-reason when failed."),
+    Rule("ERR-014", "com-uuid, task-uuid and node-uuid are UUIDs (8-4-4-4-12 hex digits)",
+         "2, 11.1.7, 11.1.8", W, A, P,
+         "2: 'Use UUID to identify a communication message'. 11.1.7's com-uuid has 11 hex "
+         "digits in its last group and 11.1.8's node-uuid 9 in its first: identifiers are "
+         "compared as opaque strings, so a malformed one warns (strict: fail). agent-uuid "
+         "stays HB-005 (error)."),
+)
+
+CATALOGUE: dict[str, Rule] = {rule.id: rule for rule in _CATALOGUE}
+assert len(CATALOGUE) == len(_CATALOGUE), "duplicate rule id"
+
+
+def get(rule_id: str) -> Rule:
+    """The rule with this id; KeyError names close matches."""
+    try:
+        return CATALOGUE[rule_id]
+    except KeyError:
+        import difflib
+
+        close = difflib.get_close_matches(rule_id, CATALOGUE, n=3)
+        hint = f" (did you mean {', '.join(close)}?)" if close else ""
+        raise KeyError(f"unknown rule id {rule_id!r}{hint}") from None
+
+
+def rules(*, level: Level | None = None, mode: Mode | None = None) -> list[Rule]:
+    """The catalogue in id order, optionally filtered by level and mode."""
+    return [
+        r for r in _CATALOGUE
+        if (level is None or r.level is level) and (mode is None or r.mode is mode)
+    ]

@@ -1,0 +1,38 @@
+"""``waraps-conformance rules``: print the rule catalogue (id, severity, section, title)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from conformance import profile as profiles
+from conformance.rules import CATALOGUE
+
+
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(prog="waraps-conformance rules",
+                                     description="Print the rule catalogue.")
+    parser.add_argument("--format", choices=("text", "json"), default="text")
+    parser.add_argument("--profile", default="default",
+                        help="severities as this profile sets them (e.g. strict)")
+    parser.add_argument("--errata", action="store_true", help="only the spec's errata, with "
+                        "the decision taken on each")
+    args = parser.parse_args(argv)
+    try:
+        profile = profiles.load(args.profile)
+    except profiles.ProfileError as e:
+        parser.error(str(e))
+    rules = [r for r in CATALOGUE.values() if r.is_erratum or not args.errata]
+    if args.format == "json":
+        print(json.dumps([{"id": r.id, "title": r.title, "section": r.section,
+                           "severity": profile.severity_of(r.id).value, "level": r.level.value,
+                           "mode": r.mode.value, "decision": r.decision} for r in rules],
+                         indent=2))
+        return 0
+    w = max(len(r.id) for r in rules)
+    for r in rules:
+        print(f"{r.id:<{w}}  {profile.severity_of(r.id).value:<7}  {r.mode.value:<7}  "
+              f"{r.section:<32.32}  {r.title}")
+        if args.errata and r.decision:
+            print(f"{'':<{w}}  decision: {r.decision}\n")
+    return 0

@@ -1,0 +1,53 @@
+"""Active scenarios: the stimuli the certification suite sends to the unit under test, and the
+expectations it checks (DESIGN 'Active scenarios').
+
+Each scenario drives the unit through one part of spec 12 and records a verdict for each of
+its rules through ``Context.record``, the same way the passive checks do. ``SCENARIOS`` lists
+them in the order the suite runs them: reboot last, because it wipes the unit's history.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from conformance.scenarios import ping, query, reboot, resend, robust, signal, start
+from conformance.scenarios.commander import Commander, DryRun
+from conformance.scenarios.context import Context, Timing
+from conformance.scenarios.safety import Position, Safety
+from conformance.scenarios.traffic import Entry, Traffic
+
+DIRECT_EXECUTION = "direct execution"
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A named driver, the rule ids it judges, and the level the unit must declare for it."""
+
+    name: str
+    rules: tuple[str, ...]
+    run: Callable[[Context], None]
+    level: str | None = DIRECT_EXECUTION
+    doc: str = ""
+
+
+SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
+    Scenario("ping", ping.RULES, ping.run, doc="ping is answered with pong (12.2.1)"),
+    Scenario("start", start.RULES, start.run,
+             doc="start-task of every task the profile allows (12.2.3, 12.4, 5.3)"),
+    Scenario("refuse", start.REFUSAL_RULES, start.run_refusals,
+             doc="invalid parameters and unknown tasks are refused (12.1)"),
+    Scenario("signal", signal.RULES, signal.run, doc="every signal the unit lists (12.2.2)"),
+    Scenario("query", query.RULES, query.run, doc="query-status over the history (12.1)"),
+    Scenario("resend", resend.RULES, resend.run,
+             doc="a resent command is answered again, executed once (12.1)"),
+    Scenario("robust", robust.RULES, robust.run,
+             doc="malformed and unknown commands do not stop the unit (12.1)"),
+    Scenario("reboot", reboot.RULES, reboot.run, level=None,
+             doc="a reboot gives a new agent-uuid and forgets the history (5, 12.1)"),
+)}
+
+RULE_SCENARIO: dict[str, str] = {rule: s.name for s in SCENARIOS.values() for rule in s.rules}
+
+__all__ = ["SCENARIOS", "RULE_SCENARIO", "Scenario", "Context", "Timing", "Commander", "DryRun",
+           "Safety", "Position", "Traffic", "Entry"]

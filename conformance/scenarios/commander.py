@@ -1,0 +1,252 @@
+"""The commander side of spec 12: send commands to the unit under test and wait for its answers.
+
+Only the unit's own ``exec/command`` topic is ever published to (the MQTT client's publish
+policy enforces it as well: DESIGN 'Safety'). Every task the commander starts is remembered
+until a final status is seen, so ``abort_all`` can end it at teardown, on failure and on
+Ctrl-C. Under ``--dry-run`` nothing is published: ``send`` prints what it would publish and
+raises ``DryRun``.
+"""
+
+from __future__ import annotations
+
+import threading
+import uuid
+from collections.abc import Callable, Collection
+from dataclasses import dataclass, field
+from typing import Any
+
+import orjson
+
+from conformance.scenarios.traffic import Entry, Traffic
+from conformance.topics import UnitAddress
+
+SENDER = "waraps-conformance"
+FINAL_STATUSES = frozenset({"finished", "failed", "aborted"})  # 12.4: a task ends with these
+
+
+class DryRun(Exception):
+    """Raised instead of publishing under ``--dry-run``; the message says what would be sent."""
+
+
+@dataclass
+class Sent:
+    """A command as published: its ``com_uuid``, body, and the traffic mark taken just before
+    it went out (answers arrive after ``mark``)."""
+
+    com_uuid: str
+    body: dict[str, Any]
+    payload: bytes
+    mark: int
+    gaps_before: int = 0
+
+
+@dataclass
+class OpenTask:
+    task_uuid: str
+    name: str
+    mark: int
+    """Traffic mark from when the task was started: its feedback arrives after this."""
+    com_uuids: list[str] = field(default_factory=list)
+
+
+def new_uuid() -> str:
+    # Fresh, not seeded: a com-uuid repeated across runs would look like a resend (12.1).
+    return str(uuid.uuid4())
+
+
+class Commander:
+    """Sends spec-12 commands to one unit and waits, with deadlines, for responses and feedback.
+
+    ``publish(topic, payload)`` does the MQTT publish; ``gaps()`` returns how many connection
+    gaps the client has lived through (a command sent across a gap is resent with the same
+    com-uuid, as 2 and 12.1 prescribe for unreliable links).
+    """
+
+    def __init__(self, unit: UnitAddress, traffic: Traffic,
+                 publish: Callable[[str, bytes], None], *, dry_run: bool = False,
+                 say: Callable[[str], None] = print, gaps: Callable[[], int] = lambda: 0,
+                 wait_connected: Callable[[float], bool] = lambda timeout: True) -> None:
+        self.unit = unit
+        self.topic = unit.topic("exec/command")
+        self.traffic = traffic
+        self._publish = publish
+        self.dry_run = dry_run
+        self._say = say
+        self._gaps = gaps
+        self._wait_connected = wait_connected
+        self._lock = threading.Lock()
+        self.open_tasks: dict[str, OpenTask] = {}
+        self.sent_count = 0
+        self.would_publish: list[tuple[str, bytes]] = []
+        """Under --dry-run: what would have been published."""
+        self._closed: set[object] = set()
+        """task-uuids that need no $abort any more (refused, or their $abort was answered)."""
+        self._start_commands: dict[str, Sent] = {}
+        """com-uuid -> start-task sent: the unit's answers name the task-uuids it generated."""
+        self.deliberately_invalid: set[bytes] = set()
+        """Payloads sent broken on purpose (robustness, invalid parameters): not the unit's
+        fault, so the passive checks are not fed these."""
+
+    # --- publishing ----------------------------------------------------------------------
+    def send(self, body: dict[str, Any], *, com_uuid: str | None = None,
+             invalid: bool = False) -> Sent:
+        """Publish a command; ``com-uuid`` and ``sender`` are filled in when missing."""
+        body = dict(body)
+        body.setdefault("com-uuid", com_uuid or new_uuid())
+        body.setdefault("sender", SENDER)
+        payload = orjson.dumps(body, option=orjson.OPT_SORT_KEYS)
+        return self._send_payload(payload, body, invalid=invalid)
+
+    def send_raw(self, payload: bytes, *, com_uuid: str = "") -> Sent:
+        """Publish a payload as is (robustness: malformed JSON, arrays, non-UTF-8)."""
+        return self._send_payload(payload, {}, invalid=True, com_uuid=com_uuid)
+
+    def resend(self, sent: Sent) -> Sent:
+        """Publish the very same command again (12.1: resend with the same com-uuid)."""
+        return self._send_payload(sent.payload, sent.body,
+                                  invalid=sent.payload in self.deliberately_invalid)
+
+    def _send_payload(self, payload: bytes, body: dict[str, Any], *, invalid: bool,
+                      com_uuid: str = "") -> Sent:
+        if invalid:
+            self.deliberately_invalid.add(payload)
+        if self.dry_run:
+            self.would_publish.append((self.topic, payload))
+            shown = payload.decode("utf-8", "backslashreplace")
+            self._say(f"dry run: would publish to {self.topic}: {shown}")
+            raise DryRun(f"dry run: would publish to {self.topic}: {shown[:200]}")
+        self._wait_connected(5.0)  # a command sent into a gap is lost; wait for the link
+        mark = self.traffic.mark()
+        sent = Sent(str(body.get("com-uuid", com_uuid)), body, payload, mark, self._gaps())
+        # Remembered before it goes out: a Ctrl-C between publish and answer must not leave
+        # a task running that abort_all does not know about.
+        self._track(sent, None)
+        self._publish(self.topic, payload)
+        with self._lock:
+            self.sent_count += 1
+        return sent
+
+    # --- waiting for answers ---------------------------------------------------------------
+    def response(self, sent: Sent, timeout: float, *, after: int | None = None) -> Entry | None:
+        """The unit's response whose ``response-to`` is the command's com-uuid (12.3)."""
+        com_uuid = sent.com_uuid
+        return self.traffic.wait_for(lambda e: e.get("response-to") == com_uuid, timeout,
+                                     after=sent.mark if after is None else after,
+                                     subtopic="exec/response")
+
+    def request(self, body: dict[str, Any], timeout: float, *,
+                invalid: bool = False) -> tuple[Sent, Entry | None]:
+        """Send and wait for the response; resend once with the same com-uuid when the
+        connection dropped meanwhile (2: 'resending commands with the same UUID')."""
+        sent = self.send(body, invalid=invalid)
+        answer = self.response(sent, timeout)
+        if answer is None and self._gaps() != sent.gaps_before:
+            self.resend(sent)
+            answer = self.response(sent, timeout)
+        self._track(sent, answer)
+        return sent, answer
+
+    def _track(self, sent: Sent, answer: Entry | None) -> None:
+        """Remember every task this commander may have started, to abort it at the end."""
+        if sent.body.get("command") != "start-task":
+            return
+        with self._lock:
+            self._start_commands[sent.com_uuid] = sent
+        task = sent.body.get("task")
+        name = task.get("name", "") if isinstance(task, dict) else ""
+        uuids = {sent.body.get("task-uuid"), answer.get("task-uuid") if answer else None}
+        refused = answer is not None and answer.get("response") == "failed"
+        with self._lock:
+            for task_uuid in uuids:
+                if refused:  # never started: nothing to abort
+                    self.open_tasks.pop(task_uuid, None)
+                    self._closed.add(task_uuid)
+                elif isinstance(task_uuid, str) and task_uuid and task_uuid not in self._closed:
+                    known = self.open_tasks.setdefault(
+                        task_uuid, OpenTask(task_uuid, name, sent.mark))
+                    known.com_uuids.append(sent.com_uuid)
+
+    def track_response(self, sent: Sent, answer: Entry | None) -> None:
+        """Track a task started by a command sent with ``send`` (not ``request``)."""
+        self._track(sent, answer)
+
+    def feedback(self, task_uuid: str, statuses: Collection[str] | None, timeout: float, *,
+                 after: int) -> Entry | None:
+        """The first feedback for ``task_uuid`` after ``after`` whose status is one of
+        ``statuses`` (any status when None)."""
+        def match(e: Entry) -> bool:
+            return e.get("task-uuid") == task_uuid and (statuses is None
+                                                       or e.get("status") in statuses)
+        return self.traffic.wait_for(match, timeout, after=after, subtopic="exec/feedback")
+
+    def statuses(self, task_uuid: str, after: int) -> list[str]:
+        """Every feedback status seen for ``task_uuid`` after ``after``, in order."""
+        return [str(e.get("status")) for e in self.traffic.since(after, "exec/feedback")
+                if e.get("task-uuid") == task_uuid]
+
+    def is_final(self, task_uuid: str) -> bool:
+        task = self.open_tasks.get(task_uuid)
+        mark = task.mark if task else 0
+        return any(s in FINAL_STATUSES for s in self.statuses(task_uuid, mark))
+
+    # --- the four commands of 12.1 ---------------------------------------------------------
+    def ping(self, timeout: float) -> tuple[Sent, Entry | None]:
+        return self.request({"command": "ping"}, timeout)
+
+    def start_task(self, name: str, params: dict[str, Any], timeout: float, *,
+                   task_uuid: str | None = "new", invalid: bool = False
+                   ) -> tuple[Sent, Entry | None]:
+        """start-task (10, 12.2.3). ``task_uuid=None`` leaves it out: the unit generates one."""
+        body: dict[str, Any] = {"command": "start-task", "execution-unit": self.unit.name,
+                                "task": {"name": name, "params": params}}
+        if task_uuid is not None:
+            body["task-uuid"] = new_uuid() if task_uuid == "new" else task_uuid
+        return self.request(body, timeout, invalid=invalid)
+
+    def signal(self, task_uuid: str, signal: str, timeout: float) -> tuple[Sent, Entry | None]:
+        return self.request({"command": "signal-task", "signal": signal, "task-uuid": task_uuid},
+                            timeout)
+
+    def query(self, task_uuid: str, timeout: float) -> tuple[Sent, Entry | None]:
+        return self.request({"command": "query-status", "task-uuid": task_uuid}, timeout)
+
+    # --- safety ----------------------------------------------------------------------------
+    def abort_all(self, timeout: float) -> list[str]:
+        """Send ``$abort`` to every task this commander started that has not ended (DESIGN
+        'Safety'); wait up to ``timeout`` seconds in all for the answers. Returns the
+        task-uuids aborted."""
+        if self.dry_run:
+            return []
+        # Tasks whose uuid the unit generated and whose answer came after the scenario stopped
+        # looking (a Ctrl-C, a timeout): their answers are in the traffic.
+        with self._lock:
+            starts = dict(self._start_commands)
+        for e in self.traffic.since(0, "exec/response"):
+            sent = starts.get(e.get("response-to"))
+            if sent is not None and isinstance(e.get("task-uuid"), str):
+                self._track(sent, e)
+        with self._lock:
+            tasks = list(self.open_tasks.values())
+        pending = [t for t in tasks if not self.is_final(t.task_uuid)]
+        with self._lock:
+            for task in tasks:
+                if task not in pending:
+                    self._closed.add(task.task_uuid)
+                    self.open_tasks.pop(task.task_uuid, None)
+        sent: list[tuple[OpenTask, Sent]] = []
+        for task in pending:
+            try:
+                sent.append((task, self.send({"command": "signal-task", "signal": "$abort",
+                                              "task-uuid": task.task_uuid})))
+            except Exception as e:  # keep aborting the others; say which one failed
+                self._say(f"could not abort task {task.task_uuid} ({task.name}): {e}")
+        aborted = []
+        for task, s in sent:
+            # Answered (ok: it ends; failed: it was not running): done. Unanswered: it stays
+            # open, and the next abort_all (at the latest at the session's end) tries again.
+            if self.response(s, timeout / max(1, len(sent))) is not None:
+                aborted.append(task.task_uuid)
+                with self._lock:
+                    self._closed.add(task.task_uuid)
+                    self.open_tasks.pop(task.task_uuid, None)
+        return aborted

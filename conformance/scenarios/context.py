@@ -1,0 +1,183 @@
+"""What every active scenario works with: the unit, its traffic, the commander, deadlines.
+
+Deadlines come from the profile and the unit's declared rates, times ``--timing-scale`` for slow
+links (DESIGN: 'no fixed sleeps'). Scenarios report what they found with ``record``, in the same
+form as the passive checks (``Monitor.record``): a violation, or an explicit verdict with its
+reason, or just that the rule was examined and held (``verdict=PASS``).
+"""
+
+from __future__ import annotations
+
+import random
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from conformance.profile import Profile
+from conformance.scenarios.commander import FINAL_STATUSES, Commander
+from conformance.scenarios.safety import Position, Safety
+from conformance.scenarios.traffic import Entry, Traffic
+from conformance.topics import UnitAddress
+from conformance.violation import Verdict, Violation
+
+# 9: tasks that run until they get $enough (look-at-*, observe-position, detection): the best
+# subjects for signals and queries, because they do not end on their own mid-test.
+RUNS_UNTIL_ENOUGH = ("look-at-bearing", "look-at-position", "look-at-positions",
+                     "image-object-detection", "observe-position")
+BUILTIN_SIGNALS = ("$enough", "$pause", "$continue", "$abort")  # 12.2.2
+
+
+class Recorder(Protocol):
+    def __call__(self, rule: str, *, violation: Violation | None = None,
+                 verdict: Verdict | None = None, reason: str = "") -> None: ...
+
+
+@dataclass(frozen=True)
+class Timing:
+    """Deadlines in seconds: the profile's, times ``scale`` (--timing-scale)."""
+
+    profile: Profile
+    scale: float = 1.0
+
+    @property
+    def response(self) -> float:
+        return self.profile.response_timeout * self.scale
+
+    @property
+    def feedback(self) -> float:
+        return self.profile.feedback_timeout * self.scale
+
+    def periods(self, count: float, rate_hz: float | None) -> float:
+        """``count`` periods of a message declared at ``rate_hz``, plus the response margin."""
+        rate = rate_hz if rate_hz and rate_hz > 0 else 1.0
+        return (count / rate + self.profile.response_timeout) * self.scale
+
+    @property
+    def reboot(self) -> float:
+        return self.profile.reboot_timeout * self.scale
+
+
+@dataclass
+class Context:
+    """One certification run's view of the unit under test, shared by the scenarios."""
+
+    unit: UnitAddress
+    profile: Profile
+    traffic: Traffic
+    commander: Commander
+    safety: Safety
+    timing: Timing
+    seed: int
+    record: Recorder
+    reboot: Callable[[], str | None] | None = None
+    """Reboots the unit; returns None when done, or what went wrong. None: no way to reboot."""
+    reboot_how: str = ""
+    notes: dict[str, Any] = field(default_factory=dict)
+    """What scenarios leave for later ones (e.g. tasks that ended, for query and reboot)."""
+
+    # --- what the unit says about itself -------------------------------------------------
+    def heartbeat(self) -> dict[str, Any]:
+        e = self.traffic.latest("heartbeat")
+        return e.body if e and isinstance(e.body, dict) else {}
+
+    def execution_info(self) -> dict[str, Any]:
+        e = self.traffic.latest("direct_execution_info")
+        return e.body if e and isinstance(e.body, dict) else {}
+
+    @property
+    def agent_uuid(self) -> str | None:
+        value = self.heartbeat().get("agent-uuid")
+        return value if isinstance(value, str) else None
+
+    def rate_of(self, subtopic: str) -> float | None:
+        e = self.traffic.latest(subtopic)
+        rate = e.get("rate") if e else None
+        return float(rate) if isinstance(rate, (int, float)) and not isinstance(rate, bool) \
+            and rate > 0 else None
+
+    def levels(self) -> list[str]:
+        levels = self.heartbeat().get("levels")
+        return [str(x) for x in levels] if isinstance(levels, list) else []
+
+    def tasks_available(self) -> dict[str, list[str]]:
+        """Task name -> the signals it understands, as direct_execution_info lists them."""
+        out: dict[str, list[str]] = {}
+        for task in self.execution_info().get("tasks-available") or []:
+            if isinstance(task, dict) and isinstance(task.get("name"), str):
+                signals = task.get("signals")
+                out[task["name"]] = [s for s in signals if isinstance(s, str)] \
+                    if isinstance(signals, list) else []
+        return out
+
+    def position(self) -> Position | None:
+        """The unit's last reported position (6.1 sensor/position), or None."""
+        e = self.traffic.latest("sensor/position")
+        body = e.body if e else None
+        if not isinstance(body, dict):
+            return None
+        try:
+            return Position(float(body["latitude"]), float(body["longitude"]),
+                            float(body.get("altitude", 0.0) or 0.0))
+        except (KeyError, TypeError, ValueError):
+            return None
+
+    def rng(self, salt: str) -> random.Random:
+        """A random generator derived from --seed and a name: the same run, the same values."""
+        return random.Random(f"{self.seed}:{salt}")
+
+    # --- waiting on direct_execution_info -----------------------------------------------------
+    def info_deadline(self, periods: float = 2.0) -> float:
+        """Seconds to wait for ``periods`` direct_execution_info messages."""
+        return self.timing.periods(periods, self.rate_of("direct_execution_info"))
+
+    def executing(self, entry: Entry) -> list[str]:
+        """The task-uuids a direct_execution_info message lists in tasks-executing."""
+        tasks = entry.get("tasks-executing") or []
+        return [t.get("task-uuid") for t in tasks if isinstance(t, dict)] \
+            if isinstance(tasks, list) else []
+
+    def wait_listed(self, task_uuid: str, *, after: int) -> Entry | None:
+        """The first direct_execution_info after ``after`` that lists ``task_uuid`` in
+        tasks-executing, or the task's final feedback if that comes first (a task that ended
+        between two infos cannot be listed); None after two declared periods."""
+        def listed_or_ended(e: Entry) -> bool:
+            if e.subtopic == "direct_execution_info":
+                return task_uuid in self.executing(e)
+            return e.subtopic == "exec/feedback" and e.get("task-uuid") == task_uuid \
+                and e.get("status") in FINAL_STATUSES
+        return self.traffic.wait_for(listed_or_ended, self.info_deadline(), after=after)
+
+    # --- helpers for scenarios --------------------------------------------------------------
+    def violation(self, rule: str, *, expected: str, observed: str, subtopic: str = "exec/response",
+                  entry: Entry | None = None, detail: str = "") -> Violation:
+        return Violation.of(rule, expected=expected, observed=observed,
+                            topic=self.unit.topic(subtopic),
+                            time=entry.time if entry else None,
+                            payload=entry.raw if entry else None, detail=detail,
+                            unit=str(self.unit))
+
+    def startable(self, prefer: tuple[str, ...] = RUNS_UNTIL_ENOUGH) -> list[str]:
+        """Tasks in tasks-available the suite may start, the ``prefer``red ones first, those
+        that do not move the unit before those that do."""
+        names = [n for n in self.tasks_available() if self.safety.may_start(n)[0]]
+        return sorted(names, key=lambda n: (n not in prefer, self.safety.moves(n),
+                                            prefer.index(n) if n in prefer else 0, n))
+
+    def end_task(self, task_uuid: str, signals: list[str], *, after: int) -> Entry | None:
+        """End a running task: ``$enough`` or ``$abort`` when it lists them, then wait for its
+        final status (12.4). Returns the final feedback, or None past the deadline."""
+        final = self.commander.feedback(task_uuid, FINAL_STATUSES, 0, after=after)
+        if final is not None:
+            return final
+        # 12.2.2: the built-in signals; $abort when the task does not list $enough.
+        signal = "$enough" if "$enough" in signals else "$abort"
+        self.commander.signal(task_uuid, signal, self.timing.response)
+        return self.commander.feedback(task_uuid, FINAL_STATUSES, self.timing.feedback,
+                                       after=after)
+
+
+def describe(entry: Entry | None) -> str:
+    """A short text for a person: the body of a message, or that none came."""
+    if entry is None:
+        return "no message"
+    return entry.raw[:160].decode("utf-8", "backslashreplace")

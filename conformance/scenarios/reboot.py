@@ -1,0 +1,90 @@
+"""Reboot (5, 12.1): after a reboot the unit has a new agent-uuid (REBOOT-001); with a new
+agent-uuid the tasks from before are unknown, with the same one they are still known
+(REBOOT-002). The reboot is done by ``--reboot-cmd`` (or an in-process hook); without one
+both rules are could-not-test."""
+
+from __future__ import annotations
+
+from conformance.scenarios.commander import new_uuid
+from conformance.scenarios.context import Context, describe
+from conformance.scenarios.query import status_answer
+from conformance.violation import Verdict
+
+RULES = ("REBOOT-001", "REBOOT-002")
+
+
+def run(ctx: Context) -> None:
+    if ctx.reboot is None:
+        for rule in RULES:
+            ctx.record(rule, verdict=Verdict.COULD_NOT_TEST,
+                       reason="no way to reboot the unit: pass --reboot-cmd 'COMMAND' (a shell "
+                       "command that restarts it)")
+        return
+    old_agent = ctx.agent_uuid
+    rate = ctx.rate_of("heartbeat") or 1.0
+    ended = ctx.notes.get("ended", [])
+    before = ctx.traffic.mark()
+    ctx.commander.abort_all(ctx.timing.response)  # tasks die with the reboot anyway
+    error = ctx.reboot()
+    if error is not None:
+        for rule in RULES:
+            ctx.record(rule, verdict=Verdict.COULD_NOT_TEST,
+                       reason=f"the reboot ({ctx.reboot_how}) failed: {error}")
+        return
+    # Back when a heartbeat carries another agent-uuid, or follows a silence of more than two
+    # declared periods (HB-006's reboot silence) with the same one.
+    last = [ctx.traffic.latest("heartbeat")]
+
+    def back(entry) -> bool:
+        previous, last[0] = last[0], entry
+        if entry.get("agent-uuid") != old_agent:
+            return True
+        return previous is not None and entry.time - previous.time > 2.0 / rate
+
+    hb = ctx.traffic.wait_for(back, ctx.timing.reboot, after=before, subtopic="heartbeat")
+    if hb is None:
+        ctx.record("REBOOT-001", violation=ctx.violation(
+            "REBOOT-001", expected=f"a heartbeat with a new agent-uuid within "
+            f"{ctx.timing.reboot:.1f} s of the reboot ({ctx.reboot_how})",
+            observed=f"heartbeats went on with agent-uuid {old_agent} and no silence"
+            if ctx.traffic.since(before, "heartbeat") else "no heartbeat at all",
+            subtopic="heartbeat", entry=ctx.traffic.latest("heartbeat")))
+        ctx.record("REBOOT-002", verdict=Verdict.COULD_NOT_TEST,
+                   reason="the unit did not visibly reboot (REBOOT-001)")
+        return
+    new_agent = hb.get("agent-uuid")
+    if new_agent != old_agent:
+        ctx.record("REBOOT-001", verdict=Verdict.PASS)
+    else:
+        ctx.record("REBOOT-001", violation=ctx.violation(
+            "REBOOT-001", expected=f"a new agent-uuid after the reboot (was {old_agent})",
+            observed=f"the same agent-uuid {new_agent} after a silence", subtopic="heartbeat",
+            entry=hb))
+    if not ended:
+        ctx.record("REBOOT-002", verdict=Verdict.COULD_NOT_TEST,
+                   reason="no task ended before the reboot to ask about")
+        return
+    # Ready for commands again: answer a ping (deadline: the reboot's).
+    ctx.commander.ping(ctx.timing.reboot)
+    task_uuid, name, status = ended[0]
+    sent, answer = ctx.commander.query(task_uuid, ctx.timing.response)
+    got = status_answer(answer)
+    # Compared with the unit's own answer for a task it never saw, so that a wrong word for
+    # 'unknown' stays EXEC-QUERY-002's finding and is not counted here again.
+    _, ghost = ctx.commander.query(new_uuid(), ctx.timing.response)
+    unknown = status_answer(ghost) if ghost is not None else "unknown"
+    if new_agent != old_agent:
+        ok = got == unknown
+        expected = (f"task '{name}' from before the reboot unknown (answered {unknown!r}, as "
+                    f"for a task never seen): a new agent-uuid means the history was lost")
+    else:
+        ok = got not in (unknown, None)
+        expected = (f"task '{name}' still known ('{status}'): the agent-uuid did not change, "
+                    f"so the history must be kept")
+    if ok:
+        ctx.record("REBOOT-002", verdict=Verdict.PASS)
+    else:
+        ctx.record("REBOOT-002", violation=ctx.violation(
+            "REBOOT-002", expected=expected, observed=repr(got) if answer is not None else
+            f"no response within {ctx.timing.response:.1f} s", entry=answer,
+            detail=f"agent-uuid before {old_agent}, after {new_agent}; {describe(answer)}"))

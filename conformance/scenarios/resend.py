@@ -1,0 +1,64 @@
+"""Resend (2, 12.1): a command resent with the same com-uuid is answered again
+(EXEC-RESEND-002, a 'should') and not executed twice (EXEC-RESEND-001).
+
+The subject is a start-task sent without a task-uuid: a unit that executes the resend again
+generates a second task-uuid, or lists the task twice in tasks-executing.
+"""
+
+from __future__ import annotations
+
+from conformance.scenarios.context import Context, describe
+from conformance.scenarios.params import valid_params
+from conformance.violation import Verdict
+
+RULES = ("EXEC-RESEND-001", "EXEC-RESEND-002")
+
+
+def run(ctx: Context) -> None:
+    available = ctx.tasks_available()
+    origin = ctx.position()
+    task = next(iter(ctx.startable()), None)
+    if task is None or origin is None:
+        reason = ("the unit reports no sensor/position" if origin is None
+                  else "no task the suite may start")
+        for rule in RULES:
+            ctx.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=reason)
+        return
+    params = valid_params(task, origin, ctx.safety, ctx.seed)
+    first, answer1 = ctx.commander.start_task(task, params, ctx.timing.response, task_uuid=None)
+    if answer1 is None:
+        for rule in RULES:
+            ctx.record(rule, verdict=Verdict.COULD_NOT_TEST,
+                       reason=f"start-task '{task}' was not answered (EXEC-START-001)")
+        return
+    again = ctx.commander.resend(first)
+    answer2 = ctx.commander.response(first, ctx.timing.response, after=again.mark)
+    ctx.commander.track_response(again, answer2)
+    if answer2 is not None:
+        ctx.record("EXEC-RESEND-002", verdict=Verdict.PASS)
+    else:
+        ctx.record("EXEC-RESEND-002", violation=ctx.violation(
+            "EXEC-RESEND-002", expected=f"a second response to com-uuid {first.com_uuid}",
+            observed=f"none within {ctx.timing.response:.1f} s of the resend",
+            detail=f"first answer: {describe(answer1)}"))
+    uuids = {a.get("task-uuid") for a in (answer1, answer2) if a is not None} - {None}
+    twice = len(uuids) > 1
+    evidence = answer2
+    if not twice and answer1.get("response") == "running" and uuids:
+        # The same task-uuid: a unit that ran it again lists it twice, or restarts it.
+        (task_uuid,) = uuids
+        info = ctx.traffic.wait_for(lambda e: task_uuid in ctx.executing(e),
+                                    ctx.info_deadline(), after=again.mark,
+                                    subtopic="direct_execution_info")
+        if info is not None and ctx.executing(info).count(task_uuid) > 1:
+            twice, evidence = True, info
+    if twice:
+        ctx.record("EXEC-RESEND-001", violation=ctx.violation(
+            "EXEC-RESEND-001", expected=f"start-task '{task}' executed once for com-uuid "
+            f"{first.com_uuid}", observed=f"executed twice: task-uuids {sorted(uuids)}",
+            entry=evidence,
+            subtopic="exec/response" if evidence is answer2 else "direct_execution_info"))
+    else:
+        ctx.record("EXEC-RESEND-001", verdict=Verdict.PASS)
+    for task_uuid in uuids:
+        ctx.end_task(str(task_uuid), available.get(task, []), after=first.mark)

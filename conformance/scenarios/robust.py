@@ -1,0 +1,75 @@
+"""Robustness (12.1): malformed JSON, unknown commands and missing fields do not stop the unit
+(it still answers ping: EXEC-ROBUST-001); a malformed command whose com-uuid can be read is
+answered 'failed' with a reason (EXEC-ROBUST-002, a 'should')."""
+
+from __future__ import annotations
+
+import orjson
+
+from conformance.scenarios.commander import SENDER, Sent, new_uuid
+from conformance.scenarios.context import Context, describe
+from conformance.violation import Verdict
+
+RULES = ("EXEC-ROBUST-001", "EXEC-ROBUST-002")
+
+# Unreadable: no com-uuid can be read, so no answer is expected; the unit must survive them.
+UNREADABLE: tuple[tuple[str, bytes], ...] = (
+    ("invalid JSON", b'{"command": "ping", "com-uuid": '),
+    ("not UTF-8", b"\xff\xfe\xfd{}"),
+    ("a JSON array", b'[{"command": "ping"}]'),
+    ("a JSON string", b'"ping"'),
+    ("JSON null", b"null"),
+    ("NaN, not JSON", b'{"command": "ping", "sender": NaN}'),
+)
+
+
+def _readable(com_uuid: str) -> list[tuple[str, bytes]]:
+    """Malformed commands whose com-uuid can be read: each should be answered 'failed'
+    (the answer's fail-reason is EXEC-007's business)."""
+    def body(**fields: object) -> bytes:
+        return orjson.dumps({"com-uuid": com_uuid, "sender": SENDER, **fields})
+
+    prefix = f'{{"com-uuid": "{com_uuid}", "sender": "{SENDER}", '.encode()
+    return [
+        ("an unknown command", body(command="waraps-conformance-no-such-command")),
+        ("a command without 'command'", body()),
+        ("start-task without task", body(command="start-task")),
+        ("start-task whose task is a string", body(command="start-task", task="move-to")),
+        ("JSON cut off after the com-uuid", prefix + b'"command": "start-ta'),
+        ("NaN in a command (not JSON)", prefix + b'"command": "ping", "x": NaN}'),
+    ]
+
+
+def run(ctx: Context) -> None:
+    for _what, payload in UNREADABLE:
+        ctx.commander.send_raw(payload)
+    pending: list[tuple[str, Sent]] = []
+    for index in range(len(_readable(""))):
+        com_uuid = new_uuid()  # a fresh one for each: they are different commands
+        what, payload = _readable(com_uuid)[index]
+        pending.append((what, ctx.commander.send_raw(payload, com_uuid=com_uuid)))
+    unanswered = 0
+    for what, sent in pending:  # one deadline for all: they were sent together
+        answer = ctx.commander.response(sent, ctx.timing.response if not unanswered else 0.2)
+        if answer is not None and answer.get("response") == "failed":
+            ctx.record("EXEC-ROBUST-002", verdict=Verdict.PASS)
+            continue
+        unanswered += answer is None
+        ctx.record("EXEC-ROBUST-002", violation=ctx.violation(
+            "EXEC-ROBUST-002", expected=f"'failed' for {what}",
+            observed=describe(answer) if answer is not None else "no response",
+            entry=answer, detail=f"command {sent.payload.decode('utf-8', 'replace')}"))
+    # Still alive? Any pong after this ping counts (EXEC-PING-002 judges its response-to).
+    sent = ctx.commander.send({"command": "ping"})
+    pong = ctx.traffic.wait_for(lambda e: e.get("response") == "pong", ctx.timing.response,
+                                after=sent.mark, subtopic="exec/response")
+    if pong is not None:
+        ctx.record("EXEC-ROBUST-001", verdict=Verdict.PASS)
+        return
+    before = ctx.traffic.since(0, "exec/response")
+    ctx.record("EXEC-ROBUST-001", violation=ctx.violation(
+        "EXEC-ROBUST-001", expected="a pong after malformed and unknown commands",
+        observed=f"no answer to ping within {ctx.timing.response:.1f} s",
+        detail=f"sent {len(UNREADABLE)} unreadable and {len(pending)} malformed commands"
+        + ("; the unit answered no ping before them either (EXEC-PING-001)"
+           if not any(e.get("response") == "pong" for e in before) else "")))

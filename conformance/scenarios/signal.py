@@ -1,0 +1,120 @@
+"""signal-task (12.2.2): every signal the unit lists is answered, with the feedback it implies.
+
+Each distinct signal in tasks-available is sent once, to a running task that lists it:
+``$pause`` then ``$continue`` (feedback 'paused', then 'running': EXEC-SIG-003), ``$enough``
+(ends 'finished': EXEC-SIG-004), ``$abort`` (ends 'aborted': EXEC-SIG-002), and each
+task-specific signal (answered: EXEC-SIG-001). A signal for a task-uuid the unit never saw is
+answered 'failed' (EXEC-SIG-005).
+"""
+
+from __future__ import annotations
+
+from conformance.scenarios.commander import new_uuid
+from conformance.scenarios.context import Context, describe
+from conformance.scenarios.params import valid_params
+from conformance.scenarios.traffic import Entry
+from conformance.violation import Verdict
+
+RULES = ("EXEC-SIG-001", "EXEC-SIG-002", "EXEC-SIG-003", "EXEC-SIG-004", "EXEC-SIG-005")
+# The feedback status each built-in signal implies (12.2.2, 12.4).
+IMPLIED = {"$pause": "paused", "$continue": "running", "$enough": "finished",
+           "$abort": "aborted"}
+RULE_OF = {"$pause": "EXEC-SIG-003", "$continue": "EXEC-SIG-003", "$enough": "EXEC-SIG-004",
+           "$abort": "EXEC-SIG-002"}
+
+
+def _answered(ctx: Context, signal: str, task: str, answer: Entry | None) -> bool:
+    """EXEC-SIG-001 on one answer (ERR-013: shaped like a start-task response)."""
+    if answer is None:
+        ctx.record("EXEC-SIG-001", violation=ctx.violation(
+            "EXEC-SIG-001", expected=f"a response to signal-task {signal} within "
+            f"{ctx.timing.response:.1f} s", observed="no response", detail=f"task '{task}'"))
+        return False
+    ctx.record("EXEC-SIG-001", verdict=Verdict.PASS)
+    return True
+
+
+def _start(ctx: Context, task: str) -> tuple[str, int] | None:
+    """Start ``task`` and return (task-uuid, mark) once it runs, or None."""
+    origin = ctx.position()
+    if origin is None:
+        return None
+    params = valid_params(task, origin, ctx.safety, ctx.seed)
+    sent, answer = ctx.commander.start_task(task, params, ctx.timing.response)
+    if answer is None or answer.get("response") != "running":
+        return None
+    task_uuid = sent.body["task-uuid"]
+    # Signals are judged on a task that has started: wait for its first feedback (12.4).
+    ctx.commander.feedback(task_uuid, None, ctx.timing.response, after=sent.mark)
+    return task_uuid, sent.mark
+
+
+def _signal(ctx: Context, task: str, task_uuid: str, signal: str, mark: int) -> None:
+    """Send one signal and judge its answer and the feedback it implies."""
+    after = ctx.traffic.mark()
+    sent, answer = ctx.commander.signal(task_uuid, signal, ctx.timing.response)
+    if not _answered(ctx, signal, task, answer) or signal not in IMPLIED:
+        return
+    rule, status = RULE_OF[signal], IMPLIED[signal]
+    got = ctx.commander.feedback(task_uuid, {status}, ctx.timing.feedback, after=after)
+    if got is not None:
+        ctx.record(rule, verdict=Verdict.PASS)
+        return
+    statuses = ctx.commander.statuses(task_uuid, after)
+    ctx.record(rule, violation=ctx.violation(
+        rule, expected=f"feedback '{status}' after {signal}", observed=f"statuses "
+        f"{statuses or 'none'} within {ctx.timing.feedback:.1f} s", subtopic="exec/feedback",
+        entry=answer, detail=f"task '{task}' {task_uuid}; answer: {describe(answer)}"))
+
+
+def run(ctx: Context) -> None:
+    available = ctx.tasks_available()
+    startable = ctx.startable()
+    todo: list[str] = []  # each distinct signal once, built-ins in a sensible order
+    for signals in available.values():
+        todo += [s for s in signals if s not in todo]
+    order = {"$pause": 0, "$continue": 1}
+    todo.sort(key=lambda s: (order.get(s, 2), s in ("$enough", "$abort"), s))
+    if "$continue" in todo and "$pause" not in todo:
+        todo.remove("$continue")  # nothing to continue from
+    done: set[str] = set()
+    for signal in todo:
+        if signal in done or signal == "$continue":  # $continue only right after $pause
+            continue
+        task = next((t for t in startable if signal in available[t]), None)
+        if task is None:
+            continue
+        started = _start(ctx, task)
+        if started is None:
+            continue
+        task_uuid, mark = started
+        batch = [signal]
+        if signal == "$pause" and "$continue" in available[task]:
+            batch.append("$continue")
+        for s in batch:
+            _signal(ctx, task, task_uuid, s, mark)
+            done.add(s)
+        if signal not in ("$enough", "$abort"):
+            ctx.end_task(task_uuid, available[task], after=mark)
+    for rule in RULES[:-1]:
+        wanted = [s for s, r in RULE_OF.items() if r == rule]
+        if not any(s in done for s in wanted) and rule != "EXEC-SIG-001":
+            listed = [s for s in wanted if s in todo]
+            reason = (f"no task the suite may start lists {' or '.join(wanted)}" if not listed
+                      else f"no task listing {' or '.join(listed)} could be started")
+            ctx.record(rule, verdict=Verdict.SKIP if not listed else Verdict.COULD_NOT_TEST,
+                       reason=reason)
+    if not done:
+        ctx.record("EXEC-SIG-001", verdict=Verdict.COULD_NOT_TEST,
+                   reason="no task with signals could be started")
+    # EXEC-SIG-005: a task-uuid this unit has never seen.
+    ghost = new_uuid()
+    sent, answer = ctx.commander.signal(ghost, "$abort", ctx.timing.response)
+    if answer is not None and answer.get("response") == "failed":
+        ctx.record("EXEC-SIG-005", verdict=Verdict.PASS)
+    else:
+        ctx.record("EXEC-SIG-005", violation=ctx.violation(
+            "EXEC-SIG-005", expected=f"'failed' for a signal to unknown task-uuid {ghost}",
+            observed=describe(answer) if answer else
+            f"no response within {ctx.timing.response:.1f} s", entry=answer))
+

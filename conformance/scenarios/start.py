@@ -1,0 +1,213 @@
+"""start-task (12.2.3, 12.3.3, 12.4, 5.3): every task the profile lets the suite run.
+
+For each task in tasks-available that may be started (DESIGN 'Safety'), with parameters
+generated from its schema near the unit's own position: the answer is ``running`` or
+``failed`` with a reason (EXEC-START-001) and carries the task-uuid sent (EXEC-START-002); a
+running task sends feedback until a final status (EXEC-START-003) and appears in, then leaves,
+``tasks-executing`` (DEI-004). One start-task goes without a task-uuid: the unit must generate
+one (12.1). Then a start-task with invalid parameters is refused with a reason
+(EXEC-START-004), and so is a task the unit does not list (EXEC-START-005).
+"""
+
+from __future__ import annotations
+
+from conformance.scenarios.commander import FINAL_STATUSES
+from conformance.scenarios.context import Context
+from conformance.scenarios.params import invalid_params, valid_params
+from conformance.scenarios.traffic import Entry
+from conformance.violation import Verdict
+
+RULES = ("EXEC-START-001", "EXEC-START-002", "EXEC-START-003", "DEI-004")
+REFUSAL_RULES = ("EXEC-START-004", "EXEC-START-005")
+NO_SUCH_TASK = "waraps-conformance-no-such-task"
+# Tasks that end on their own (9.6, 9.7, 9.15, 9.13): the first one available is let run to
+# its end. move-to first: a target near the unit is reached in seconds.
+NATURAL_END = ("move-to", "take-off", "move-path", "land")
+NATURAL_RADIUS = 3.0  # metres
+
+
+def _check_answer(ctx: Context, task: str, answer: Entry | None) -> str | None:
+    """Judge EXEC-START-001 on one answer; return the response value when usable."""
+    if answer is None:
+        ctx.record("EXEC-START-001", violation=ctx.violation(
+            "EXEC-START-001", expected=f"a response to start-task '{task}' within "
+            f"{ctx.timing.response:.1f} s", observed="no response"))
+        return None
+    response = answer.get("response")
+    if response == "running":
+        ctx.record("EXEC-START-001", verdict=Verdict.PASS)
+    elif response == "failed":
+        if isinstance(answer.get("fail-reason"), str) and answer.get("fail-reason").strip():
+            ctx.record("EXEC-START-001", verdict=Verdict.PASS)
+        else:
+            ctx.record("EXEC-START-001", violation=ctx.violation(
+                "EXEC-START-001", expected="'failed' with a non-empty fail-reason",
+                observed=f"fail-reason {answer.get('fail-reason')!r}", entry=answer,
+                detail=f"task '{task}'"))
+    else:
+        ctx.record("EXEC-START-001", violation=ctx.violation(
+            "EXEC-START-001", expected="response 'running' or 'failed'",
+            observed=f"response {response!r}", entry=answer, detail=f"task '{task}'"))
+    return response if isinstance(response, str) else None
+
+
+def run(ctx: Context) -> None:
+    """Start, watch and end every startable task; then the generated task-uuid."""
+    available = ctx.tasks_available()
+    origin = ctx.position()
+    startable = [n for n in available if ctx.safety.may_start(n)[0]]
+    refused = {n: ctx.safety.may_start(n)[1] for n in available if n not in startable}
+    if not startable:
+        why = "; ".join(refused.values()) or "tasks-available is empty"
+        for rule in RULES:
+            ctx.record(rule, verdict=Verdict.COULD_NOT_TEST,
+                       reason=f"no task the suite may start: {why}")
+        return
+    if origin is None:
+        for rule in RULES:
+            ctx.record(rule, verdict=Verdict.COULD_NOT_TEST,
+                       reason="the unit reports no sensor/position: task positions are "
+                       "generated near it (DESIGN 'Safety')")
+        return
+    ended: list[tuple[str, int]] = []  # (task-uuid, mark of its final status)
+    # 12.4: one task is left to end on its own (a move ends when it arrives), so feedback is
+    # seen for a natural end too, not only after signals; the others are ended by a signal.
+    natural = next((t for t in NATURAL_END if t in startable), None)
+    for index, task in enumerate(startable):
+        # The task left to end on its own goes only a few metres: it arrives in seconds.
+        params = valid_params(task, origin, ctx.safety, ctx.seed + index,
+                              radius=NATURAL_RADIUS if task == natural else None)
+        generate = index == len(startable) - 1  # the last one without a task-uuid (12.1)
+        sent, answer = ctx.commander.start_task(task, params, ctx.timing.response,
+                                                task_uuid=None if generate else "new")
+        response = _check_answer(ctx, task, answer)
+        if answer is None:
+            continue
+        task_uuid = answer.get("task-uuid")
+        wanted = sent.body.get("task-uuid")
+        if generate:
+            # A task-uuid that is not in UUID form is ERR-014's; here: is there one at all.
+            if isinstance(task_uuid, str) and task_uuid.strip():
+                ctx.record("EXEC-START-002", verdict=Verdict.PASS)
+            else:
+                ctx.record("EXEC-START-002", violation=ctx.violation(
+                    "EXEC-START-002", expected="a generated task-uuid (start-task sent "
+                    "without one, 12.1)", observed=f"task-uuid {task_uuid!r}", entry=answer))
+                continue
+        elif task_uuid == wanted:
+            ctx.record("EXEC-START-002", verdict=Verdict.PASS)
+        else:
+            ctx.record("EXEC-START-002", violation=ctx.violation(
+                "EXEC-START-002", expected=f"task-uuid {wanted}", observed=f"{task_uuid!r}",
+                entry=answer, detail=f"task '{task}'"))
+            task_uuid = wanted
+        if response != "running" or not isinstance(task_uuid, str):
+            continue
+        # 5.3: a running task is listed in tasks-executing (unless it ended before the next
+        # direct_execution_info: then it cannot be judged here).
+        seen = ctx.wait_listed(task_uuid, after=sent.mark)
+        if seen is not None and seen.subtopic == "direct_execution_info":
+            ctx.record("DEI-004", verdict=Verdict.PASS)
+        elif seen is None:
+            ctx.record("DEI-004", violation=ctx.violation(
+                "DEI-004", expected=f"task {task_uuid} ('{task}') in tasks-executing while "
+                "it runs", observed=f"not listed within {ctx.info_deadline():.1f} s of "
+                "'running'", subtopic="direct_execution_info",
+                entry=ctx.traffic.latest("direct_execution_info")))
+        if task == natural:
+            final = ctx.commander.feedback(task_uuid, FINAL_STATUSES, ctx.timing.feedback,
+                                           after=sent.mark)
+            if final is None:
+                ctx.record("EXEC-START-003", violation=ctx.violation(
+                    "EXEC-START-003", expected=f"'{task}' ends on its own with a final status "
+                    f"(finished or failed) within {ctx.timing.feedback:.1f} s",
+                    observed=f"statuses {ctx.commander.statuses(task_uuid, sent.mark) or 'none'}",
+                    subtopic="exec/feedback", detail=f"task-uuid {task_uuid}; params "
+                    f"{sent.body.get('task', {}).get('params')}"))
+        final = ctx.end_task(task_uuid, available.get(task, []), after=sent.mark)
+        statuses = ctx.commander.statuses(task_uuid, sent.mark)
+        if final is not None:
+            ctx.record("EXEC-START-003", verdict=Verdict.PASS)
+            ended.append((task_uuid, ctx.traffic.mark()))
+            ctx.notes.setdefault("ended", []).append((task_uuid, task, final.get("status")))
+        else:
+            ctx.record("EXEC-START-003", violation=ctx.violation(
+                "EXEC-START-003", expected=f"feedback for task '{task}' until finished, "
+                "failed or aborted (12.4)", observed=f"statuses {statuses or 'none'} within "
+                f"{ctx.timing.feedback:.1f} s", subtopic="exec/feedback",
+                detail=f"task-uuid {task_uuid}"))
+    _check_left(ctx, ended)
+
+
+def _check_left(ctx: Context, ended: list[tuple[str, int]]) -> None:
+    """DEI-004, the other half: a task that ended leaves tasks-executing (one wait for all)."""
+    if not ended:
+        return
+    last = max(mark for _, mark in ended)
+    info = ctx.traffic.wait_for(lambda e: True, ctx.info_deadline(1.0), after=last,
+                                subtopic="direct_execution_info")
+    if info is None:
+        return  # no direct_execution_info at all: DEI-002/HB-008 say so
+    still = [u for u, _ in ended if u in ctx.executing(info)]
+    if still:
+        # Give it one more period: the info may have been composed before the final status.
+        info = ctx.traffic.wait_for(lambda e: True, ctx.info_deadline(1.0), after=info.seq,
+                                    subtopic="direct_execution_info") or info
+        still = [u for u, _ in ended if u in ctx.executing(info)]
+    if still:
+        ctx.record("DEI-004", violation=ctx.violation(
+            "DEI-004", expected="tasks that ended are no longer in tasks-executing",
+            observed=f"{len(still)} ended task(s) still listed: {', '.join(still[:3])}",
+            subtopic="direct_execution_info", entry=info))
+    else:
+        ctx.record("DEI-004", verdict=Verdict.PASS)
+
+
+def run_refusals(ctx: Context) -> None:
+    """EXEC-START-004 (invalid parameters) and EXEC-START-005 (task not available)."""
+    available = ctx.tasks_available()
+    origin = ctx.position()
+    # 004: a task the suite may start, preferably one that does not move the unit, in case
+    # the unit wrongly accepts the parameters.
+    chosen = None
+    for task in ctx.startable():
+        if origin is not None and (bad := invalid_params(task, origin, ctx.safety, ctx.seed)):
+            chosen = (task, *bad)
+            break
+    if chosen is None:
+        reason = ("the unit reports no sensor/position" if origin is None else
+                  "no startable task has a parameter schema to break")
+        ctx.record("EXEC-START-004", verdict=Verdict.COULD_NOT_TEST, reason=reason)
+    else:
+        task, params, what = chosen
+        sent, answer = ctx.commander.start_task(task, params, ctx.timing.response, invalid=True)
+        _expect_refusal(ctx, "EXEC-START-004", answer, f"start-task '{task}' whose {what}",
+                        with_reason=True)
+    # 005: a name that is certainly not in tasks-available; it cannot move anything.
+    name = NO_SUCH_TASK if NO_SUCH_TASK not in available else NO_SUCH_TASK + "-2"
+    sent, answer = ctx.commander.start_task(name, {}, ctx.timing.response, invalid=True)
+    _expect_refusal(ctx, "EXEC-START-005", answer, f"start-task '{name}' (not in "
+                    "tasks-available)", with_reason=False)
+
+
+def _expect_refusal(ctx: Context, rule: str, answer: Entry | None, what: str, *,
+                    with_reason: bool) -> None:
+    """``rule`` holds when the answer is 'failed' (with a non-empty fail-reason when
+    ``with_reason``; otherwise an empty one is EXEC-007's alone)."""
+    wanted = "'failed' with a fail-reason" if with_reason else "'failed'"
+    if answer is None:
+        ctx.record(rule, violation=ctx.violation(
+            rule, expected=f"{wanted} for {what}",
+            observed=f"no response within {ctx.timing.response:.1f} s"))
+        return
+    reason = answer.get("fail-reason")
+    if answer.get("response") == "failed" and (
+            not with_reason or isinstance(reason, str) and reason.strip()):
+        ctx.record(rule, verdict=Verdict.PASS)
+        return
+    if answer.get("response") == "running" and isinstance(answer.get("task-uuid"), str):
+        # Accepted what it should have refused: end it at once (DESIGN 'Safety').
+        ctx.commander.signal(answer.get("task-uuid"), "$abort", ctx.timing.response)
+    ctx.record(rule, violation=ctx.violation(
+        rule, expected=f"{wanted} for {what}",
+        observed=f"response {answer.get('response')!r}, fail-reason {reason!r}", entry=answer))

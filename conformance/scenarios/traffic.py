@@ -1,0 +1,106 @@
+"""What the unit under test publishes, decoded and kept for a while, so scenarios can wait for it.
+
+The MQTT network thread calls ``add``; scenarios call ``wait_for`` with a predicate and a
+deadline (never a fixed sleep). Memory is bounded: the newest ``capacity`` messages are kept.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from itertools import islice
+from typing import Any
+
+import orjson
+
+from conformance.client import Message
+from conformance.topics import UnitAddress
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One message of the unit: ``subtopic`` relative to the unit (``heartbeat``,
+    ``exec/response``, ``sensor/position``), ``body`` the decoded JSON (None if it was not
+    JSON), ``time`` the arrival time in Unix seconds, ``seq`` its arrival order."""
+
+    seq: int
+    time: float
+    subtopic: str
+    body: Any
+    raw: bytes
+
+    def get(self, key: str, default: Any = None) -> Any:
+        """A field of an object body, or ``default`` (the body may be anything)."""
+        return self.body.get(key, default) if isinstance(self.body, dict) else default
+
+
+Predicate = Callable[[Entry], bool]
+
+
+class Traffic:
+    """The unit's messages in arrival order, with the latest of each subtopic at hand."""
+
+    def __init__(self, unit: UnitAddress, capacity: int = 20_000) -> None:
+        self.unit = unit
+        self._base = unit.base + "/"
+        self._entries: deque[Entry] = deque(maxlen=capacity)
+        self._latest: dict[str, Entry] = {}
+        self._seq = 0
+        self._cond = threading.Condition()
+
+    def add(self, message: Message) -> Entry | None:
+        """Keep a message if it is the unit's; return its entry."""
+        if not message.topic.startswith(self._base):
+            return None
+        subtopic = message.topic[len(self._base):]
+        try:
+            body = orjson.loads(message.payload)
+        except (orjson.JSONDecodeError, TypeError, ValueError):
+            body = None
+        with self._cond:
+            self._seq += 1
+            entry = Entry(self._seq, message.time, subtopic, body, message.payload)
+            self._entries.append(entry)
+            self._latest[subtopic] = entry
+            self._cond.notify_all()
+        return entry
+
+    def mark(self) -> int:
+        """The sequence number of the newest message: wait for what comes after it."""
+        with self._cond:
+            return self._seq
+
+    def latest(self, subtopic: str) -> Entry | None:
+        with self._cond:
+            return self._latest.get(subtopic)
+
+    def since(self, mark: int, subtopic: str | None = None) -> list[Entry]:
+        """Every kept message after ``mark`` (optionally of one subtopic), oldest first."""
+        with self._cond:
+            return [e for e in self._entries
+                    if e.seq > mark and (subtopic is None or e.subtopic == subtopic)]
+
+    def subtopics(self) -> set[str]:
+        with self._cond:
+            return set(self._latest)
+
+    def wait_for(self, predicate: Predicate, timeout: float, *, after: int = 0,
+                 subtopic: str | None = None) -> Entry | None:
+        """The first message after ``after`` (a ``mark``) that satisfies ``predicate``, waiting
+        up to ``timeout`` seconds for it to arrive; None when the deadline passes."""
+        deadline = time.monotonic() + max(0.0, timeout)
+        checked = after
+        with self._cond:
+            while True:
+                first = self._entries[0].seq if self._entries else checked + 1
+                for entry in islice(self._entries, max(0, checked + 1 - first), None):
+                    checked = entry.seq
+                    if (subtopic is None or entry.subtopic == subtopic) and predicate(entry):
+                        return entry
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return None
+                self._cond.wait(left)

@@ -1,0 +1,423 @@
+"""Schemas as data: the task specification files and the JSON Schemas, loaded once.
+
+Everything is read with ``importlib.resources`` from package ``conformance.schemas`` (the
+top-level ``schemas/`` folder), so it works after a non-editable install:
+
+- ``tasks/<task>.yaml``: one task specification file per task of spec section 9 (the source);
+- ``generated/``: what ``waraps-conformance schemas generate`` makes from them (the GeoPoint,
+  one params schema per task, the composed ``start-task`` and ``start-tst`` commands, TASKS.md);
+- ``messages/``: the message schemas of sections 5, 6, 12 and 14 (written by hand).
+
+Schema nodes carry the custom keyword ``"x-rule": "<rule id>"``: a schema error belongs to the
+nearest ``x-rule`` along its evaluation path (``rule_annotations``). ``"x-expected"`` and
+``"x-detail"`` give the words a person reads when the standard error text would say less.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from dataclasses import dataclass, field
+from functools import cache, lru_cache
+from importlib import resources
+from typing import Any
+from urllib.parse import urldefrag, urljoin
+
+import jsonschema_rs
+import yaml
+
+PACKAGE = "conformance.schemas"
+BASE_URI = "https://waraps-conformance.invalid/schemas/"
+"""Base of every schema's ``$id``. The ``.invalid`` domain is never fetched: refs resolve
+from the files shipped in the package."""
+
+UUID_PATTERN = "^[0-9a-fA-F]{8}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{12}$"
+
+# The spec's parameter types (section 9) and the JSON Schema of each (GeoPoint by $ref).
+SPEC_TYPES = ("string", "strings", "bool", "int32", "float64", "float64s", "geopoint",
+              "geopoints", "geopointarrays")
+
+# Which schema validates which message kind (``Validation.kind``; see validator.py).
+KIND_SCHEMAS: dict[str, str] = {
+    "heartbeat": "messages/heartbeat.json",
+    "sensor_info": "messages/sensor_info.json",
+    "direct_execution_info": "messages/direct_execution_info.json",
+    "tst_execution_info": "messages/tst_execution_info.json",
+    "sensor/position": "messages/sensor-position.json",
+    "sensor/heading": "messages/sensor-angle.json",
+    "sensor/course": "messages/sensor-angle.json",
+    "sensor/speed": "messages/sensor-speed.json",
+    "exec/command": "messages/exec-command.json",
+    "exec/response": "messages/exec-response.json",
+    "exec/feedback": "messages/exec-feedback.json",
+    "tst/command": "messages/tst-command.json",
+    "tst/response": "messages/tst-response.json",
+    "tst/feedback": "messages/tst-feedback.json",
+}
+URL_SENSOR_SCHEMA = "messages/sensor-url.json"  # 6.2: camera_url, videoserver_url, *_url
+
+
+class SchemaError(ValueError):
+    """A task specification or schema file that cannot be used; says which file and why."""
+
+
+@lru_cache(maxsize=4096)
+def schema_path_for_kind(kind: str) -> str | None:
+    """The schema file (relative to ``schemas/``) for a message kind, or None when the spec
+    defines no content for it (an optional sensor such as battery_state, an unknown topic).
+
+    Commands are validated by their topic's dispatcher schema, which picks the command's own
+    schema by ``command`` with ``if``/``then``.
+    """
+    for prefix in ("exec/command", "tst/command"):
+        if kind == prefix or kind.startswith(prefix + "/"):
+            return KIND_SCHEMAS[prefix]
+    path = KIND_SCHEMAS.get(kind)
+    if path is None and kind.startswith("sensor/") and kind.endswith("_url"):
+        return URL_SENSOR_SCHEMA
+    return path
+
+
+# --- files ------------------------------------------------------------------------------------
+
+def _walk(node: Any, prefix: str = "") -> list[tuple[str, Any]]:
+    out = []
+    for child in node.iterdir():
+        name = prefix + child.name
+        if child.is_dir():
+            if child.name != "__pycache__":
+                out += _walk(child, name + "/")
+        elif child.name.endswith((".json", ".yaml", ".md")):
+            out.append((name, child))
+    return out
+
+
+@lru_cache(maxsize=1)
+def files() -> dict[str, bytes]:
+    """Every schema data file (json, yaml, md) by path relative to ``schemas/``, sorted."""
+    return {name: ref.read_bytes() for name, ref in sorted(_walk(resources.files(PACKAGE)))}
+
+
+def schemas_hash() -> str:
+    """sha256 (hex) over the names and bytes of the shipped schema files: which spec data a
+    report was made with (the certification report puts it in JUnit properties)."""
+    digest = hashlib.sha256()
+    for name, data in files().items():
+        digest.update(name.encode() + b"\0" + hashlib.sha256(data).digest())
+    return digest.hexdigest()
+
+
+@cache
+def load(path: str) -> dict[str, Any]:
+    """A JSON Schema by path relative to ``schemas/`` (``messages/heartbeat.json``)."""
+    try:
+        data = files()[path]
+    except KeyError:
+        raise SchemaError(f"no schema file {path!r} in {PACKAGE}; have you run "
+                          f"`waraps-conformance schemas generate`?") from None
+    try:
+        return json.loads(data)
+    except ValueError as e:
+        raise SchemaError(f"{PACKAGE}/{path}: not valid JSON: {e}") from None
+
+
+def all_schemas() -> dict[str, dict[str, Any]]:
+    """Every JSON Schema file, by ``$id``."""
+    out = {}
+    for name in files():
+        if name.endswith(".json"):
+            schema = load(name)
+            out[schema.get("$id", BASE_URI + name)] = schema
+    return out
+
+
+def uri_of(path: str) -> str:
+    return BASE_URI + path
+
+
+def _refuse_retrieval(uri: str) -> Any:
+    raise SchemaError(f"schema reference {uri!r} is not a file in {PACKAGE}: schemas are never "
+                      f"fetched from the network; fix the $ref")
+
+
+@lru_cache(maxsize=1)
+def rs_registry() -> jsonschema_rs.Registry:
+    """A jsonschema-rs registry of every shipped schema (built once)."""
+    return jsonschema_rs.Registry(list(all_schemas().items()), retriever=_refuse_retrieval)
+
+
+def referencing_registry() -> Any:
+    """The same schemas as a ``referencing.Registry`` for the pure-Python ``jsonschema``
+    (the benchmark's baseline and hypothesis-jsonschema's bundling)."""
+    from referencing import Registry, Resource
+
+    return Registry().with_resources(
+        (uri, Resource.from_contents(schema)) for uri, schema in all_schemas().items())
+
+
+@cache
+def compiled(path: str) -> jsonschema_rs.Validator:
+    """A jsonschema-rs validator for one schema file, compiled once per process."""
+    return jsonschema_rs.validator_for(load(path), registry=rs_registry())
+
+
+# --- following an error's evaluation path ------------------------------------------------------
+
+def resolve(base_uri: str, ref: str) -> tuple[dict[str, Any], str]:
+    """The schema node ``ref`` points to from a resource at ``base_uri``, and its base URI."""
+    uri, fragment = urldefrag(urljoin(base_uri, ref))
+    node: Any = _by_uri(uri)
+    for part in filter(None, fragment.split("/")):
+        part = part.replace("~1", "/").replace("~0", "~")
+        node = node[int(part)] if isinstance(node, list) else node[part]
+    return node, uri
+
+
+@cache
+def _by_uri_cached(uri: str) -> dict[str, Any]:
+    schema = all_schemas().get(uri)
+    if schema is None:
+        raise SchemaError(f"no schema with $id {uri!r} in {PACKAGE}")
+    return schema
+
+
+def _by_uri(uri: str) -> dict[str, Any]:
+    return _by_uri_cached(uri)
+
+
+@dataclass(frozen=True)
+class Annotations:
+    """What the schema says about an error: the rule it belongs to, and optional words."""
+
+    rule: str | None
+    expected: str | None = None
+    detail: str | None = None
+
+
+@lru_cache(maxsize=4096)
+def rule_annotations(path: str, evaluation_path: tuple[str | int, ...]) -> Annotations:
+    """Walk ``evaluation_path`` (keywords and names, ``$ref`` followed) from the root of schema
+    file ``path``; the nearest ``x-rule`` wins. ``x-expected``/``x-detail`` count only on the
+    node holding the failing keyword (they describe that keyword's test)."""
+    node: Any = load(path)
+    base = node.get("$id", uri_of(path))
+    rule = node.get("x-rule")
+    for step in evaluation_path[:-1]:
+        if step == "$ref" and isinstance(node, dict):
+            node, base = resolve(base, node["$ref"])
+        elif isinstance(node, dict):
+            node = node.get(step) if isinstance(step, str) else None
+        elif isinstance(node, list) and isinstance(step, int) and step < len(node):
+            node = node[step]
+        else:
+            node = None
+        if node is None:
+            break
+        if isinstance(node, dict):
+            if "$id" in node:
+                base = node["$id"]
+            rule = node.get("x-rule", rule)
+    if isinstance(node, dict):
+        return Annotations(rule, node.get("x-expected"), node.get("x-detail"))
+    return Annotations(rule)
+
+
+# --- task specifications ---------------------------------------------------------------------
+
+_TASK_KEYS = {"name", "section", "group", "description", "spec-tags", "tags", "tags-why",
+              "required", "required-why", "requires-one-of", "required-unless",
+              "feedback-statuses", "parameters", "aliases", "example"}
+_PARAM_KEYS = {"type", "description", "enum", "item-enum", "minimum", "maximum",
+               "exclusive-minimum", "item-minimum", "min-items", "max-items", "item-min-items",
+               "examples", "default", "constraint-why", "erratum"}
+_NAME = re.compile(r"^[a-z0-9]+(-[a-z0-9]+)*$")
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One task parameter: its spec type (``float64``, ``geopoints``, ...), the prose, and the
+    constraints the prose states (JSON-Schema-like keys from the task file)."""
+
+    name: str
+    type: str
+    description: str
+    required: bool
+    constraints: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """A task of spec section 9 as its specification file states it.
+
+    ``tags`` are the suite's tags: ``vehicle`` means the task moves the unit (DESIGN: safety),
+    also where the spec gives no tag (``spec_tags`` keeps the spec's own, and the file says
+    why they differ).
+    """
+
+    name: str
+    section: str
+    group: str
+    description: str
+    tags: tuple[str, ...]
+    spec_tags: tuple[str, ...]
+    parameters: tuple[Parameter, ...]
+    required: tuple[str, ...]
+    required_why: str
+    feedback_statuses: tuple[str, ...]
+    example: dict[str, Any]
+    raw: dict[str, Any] = field(repr=False, compare=False, default_factory=dict)
+
+    @property
+    def moves_unit(self) -> bool:
+        """Whether starting this task may move the unit (tag ``vehicle``)."""
+        return "vehicle" in self.tags
+
+    def parameter(self, name: str) -> Parameter:
+        for p in self.parameters:
+            if p.name == name:
+                return p
+        raise KeyError(f"task {self.name!r} has no parameter {name!r}; it has "
+                       f"{', '.join(p.name for p in self.parameters)}")
+
+
+def parse_task(data: Any, source: str) -> TaskSpec:
+    """A task specification from a parsed YAML file; every key is checked (typos name the file)."""
+
+    def bad(msg: str) -> SchemaError:
+        return SchemaError(f"{source}: {msg}")
+
+    if not isinstance(data, dict):
+        raise bad("a task specification is a mapping")
+    unknown = set(data) - _TASK_KEYS
+    if unknown:
+        raise bad(f"unknown keys {sorted(unknown)}; valid: {sorted(_TASK_KEYS)}")
+    for key in ("name", "section", "group", "description", "required-why", "parameters"):
+        if key not in data:
+            raise bad(f"missing key {key!r}")
+    name = data["name"]
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise bad(f"name {name!r} is not a lowercase-hyphenated task name")
+    if data["group"] not in ("general", "vehicle-specific"):
+        raise bad(f"group {data['group']!r} is not general or vehicle-specific")
+    params_in = data["parameters"] or {}
+    required = tuple(data.get("required") or ())
+    for r in required:
+        if r not in params_in:
+            raise bad(f"required parameter {r!r} is not among the parameters")
+    for group in data.get("requires-one-of") or ():
+        for r in group:
+            if r not in params_in:
+                raise bad(f"requires-one-of names {r!r}, not a parameter")
+    for r, cond in (data.get("required-unless") or {}).items():
+        if r not in params_in or not all(k in params_in for k in cond):
+            raise bad(f"required-unless {r!r}: {cond!r} names an unknown parameter")
+    params = []
+    for pname, p in params_in.items():
+        if not isinstance(p, dict):
+            raise bad(f"parameter {pname!r} must be a mapping")
+        unknown = set(p) - _PARAM_KEYS
+        if unknown:
+            raise bad(f"parameter {pname!r}: unknown keys {sorted(unknown)}; valid: "
+                      f"{sorted(_PARAM_KEYS)}")
+        if p.get("type") not in SPEC_TYPES:
+            raise bad(f"parameter {pname!r}: type {p.get('type')!r} is not one of "
+                      f"{', '.join(SPEC_TYPES)} (spec 9)")
+        if not p.get("description"):
+            raise bad(f"parameter {pname!r} has no description")
+        constraints = {k: v for k, v in p.items() if k not in ("type", "description")}
+        params.append(Parameter(pname, p["type"], " ".join(p["description"].split()),
+                                pname in required, constraints))
+    for alias, a in (data.get("aliases") or {}).items():
+        if a.get("canonical") not in params_in or not str(a.get("rule", "")).startswith("ERR-"):
+            raise bad(f"alias {alias!r} needs canonical (a parameter) and rule (an ERR-* id)")
+    return TaskSpec(
+        name=name, section=str(data["section"]), group=data["group"],
+        description=" ".join(data["description"].split()),
+        tags=tuple(data.get("tags") or ()), spec_tags=tuple(data.get("spec-tags") or ()),
+        parameters=tuple(params), required=required,
+        required_why=" ".join(data["required-why"].split()),
+        feedback_statuses=tuple(data.get("feedback-statuses") or ()),
+        example=dict(data.get("example") or {}), raw=data)
+
+
+@lru_cache(maxsize=1)
+def _task_specs() -> tuple[TaskSpec, ...]:
+    specs = []
+    for name, data in files().items():
+        if name.startswith("tasks/") and name.endswith(".yaml"):
+            spec = parse_task(yaml.safe_load(data), f"{PACKAGE}/{name}")
+            if name != f"tasks/{spec.name}.yaml":
+                raise SchemaError(f"{PACKAGE}/{name}: file name does not match task name "
+                                  f"{spec.name!r}")
+            specs.append(spec)
+    return tuple(sorted(specs, key=lambda s: s.name))
+
+
+def task_specs() -> list[TaskSpec]:
+    """Every task of section 9, sorted by name."""
+    return list(_task_specs())
+
+
+def task_names() -> list[str]:
+    return [s.name for s in _task_specs()]
+
+
+def task_spec(name: str) -> TaskSpec:
+    """The task called ``name``; KeyError names close matches."""
+    for spec in _task_specs():
+        if spec.name == name:
+            return spec
+    import difflib
+
+    close = difflib.get_close_matches(name, task_names(), n=3)
+    hint = f" (did you mean {', '.join(close)}?)" if close else ""
+    raise KeyError(f"no task {name!r} in section 9{hint}")
+
+
+def params_schema_path(task: str) -> str:
+    task_spec(task)  # a KeyError with hints for an unknown name
+    return f"generated/params/{task}.json"
+
+
+def params_schema(task: str, *, bundled: bool = True) -> dict[str, Any]:
+    """The JSON Schema (Draft 2020-12) of a task's ``params``.
+
+    ``bundled`` (default) returns a self-contained copy with the GeoPoint inlined (no
+    ``$ref``), ready for hypothesis-jsonschema or any validator; otherwise the file as shipped.
+    """
+    schema = load(params_schema_path(task))
+    return inline_refs(schema) if bundled else schema
+
+
+def inline_refs(schema: dict[str, Any], *, max_depth: int = 3) -> dict[str, Any]:
+    """A copy of ``schema`` with every ``$ref`` replaced by its target (recursive refs are cut
+    after ``max_depth`` expansions by an empty-array/false schema, for generators that cannot
+    follow recursion). ``$id``s are dropped from the copy."""
+
+    def go(node: Any, base: str, depth: dict[str, int]) -> Any:
+        if isinstance(node, list):
+            return [go(x, base, depth) for x in node]
+        if not isinstance(node, dict):
+            return node
+        base = node.get("$id", base)
+        out: dict[str, Any] = {}
+        for k, v in node.items():
+            if k in ("$id", "$schema", "$defs", "$ref"):
+                continue
+            out[k] = go(v, base, depth)
+        if "$ref" in node:
+            target, target_base = resolve(base, node["$ref"])
+            key = urljoin(base, node["$ref"])
+            if depth.get(key, 0) >= max_depth:
+                return False
+            inner = go(target, target_base, {**depth, key: depth.get(key, 0) + 1})
+            if inner is False:
+                return False
+            if out:
+                return {"allOf": [inner], **out}
+            return inner
+        return out
+
+    root_base = schema.get("$id", BASE_URI)
+    return go(schema, root_base, {})

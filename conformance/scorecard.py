@@ -1,0 +1,315 @@
+"""The linter's live per-unit scorecard: redrawn in place on a terminal, plain lines in a pipe or
+CI log (first violation of each rule per unit, connection events, a summary line now and then).
+
+One row per unit: agent type, role, declared levels, message rate, last seen, status so far and
+violations by rule; below it the latest fleet observations (silence, two agents under one name,
+reboots, responses to nothing, reused com-uuids, stale retained state).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+import time
+from dataclasses import dataclass
+from typing import IO, Any
+
+from conformance.lint.linter import FLEET_RULES, NOT_A_UNIT, OTHER_UNITS, Linter
+from conformance.recording import Event
+from conformance.rules import CATALOGUE
+from conformance.violation import Violation
+
+LEVEL_SHORT = {"sensor": "sensor", "direct execution": "exec", "tst execution": "tst",
+               "delegation": "deleg"}
+PLAIN_SUMMARY_EVERY = 10.0
+"""Seconds between summary lines in plain mode."""
+TTY_REFRESH_EVERY = 1.0
+
+
+@dataclass
+class UnitRow:
+    """One unit as the scorecard shows it. Rate in messages per second, times Unix seconds."""
+
+    unit: str
+    agent_type: str = ""
+    role: str = ""
+    levels: tuple[str, ...] | None = None
+    messages: int = 0
+    rate: float | None = None
+    last_seen: float | None = None
+    errors: int = 0
+    warnings: int = 0
+    violations: tuple[tuple[str, int], ...] = ()
+
+    @property
+    def status(self) -> str:
+        if self.errors:
+            return "FAIL"
+        if self.warnings:
+            return "warn"
+        return "ok" if self.messages else "-"
+
+
+def _clock(t: float | None) -> str:
+    return time.strftime("%H:%M:%S", time.localtime(t)) if t is not None else "--:--:--"
+
+
+def _ago(t: float | None, now: float) -> str:
+    if t is None:
+        return "never"
+    d = max(0.0, now - t)
+    if d < 1:
+        return "now"
+    if d < 120:
+        return f"{d:.0f}s ago"
+    if d < 7200:
+        return f"{d / 60:.0f}m ago"
+    return f"{d / 3600:.1f}h ago"
+
+
+def _count(n: float) -> str:
+    if n >= 1e6:
+        return f"{n / 1e6:.1f}M"
+    if n >= 1e4:
+        return f"{n / 1e3:.0f}k"
+    return f"{n:.0f}"
+
+
+def violation_line(v: Violation, unit: str, verdict: str, when: float | None = None) -> str:
+    """One line for a violation: when (its time, else ``when``), verdict, unit, rule, title,
+    expected and observed."""
+    rule = CATALOGUE.get(v.rule)
+    title = rule.title if rule else ""
+    what = f"expected {v.expected}, observed {v.observed}" if v.expected or v.observed else ""
+    where = f" [{v.topic}]" if v.topic and not v.topic.startswith(unit + "/") else ""
+    t = v.time if v.time is not None else when
+    return f"{_clock(t)} {verdict:<4} {unit} {v.rule} {title}: {what}{where}".rstrip(": ")
+
+
+def event_line(e: Event, gap_start: float | None = None) -> str:
+    if e.kind == "disconnected":
+        return (f"{_clock(e.time)} connection lost ({e.detail or 'no reason given'}); "
+                f"reconnecting with backoff, rates over the gap will not be judged")
+    if e.kind == "connected":
+        took = f" after {e.time - gap_start:.1f} s" if gap_start is not None else ""
+        return f"{_clock(e.time)} reconnected{took}; linting goes on"
+    return (f"{_clock(e.time)} fell behind: {e.count} messages not examined (rates in that "
+            f"window are not judged)")
+
+
+class Scorecard:
+    """Shows a ``Linter``'s progress on ``out``.
+
+    ``tty`` None means: redraw in place when ``out`` is a terminal (and TERM is not dumb),
+    plain lines otherwise. Call ``update()`` often; it draws at most every second (terminal)
+    and prints a summary every 10 s (plain), with violations and events as they come.
+    """
+
+    def __init__(self, out: IO[str] | None = None, *, tty: bool | None = None,
+                 title: str = "", live: bool = True) -> None:
+        self.out = out or sys.stdout
+        if tty is None:
+            tty = bool(getattr(self.out, "isatty", lambda: False)()) and \
+                os.environ.get("TERM", "") not in ("", "dumb")
+        self.tty = tty
+        self.title = title
+        self.live = live
+        self._drawn_lines = 0
+        self._last_draw = 0.0
+        self._last_summary = time.monotonic()
+        self._prev_counts: dict[str, tuple[int, float]] = {}
+        self._gap_start: float | None = None
+
+    # --- data -----------------------------------------------------------------------------------
+    def rows(self, linter: Linter, *, overall: bool = False) -> list[UnitRow]:
+        """Every unit seen, worst first. ``overall``: rates over the whole run, not lately."""
+        rows: dict[str, UnitRow] = {}
+        monitor = linter.monitor
+        now = linter.last_time
+        for unit in list(monitor.units()):
+            state: Any = monitor.state(unit)
+            key = str(getattr(state, "address", unit))
+            address = getattr(state, "address", None)
+            count = int(getattr(state, "message_count", 0) or 0)
+            first = getattr(state, "first_seen", None)
+            last = getattr(state, "last_seen", None)
+            rate = None
+            if overall:
+                if first is not None and last is not None and last > first and count > 1:
+                    rate = (count - 1) / (last - first)
+            else:
+                prev = self._prev_counts.get(key)
+                if prev is not None and now is not None and now > prev[1]:
+                    rate = (count - prev[0]) / (now - prev[1])
+                if now is not None and (prev is None or now - prev[1] >= 5.0):
+                    self._prev_counts[key] = (count, now)
+            rows[key] = UnitRow(
+                key, agent_type=str(getattr(state, "agent_type", "") or ""),
+                role=str(getattr(address, "role", "") or ""),
+                levels=getattr(state, "levels", None), messages=count, rate=rate,
+                last_seen=last)
+        for unit, counts in linter.by_unit.items():
+            row = rows.get(unit) or rows.setdefault(unit, UnitRow(unit))
+            row.violations = tuple(sorted(counts.items(),
+                                          key=lambda rc: (not linter.is_error(rc[0]), -rc[1], rc[0])))
+            row.errors = sum(n for r, n in counts.items() if linter.is_error(r))
+            row.warnings = sum(n for r, n in counts.items() if not linter.is_error(r))
+        order = {"FAIL": 0, "warn": 1, "ok": 2, "-": 3}
+        return sorted(rows.values(), key=lambda r: (order[r.status], r.unit in (NOT_A_UNIT,
+                                                                                 OTHER_UNITS), r.unit))
+
+    # --- rendering ------------------------------------------------------------------------------
+    def header(self, linter: Linter, elapsed: float | None, connected: bool | None) -> str:
+        parts = [f"waraps-conformance lint {self.title}".rstrip()]
+        if elapsed is not None:
+            parts.append(f"{int(elapsed) // 3600:02d}:{int(elapsed) % 3600 // 60:02d}:"
+                         f"{int(elapsed) % 60:02d}")
+        parts.append(f"{_count(linter.messages)} messages")
+        if linter.unexamined:
+            parts.append(f"{_count(linter.unexamined)} NOT EXAMINED (fell behind)")
+        if linter.gaps or linter.open_gap:
+            parts.append(f"{len(linter.gaps) + (linter.open_gap is not None)} connection gap(s)")
+        if connected is not None:
+            parts.append("connected" if connected else "DISCONNECTED, reconnecting")
+        return " | ".join(parts)
+
+    def table(self, rows: list[UnitRow], now: float | None, width: int = 200,
+              max_rows: int | None = None) -> list[str]:
+        """The scorecard table as lines of at most ``width`` characters."""
+        uw = max([4] + [len(r.unit) for r in rows])
+        uw = min(uw, max(20, width // 3))
+        head = (f"{'UNIT':<{uw}} {'TYPE':<10} {'ROLE':<10} {'LEVELS':<17} {'MSG/S':>7} "
+                f"{'LAST SEEN':>9} {'STATUS':<6} VIOLATIONS BY RULE")
+        lines = [head[:width]]
+        shown = rows if max_rows is None else rows[:max_rows]
+        for r in shown:
+            levels = "?" if r.levels is None else ",".join(LEVEL_SHORT.get(lv, lv) for lv in r.levels)
+            rate = "" if r.rate is None else f"{r.rate:.1f}"
+            seen = "" if r.last_seen is None else (_ago(r.last_seen, now) if now else _clock(r.last_seen))
+            viol = " ".join(f"{rule}x{n}" for rule, n in r.violations) or "-"
+            unit = r.unit if len(r.unit) <= uw else "…" + r.unit[-(uw - 1):]
+            line = (f"{unit:<{uw}} {r.agent_type[:10]:<10} {r.role[:10]:<10} {levels[:17]:<17} "
+                    f"{rate:>7} {seen:>9} {r.status:<6} {viol}")
+            lines.append(line if len(line) <= width else line[: width - 1] + "…")
+        if not rows:
+            lines.append("(no unit seen yet)")
+        if max_rows is not None and len(rows) > max_rows:
+            lines.append(f"... and {len(rows) - max_rows} more units")
+        return lines
+
+    def fleet_lines(self, linter: Linter, limit: int = 5) -> list[str]:
+        latest = list(linter.fleet)[-limit:]
+        if not latest:
+            return []
+        lines = ["fleet observations (latest):"]
+        for v in latest:
+            lines.append("  " + violation_line(v, linter.unit_of(v), self._verdict(linter, v.rule)))
+        return lines
+
+    @staticmethod
+    def _verdict(linter: Linter, rule: str) -> str:
+        return "FAIL" if linter.is_error(rule) else "warn"
+
+    # --- output ---------------------------------------------------------------------------------
+    def update(self, linter: Linter, *, elapsed: float | None = None,
+               connected: bool | None = None, force: bool = False) -> None:
+        """Show what is new; redraw (terminal) or summarise (plain) when it is time."""
+        if self.tty:
+            now = time.monotonic()
+            linter.take_fresh()
+            linter.take_events()
+            if force or now - self._last_draw >= TTY_REFRESH_EVERY:
+                self._last_draw = now
+                self._redraw(linter, elapsed, connected)
+            return
+        write = self.out.write
+        for e in linter.take_events():
+            write(event_line(e, self._gap_start) + "\n")
+            if e.kind == "disconnected":
+                self._gap_start = e.time
+            elif e.kind == "connected":
+                self._gap_start = None
+        for v, when in linter.take_fresh():
+            write(violation_line(v, linter.unit_of(v), self._verdict(linter, v.rule), when)
+                  + "\n")
+        now = time.monotonic()
+        if force or now - self._last_summary >= PLAIN_SUMMARY_EVERY:
+            self._last_summary = now
+            units = len(list(linter.monitor.units()))
+            failing = linter.failing_units()
+            write(f"{_clock(linter.last_time)} {units} units, {linter.messages} messages"
+                  + (f", {linter.unexamined} not examined" if linter.unexamined else "")
+                  + (f", failing: {', '.join(failing[:10])}"
+                     + (f" and {len(failing) - 10} more" if len(failing) > 10 else "")
+                     if failing else ", no unit fails so far") + "\n")
+        self.out.flush()
+
+    def _redraw(self, linter: Linter, elapsed: float | None, connected: bool | None) -> None:
+        size = shutil.get_terminal_size((120, 40))
+        now = time.time() if self.live else linter.last_time
+        lines = [self.header(linter, elapsed, connected)[: size.columns]]
+        fleet = self.fleet_lines(linter)
+        room = max(3, size.lines - 3 - len(fleet))
+        lines += self.table(self.rows(linter), now, size.columns, max_rows=room)
+        lines += [ln[: size.columns] for ln in fleet]
+        # Move to the first line drawn last time and clear below it: a redraw in place.
+        prefix = f"\x1b[{self._drawn_lines}F\x1b[J" if self._drawn_lines else ""
+        self.out.write(prefix + "\n".join(lines) + "\n")
+        self.out.flush()
+        self._drawn_lines = len(lines)
+
+    def final(self, linter: Linter, report: Any) -> None:
+        """The final scorecard from the run report (finish-time judgements included), plain
+        text whatever the output; rates over the whole run."""
+        if self.tty and self._drawn_lines:
+            self.out.write(f"\x1b[{self._drawn_lines}F\x1b[J")
+            self._drawn_lines = 0
+        elif not self.tty:
+            self.update(linter)  # pending violations and events first
+        lines = [self.header(linter, None, None), ""]
+        lines += self.table(rows_from_report(report), None, width=400)
+        fleet = fleet_from_report(report, limit=20)
+        if fleet:
+            lines += ["", "fleet observations:"] + ["  " + ln for ln in fleet]
+        self.out.write("\n".join(lines) + "\n")
+        self.out.flush()
+
+
+def rows_from_report(report: Any) -> list[UnitRow]:
+    """Scorecard rows from a ``RunReport``: status is the worst verdict, violations counted
+    per rule, rate over the whole run (messages per second)."""
+    rows = []
+    for unit, u in report.units.items():
+        rate = None
+        if u.first_seen is not None and u.last_seen is not None and u.last_seen > u.first_seen:
+            rate = (u.message_count - 1) / (u.last_seen - u.first_seen)
+        failed = {r for r, res in u.rules.items() if res.verdict.value == "fail"}
+        warned = {r for r, res in u.rules.items() if res.verdict.value == "warn"}
+        counts = dict(u.violation_counts)
+        for r in failed | warned:  # a fail without a counted violation (an explicit verdict)
+            counts.setdefault(r, 0)
+        order = sorted(counts.items(), key=lambda rc: (rc[0] not in failed, -rc[1], rc[0]))
+        rows.append(UnitRow(unit, u.agent_type, u.role,
+                            tuple(u.levels) if u.levels or u.message_count == 0 else None,
+                            u.message_count, rate, u.last_seen,
+                            errors=len(failed), warnings=len(warned),
+                            violations=tuple((r, n) for r, n in order if r in failed | warned)))
+    order_of = {"FAIL": 0, "warn": 1, "ok": 2, "-": 3}
+    return sorted(rows, key=lambda r: (order_of[r.status], r.unit == NOT_A_UNIT, r.unit))
+
+
+def fleet_from_report(report: Any, limit: int = 20) -> list[str]:
+    """The fleet observations of a report (silence, identity, commands, retained), by time."""
+    found = []
+    for unit, u in report.units.items():
+        for rule in FLEET_RULES:
+            res = u.rules.get(rule)
+            if res is None or res.verdict.value not in ("fail", "warn"):
+                continue
+            for v in res.violations:
+                found.append((v.time or 0.0, violation_line(v, unit, res.verdict.value.upper()
+                                                            if res.verdict.value == "fail"
+                                                            else "warn")))
+    found.sort()
+    return [line for _, line in found[-limit:]]

@@ -1,0 +1,275 @@
+"""Fault switches of the reference unit: each breaks named rules the way a real unit would.
+
+``FAULTS[name].rules`` are exactly the catalogue rules the fault makes fail (the
+certification suite asserts that, fault by fault); faults combine freely. Every rule a unit
+can break has at least one fault; ``NOT_UNIT_BREAKABLE`` says, for each rule that has none,
+why no unit can break it.
+
+``scope`` says who can see a fault: ``unit`` faults show in the unit's own topics
+(``<unit>/#``); ``broker`` faults move the whole unit to a topic outside its address (a
+leading '/', another agent type or role), so only an observer of the broker (``#``, the
+linter) sees them.
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass
+
+from conformance.rules import CATALOGUE, Mode
+
+
+@dataclass(frozen=True)
+class Fault:
+    """A fault switch: its name, the rule ids it breaks, and what it does (in the words of the
+    bug it imitates)."""
+
+    name: str
+    rules: tuple[str, ...]
+    description: str
+    scope: str = "unit"
+    """``unit``: visible under the unit's own topics; ``broker``: the unit publishes at another
+    address, visible only to an observer of the whole broker."""
+    stimulus: bool = False
+    """It shows only in answers to commands (responses, feedback), although its rules are
+    judged passively once that traffic exists."""
+
+    @property
+    def active(self) -> bool:
+        """Whether showing it needs commands sent: an active rule, or a ``stimulus`` fault."""
+        return self.stimulus or any(CATALOGUE[r].mode is Mode.ACTIVE for r in self.rules)
+
+
+def _f(name: str, rules: str, description: str, scope: str = "unit") -> Fault:
+    stimulus = any(r.startswith(("EXEC-", "ERR-006", "ERR-013", "ERR-014")) for r in
+                   rules.split())
+    return Fault(name, tuple(rules.split()), description, scope, stimulus)
+
+
+_ALL = (
+    # --- 3 topics -------------------------------------------------------------------------------
+    _f("topic-leading-slash", "TOPIC-001",
+       "Publishes and listens under '/<unit>/...' (a ROS namespace '/dji0' pasted into the "
+       "MQTT topic).", "broker"),
+    _f("topic-uppercase-sensor", "TOPIC-002 SI-001",
+       "Names its camera sensor 'Camera_URL' (listed and published so)."),
+    _f("topic-hyphen-sensor", "TOPIC-003 SI-001",
+       "Names its camera sensor 'camera-url' (listed and published so)."),
+    _f("topic-empty-level", "TOPIC-004",
+       "Publishes its camera sensor at 'sensor//camera_url' (a prefix ending in '/' joined "
+       "with '/'), and does not list it."),
+    _f("topic-type-uav", "TOPIC-005 HB-004",
+       "Calls its agent type 'uav' in its topics and heartbeat.", "broker"),
+    _f("topic-role-sim", "TOPIC-006",
+       "Uses the role 'sim' instead of its configured role in its topics.", "broker"),
+    _f("topic-unknown-subtopic", "TOPIC-007",
+       "Also publishes a legacy '<unit>/status' message that the spec does not define."),
+    _f("topic-space-sensor", "TOPIC-008 TOPIC-003 SI-001",
+       "Names its camera sensor 'camera url' (with a space; listed and published so)."),
+    # --- any message ------------------------------------------------------------------------
+    _f("payload-latin1", "MSG-001",
+       "Encodes its camera_url sensor in Latin-1 ('rtsp://.../caméra' is not UTF-8)."),
+    _f("course-nan", "MSG-002",
+       "Publishes course as NaN while standing still (json.dumps' allow_nan default)."),
+    _f("position-as-list", "MSG-003",
+       "Publishes position as a one-element list of GeoPoints (10.1.6's example form)."),
+    _f("camera-data-url", "MSG-004",
+       "Publishes camera_url as an inline 'data:image/jpeg;base64,...' frame of 1.5 MB."),
+    _f("stamp-milliseconds", "MSG-005",
+       "Stamps heartbeat and info messages in milliseconds (Date.now() style)."),
+    _f("stamp-clock-skew", "MSG-005",
+       "Stamps with a clock that runs 120 s behind (no NTP)."),
+    _f("name-mismatch", "MSG-006",
+       "Puts its display name in 'name' (upper case) instead of the topic's unit name."),
+    _f("retained-stale-heartbeat", "MSG-007",
+       "Publishes, once, a retained 'birth' heartbeat stamped when it booted, 5 periods before "
+       "it connected; every later subscriber receives that stale heartbeat."),
+    # --- 5.1 heartbeat ----------------------------------------------------------------------
+    _f("heartbeat-missing-field", "HB-001",
+       "Leaves 'levels' out of its heartbeat (it sends its info messages anyway)."),
+    _f("heartbeat-type-case", "HB-002", "Sends type 'Heartbeat' instead of 'HeartBeat'."),
+    _f("heartbeat-rate-drift", "HB-003",
+       "Declares its heartbeat rate but sends at 1/1.35 of it (sleep(period) plus work)."),
+    _f("agent-type-mismatch", "HB-004",
+       "Says another agent-type in its heartbeat than its topic does (configured from a "
+       "ground unit's template: 'ground', or 'air' on a ground unit)."),
+    _f("agent-uuid-not-uuid", "HB-005",
+       "Uses '<name>-<boot count>' as its agent-uuid everywhere."),
+    _f("agent-uuid-changes", "HB-006",
+       "Makes a new agent-uuid every 5 heartbeat periods without rebooting or going silent "
+       "(the uuid is generated in the heartbeat thread, which restarts)."),
+    _f("level-unknown", "HB-007", "Declares an extra level 'telemetry'."),
+    _f("level-unbacked", "HB-008",
+       "Declares 'tst execution' (copied from 5.1) without sending tst_execution_info."),
+    _f("rate-zero", "HB-009", "Declares heartbeat rate 0 ('unknown')."),
+    _f("dropouts", "HB-010",
+       "Falls silent for 4 periods every 25 periods (out of radio range) and comes back with "
+       "the same agent-uuid (a silence is not judged as a rate: HB-003 stays clean)."),
+    _f("twin-agent", "HB-011 HB-006 HB-003",
+       "A second, stale process publishes heartbeats under the same name with another "
+       "agent-uuid, interleaved with the unit's own."),
+    # --- 5.2 sensor_info and 6 sensors -------------------------------------------------------
+    _f("sensor-info-type", "SI-001", "Sends sensor_info with type 'SensorInformation'."),
+    _f("sensor-info-rate-drift", "SI-002",
+       "Sends sensor_info at 1/1.35 of its declared rate."),
+    _f("sensor-listed-unpublished", "SI-003",
+       "Lists 'battery_state' in sensor-data-provided but never publishes it."),
+    _f("mandatory-sensor-missing", "SI-004",
+       "Neither lists nor publishes the mandatory 'course' sensor."),
+    _f("sensor-unlisted", "SI-005",
+       "Publishes sensor/battery_state without listing it in sensor_info."),
+    _f("position-deg-e7", "SENS-001",
+       "Publishes latitude and longitude as integer degrees x 1e7 (MAVLink's degE7)."),
+    _f("heading-signed", "SENS-002",
+       "Publishes heading in (-180, 180] (atan2 output); the unit faces west at start, so "
+       "heading is negative."),
+    _f("speed-sentinel", "SENS-003", "Publishes speed -1 while it stands still ('no fix')."),
+    _f("camera-url-object", "SENS-004",
+       "Publishes camera_url as an object {\"url\": ...} instead of a string."),
+    _f("position-jumps", "SENS-005",
+       "Two positions in every five come from a second GNSS receiver with an 800 m datum "
+       "offset."),
+    # --- 5.3 direct_execution_info -----------------------------------------------------------
+    _f("dei-type", "DEI-001", "Sends direct_execution_info with type 'DirectExecInfo'."),
+    _f("dei-rate-drift", "DEI-002",
+       "Sends direct_execution_info at 1/1.35 of its declared rate."),
+    _f("signal-nonstandard", "DEI-003",
+       "Lists a system signal '$resume' (an alias of $continue) for every task."),
+    _f("tasks-executing-stale", "DEI-004",
+       "Never removes ended tasks from tasks-executing."),
+    _f("tst-info-incomplete", "TEI-001",
+       "Declares 'tst execution' and sends tst_execution_info without 'rate'."),
+    _f("tst-info-rate-drift", "TEI-002",
+       "Declares 'tst execution' and sends tst_execution_info at 1/1.35 of its declared rate."),
+    # --- 12 direct execution: responses ------------------------------------------------------
+    _f("response-no-agent-uuid", "EXEC-002 ERR-013",
+       "Leaves agent-uuid out of its responses (in a signal-task response that is ERR-013's "
+       "reading)."),
+    _f("start-answered-started", "EXEC-003 EXEC-START-001",
+       "Answers start-task 'started' (14.4.4's TST word) instead of 'running'."),
+    _f("response-stale-agent-uuid", "EXEC-004",
+       "Its command executor has an agent-uuid of its own, which responses carry."),
+    _f("response-reuses-com-uuid", "EXEC-005",
+       "Sends each response with the command's com-uuid instead of a fresh one."),
+    _f("response-on-finish", "EXEC-006",
+       "When a task ends it also sends an exec/response 'finished' whose response-to is the "
+       "task-uuid, answering no command."),
+    _f("fail-reason-empty", "EXEC-007 EXEC-START-004",
+       "Refuses commands with fail-reason '' (the reason is only logged)."),
+    _f("pong-missing", "EXEC-PING-001 EXEC-ROBUST-001", "Never answers ping."),
+    _f("pong-response-to-uppercase", "EXEC-PING-002 EXEC-006",
+       "Answers ping with the ping's com-uuid in upper case as response-to."),
+    _f("start-response-no-task-uuid", "EXEC-START-002",
+       "Leaves task-uuid out of the start-task response when the commander sent one."),
+    _f("no-final-feedback", "EXEC-START-003",
+       "Sends no feedback when a task ends on its own (only on signals)."),
+    _f("accept-invalid-params", "EXEC-START-004",
+       "Accepts start-task with invalid parameters ('running'); the task fails a moment "
+       "later."),
+    _f("accept-unknown-task", "EXEC-START-005",
+       "Accepts start-task of any task name, listed or not, and runs it for a second."),
+    _f("signal-unanswered", "EXEC-SIG-001 EXEC-SIG-005",
+       "Executes signal-task but never answers it."),
+    _f("abort-ignored", "EXEC-SIG-002", "Acknowledges $abort ('ok') and goes on."),
+    _f("pause-ignored", "EXEC-SIG-003",
+       "Acknowledges $pause ('ok') but neither pauses nor says 'paused'."),
+    _f("enough-aborts", "EXEC-SIG-004", "Ends a task on $enough with status 'aborted'."),
+    _f("signal-unknown-task-ok", "EXEC-SIG-005",
+       "Answers 'ok' to a signal for a task-uuid it has never seen."),
+    _f("query-forgets-finished", "EXEC-QUERY-001",
+       "Answers query-status from the running tasks only: an ended task is 'unknown'."),
+    _f("query-unknown-failed", "EXEC-QUERY-002",
+       "Answers query-status of a task it does not know 'failed' ('no such task'), never seen "
+       "or forgotten in a reboot (REBOOT-002 is judged against that same answer)."),
+    _f("resend-executes-twice", "EXEC-RESEND-001",
+       "Executes a command resent with the same com-uuid again."),
+    _f("resend-unanswered", "EXEC-RESEND-002",
+       "Drops a resent command silently (no second answer)."),
+    # --- 12.4 feedback ------------------------------------------------------------------------
+    _f("feedback-no-com-uuid", "EXEC-FB-001", "Leaves com-uuid out of feedback messages."),
+    _f("feedback-status-typo", "EXEC-FB-002",
+       "Sends a 'Starting' feedback (capitalised) before 'running'."),
+    _f("feedback-stale-agent-uuid", "EXEC-FB-003",
+       "Its feedback publisher has an agent-uuid of its own, which feedback carries."),
+    _f("feedback-after-final", "EXEC-FB-004",
+       "Sends a task's final feedback twice."),
+    # --- robustness and reboot ----------------------------------------------------------------
+    _f("crash-on-malformed", "EXEC-ROBUST-001 EXEC-ROBUST-002",
+       "Its command thread dies on the first command that is not a JSON object: no command is "
+       "answered after that (heartbeats go on)."),
+    _f("malformed-unanswered", "EXEC-ROBUST-002",
+       "Drops malformed commands silently, even when their com-uuid can be read."),
+    _f("reboot-keeps-agent-uuid", "REBOOT-001 REBOOT-002",
+       "Keeps its agent-uuid across a reboot (read from a config file) but loses its history."),
+    _f("reboot-remembers-history", "REBOOT-002",
+       "Gets a new agent-uuid on reboot but still knows its earlier tasks (history on disk)."),
+    # --- errata readings ----------------------------------------------------------------------
+    _f("sensor-dot-info", "ERR-001", "Sends sensor_info on 'sensor.info' (5.2's spelling)."),
+    _f("query-answers-success", "ERR-006",
+       "Answers query-status of a finished task 'success' (12.1's word)."),
+    _f("level-underscore", "ERR-008", "Declares the level 'direct_execution'."),
+    _f("geopoint-type-tag", "ERR-010", "Tags its position \"type\": \"GeoPoint\"."),
+    _f("geopoint-untagged", "ERR-010", "Publishes its position without a rostype tag."),
+    _f("info-no-agent-uuid", "ERR-012",
+       "Leaves agent-uuid out of sensor_info and direct_execution_info (5.2/5.3's examples)."),
+    _f("signal-response-tst-form", "ERR-013",
+       "Answers signal-task in 14.4.1's TST form: com-uuid, response 'ok', response-to, "
+       "nothing else."),
+    _f("uuid-counter", "ERR-014",
+       "Makes com-uuids of its responses and feedback, and the task-uuids it generates, from "
+       "a counter ('msg-17')."),
+)
+
+FAULTS: dict[str, Fault] = {f.name: f for f in _ALL}
+assert len(FAULTS) == len(_ALL), "duplicate fault name"
+
+NOT_UNIT_BREAKABLE: dict[str, str] = {
+    "EXEC-001": "judges commands, which the commander sends, not the unit",
+    "EXEC-008": "judges the commander's reuse of a com-uuid",
+    "TASK-001": "judges the parameters of a start-task command (the commander's)",
+    "TASK-002": "judges the task name of a start-task command (the commander's)",
+    "TASK-003": "judges the parameters of a start-task command (the commander's)",
+    "TST-001": "TST commands: the reference unit has no TST level (v0.7 leaves it to op0)",
+    "TST-002": "TST responses: the reference unit has no TST level",
+    "TST-003": "TST feedback: the reference unit has no TST level",
+    "ERR-002": "about the spec's example text; a unit copying it breaks MSG-002 (course-nan)",
+    "ERR-003": "a misspelled parameter in a start-task command (the commander's)",
+    "ERR-004": "observe-position parameter forms in a start-task command (the commander's)",
+    "ERR-005": "a TST node name in start-tst (the commander's)",
+    "ERR-007": "the signal-executor command (sent by a commander)",
+    "ERR-009": "common_params of a TST node in start-tst (the commander's)",
+    "ERR-011": "about the spec's text: tst_execution_info is not defined (TEI-001 judges it)",
+}
+
+for _fault in _ALL:
+    for _rule in _fault.rules:
+        assert _rule in CATALOGUE, f"fault {_fault.name}: unknown rule {_rule}"
+
+
+class FaultError(ValueError):
+    """An unknown fault name; the message lists close matches."""
+
+
+def check_names(names: object) -> frozenset[str]:
+    """The fault names as a set; raise ``FaultError`` naming any unknown one."""
+    if isinstance(names, str):
+        names = (names,)
+    out = set()
+    for name in names:  # type: ignore[union-attr]
+        if name not in FAULTS:
+            close = difflib.get_close_matches(str(name), FAULTS, n=3)
+            hint = f"; did you mean {', '.join(close)}?" if close else ""
+            raise FaultError(f"unknown fault {name!r}{hint} (waraps-conformance sim "
+                             f"--list-faults lists them)")
+        out.add(str(name))
+    return frozenset(out)
+
+
+def breaking(rule_id: str) -> list[Fault]:
+    """The faults that break ``rule_id``."""
+    return [f for f in _ALL if rule_id in f.rules]
+
+
+def unit_breakable_rules() -> list[str]:
+    """Every catalogue rule a unit can break (those not in ``NOT_UNIT_BREAKABLE``)."""
+    return [r for r in CATALOGUE if r not in NOT_UNIT_BREAKABLE]

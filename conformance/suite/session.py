@@ -1,0 +1,541 @@
+"""One certification run: the connection, the unit's traffic, the passive Monitor, the active
+scenarios, and the reports. Created by the plugin when ``--unit`` is given.
+
+Data flows one way (DESIGN): every message of ``<unit>/#`` goes to the ``Monitor`` (the same
+passive checks as the linter) and to ``Traffic`` (which the scenarios wait on); scenarios
+record their verdicts into the same Monitor; the Monitor's report is what the tests, the JSON
+and HTML reports and the JUnit properties show.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import subprocess
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from conformance import __version__
+from conformance.checks import Monitor
+from conformance.client import BrokerError, BrokerURL, Message, MqttClient
+from conformance.results import RunReport
+from conformance.rules import CATALOGUE
+from conformance.scenarios import (
+    SCENARIOS,
+    Commander,
+    Context,
+    DryRun,
+    Safety,
+    Timing,
+    Traffic,
+)
+from conformance.scenarios.params import task_moves
+from conformance.suite.settings import Settings
+from conformance.topics import UnitAddress
+from conformance.validator import Validation, Validator
+from conformance.violation import RuleResult, Verdict
+
+CERTIFICATION = pytest.StashKey["Certification"]()
+
+# Rules about what a commander sends. In a certification the suite itself is the commander, so
+# they say nothing about the unit: `waraps-conformance lint` judges commanders.
+COMMANDER_RULES = frozenset({"EXEC-001", "EXEC-008", "TASK-001", "TASK-002", "TASK-003",
+                             "TST-001", "ERR-003", "ERR-004", "ERR-005", "ERR-007", "ERR-009"})
+PERIODIC = ("heartbeat", "sensor_info", "direct_execution_info", "tst_execution_info")
+MAX_PROBE_TOPICS = 500
+
+
+class NotAlive(Exception):
+    """The unit under test sent no heartbeat in time; the message says what was seen."""
+
+
+class SuiteValidator(Validator):
+    """The validator, except that the suite's own commands are not judged against the unit.
+
+    The commands on ``<unit>/exec/command`` are the suite's (some broken on purpose: the
+    robustness scenario); the Monitor still sees them, so it can match responses to them
+    (EXEC-006), but their rule violations are the commander's, not the unit's.
+    """
+
+    def __init__(self, profile: Any, command_topics: frozenset[str]) -> None:
+        super().__init__(profile)
+        self.command_topics = command_topics
+
+    def validate(self, topic: str, payload: bytes | str, time: float | None = None) -> Validation:
+        v = super().validate(topic, payload, time)
+        if topic not in self.command_topics:
+            return v
+        changes: dict[str, Any] = {"violations": ()}
+        if any(f.name == "examined" for f in dataclasses.fields(v)):
+            changes["examined"] = ()
+        return dataclasses.replace(v, **changes)
+
+
+class Certification:
+    """The state of one ``pytest --unit`` run (one unit, one broker, one profile)."""
+
+    def __init__(self, config: pytest.Config, settings: Settings) -> None:
+        self.config = config
+        self.settings = settings
+        self.unit: UnitAddress = settings.unit
+        self.profile = settings.profile
+        self.timing = Timing(self.profile, settings.timing_scale)
+        self.traffic = Traffic(self.unit)
+        command_topic = self.unit.topic("exec/command")
+        self.monitor = Monitor(self.profile, units=[self.unit], kind="certification",
+                               validator=SuiteValidator(self.profile, frozenset({command_topic})))
+        self._lock = threading.RLock()
+        self.client: MqttClient | None = None
+        self.reference: Any = None  # the bundled reference unit under --broker embedded
+        self.broker_url: BrokerURL = settings.broker
+        self.started = time.time()
+        self.stem = f"{self.unit.name}-{time.strftime('%Y%m%dT%H%M%S', time.localtime())}"
+        self.report_paths: dict[str, Path] = {}
+        self.collect_only = False
+        """--collect-only: nothing is connected, run or written."""
+        self.error: str | None = None
+        """Why the run stopped before the tests (broker unreachable, unit not alive)."""
+        self.events: list[str] = []
+        """What happened to the connection and the unit, for the terminal summary."""
+        self._gap_start: float | None = None
+        self._alive = threading.Event()
+        self._done: dict[str, bool] = {}
+        self._passive_ready = False
+        self._last_write = 0.0
+        self.commander = Commander(
+            self.unit, self.traffic, self._publish, dry_run=settings.dry_run, say=self._say,
+            gaps=lambda: len(self.client.gaps) if self.client else 0,
+            wait_connected=lambda t: self.client.wait_connected(t) if self.client else False)
+        self.safety = Safety(self.unit, self.profile, allow_motion=settings.allow_motion,
+                             task_moves=task_moves)
+        self.context = Context(self.unit, self.profile, self.traffic, self.commander,
+                               self.safety, self.timing, settings.seed, self.record,
+                               reboot=self._reboot_method(), reboot_how=self._reboot_how())
+
+    # --- connection and the alive check -------------------------------------------------------
+    def start(self) -> None:
+        """Connect, observe ``<unit>/#`` and wait for the unit's first live heartbeat.
+
+        Raises ``BrokerError`` (broker unreachable or refusing) or ``NotAlive``."""
+        if self.settings.embedded:
+            from conformance.demo import Reference
+
+            self.reference = Reference(self.unit, faults=self.settings.sim_faults,
+                                       rate=self.settings.sim_rate,
+                                       seed=self.settings.seed).start()
+            self.broker_url = BrokerURL.parse(self.reference.url)
+        probe = _Probe(self.broker_url, self.unit)
+        self.client = MqttClient(self.broker_url, on_message=self._on_message,
+                                 may_publish=self._may_publish,
+                                 on_connection_change=self._on_connection)
+        self.client.connect(timeout=5.0 * self.settings.timing_scale)
+        self.client.subscribe(self.unit.base + "/#")
+        probe.start()
+        try:
+            deadline = self.alive_timeout()
+            if not self._alive.wait(deadline):
+                raise NotAlive(self._not_alive(deadline, probe.topics()))
+        finally:
+            probe.close()
+
+    def alive_timeout(self) -> float:
+        """Seconds to wait for the first heartbeat: the profile's alive_timeout, else 5 s
+        (the declared rate is not known before the first heartbeat), times --timing-scale."""
+        base = self.profile.alive_timeout or 5.0
+        return base * self.settings.timing_scale
+
+    def _not_alive(self, waited: float, seen: dict[str, bytes]) -> str:
+        topic = self.unit.topic("heartbeat")
+        lines = [f"the unit {self.unit} is not alive: no heartbeat on {topic} within "
+                 f"{waited:.1f} s (broker {self.broker_url})."]
+        if self.traffic.subtopics():
+            lines.append(f"Its own topics were seen ({', '.join(sorted(self.traffic.subtopics()))}"
+                         f"), but no live heartbeat (retained ones do not count).")
+        def base(topic: str) -> str:
+            lead = "/" if topic.startswith("/") else ""
+            return lead + "/".join(topic.lstrip("/").split("/")[:5])
+
+        others = sorted({base(t) for t in seen if t.lstrip("/").split("/")[1:2] == ["unit"]
+                         and len(t.lstrip("/").split("/")) > 5} - {self.unit.base})
+        prefix = self.unit.prefix
+        if others:
+            import difflib
+
+            close = [c for c in difflib.get_close_matches(self.unit.base, others, n=3,
+                                                          cutoff=0.6) if _is_address(c)][:1]
+            lines.append(f"Units seen under {prefix}/: {', '.join(others[:10])}"
+                         + (f" (and {len(others) - 10} more)" if len(others) > 10 else "") + ".")
+            if close:
+                lines.append(f"Did you mean --unit {close[0]}?")
+        elif seen:
+            lines.append(f"Topics seen under {prefix}/: {', '.join(sorted(seen)[:10])}.")
+        # A unit publishing where it should not (a leading '/', an unknown agent type or
+        # role) breaks the naming rules of spec 3: say which, that is the finding.
+        broken: dict[str, str] = {}
+        validator = Validator(self.profile)
+        for topic, payload in sorted(seen.items()):
+            for v in validator.validate(topic, payload).violations:
+                if self.profile.severity_of(v.rule).value == "error":
+                    broken.setdefault(v.rule, f"{v.rule} {CATALOGUE[v.rule].title} ({topic})")
+        if broken:
+            lines.append("Those topics break: " + "; ".join(broken[r] for r in sorted(broken)))
+        if not seen:
+            lines.append(f"Nothing at all was published under {prefix}/ meanwhile: is the unit "
+                         f"running and connected to this broker, under this prefix?")
+        if self.settings.timing_scale == 1.0:
+            lines.append("On a slow link, give it longer with --timing-scale 3.")
+        return "\n".join(lines)
+
+    def _on_message(self, message: Message) -> None:
+        """Every message of ``<unit>/#``, on the MQTT network thread: keep it quick."""
+        with self._lock:
+            self.monitor.feed(message)
+        self.traffic.add(message)
+        if not message.retain and message.topic.endswith("/heartbeat") \
+                and message.topic == self.unit.topic("heartbeat"):
+            self._alive.set()
+
+    def _on_connection(self, connected: bool, reason: str) -> None:
+        now = time.time()
+        with self._lock:
+            if not connected:
+                self._gap_start = now
+                # Mark the gap at once: rates, silences and uuid changes across it are not
+                # judged (the Monitor merges this with its end when the link comes back).
+                self.monitor.connection_gap(now, now)
+                self.events.append(f"{_clock(now)} broker connection lost ({reason})")
+            elif self._gap_start is not None:
+                start, self._gap_start = self._gap_start, None
+                self.monitor.connection_gap(start, now)
+                self.events.append(f"{_clock(now)} broker connection back after "
+                                   f"{now - start:.1f} s: rates, silences and uuid changes over "
+                                   f"the gap are not judged")
+
+    def _may_publish(self, topic: str) -> bool:
+        # DESIGN 'Safety': only the command topic of the unit under test.
+        return topic == self.unit.topic("exec/command")
+
+    def _publish(self, topic: str, payload: bytes) -> None:
+        assert self.client is not None
+        # QoS 1 without waiting for the PUBACK: the unit's answer is what the scenario waits
+        # for, and paho resends an unacknowledged command after a reconnect.
+        self.client.publish(topic, payload, qos=1, timeout=0)
+
+    def _say(self, text: str) -> None:
+        tw = self.config.get_terminal_writer()
+        capman = self.config.pluginmanager.getplugin("capturemanager")
+        if capman is not None:
+            with capman.global_and_fixture_disabled():
+                tw.line(text)
+        else:
+            tw.line(text)
+
+    # --- reboot -------------------------------------------------------------------------------
+    def _reboot_how(self) -> str:
+        if self.settings.reboot_cmd:
+            return f"--reboot-cmd {self.settings.reboot_cmd!r}"
+        if self.settings.embedded:
+            return "the bundled reference unit's reboot"
+        return "a pytest_waraps_reboot hook"
+
+    def _reboot_method(self) -> Callable[[], str | None] | None:
+        hooks = self.config.pluginmanager.hook.pytest_waraps_reboot.get_hookimpls()
+        if not (self.settings.reboot_cmd or self.settings.embedded or hooks):
+            return None
+        return self._reboot
+
+    def _reboot(self) -> str | None:
+        """Reboot the unit; None when done, else what went wrong. The time of the reboot is
+        marked as a gap in the observation: a rebooting unit is allowed its silence there
+        (REBOOT-001 judges the reboot itself)."""
+        now = time.time()
+        with self._lock:
+            self.monitor.connection_gap(now, now)
+        self.events.append(f"{_clock(now)} reboot requested ({self._reboot_how()})")
+        if self.config.pluginmanager.hook.pytest_waraps_reboot(
+                config=self.config, unit=str(self.unit)):
+            return None
+        if self.settings.reboot_cmd:
+            try:
+                done = subprocess.run(self.settings.reboot_cmd, shell=True, capture_output=True,
+                                      text=True, timeout=self.timing.reboot)
+            except subprocess.TimeoutExpired:
+                return f"did not finish within {self.timing.reboot:.1f} s"
+            if done.returncode != 0:
+                err = (done.stderr or done.stdout).strip().splitlines()
+                return f"exit status {done.returncode}" + (f": {err[-1]}" if err else "")
+            return None
+        if self.reference is not None:
+            self.reference.reboot()
+            return None
+        return "no way to reboot the unit"
+
+    # --- verdicts ------------------------------------------------------------------------------
+    def record(self, rule: str, *, violation: Any = None, verdict: Verdict | None = None,
+               reason: str = "") -> None:
+        """Where scenarios report (``Context.record``): into the Monitor's results."""
+        with self._lock:
+            self.monitor.record(self.unit, rule, violation=violation, verdict=verdict,
+                                reason=reason)
+
+    def report(self, **extra: Any) -> RunReport:
+        with self._lock:
+            return self.monitor.report(**self.meta(), **extra)
+
+    def meta(self) -> dict[str, Any]:
+        s = self.settings
+        hb = self.traffic.latest("heartbeat")
+        return {
+            "broker": str(s.broker) if not s.embedded else f"embedded ({self.broker_url})",
+            "started": self.started, "suite_version": __version__,
+            "unit": str(self.unit), "seed": str(s.seed), "timing_scale": f"{s.timing_scale:g}",
+            "profile_source": self.profile.source, "dry_run": str(s.dry_run).lower(),
+            "allow_motion": str(s.allow_motion).lower(),
+            "reboot": self._reboot_how() if self.context.reboot else "none",
+            "agent_uuid": str(hb.get("agent-uuid")) if hb else "",
+            "commands_sent": str(self.commander.sent_count),
+            "rerun": self.rerun_command(),
+        }
+
+    def rerun_command(self, rule: str | None = None) -> str:
+        s = self.settings
+        parts = ["pytest", "--unit", str(self.unit)]
+        parts += ["--broker", str(s.broker)]
+        parts += [f"--sim-fault={f}" for f in s.sim_faults]
+        if s.embedded and s.sim_rate != 1.0:
+            parts += ["--sim-rate", f"{s.sim_rate:g}"]
+        if self.profile.source.startswith("<built-in"):
+            if self.profile.name != "default":
+                parts += ["--profile", self.profile.name]
+        else:  # '=': a path in its own argument could be taken for a test path by pytest
+            parts += [f"--profile={self.profile.source}"]
+        if s.timing_scale != 1.0:
+            parts += ["--timing-scale", f"{s.timing_scale:g}"]
+        parts += ["--seed", str(s.seed)]
+        if rule:
+            parts += ["-k", rule]
+        return " ".join(parts)
+
+    def result(self, rule: str) -> RuleResult:
+        report = self.report()
+        unit = report.units.get(str(self.unit))
+        if unit is None or rule not in unit.rules:
+            return RuleResult(rule, Verdict.SKIP, "not examined")
+        return unit.rules[rule]
+
+    def run_scenario(self, name: str) -> None:
+        """Run a scenario once (later calls return at once); ping first, as the gate."""
+        if name in self._done:
+            return
+        scenario = SCENARIOS[name]
+        if scenario.level is not None:
+            if not self._claims(scenario.level):
+                self._done[name] = False
+                return  # every rule of it: skip, not claimed (the Monitor's reason)
+            # Ping gates the other scenarios, except robustness, whose rule asks exactly
+            # whether the unit still pings.
+            if name not in ("ping", "robust"):
+                self.run_scenario("ping")
+                if not self._answers_commands():
+                    for rule in scenario.rules:
+                        self.record(rule, verdict=Verdict.COULD_NOT_TEST,
+                                    reason="the unit answers no command: ping got no response "
+                                    f"within {self.timing.response:.1f} s (EXEC-PING-001)")
+                    self._done[name] = False
+                    return
+            self._wait_execution_info()
+        try:
+            scenario.run(self.context)
+        except DryRun as e:
+            for rule in scenario.rules:
+                self.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=str(e))
+        finally:
+            self._done[name] = True
+            if not self.settings.dry_run:
+                self.commander.abort_all(self.timing.response)
+            self.write_reports()
+
+    def _claims(self, level: str) -> bool:
+        return level in self.context.levels() or (
+            level == "direct execution" and "direct_execution" in self.context.levels())
+
+    def _answers_commands(self) -> bool:
+        if self.settings.dry_run:
+            return True  # nothing was sent: let every scenario say what it would send
+        return self.result("EXEC-PING-001").verdict is not Verdict.FAIL or bool(
+            self.traffic.since(0, "exec/response"))
+
+    def _wait_execution_info(self) -> None:
+        """Before commanding: the unit's direct_execution_info (its tasks and signals)."""
+        if self.traffic.latest("direct_execution_info") is None:
+            rate = self.context.rate_of("heartbeat")
+            self.traffic.wait_for(lambda e: True, self.timing.periods(3, rate),
+                                  subtopic="direct_execution_info")
+
+    def wait_passive_window(self) -> None:
+        """Wait until the Monitor has judged every declared rate over at least the profile's
+        ``min_intervals`` intervals (silences and gaps do not count) and every sensor that
+        sensor_info lists has had its chance to be seen; deadline: twice that window plus 5 s.
+        Then judge the end-of-run checks."""
+        if self._passive_ready:
+            return
+        need = self.profile.min_intervals
+        rates = [r for r in (self.context.rate_of(k) for k in PERIODIC) if r]
+        slowest = min(rates) if rates else 1.0
+        deadline = time.monotonic() + 2 * (need + 2) / slowest + 5.0
+
+        period = 1.0 / slowest
+        rates_ready: list[float] = []
+
+        def enough() -> bool:
+            if not rates_ready:
+                unit = self.report().units.get(str(self.unit))
+                if unit is None:
+                    return False
+                # RateStat.intervals counts silences in while too few others were seen:
+                # more than need + silences means the others alone are enough.
+                if any(s.declared_hz and s.intervals < need + s.silences for s in unit.rates):
+                    return False
+                rates_ready.append(time.monotonic())
+            # SI-003: a listed sensor gets three more periods to show up, once.
+            info = self.traffic.latest("sensor_info")
+            listed = info.get("sensor-data-provided") if info else None
+            seen = self.traffic.subtopics()
+            return not isinstance(listed, list) or all(
+                f"sensor/{s}" in seen for s in listed if isinstance(s, str)) or \
+                time.monotonic() - rates_ready[0] > 3 * period
+
+        while not enough() and (left := deadline - time.monotonic()) > 0:
+            # Look again after the next periodic message (at most one period from now).
+            self.traffic.wait_for(lambda e: e.subtopic in PERIODIC, min(left, period),
+                                  after=self.traffic.mark())
+        with self._lock:
+            self.monitor.finish(time.time())
+        self._passive_ready = True
+
+    # --- reports and the end ---------------------------------------------------------------------
+    def write_reports(self, *, force: bool = False, **extra: Any) -> dict[str, Path]:
+        """Write reports/<unit>-<time>.json and .html (atomically; at most once a second unless
+        ``force``), so they survive a Ctrl-C."""
+        now = time.monotonic()
+        if not force and now - self._last_write < 1.0:
+            return self.report_paths
+        self._last_write = now
+        from conformance.reporting import write_all
+
+        report = self.report(**extra)
+        try:
+            self.report_paths = write_all(report, self.settings.reports_dir, self.stem)
+        except OSError as e:
+            if force:
+                raise
+            # The next write (at the latest the final one) tries again.
+            self.events.append(f"could not write the reports into "
+                               f"{self.settings.reports_dir}: {e}")
+        return self.report_paths
+
+    def finish(self, *, interrupted: bool, exitstatus: int) -> None:
+        """End the run: abort every task the suite started (also after a failure or Ctrl-C),
+        judge the end of the observation, write the final reports, disconnect."""
+        if self.collect_only:
+            return
+        aborted: list[str] = []
+        try:
+            if self.client is not None and self.client.is_connected and not self.settings.dry_run:
+                aborted = self.commander.abort_all(self.timing.response)
+        except Exception as e:  # the reports must still be written
+            self.events.append(f"aborting the suite's tasks failed: {e}")
+        if aborted:
+            self.events.append(f"aborted {len(aborted)} task(s) the suite had started: "
+                               f"{', '.join(aborted)}")
+        try:
+            with self._lock:
+                self.monitor.finish(time.time())
+            extra = {"error": self.error} if self.error else {}
+            self.write_reports(force=True, finished=time.time(),
+                               interrupted=str(interrupted).lower(),
+                               exit_status=str(int(exitstatus)), **extra)
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        if self.client is not None:
+            self.client.close()
+        if self.reference is not None:
+            self.reference.stop()
+            self.reference = None
+
+    # --- what the header shows -----------------------------------------------------------------
+    def header(self) -> list[str]:
+        s = self.settings
+        hb = self.context.heartbeat()
+        levels = ", ".join(self.context.levels()) or "none declared"
+        broker = str(s.broker) if not s.embedded else \
+            f"embedded {self.broker_url} with the bundled reference unit" + (
+                f" (faults: {', '.join(s.sim_faults)})" if s.sim_faults else "")
+        safety = [f"role {self.unit.role}"]
+        if self.unit.is_real:
+            safety.append("motion tasks: " + (", ".join(self.profile.motion_tasks) or "none")
+                          if s.allow_motion else "no task that moves the unit (no --allow-motion)")
+        if s.dry_run:
+            safety.append("DRY RUN: nothing is published")
+        return [
+            f"waraps-conformance {__version__}: certifying {self.unit}",
+            f"  broker:   {broker}",
+            f"  profile:  {self.profile.name} ({self.profile.source}), timing scale "
+            f"{s.timing_scale:g}",
+            f"  unit:     agent-uuid {hb.get('agent-uuid', '?')}, agent-type "
+            f"{hb.get('agent-type', '?')}, levels: {levels}",
+            f"  reboot:   {self._reboot_how() if self.context.reboot else 'none (REBOOT-* could not test)'}",
+            f"  safety:   {'; '.join(safety)}",
+            f"  reports:  {self.settings.reports_dir / self.stem}.json / .html",
+            f"  Using --seed={s.seed} (repeat this run: {self.rerun_command()})",
+        ]
+
+
+def _clock(t: float) -> str:
+    return time.strftime("%H:%M:%S", time.localtime(t)) + f".{int(t % 1 * 1000):03d}"
+
+
+def _is_address(text: str) -> bool:
+    try:
+        UnitAddress.parse(text)
+    except ValueError:
+        return False
+    return not text.startswith("/")
+
+
+class _Probe:
+    """A read-only look at ``<prefix>/#`` while waiting for the unit: which topics exist (with
+    the first payload of each), for the error message when the unit is not there. Never
+    publishes; keeps at most 500 topics and 64 KiB of each payload."""
+
+    def __init__(self, broker: BrokerURL, unit: UnitAddress) -> None:
+        self._topics: dict[str, bytes] = {}
+        self._client: MqttClient | None = None
+        self._broker, self._unit = broker, unit
+
+    def start(self) -> None:
+        def seen(m: Message) -> None:
+            if m.topic not in self._topics and len(self._topics) < MAX_PROBE_TOPICS:
+                self._topics[m.topic] = m.payload[:65536]
+        try:
+            self._client = MqttClient(self._broker, on_message=seen).connect()
+            self._client.subscribe(f"{self._unit.prefix}/#")
+            self._client.subscribe(f"/{self._unit.prefix}/#")  # TOPIC-001: a leading '/'
+        except BrokerError:
+            self._client = None
+
+    def topics(self) -> dict[str, bytes]:
+        return dict(self._topics)
+
+    def close(self) -> None:
+        if self._client is not None:
+            self._client.close()
+
+
+__all__ = ["CERTIFICATION", "COMMANDER_RULES", "Certification", "NotAlive"]

@@ -1,0 +1,183 @@
+"""The certification run's settings, read from pytest's options and ini file.
+
+Every value is checked here, once: a bad one is a ``pytest.UsageError`` that says what is
+wrong and lists the valid values ("did you mean ..."). Passwords come only from the
+environment (``WARAPS_PASSWORD``), never from an option.
+"""
+
+from __future__ import annotations
+
+import difflib
+import os
+import re
+import secrets
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+from conformance.client import BrokerURL
+from conformance.profile import Profile, ProfileError, builtin_names, load
+from conformance.topics import TopicError, UnitAddress
+
+# option dest -> ini name (the ini twin of every option but --unit and --seed)
+INI = {
+    "waraps_broker": "waraps_broker",
+    "waraps_profile": "waraps_profile",
+    "waraps_timing_scale": "waraps_timing_scale",
+    "waraps_reboot_cmd": "waraps_reboot_cmd",
+    "waraps_allow_motion": "waraps_allow_motion",
+    "waraps_dry_run": "waraps_dry_run",
+    "waraps_reports_dir": "waraps_reports_dir",
+    "waraps_ca_file": "waraps_ca_file",
+    "waraps_cert_file": "waraps_cert_file",
+    "waraps_key_file": "waraps_key_file",
+    "waraps_tls_insecure": "waraps_tls_insecure",
+}
+TRUE = ("1", "true", "yes", "on")
+FALSE = ("", "0", "false", "no", "off")
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What one certification run needs to know. Times in seconds, rates in Hz."""
+
+    unit: UnitAddress
+    broker: BrokerURL
+    profile: Profile
+    timing_scale: float = 1.0
+    reboot_cmd: str | None = None
+    allow_motion: bool = False
+    dry_run: bool = False
+    reports_dir: Path = Path("reports")
+    seed: int = 0
+    sim_faults: tuple[str, ...] = ()
+    """--broker embedded runs the bundled reference unit; these are its fault switches."""
+    sim_rate: float = 1.0
+    extra: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def embedded(self) -> bool:
+        return self.broker.scheme == "embedded"
+
+
+def _value(config: pytest.Config, dest: str) -> object:
+    """An option's value, else its ini twin's (None when neither is set)."""
+    value = config.getoption(dest, None)
+    if value not in (None, False) or dest not in INI:
+        return value
+    ini = config.getini(INI[dest])
+    return ini if ini not in ("", None, []) else value
+
+
+def _flag(config: pytest.Config, dest: str) -> bool:
+    value = _value(config, dest)
+    if isinstance(value, bool) or value is None:
+        return bool(value)
+    text = str(value).strip().lower()
+    if text in TRUE:
+        return True
+    if text in FALSE:
+        return False
+    raise pytest.UsageError(f"ini {INI[dest]} = {value!r}: not a boolean; valid: "
+                            f"{', '.join(TRUE + FALSE[1:])}")
+
+
+def _did_you_mean(value: str, valid: list[str]) -> str:
+    close = difflib.get_close_matches(value, valid, n=2)
+    return f" (did you mean {' or '.join(close)}?)" if close else ""
+
+
+def read(config: pytest.Config) -> Settings:
+    """The settings of this run, or ``pytest.UsageError`` naming the bad value."""
+    text = str(config.getoption("waraps_unit"))
+    try:
+        unit = UnitAddress.parse(text)
+    except TopicError as e:
+        raise pytest.UsageError(f"--unit: {e}") from None
+    broker = _broker(config)
+    profile_name = str(_value(config, "waraps_profile") or "default")
+    try:
+        profile = load(profile_name)
+    except ProfileError as e:
+        raise pytest.UsageError(f"--profile: {e}") from None
+    scale_text = _value(config, "waraps_timing_scale")
+    try:
+        scale = float(scale_text) if scale_text not in (None, "") else 1.0
+    except (TypeError, ValueError):
+        scale = -1.0
+    if not scale > 0 or scale != scale or scale == float("inf"):
+        raise pytest.UsageError(f"--timing-scale {scale_text!r}: a positive number is needed "
+                                f"(1 = the profile's deadlines, 3 = three times as long, for a "
+                                f"slow link)")
+    reboot = _value(config, "waraps_reboot_cmd")
+    reports = Path(str(_value(config, "waraps_reports_dir") or "reports"))
+    if not reports.is_absolute():
+        reports = Path(config.invocation_params.dir) / reports
+    seed_text = config.getoption("waraps_seed", None)
+    if seed_text is None:
+        seed = secrets.randbelow(10**9)
+    else:
+        try:
+            seed = int(seed_text)
+        except ValueError:
+            raise pytest.UsageError(f"--seed {seed_text!r}: a whole number is needed "
+                                    f"(the header of an earlier run shows its seed)") from None
+    faults = tuple(config.getoption("waraps_sim_faults", None) or ())
+    if faults and not broker.scheme == "embedded":
+        raise pytest.UsageError("--sim-fault switches a fault of the bundled reference unit, "
+                                "which runs only with --broker embedded")
+    if faults:
+        from conformance.sim import FAULTS
+
+        for name in faults:
+            if name not in FAULTS:
+                raise pytest.UsageError(
+                    f"--sim-fault {name!r} is not a fault of the reference unit"
+                    f"{_did_you_mean(name, list(FAULTS))}; valid: {', '.join(sorted(FAULTS))}")
+    sim_rate = config.getoption("waraps_sim_rate", None) or 1.0
+    if not sim_rate > 0:
+        raise pytest.UsageError(f"--sim-rate {sim_rate!r}: a positive rate in Hz is needed")
+    return Settings(unit=unit, broker=broker, profile=profile, timing_scale=scale,
+                    reboot_cmd=str(reboot) if reboot else None,
+                    allow_motion=_flag(config, "waraps_allow_motion"),
+                    dry_run=_flag(config, "waraps_dry_run"), reports_dir=reports, seed=seed,
+                    sim_faults=faults, sim_rate=float(sim_rate))
+
+
+def _broker(config: pytest.Config) -> BrokerURL:
+    text = _value(config, "waraps_broker")
+    try:
+        if text:
+            broker = BrokerURL.parse(str(text))
+        else:
+            found = BrokerURL.from_env()
+            if found is None:
+                raise pytest.UsageError(
+                    "no broker: pass --broker mqtt://HOST:PORT, mqtts://HOST:PORT or embedded "
+                    "(or set WARAPS_BROKER, WARAPS_PORT, WARAPS_TLS_CONNECTION)")
+            broker = found
+    except ValueError as e:
+        # Never echo a password, even the one a user wrongly put into the URL.
+        raise pytest.UsageError(f"--broker: {redact_broker_text(str(e))}") from None
+    files = {k: _value(config, f"waraps_{k}") for k in ("ca_file", "cert_file", "key_file")}
+    for key, path in files.items():
+        if path and not os.path.isfile(str(path)):
+            raise pytest.UsageError(f"--{key.replace('_', '-')} {path}: no such file")
+    insecure = _flag(config, "waraps_tls_insecure")
+    if any(files.values()) or insecure:
+        if broker.scheme != "mqtts":
+            raise pytest.UsageError("--ca-file, --cert-file, --key-file and --tls-insecure "
+                                    "need an mqtts:// broker")
+        broker = broker.with_tls_files(*(str(v) if v else None for v in files.values()),
+                                       insecure=insecure)
+    return broker
+
+
+def redact_broker_text(text: str) -> str:
+    """``text`` with any ``scheme://user:password@`` shown as ``scheme://user:***@``."""
+    return re.sub(r"([a-z][a-z0-9+.-]*://[^:@/\s]*):[^@/\s]*@", r"\1:***@", text, flags=re.I)
+
+
+def profile_names() -> list[str]:
+    return builtin_names()

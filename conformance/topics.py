@@ -1,0 +1,202 @@
+"""Topic grammar of spec section 3: unit addresses, topic kinds and the naming conventions.
+
+    PREFIX1/unit/<agent-type>/<role>/<unit>/<subtopic...>
+
+``UnitAddress`` is a frozen value that validates itself; ``parse_topic`` classifies any topic
+and never raises; ``naming_violations`` checks section 3.2.
+"""
+
+from __future__ import annotations
+
+import enum
+import functools
+import re
+from dataclasses import dataclass
+
+from conformance.violation import Violation
+
+AGENT_TYPES = ("air", "ground", "surface", "subsurface")  # 5.1
+ROLES = ("real", "simulation", "playback")  # 3.1 ("..." : open list, TOPIC-006 warns)
+MANDATORY_SENSORS = ("position", "heading", "course", "speed")  # 6.1
+
+
+class TopicKind(str, enum.Enum):
+    """What a topic under a unit carries (3.1, 5, 6, 12, 14)."""
+
+    HEARTBEAT = "heartbeat"
+    SENSOR_INFO = "sensor_info"
+    DIRECT_EXECUTION_INFO = "direct_execution_info"
+    TST_EXECUTION_INFO = "tst_execution_info"
+    SENSOR = "sensor"
+    EXEC_COMMAND = "exec/command"
+    EXEC_RESPONSE = "exec/response"
+    EXEC_FEEDBACK = "exec/feedback"
+    TST_COMMAND = "tst/command"
+    TST_RESPONSE = "tst/response"
+    TST_FEEDBACK = "tst/feedback"
+    UNKNOWN = "unknown"
+    """A subtopic the spec does not define (TOPIC-007), or a topic not under a unit."""
+
+
+_FIXED_SUBTOPICS = {
+    "heartbeat": TopicKind.HEARTBEAT,
+    "sensor_info": TopicKind.SENSOR_INFO,
+    "sensor.info": TopicKind.SENSOR_INFO,  # ERR-001: 5.2's spelling, accepted with a warning
+    "direct_execution_info": TopicKind.DIRECT_EXECUTION_INFO,
+    "tst_execution_info": TopicKind.TST_EXECUTION_INFO,
+    "exec/command": TopicKind.EXEC_COMMAND,
+    "exec/response": TopicKind.EXEC_RESPONSE,
+    "exec/feedback": TopicKind.EXEC_FEEDBACK,
+    "tst/command": TopicKind.TST_COMMAND,
+    "tst/response": TopicKind.TST_RESPONSE,
+    "tst/feedback": TopicKind.TST_FEEDBACK,
+}
+
+# The periodic info messages and the level of 5.1 each one backs (HB-008).
+INFO_KIND_OF_LEVEL = {
+    "sensor": TopicKind.SENSOR_INFO,
+    "direct execution": TopicKind.DIRECT_EXECUTION_INFO,
+    "tst execution": TopicKind.TST_EXECUTION_INFO,
+}
+
+_NAME = re.compile(r"^[a-z0-9]+(_[a-z0-9]+)*$")  # 3.2: lowercase, words joined by '_'
+_BAD_CHARS = re.compile(r"[#+\s\x00-\x1f\x7f]|[^\x00-\x7f]")
+
+
+class TopicError(ValueError):
+    """A string that is not a unit address; the message says what is wrong and how to fix it."""
+
+
+@dataclass(frozen=True, order=True)
+class UnitAddress:
+    """Where a unit lives: ``waraps/unit/air/simulation/dji0`` (spec 3.1).
+
+    >>> UnitAddress.parse("waraps/unit/air/real/dji0").topic("exec/command")
+    'waraps/unit/air/real/dji0/exec/command'
+    """
+
+    prefix: str
+    agent_type: str
+    role: str
+    name: str
+
+    @classmethod
+    def parse(cls, text: str) -> UnitAddress:
+        """Parse ``PREFIX1/unit/TYPE/ROLE/UNIT``; raise ``TopicError`` with a fix otherwise."""
+        parts = text.strip().strip("/").split("/")
+        if len(parts) != 5 or parts[1] != "unit" or not all(parts):
+            raise TopicError(
+                f"{text!r} is not a unit address; expected PREFIX1/unit/TYPE/ROLE/UNIT "
+                f"(spec 3.1), for example waraps/unit/air/simulation/dji0"
+            )
+        prefix, _, agent_type, role, name = parts
+        if agent_type not in AGENT_TYPES:
+            raise TopicError(
+                f"{text!r}: agent type {agent_type!r} is not one of {', '.join(AGENT_TYPES)} "
+                f"(spec 5.1)"
+            )
+        return cls(prefix, agent_type, role, name)
+
+    @property
+    def base(self) -> str:
+        return f"{self.prefix}/unit/{self.agent_type}/{self.role}/{self.name}"
+
+    def __str__(self) -> str:
+        return self.base
+
+    def topic(self, subtopic: str) -> str:
+        """The full topic of a subtopic of this unit, e.g. ``heartbeat`` or ``sensor/speed``."""
+        return f"{self.base}/{subtopic}"
+
+    @property
+    def is_real(self) -> bool:
+        """A ``real`` unit moves hardware: motion needs an explicit opt-in (DESIGN: safety)."""
+        return self.role == "real"
+
+    def with_name(self, name: str) -> UnitAddress:
+        return UnitAddress(self.prefix, self.agent_type, self.role, name)
+
+
+@dataclass(frozen=True)
+class ParsedTopic:
+    """A classified topic. ``unit`` is None when the topic is not under ``PREFIX1/unit/``."""
+
+    topic: str
+    kind: TopicKind
+    unit: UnitAddress | None = None
+    sensor: str = ""
+    """The SENSOR name for ``.../sensor/SENSOR`` topics."""
+    subtopic: str = ""
+
+
+# A fleet reuses a few thousand topics millions of times: parse each once (bounded cache;
+# ParsedTopic and UnitAddress are frozen, so sharing them is safe). bench/bench_lint.py.
+@functools.lru_cache(maxsize=8192)
+def parse_topic(topic: str) -> ParsedTopic:
+    """Classify a topic. Never raises: what cannot be placed is ``TopicKind.UNKNOWN``."""
+    parts = topic.split("/")
+    if parts and parts[0] == "":  # TOPIC-001: leading '/'; classify the rest anyway
+        parts = parts[1:]
+    if len(parts) < 6 or parts[1] != "unit":
+        return ParsedTopic(topic, TopicKind.UNKNOWN)
+    prefix, _, agent_type, role, name = parts[:5]
+    unit = UnitAddress(prefix, agent_type, role, name)
+    sub = "/".join(parts[5:])
+    kind = _FIXED_SUBTOPICS.get(sub)
+    if kind is not None:
+        return ParsedTopic(topic, kind, unit, subtopic=sub)
+    if parts[5] == "sensor" and len(parts) == 7 and parts[6]:
+        return ParsedTopic(topic, TopicKind.SENSOR, unit, sensor=parts[6], subtopic=sub)
+    return ParsedTopic(topic, TopicKind.UNKNOWN, unit, subtopic=sub)
+
+
+def naming_violations(topic: str) -> list[Violation]:
+    """Every section-3 naming rule the topic breaks (TOPIC-*, ERR-001).
+
+    PREFIX1 is exempt from TOPIC-003: 3.1's own examples of it are 'waraps-demo-2021' and
+    'aiics-testing'. The levels this spec names (unit, type, role, subtopics, sensors) and the
+    unit name follow 3.2.
+    """
+    return list(_naming_violations(topic))  # a fresh list: callers append to it
+
+
+@functools.lru_cache(maxsize=8192)
+def _naming_violations(topic: str) -> tuple[Violation, ...]:
+    found: list[Violation] = []
+
+    def bad(rule: str, expected: str, observed: str, detail: str = "") -> None:
+        found.append(Violation.of(rule, expected=expected, observed=observed, topic=topic,
+                                  detail=detail))
+
+    if _BAD_CHARS.search(topic):
+        bad("TOPIC-008", "printable ASCII without '#', '+' or spaces",
+            repr(_BAD_CHARS.search(topic).group()))  # type: ignore[union-attr]
+    if topic.startswith("/"):
+        bad("TOPIC-001", "a topic that starts with a name (waraps/...)", topic,
+            "remove the leading '/'")
+    if topic != topic.lower():
+        bad("TOPIC-002", "all lowercase", topic)
+    parts = topic.lstrip("/").split("/")
+    if len(parts) < 2 or parts[1] != "unit":
+        return tuple(found)  # not unit traffic: only the general rules apply
+    if len(parts) < 6 or not all(parts):
+        bad("TOPIC-004", "PREFIX1/unit/TYPE/ROLE/UNIT/<subtopic> with no empty level", topic)
+        return tuple(found)
+    _, _, agent_type, role, name = parts[:5]
+    if agent_type.lower() not in AGENT_TYPES:
+        bad("TOPIC-005", " | ".join(AGENT_TYPES), agent_type)
+    if role.lower() not in ROLES:
+        bad("TOPIC-006", " | ".join(ROLES), role, "3.1 lists real, simulation, playback")
+    sub = "/".join(parts[5:])
+    if sub == "sensor.info":
+        bad("ERR-001", "sensor_info", "sensor.info", "5.2 writes sensor.info; 3.1 sensor_info")
+    for level in [name, *parts[5:]]:
+        if level == "sensor.info":
+            continue
+        if not _NAME.match(level.lower()):
+            bad("TOPIC-003", "lowercase words joined by '_'", level)
+    parsed = parse_topic(topic)
+    if parsed.kind is TopicKind.UNKNOWN:
+        bad("TOPIC-007", "heartbeat, sensor_info, direct_execution_info, tst_execution_info, "
+            "sensor/<name>, exec/*, tst/*", sub)
+    return tuple(found)

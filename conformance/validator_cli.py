@@ -1,0 +1,98 @@
+"""``waraps-conformance validate TOPIC [FILE|-]``: validate one message and say why, for a person.
+
+    waraps-conformance validate waraps/unit/air/simulation/dji0/heartbeat hb.json
+    mosquitto_sub -t '.../heartbeat' -C 1 | waraps-conformance validate .../heartbeat -
+
+Exit code: 0 when nothing fails under the profile (warnings allowed), 1 when a rule fails,
+2 for a usage error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time as time_module
+from pathlib import Path
+
+from conformance import profile as profile_module
+from conformance.rules import CATALOGUE, Severity
+from conformance.validator import Validation, Validator
+from conformance.violation import Verdict
+
+
+def render(validation: Validation, profile: profile_module.Profile) -> str:
+    """The kind, then each violation as the STYLE guide shows it, then a one-line verdict."""
+    lines = [f"topic     {validation.topic.topic}", f"kind      {validation.kind}"]
+    for v in validation.violations:
+        rule = CATALOGUE.get(v.rule)
+        verdict = _verdict(v.rule, profile)
+        title = rule.title if rule else ""
+        lines.append("")
+        lines.append(f"{v.rule} {title}".ljust(72) + f" [{verdict.value}]")
+        if v.path:
+            lines.append(f"  path      {v.path}")
+        lines.append(f"  expected  {v.expected}")
+        lines.append(f"  observed  {v.observed}")
+        if v.detail:
+            lines.append(f"  detail    {v.detail}")
+        if rule:
+            lines.append(f"  spec      {rule.section}")
+    lines.append("")
+    lines.append(f"verdict   {_overall(validation, profile).value} "
+                 f"({len(validation.violations)} violation"
+                 f"{'' if len(validation.violations) == 1 else 's'}, profile {profile.name})")
+    return "\n".join(lines)
+
+
+def _verdict(rule_id: str, profile: profile_module.Profile) -> Verdict:
+    return Verdict.FAIL if profile.severity_of(rule_id) is Severity.ERROR else Verdict.WARN
+
+
+def _overall(validation: Validation, profile: profile_module.Profile) -> Verdict:
+    return Verdict.worst([_verdict(v.rule, profile) for v in validation.violations])
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="waraps-conformance validate",
+        description="Validate one WARA-PS message: print its kind and every violation.")
+    parser.add_argument("topic", help="the MQTT topic, e.g. waraps/unit/air/simulation/dji0/heartbeat")
+    parser.add_argument("file", nargs="?", default="-",
+                        help="file with the raw payload, or - for standard input (default)")
+    parser.add_argument("--profile", default="default",
+                        help="built-in profile name or YAML file (default: default)")
+    when = parser.add_mutually_exclusive_group()
+    when.add_argument("--time", type=float, default=None,
+                      help="arrival time (Unix seconds) to judge the stamp against (MSG-005)")
+    when.add_argument("--now", action="store_true",
+                      help="judge the stamp against the current time (a message just captured)")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of text")
+    args = parser.parse_args(argv)
+    try:
+        profile = profile_module.load(args.profile)
+    except profile_module.ProfileError as e:
+        print(f"waraps-conformance validate: {e}", file=sys.stderr)
+        return 2
+    try:
+        payload = sys.stdin.buffer.read() if args.file == "-" else Path(args.file).read_bytes()
+    except OSError as e:
+        print(f"waraps-conformance validate: cannot read {args.file}: {e.strerror}",
+              file=sys.stderr)
+        return 2
+    arrival = time_module.time() if args.now else args.time
+    validation = Validator(profile).validate(args.topic, payload, arrival)
+    if args.json:
+        print(json.dumps({
+            "topic": args.topic, "kind": validation.kind,
+            "verdict": _overall(validation, profile).value,
+            "violations": [dict(v.to_dict(), verdict=_verdict(v.rule, profile).value)
+                           for v in validation.violations],
+        }, indent=2))
+    else:
+        print(render(validation, profile))
+    return 1 if _overall(validation, profile) is Verdict.FAIL else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,89 @@
+"""Violations and verdicts: what every check yields and every report renders."""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+
+class Verdict(str, enum.Enum):
+    """The outcome of one rule for one unit (DESIGN: shared semantics), worst last."""
+
+    PASS = "pass"
+    SKIP = "skip"                      # not claimed by the unit or profile (reason given)
+    COULD_NOT_TEST = "could-not-test"  # a precondition was missing (e.g. no reboot command)
+    WARN = "warn"                      # an erratum reading or a recommended practice
+    FAIL = "fail"
+
+    @property
+    def rank(self) -> int:
+        return _RANK[self]
+
+    @classmethod
+    def worst(cls, verdicts: list[Verdict] | tuple[Verdict, ...]) -> Verdict:
+        """The headline of several verdicts. A skip is 'not applicable', not a grade: passes
+        with some skips read 'pass'; only when nothing was judged is the headline 'skip'."""
+        judged = [v for v in verdicts if v is not cls.SKIP]
+        if judged:
+            return max(judged, key=lambda v: v.rank)
+        return cls.SKIP if verdicts else cls.PASS
+
+
+_RANK = {Verdict.PASS: 0, Verdict.SKIP: 1, Verdict.COULD_NOT_TEST: 2, Verdict.WARN: 3,
+         Verdict.FAIL: 4}
+
+EXCERPT_CHARS = 200
+
+
+def excerpt(payload: bytes | str | None, limit: int = EXCERPT_CHARS) -> str:
+    """A short printable excerpt of a payload for evidence (never the whole 10 MB)."""
+    if payload is None:
+        return ""
+    if isinstance(payload, bytes):
+        text = payload[: limit * 4].decode("utf-8", errors="backslashreplace")
+    else:
+        text = payload[: limit * 4]
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+@dataclass(frozen=True)
+class Violation:
+    """One broken rule, with the evidence a person needs to find and fix it.
+
+    ``path`` is a JSON path into the payload (``$.params.speed``), empty when the rule is about
+    the whole message or the topic. ``time`` is the arrival time (Unix seconds) of the message
+    that shows it, when there is one.
+    """
+
+    rule: str
+    expected: str
+    observed: str
+    topic: str = ""
+    path: str = ""
+    time: float | None = None
+    excerpt: str = ""
+    detail: str = ""
+    """Free text: a fix hint, the window a rate was measured over, and so on."""
+    unit: str = ""
+    """The unit's address (``waraps/unit/air/simulation/dji0``) when known."""
+
+    @classmethod
+    def of(cls, rule: str, *, expected: str, observed: str, topic: str = "", path: str = "",
+           time: float | None = None, payload: bytes | str | None = None, detail: str = "",
+           unit: str = "") -> Violation:
+        return cls(rule=rule, expected=expected, observed=observed, topic=topic, path=path,
+                   time=time, excerpt=excerpt(payload), detail=detail, unit=unit)
+
+    def to_dict(self) -> dict[str, object]:
+        return {k: v for k, v in self.__dict__.items() if v not in ("", None)}
+
+
+@dataclass
+class RuleResult:
+    """The verdict of one rule for one unit, with every violation that led to it."""
+
+    rule: str
+    verdict: Verdict
+    reason: str = ""
+    violations: list[Violation] = field(default_factory=list)

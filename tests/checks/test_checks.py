@@ -1,0 +1,450 @@
+"""Every stateful passive check: a passing stream and the failing stream of its fault."""
+
+from __future__ import annotations
+
+import uuid
+
+import pytest
+
+from conformance.checks import Monitor, covered_rules
+from conformance.profile import Profile
+from conformance.violation import Verdict
+
+
+def verdict(m: Monitor, stream, rule: str, finish: bool = True):
+    if finish:
+        m.finish()
+    return m.report().units[str(stream.address)].rules[rule]
+
+
+STATEFUL = covered_rules()
+C1, C2 = str(uuid.uuid4()), str(uuid.uuid4())
+
+
+def stateful(found) -> list[str]:
+    """The rules of the stateful checks among ``found`` (the validator's own rules, which grow
+    with the schemas, are tested with the validator)."""
+    return [v.rule for v in found if v.rule in STATEFUL]
+
+
+def rules_found(found) -> set[str]:
+    return set(stateful(found))
+
+
+# -- rates: HB-003, SI-002, DEI-002, TEI-002 -------------------------------------------------
+
+def test_rate_passes_at_declared_rate_with_jitter(stream):
+    m = Monitor()
+    msgs = [stream.heartbeat(i + (0.03 if i % 2 else -0.03)) for i in range(12)]
+    stream.feed(m, msgs)
+    r = verdict(m, stream, "HB-003")
+    assert r.verdict is Verdict.PASS, r
+    stat = m.report().units[str(stream.address)].rates[0]
+    assert stat.intervals == 11 and stat.verdict is Verdict.PASS
+    assert stat.min_interval == pytest.approx(0.94) and stat.max_interval == pytest.approx(1.06)
+
+
+def test_rate_fails_when_slower_than_declared(stream):
+    m = Monitor()
+    stream.feed(m, [stream.heartbeat(i * 1.6) for i in range(12)])  # declares 1 Hz, sends 0.625
+    r = verdict(m, stream, "HB-003")
+    assert r.verdict is Verdict.FAIL
+    assert "0.63 Hz over 11 intervals" in r.violations[0].observed
+    assert "1.00 Hz +-20%" in r.violations[0].expected
+
+
+def test_rate_fails_on_a_single_long_gap(stream):
+    m = Monitor()
+    times = [0, 1, 2, 3, 4, 6.2, 7, 8, 9, 10, 11, 12]  # one gap of 2.2 periods
+    stream.feed(m, [stream.heartbeat(t) for t in times])
+    r = verdict(m, stream, "HB-003")
+    assert r.verdict is Verdict.FAIL
+    assert any("2.200 s" in v.observed for v in r.violations)
+
+
+def test_rate_skips_with_too_few_intervals(stream):
+    m = Monitor()
+    stream.feed(m, [stream.heartbeat(i) for i in range(5)])
+    r = verdict(m, stream, "HB-003")
+    assert r.verdict is Verdict.SKIP and r.reason == "only 4 intervals observed; need 10"
+
+
+def test_rate_excludes_connection_gaps(stream):
+    m = Monitor()
+    m.connection_gap(stream.heartbeat(4.5).time, stream.heartbeat(6.5).time)
+    times = [0, 1, 2, 3, 4, 8, 9, 10, 11, 12, 13, 14, 15]
+    stream.feed(m, [stream.heartbeat(t) for t in times])
+    assert verdict(m, stream, "HB-003").verdict is Verdict.PASS
+    assert verdict(m, stream, "HB-010").verdict is Verdict.PASS
+
+
+def test_rate_of_a_unit_always_far_slower_than_declared_fails(stream):
+    m = Monitor()
+    stream.feed(m, [stream.heartbeat(i * 10.0, rate=10.0) for i in range(12)])
+    r = verdict(m, stream, "HB-003")
+    assert r.verdict is Verdict.FAIL and "0.10 Hz" in r.violations[0].observed
+
+
+@pytest.mark.parametrize("rule,builder", [
+    ("SI-002", "sensor_info"), ("DEI-002", "direct_execution_info")])
+def test_info_rates(stream, rule, builder):
+    good, bad = Monitor(), Monitor()
+    stream.feed(good, [getattr(stream, builder)(i) for i in range(12)])
+    stream.feed(bad, [getattr(stream, builder)(i * 2.0) for i in range(12)])
+    assert verdict(good, stream, rule).verdict is Verdict.PASS
+    assert verdict(bad, stream, rule).verdict is Verdict.FAIL
+
+
+def test_tst_execution_info_rate(stream):
+    def tei(t):
+        return stream.msg("tst_execution_info", {"name": "dji0", "rate": 2.0, "stamp": t,
+                                                 "type": "TstExecutionInfo"}, t)
+    good, bad = Monitor(), Monitor()
+    stream.feed(good, [tei(i * 0.5) for i in range(12)])
+    stream.feed(bad, [tei(i * 0.3) for i in range(12)])
+    assert verdict(good, stream, "TEI-002").verdict is Verdict.PASS
+    assert verdict(bad, stream, "TEI-002").verdict is Verdict.FAIL
+
+
+def test_a_new_declared_rate_starts_a_new_window(stream):
+    m = Monitor()
+    msgs = [stream.heartbeat(i) for i in range(12)]
+    msgs += [stream.heartbeat(12 + i * 0.5, rate=2.0) for i in range(12)]
+    assert not rules_found(stream.feed(m, msgs)) & {"HB-003"}
+    assert verdict(m, stream, "HB-003").verdict is Verdict.PASS
+    assert [s.declared_hz for s in m.report().units[str(stream.address)].rates] == [1.0, 2.0]
+
+
+def test_rate_memory_is_bounded(stream):
+    m = Monitor()
+    for i in range(5000):
+        m.feed(stream.heartbeat(i * 0.1, rate=10.0))
+    stat = m.report().units[str(stream.address)].rates[0]
+    assert stat.intervals == 4999 and len(stat.series) <= 600
+    assert verdict(m, stream, "HB-003").verdict is Verdict.PASS
+
+
+# -- identity: HB-006, HB-011, HB-010, MSG-007, HB-008 --------------------------------------------
+
+def test_agent_uuid_change_after_silence_is_a_reboot(stream):
+    m = Monitor()
+    msgs = [stream.heartbeat(i) for i in range(5)]
+    new = str(uuid.uuid4())
+    msgs += [stream.heartbeat(7 + i, agent_uuid=new) for i in range(5)]  # 3 s silence
+    found = stream.feed(m, msgs)
+    assert "HB-006" not in rules_found(found)
+    assert verdict(m, stream, "HB-006").verdict is Verdict.PASS
+
+
+def test_agent_uuid_change_without_silence_fails(stream):
+    stream.levels = []  # heartbeats only: no level claimed (else HB-008 fails too)
+    m = Monitor()
+    msgs = [stream.heartbeat(i) for i in range(5)]
+    new = str(uuid.uuid4())
+    msgs += [stream.heartbeat(5 + i, agent_uuid=new) for i in range(5)]
+    found = stream.feed(m, msgs)
+    assert rules_found(found) == {"HB-006"}
+    assert verdict(m, stream, "HB-006").verdict is Verdict.FAIL
+
+
+def test_two_agents_under_one_name(stream):
+    m = Monitor()
+    other = str(uuid.uuid4())
+    msgs = [stream.heartbeat(i * 0.5, agent_uuid=other if i % 2 else None) for i in range(10)]
+    stream.feed(m, msgs)
+    assert verdict(m, stream, "HB-011").verdict is Verdict.FAIL
+    good = Monitor()
+    stream.feed(good, [stream.heartbeat(i) for i in range(5)])
+    assert verdict(good, stream, "HB-011").verdict is Verdict.PASS
+
+
+def test_silence_warns_and_says_how_the_unit_came_back(stream):
+    stream.levels = []
+    m = Monitor()
+    msgs = [stream.heartbeat(i) for i in range(3)] + [stream.heartbeat(10 + i) for i in range(3)]
+    found = stream.feed(m, msgs)
+    assert rules_found(found) == {"HB-010"}
+    r = verdict(m, stream, "HB-010")
+    assert r.verdict is Verdict.WARN and "same agent-uuid (resumed)" in r.violations[0].observed
+
+
+def test_silence_at_the_end_warns_at_finish(stream):
+    m = Monitor()
+    stream.feed(m, [stream.heartbeat(i) for i in range(3)])
+    m.finish(now=stream.heartbeat(10).time)
+    r = m.report().units[str(stream.address)].rules["HB-010"]
+    assert r.verdict is Verdict.WARN and "did not come back" in r.violations[0].observed
+    m.finish(now=stream.heartbeat(3).time)  # finish again: re-judged, not counted twice
+    assert m.report().units[str(stream.address)].rules["HB-010"].verdict is Verdict.PASS
+
+
+def test_stale_retained_heartbeat_warns(stream):
+    m = Monitor()
+    found = stream.feed(m, [stream.heartbeat(100, stamp=stream.heartbeat(0).time, retain=True)])
+    assert rules_found(found) == {"MSG-007"}
+    fresh = Monitor()
+    assert stateful(stream.feed(fresh, [stream.heartbeat(100, retain=True)])) == []
+    assert verdict(fresh, stream, "MSG-007").verdict is Verdict.PASS
+    assert verdict(m, stream, "MSG-007").verdict is Verdict.WARN
+
+
+def test_retained_heartbeat_does_not_count_as_a_uuid_change(stream):
+    m = Monitor()
+    old = stream.heartbeat(0, agent_uuid=str(uuid.uuid4()), stamp=stream.heartbeat(-1).time, retain=True)
+    found = stream.feed(m, [old] + [stream.heartbeat(0.1 + i) for i in range(3)])
+    assert "HB-006" not in rules_found(found) and "HB-011" not in rules_found(found)
+
+
+def test_declared_level_without_info_fails(stream):
+    m = Monitor()
+    stream.feed(m, [stream.heartbeat(i) for i in range(32)])  # 31 s >= info_wait (30 s)
+    r = verdict(m, stream, "HB-008")
+    assert r.verdict is Verdict.FAIL and "sensor_info" in r.violations[0].expected
+    assert {v.observed for v in r.violations} == {"no sensor_info in 31.0 s",
+                                                  "no direct_execution_info in 31.0 s"}
+    good = Monitor()
+    assert stateful(stream.feed(good, stream.alive(31))) == []
+    assert verdict(good, stream, "HB-008").verdict is Verdict.PASS
+
+
+def test_declared_level_judged_at_finish_only_after_enough_time(stream):
+    m = Monitor()
+    found = stream.feed(m, [stream.heartbeat(i) for i in range(5)])
+    assert "HB-008" not in rules_found(found)  # decided at finish, never mid-stream
+    r = verdict(m, stream, "HB-008")
+    assert r.verdict is Verdict.SKIP and "observed 4.0 s; need 30.0 s to judge" in r.reason
+    m.finish(now=stream.heartbeat(30).time)
+    assert m.report().units[str(stream.address)].rules["HB-008"].verdict is Verdict.FAIL
+    short = Monitor(Profile(info_wait=3.0))  # a profile may wait less
+    stream.feed(short, [stream.heartbeat(i) for i in range(5)])
+    assert verdict(short, stream, "HB-008").verdict is Verdict.FAIL
+
+
+def test_declared_level_with_slow_info_passes(stream):
+    """Spec 5: info messages may come slower than the heartbeat; one at 20 s backs the level
+    (it failed after 3 heartbeat periods before HB-008 was decided over the observation)."""
+    m = Monitor()
+    msgs = [stream.heartbeat(i) for i in range(40)]
+    msgs += [stream.sensor_info(20.5, rate=0.05), stream.direct_execution_info(25.5, rate=0.05)]
+    assert "HB-008" not in rules_found(stream.feed(m, msgs))
+    assert verdict(m, stream, "HB-008").verdict is Verdict.PASS
+
+
+def test_declared_level_waits_three_heartbeat_periods_at_least(stream):
+    slow = type(stream)(stream.address, rate=0.05)  # one heartbeat every 20 s
+    m = Monitor()
+    slow.feed(m, [slow.heartbeat(0), slow.heartbeat(20), slow.heartbeat(40)])
+    r = verdict(m, slow, "HB-008")
+    assert r.verdict is Verdict.SKIP and "need 60.0 s" in r.reason
+    m.finish(now=slow.heartbeat(60).time)
+    assert m.report().units[str(slow.address)].rules["HB-008"].verdict is Verdict.FAIL
+
+
+def test_declared_level_not_judged_over_a_connection_gap(stream):
+    m = Monitor()
+    m.connection_gap(stream.heartbeat(2).time, stream.heartbeat(30).time)
+    stream.feed(m, [stream.heartbeat(i) for i in (0, 1, 31, 32, 33)])
+    r = verdict(m, stream, "HB-008")
+    assert r.verdict is Verdict.SKIP and "observed 5.0 s" in r.reason
+
+
+# -- sensors: SI-003, SI-004, SI-005, SENS-005 -----------------------------------------------------
+
+def test_listed_sensor_not_published_fails(stream):
+    m = Monitor()
+    msgs = stream.alive(5)
+    msgs += [stream.sensor_info(i + 0.5, sensors=["position", "heading", "course", "speed",
+                                                  "camera_url"]) for i in range(6)]
+    stream.feed(m, msgs)
+    r = verdict(m, stream, "SI-003")
+    assert r.verdict is Verdict.FAIL and "camera_url" in r.violations[0].observed
+    good = Monitor()
+    stream.feed(good, stream.alive(5))
+    assert verdict(good, stream, "SI-003").verdict is Verdict.PASS
+
+
+def test_listed_sensor_not_judged_before_the_window(stream):
+    m = Monitor()
+    stream.feed(m, [stream.heartbeat(0), stream.sensor_info(0.1)])
+    r = verdict(m, stream, "SI-003")
+    assert r.verdict is Verdict.SKIP and "observed only" in r.reason
+
+
+def test_mandatory_sensors_listed_and_published(stream):
+    m = Monitor()
+    msgs = [stream.heartbeat(i) for i in range(5)]
+    msgs += [stream.sensor_info(i + 0.1, sensors=["position", "speed"]) for i in range(5)]
+    msgs += [stream.position(58.4, 15.6, i + 0.2) for i in range(5)]
+    found = stream.feed(m, msgs)
+    assert stateful(found).count("SI-004") == 1  # once per distinct list
+    r = verdict(m, stream, "SI-004")
+    assert r.verdict is Verdict.FAIL
+    assert any("heading" in v.observed and "nothing on" in v.observed for v in r.violations)
+
+
+def test_unlisted_sensor_warns_once(stream):
+    m = Monitor()
+    msgs = stream.alive(3) + [stream.sensor("battery", 0.5, i + 0.5) for i in range(3)]
+    found = stream.feed(m, msgs)
+    assert stateful(found) == ["SI-005"]
+    assert verdict(m, stream, "SI-005").verdict is Verdict.WARN
+    good = Monitor()
+    stream.feed(good, stream.alive(3))
+    assert verdict(good, stream, "SI-005").verdict is Verdict.PASS
+
+
+def test_unlisted_sensor_seen_before_the_list_warns_at_finish(stream):
+    m = Monitor()
+    stream.feed(m, [stream.sensor("battery", 0.5, 0)] + stream.alive(3, start=1))
+    assert verdict(m, stream, "SI-005").verdict is Verdict.WARN
+
+
+def test_position_jump_warns(stream):
+    m = Monitor()
+    msgs = [stream.sensor("speed", 2.0, 0), stream.position(58.4, 15.6, 0.1),
+            stream.position(58.41, 15.6, 1.1)]  # 1.1 km in 1 s at 2 m/s
+    found = stream.feed(m, msgs)
+    assert rules_found(found) == {"SENS-005"}
+    good = Monitor()
+    stream.feed(good, [stream.sensor("speed", 2.0, 0), stream.position(58.4, 15.6, 0.1),
+                       stream.position(58.40001, 15.6, 1.1)])  # 1.1 m
+    assert verdict(good, stream, "SENS-005").verdict is Verdict.PASS
+
+
+# -- execution: EXEC-004, EXEC-FB-003, EXEC-006, EXEC-008, EXEC-FB-004 -----------------------------
+
+def test_response_agent_uuid_must_be_the_heartbeats(stream):
+    m = Monitor()
+    ping = stream.command(0.5)
+    com = ping.payload.decode()
+    cu = __import__("json").loads(com)["com-uuid"]
+    msgs = stream.alive(2) + [ping, stream.response(0.6, cu),
+                              stream.response(0.7, cu, agent_uuid=str(uuid.uuid4()))]
+    stream.feed(m, msgs)
+    r = verdict(m, stream, "EXEC-004")
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 1
+
+
+def test_response_with_the_next_lifes_uuid_is_fine_after_reboot(stream):
+    m = Monitor()
+    new = str(uuid.uuid4())
+    msgs = [stream.heartbeat(0), stream.response(5.0, C1, agent_uuid=new),
+            stream.heartbeat(5.1, agent_uuid=new)]
+    found = stream.feed(m, msgs)
+    assert "EXEC-004" not in rules_found(found)
+    assert verdict(m, stream, "EXEC-004").verdict is Verdict.PASS
+
+
+def test_twin_agents_answers_are_judged_by_hb_011_not_exec_004(stream):
+    """Two live agents under one name (HB-011): each answers with its own heartbeat's uuid,
+    which is not a stale uuid; a uuid whose heartbeats stopped long ago still is."""
+    m = Monitor()
+    twin = str(uuid.uuid4())
+    task = str(uuid.uuid4())
+    msgs = []
+    for i in range(6):  # both heartbeat every second, interleaved
+        msgs += [stream.heartbeat(i), stream.heartbeat(i + 0.5, agent_uuid=twin)]
+    msgs += [stream.feedback(5.6, task, "running"),  # the first agent's, after the twin's heartbeat
+             stream.feedback(5.7, task, "running", agent_uuid=twin)]
+    found = stream.feed(m, msgs)
+    assert "HB-011" in rules_found(found) | {r for r, res in _unit_rules(m, stream).items()
+                                              if res.verdict is Verdict.FAIL}
+    assert "EXEC-FB-003" not in rules_found(found)
+    assert verdict(m, stream, "EXEC-FB-003").verdict is Verdict.PASS
+
+
+def _unit_rules(m: Monitor, stream):
+    m.finish()
+    return m.report().units[str(stream.address)].rules
+
+
+def test_feedback_agent_uuid(stream):
+    m = Monitor()
+    task = str(uuid.uuid4())
+    stale = stream.agent_uuid
+    msgs = [stream.heartbeat(0), stream.heartbeat(4, agent_uuid=str(uuid.uuid4())),
+            stream.feedback(4.5, task, "running", agent_uuid=stale)]
+    found = stream.feed(m, msgs)
+    assert "EXEC-FB-003" in rules_found(found)
+    good = Monitor()
+    stream.feed(good, [stream.heartbeat(0), stream.feedback(0.5, task, "running")])
+    assert verdict(good, stream, "EXEC-FB-003").verdict is Verdict.PASS
+
+
+def test_response_must_answer_a_command_seen(stream):
+    m = Monitor(Profile(response_timeout=1.0))
+    cmd = stream.command(2.0, com_uuid=C1)
+    msgs = [stream.heartbeat(0), cmd, stream.response(2.1, C1), stream.response(2.2, C2)]
+    found = stream.feed(m, msgs)
+    assert rules_found(found) == {"EXEC-006"}
+    r = verdict(m, stream, "EXEC-006")
+    assert r.verdict is Verdict.FAIL and C2 in r.violations[0].observed
+
+
+def test_response_not_judged_without_commands_seen(stream):
+    m = Monitor(Profile(response_timeout=1.0))
+    stream.feed(m, [stream.heartbeat(0), stream.response(3, C2)])
+    r = verdict(m, stream, "EXEC-006")
+    assert r.verdict is Verdict.SKIP and "subscribe" in r.reason
+
+
+def test_com_uuid_reused_for_another_command_fails(stream):
+    m = Monitor()
+    msgs = [stream.command(0, "ping", com_uuid=C1), stream.command(1, "ping", com_uuid=C1),
+            stream.command(2, "query-status", com_uuid=C1, **{"task-uuid": str(uuid.uuid4())})]
+    found = stream.feed(m, msgs)
+    assert stateful(found) == ["EXEC-008"]  # the identical resend is fine
+    assert verdict(m, stream, "EXEC-008").verdict is Verdict.FAIL
+
+
+def test_feedback_after_final_status_fails(stream):
+    m = Monitor()
+    task = str(uuid.uuid4())
+    msgs = [stream.heartbeat(0), stream.feedback(1, task, "running"),
+            stream.feedback(2, task, "finished", com_uuid="f1"),
+            stream.feedback(2.1, task, "finished", com_uuid="f1"),  # a redelivery: fine
+            stream.feedback(3, task, "running")]
+    found = stream.feed(m, msgs)
+    assert stateful(found) == ["EXEC-FB-004"]
+    good = Monitor()
+    stream.feed(good, msgs[:4])
+    assert verdict(good, stream, "EXEC-FB-004").verdict is Verdict.PASS
+
+
+def test_response_right_after_the_start_is_judged_when_its_command_was_seen(stream):
+    m = Monitor()  # response timeout 5 s: unknown responses that early are not judged
+    found = stream.feed(m, [stream.command(0.1, com_uuid=C1), stream.response(0.2, C1),
+                            stream.response(0.3, C2)])
+    assert "EXEC-006" not in rules_found(found)
+    assert verdict(m, stream, "EXEC-006").verdict is Verdict.PASS
+
+
+def test_answer_to_a_malformed_command_with_a_readable_com_uuid_answers_a_command(stream):
+    m = Monitor(Profile(response_timeout=0.0))
+    bad = stream.msg("exec/command", f'{{"com-uuid": "{C1}", "command": ping,}}'.encode(), 1)
+    found = stream.feed(m, [stream.heartbeat(0), bad,
+                            stream.response(1.1, C1, response="failed",
+                                            **{"fail-reason": "not JSON"})])
+    assert "EXEC-006" not in rules_found(found)
+    assert verdict(m, stream, "EXEC-006").verdict is Verdict.PASS
+
+
+def test_signal_task_response_in_another_form_is_err_013_not_exec_002(stream):
+    import orjson
+
+    task = str(uuid.uuid4())
+    signal = stream.command(1, "signal-task", com_uuid=C1, signal="$abort",
+                            **{"task-uuid": task})
+    ping = stream.command(2, "ping", com_uuid=C2)
+    tst_form = {"com-uuid": str(uuid.uuid4()), "response": "ok"}
+    m = Monitor()
+    found = stream.feed(m, [stream.heartbeat(0), signal, ping,
+                            stream.msg("exec/response", orjson.dumps(
+                                {**tst_form, "response-to": C1}), 1.1),
+                            stream.msg("exec/response", orjson.dumps(
+                                {**tst_form, "response-to": C2}), 2.1)])
+    err013 = [v for v in found if v.rule == "ERR-013"]
+    exec002 = [v for v in found if v.rule == "EXEC-002"]
+    assert err013 and all(C1 in v.excerpt for v in err013)
+    assert exec002 and all(C2 in v.excerpt for v in exec002)
+    assert verdict(m, stream, "ERR-013").verdict is Verdict.WARN

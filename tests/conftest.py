@@ -1,0 +1,92 @@
+"""Shared fixtures: real brokers (the embedded amqtt one and the local Mosquitto) and a topic
+prefix of its own for every test, so tests never see each other's traffic."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import subprocess
+import time
+import uuid
+from collections.abc import Iterator
+
+import pytest
+from hypothesis import HealthCheck, settings
+
+from conformance.broker import EmbeddedBroker
+from conformance.topics import UnitAddress
+
+pytest_plugins = ["pytester"]
+
+# Hypothesis: a bounded 'ci' profile (2 cores, CI time), a 'dev' one for deeper local runs.
+settings.register_profile("ci", max_examples=60, deadline=None,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile("dev", max_examples=300, deadline=None)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+MOSQUITTO = ("127.0.0.1", 1883)
+TEST_TIMEOUT = 120  # seconds: a hung broker or unit fails one test instead of the whole run
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    # pytest-timeout is a test extra; set here, not in the ini, so that `pytest --unit` run from
+    # this folder without the extra gets no "unknown config option" warning.
+    if config.pluginmanager.hasplugin("timeout"):
+        for item in items:
+            if item.get_closest_marker("timeout") is None:
+                item.add_marker(pytest.mark.timeout(TEST_TIMEOUT))
+
+
+def _listening(host: str, port: int) -> bool:
+    try:
+        with socket.create_connection((host, port), timeout=0.5):
+            return True
+    except OSError:
+        return False
+
+
+@pytest.fixture(scope="session")
+def embedded_broker() -> Iterator[EmbeddedBroker]:
+    """An amqtt broker on a free loopback port, shared by the session (tests use own prefixes).
+
+    Example: ``MqttClient(BrokerURL.parse(embedded_broker.url)).connect()``
+    """
+    with EmbeddedBroker() as broker:
+        yield broker
+
+
+@pytest.fixture(scope="session")
+def mosquitto() -> str:
+    """The local Mosquitto on 127.0.0.1:1883, started if it is not running; its URL."""
+    if not _listening(*MOSQUITTO):
+        exe = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
+        if os.path.exists(exe):
+            subprocess.run([exe, "-d", "-c", "/etc/mosquitto/mosquitto.conf"], check=False)
+            deadline = time.monotonic() + 5
+            while time.monotonic() < deadline and not _listening(*MOSQUITTO):
+                time.sleep(0.05)
+    if not _listening(*MOSQUITTO):
+        pytest.fail("Mosquitto is not listening on 127.0.0.1:1883 and could not be started: "
+                    "run `mosquitto -d -c /etc/mosquitto/mosquitto.conf`")
+    return "mqtt://127.0.0.1:1883"
+
+
+@pytest.fixture(params=["embedded", "mosquitto"])
+def broker_url(request: pytest.FixtureRequest) -> str:
+    """Each real broker in turn: the embedded amqtt one, then the local Mosquitto."""
+    if request.param == "embedded":
+        return request.getfixturevalue("embedded_broker").url
+    return request.getfixturevalue("mosquitto")
+
+
+@pytest.fixture
+def prefix() -> str:
+    """A PREFIX1 of this test's own (spec 3.1: 'can be used to have parallel experiments')."""
+    return f"t{uuid.uuid4().hex[:10]}"
+
+
+@pytest.fixture
+def unit_address(prefix: str) -> UnitAddress:
+    """``<prefix>/unit/air/simulation/dji0``: a simulated air unit under this test's prefix."""
+    return UnitAddress(prefix, "air", "simulation", "dji0")

@@ -1,0 +1,83 @@
+"""The MQTT client wrapper (conformance.client) against real brokers."""
+
+from __future__ import annotations
+
+import pytest
+
+from conformance.client import BrokerError, BrokerURL, MqttClient, PublishRefused
+
+
+def test_broker_url_parsing_and_credentials_from_the_environment() -> None:
+    env = {"WARAPS_USERNAME": "alice", "WARAPS_PASSWORD": "s3cret"}
+    url = BrokerURL.parse("mqtts://broker.example:8883", env)
+    assert (url.scheme, url.host, url.port, url.username) == ("mqtts", "broker.example", 8883, "alice")
+    assert url.password == "s3cret"
+    assert "s3cret" not in repr(url) and "s3cret" not in str(url)
+    assert BrokerURL.parse("127.0.0.1", {}).port == 1883
+    assert BrokerURL.parse("embedded").scheme == "embedded"
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("http://x:1", "scheme 'http' is not one of mqtt, mqtts, embedded"),
+    ("mqtt://u:pw@x:1", "put it in WARAPS_PASSWORD"),
+    ("mqtt://x:99999", "port is not a number from 1 to 65535"),
+])
+def test_bad_broker_url_says_how_to_fix(text: str, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        BrokerURL.parse(text, {})
+
+
+def test_arena_environment_variables() -> None:
+    env = {"WARAPS_BROKER": "127.0.0.1", "WARAPS_PORT": "8883", "WARAPS_TLS_CONNECTION": "True"}
+    url = BrokerURL.from_env(env)
+    assert url is not None and (url.scheme, url.port) == ("mqtts", 8883)
+    assert BrokerURL.from_env({}) is None
+
+
+def test_round_trip_and_publish_policy(broker_url: str, prefix: str) -> None:
+    allowed = f"{prefix}/unit/air/simulation/dji0/exec/command"
+    with MqttClient(BrokerURL.parse(broker_url), may_publish=lambda t: t == allowed) as c:
+        c.subscribe(f"{prefix}/#")
+        c.publish(allowed, b'{"command": "ping"}')
+        m = c.get(timeout=5)
+        assert m is not None and (m.topic, m.payload) == (allowed, b'{"command": "ping"}')
+        with pytest.raises(PublishRefused, match="DESIGN: safety"):
+            c.publish(f"{prefix}/unit/air/simulation/other0/exec/command", b"{}")
+        assert c.get(timeout=0.2) is None  # nothing went out
+
+
+def test_default_client_publishes_nowhere(embedded_broker) -> None:
+    with MqttClient(BrokerURL.parse(embedded_broker.url)) as c, pytest.raises(PublishRefused):
+        c.publish("anything", b"x")
+
+
+def test_unreachable_broker_is_one_clear_error() -> None:
+    from conformance.broker import free_port
+
+    port = free_port()
+    with pytest.raises(BrokerError, match=rf"cannot reach the broker at mqtt://127.0.0.1:{port}"):
+        MqttClient(BrokerURL.parse(f"mqtt://127.0.0.1:{port}")).connect(timeout=2)
+
+
+@pytest.fixture
+def password_broker(tmp_path):
+    """A Mosquitto of this test's own on a free loopback port that wants a password."""
+    from private_mosquitto import PrivateMosquitto
+
+    broker = PrivateMosquitto(tmp_path, users={"alice": "right"}).start()
+    yield broker.url
+    broker.stop()
+
+
+def test_a_refused_connection_is_reported_at_once_with_the_fix(password_broker: str) -> None:
+    import time
+
+    url = BrokerURL.parse(password_broker, {"WARAPS_USERNAME": "alice", "WARAPS_PASSWORD": "wrong"})
+    timeout = 30.0
+    started = time.monotonic()
+    with pytest.raises(BrokerError, match=r"[Nn]ot authorized.*WARAPS_USERNAME / WARAPS_PASSWORD"):
+        MqttClient(url).connect(timeout=timeout)
+    # The refusal ends the wait: the CONNACK came back, the deadline was not waited out.
+    assert time.monotonic() - started < timeout
+    ok = BrokerURL.parse(password_broker, {"WARAPS_USERNAME": "alice", "WARAPS_PASSWORD": "right"})
+    MqttClient(ok).connect(timeout=timeout).close()

@@ -1,0 +1,60 @@
+"""Topic grammar of spec section 3 (conformance.topics)."""
+
+from __future__ import annotations
+
+import pytest
+
+from conformance.topics import TopicError, TopicKind, UnitAddress, naming_violations, parse_topic
+
+UNIT = "waraps/unit/air/simulation/dji0"
+
+
+@pytest.mark.parametrize(("sub", "kind"), [
+    ("heartbeat", TopicKind.HEARTBEAT), ("sensor_info", TopicKind.SENSOR_INFO),
+    ("sensor.info", TopicKind.SENSOR_INFO), ("direct_execution_info", TopicKind.DIRECT_EXECUTION_INFO),
+    ("tst_execution_info", TopicKind.TST_EXECUTION_INFO), ("sensor/position", TopicKind.SENSOR),
+    ("exec/command", TopicKind.EXEC_COMMAND), ("exec/response", TopicKind.EXEC_RESPONSE),
+    ("exec/feedback", TopicKind.EXEC_FEEDBACK), ("tst/command", TopicKind.TST_COMMAND),
+    ("tst/response", TopicKind.TST_RESPONSE), ("tst/feedback", TopicKind.TST_FEEDBACK),
+    ("status", TopicKind.UNKNOWN), ("sensor", TopicKind.UNKNOWN), ("sensor/a/b", TopicKind.UNKNOWN),
+])
+def test_every_subtopic_of_section_3_is_classified(sub: str, kind: TopicKind) -> None:
+    parsed = parse_topic(f"{UNIT}/{sub}")
+    assert parsed.kind is kind
+    assert parsed.unit == UnitAddress.parse(UNIT)
+
+
+def test_section_3_examples_follow_the_naming_conventions() -> None:
+    for sub in ("heartbeat", "sensor_info", "direct_execution_info", "tst_execution_info",
+                "sensor/position", "sensor/camera_url", "exec/command", "exec/response",
+                "exec/feedback"):
+        assert naming_violations(f"{UNIT}/{sub}") == []
+    # PREFIX1 examples of 3.1 carry '-': exempt from TOPIC-003.
+    assert naming_violations("waraps-demo-2021/unit/surface/real/piraya0/heartbeat") == []
+
+
+@pytest.mark.parametrize(("topic", "rules"), [
+    ("/waraps/unit/air/simulation/dji0/heartbeat", {"TOPIC-001"}),
+    ("waraps/unit/air/simulation/DJI0/heartbeat", {"TOPIC-002"}),
+    ("waraps/unit/air/simulation/dji0/sensor/battery-state", {"TOPIC-003"}),
+    ("waraps/unit/air/simulation/dji0/sensor/batteryState", {"TOPIC-002"}),
+    ("waraps/unit/air/simulation/heartbeat", {"TOPIC-004"}),
+    ("waraps/unit/air//dji0/heartbeat", {"TOPIC-004"}),
+    ("waraps/unit/car/simulation/dji0/heartbeat", {"TOPIC-005"}),
+    ("waraps/unit/air/test/dji0/heartbeat", {"TOPIC-006"}),
+    ("waraps/unit/air/simulation/dji0/status", {"TOPIC-007"}),
+    ("waraps/unit/air/simulation/dji0/sensor/pos ition", {"TOPIC-008", "TOPIC-003"}),
+    ("waraps/unit/air/simulation/dji0/sensor.info", {"ERR-001"}),
+])
+def test_each_naming_rule_fails_on_its_fault(topic: str, rules: set[str]) -> None:
+    assert {v.rule for v in naming_violations(topic)} == rules
+
+
+def test_unit_address_round_trip_and_errors() -> None:
+    address = UnitAddress.parse("waraps/unit/air/real/dji0")
+    assert address.topic("exec/command") == "waraps/unit/air/real/dji0/exec/command"
+    assert address.is_real
+    with pytest.raises(TopicError, match="PREFIX1/unit/TYPE/ROLE/UNIT"):
+        UnitAddress.parse("waraps/dji0")
+    with pytest.raises(TopicError, match="agent type 'car'"):
+        UnitAddress.parse("waraps/unit/car/real/dji0")

@@ -1,0 +1,177 @@
+"""``waraps-conformance lint --from``: recordings judged at their recorded times."""
+
+from __future__ import annotations
+
+import base64
+from pathlib import Path
+
+import orjson
+from lint_helpers import (
+    T0,
+    failed_rules,
+    fleet_traffic,
+    run_lint,
+    unit_traffic,
+    verdicts,
+    write_recording,
+)
+
+from conformance.client import Message
+from conformance.recording import Event
+
+
+def test_conformant_fleet_passes_and_every_report_is_written(tmp_path: Path, reports_dir: Path,
+                                                            prefix: str) -> None:
+    rec = write_recording(tmp_path / "field-test.jsonl",
+                          fleet_traffic(prefix, ["dji0", "dji1", "piraya0"], seconds=30))
+    run = run_lint(["--from", str(rec)], reports_dir)
+    assert run.code == 0, run.out
+    assert "PASS: no unit fails" in run.out
+    assert run.report is not None and run.report["kind"] == "lint"
+    units = run.report["units"]
+    assert set(units) == {f"{prefix}/unit/air/simulation/{n}" for n in ("dji0", "dji1", "piraya0")}
+    for unit in units:
+        assert not failed_rules(run.report, unit)
+        assert verdicts(run.report, unit)["HB-003"] == "pass"  # rates judged at recorded times
+    assert run.report["meta"]["source"] == str(rec)
+    assert {p.name for p in run.reports} >= {"lint-field-test.json"}
+    for name in ("dji0", "dji1", "piraya0"):  # the scorecard lists every unit
+        assert f"{prefix}/unit/air/simulation/{name} " in run.out
+
+
+def test_exactly_the_faulty_unit_fails_and_the_exit_code_says_so(tmp_path: Path,
+                                                                  reports_dir: Path,
+                                                                  prefix: str) -> None:
+    msgs = fleet_traffic(prefix, ["dji0", "dji1"], seconds=30)
+    msgs += unit_traffic(prefix, "slow0", seconds=30, heartbeat_every=2)  # declares 1 Hz, 0.5 Hz
+    rec = write_recording(tmp_path / "rec.jsonl", msgs)
+    run = run_lint(["--from", str(rec)], reports_dir)
+    assert run.code == 1
+    slow = f"{prefix}/unit/air/simulation/slow0"
+    assert "HB-003" in failed_rules(run.report, slow)
+    for good in ("dji0", "dji1"):
+        assert not failed_rules(run.report, f"{prefix}/unit/air/simulation/{good}")
+    assert f"FAIL: {slow}" in run.out
+    assert f"{slow}" in run.out and "HB-003x" in run.out
+
+
+def test_hostile_messages_each_become_a_violation_of_the_right_rule(tmp_path: Path,
+                                                                     reports_dir: Path,
+                                                                     prefix: str) -> None:
+    base = f"{prefix}/unit/air/simulation/dji0"
+    msgs = unit_traffic(prefix, "dji0", seconds=15)
+    t = T0 + 5
+    hostile = [
+        Message(t, f"{base}/sensor/speed", b"not json at all"),
+        Message(t + 0.1, f"{base}/sensor/heading", b"\xff\xfe\x00\x01binary"),
+        Message(t + 0.2, f"{base}/sensor/course", b'"' + b"x" * (10 << 20) + b'"'),
+        Message(t + 0.3, f"{base}/sensor/position", b"[" * 100_000 + b"]" * 100_000),
+        Message(t + 0.4, f"{prefix}/unit/air/simulation/dji 0+#/heartbeat", b"{}"),
+        Message(t + 0.5, f"{base}/sensor/speed", b'{"a": NaN}'),
+    ]
+    rec = write_recording(tmp_path / "hostile.jsonl", msgs + hostile)
+    run = run_lint(["--from", str(rec)], reports_dir)
+    assert run.code == 1
+    failed = failed_rules(run.report, base)
+    assert {"MSG-001", "MSG-002", "MSG-004"} <= failed
+    assert run.report["units"][base]["violation_counts"]["MSG-004"] == 2  # size and depth
+    assert run.report["units"][base]["violation_counts"]["MSG-002"] == 2
+    odd = [u for u in run.report["units"] if "dji 0" in u]
+    assert odd and "TOPIC-008" in failed_rules(run.report, odd[0])
+    # The rest of the unit's traffic was still judged after the flood.
+    assert verdicts(run.report, base)["HB-003"] == "pass"
+
+
+def test_malformed_lines_are_reported_with_line_numbers_and_the_rest_judged(
+        tmp_path: Path, reports_dir: Path, prefix: str) -> None:
+    rec = write_recording(tmp_path / "rec.jsonl", unit_traffic(prefix, "dji0", seconds=20))
+    lines = rec.read_bytes().splitlines()
+    lines.insert(4, b"{this is not json")
+    lines.insert(50, b'{"ts": 1.0, "payload": "no topic"}')
+    rec.write_bytes(b"\n".join(lines) + b"\n")
+    run = run_lint(["--from", str(rec)], reports_dir)
+    assert run.code == 0, run.out
+    assert "malformed line 5: not JSON" in run.out
+    assert "malformed line 51: 'topic' is missing" in run.out
+    assert run.report["meta"]["recording_problems"] == "2"
+    assert run.report["units"][f"{prefix}/unit/air/simulation/dji0"]["message_count"] == 140
+
+
+def test_mosquitto_sub_output_on_standard_input(reports_dir: Path, prefix: str) -> None:
+    """``mosquitto_sub -F %j | lint --from -``: tst times drive the rate checks."""
+    from datetime import datetime, timezone
+
+    lines = []
+    for m in unit_traffic(prefix, "dji0", seconds=20):
+        tst = datetime.fromtimestamp(m.time, timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%fZ+0000")
+        lines.append(orjson.dumps({"tst": tst, "topic": m.topic, "qos": 0, "retain": 0,
+                                   "payloadlen": len(m.payload), "payload": m.payload.decode()}))
+    run = run_lint(["--from", "-"], reports_dir, stdin=b"\n".join(lines) + b"\n")
+    assert run.code == 0, run.out
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    assert verdicts(run.report, unit)["HB-003"] == "pass"
+    assert run.report["meta"]["recording_formats"] == "mosquitto_sub -F %j"
+
+
+def test_unit_option_limits_the_judgement(tmp_path: Path, reports_dir: Path, prefix: str) -> None:
+    msgs = unit_traffic(prefix, "dji0", seconds=15) + unit_traffic(prefix, "bad0", seconds=15,
+                                                                    heartbeat_every=2)
+    rec = write_recording(tmp_path / "rec.jsonl", msgs)
+    run = run_lint(["--from", str(rec), "--unit", f"{prefix}/unit/air/simulation/dji0"],
+                   reports_dir)
+    assert run.code == 0 and set(run.report["units"]) == {f"{prefix}/unit/air/simulation/dji0"}
+
+
+def test_a_recorded_connection_gap_is_not_judged_as_silence(tmp_path: Path, reports_dir: Path,
+                                                             prefix: str) -> None:
+    """The recorder lost the broker for 20 s: nobody's silence is judged over the gap. The same
+    hole without the recorded gap is a silence of every unit (HB-010: the test can fail)."""
+    msgs = fleet_traffic(prefix, ["dji0", "dji1"], seconds=60, skip=(20.0, 40.0))
+    gap = [Event(T0 + 19.9, "disconnected", "connection lost"), Event(T0 + 39.9, "connected")]
+    with_gap = run_lint(["--from", str(write_recording(tmp_path / "gap.jsonl", msgs + gap))],
+                        reports_dir / "a")
+    without = run_lint(["--from", str(write_recording(tmp_path / "hole.jsonl", msgs))],
+                       reports_dir / "b")
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    assert with_gap.code == 0, with_gap.out
+    assert "connection gap:" in with_gap.out and "for 20.0 s" in with_gap.out
+    assert with_gap.report["gaps"] == [[T0 + 19.9, T0 + 39.9]]
+    assert verdicts(with_gap.report, unit)["HB-010"] == "pass"
+    assert verdicts(without.report, unit)["HB-010"] == "warn"
+    assert "HB-010 the unit does not fall silent" in without.out
+
+
+def test_recorded_unexamined_messages_are_reported(tmp_path: Path, reports_dir: Path,
+                                                    prefix: str) -> None:
+    msgs = unit_traffic(prefix, "dji0", seconds=15)
+    items = msgs + [Event(T0 + 7, "unexamined", "recorder fell behind", 250)]
+    run = run_lint(["--from", str(write_recording(tmp_path / "r.jsonl", items))], reports_dir)
+    assert run.report["unexamined"] == 250
+    assert "not examined: 250 messages" in run.out
+
+
+def test_nothing_to_lint_is_not_a_pass(tmp_path: Path, reports_dir: Path) -> None:
+    empty = tmp_path / "empty.jsonl"
+    empty.write_bytes(b"garbage\n")
+    run = run_lint(["--from", str(empty)], reports_dir)
+    assert run.code == 3 and "malformed line 1" in run.out
+    missing = run_lint(["--from", str(tmp_path / "nope.jsonl")], reports_dir)
+    assert missing.code == 3
+
+
+def test_usage_errors_exit_2(tmp_path: Path, reports_dir: Path) -> None:
+    assert run_lint(["--from", "x", "--broker", "mqtt://127.0.0.1:1"], reports_dir).code == 2
+    assert run_lint(["--from", "x", "--format", "pdf"], reports_dir).code == 2
+    assert run_lint(["--from", "x", "--profile", "nonexistent"], reports_dir).code == 2
+    assert run_lint(["--from", "x", "--unit", "not/a/unit"], reports_dir).code == 2
+    assert run_lint(["--from", "x", "--duration", "soon"], reports_dir).code == 2
+
+
+def test_payload_b64_lines_are_judged(tmp_path: Path, reports_dir: Path, prefix: str) -> None:
+    base = f"{prefix}/unit/air/simulation/dji0"
+    rec = write_recording(tmp_path / "r.jsonl", unit_traffic(prefix, "dji0", seconds=12))
+    extra = orjson.dumps({"ts": T0 + 3, "topic": f"{base}/sensor/speed",
+                          "payload_b64": base64.b64encode(b"\x80abc").decode()})
+    rec.write_bytes(rec.read_bytes() + extra + b"\n")
+    run = run_lint(["--from", str(rec)], reports_dir)
+    assert "MSG-001" in failed_rules(run.report, base)

@@ -1,0 +1,104 @@
+"""The live scorecard: redrawn in place on a terminal, plain lines in a pipe; fleet observations
+in the final view. Fed through the real Monitor with synthetic traffic (no broker needed)."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import orjson
+import pytest
+from lint_helpers import T0, run_lint, unit_traffic, write_recording
+
+from conformance.checks import Monitor
+from conformance.client import Message
+from conformance.lint.linter import Linter
+from conformance.profile import Profile
+from conformance.scorecard import Scorecard
+
+
+def heartbeat_type_fault(msgs: list[Message]) -> list[Message]:
+    """Every heartbeat says type 'Heartbeat' (HB-002)."""
+    out = []
+    for m in msgs:
+        if m.topic.endswith("/heartbeat"):
+            hb = orjson.loads(m.payload)
+            hb["type"] = "Heartbeat"
+            m = Message(m.time, m.topic, orjson.dumps(hb))
+        out.append(m)
+    return out
+
+
+DJI0 = "4774daa2-246c-4124-8d92-5e7806c5b385"
+
+
+def linter_with(prefix: str) -> Linter:
+    linter = Linter(Monitor(Profile(), kind="lint"), Profile())
+    msgs = unit_traffic(prefix, "dji0", seconds=12, agent_uuid=DJI0) + heartbeat_type_fault(
+        unit_traffic(prefix, "bad0", seconds=12))
+    linter.feed(sorted(msgs, key=lambda m: m.time))
+    return linter
+
+
+def test_terminal_view_is_redrawn_in_place(prefix: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("COLUMNS", "160")  # the drawing fits the terminal: make it a known one
+    monkeypatch.setenv("LINES", "40")
+    out = io.StringIO()
+    card = Scorecard(out, tty=True, title="test")
+    linter = linter_with(prefix)
+    card.update(linter, elapsed=12.0, connected=True, force=True)
+    first = out.getvalue()
+    lines = first.splitlines()
+    assert "\x1b[" not in first
+    assert lines[0].startswith("waraps-conformance lint test | 00:00:12 |") and "connected" in lines[0]
+    assert lines[1].split() == ["UNIT", "TYPE", "ROLE", "LEVELS", "MSG/S", "LAST", "SEEN",
+                                "STATUS", "VIOLATIONS", "BY", "RULE"]
+    bad = next(ln for ln in lines if f"{prefix}/unit/air/simulation/bad0" in ln)
+    good = next(ln for ln in lines if f"{prefix}/unit/air/simulation/dji0" in ln)
+    assert "FAIL" in bad and "HB-002x12" in bad and "sensor,exec" in bad
+    assert " ok " in good and "HB-002" not in good
+    assert lines.index(bad) < lines.index(good)  # worst first
+    card.update(linter, elapsed=13.0, connected=False, force=True)
+    second = out.getvalue()[len(first):]
+    assert second.startswith(f"\x1b[{len(lines)}F\x1b[J")  # back up over the last drawing
+    assert "DISCONNECTED, reconnecting" in second
+
+
+def test_plain_view_prints_each_first_violation_once_and_summaries(prefix: str) -> None:
+    out = io.StringIO()
+    card = Scorecard(out, tty=False)
+    linter = linter_with(prefix)
+    card.update(linter, force=True)
+    text = out.getvalue()
+    hb002 = [ln for ln in text.splitlines() if " HB-002 " in ln]
+    assert len(hb002) == 1 and f"FAIL {prefix}/unit/air/simulation/bad0 HB-002" in hb002[0]
+    assert "expected" in hb002[0] and "observed" in hb002[0]
+    assert "\x1b[" not in text
+    assert f"2 units, {linter.messages} messages, failing: {prefix}/unit/air/simulation/bad0" in text
+    more = unit_traffic(prefix, "dji0", seconds=2, t0=T0 + 12, agent_uuid=DJI0)
+    linter.feed(more)
+    card.update(linter)
+    assert out.getvalue() == text  # nothing new to say, and no summary before 10 s
+
+
+def test_fleet_observations_are_listed_in_the_final_view(tmp_path: Path, reports_dir: Path,
+                                                         prefix: str) -> None:
+    """Two processes under one unit name, alternating agent-uuids (HB-011)."""
+    a = unit_traffic(prefix, "dji0", seconds=20, agent_uuid="11111111-1111-4111-8111-111111111111")
+    b = unit_traffic(prefix, "dji0", seconds=20, agent_uuid="22222222-2222-4222-8222-222222222222",
+                     t0=T0 + 0.5)
+    twin = [m for m in b if m.topic.endswith("/heartbeat")]
+    run = run_lint(["--from", str(write_recording(tmp_path / "twin.jsonl", a + twin))],
+                   reports_dir)
+    assert run.code == 1
+    final = run.out[run.out.index("fleet observations:"):]
+    assert "HB-011" in final and f"{prefix}/unit/air/simulation/dji0" in final
+
+
+def test_recorded_duration_limits_what_is_judged(tmp_path: Path, reports_dir: Path,
+                                                  prefix: str) -> None:
+    rec = write_recording(tmp_path / "r.jsonl", unit_traffic(prefix, "dji0", seconds=30))
+    run = run_lint(["--from", str(rec), "--duration", "10s"], reports_dir)
+    unit = run.report["units"][f"{prefix}/unit/air/simulation/dji0"]
+    assert unit["last_seen"] - unit["first_seen"] <= 10.0
+    assert unit["message_count"] < 30 * 7

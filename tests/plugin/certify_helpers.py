@@ -1,0 +1,165 @@
+"""Helpers for the certification plugin's tests: run ``pytest --unit ...`` inside pytest
+(pytester, in process) and read back the verdict of every rule."""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+from private_mosquitto import PrivateMosquitto  # noqa: F401  (re-exported for the tests)
+
+# Imported here, before any in-process run, so they stay loaded across runs: generated task
+# parameters are cached per (task, seed) and hypothesis warms up once per worker.
+import conformance.scenarios  # noqa: F401
+import conformance.suite.session  # noqa: F401
+
+HERE = Path(__file__).parent
+FAST = HERE / "profiles" / "fast.yaml"
+MATRIX = HERE / "profiles" / "matrix.yaml"
+UNIT = "waraps/unit/air/simulation/dji0"
+RULE_IN_NODEID = re.compile(r"\[([A-Z]+(?:-[A-Z]+)*-\d{3})\]$")
+
+
+@dataclass
+class Certified:
+    """One in-process certification run: pytest's result, each rule's outcome, the report."""
+
+    result: pytest.RunResult
+    outcomes: dict[str, str]
+    """rule id -> passed | failed | skipped (the test's call outcome)."""
+    report: dict[str, Any] | None
+    reports_dir: Path
+
+    @property
+    def failed(self) -> set[str]:
+        return {r for r, o in self.outcomes.items() if o == "failed"}
+
+    @property
+    def text(self) -> str:
+        return "\n".join(self.result.outlines + self.result.errlines)
+
+    def unit_rules(self) -> dict[str, dict[str, Any]]:
+        assert self.report is not None, "no JSON report was written"
+        (unit,) = self.report["units"].values()
+        return unit["rules"]
+
+
+def certify(pytester: pytest.Pytester, *args: str, plugins: tuple[object, ...] = ()
+            ) -> Certified:
+    """Run ``pytest --unit ...`` in process in the pytester folder; reports go to ./reports."""
+    runs = len(list(pytester.path.glob("reports*")))
+    reports = pytester.path / ("reports" if runs == 0 else f"reports-{runs}")
+    # --opt=value: a value in its own argument would be taken for a test path while pytest
+    # picks the rootdir and ini file (plugin options are not known yet at that point).
+    result = pytester.runpytest_inprocess("-p", "no:cacheprovider", "-o", "addopts=",
+                                          f"--reports-dir={reports}", *args,
+                                          plugins=list(plugins))
+    outcomes: dict[str, str] = {}
+    reprec = getattr(result, "reprec", None)
+    if reprec is not None:
+        for rep in reprec.getreports("pytest_runtest_logreport"):
+            m = RULE_IN_NODEID.search(rep.nodeid)
+            if m and (rep.when == "call" or rep.outcome != "passed"):
+                outcomes[m.group(1)] = rep.outcome
+    found = sorted(reports.glob("*.json"))
+    report = json.loads(found[-1].read_text()) if found else None
+    return Certified(result, outcomes, report, reports)
+
+
+def certify_sim(pytester: pytest.Pytester, broker: str, unit: str, *args: str,
+                faults: tuple[str, ...] = (), rate: float = 2.0) -> Certified:
+    """Certify a reference unit (with ``faults``) that this process runs on ``broker``."""
+    from conformance.sim import SimUnit
+
+    with SimUnit(unit, broker, faults=faults, rate=rate, seed=1) as sim:
+        return certify(pytester, "--unit", unit, "--broker", broker, *args,
+                       plugins=(Rebooter(sim),))
+
+
+def warm_parameters(tasks: tuple[str, ...], seeds: range) -> None:
+    """Generate (and cache) the task parameters a certification with these seeds will use, so
+    hypothesis does not hold the GIL while an in-process reference unit should publish."""
+    from conformance.scenarios.params import _drawn
+
+    for task in tasks:
+        for seed in seeds:
+            _drawn(task, seed)
+
+
+class Rebooter:
+    """A plugin object that reboots an in-process reference unit (pytest_waraps_reboot)."""
+
+    def __init__(self, sim: Any) -> None:
+        self.sim = sim
+        self.calls = 0
+
+    def pytest_waraps_reboot(self, config: pytest.Config, unit: str) -> bool:
+        self.calls += 1
+        self.sim.reboot()
+        return True
+
+
+class SilentUnit:
+    """A unit that heartbeats and says it executes tasks, but answers no command at all.
+
+    Publishes heartbeat, sensor_info, direct_execution_info and the mandatory sensors at
+    ``rate`` Hz from a thread (its own MqttClient, publishing only under its own address)."""
+
+    def __init__(self, unit: str, broker: str, rate: float = 5.0) -> None:
+        import threading
+        import uuid
+
+        from conformance.client import BrokerURL, MqttClient
+        from conformance.topics import UnitAddress
+
+        self.unit = UnitAddress.parse(unit)
+        self.rate = rate
+        self.agent_uuid = str(uuid.uuid4())
+        base = self.unit.base + "/"
+        self.client = MqttClient(BrokerURL.parse(broker), may_publish=lambda t: t.startswith(base))
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def _messages(self, now: float) -> dict[str, object]:
+        u = self.unit
+        info = {"name": u.name, "rate": self.rate, "stamp": now, "agent-uuid": self.agent_uuid}
+        return {
+            "heartbeat": {**info, "type": "HeartBeat", "agent-type": u.agent_type,
+                          "levels": ["sensor", "direct execution"]},
+            "sensor_info": {**info, "type": "SensorInfo",
+                            "sensor-data-provided": ["position", "heading", "course", "speed"]},
+            "direct_execution_info": {**info, "type": "DirectExecutionInfo",
+                                      "tasks-available": [{"name": "look-at-bearing",
+                                                           "signals": ["$abort", "$enough"]}],
+                                      "tasks-executing": []},
+            "sensor/position": {"latitude": 58.4, "longitude": 15.6, "altitude": 0.0,
+                                "rostype": "GeoPoint"},
+            "sensor/heading": 0.0, "sensor/course": 0.0, "sensor/speed": 0.0,
+        }
+
+    def _run(self) -> None:
+        import time
+
+        import orjson
+
+        period = 1.0 / self.rate
+        due = time.monotonic()
+        while not self._stop.wait(max(0.0, due - time.monotonic())):
+            due += period
+            for sub, body in self._messages(time.time()).items():
+                self.client.publish(self.unit.topic(sub), orjson.dumps(body), qos=0)
+
+    def __enter__(self) -> SilentUnit:
+        self.client.connect()
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(5)
+        self.client.close()
+

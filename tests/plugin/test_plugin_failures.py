@@ -1,0 +1,185 @@
+"""When things go wrong: a unit that answers nothing, a broker that is down or drops mid-run,
+a unit that is not there, Ctrl-C in the middle. Each ends in one clear outcome."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import orjson
+import pytest
+from certify_helpers import (
+    FAST,
+    UNIT,
+    PrivateMosquitto,
+    Rebooter,
+    SilentUnit,
+    certify,
+    warm_parameters,
+)
+
+from conformance.broker import free_port
+from conformance.client import BrokerURL, MqttClient
+from conformance.sim import SimUnit
+from conformance.topics import UnitAddress
+
+pytestmark = pytest.mark.slow
+
+
+def test_a_unit_that_answers_nothing(pytester: pytest.Pytester, mosquitto: str,
+                                     unit_address: UnitAddress) -> None:
+    with SilentUnit(str(unit_address), mosquitto):
+        run = certify(pytester, "--unit", str(unit_address), "--broker", mosquitto,
+                      f"--profile={FAST}")
+    assert run.result.ret == pytest.ExitCode.TESTS_FAILED
+    assert run.outcomes["EXEC-PING-001"] == "failed"
+    assert run.outcomes["EXEC-ROBUST-001"] == "failed"
+    rules = run.unit_rules()
+    # The other scenarios do not pile up failures: could-not-test, with the reason.
+    for rule in ("EXEC-START-001", "EXEC-SIG-002", "EXEC-QUERY-002", "EXEC-RESEND-001"):
+        assert rules[rule]["verdict"] == "could-not-test", rule
+        assert "answers no command" in rules[rule]["reason"]
+        assert run.outcomes[rule] == "skipped"
+
+
+def test_a_broker_that_is_down_is_one_error(pytester: pytest.Pytester) -> None:
+    port = free_port()
+    run = certify(pytester, "--unit", UNIT, "--broker", f"mqtt://127.0.0.1:{port}")
+    assert run.result.ret == pytest.ExitCode.USAGE_ERROR
+    assert run.outcomes == {}
+    errors = [line for line in run.result.errlines if line.startswith("Exit:")]
+    assert len(errors) == 1 and f"cannot reach the broker at mqtt://127.0.0.1:{port}" in errors[0]
+    assert run.report is not None and "cannot reach" in run.report["meta"]["error"]
+
+
+def test_a_unit_that_is_not_there(pytester: pytest.Pytester, mosquitto: str,
+                                  prefix: str) -> None:
+    nobody = f"{prefix}/unit/air/simulation/dji0"
+    run = certify(pytester, "--unit", nobody, "--broker", mosquitto, f"--profile={FAST}")
+    assert run.result.ret == pytest.ExitCode.TESTS_FAILED
+    assert run.outcomes == {}
+    assert f"the unit {nobody} is not alive: no heartbeat" in run.text
+    assert f"Nothing at all was published under {prefix}/" in run.text
+
+
+def test_a_unit_by_another_name_is_suggested(pytester: pytest.Pytester, mosquitto: str,
+                                             prefix: str) -> None:
+    with SimUnit(f"{prefix}/unit/air/simulation/dji1", mosquitto, rate=3.0):
+        run = certify(pytester, "--unit", f"{prefix}/unit/air/simulation/dji0", "--broker",
+                      mosquitto, f"--profile={FAST}")
+    assert run.result.ret == pytest.ExitCode.TESTS_FAILED
+    assert f"Did you mean --unit {prefix}/unit/air/simulation/dji1?" in run.text
+
+
+class DropBroker:
+    """Kills the private broker before the signal scenario and starts it again once the
+    certification has noticed (a broker that drops mid-run and comes back)."""
+
+    def __init__(self, broker: PrivateMosquitto) -> None:
+        self.broker = broker
+        self.dropped = False
+
+    def pytest_runtest_setup(self, item: pytest.Item) -> None:
+        if self.dropped or not item.name.startswith("test_signal_task"):
+            return
+        from conformance.suite.session import CERTIFICATION
+
+        certification = item.config.stash[CERTIFICATION]
+        client = certification.client
+        self.dropped = True
+        self.broker.stop()
+        deadline = time.monotonic() + 10
+        while client.is_connected and time.monotonic() < deadline:
+            time.sleep(0.01)  # poll the flag until paho notices (bounded by the deadline)
+        self.broker.start()
+        # Go on once the unit is back too (its own client reconnects with its own backoff).
+        mark = certification.traffic.mark()
+        assert client.wait_connected(10)
+        assert certification.traffic.wait_for(lambda e: True, 10, after=mark,
+                                              subtopic="heartbeat")
+
+
+def test_a_broker_that_drops_mid_run_and_comes_back(pytester: pytest.Pytester,
+                                                    tmp_path: Path) -> None:
+    broker = PrivateMosquitto(tmp_path).start()
+    unit = "waraps/unit/air/simulation/dji0"
+    try:
+        with SimUnit(unit, broker.url, rate=3.0, seed=2) as sim:
+            dropper = DropBroker(broker)
+            run = certify(pytester, "--unit", unit, "--broker", broker.url,
+                          f"--profile={FAST}", plugins=(Rebooter(sim), dropper))
+    finally:
+        broker.stop()
+    assert dropper.dropped
+    assert "broker connection lost" in run.text
+    assert "broker connection back after" in run.text
+    assert run.report is not None and len(run.report["gaps"]) >= 1
+    assert run.result.ret == 0, run.text  # recovered, and finished with every rule judged
+    assert run.outcomes["EXEC-SIG-002"] == "passed"
+
+
+def test_ctrl_c_in_the_middle_writes_reports_and_aborts_tasks(tmp_path: Path, mosquitto: str,
+                                                              unit_address: UnitAddress) -> None:
+    """pytest in a subprocess; SIGINT once a task it started is running."""
+    reports = tmp_path / "reports"
+    unit = str(unit_address)
+    seen: list[dict] = []
+    with SimUnit(unit, mosquitto, rate=3.0, seed=4), \
+            MqttClient(BrokerURL.parse(mosquitto)) as watcher:
+        watcher.subscribe(unit + "/exec/#")
+        cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-o", "addopts=",
+               "--unit", unit, "--broker", mosquitto, f"--profile={FAST}",
+               f"--reports-dir={reports}", "-q"]
+        proc = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, text=True,
+                                env={**os.environ, "PYTHONUNBUFFERED": "1"})
+        running: set[str] = set()
+        deadline = time.monotonic() + 60
+        while not running and time.monotonic() < deadline:
+            m = watcher.get(timeout=1)
+            if m is None:
+                continue
+            body = orjson.loads(m.payload) if m.payload.startswith(b"{") else {}
+            seen.append(body)
+            if m.topic.endswith("/feedback") and body.get("status") == "running":
+                running.add(body["task-uuid"])
+        assert running, "no task was started within 60 s"
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=60)
+        for m in watcher.messages(timeout=0.5):  # what the teardown sent
+            seen.append(orjson.loads(m.payload) if m.payload.startswith(b"{") else {})
+    assert proc.returncode == pytest.ExitCode.INTERRUPTED, out
+    aborted = {b.get("task-uuid") for b in seen
+               if b.get("command") == "signal-task" and b.get("signal") == "$abort"}
+    ended = {b.get("task-uuid") for b in seen
+             if b.get("status") in ("finished", "failed", "aborted")}
+    assert running <= aborted | ended, out
+    (report,) = reports.glob("*.json")
+    data = json.loads(report.read_text())
+    assert data["meta"]["interrupted"] == "true"
+    assert "aborted" in out or running <= ended
+
+
+def test_the_packaged_suite_runs_from_a_project_with_its_own_testpaths(tmp_path: Path) -> None:
+    """--unit without paths runs exactly the packaged suite, even where an ini file points
+    pytest at other tests (this repository's own pyproject does)."""
+    (tmp_path / "pytest.ini").write_text("[pytest]\ntestpaths = mytests\n")
+    (tmp_path / "mytests").mkdir()
+    (tmp_path / "mytests" / "test_mine.py").write_text("def test_mine():\n    pass\n")
+    out = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "--unit",
+                          UNIT, "--broker", "embedded", "--sim-rate", "3", "--collect-only",
+                          "-q"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "test_mine" not in out.stdout
+    assert "test_passive.py::test_rule[HB-003]" in out.stdout
+    assert "test_execution.py::test_ping[EXEC-PING-001]" in out.stdout
+
+
+@pytest.fixture(scope="module", autouse=True)
+def parameters() -> None:
+    warm_parameters(("look-at-bearing", "look-at-position"), range(1, 3))

@@ -1,0 +1,118 @@
+"""Every fault of the reference unit makes its certification fail, naming exactly the rules the
+fault breaks (no other rule fails by accident).
+
+To keep the matrix within a couple of minutes on 2 cores (-n 2), faults that touch different
+spec areas run together, at 2 Hz with the matrix profile's short windows; faults of the areas
+that gate others (heartbeat, ping, robustness, start-task, signals, reboot, stamps) run alone. When a
+combined run does not fail exactly the union of its faults' rules, each fault is certified
+alone, and each alone must fail exactly its own rules.
+"""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+from certify_helpers import MATRIX, UNIT, Certified, certify, certify_sim, warm_parameters
+
+from conformance.sim import FAULTS
+
+pytestmark = pytest.mark.slow
+
+# Where the suite and the reference unit's fault table disagree on the rules a fault breaks.
+# strict: once they agree, the XPASS fails this test and the entry must go.
+# Areas whose faults change what every scenario sees (levels, identity, timing, answers).
+# Signal faults too (the scenarios end their tasks with signals), and tst_execution_info ones
+# (they declare one more level).
+ALONE = {"HB", "EXEC-PING", "EXEC-ROBUST", "EXEC-START", "EXEC-SIG", "REBOOT", "TEI",
+         "MSG-005", "MSG-007", "ERR-008", "ERR-014"}
+GROUP_SIZE = 4
+# Rules that judge the same messages as another area's: a fault of one and a fault of the
+# other would alter the same message (a sensor value, a query or signal answer).
+SAME_MESSAGES = {"MSG": "SENS", "ERR-010": "SENS", "ERR-006": "EXEC-QUERY",
+                 "ERR-013": "EXEC-SIG", "ERR-001": "SI", "ERR-012": "SI"}
+
+
+def area(rule: str) -> str:
+    if rule in ALONE or rule in SAME_MESSAGES:
+        return SAME_MESSAGES.get(rule, rule)
+    m = re.match(r"(EXEC-[A-Z]+|[A-Z]+)-\d+", rule)
+    name = m.group(1) if m else rule
+    return SAME_MESSAGES.get(name, name)
+
+
+def groups() -> list[list[str]]:
+    """Unit faults, combined when they touch different spec areas (greedy, deterministic)."""
+    out: list[list[str]] = []
+    for name, fault in sorted(FAULTS.items()):
+        if fault.scope != "unit":
+            continue
+        mine = {area(r) for r in fault.rules}
+        if mine & ALONE:
+            out.append([name])
+            continue
+        for group in out:
+            theirs = {area(r) for f in group for r in FAULTS[f].rules}
+            if len(group) < GROUP_SIZE and not theirs & (mine | ALONE):
+                group.append(name)
+                break
+        else:
+            out.append([name])
+    return out
+
+
+def explain(run: Certified, expected: set[str]) -> str:
+    rules = run.unit_rules() if run.report else {}
+    lines = []
+    for rule in sorted(run.failed ^ expected):
+        r = rules.get(rule, {})
+        why = r.get("violations", [{}])[0] if r.get("violations") else {}
+        lines.append(f"{rule}: {'unexpected failure' if rule in run.failed else 'did not fail'}"
+                     f" ({r.get('verdict')}: {r.get('reason')}; {why.get('observed', '')})")
+    return "\n".join(lines)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def parameters() -> None:
+    warm_parameters(("look-at-bearing", "move-to", "navigate"), range(1, 5))
+
+
+@pytest.mark.parametrize("faults", [
+    pytest.param(g, id="+".join(g)) for g in groups()])
+def test_faults_fail_exactly_their_rules(pytester: pytest.Pytester, faults: list[str],
+                                         mosquitto: str, prefix: str) -> None:
+    # On Mosquitto: a broker in its own process leaves this one's CPU to the unit and the suite.
+    unit = f"{prefix}/unit/air/simulation/dji0"
+
+    def certify_with(names: list[str]) -> Certified:
+        return certify_sim(pytester, mosquitto, unit, f"--profile={MATRIX}", "--seed", "1",
+                           faults=tuple(names))
+
+    run = certify_with(faults)
+    expected = {r for f in faults for r in FAULTS[f].rules}
+    if run.failed != expected and len(faults) > 1:
+        # They interact, or one is off: each alone must fail exactly its own rules.
+        for fault in faults:
+            alone = certify_with([fault])
+            own = set(FAULTS[fault].rules)
+            assert alone.failed == own, f"{fault}:\n{explain(alone, own)}"
+            assert alone.result.ret == pytest.ExitCode.TESTS_FAILED
+        return
+    assert run.failed == expected, explain(run, expected)
+    assert run.result.ret == pytest.ExitCode.TESTS_FAILED
+    for rule in expected:  # each failure names its rule and how to rerun just that rule
+        assert f"-k {rule}" in run.text
+
+
+@pytest.mark.parametrize("fault", sorted(n for n, f in FAULTS.items() if f.scope == "broker"))
+def test_fault_outside_the_unit_address_stops_with_one_error(pytester: pytest.Pytester,
+                                                             fault: str) -> None:
+    """The unit publishes at another address: certification stops at once (it is not alive
+    where it was said to be), and the one error names what is wrong with the topics seen."""
+    run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "3",
+                  f"--sim-fault={fault}", f"--profile={MATRIX}")
+    assert run.result.ret == pytest.ExitCode.TESTS_FAILED
+    assert run.outcomes == {}
+    assert "is not alive" in run.text
+    for rule in FAULTS[fault].rules:
+        assert rule in run.text, run.text

@@ -1,0 +1,160 @@
+"""Reports: JSON round trip, JUnit structure, HTML escaping, atomic writes, text rendering."""
+
+from __future__ import annotations
+
+import os
+import xml.etree.ElementTree as ET
+
+import orjson
+import pytest
+
+from conformance.reporting import files as files_mod
+from conformance.reporting import (
+    read_json,
+    render_html,
+    render_summary,
+    render_violation,
+    write_all,
+)
+from conformance.results import RunReport
+from conformance.violation import Verdict, Violation
+
+
+def test_report_content(run_report: RunReport):
+    slow = next(u for n, u in run_report.units.items() if n.endswith("piraya0"))
+    good = next(u for n, u in run_report.units.items() if n.endswith("dji0"))
+    assert slow.rules["HB-003"].verdict is Verdict.FAIL
+    assert good.rules["HB-003"].verdict is Verdict.PASS
+    assert good.rules["REBOOT-001"].verdict is Verdict.COULD_NOT_TEST
+    assert "(unattributed)" in run_report.units
+    assert run_report.broker == "mqtts://alice@127.0.0.1:8883"
+    assert run_report.exit_code() == 1
+    counts = run_report.verdict_counts()
+    assert set(counts) == {v.value for v in Verdict} and counts["fail"] >= 2
+
+
+def test_json_round_trip(run_report: RunReport, tmp_path):
+    paths = write_all(run_report, tmp_path, "run")
+    again = read_json(paths["json"])
+    assert again.to_dict() == run_report.to_dict()
+    assert again == RunReport.from_dict(orjson.loads(paths["json"].read_bytes()))
+    assert "s3cret" not in paths["json"].read_text()
+
+
+def test_junit_has_a_suite_per_unit_and_a_case_per_rule(run_report: RunReport, tmp_path):
+    path = write_all(run_report, tmp_path, "run", junit=True)["junit"]
+    root = ET.parse(path).getroot()
+    suites = root.findall("testsuite")
+    assert [s.get("name") for s in suites] == list(run_report.units)
+    slow_name = next(n for n in run_report.units if n.endswith("piraya0"))
+    slow = next(s for s in suites if s.get("name") == slow_name)
+    props = {p.get("name"): p.get("value") for p in slow.iter("property")}
+    assert props["unit"] == slow_name and props["profile"] == "default"
+    assert props["agent-uuid"] == run_report.units[slow_name].agent_uuids[0]
+    assert {"suite-version", "schemas-hash"} <= set(props)
+    cases = {c.get("name").split()[0]: c for c in slow.iter("testcase")}
+    assert len(cases) == len(run_report.units[slow_name].rules)
+    assert cases["HB-003"].find("failure") is not None
+    assert "Hz" in cases["HB-003"].find("failure").get("message")
+    assert cases["EXEC-PING-001"].find("skipped") is not None
+    assert cases["TOPIC-001"].find("failure") is None and cases["TOPIC-001"].find("skipped") is None
+    assert "s3cret" not in path.read_text()
+
+
+def test_html_escapes_hostile_payloads(run_report: RunReport):
+    page = render_html(run_report)
+    assert "<script" not in page and "<img" not in page and "\x00" not in page
+    assert "&lt;script&gt;alert(&quot;x&quot;)&lt;/script&gt;" in page
+    assert "\\x00" in page and "\\x1b" in page  # control characters made visible
+    assert "&amp;amp;" in page  # an entity in the payload is shown, not interpreted
+    assert "http://" not in page.replace('xmlns="http://www.w3.org/2000/svg"', "")
+    assert "<svg" in page and "HB-003" in page
+
+
+def test_write_all_is_atomic_and_repeatable(run_report: RunReport, tmp_path, monkeypatch):
+    first = write_all(run_report, tmp_path, "run")
+    before = first["html"].read_bytes()
+    write_all(run_report, tmp_path, "run")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.html", "run.json"]
+
+    def interrupted(src, dst):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(files_mod.os, "replace", interrupted)
+    run_report.meta["changed"] = "yes"
+    with pytest.raises(KeyboardInterrupt):
+        write_all(run_report, tmp_path, "run")
+    assert first["html"].read_bytes() == before  # the old report survives whole
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.html", "run.json"]
+    # mkstemp's 0600 is replaced by the umask's mode, as for any file the user writes
+    assert os.stat(first["json"]).st_mode & 0o777 == 0o666 & ~files_mod._UMASK
+
+
+def test_render_violation_reads_like_the_style_guide():
+    v = Violation.of("HB-003", expected="1.00 Hz +-20% (declared in heartbeat.rate)",
+                     observed="0.61 Hz over 12 intervals (min 1.58 s, max 1.71 s)",
+                     topic="waraps/unit/air/simulation/dji0/heartbeat")
+    text = render_violation("HB-003", v, "waraps/unit/air/simulation/dji0")
+    lines = text.splitlines()
+    assert lines[0].startswith("HB-003 heartbeat rate matches its declared rate")
+    assert lines[0].endswith("[fail]")
+    assert lines[1:] == [
+        "  expected  1.00 Hz +-20% (declared in heartbeat.rate)",
+        "  observed  0.61 Hz over 12 intervals (min 1.58 s, max 1.71 s)",
+        "  topic     waraps/unit/air/simulation/dji0/heartbeat",
+        "  spec      5.1 General Heartbeat Message",
+        "  rerun     pytest --unit waraps/unit/air/simulation/dji0 -k HB-003",
+    ]
+    warn = render_violation("HB-010", Violation.of("HB-010", expected="a", observed="b\x07"),
+                            rerun_hint="")
+    assert warn.splitlines()[0].endswith("[warn]") and "\\x07" in warn and "rerun" not in warn
+
+
+def test_rerun_line_says_how_to_repeat_a_lint_or_a_certification():
+    unit = "waraps/unit/air/simulation/dji0"
+    v = Violation.of("HB-003", expected="1.00 Hz", observed="0.61 Hz", topic=f"{unit}/heartbeat")
+
+    def rerun(report: RunReport) -> str:
+        lines = [ln for ln in render_violation("HB-003", v, unit, report=report).splitlines()
+                 if ln.startswith("  rerun")]
+        assert len(lines) == 1
+        return lines[0].split(None, 1)[1]
+
+    recorded = RunReport(kind="lint", started=0.0, finished=1.0,
+                         meta={"source": "rec/fleet day.jsonl", "recording_lines": "10"})
+    assert rerun(recorded) == f"waraps-conformance lint --from 'rec/fleet day.jsonl' --unit {unit}"
+    piped = RunReport(kind="lint", started=0.0, finished=1.0,
+                      meta={"source": "<stdin>", "recording_lines": "10"})
+    assert rerun(piped) == f"waraps-conformance lint --from <recording> --unit {unit}"
+    live = RunReport(kind="lint", started=0.0, finished=1.0,
+                     broker="mqtts://alice:s3cret@broker.example:8883",
+                     meta={"source": "live waraps/#"})
+    assert rerun(live) == (f"waraps-conformance lint --broker mqtts://alice@broker.example:8883 "
+                           f"--unit {unit}")
+    certification = RunReport(kind="certification", started=0.0, finished=1.0)
+    assert rerun(certification) == f"pytest --unit {unit} -k HB-003"
+
+
+def test_junit_of_a_lint_says_to_rerun_the_lint(run_report: RunReport):
+    from conformance.reporting.junitreport import to_junit
+
+    text = to_junit(run_report)  # a live lint (it has a broker and no recording)
+    assert "waraps-conformance lint --broker mqtts://alice@127.0.0.1:8883 --unit" in text
+    assert "rerun     pytest" not in text  # (skips of active rules do point to pytest)
+
+
+def test_summary_names_failing_rules(run_report: RunReport):
+    text = render_summary(run_report)
+    assert "HB-003" in text and "fail" in text
+
+
+def test_rate_plot_clips_a_burst_and_says_so():
+    from conformance.reporting.htmlreport import _rate_plot
+    from conformance.results import RateStat
+
+    stat = RateStat(unit="u", kind="heartbeat", topic="t", declared_hz=1.0, measured_hz=500.0,
+                    intervals=3, mean_interval=0.002, min_interval=0.001, max_interval=1.0,
+                    verdict=Verdict.FAIL, series=[(0.0, 1.0), (1.0, 1000.0), (2.0, 1.0)],
+                    rule="HB-003", start=0.0, end=2.0, tolerance=0.2)
+    svg = _rate_plot(stat, 0)
+    assert "clipped at 4 Hz" in svg and "declared 1.00 Hz" in svg

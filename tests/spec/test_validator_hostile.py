@@ -1,0 +1,93 @@
+"""Hostile payloads: each is a violation of the rule that names the problem, never an
+exception (issue 2, item 7)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import orjson
+import pytest
+
+from conformance.validator import validate
+
+TOPICS = ["waraps/unit/air/simulation/dji0/heartbeat",
+          "waraps/unit/air/simulation/dji0/exec/command",
+          "waraps/unit/air/simulation/dji0/sensor/position",
+          "waraps/unit/air/simulation/dji0/sensor/heading",
+          "waraps/unit/air/simulation/dji0/tst/command",
+          "not/a/unit/topic"]
+
+HOSTILE = {
+    "non-utf8": (b'{"name": "\xff\xfe"}', "MSG-001"),
+    "invalid-json": (b'{"command": "ping",}', "MSG-002"),
+    "unquoted-signal": (b'{"command": "signal-task", signal: $abort}', "MSG-002"),
+    "nan": (b'{"rate": NaN}', "MSG-002"),
+    "infinity": (b'{"rate": Infinity}', "MSG-002"),
+    "empty": (b"", "MSG-002"),
+    "huge-int": (b'{"rate": 1' + b"0" * 400 + b"}", "MSG-002"),
+    "10MB": (b'{"name": "' + b"x" * (10 * 1024 * 1024) + b'"}', "MSG-004"),
+    "nested-100000": (b"[" * 100_000 + b"]" * 100_000, "MSG-004"),
+    "nested-objects": (b'{"a":' * 100_000 + b"1" + b"}" * 100_000, "MSG-004"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(HOSTILE))
+@pytest.mark.parametrize("topic", TOPICS)
+def test_hostile_payload_is_a_violation_not_an_exception(name: str, topic: str) -> None:
+    payload, rule = HOSTILE[name]
+    v = validate(topic, payload, 1.0)
+    assert v.message is None
+    assert [x.rule for x in v.violations if not x.rule.startswith("TOPIC")] == [rule]
+
+
+@pytest.mark.parametrize("topic", TOPICS)
+@pytest.mark.parametrize("message", [[], [1, 2], 0, -1.5, "s", None, True, {}, {"": {}},
+                                     {"command": None}, {"command": ["ping"]},
+                                     {"task": {"params": None}, "command": "start-task"},
+                                     {"tst": {"children": [[]]}, "command": "start-tst"},
+                                     {"levels": "sensor"}, [[[[[]]]]]])
+def test_wrong_shapes_never_raise(topic: str, message: object) -> None:
+    v = validate(topic, orjson.dumps(message), 1.0)
+    assert v.decoded or message is None
+    for x in v.violations:
+        assert x.rule and x.expected
+
+
+def test_deep_but_allowed_nesting_is_validated() -> None:
+    deep = {"command": "start-tst", "com-uuid": "b992552b-90b0-4911-8707-d6f808362bd2",
+            "tst": {"name": "move-to", "params": {}}}
+    node = deep["tst"]
+    for _ in range(25):  # 2 levels per node: 50 deep, under MSG-004's 64
+        child = {"name": "move-to", "params": {}}
+        node["children"] = [child]
+        node = child
+    v = validate("waraps/unit/ground/simulation/op0/tst/command", json.dumps(deep), 1.0)
+    assert v.decoded
+    assert {x.rule for x in v.violations} == {"TASK-001"}  # every node misses its waypoint
+
+
+def test_cli_prints_kind_and_violations_and_exit_code(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    good = tmp_path / "ping.json"
+    good.write_text('{"com-uuid": "b992552b-90b0-4911-8707-d6f808362bd2", "command": "ping"}')
+    topic = "waraps/unit/air/simulation/dji0/exec/command"
+    run = [sys.executable, "-m", "conformance.cli", "validate", topic]
+    ok = subprocess.run([*run, str(good)], capture_output=True, text=True, timeout=60)
+    assert ok.returncode == 0, ok.stderr
+    assert "kind      exec/command/ping" in ok.stdout and "verdict   pass" in ok.stdout
+    bad = subprocess.run([*run, "-"], input='{"command": "ping"}', capture_output=True,
+                         text=True, timeout=60)
+    assert bad.returncode == 1
+    assert "EXEC-001" in bad.stdout and "$.com-uuid" in bad.stdout
+    warn = subprocess.run([*run, "-", "--json"], capture_output=True, text=True, timeout=60,
+                          input='{"com-uuid": "79d118b0-501a-4156-83c2-95fd9aaafb2", '
+                                '"command": "ping"}')
+    assert warn.returncode == 0 and json.loads(warn.stdout)["verdict"] == "warn"
+    strict = subprocess.run([*run, "-", "--profile", "strict"], capture_output=True, text=True,
+                            timeout=60, input='{"com-uuid": "79d118b0-501a-4156-83c2-95fd9aaa'
+                                              'fb2", "command": "ping"}')
+    assert strict.returncode == 1 and "[fail]" in strict.stdout
+    missing = subprocess.run([*run, str(tmp_path / "nope.json")], capture_output=True,
+                             text=True, timeout=60)
+    assert missing.returncode == 2 and "cannot read" in missing.stderr
