@@ -46,8 +46,10 @@ MAX_HISTORY = 5000
 stays bounded under a flood of commands."""
 STEP = 0.1
 """Seconds between simulation steps while a task runs or the vehicle moves."""
-CAMERA_URL_EVERY = 10
-"""The camera URL changes rarely: it is published every this many periods."""
+CAMERA_URL_EVERY = 2
+"""The camera URL changes rarely: it is published every this many periods, inside SI-003's
+window of three periods (checks.sensors.PUBLISH_WINDOW_PERIODS), so an observer that joins
+late still sees it in time."""
 REBOOT_SILENCE = 2.5
 """A reboot is silent for this many heartbeat periods, counted from the last heartbeat: more
 than HB-006's two (so the new agent-uuid reads as a reboot), less than HB-010's three."""

@@ -401,12 +401,12 @@ class Certification:
                 if any(s.declared_hz and s.intervals < need + s.silences for s in unit.rates):
                     return False
                 rates_ready.append(time.monotonic())
-            # SI-003: a listed sensor gets three more periods to show up, once.
-            info = self.traffic.latest("sensor_info")
-            listed = info.get("sensor-data-provided") if info else None
-            seen = self.traffic.subtopics()
-            return not isinstance(listed, list) or all(
-                f"sensor/{s}" in seen for s in listed if isinstance(s, str)) or \
+            # SI-003: a listed sensor gets three more periods to show up, once. The Monitor's
+            # view, not the topic's: it also reads 5.2's 'sensor.info' (ERR-001).
+            with self._lock:
+                state = self.monitor.state(self.unit)
+                listed, seen = state.sensors_listed, set(state.sensors_seen)
+            return listed is None or all(s in seen for s in listed) or \
                 time.monotonic() - rates_ready[0] > 3 * period
 
         while not enough() and (left := deadline - time.monotonic()) > 0:
