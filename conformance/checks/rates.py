@@ -8,6 +8,9 @@ Intervals over 3 declared periods are silences (HB-010: a boat out of range may 
 they are left out of the mean while the other intervals are enough to judge, and counted in
 otherwise (a unit that is always "silent" simply publishes far slower than it declares).
 
+The interval across a reboot (a new agent-uuid, spec 5.1) is left out too: the restart's
+silence is HB-006's and HB-010's to judge, not the rate's.
+
 Memory is bounded: running sums, min and max, and a series of at most 600 points.
 """
 
@@ -76,7 +79,7 @@ class RateTracker:
 
     __slots__ = ("kind", "rule", "topic", "declared", "last", "start", "end", "n", "total",
                  "min", "max", "max_at", "silences", "all_n", "all_total", "all_max",
-                 "all_max_at", "excluded", "series")
+                 "all_max_at", "excluded", "series", "agent")
 
     def __init__(self, kind: TopicKind, topic: str, declared: float | None) -> None:
         self.kind = kind
@@ -98,6 +101,15 @@ class RateTracker:
         self.all_max_at = 0.0
         self.excluded = 0
         self.series = _Series()
+        self.agent: object = None
+        """The agent-uuid of the last message: a new one means the unit rebooted."""
+
+    def rebooted(self) -> None:
+        """The unit restarted (a new agent-uuid): the silence of its restart is not an interval
+        of its rate (HB-006 and HB-010 judge it), so the next message starts afresh."""
+        if self.last is not None:
+            self.last = None
+            self.excluded += 1
 
     def add(self, ctx: CheckContext, t: float) -> None:
         last = self.last
@@ -224,6 +236,11 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
         tracker = None
     if tracker is None:
         tracker = trackers[kind] = RateTracker(kind, msg.topic, declared)
+    agent = m.get("agent-uuid") if type(m) is dict else None
+    if agent != tracker.agent and agent is not None:
+        if tracker.agent is not None:
+            tracker.rebooted()
+        tracker.agent = agent
     tracker.add(ctx, msg.time)
     return found
 

@@ -79,8 +79,13 @@ def draw(schema: dict[str, Any], seed: int) -> Any:
             _one()
         if drawn:
             return drawn[-1]
-    except Exception:  # noqa: BLE001 - fall back to the simple walk below
-        pass
+        why = "it drew no example"
+    except Exception as exc:  # noqa: BLE001 - fall back to the simple walk below, and say so
+        why = f"{type(exc).__name__}: {exc}"
+    # Said, not silent: the parameters are then plainer than the schema allows.
+    warnings.warn(f"hypothesis-jsonschema could not draw from the schema "
+                  f"{schema.get('title') or schema.get('$id') or '(untitled)'} ({why}); "
+                  f"using a simple walk of the schema instead", RuntimeWarning, stacklevel=2)
     return _walk(schema, random.Random(seed), schema)
 
 

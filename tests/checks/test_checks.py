@@ -78,6 +78,27 @@ def test_rate_excludes_connection_gaps(stream):
     assert verdict(m, stream, "HB-010").verdict is Verdict.PASS
 
 
+def test_rate_leaves_out_the_interval_across_a_reboot(stream):
+    # 2.4 s of restart at 1 Hz: over max_gap_periods (1.5), under a silence (3 periods).
+    m = Monitor()
+    new = str(uuid.uuid4())
+    msgs = [stream.heartbeat(i) for i in range(8)]
+    msgs += [stream.heartbeat(9.4 + i, agent_uuid=new) for i in range(8)]
+    stream.feed(m, msgs)
+    r = verdict(m, stream, "HB-003")
+    assert r.verdict is Verdict.PASS, r
+    assert m.report().units[str(stream.address)].rates[0].intervals == 14
+
+
+def test_rate_counts_the_same_pause_without_a_reboot(stream):
+    # The matching fault: the same 2.4 s pause with the same agent-uuid is a stall.
+    m = Monitor()
+    msgs = [stream.heartbeat(i) for i in range(8)] + [stream.heartbeat(9.4 + i) for i in range(8)]
+    stream.feed(m, msgs)
+    r = verdict(m, stream, "HB-003")
+    assert r.verdict is Verdict.FAIL and "2.400 s" in r.violations[0].observed
+
+
 def test_rate_of_a_unit_always_far_slower_than_declared_fails(stream):
     m = Monitor()
     stream.feed(m, [stream.heartbeat(i * 10.0, rate=10.0) for i in range(12)])

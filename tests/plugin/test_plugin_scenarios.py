@@ -4,13 +4,14 @@ suite's own commands (valid, except the ones broken on purpose)."""
 from __future__ import annotations
 
 import random
+import warnings
 
 import pytest
 from certify_helpers import FAST, Rebooter, certify
 
 from conformance import schema
 from conformance.profile import Profile
-from conformance.scenarios.params import invalid_params, task_moves, valid_params
+from conformance.scenarios.params import draw, invalid_params, task_moves, valid_params
 from conformance.scenarios.safety import Position, Safety
 from conformance.topics import UnitAddress
 from conformance.validator import Validator
@@ -42,7 +43,9 @@ def points(value: object) -> list[dict]:
 @pytest.mark.parametrize("task", schema.task_names())
 def test_generated_parameters_are_valid_seeded_and_near_the_unit(task: str) -> None:
     safety = Safety(ADDRESS, Profile(safe_radius=40.0), allow_motion=True, task_moves=task_moves)
-    params = valid_params(task, ORIGIN, safety, seed=11)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # drawn by hypothesis-jsonschema itself
+        params = valid_params(task, ORIGIN, safety, seed=11)
     assert params == valid_params(task, ORIGIN, safety, seed=11)  # --seed repeats a run
     v = Validator(Profile()).validate(ADDRESS.topic("exec/command"), start_task(task, params))
     assert v.ok, [(x.rule, x.path, x.observed) for x in v.violations]
@@ -51,6 +54,13 @@ def test_generated_parameters_are_valid_seeded_and_near_the_unit(task: str) -> N
         assert p["rostype"] == "GeoPoint" and "type" not in p  # the canonical form (ERR-010)
     for key in ("loop-flag", "hold-flag", "continue-flag", "named-position"):
         assert params.get(key) in (None, False)
+
+
+def test_a_schema_hypothesis_jsonschema_cannot_draw_from_falls_back_with_a_warning() -> None:
+    with pytest.warns(RuntimeWarning, match="could not draw from the schema odd.*simple walk"):
+        value = draw({"title": "odd", "type": "object", "properties": {"a": {"const": 1}},
+                      "required": ["a"], "not": {"type": "object"}}, 1)
+    assert value == {"a": 1}  # the walk's plain reading of what it understands
 
 
 @pytest.mark.parametrize("task", schema.task_names())
