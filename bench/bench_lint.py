@@ -6,8 +6,9 @@
 Recorded: a one-hour recording of 200 units (about 3 million messages of a realistic mix:
 heartbeats, info messages, the four mandatory sensors, pings and pongs, a few faulty units) is
 generated, streaming, into a temporary file (never committed) and linted in a child process on
-one thread. Measured: messages per second for reading only, reading + validating, and the full
-lint (validator + Monitor + tallies); peak memory and memory at each quarter of the run (it
+one thread. Measured: messages per second for a same-run baseline (the standard library's
+json parsing each line and its payload, no checks: the shared machine's speed of the moment),
+reading only, reading + validating, and the full lint (validator + Monitor + tallies); peak memory and memory at each quarter of the run (it
 must stay flat: bounded for any run length); a cProfile of the full lint on a slice, to show
 where the time goes.
 
@@ -156,7 +157,16 @@ def child_recorded(mode: str, path: str, total: int, limit: int) -> dict:
     start = time.perf_counter()
     with open(path, "rb") as f:
         reader = RecordingReader(f, path)
-        if mode == "read":
+        if mode == "baseline":
+            # The same-run baseline: the least any linter of JSON Lines must do, with the
+            # standard library (parse each line, then its payload), no checks at all.
+            loads = json.loads
+            for line in f:
+                loads(loads(line)["payload"])
+                n += 1
+                if limit and n >= limit:
+                    break
+        elif mode == "read":
             for _ in reader:
                 n += 1
                 if limit and n >= limit:
@@ -480,7 +490,7 @@ def main(argv: list[str]) -> int:
             size_mb = path.stat().st_size / 2**20
             print(f"generated {total} messages ({size_mb:.0f} MiB) in {gen_s:.1f} s", flush=True)
             rec = {"messages": total, "file_mib": round(size_mb, 1)}
-            for mode in ("read", "validate", "lint"):
+            for mode in ("baseline", "read", "validate", "lint"):
                 r = run_child(["rec", mode, str(path), str(total), "0"])
                 rec[mode] = r
                 print(f"  {mode}: {r['per_second']:,} msg/s, peak {r['peak_rss_mb']} MiB",
@@ -488,11 +498,16 @@ def main(argv: list[str]) -> int:
             rec["profile"] = run_child(["prof", str(path), str(min(total, args.profile_messages))])
             results["recorded"] = rec
             lint = rec["lint"]
+            ratio = lint["per_second"] / rec["baseline"]["per_second"]
+            rec["ratio_to_baseline"] = round(ratio, 3)
             rows += [
+                ("recorded: baseline (stdlib json, no checks)",
+                 f"{rec['baseline']['per_second']:,} msg/s", "same run, same file"),
                 ("recorded: read only (orjson)", f"{rec['read']['per_second']:,} msg/s", ""),
                 ("recorded: read + validate", f"{rec['validate']['per_second']:,} msg/s", ""),
                 ("recorded: full lint (one thread)", f"{lint['per_second']:,} msg/s",
                  "target >= 100,000"),
+                ("recorded: ratio full lint / baseline", f"{ratio:.2f}", ""),
                 ("recorded: messages / units / failing",
                  f"{lint['messages']:,} / {lint['units']} / {lint['failing_units']}", ""),
                 ("recorded: peak memory", f"{lint['peak_rss_mb']} MiB",
@@ -530,6 +545,7 @@ def main(argv: list[str]) -> int:
     summary = {}
     if "recorded" in results:
         summary.update(recorded_msgs_per_s=results["recorded"]["lint"]["per_second"],
+                       recorded_ratio_to_baseline=results["recorded"]["ratio_to_baseline"],
                        recorded_messages=results["recorded"]["messages"],
                        peak_rss_mib=results["recorded"]["lint"]["peak_rss_mb"])
     if "live" in results:

@@ -145,6 +145,53 @@ def publish_nowhere(topic: str) -> bool:
     return False
 
 
+READ_CHUNK = 65536
+"""Bytes read from the socket at once (see _ChunkedPaho)."""
+
+
+class _ChunkedPaho(paho.Client):
+    """paho's client, reading the socket in chunks.
+
+    paho 2.x reads each packet with three or more ``recv`` calls (the command byte, each byte
+    of the remaining length, then the rest) after one ``select`` per packet: four system calls
+    for every message. Here ``_sock_recv`` serves those small reads from one 64 KiB ``recv``,
+    and ``loop_read`` handles every packet already read before paho's loop selects again (a
+    buffered packet would not wake ``select``). A counting-only subscriber went from about 58k
+    to 80k+ messages/s on loopback (bench/bench_lint.py live). paho's packet handling, keepalive,
+    TLS and reconnect are untouched; the buffer is emptied whenever paho closes its socket.
+    """
+
+    _rbuf = b""
+    _rpos = 0
+
+    def _sock_recv(self, bufsize: int) -> bytes:
+        buf, pos = self._rbuf, self._rpos
+        if pos >= len(buf):
+            buf = super()._sock_recv(READ_CHUNK)  # BlockingIOError when nothing is there
+            if not buf:
+                return buf  # the broker closed the connection
+            pos = 0
+        self._rbuf, self._rpos = buf, pos + bufsize
+        return buf[pos:pos + bufsize]
+
+    def loop_read(self, max_packets: int = 1) -> paho.MQTTErrorCode:
+        rc = super().loop_read(max_packets)
+        while (rc == paho.MQTT_ERR_SUCCESS and self._rpos < len(self._rbuf)
+               and self._sock is not None):
+            rc = super().loop_read(max_packets)
+        return rc
+
+    def _sock_close(self) -> None:
+        self._rbuf, self._rpos = b"", 0  # never parse an old connection's bytes on a new one
+        super()._sock_close()
+
+
+# Chunked reads rely on two private methods of paho 2.x; should a release rename them, the
+# plain client is used (slower, equally correct).
+_Paho = _ChunkedPaho if all(callable(getattr(paho.Client, n, None)) for n in
+                            ("_sock_recv", "_sock_close", "_packet_read")) else paho.Client
+
+
 class MqttClient:
     """A connected MQTT 3.1.1 client (amqtt refuses MQTT 5).
 
@@ -178,7 +225,7 @@ class MqttClient:
         self._keepalive = keepalive
         self._closing = False
 
-        c = paho.Client(paho.CallbackAPIVersion.VERSION2, client_id=self.client_id,
+        c = _Paho(paho.CallbackAPIVersion.VERSION2, client_id=self.client_id,
                         protocol=paho.MQTTv311, clean_session=True)
         c.enable_logger(None)
         if broker.username:
