@@ -8,8 +8,9 @@ Intervals over 3 declared periods are silences (HB-010: a boat out of range may 
 they are left out of the mean while the other intervals are enough to judge, and counted in
 otherwise (a unit that is always "silent" simply publishes far slower than it declares).
 
-The interval across a reboot (a new agent-uuid, spec 5.1) is left out too: the restart's
-silence is HB-006's and HB-010's to judge, not the rate's.
+The interval across a reboot (an agent-uuid not seen before, spec 5.1) is left out too: the
+restart's silence is HB-006's and HB-010's to judge, not the rate's. Agent-uuids that take
+turns (two agents under one name, HB-011) are no reboot: their doubled rate stays HB-003's.
 
 Memory is bounded: running sums, min and max, and a series of at most 600 points.
 """
@@ -36,6 +37,7 @@ RATE_RULES = {
 SILENCE_PERIODS = 3.0  # HB-010's decision
 MAX_SERIES = 600
 MAX_CLOSED_SEGMENTS = 8
+MAX_AGENTS = 4
 
 
 class _Series:
@@ -79,7 +81,7 @@ class RateTracker:
 
     __slots__ = ("kind", "rule", "topic", "declared", "last", "start", "end", "n", "total",
                  "min", "max", "max_at", "silences", "all_n", "all_total", "all_max",
-                 "all_max_at", "excluded", "series", "agent")
+                 "all_max_at", "excluded", "series", "agents")
 
     def __init__(self, kind: TopicKind, topic: str, declared: float | None) -> None:
         self.kind = kind
@@ -101,15 +103,25 @@ class RateTracker:
         self.all_max_at = 0.0
         self.excluded = 0
         self.series = _Series()
-        self.agent: object = None
-        """The agent-uuid of the last message: a new one means the unit rebooted."""
+        self.agents: tuple[object, ...] = ()
+        """The agent-uuids seen on this topic, latest last (at most MAX_AGENTS)."""
 
-    def rebooted(self) -> None:
-        """The unit restarted (a new agent-uuid): the silence of its restart is not an interval
-        of its rate (HB-006 and HB-010 judge it), so the next message starts afresh."""
-        if self.last is not None:
+    def agent(self, agent: object) -> None:
+        """The message about to be added carries ``agent``. One never seen here means the unit
+        restarted (spec 5.1): the silence of its restart is not an interval of its rate (HB-006
+        and HB-010 judge it), so that message starts afresh. An agent-uuid seen before is no
+        restart: two agents taking turns under one name (HB-011) double the topic's rate, and
+        HB-003 says so."""
+        agents = self.agents
+        if agents and agents[-1] == agent:
+            return
+        if agent in agents:
+            self.agents = (*(a for a in agents if a != agent), agent)
+            return
+        if agents and self.last is not None:
             self.last = None
             self.excluded += 1
+        self.agents = (*agents[-(MAX_AGENTS - 1):], agent)
 
     def add(self, ctx: CheckContext, t: float) -> None:
         last = self.last
@@ -237,10 +249,8 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
     if tracker is None:
         tracker = trackers[kind] = RateTracker(kind, msg.topic, declared)
     agent = m.get("agent-uuid") if type(m) is dict else None
-    if agent != tracker.agent and agent is not None:
-        if tracker.agent is not None:
-            tracker.rebooted()
-        tracker.agent = agent
+    if agent is not None:
+        tracker.agent(agent)
     tracker.add(ctx, msg.time)
     return found
 

@@ -99,6 +99,16 @@ def test_rate_counts_the_same_pause_without_a_reboot(stream):
     assert r.verdict is Verdict.FAIL and "2.400 s" in r.violations[0].observed
 
 
+def test_rate_of_two_agents_taking_turns_under_one_name_is_doubled(stream):
+    # Not a reboot: each message alternates between two known agent-uuids (HB-011's twins).
+    m = Monitor()
+    twin = str(uuid.uuid4())
+    stream.feed(m, [stream.heartbeat(i * 0.5, agent_uuid=twin if i % 2 else None)
+                    for i in range(24)])
+    r = verdict(m, stream, "HB-003")
+    assert r.verdict is Verdict.FAIL and "2.00 Hz" in r.violations[0].observed
+
+
 def test_rate_of_a_unit_always_far_slower_than_declared_fails(stream):
     m = Monitor()
     stream.feed(m, [stream.heartbeat(i * 10.0, rate=10.0) for i in range(12)])
