@@ -167,12 +167,45 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
         paths = write_reports(report, Path(args.reports_dir), formats, report_stem(args.source))
         for path in paths:
             print(f"report: {path}", file=out)
+    evidence = failures(report)
+    if evidence:
+        print(f"\n{evidence}\n", file=out)
     code = int(report.exit_code())
     failing = sorted(u for u, rep in report.units.items() if rep.worst().value == "fail")
     print(("FAIL: " + ", ".join(failing)) if failing else "PASS: no unit fails a rule of "
           "severity error", file=out)
     out.flush()
     return EXIT_FAIL if code else EXIT_PASS
+
+
+MAX_FAILURES_SHOWN = 10
+
+
+def failures(report: Any, limit: int = MAX_FAILURES_SHOWN) -> str:
+    """The first violation of each failed (unit, rule), at most ``limit`` of them, in the form
+    the certification prints (STYLE.md): what a person reads before opening the HTML."""
+    from conformance.reporting.text import render_violation
+    from conformance.violation import Verdict
+
+    shown: list[str] = []
+    more = 0
+    for unit, rep in sorted(report.units.items()):
+        for rule, result in sorted(rep.rules.items()):
+            if result.verdict is not Verdict.FAIL or not result.violations:
+                continue
+            if len(shown) >= limit:
+                more += 1
+                continue
+            text = render_violation(rule, result.violations[0], unit, report=report,
+                                    verdict=Verdict.FAIL)
+            extra = len(result.violations) - 1
+            shown.append(f"{unit}\n{text}" + (f"\n  (and {extra} more violations of {rule})"
+                                                if extra else ""))
+    if not shown:
+        return ""
+    if more:
+        shown.append(f"... {more} more failed rules: every violation is in the reports")
+    return "\n\n".join(shown)
 
 
 class _noop:

@@ -53,6 +53,12 @@ def test_exactly_the_faulty_unit_fails_and_the_exit_code_says_so(tmp_path: Path,
         assert not failed_rules(run.report, f"{prefix}/unit/air/simulation/{good}")
     assert f"FAIL: {slow}" in run.out
     assert f"{slow}" in run.out and "HB-003x" in run.out
+    # The evidence a person reads before opening the reports: the failed rule, what was
+    # expected and observed, and how to rerun it for that unit alone.
+    evidence = run.out[run.out.index(f"{slow}\nHB-003 "):]
+    assert "expected  1.00 Hz +-20% (declared in heartbeat.rate)" in evidence
+    assert "observed  0.50 Hz over" in evidence
+    assert f"rerun     waraps-conformance lint --from {rec} --unit {slow}" in evidence
 
 
 def test_hostile_messages_each_become_a_violation_of_the_right_rule(tmp_path: Path,
