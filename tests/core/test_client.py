@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.client import BrokerError, BrokerURL, MqttClient, PublishRefused
+from conformance.client import (
+    READ_CHUNK,
+    BrokerError,
+    BrokerURL,
+    MqttClient,
+    PublishRefused,
+    _ChunkedPaho,
+)
 
 
 def test_broker_url_parsing_and_credentials_from_the_environment() -> None:
@@ -44,6 +51,26 @@ def test_round_trip_and_publish_policy(broker_url: str, prefix: str) -> None:
         with pytest.raises(PublishRefused, match="DESIGN: safety"):
             c.publish(f"{prefix}/unit/air/simulation/other0/exec/command", b"{}")
         assert c.get(timeout=0.2) is None  # nothing went out
+
+
+def test_a_burst_read_in_chunks_arrives_whole_and_in_order(broker_url: str, prefix: str) -> None:
+    # Many small packets share a chunk; a big one spans several; packet boundaries fall
+    # anywhere in a chunk. Each must arrive once, intact, in order.
+    topic = f"{prefix}/unit/air/simulation/dji0/exec/command"
+    sizes = [(i * 37) % 300 for i in range(1500)]
+    sizes[700] = 3 * READ_CHUNK + 123
+    payloads = [bytes([65 + i % 26]) * n + str(i).encode() for i, n in enumerate(sizes)]
+    url = BrokerURL.parse(broker_url)
+    with MqttClient(url) as sub, MqttClient(url, may_publish=lambda t: t == topic) as pub:
+        assert isinstance(sub._paho, _ChunkedPaho)  # the chunked path is the one under test
+        sub.subscribe(f"{prefix}/#")
+        for p in payloads:
+            pub.publish(topic, p, qos=0)
+        got: list[bytes] = []
+        while len(got) < len(payloads) and (m := sub.get(timeout=10)) is not None:
+            got.append(m.payload)
+        assert sub.get(timeout=0.2) is None  # and nothing twice
+    assert len(got) == len(payloads) and got == payloads
 
 
 def test_default_client_publishes_nowhere(embedded_broker) -> None:
