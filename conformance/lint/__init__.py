@@ -204,7 +204,8 @@ def failures(report: Any, limit: int = MAX_FAILURES_SHOWN) -> str:
     if not shown:
         return ""
     if more:
-        shown.append(f"... {more} more failed rules: every violation is in the reports")
+        shown.append(f"... and {more} more failed rule{'s' if more > 1 else ''}: every "
+                     f"violation is in the reports")
     return "\n\n".join(shown)
 
 

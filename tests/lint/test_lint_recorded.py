@@ -61,6 +61,22 @@ def test_exactly_the_faulty_unit_fails_and_the_exit_code_says_so(tmp_path: Path,
     assert f"rerun     waraps-conformance lint --from {rec} --unit {slow}" in evidence
 
 
+def test_the_evidence_printed_is_capped_and_says_where_the_rest_is(prefix: str) -> None:
+    from conformance.checks import Monitor
+    from conformance.lint import failures
+
+    m = Monitor()
+    for name in ("slow0", "slow1", "slow2"):  # each declares 1 Hz and heartbeats at 0.5 Hz
+        for msg in unit_traffic(prefix, name, seconds=30, heartbeat_every=2):
+            m.feed(msg)
+    m.finish()
+    report = m.report()
+    assert failures(report).count("HB-003 heartbeat rate") == 3
+    capped = failures(report, limit=2)
+    assert capped.count("HB-003 heartbeat rate") == 2
+    assert capped.endswith("... and 1 more failed rule: every violation is in the reports")
+
+
 def test_hostile_messages_each_become_a_violation_of_the_right_rule(tmp_path: Path,
                                                                      reports_dir: Path,
                                                                      prefix: str) -> None:
