@@ -8,9 +8,9 @@ heartbeats, info messages, the four mandatory sensors, pings and pongs, a few fa
 generated, streaming, into a temporary file (never committed) and linted in a child process on
 one thread. Measured: messages per second for a same-run baseline (the standard library's
 json parsing each line and its payload, no checks: the shared machine's speed of the moment),
-reading only, reading + validating, and the full lint (validator + Monitor + tallies); peak memory and memory at each quarter of the run (it
-must stay flat: bounded for any run length); a cProfile of the full lint on a slice, to show
-where the time goes.
+reading only, reading + validating, and the full lint (validator + Monitor + tallies); peak
+memory and memory at each quarter of the run (it must stay flat: bounded for any run length);
+a cProfile of the full lint on a slice, to show where the time goes.
 
 Live: a Mosquitto started here on a free loopback port (``max_queued_messages 0``: it never
 drops, FIELD-NOTES), a publisher flooding it, and in turn a bare paho subscriber that only
