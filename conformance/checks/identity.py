@@ -8,7 +8,7 @@ from collections.abc import Iterator
 from typing import Any
 
 from conformance.checks.base import CheckContext, UnitState, check
-from conformance.client import Message
+from conformance.message import Message
 from conformance.topics import INFO_KIND_OF_LEVEL, TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
@@ -114,6 +114,9 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
     silence = msg.time - last
     if silence <= SILENCE_PERIODS * period or ctx.in_gap(last, msg.time):
         return None
+    period = heartbeat_period(unit)  # one far slower than declared is HB-003's, not silent
+    if silence <= SILENCE_PERIODS * period:
+        return None
     uuid = _uuid(v)
     if uuid is None:
         came_back = "came back (its agent-uuid unreadable)"
@@ -129,21 +132,62 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
         detail="a silence makes the unit look gone to every commander")]
 
 
-@check("HB-010", finish=True)
-def unit_is_not_silent_at_the_end(ctx: CheckContext, unit: UnitState, now: float,
-                                  findings: Any) -> Iterator[Violation]:
+def heartbeat_period(unit: UnitState) -> float:
+    """The period silences are measured in, seconds: the declared one, or the mean interval
+    measured when every one of at least 3 intervals was over 3 declared periods, so that a unit
+    sending far slower than it declares is judged by its rate (HB-003), not as silent again and
+    again."""
+    declared = unit.period(HB) or 0.0
+    tracker = unit.private.get("rates", {}).get(HB)
+    if tracker is not None and tracker.n == 0 and tracker.all_n >= 3:
+        # every interval so far was over 3 declared periods: the unit's own period is longer
+        return max(declared, tracker.all_total / tracker.all_n)
+    return declared
+
+
+def death(ctx: CheckContext, unit: UnitState, now: float) -> tuple[float, float] | None:
+    """(dying since, last heartbeat) when the unit's heartbeat stopped and never resumed before
+    ``now``: silent for more than 3 periods (``heartbeat_period``), the observer connected.
+    'Dying since' is one period before the last heartbeat: a command that killed it was
+    received about then."""
     last = unit.last_heartbeat
-    period = unit.period(HB)
-    if last is None or period is None:
+    if last is None or unit.period(HB) is None:
+        return None
+    period = heartbeat_period(unit)
+    if now - last <= SILENCE_PERIODS * period or ctx.in_gap(last, now):
+        return None
+    return last - period, last
+
+
+@check("HB-012", finish=True)
+def unit_does_not_die(ctx: CheckContext, unit: UnitState, now: float,
+                      findings: Any) -> Iterator[Violation]:
+    """5.1: the heartbeat registers availability. One that stops for good is a death (error):
+    the finding names the last command the unit received before it fell silent."""
+    from conformance.checks.conversation import last_command_before
+
+    if unit.last_heartbeat is None or unit.period(HB) is None:
         return
-    findings.examine("HB-010")
+    findings.examine("HB-012")
+    dead = death(ctx, unit, now)
+    if dead is None:
+        return
+    _, last = dead
+    period = heartbeat_period(unit)
     silence = now - last
-    if silence > SILENCE_PERIODS * period and not ctx.in_gap(last, now):
-        yield Violation.of(
-            "HB-010", expected=f"a heartbeat at least every {SILENCE_PERIODS * period:.2f} s",
-            observed=f"no heartbeat for the last {silence:.2f} s of the run "
-                     f"({silence / period:.1f} periods); it did not come back",
-            topic=unit.address.topic("heartbeat"), time=last)
+    command = last_command_before(unit, last + period)
+    said = (f"; the last command it received: {command.describe()}, "
+            f"{last - command.last_sent:+.2f} s from its last heartbeat" if command is not None
+            else "; it had received no command")
+    yield Violation.of(
+        "HB-012", expected=f"a heartbeat at least every {SILENCE_PERIODS * period:.2f} s "
+                           f"until the end of the observation",
+        observed=f"no heartbeat for the last {silence:.2f} s ({silence / period:.1f} periods); "
+                 f"it never came back{said}",
+        topic=unit.address.topic("heartbeat"), time=last,
+        payload=command.excerpt if command is not None else None,
+        detail="a unit that dies on a command must survive it (12.1); one that is switched "
+               "off should say goodbye by ending its heartbeat only at shutdown")
 
 
 @check("MSG-007", on=(HB, TopicKind.SENSOR_INFO, TopicKind.DIRECT_EXECUTION_INFO,

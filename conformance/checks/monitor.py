@@ -26,10 +26,10 @@ from conformance.checks.base import (
     UnitState,
 )
 from conformance.checks.examined import dispatch_roots, examined_group, shape_fields
-from conformance.client import Message
+from conformance.message import Message
 from conformance.profile import Profile
 from conformance.results import RunReport, UnitReport, judge_rule, skip_reason
-from conformance.rules import CATALOGUE
+from conformance.rules import CATALOGUE, Side
 from conformance.topics import TopicKind, UnitAddress, parse_topic
 from conformance.validator import Validation, Validator
 from conformance.violation import Verdict, Violation
@@ -44,6 +44,9 @@ MAX_SHAPES = 64
 """Message shapes whose examined rules are kept per topic (more are looked up globally)."""
 UNATTRIBUTED = "(unattributed)"
 """The report entry for topics that name no unit (``waraps/foo``, ``waraps/unit/air``)."""
+MAX_COMMANDERS = 256
+"""Commanders with a row of their own; the commands of further ones share one row."""
+MAX_SENDER = 64
 
 class _RuleRecord:
     """What was recorded for one rule of one unit: a count and the first few violations."""
@@ -81,11 +84,13 @@ class Findings:
 
 
 class _Entry:
-    __slots__ = ("state", "records", "groups", "final", "unit")
+    __slots__ = ("state", "records", "groups", "final", "unit", "party")
 
-    def __init__(self, state: UnitState) -> None:
+    def __init__(self, state: UnitState, party: str = "unit", label: str = "") -> None:
         self.state = state
-        self.unit = "" if state.address.prefix == UNATTRIBUTED else str(state.address)
+        self.party = party
+        """``unit``, or ``commander``: a row of what commanders sent (DESIGN: blame)."""
+        self.unit = label or ("" if state.address.prefix == UNATTRIBUTED else str(state.address))
         self.records: dict[str, _RuleRecord] = {}
         self.groups: dict[tuple[str, ...], int] = {}
         """Rule groups examined by the validator -> messages (expanded at report time)."""
@@ -136,6 +141,7 @@ class _Route:
             tuple(c.fn for c in narrower) if narrower else ())
 
 
+_COMMAND_KINDS = (TopicKind.EXEC_COMMAND, TopicKind.TST_COMMAND)
 _IGNORED_ROUTE = _Route(_IGNORED, "")
 _OVERFLOW_ROUTE = _Route(_OVERFLOW, "")
 
@@ -159,6 +165,8 @@ class Monitor:
         self.ctx = CheckContext(self.profile, kind)
         self._only = frozenset(units) if units is not None else None
         self._entries: dict[UnitAddress | None, _Entry] = {}
+        self._commanders: dict[str, _Entry] = {}
+        """Commander name -> its row: what is wrong in a command is the commander's fault."""
         self._by_topic: dict[str, _Route] = {}
         # Whether the validator says itself which rules it examined (Validation.examined).
         self._validator_says_examined = "examined" in getattr(
@@ -222,9 +230,11 @@ class Monitor:
                     examined = route.scalar_groups[m_type] = examined_group(v)
             else:
                 examined = examined_group(v)
+        state = entry.state
+        if route.topic_kind in _COMMAND_KINDS:
+            return self._feed_command(route, entry, message, v, examined)
         groups = entry.groups
         groups[examined] = groups.get(examined, 0) + 1
-        state = entry.state
         violations = v.violations
         found = list(violations) if violations else None
         if route.reinterpret and v.topic.kind is route.topic_kind:
@@ -250,6 +260,53 @@ class Monitor:
             found = [f if f.unit or not unit else dataclasses.replace(f, unit=unit) for f in found]
             for f in found:
                 self._add(entry, f)
+        return found
+
+    def _feed_command(self, route: _Route, entry: _Entry, message: Message, v: Validation,
+                      examined: Any) -> list[Violation]:
+        """A command: the unit's state learns of it (its conversations), but what is wrong in
+        it is the commander's (by ``sender``), never the unit's. Commands are rare: the
+        bookkeeping here may cost what the hot path may not."""
+        commander = self._commander_entry(entry, v.message)
+        commander.groups[examined] = commander.groups.get(examined, 0) + 1
+        commander.state.observe(message, v)
+        state = entry.state
+        before = dict(state.examined)
+        found = list(v.violations)
+        checks = (route.checks_for(v.kind) if v.topic.kind is route.topic_kind
+                  else self._checks_for(v))
+        for fn in checks:
+            out = fn(self.ctx, state, message, v)
+            if out:
+                found.extend(out)
+        state.observe(message, v)
+        for rule, n in list(state.examined.items()):
+            gained = n - before.get(rule, 0)
+            if gained and CATALOGUE[rule].side is not Side.UNIT:
+                commander.state.examine(rule, gained)
+                state.examined[rule] = n - gained
+        found = [dataclasses.replace(f, unit=commander.unit) for f in found]
+        for f in found:
+            self._add(commander, f)
+        return found
+
+    def _commander_entry(self, unit_entry: _Entry, m: Any) -> _Entry:
+        """The row of the commander that sent a command: its ``sender``, else 'the commander
+        of UNIT' (v0.7 has no sender field in 12.2; implementations add one)."""
+        sender = m.get("sender") if isinstance(m, dict) else None
+        if isinstance(sender, str) and sender.strip():
+            name = "".join(ch if ch.isprintable() else "?" for ch in sender.strip()[:MAX_SENDER])
+        else:
+            name = f"of {unit_entry.state.address.name or unit_entry.unit}"
+        found = self._commanders.get(name)
+        if found is None:
+            if len(self._commanders) >= MAX_COMMANDERS:
+                name = "(other commanders)"
+                found = self._commanders.get(name)
+            if found is None:
+                label = f"commander {name}"
+                found = self._commanders[name] = _Entry(
+                    UnitState(UnitAddress(UNATTRIBUTED, "", "", label)), "commander", label)
         return found
 
     @staticmethod
@@ -354,6 +411,11 @@ class Monitor:
             final = entry.final if entry.final is not None else self._run_finish(entry, now)
             report = self._unit_report(address, entry, final)
             units[report.unit] = report
+        # In a certification the suite itself is the commander: no row of its own.
+        if self.kind == "lint":
+            for _, entry in sorted(self._commanders.items()):
+                report = self._unit_report(None, entry, Findings())
+                units[report.unit] = report
         started = meta.pop("started", None)
         if started is None:
             started = min([self.ctx.started or self.created, self.created])
@@ -401,6 +463,7 @@ class Monitor:
 
     def _unit_report(self, address: UnitAddress | None, entry: _Entry,
                      final: Findings) -> UnitReport:
+        from conformance.checks.conversation import dropped
         from conformance.checks.rates import rate_stats
 
         state = entry.state
@@ -414,8 +477,11 @@ class Monitor:
         extra: dict[str, list[Violation]] = {}
         for v in final.violations:
             extra.setdefault(v.rule, []).append(v)
-        unit = str(address) if address is not None else UNATTRIBUTED
-        if address is None:  # no unit: only the rules that were examined or broken
+        unit = str(address) if address is not None else (entry.unit or UNATTRIBUTED)
+        if entry.party == "commander":  # the commander's rules, and any other it broke
+            rule_ids = [r for r, rule in CATALOGUE.items() if rule.side is Side.COMMANDER
+                        or r in examined or r in entry.records]
+        elif address is None:  # no unit: only the rules that were examined or broken
             rule_ids = sorted(set(examined) | set(entry.records))
         else:
             rule_ids = list(CATALOGUE)
@@ -435,7 +501,8 @@ class Monitor:
                 count=count, examined=examined.get(rid, 0),
                 explicit=rec.explicit if rec else None, explicit_reason=rec.reason if rec else "",
                 default_reason=skip_reason(rule, kind=self.kind, unit=unit,
-                                           levels=state.levels, note=notes.get(rid, "")))
+                                           levels=state.levels, note=notes.get(rid, ""),
+                                           party=entry.party))
         facts: dict[str, Any] = {
             "declared_rates": dict(state.declared_rates),
             "sensors_listed": list(state.sensors_listed or ()),
@@ -444,8 +511,10 @@ class Monitor:
             "tasks_executing": dict(state.tasks_executing),
             "position": list(state.position) if state.position else None,
             "message_counts": dict(state.counts),
+            "conversations_dropped": dropped(state),
         }
         return UnitReport(
+            party=entry.party,
             unit=unit, agent_type=address.agent_type if address else "",
             role=address.role if address else "", name=address.name if address else "",
             agent_uuids=list(state.agent_uuids), levels=list(state.levels or ()),

@@ -226,7 +226,7 @@ def _monitor(profile: Any, units: tuple[Any, ...]) -> Any:
 def run_recorded(linter: Any, scorecard: Any, stream: IO[bytes], name: str,
                  options: Any) -> tuple[Any, float]:
     """Feed a recording to the linter at its recorded times; returns (reader, end time)."""
-    from conformance.client import Message
+    from conformance.message import Message
     from conformance.recording import RecordingReader
 
     reader = RecordingReader(stream, name)

@@ -10,7 +10,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from conformance.client import Message
+from conformance.message import Message
 from conformance.profile import Profile
 from conformance.recording import Event
 from conformance.rules import Severity

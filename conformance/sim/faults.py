@@ -37,7 +37,7 @@ class Fault:
     @property
     def active(self) -> bool:
         """Whether showing it needs commands sent: an active rule, or a ``stimulus`` fault."""
-        return self.stimulus or any(CATALOGUE[r].mode is Mode.ACTIVE for r in self.rules)
+        return self.stimulus or any(CATALOGUE[r].mode is not Mode.PASSIVE for r in self.rules)
 
 
 def _f(name: str, rules: str, description: str, scope: str = "unit") -> Fault:

@@ -22,8 +22,8 @@ import pytest
 from conformance import __version__
 from conformance.checks import Monitor
 from conformance.client import BrokerError, BrokerURL, Message, MqttClient
-from conformance.results import RunReport
-from conformance.rules import CATALOGUE
+from conformance.results import COMMANDER_REASON, RunReport
+from conformance.rules import CATALOGUE, Side
 from conformance.scenarios import (
     SCENARIOS,
     Commander,
@@ -36,45 +36,21 @@ from conformance.scenarios import (
 from conformance.scenarios.params import task_moves
 from conformance.suite.settings import Settings
 from conformance.topics import UnitAddress
-from conformance.validator import Validation, Validator
+from conformance.validator import Validator
 from conformance.violation import RuleResult, Verdict
 
 CERTIFICATION = pytest.StashKey["Certification"]()
 
-# Rules about what a commander sends. In a certification the suite itself is the commander, so
-# they say nothing about the unit: `waraps-conformance lint` judges commanders.
-COMMANDER_RULES = frozenset({"EXEC-001", "EXEC-008", "TASK-001", "TASK-002", "TASK-003",
-                             "TST-001", "ERR-003", "ERR-004", "ERR-005", "ERR-007", "ERR-009"})
-COMMANDER_REASON = ("commander-side rule: in a certification the suite itself is the commander "
-                    "(waraps-conformance lint judges commanders)")
+# Rules about what a commander sends (the catalogue's side). In a certification the suite
+# itself is the commander, so they say nothing about the unit: `waraps-conformance lint` judges
+# commanders.
+COMMANDER_RULES = frozenset(r.id for r in CATALOGUE.values() if r.side is Side.COMMANDER)
 PERIODIC = ("heartbeat", "sensor_info", "direct_execution_info", "tst_execution_info")
 MAX_PROBE_TOPICS = 500
 
 
 class NotAlive(Exception):
     """The unit under test sent no heartbeat in time; the message says what was seen."""
-
-
-class SuiteValidator(Validator):
-    """The validator, except that the suite's own commands are not judged against the unit.
-
-    The commands on ``<unit>/exec/command`` are the suite's (some broken on purpose: the
-    robustness scenario); the Monitor still sees them, so it can match responses to them
-    (EXEC-006), but their rule violations are the commander's, not the unit's.
-    """
-
-    def __init__(self, profile: Any, command_topics: frozenset[str]) -> None:
-        super().__init__(profile)
-        self.command_topics = command_topics
-
-    def validate(self, topic: str, payload: bytes | str, time: float | None = None) -> Validation:
-        v = super().validate(topic, payload, time)
-        if topic not in self.command_topics:
-            return v
-        changes: dict[str, Any] = {"violations": ()}
-        if any(f.name == "examined" for f in dataclasses.fields(v)):
-            changes["examined"] = ()
-        return dataclasses.replace(v, **changes)
 
 
 class Certification:
@@ -87,9 +63,12 @@ class Certification:
         self.profile = settings.profile
         self.timing = Timing(self.profile, settings.timing_scale)
         self.traffic = Traffic(self.unit)
-        command_topic = self.unit.topic("exec/command")
-        self.monitor = Monitor(self.profile, units=[self.unit], kind="certification",
-                               validator=SuiteValidator(self.profile, frozenset({command_topic})))
+        # The Monitor puts what is wrong in the suite's own commands (some broken on purpose:
+        # the robustness scenario) on the commander's account, which a certification does not
+        # report; it judges the unit's answers with the deadlines the scenarios wait for.
+        self.monitor = Monitor(dataclasses.replace(
+            self.profile, response_timeout=self.timing.response,
+            feedback_timeout=self.timing.feedback), units=[self.unit], kind="certification")
         self._lock = threading.RLock()
         self.client: MqttClient | None = None
         self.reference: Any = None  # the bundled reference unit under --broker embedded
