@@ -171,6 +171,9 @@ def conversations(unit: UnitState) -> Conversations:
     c = unit.private.get("conversations")
     if c is None:
         c = unit.private["conversations"] = Conversations()
+        c.life = unit.agent_uuid
+        if c.life is not None:
+            c.lives.append(c.life)
     return c  # type: ignore[no-any-return]
 
 

@@ -112,10 +112,12 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
     examined = unit.examined
     examined["HB-010"] = examined.get("HB-010", 0) + 1
     silence = msg.time - last
+    tracker = unit.private.get("rates", {}).get(HB)
+    held = unit.private.get("hb010_held")
     if silence <= SILENCE_PERIODS * period or ctx.in_gap(last, msg.time):
-        return None
-    period = heartbeat_period(unit)  # one far slower than declared is HB-003's, not silent
-    if silence <= SILENCE_PERIODS * period:
+        if held and tracker is not None and tracker.n:  # it keeps its period: they were silences
+            unit.private["hb010_held"] = []
+            return held
         return None
     uuid = _uuid(v)
     if uuid is None:
@@ -124,12 +126,21 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
         came_back = "came back with the same agent-uuid (resumed)"
     else:
         came_back = f"came back with a new agent-uuid {uuid} (a reboot)"
-    return [Violation.of(
+    found = [Violation.of(
         "HB-010", expected=f"a heartbeat at least every {SILENCE_PERIODS * period:.2f} s "
                            f"({SILENCE_PERIODS:g} declared periods)",
         observed=f"silent for {silence:.2f} s ({silence / period:.1f} periods), then {came_back}",
         topic=msg.topic, time=last, payload=msg.payload,
         detail="a silence makes the unit look gone to every commander")]
+    if tracker is None or not tracker.n:
+        # No interval yet within 3 periods: a unit that sends far slower than it declares is
+        # HB-003's (its rate), not a string of silences. Held until it keeps its period once.
+        unit.private["hb010_held"] = [*(held or ()), *found][-8:]
+        return None
+    if held:
+        unit.private["hb010_held"] = []
+        return [*held, *found]
+    return found
 
 
 def heartbeat_period(unit: UnitState) -> float:
