@@ -238,8 +238,9 @@ _CATALOGUE: tuple[Rule, ...] = (
     Rule("EXEC-010", "a command is answered within the response timeout", "12.1 Commands",
          W, D, V,
          "The spec sets no deadline; the profile's response_timeout (5 s) is the suite's. A "
-         "response after it warns (the commander has resent or given up by then); no response "
-         "at all fails the rule of the command (EXEC-PING-001, EXEC-START-001, ...)."),
+         "response after it warns here, saying how late (the commander has resent or given up "
+         "by then), and fails the rule of the command (EXEC-PING-001, EXEC-START-001, ...) as "
+         "no response at all does, in lint as in the suite, whose scenarios wait as long."),
     Rule("EXEC-PING-001", "ping is answered with a pong within the deadline", "12.2.1 ping",
          E, D, V),
     Rule("EXEC-PING-002", "pong response-to is the ping's com-uuid", "12.3.1 ping response",

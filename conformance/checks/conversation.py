@@ -101,8 +101,8 @@ class Command:
 class Task:
     """One task of a unit as the traffic showed it (12.4)."""
 
-    __slots__ = ("task_uuid", "name", "command", "life", "last_status", "final", "resent",
-                 "resend_failed", "listed", "left_at", "running_feedback")
+    __slots__ = ("task_uuid", "name", "command", "life", "last_status", "last_time", "final",
+                 "resent", "resend_failed", "listed", "left_at", "running_feedback")
 
     def __init__(self, task_uuid: str, name: str | None, command: Command | None,
                  life: str | None) -> None:
@@ -112,9 +112,11 @@ class Task:
         """The start-task that began it (None: the traffic showed only its feedback)."""
         self.life = life
         self.last_status: str | None = None
+        self.last_time: float | None = None
         self.final: tuple[str, str | None, float] | None = None
         """(status, com-uuid, time) of its final feedback."""
-        self.resent = False
+        self.resent: float | None = None
+        """When its start-task was last resent."""
         self.resend_failed: float | None = None
         """When a resend of its start-task was answered 'failed' (a contradiction)."""
         self.listed = False
@@ -155,6 +157,9 @@ class Conversations:
         self.last_command: Command | None = None
         self.dropped = 0
         self.levels_reported: set[str] = set()
+        self.silent_until: float | None = None
+        """The end of the latest heartbeat silence over 2 periods: perhaps a reboot that kept
+        its agent-uuid, whose history loss is REBOOT-002's to judge, not EXEC-QUERY-001's."""
 
     def started(self, task: Task) -> None:
         self.running[task.task_uuid] = task
@@ -242,7 +247,7 @@ def command_opens_conversation(ctx: CheckContext, unit: UnitState, msg: Message,
         if before.name == "start-task":
             task = _task_of(c, before)
             if task is not None:
-                task.resent = True
+                task.resent = t
         c.last_command = before
         return
     if before is not None:
@@ -327,10 +332,19 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
     unit.examine("EXEC-009")
     waited = t - cmd.last_sent
     if waited > _timeout(ctx):
+        # Late: how late is EXEC-010's finding; the command's own rule wanted it in time.
         yield _violation("EXEC-010", msg, expected=f"an answer within {_timeout(ctx):.1f} s "
                          f"(the profile's response_timeout)", observed=f"answered "
                          f"{waited:.2f} s after {cmd.describe()}", path="$.response-to",
                          detail="answer at once; a slow answer makes the commander resend")
+        if cmd.answers == 1:
+            rule = ANSWER_RULE.get(cmd.name, "EXEC-ROBUST-002")
+            unit.examine(rule)
+            yield _violation(rule, msg, expected=f"an answer to {cmd.describe()} within "
+                             f"{_timeout(ctx):.1f} s", observed=f"answered only after "
+                             f"{waited:.2f} s", path="$.response-to")
+            yield from _judge_unanswered(ctx, unit, c, before=cmd.last_sent)
+            return
     else:
         unit.examine("EXEC-010")
     if cmd.answers == 1:
@@ -470,6 +484,14 @@ def _judge_query(unit: UnitState, c: Conversations, cmd: Command, msg: Message,
     if task is None or task.last_status is None or task.life != c.life:
         unit.note("EXEC-QUERY-001", "query-status only of tasks the traffic did not show")
         return
+    if task.left_at is not None or (task.final is not None and task.final[0] not in
+                                    QUERY_ANSWERS):
+        return  # it ended without saying how: the traffic cannot tell what is right
+    if (value == "unknown" and c.silent_until is not None and task.last_time is not None
+            and task.last_time < c.silent_until):
+        unit.note("EXEC-QUERY-001", "'unknown' for a task from before a silence of the unit "
+                                    "(a reboot keeping its agent-uuid is REBOOT-002's)")
+        return
     allowed = QUERY_ANSWERS.get(task.last_status)
     if allowed is None:
         return  # a task-specific status: nothing to compare with
@@ -530,12 +552,12 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
         end_status, end_com_uuid, end_time = task.final
         if _str(m, "com-uuid") == end_com_uuid:
             return
-        rule = "EXEC-RESEND-001" if task.resent else "EXEC-FB-004"
+        again = task.resent is not None and task.resent > end_time  # resent after it ended
+        rule = "EXEC-RESEND-001" if again else "EXEC-FB-004"
         yield _violation(rule, msg, expected=f"no feedback for task {task_uuid} after its final "
                          f"status '{end_status}'", observed=f"status '{status}' "
                          f"{t - end_time:.2f} s later" + (" (after its start-task was resent: "
-                                                          "executed again)" if task.resent
-                                                          else ""),
+                                                          "executed again)" if again else ""),
                          path="$.status", detail="stop sending feedback once a task is "
                          "finished, failed or aborted")
         return
@@ -549,13 +571,13 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
                          detail="12.1: a resend must not touch the running task")
         return
     if status == "running":
-        if task.running_feedback and task.last_status == "running" and task.resent:
+        if task.running_feedback and task.last_status == "running" and task.resent is not None:
             yield _violation("EXEC-RESEND-001", msg, expected=f"task {task_uuid} started once",
                              observed="a new 'running' after its start-task was resent",
                              path="$.status", detail="12.1: a resend is answered from memory, "
                              "not executed again")
         task.running_feedback += 1
-    task.last_status = status
+    task.last_status, task.last_time = status, t
     for e in [e for e in c.expects if e.task_uuid == task_uuid]:
         if status in e.wanted:
             unit.examine(e.rule)
@@ -594,9 +616,9 @@ def tasks_executing_follow_tasks(ctx: CheckContext, unit: UnitState, msg: Messag
         n = listed.count(task.task_uuid)
         if n:
             task.listed, task.left_at = True, None
-            if n > 1 and task.resent:
+            if n > 1 and task.resent is not None:
                 unit.examine("EXEC-RESEND-001")
-                task.resent = False  # said once
+                task.resent = None  # said once
                 found = [_violation("EXEC-RESEND-001", msg, expected=f"task {task.task_uuid} "
                                     f"once in tasks-executing", observed=f"listed {n} times "
                                     f"after its start-task was resent",
@@ -659,6 +681,10 @@ def deadlines_pass(ctx: CheckContext, unit: UnitState, msg: Message,
             c.lives.append(agent)
             del c.lives[:-8]
         return found
+    last, period = unit.last_heartbeat, unit.period(TopicKind.HEARTBEAT)
+    if (last is not None and period is not None and not unit.heartbeat_retained
+            and msg.time - last > 2 * period):
+        c.silent_until = msg.time
     if not (c.pending or c.expects or c.running):
         return None
     return _expire(ctx, unit, c, msg.time) or None

@@ -40,9 +40,10 @@ class Fault:
         return self.stimulus or any(CATALOGUE[r].mode is not Mode.PASSIVE for r in self.rules)
 
 
-def _f(name: str, rules: str, description: str, scope: str = "unit") -> Fault:
-    stimulus = any(r.startswith(("EXEC-", "ERR-006", "ERR-013", "ERR-014")) for r in
-                   rules.split())
+def _f(name: str, rules: str, description: str, scope: str = "unit",
+       stimulus: bool = False) -> Fault:
+    stimulus = stimulus or any(r.startswith(("EXEC-", "ERR-006", "ERR-013", "ERR-014"))
+                               for r in rules.split())
     return Fault(name, tuple(rules.split()), description, scope, stimulus)
 
 
@@ -99,6 +100,9 @@ _ALL = (
        "Makes a new agent-uuid every 5 heartbeat periods without rebooting or going silent "
        "(the uuid is generated in the heartbeat thread, which restarts)."),
     _f("level-unknown", "HB-007", "Declares an extra level 'telemetry'."),
+    _f("undeclared-direct-execution", "HB-013",
+       "Declares only the 'sensor' level, yet sends direct_execution_info and answers "
+       "commands (seen in the field)."),
     _f("level-unbacked", "HB-008",
        "Declares 'tst execution' (copied from 5.1) without sending tst_execution_info."),
     _f("rate-zero", "HB-009", "Declares heartbeat rate 0 ('unknown')."),
@@ -157,10 +161,23 @@ _ALL = (
     _f("fail-reason-empty", "EXEC-007 EXEC-START-004",
        "Refuses commands with fail-reason '' (the reason is only logged)."),
     _f("pong-missing", "EXEC-PING-001 EXEC-ROBUST-001", "Never answers ping."),
+    _f("pong-late", "EXEC-PING-001 EXEC-010 EXEC-ROBUST-001",
+       "Answers ping 6 s late (its executor answers pings from a slow loop)."),
+    _f("response-twice", "EXEC-009",
+       "Publishes every response twice (a retry loop that does not wait for the PUBACK)."),
     _f("pong-response-to-uppercase", "EXEC-PING-002 EXEC-006",
        "Answers ping with the ping's com-uuid in upper case as response-to."),
     _f("start-response-no-task-uuid", "EXEC-START-002",
        "Leaves task-uuid out of the start-task response when the commander sent one."),
+    _f("start-response-unpublished", "EXEC-START-001",
+       "Runs start-task, but builds its response into a message that is never published "
+       "(seen in the field): feedback flows, no answer comes."),
+    _f("start-no-generated-task-uuid", "EXEC-START-002",
+       "Generates a task-uuid for a start-task that has none, but does not return it."),
+    _f("dies-on-missing-task-uuid", "HB-012",
+       "Its MQTT thread dies on a start-task without task-uuid (a KeyError): from then on it "
+       "publishes and answers nothing, while the process lives on (seen in the field).",
+       stimulus=True),
     _f("no-final-feedback", "EXEC-START-003",
        "Sends no feedback when a task ends on its own (only on signals)."),
     _f("accept-invalid-params", "EXEC-START-004",
@@ -178,6 +195,8 @@ _ALL = (
        "Answers 'ok' to a signal for a task-uuid it has never seen."),
     _f("query-forgets-finished", "EXEC-QUERY-001",
        "Answers query-status from the running tasks only: an ended task is 'unknown'."),
+    _f("query-unanswered", "EXEC-QUERY-001 EXEC-QUERY-002",
+       "Never answers query-status (every agent seen in the field)."),
     _f("query-unknown-failed", "EXEC-QUERY-002",
        "Answers query-status of a task it does not know 'failed' ('no such task'), never seen "
        "or forgotten in a reboot (REBOOT-002 is judged against that same answer)."),
@@ -185,6 +204,9 @@ _ALL = (
        "Executes a command resent with the same com-uuid again."),
     _f("resend-unanswered", "EXEC-RESEND-002",
        "Drops a resent command silently (no second answer)."),
+    _f("resend-answered-failed", "EXEC-RESEND-001",
+       "Takes a resent start-task for a new one: answers it 'failed' (task-uuid in use) and "
+       "sends a 'failed' feedback for the task, which runs on (seen in the field)."),
     # --- 12.4 feedback ------------------------------------------------------------------------
     _f("feedback-no-com-uuid", "EXEC-FB-001", "Leaves com-uuid out of feedback messages."),
     _f("feedback-status-typo", "EXEC-FB-002",

@@ -45,6 +45,8 @@ MAX_HISTORY = 5000
 """Commands (and ended tasks) remembered per life; the oldest are forgotten first, so memory
 stays bounded under a flood of commands."""
 STEP = 0.1
+LATE_PONG = 6.0
+"""Fault pong-late: seconds a pong is held back, past the default response timeout (5 s)."""
 """Seconds between simulation steps while a task runs or the vehicle moves."""
 CAMERA_URL_EVERY = 2
 """The camera URL changes rarely: it is published every this many periods, inside SI-003's
@@ -111,6 +113,10 @@ class UnitCore:
         self.tasks: OrderedDict[str, Task] = OrderedDict()
         self.up = True
         self.crashed = False
+        self.delayed: list[tuple[float, bytes]] = []
+        """Fault pong-late: (when, payload) of answers held back."""
+        self.dead = False
+        """Fault dies-on-missing-task-uuid: the MQTT thread died; the process lives on (silent)."""
         self.back_at: float | None = None
         self.reboot_requested = False
         self._counter = 0
@@ -157,6 +163,8 @@ class UnitCore:
         return "camera_url"
 
     def _levels(self) -> list[str]:
+        if "undeclared-direct-execution" in self.faults:
+            return ["sensor"]  # it answers commands and sends direct_execution_info all the same
         levels = ["sensor", "direct_execution" if "level-underscore" in self.faults
                   else "direct execution"]
         if self.faults & {"level-unbacked", "tst-info-incomplete", "tst-info-rate-drift"}:
@@ -357,7 +365,12 @@ class UnitCore:
             else:
                 self.due = self.back_at if self.back_at is not None else now + self.period
                 return
+        if self.dead:  # publishes nothing until a reboot restarts the process
+            self.due = now + self.period
+            return
         self._step(now)
+        while self.delayed and self.delayed[0][0] <= now:
+            self.emit("exec/response", self.delayed.pop(0)[1])
         silent = "dropouts" in self.faults and self._in_dropout(now)
         for s in self._streams:
             if now >= s.due:
@@ -368,6 +381,8 @@ class UnitCore:
                 if s.due < now:  # fell behind (a stalled process): skip, do not burst
                     s.due = now + s.period
         due = min(s.due for s in self._streams)
+        if self.delayed:
+            due = min(due, self.delayed[0][0])
         if self.busy():
             due = min(due, now + STEP)
         self.due = due
@@ -460,6 +475,7 @@ class UnitCore:
     def _go_down(self, now: float) -> None:
         self.reboot_requested = False
         self.up = False
+        self.delayed.clear()  # what the old process held back dies with it
         last = self.last_heartbeat if self.last_heartbeat is not None else now
         self.back_at = max(now + 0.1 * self.period, last + REBOOT_SILENCE * self.period)
         self.vehicle.stop()
@@ -478,6 +494,7 @@ class UnitCore:
                 if not t.ended:
                     t.status, t.fail_reason = "failed", "interrupted by a reboot"
         self.crashed = False
+        self.dead = False
         self.up = True
         self.back_at = None
         self._last_step = now
@@ -488,8 +505,8 @@ class UnitCore:
     def command(self, payload: bytes, now: float, size: int | None = None) -> None:
         """Handle one message from ``exec/command``; ``size`` is its length in bytes when
         ``payload`` is only its head. Never raises on hostile input."""
-        if not self.up or self.crashed:
-            return  # rebooting, or the command thread died (fault crash-on-malformed)
+        if not self.up or self.crashed or self.dead:
+            return  # rebooting, or the command thread died (faults crash-on-malformed, dies-...)
         self.commands += 1
         self._step(now)
         size = len(payload) if size is None else size
@@ -507,6 +524,10 @@ class UnitCore:
             return
         assert isinstance(msg, dict)
         com = msg["com-uuid"]
+        if (com in self.history and "resend-answered-failed" in self.faults
+                and msg.get("command") == "start-task"):
+            self._refuse_resend(com, msg)
+            return
         if com in self.history and "resend-executes-twice" not in self.faults:
             # 12.1: a resent command reuses its com-uuid; answer it again, do not run it twice.
             cached = self.history[com]
@@ -529,6 +550,21 @@ class UnitCore:
         else:
             self._answer(com, "failed", fail_reason=f"unknown command {command[:64]!r}: this "
                          f"unit understands {', '.join(COMMANDS)} (12.1)")
+
+    def _refuse_resend(self, com: str, msg: dict[str, Any]) -> None:
+        """Fault resend-answered-failed (seen in the field): the resent start-task is taken for
+        a new one whose task-uuid is taken, answered 'failed', and the running task gets a
+        'failed' feedback too, although it runs on."""
+        cached = self.history.get(com)
+        task_uuid = cached.get("task-uuid") if cached else msg.get("task-uuid")
+        task = self.tasks.get(task_uuid) if isinstance(task_uuid, str) else None
+        reason = f"task-uuid {task_uuid} is already used by another task"
+        body: dict[str, Any] = {"agent-uuid": self.agent_uuid, "response": "failed",
+                                "response-to": com, "task-uuid": task_uuid,
+                                "fail-reason": reason}
+        self._send_response(body, command_com=com)
+        if task is not None and not task.ended:
+            self._feedback(task, "failed")
 
     def _decode(self, payload: bytes) -> tuple[Any, str | None]:
         """The command as a dict with a string com-uuid, or what is wrong with it."""
@@ -571,6 +607,10 @@ class UnitCore:
         if kind == "ping":
             if "pong-missing" in self.faults:
                 return
+            if "pong-late" in self.faults:
+                self.history[com] = body
+                self._send_response(dict(body), command_com=com, delay=LATE_PONG)
+                return
             if "pong-response-to-uppercase" in self.faults:
                 body["response-to"] = com.upper()
         if kind == "signal" and "signal-response-tst-form" in self.faults:
@@ -584,7 +624,8 @@ class UnitCore:
         if not silent:
             self._send_response(dict(body), command_com=com)
 
-    def _send_response(self, body: dict[str, Any], command_com: str | None = None) -> None:
+    def _send_response(self, body: dict[str, Any], command_com: str | None = None,
+                       delay: float = 0.0) -> None:
         com = body.get("response-to", "") if command_com is None else command_com
         body["com-uuid"] = com if "response-reuses-com-uuid" in self.faults else self._fresh_uuid()
         if "agent-uuid" in body:
@@ -594,7 +635,13 @@ class UnitCore:
                 body["agent-uuid"] = self.executor_uuid
             else:
                 body["agent-uuid"] = self.agent_uuid
+        if delay:
+            # in the clock ``run`` is given (the runtime's monotonic one): the last step's
+            self.delayed.append(((self._last_step or 0.0) + delay, _dumps(body)))
+            return
         self.emit("exec/response", _dumps(body))
+        if "response-twice" in self.faults:  # a retry loop that does not wait for the PUBACK
+            self.emit("exec/response", _dumps(body))
 
     def _feedback(self, task: Task, status: str) -> None:
         """Send feedback for a status change of a task (12.4)."""
@@ -614,6 +661,9 @@ class UnitCore:
                                       or len(sent_uuid) > 128):
             self._answer(com, "failed", fail_reason="task-uuid must be a UUID string",
                          task_uuid=None)
+            return
+        if sent_uuid is None and "dies-on-missing-task-uuid" in self.faults:
+            self.dead = True  # msg["task-uuid"] raised a KeyError in the MQTT thread
             return
         task_uuid = sent_uuid if sent_uuid is not None else self._task_uuid()
         if not isinstance(task_field, dict) or not isinstance(task_field.get("name"), str):
@@ -656,9 +706,13 @@ class UnitCore:
                 self._end(other, "aborted", f"pre-empted by task {task_uuid}")
         self._remember(task)
         response = "started" if "start-answered-started" in self.faults else "running"
-        shown = None if (sent_uuid is not None and "start-response-no-task-uuid"
-                         in self.faults) else task_uuid
-        self._answer(com, response, task_uuid=shown, fail_reason="", kind="start")
+        shown = None if (sent_uuid is not None and "start-response-no-task-uuid" in self.faults
+                         or sent_uuid is None and "start-no-generated-task-uuid" in self.faults
+                         ) else task_uuid
+        if "start-response-unpublished" in self.faults:
+            self.history[com] = None  # built into a response that is never published
+        else:
+            self._answer(com, response, task_uuid=shown, fail_reason="", kind="start")
         if "feedback-status-typo" in self.faults:
             self._feedback(task, "Starting")
         self._feedback(task, "running")
@@ -772,6 +826,8 @@ class UnitCore:
 
     # --- query-status ---------------------------------------------------------------------------
     def _query_status(self, com: str, msg: dict[str, Any]) -> None:
+        if "query-unanswered" in self.faults:
+            return  # never answered (every agent seen in the field)
         task_uuid = msg.get("task-uuid")
         if not isinstance(task_uuid, str) or not task_uuid or len(task_uuid) > 128:
             self._answer(com, "failed", fail_reason="query-status needs the task-uuid of the "
