@@ -61,6 +61,8 @@ def skip_reason(rule: Rule, *, kind: str, unit: str, levels: tuple[str, ...] | N
     ``levels`` is what the unit declares in its heartbeat, or None when no heartbeat was seen;
     ``note`` is what the check itself said (``only 3 intervals observed; need 10``).
     """
+    if rule.id.startswith("ROS-") and not note:
+        return "judged from ROS bags that hold the topics it is about (lint --from run.bag)"
     if rule.mode is Mode.ACTIVE and kind == "lint":
         return f"needs a stimulus: run pytest --unit {unit}"
     level = LEVEL_NAMES.get(rule.level)
