@@ -495,5 +495,5 @@ def _listed(items: list[str]) -> str:
 
 
 def _reason(e: BaseException) -> str:
-    text = str(e).strip() or type(e).__name__
+    text = str(e).strip().rstrip(".") or type(e).__name__
     return text if len(text) <= 200 else text[:199] + "…"
