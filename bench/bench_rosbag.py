@@ -121,7 +121,8 @@ def info_message(kind: str, name: str, agent_type: str, uid: str, t: float) -> d
 
 def child(mode: str, path: str) -> dict:
     """``baseline``: rosbags reads and deserializes every message; ``read``: the bag reader
-    maps them to JSON API messages; ``lint``: the full lint, report included."""
+    maps them to JSON API messages; ``lint``: the full lint (Linter, Monitor, report), as
+    ``lint --from BAG`` does it without printing."""
     start = time.perf_counter()
     n = 0
     if mode == "baseline":
@@ -138,16 +139,27 @@ def child(mode: str, path: str) -> dict:
 
         for item in BagReader(path):
             n += type(item) is Message
-    else:
-        import io
+    else:  # what 'lint --from BAG' does, without printing
+        from conformance.checks import Monitor
+        from conformance.client import Message
+        from conformance.lint.linter import Linter
+        from conformance.profile import Profile
+        from conformance.rosbag import BagReader
 
-        from conformance.lint import main
-
-        out = io.StringIO()
-        code = main(["--from", path, "--plain", "--format", "none"], stdout=out)
-        n = int(out.getvalue().split(" messages", 1)[0].rsplit("| ", 1)[1])
-        if code not in (0, 1):
-            raise SystemExit(f"lint exited {code}:\n{out.getvalue()}")
+        profile = Profile()
+        monitor = Monitor(profile, kind="lint")
+        linter = Linter(monitor, profile)
+        for item in BagReader(path):
+            if type(item) is Message:
+                linter.feed_one(item)
+            else:
+                linter.record(item.unit, item.rule, item.violation)  # type: ignore[union-attr]
+        linter.finish(linter.last_time or T0)
+        report = monitor.report()
+        n = linter.messages
+        failing = sum(1 for u in report.units.values() if u.worst().value == "fail")
+        if failing:
+            raise SystemExit(f"{failing} units fail: the fleet's bag should be conformant")
     elapsed = time.perf_counter() - start
     return {"mode": mode, "messages": n, "seconds": round(elapsed, 3),
             "per_second": round(n / elapsed)}

@@ -289,35 +289,27 @@ class BagReader:
                 skipped.append(f"{conn.topic} ({ros_type(conn.msgtype)})")
                 continue
             route.deserialize = store.deserialize_cdr if self.ros2 else store.deserialize_ros1
-            route.convert = _converter(route, conn.msgtype)
         if skipped:
             self.notes.append(f"{len(skipped)} topic(s) skipped: their type is defined neither "
                               f"in the bag nor in ROS's standard messages or the spec: "
                               f"{_listed(skipped)}")
 
     def _scan_units(self, reader: Any, routes: dict[int, _Route]) -> None:
-        """The units of the bag, from the topics of its TopicMsgs (4), and which of them
-        declare the sensor level in their heartbeat (5.1): read before the main pass, so that
-        sensor topics earlier than the first heartbeat are attributed too."""
+        """The units of the bag, from the topics of its TopicMsgs (4), read before the main
+        pass so that sensor topics earlier than the first heartbeat are attributed too; it
+        stops once every namespace has its unit (the main pass adds later units)."""
         conns = [c for c in reader.connections
                  if routes.get(c.id, _SKIP).kind == "heartbeat_info" and routes[c.id].deserialize]
+        namespaces = {r.namespace for r in routes.values() if r.kind != "heartbeat_info"}
         if not conns:
             return
         for conn, _, raw in reader.messages(connections=conns):
             pair = self._topic_msg(routes[conn.id], raw, conn.msgtype)
-            if pair is None:
-                continue
-            parsed = parse_topic(pair[0])
-            if parsed.unit is None:
-                continue
-            self._units.setdefault(parsed.unit.name, parsed.unit)
-            if parsed.kind is TopicKind.HEARTBEAT and parsed.unit not in self._sensor_units:
-                try:
-                    levels = orjson.loads(pair[1]).get("levels")
-                except (orjson.JSONDecodeError, AttributeError):
-                    continue
-                if isinstance(levels, list) and "sensor" in levels:
-                    self._sensor_units.add(parsed.unit)
+            unit = parse_topic(pair[0]).unit if pair is not None else None
+            if unit is not None and unit.name not in self._units:
+                self._units[unit.name] = unit
+                if namespaces <= self._units.keys():
+                    break
 
     @property
     def fallback(self) -> UnitAddress | None:
@@ -412,8 +404,11 @@ class BagReader:
             return self._carried(conn, pair[0], pair[1], t)
         try:
             msg = route.deserialize(raw, conn.msgtype)  # type: ignore[misc]
-            assert route.convert is not None and route.unit is not None
-            value = route.convert(msg)
+            convert = route.convert
+            if convert is None:  # worked out once per connection, from its first message
+                convert = route.convert = _converter(route.kind, type(msg))
+            value = convert(msg)
+            assert route.unit is not None
         except Exception:  # a message its connection's type cannot read: skip it
             self.undecodable += 1
             return None
@@ -440,6 +435,10 @@ class BagReader:
                  t: float) -> tuple[Message | Finding, ...] | None:
         """The JSON message a TopicMsg carries (4), and ROS-004 once per distinct topic."""
         parsed = parse_topic(topic)
+        if parsed.unit is not None:
+            self._units.setdefault(parsed.unit.name, parsed.unit)
+            if parsed.kind is TopicKind.SENSOR_INFO:  # on the sensor level (5.2): ROS-001
+                self._sensor_units.add(parsed.unit)
         fed = topic
         if parsed.unit is None:  # a relative topic ('heartbeat'): the bag's unit, if it has one
             fallback = self.fallback
@@ -463,25 +462,36 @@ class BagReader:
         return tuple(out)
 
 
-def _converter(route: _Route, msgtype: str) -> Callable[[Any], Any]:
-    """The JSON value of a deserialized message (module docstring)."""
-    if route.kind == "exec_command":
+def _converter(kind: str, cls: type) -> Callable[[Any], Any]:
+    """The JSON value of a deserialized message of class ``cls``: 7 -> 6, a GeoPoint -> a
+    GeoPoint tagged rostype (ERR-010), a one-field ``data`` wrapper (std_msgs) -> its value,
+    any other message -> an object of its fields without header. exec_command: its ``data``."""
+    if kind == "exec_command":
         return lambda m: getattr(m, "data", None)
+    names = _field_names(cls)
+    if {"latitude", "longitude", "altitude"} <= set(names):
+        return lambda m: {"latitude": m.latitude, "longitude": m.longitude,
+                          "altitude": m.altitude, "rostype": "GeoPoint"}
+    if names == ["data"]:
+        return lambda m: _json_value(m.data)
     return _json_value
 
 
+_PLAIN = (float, int, str, bool)
+
+
 def _json_value(m: Any) -> Any:
-    """7 -> 6: GeoPoint -> a GeoPoint tagged rostype (ERR-010), a one-field ``data`` wrapper
-    (std_msgs) -> its value, any other message -> an object of its fields without header."""
+    """A deserialized value as JSON: messages as objects of their fields without header,
+    arrays as lists."""
+    if type(m) in _PLAIN:
+        return m
     if not dataclasses.is_dataclass(m):
         return m.tolist() if hasattr(m, "tolist") else m
-    names = [f.name for f in dataclasses.fields(m) if not f.name.startswith("__")]
-    if {"latitude", "longitude", "altitude"} <= set(names):
-        return {"latitude": m.latitude, "longitude": m.longitude, "altitude": m.altitude,
-                "rostype": "GeoPoint"}
-    if names == ["data"]:
-        return _json_value(m.data)
-    return {n: _json_value(getattr(m, n)) for n in names if n != "header"}
+    return {n: _json_value(getattr(m, n)) for n in _field_names(type(m)) if n != "header"}
+
+
+def _field_names(cls: type) -> list[str]:
+    return [f.name for f in dataclasses.fields(cls) if not f.name.startswith("__")]
 
 
 def _dumps(value: Any) -> bytes:

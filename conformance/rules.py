@@ -320,8 +320,9 @@ _CATALOGUE: tuple[Rule, ...] = (
     # --- 4, 7, 13 the ROS side: judged from ROS bags (conformance.rosbag) ---------------------
     Rule("ROS-001", "the mandatory sensor topics /UNIT/sensor/position, heading, course and "
          "speed are recorded", "7.1 Mandatory Sensors", E, S, P,
-         "Judged per unit that has a sensor topic in the bag or a heartbeat declaring the "
-         "sensor level. A bag holds what was recorded: record every sensor topic of the unit."),
+         "Judged per unit that has a sensor topic in the bag or sends sensor_info (it is on "
+         "the sensor level). A bag holds what was recorded: record every sensor topic of the "
+         "unit."),
     Rule("ROS-002", "sensor topics have the types of section 7 (GeoPoint position, Float32 "
          "heading, course and speed, String URLs, BatteryState)",
          "7.1 Mandatory Sensors, 7.2 Optional Sensors", E, S, P,
