@@ -142,8 +142,11 @@ class BagReader:
         return self.path.is_file() and self.path.suffix not in (".db3", ".mcap")
 
     def _storage(self) -> str:
-        files = [self.path] if self.path.is_file() else list(self.path.iterdir()) \
-            if self.path.is_dir() else []
+        """The ROS 2 storage plugin: sqlite3 (the default before Iron) or mcap."""
+        if self.path.is_dir():
+            files = list(self.path.iterdir())
+        else:
+            files = [self.path]
         return "mcap" if any(p.suffix == ".mcap" for p in files) else "sqlite3"
 
     def _open(self) -> Any:
@@ -199,7 +202,10 @@ class BagReader:
     def _items(self, reader: Any) -> Iterator[Message | Finding]:
         routes = self._routes(reader.connections)
         self._prepare(reader, routes)
-        self._scan_units(reader, routes)
+        try:
+            self._scan_units(reader, routes)
+        except Exception as e:  # a damaged chunk or database page
+            raise self._damaged(e) from None
         self.undecodable = self.not_topic_msg = 0  # counted again by the main pass
         self._attribute(routes)
         linted = [c for c in reader.connections if routes.get(c.id, _SKIP).deserialize]
@@ -216,9 +222,7 @@ class BagReader:
                 if item is not None:
                     yield from item
         except Exception as e:  # a damaged chunk or database page in the middle of the bag
-            raise BagError(f"{self.path}: the bag is damaged after {self.read} messages "
-                           f"({_reason(e)}), so nothing was judged. Fix: reindex it "
-                           f"('rosbag reindex' / 'ros2 bag reindex') or record it again") from None
+            raise self._damaged(e) from None
         if self.not_topic_msg:
             self.notes.append(f"{self.not_topic_msg} /heartbeat_info message(s) were not linted: "
                               f"they have no string fields 'topic' and 'msg' (ROS-003)")
@@ -226,6 +230,11 @@ class BagReader:
             self.notes.append(f"{self.undecodable} message(s) could not be deserialized with "
                               f"their connection's type and were skipped")
         yield from self._mandatory_sensors(routes, last)
+
+    def _damaged(self, e: Exception) -> BagError:
+        return BagError(f"{self.path}: the bag is damaged after {self.read} messages "
+                        f"({_reason(e)}), so nothing was judged. Fix: reindex it ('rosbag "
+                        f"reindex' / 'ros2 bag reindex') or record it again")
 
     def _routes(self, connections: list[Connection]) -> dict[int, _Route]:
         """The WARA-PS connections (4, 7, 13.3.2); BagError when there are none."""

@@ -120,3 +120,19 @@ def test_a_message_its_type_cannot_read_is_skipped_and_counted(tmp_path: Path) -
     assert run.code == 0, run.out + run.err
     assert "note: 1 message(s) could not be deserialized with their connection's type and " \
            "were skipped" in run.out
+
+
+def test_a_ros1_bag_damaged_in_the_middle(tmp_path: Path) -> None:
+    """Its index is whole, so it opens; a message record halfway is overwritten."""
+    import re
+
+    bag = write_bag(tmp_path / "run.bag", unit_entries())
+    data = bytearray(bag.read_bytes())
+    records = [m.start() for m in re.finditer(b"op=\x02", bytes(data))]  # message data records
+    at = records[len(records) // 2]
+    data[at - 8:at + 12] = b"\xff" * 20
+    bag.write_bytes(bytes(data))
+    run = lint_bag(bag, tmp_path / "reports")
+    assert run.code == EXIT_NOT_RUN and run.report is None
+    assert f"{bag}: the bag is damaged after " in run.err
+    assert "Fix: reindex it ('rosbag reindex' / 'ros2 bag reindex') or record it again" in run.err
