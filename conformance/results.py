@@ -72,6 +72,8 @@ def skip_reason(rule: Rule, *, kind: str, unit: str, levels: tuple[str, ...] | N
         return "commander-side rule: what commanders send is judged on their own rows"
     if party == "commander":
         return note or "no command of this commander that the rule applies to was seen"
+    if rule.id.startswith("ROS-") and not note:
+        return "judged from ROS bags that hold the topics it is about (lint --from run.bag)"
     if rule.mode is Mode.ACTIVE and kind == "lint":
         return f"needs a stimulus: run pytest --unit {unit}"
     if rule.mode is Mode.CONVERSATION and kind == "lint" and not note:

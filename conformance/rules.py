@@ -381,6 +381,36 @@ _CATALOGUE: tuple[Rule, ...] = (
          "digits in its last group and 11.1.8's node-uuid 9 in its first: identifiers are "
          "compared as opaque strings, so a malformed one warns (strict: fail). agent-uuid "
          "stays HB-005 (error).", side=B),
+    # --- 4, 7, 13 the ROS side: judged from ROS bags (conformance.rosbag) ---------------------
+    Rule("ROS-001", "the mandatory sensor topics /UNIT/sensor/position, heading, course and "
+         "speed are recorded", "7.1 Mandatory Sensors", E, S, P,
+         "Judged per unit that has a sensor topic in the bag or sends sensor_info (it is on "
+         "the sensor level). A bag holds what was recorded: record every sensor topic of the "
+         "unit."),
+    Rule("ROS-002", "sensor topics have the types of section 7 (GeoPoint position, Float32 "
+         "heading, course and speed, String URLs, BatteryState)",
+         "7.1 Mandatory Sensors, 7.2 Optional Sensors", E, S, P,
+         "A value of another type is still mapped where it can be (std_msgs/Float64 -> number, "
+         "sensor_msgs/NavSatFix -> GeoPoint) so the JSON rules judge it as well; sensors that "
+         "section 7 does not name are not judged by type."),
+    Rule("ROS-003", "/heartbeat_info is an lrs_msgs_common/TopicMsg {string topic, string msg}",
+         "4 Topics ROS", E, A, P,
+         "2.3 says the heartbeat/info JSON is sent 'as std_msgs/String'; 4 defines TopicMsg, "
+         "which carries the topic along. 4 is canonical: another type fails, and messages "
+         "without string fields topic and msg are not linted (no topic, so no unit or kind)."),
+    Rule("ROS-004", "a TopicMsg's topic is the JSON/MQTT topic of its msg "
+         "(PREFIX1/unit/TYPE/ROLE/UNIT/<subtopic>)", "4 Topics ROS", E, A, P,
+         "4: 'the topic used in the JSON/MQTT API is put on the msg also'. A topic that names "
+         "no unit or no subtopic of the JSON API fails; a relative one ('heartbeat') is read "
+         "under the bag's only unit (or --ros-unit) so that its msg is still linted. The msg is "
+         "judged by the JSON rules of its topic (MSG-002, HB-001, ...)."),
+    Rule("ROS-005", "the namespace of sensor and exec_command topics is the unit's name (/dji0)",
+         "7 Sensor API ROS, 7.3 MQTT Bridge", E, T, P,
+         "7: 'UNIT/sensor/SENSOR'; 7.3: 'NS is the namespace for the robot'. The namespace must "
+         "equal UNIT of the unit's heartbeat topic exactly (no extra levels). Topics of a "
+         "namespace no unit has are judged as the bag's only unit's (or --ros-unit's)."),
+    Rule("ROS-006", "exec_command is a std_msgs/String carrying the JSON command",
+         "13.3.2 Topics JSON", E, D, P),
 )
 
 CATALOGUE: dict[str, Rule] = {rule.id: rule for rule in _CATALOGUE}

@@ -368,10 +368,11 @@ class Monitor:
         assert entry is not None
         return entry.state
 
-    def record(self, unit: UnitAddress, rule: str, *, violation: Violation | None = None,
+    def record(self, unit: UnitAddress | None, rule: str, *, violation: Violation | None = None,
                verdict: Verdict | None = None, reason: str = "") -> None:
         """Record an active scenario's outcome for ``rule``: a violation; or an explicit
-        skip / could-not-test / fail / warn with its reason; or ``verdict=PASS``: examined."""
+        skip / could-not-test / fail / warn with its reason; or ``verdict=PASS``: examined.
+        ``unit`` None: a finding that names no unit (a ROS bag's, reported unattributed)."""
         if rule not in CATALOGUE:
             from conformance.rules import get
 
@@ -381,7 +382,7 @@ class Monitor:
         if violation is not None:
             if violation.rule != rule:
                 violation = dataclasses.replace(violation, rule=rule)
-            if not violation.unit:
+            if not violation.unit and unit is not None:
                 violation = dataclasses.replace(violation, unit=str(unit))
             self._add(entry, violation)
         if verdict is Verdict.PASS:

@@ -33,6 +33,7 @@ class MonitorLike(Protocol):
     """The contract of ``conformance.checks.Monitor`` that the linter relies on."""
 
     def feed(self, message: Message) -> list[Violation]: ...
+    def record(self, unit: Any, rule: str, *, violation: Violation | None = None) -> None: ...
     def connection_gap(self, start: float, end: float) -> None: ...
     def unexamined(self, n: int) -> None: ...
     def finish(self, now: float) -> Any: ...
@@ -101,6 +102,14 @@ class Linter:
         if self.first_time is None:
             self.first_time = m.time
         self.last_time = m.time
+
+    def record(self, unit: Any, rule: str, violation: Violation | None = None) -> None:
+        """A finding made outside the message checks (a ROS bag's types and names,
+        ``conformance.rosbag``): into the Monitor's report, tallied like the others. ``unit``
+        is a ``UnitAddress``, or None for a finding that names no unit."""
+        self.monitor.record(unit, rule, violation=violation)
+        if violation is not None:
+            self._tally([violation], violation.time)
 
     def event(self, event: Event) -> None:
         """A capture event: a lost or regained connection, or messages not examined."""

@@ -261,6 +261,9 @@ NOT_UNIT_BREAKABLE: dict[str, str] = {
     "ERR-007": "the signal-executor command (sent by a commander)",
     "ERR-009": "common_params of a TST node in start-tst (the commander's)",
     "ERR-011": "about the spec's text: tst_execution_info is not defined (TEI-001 judges it)",
+    **{rule: "the ROS side (4, 7, 13): the reference unit speaks MQTT only; judged from ROS "
+             "bags, failing on the fault bags of tests/ros/test_rosbag_rules.py"
+       for rule in ("ROS-001", "ROS-002", "ROS-003", "ROS-004", "ROS-005", "ROS-006")},
 }
 
 for _fault in _ALL:

@@ -180,11 +180,14 @@ def test_query_status_agrees_with_the_history(stream):
     assert unanswered["EXEC-QUERY-001"].verdict is Verdict.FAIL
 
 
-def test_a_late_answer_warns_and_is_not_also_a_missing_one(stream):
+def test_a_late_answer_says_how_late_and_is_not_also_a_missing_one(stream):
     ping = stream.command(2.1, "ping")
     rules = judge(stream, [ping, stream.response(4.5, com_of(ping))])
     assert rules["EXEC-010"].verdict is Verdict.WARN
-    assert rules["EXEC-PING-001"].verdict is Verdict.PASS
+    assert "2.40 s after ping" in rules["EXEC-010"].violations[0].observed
+    r = rules["EXEC-PING-001"]  # not within the deadline, once: late, not 'no answer'
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 1
+    assert "answered only after 2.40 s" in r.violations[0].observed
 
 
 def test_an_answer_too_many_fails_exec_009(stream):
