@@ -162,6 +162,8 @@ class UnitReport:
     """How many times each rule was examined."""
     violation_counts: dict[str, int] = field(default_factory=dict)
     """How many violations of each rule were seen (``rules`` keeps the first few as evidence)."""
+    violation_times: dict[str, tuple[float, float]] = field(default_factory=dict)
+    """Rule -> (first, latest) time of its violations, Unix seconds."""
     facts: dict[str, Any] = field(default_factory=dict)
     """What the unit declared and did, for people: sensors listed and seen, tasks, position."""
 
@@ -183,6 +185,8 @@ class UnitReport:
         d = dict(d)
         d["rules"] = {rid: _rule_result_from_dict(r) for rid, r in d.get("rules", {}).items()}
         d["rates"] = [RateStat.from_dict(r) for r in d.get("rates", [])]
+        d["violation_times"] = {r: (float(a), float(b))
+                                for r, (a, b) in d.get("violation_times", {}).items()}
         return cls(**d)
 
 

@@ -51,18 +51,27 @@ MAX_SENDER = 64
 class _RuleRecord:
     """What was recorded for one rule of one unit: a count and the first few violations."""
 
-    __slots__ = ("count", "evidence", "explicit", "reason")
+    __slots__ = ("count", "evidence", "explicit", "reason", "first", "last")
 
     def __init__(self) -> None:
         self.count = 0
         self.evidence: list[Violation] = []
         self.explicit: Verdict | None = None
         self.reason = ""
+        self.first: float | None = None
+        self.last: float | None = None
+        """Times of the first and the latest violation (of all, not only those kept)."""
 
     def add(self, v: Violation) -> None:
         self.count += 1
         if len(self.evidence) < MAX_EVIDENCE:
             self.evidence.append(v)
+        t = v.time
+        if t is not None:
+            if self.first is None or t < self.first:
+                self.first = t
+            if self.last is None or t > self.last:
+                self.last = t
 
 
 class Findings:
@@ -488,6 +497,7 @@ class Monitor:
             rule_ids = list(CATALOGUE)
         rules = {}
         counts = {}
+        times: dict[str, tuple[float, float]] = {}
         for rid in rule_ids:
             rule = CATALOGUE.get(rid)
             if rule is None:
@@ -497,6 +507,10 @@ class Monitor:
             count = (rec.count if rec else 0) + len(extra.get(rid, ()))
             if count:
                 counts[rid] = count
+                when = [t for t in (rec.first if rec else None, rec.last if rec else None,
+                                    *(v.time for v in extra.get(rid, ()))) if t is not None]
+                if when:
+                    times[rid] = (min(when), max(when))
             rules[rid] = judge_rule(
                 rule, severity=self.profile.severity_of(rid), violations=evidence[:MAX_EVIDENCE],
                 count=count, examined=examined.get(rid, 0),
@@ -523,6 +537,7 @@ class Monitor:
             last_seen=state.last_seen, rules=rules,
             rates=rate_stats(self.ctx, state) if address is not None else [],
             examined={k: examined[k] for k in sorted(examined)}, violation_counts=counts,
+            violation_times=times,
             facts=facts)
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import IO, Any
 
 EXIT_PASS, EXIT_FAIL, EXIT_USAGE, EXIT_NOT_RUN = 0, 1, 2, 3
+GATES = ("all", "units")
 REPORT_FORMATS = ("json", "html", "junit")
 
 
@@ -33,8 +34,11 @@ def build_parser() -> argparse.ArgumentParser:
         prog="waraps-conformance lint",
         description="Lint the traffic of a whole fleet, live (read-only: it never publishes) "
                     "or from a recording, and report a verdict per unit and rule.",
-        epilog="Exit status: 0 no unit fails a rule of severity error, 1 some unit does, "
-               "2 bad usage, 3 nothing could be linted (no broker, no messages).")
+        epilog="Exit status: 0 no unit or commander fails a rule of severity error (with "
+               "--gate units: no unit), 1 one does, 2 bad usage, 3 nothing could be linted "
+               "(no broker, no messages). What is wrong in a command is its commander's "
+               "fault: commanders (by the command's 'sender', else 'of UNIT') have rows of "
+               "their own.")
     src = p.add_argument_group("recorded traffic")
     src.add_argument("--from", dest="source", metavar="FILE",
                      help="a recording: JSON Lines as 'waraps-conformance record' writes, or "
@@ -53,6 +57,10 @@ def build_parser() -> argparse.ArgumentParser:
     out.add_argument("--format", default=",".join(REPORT_FORMATS), metavar="LIST",
                      help="report formats, comma-separated from json, html, junit; or none "
                           "(default: all three)")
+    out.add_argument("--gate", choices=GATES, default="all",
+                     help="what the exit status judges: all (units and commanders, the "
+                          "default) or units (a fleet gate that commanders' faults do not "
+                          "fail)")
     out.add_argument("--plain", action="store_true",
                      help="plain lines even on a terminal (the default in a pipe or CI)")
     return p
@@ -204,9 +212,11 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
     evidence = failures(report)
     if evidence:
         print(f"\n{evidence}\n", file=out)
-    code = int(report.exit_code())
-    failing = sorted(u for u, rep in report.units.items() if rep.worst().value == "fail")
-    print(("FAIL: " + ", ".join(failing)) if failing else "PASS: no unit fails a rule of "
+    code = int(report.exit_code(args.gate))
+    failing = sorted(u for u, rep in report.units.items() if rep.worst().value == "fail"
+                     and (args.gate == "all" or rep.party == "unit"))
+    gated = "no unit or commander" if args.gate == "all" else "no unit"
+    print(("FAIL: " + ", ".join(failing)) if failing else f"PASS: {gated} fails a rule of "
           "severity error", file=out)
     out.flush()
     return EXIT_FAIL if code else EXIT_PASS
@@ -232,7 +242,7 @@ def failures(report: Any, limit: int = MAX_FAILURES_SHOWN) -> str:
                 continue
             text = render_violation(rule, result.violations[0], unit, report=report,
                                     verdict=Verdict.FAIL)
-            extra = len(result.violations) - 1
+            extra = rep.violation_counts.get(rule, len(result.violations)) - 1  # a total
             shown.append(f"{unit}\n{text}" + (f"\n  (and {extra} more violations of {rule})"
                                                 if extra else ""))
     if not shown:

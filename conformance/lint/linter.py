@@ -17,7 +17,7 @@ from conformance.rules import Severity
 from conformance.topics import parse_topic
 from conformance.violation import Violation
 
-FLEET_RULES = ("HB-010", "HB-011", "HB-006", "EXEC-006", "EXEC-008", "MSG-007")
+FLEET_RULES = ("HB-010", "HB-011", "HB-012", "HB-006", "EXEC-006", "EXEC-008", "MSG-007")
 """Observations about the fleet over time (silence, identity, commands and answers, retained
 state): the scorecard lists them as they happen."""
 NOT_A_UNIT = "(unattributed)"
