@@ -284,8 +284,9 @@ def rows_from_report(report: Any) -> list[UnitRow]:
     per rule, rate over the whole run (messages per second)."""
     rows = []
     for unit, u in report.units.items():
-        rate = None
-        if u.first_seen is not None and u.last_seen is not None and u.last_seen > u.first_seen:
+        rate = None  # a commander's commands come in bursts: no rate
+        if (u.party == "unit" and u.first_seen is not None and u.last_seen is not None
+                and u.last_seen > u.first_seen):
             rate = (u.message_count - 1) / (u.last_seen - u.first_seen)
         failed = {r for r, res in u.rules.items() if res.verdict.value == "fail"}
         warned = {r for r, res in u.rules.items() if res.verdict.value == "warn"}

@@ -251,14 +251,19 @@ def command_opens_conversation(ctx: CheckContext, unit: UnitState, msg: Message,
         c.last_command = before
         return
     if before is not None:
-        before.judged = True  # ambiguous from here on: not judged
+        # Ambiguous from here on: an answer with this response-to may be to either command.
+        # The commander's fault (EXEC-008); the unit is not judged on what it cannot tell.
+        before.judged = True
+        before.digest = digest
         c.pending.pop(com_uuid, None)
+        c.commands[com_uuid] = before
         yield Violation.of(
             "EXEC-008", expected=f"com-uuid {com_uuid} reused only to resend the same command",
             observed=f"other content than the command sent {t - before.time:.2f} s earlier: "
                      f"{before.excerpt.decode('utf-8', 'replace')}",
             topic=msg.topic, path="$.com-uuid", time=t, payload=msg.payload,
             detail="generate a fresh com-uuid for every new command")
+        return
     name = _str(m, "command")
     malformed = not isinstance(m, dict) or name is None or any(
         f.rule in ("EXEC-001", "MSG-002", "MSG-003", "MSG-004") for f in v.violations)

@@ -12,6 +12,7 @@ counted per shape and expanded into per-rule counts only when a report is made.
 from __future__ import annotations
 
 import dataclasses
+import re
 import sys
 import time as _time
 from collections.abc import Collection
@@ -47,6 +48,7 @@ UNATTRIBUTED = "(unattributed)"
 MAX_COMMANDERS = 256
 """Commanders with a row of their own; the commands of further ones share one row."""
 MAX_SENDER = 64
+_SENDER = re.compile(rb'"sender"\s*:\s*"([^"\\]{1,64})"')
 
 class _RuleRecord:
     """What was recorded for one rule of one unit: a count and the first few violations."""
@@ -276,7 +278,7 @@ class Monitor:
         """A command: the unit's state learns of it (its conversations), but what is wrong in
         it is the commander's (by ``sender``), never the unit's. Commands are rare: the
         bookkeeping here may cost what the hot path may not."""
-        commander = self._commander_entry(entry, v.message)
+        commander = self._commander_entry(entry, v.message, message.payload)
         commander.groups[examined] = commander.groups.get(examined, 0) + 1
         commander.state.observe(message, v)
         state = entry.state
@@ -299,10 +301,13 @@ class Monitor:
             self._add(commander, f)
         return found
 
-    def _commander_entry(self, unit_entry: _Entry, m: Any) -> _Entry:
+    def _commander_entry(self, unit_entry: _Entry, m: Any, payload: Any = None) -> _Entry:
         """The row of the commander that sent a command: its ``sender``, else 'the commander
         of UNIT' (v0.7 has no sender field in 12.2; implementations add one)."""
         sender = m.get("sender") if isinstance(m, dict) else None
+        if m is None and isinstance(payload, bytes):  # not JSON: the sender may still be read
+            found = _SENDER.search(payload, 0, 65536)
+            sender = found.group(1).decode("utf-8", "replace") if found else None
         if isinstance(sender, str) and sender.strip():
             name = "".join(ch if ch.isprintable() else "?" for ch in sender.strip()[:MAX_SENDER])
         else:
