@@ -265,11 +265,10 @@ def command_opens_conversation(ctx: CheckContext, unit: UnitState, msg: Message,
             detail="generate a fresh com-uuid for every new command")
         return
     name = _str(m, "command")
-    malformed = not isinstance(m, dict) or name is None or any(
-        f.rule in ("EXEC-001", "MSG-002", "MSG-003", "MSG-004") for f in v.violations)
-    if malformed and name not in ANSWER_RULE:
-        name = MALFORMED if not name else name
-    elif malformed:
+    # Not a readable command: what remains is to refuse it (EXEC-ROBUST-002). A known command
+    # the schema finds fault with (a non-standard signal, a task as a string) keeps its rule.
+    if not isinstance(m, dict) or not name or any(
+            f.rule in ("MSG-002", "MSG-003", "MSG-004") for f in v.violations):
         name = MALFORMED
     invalid = name == "start-task" and any(f.rule == "TASK-001" for f in v.violations)
     cmd = Command(com_uuid, name, t, m, digest, bytes(memoryview(content)[:120]), invalid,
@@ -680,7 +679,7 @@ def deadlines_pass(ctx: CheckContext, unit: UnitState, msg: Message,
     m = v.message
     agent = m.get("agent-uuid") if type(m) is dict else None
     if type(agent) is str and agent != c.life and not msg.retain:
-        found = _new_life(ctx, unit, c, agent) if c.life is not None else None
+        found = _new_life(ctx, unit, c, agent, msg.time) if c.life is not None else None
         c.life = agent
         if agent not in c.lives:
             c.lives.append(agent)
@@ -695,19 +694,25 @@ def deadlines_pass(ctx: CheckContext, unit: UnitState, msg: Message,
     return _expire(ctx, unit, c, msg.time) or None
 
 
-def _new_life(ctx: CheckContext, unit: UnitState, c: Conversations, agent: str
+def _new_life(ctx: CheckContext, unit: UnitState, c: Conversations, agent: str, t: float
               ) -> list[Violation] | None:
     if agent in c.lives:
         return None  # an earlier uuid again: two agents under one name (HB-011), no reboot
-    found = _expire(ctx, unit, c, float("inf"), reboot=True)
-    for task in list(c.running.values()):
-        c.ended(task, ("lost in a reboot", None, 0.0))  # the reboot ended it, unjudged
+    from conformance.checks.identity import SILENCE_PERIODS, heartbeat_period
+
+    # Down for more than 3 periods before this life began: what it left unanswered since it
+    # went silent is the silence's (HB-010, HB-012), not each command's.
+    last, period = unit.last_heartbeat, heartbeat_period(unit)
+    dead_since = (last - period if last is not None and period
+                  and t - last > SILENCE_PERIODS * period else None)
+    found = _expire(ctx, unit, c, float("inf"), reboot=True, dead_since=dead_since)
+    c.running.clear()  # what the old life ran is not judged (the reboot lost it)
     c.expects.clear()
     return found
 
 
 def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
-            reboot: bool = False) -> list[Violation]:
+            reboot: bool = False, dead_since: float | None = None) -> list[Violation]:
     found: list[Violation] = []
     timeout = _timeout(ctx)
     while c.pending:
@@ -728,7 +733,7 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
                                f"{cmd.describe()} within {timeout:.1f} s", "none", cmd.last_sent,
                                "12.1: answer a resend again, with the first answer"))
     if reboot:
-        found.extend(_judge_streak(ctx, unit, c, ended_by="a reboot"))
+        found.extend(_judge_streak(ctx, unit, c, ended_by="a reboot", dead_since=dead_since))
     for e in list(c.expects):
         if e.deadline < now or reboot:
             c.expects.remove(e)

@@ -114,6 +114,13 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
     silence = msg.time - last
     tracker = unit.private.get("rates", {}).get(HB)
     held = unit.private.get("hb010_held")
+    revived = next((r for r in ctx.reboots if last < r <= msg.time), None)
+    if revived is not None and revived - last > SILENCE_PERIODS * heartbeat_period(unit):
+        # Silent for good until the suite rebooted it: a death (HB-012), not a silence.
+        deaths = unit.private.setdefault("deaths", [])
+        deaths.append((last, revived))
+        del deaths[:-16]
+        return None
     if silence <= SILENCE_PERIODS * period or ctx.in_gap(last, msg.time):
         if held and tracker is not None and tracker.n:  # it keeps its period: they were silences
             unit.private["hb010_held"] = []
@@ -156,6 +163,16 @@ def heartbeat_period(unit: UnitState) -> float:
     return declared
 
 
+def deaths(ctx: CheckContext, unit: UnitState, now: float) -> list[tuple[float, float]]:
+    """(last heartbeat, end) of every death: silent for good until the suite rebooted the unit
+    (end: the reboot), or until ``now`` (end: infinity)."""
+    found = list(unit.private.get("deaths", ()))
+    dead = death(ctx, unit, now)
+    if dead is not None:
+        found.append((dead[1], float("inf")))
+    return found
+
+
 def death(ctx: CheckContext, unit: UnitState, now: float) -> tuple[float, float] | None:
     """(dying since, last heartbeat) when the unit's heartbeat stopped and never resumed before
     ``now``: silent for more than 3 periods (``heartbeat_period``), the observer connected.
@@ -165,7 +182,8 @@ def death(ctx: CheckContext, unit: UnitState, now: float) -> tuple[float, float]
     if last is None or unit.period(HB) is None:
         return None
     period = heartbeat_period(unit)
-    if now - last <= SILENCE_PERIODS * period or ctx.in_gap(last, now):
+    if now - last <= SILENCE_PERIODS * period or (
+            ctx.in_gap(last, now) and not any(last < r <= now for r in ctx.reboots)):
         return None
     return last - period, last
 
@@ -180,25 +198,23 @@ def unit_does_not_die(ctx: CheckContext, unit: UnitState, now: float,
     if unit.last_heartbeat is None or unit.period(HB) is None:
         return
     findings.examine("HB-012")
-    dead = death(ctx, unit, now)
-    if dead is None:
-        return
-    _, last = dead
     period = heartbeat_period(unit)
-    silence = now - last
-    command = last_command_before(unit, last + period)
-    said = (f"; the last command it received: {command.describe()}, "
-            f"{last - command.last_sent:+.2f} s from its last heartbeat" if command is not None
-            else "; it had received no command")
-    yield Violation.of(
-        "HB-012", expected=f"a heartbeat at least every {SILENCE_PERIODS * period:.2f} s "
-                           f"until the end of the observation",
-        observed=f"no heartbeat for the last {silence:.2f} s ({silence / period:.1f} periods); "
-                 f"it never came back{said}",
-        topic=unit.address.topic("heartbeat"), time=last,
-        payload=command.excerpt if command is not None else None,
-        detail="a unit that dies on a command must survive it (12.1); one that is switched "
-               "off should say goodbye by ending its heartbeat only at shutdown")
+    for last, end in deaths(ctx, unit, now):
+        silence = min(end, now) - last
+        command = last_command_before(unit, last + period)
+        said = (f"; the last command it received: {command.describe()}, "
+                f"{command.last_sent - last:+.2f} s from its last heartbeat"
+                if command is not None else "; it had received no command")
+        how = ("it never came back" if end == float("inf")
+               else "it came back only when the suite rebooted it")
+        yield Violation.of(
+            "HB-012", expected=f"a heartbeat at least every {SILENCE_PERIODS * period:.2f} s "
+                               f"until the end of the observation",
+            observed=f"no heartbeat for {silence:.2f} s ({silence / period:.1f} periods); "
+                     f"{how}{said}",
+            topic=unit.address.topic("heartbeat"), time=last,
+            payload=command.excerpt if command is not None else None,
+            detail="a unit that dies on a command must survive it (12.1)")
 
 
 @check("MSG-007", on=(HB, TopicKind.SENSOR_INFO, TopicKind.DIRECT_EXECUTION_INFO,

@@ -30,7 +30,7 @@ from conformance.checks.examined import dispatch_roots, examined_group, shape_fi
 from conformance.message import Message
 from conformance.profile import Profile
 from conformance.results import RunReport, UnitReport, judge_rule, skip_reason
-from conformance.rules import CATALOGUE, Side
+from conformance.rules import CATALOGUE, Mode, Side
 from conformance.topics import TopicKind, UnitAddress, parse_topic
 from conformance.validator import Validation, Validator
 from conformance.violation import Verdict, Violation
@@ -356,6 +356,14 @@ class Monitor:
         the messages received after the reconnect."""
         self.ctx.add_gap(float(start), float(end))
 
+    def reboot_requested(self, t: float) -> None:
+        """The observer's side rebooted the unit at ``t`` (Unix seconds): the restart is not
+        judged as a silence or a rate gap, but a unit already silent for good before it had
+        died (HB-012), however it came back."""
+        self.ctx.add_gap(float(t), float(t))
+        self.ctx.reboots.append(float(t))
+        del self.ctx.reboots[:-1000]
+
     def unexamined(self, count: int) -> None:
         """``count`` messages the observer could not examine (dropped, queue overflow)."""
         self._unexamined += int(count)
@@ -396,6 +404,9 @@ class Monitor:
         if violation is not None:
             if violation.rule != rule:
                 violation = dataclasses.replace(violation, rule=rule)
+            if violation.time is None and self._last_time is not None:
+                # when it was found (no answer came by then): a death before it explains it
+                violation = dataclasses.replace(violation, time=self._last_time)
             if not violation.unit and unit is not None:
                 violation = dataclasses.replace(violation, unit=str(unit))
             self._add(entry, violation)
@@ -424,12 +435,12 @@ class Monitor:
         for address, entry in sorted(self._entries.items(),
                                      key=lambda kv: (kv[0] is None, str(kv[0] or ""))):
             final = entry.final if entry.final is not None else self._run_finish(entry, now)
-            report = self._unit_report(address, entry, final)
+            report = self._unit_report(address, entry, final, now)
             units[report.unit] = report
         # In a certification the suite itself is the commander: no row of its own.
         if self.kind == "lint":
             for _, entry in sorted(self._commanders.items()):
-                report = self._unit_report(None, entry, Findings())
+                report = self._unit_report(None, entry, Findings(), now)
                 units[report.unit] = report
         started = meta.pop("started", None)
         if started is None:
@@ -476,9 +487,10 @@ class Monitor:
                     v if v.unit else dataclasses.replace(v, unit=unit) for v in out)
         return findings
 
-    def _unit_report(self, address: UnitAddress | None, entry: _Entry,
-                     final: Findings) -> UnitReport:
+    def _unit_report(self, address: UnitAddress | None, entry: _Entry, final: Findings,
+                     now: float) -> UnitReport:
         from conformance.checks.conversation import dropped
+        from conformance.checks.identity import deaths
         from conformance.checks.rates import rate_stats
 
         state = entry.state
@@ -503,6 +515,7 @@ class Monitor:
         rules = {}
         counts = {}
         times: dict[str, tuple[float, float]] = {}
+        died = deaths(self.ctx, state, now) if address is not None else []
         for rid in rule_ids:
             rule = CATALOGUE.get(rid)
             if rule is None:
@@ -510,6 +523,17 @@ class Monitor:
             rec = entry.records.get(rid)
             evidence = (rec.evidence if rec else []) + extra.get(rid, [])
             count = (rec.count if rec else 0) + len(extra.get(rid, ()))
+            explicit, reason = (rec.explicit, rec.reason) if rec else (None, "")
+            if died and evidence and rule.mode is not Mode.PASSIVE:
+                # A dead unit answers nothing: what a scenario found missing while it was
+                # dead is its death's evidence (HB-012), not a fault of its own.
+                kept = [v for v in evidence if not _during(v.time, died)]
+                if len(kept) < len(evidence):
+                    count -= len(evidence) - len(kept)
+                    evidence = kept
+                    if not count and explicit is None:
+                        explicit, reason = Verdict.COULD_NOT_TEST, (
+                            "the unit died (HB-012) before it could answer")
             if count:
                 counts[rid] = count
                 when = [t for t in (rec.first if rec else None, rec.last if rec else None,
@@ -519,7 +543,7 @@ class Monitor:
             rules[rid] = judge_rule(
                 rule, severity=self.profile.severity_of(rid), violations=evidence[:MAX_EVIDENCE],
                 count=count, examined=examined.get(rid, 0),
-                explicit=rec.explicit if rec else None, explicit_reason=rec.reason if rec else "",
+                explicit=explicit, explicit_reason=reason,
                 default_reason=skip_reason(rule, kind=self.kind, unit=unit,
                                            levels=state.levels, note=notes.get(rid, ""),
                                            party=entry.party))
@@ -544,6 +568,10 @@ class Monitor:
             examined={k: examined[k] for k in sorted(examined)}, violation_counts=counts,
             violation_times=times,
             facts=facts)
+
+
+def _during(t: float | None, windows: list[tuple[float, float]]) -> bool:
+    return t is not None and any(start <= t <= end for start, end in windows)
 
 
 def _suite_version() -> str:

@@ -45,8 +45,10 @@ MAX_HISTORY = 5000
 """Commands (and ended tasks) remembered per life; the oldest are forgotten first, so memory
 stays bounded under a flood of commands."""
 STEP = 0.1
-LATE_PONG = 6.0
-"""Fault pong-late: seconds a pong is held back, past the default response timeout (5 s)."""
+LATE_PONG_PERIODS = 3.0
+"""Fault pong-late: a pong is held back 3 periods (1.5 s at the fault matrix's 2 Hz, past its
+1 s response timeout; 3 s at the workout's 1 Hz, past its 2 s), so it arrives before the
+suite's reboot kills the process that held it."""
 """Seconds between simulation steps while a task runs or the vehicle moves."""
 CAMERA_URL_EVERY = 2
 """The camera URL changes rarely: it is published every this many periods, inside SI-003's
@@ -609,7 +611,8 @@ class UnitCore:
                 return
             if "pong-late" in self.faults:
                 self.history[com] = body
-                self._send_response(dict(body), command_com=com, delay=LATE_PONG)
+                self._send_response(dict(body), command_com=com,
+                                    delay=LATE_PONG_PERIODS * self.period)
                 return
             if "pong-response-to-uppercase" in self.faults:
                 body["response-to"] = com.upper()

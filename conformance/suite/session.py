@@ -23,7 +23,7 @@ from conformance import __version__
 from conformance.checks import Monitor
 from conformance.client import BrokerError, BrokerURL, Message, MqttClient
 from conformance.results import COMMANDER_REASON, RunReport
-from conformance.rules import CATALOGUE, Side
+from conformance.rules import CATALOGUE, Mode, Side
 from conformance.scenarios import (
     SCENARIOS,
     Commander,
@@ -235,7 +235,7 @@ class Certification:
         (REBOOT-001 judges the reboot itself)."""
         now = time.time()
         with self._lock:
-            self.monitor.connection_gap(now, now)
+            self.monitor.reboot_requested(now)
         self.events.append(f"{_clock(now)} reboot requested ({self._reboot_how()})")
         if self.config.pluginmanager.hook.pytest_waraps_reboot(
                 config=self.config, unit=str(self.unit)):
@@ -258,10 +258,36 @@ class Certification:
     # --- verdicts ------------------------------------------------------------------------------
     def record(self, rule: str, *, violation: Any = None, verdict: Verdict | None = None,
                reason: str = "") -> None:
-        """Where scenarios report (``Context.record``): into the Monitor's results."""
+        """Where scenarios report (``Context.record``): into the Monitor's results. What a
+        scenario found missing from a unit that has died is not a fault of its own: the death
+        is the finding (HB-012), so the rule could not be tested."""
+        if violation is not None and CATALOGUE[rule].mode is not Mode.PASSIVE:
+            died = self.unit_died()
+            if died:
+                violation, verdict, reason = None, Verdict.COULD_NOT_TEST, died
         with self._lock:
             self.monitor.record(self.unit, rule, violation=violation, verdict=verdict,
                                 reason=reason)
+
+    def unit_died(self) -> str:
+        """Why the unit counts as dead (no heartbeat for 3 declared periods, HB-012's
+        decision), or "" while it heartbeats. Waits at most until that is certain: a
+        healthy unit's latest heartbeat answers at once."""
+        from conformance.checks.identity import SILENCE_PERIODS
+
+        latest = self.traffic.latest("heartbeat")
+        rate = self.context.rate_of("heartbeat")
+        if latest is None or rate is None:
+            return ""
+        window = SILENCE_PERIODS / rate * self.timing.scale
+        left = latest.time + window - time.time()
+        if left > 0 and self.traffic.wait_for(lambda e: True, left, after=latest.seq,
+                                              subtopic="heartbeat") is not None:
+            return ""
+        if time.time() - latest.time <= window:
+            return ""
+        return (f"the unit fell silent at {_clock(latest.time)} and did not come back "
+                f"(HB-012): no answer could come")
 
     def report(self, **extra: Any) -> RunReport:
         with self._lock:
