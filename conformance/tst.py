@@ -34,6 +34,8 @@ class Problem:
     expected: str
     observed: str
     rule: str = "TST-014"
+    in_schema: bool = False
+    """The start-tst schema states it too (the validator reports it from there, as TST-001)."""
 
 
 @dataclass
@@ -104,12 +106,13 @@ def read_tree(tst: Any, path: str = "$.tst") -> tuple[Node | None, list[Problem]
             return None
         if not isinstance(value, dict):
             problems.append(Problem(where, "a node object {name, params, children, "
-                                    "common_params}", type(value).__name__))
+                                    "common_params}", type(value).__name__, in_schema=True))
             return None
         name = value.get("name")
         if not isinstance(name, str) or not name:
             problems.append(Problem(f"{where}.name", "the node's name (a task of section 9, "
-                                    "seq or conc)", "missing" if name is None else repr(name)))
+                                    "seq or conc)", "missing" if name is None else repr(name),
+                                    in_schema=not isinstance(name, str)))
             name = ""
         common, wrong = common_params(value)
         if wrong:
@@ -128,7 +131,7 @@ def read_tree(tst: Any, path: str = "$.tst") -> tuple[Node | None, list[Problem]
         children = value.get("children", [])
         if not isinstance(children, list):
             problems.append(Problem(f"{where}.children", "a list of nodes",
-                                    type(children).__name__))
+                                    type(children).__name__, in_schema=True))
             children = []
         if node.composite and not children:
             problems.append(Problem(f"{where}.children", f"{name} runs its children: at least "
