@@ -115,15 +115,15 @@ def read_tree(tst: Any, path: str = "$.tst") -> tuple[Node | None, list[Problem]
                                     in_schema=not isinstance(name, str)))
             name = ""
         common, wrong = common_params(value)
+        key = next((k for k in COMMON_KEYS if k in value), COMMON_KEYS[0])
         if wrong:
-            problems.append(Problem(f"{where}.common_params", "one set of common parameters",
-                                    wrong))
+            problems.append(Problem(f"{where}.{key}", "one set of common parameters", wrong))
         node_uuid = _str(common.get("node-uuid"))
         if node_uuid is not None:
             if node_uuid in seen:
-                problems.append(Problem(f"{where}.common_params.node-uuid",
-                                        f"a node-uuid of its own (also at {seen[node_uuid]})",
-                                        node_uuid))
+                problems.append(Problem(f"{where}.{key}.node-uuid",
+                                        f"a node-uuid of its own (also the node-uuid at "
+                                        f"{seen[node_uuid]})", node_uuid))
             else:
                 seen[node_uuid] = where
         node = Node(where, name, value.get("params", {}), node_uuid,

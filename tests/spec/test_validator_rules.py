@@ -207,6 +207,10 @@ FAULTS = [
     ("start-tst", _set("tst/children", []), "TST-014", "$.tst.children"),
     ("start-tst", _set("tst/common-params", {"execunit": "/dji0"}), "TST-014",
      "$.tst.common_params"),
+    ("start-tst", _set("tst/children/0/common-params", {"node-uuid": U2}), "TST-014",
+     "$.tst.children[0].common-params.node-uuid"),
+    ("start-tst", _set("tst/children/1/common-params", {"node-uuid": U2}), "TST-014",
+     "$.tst.children[1].common_params"),
 ]
 
 
