@@ -247,9 +247,9 @@ class TstEngine:
                 return (f"{node.path}: unknown node name {node.name[:64]!r}{hint}; this unit "
                         f"runs seq, conc and {', '.join(self.unit.specs)}")
             problems = spec.problems(node.params)
-            if problems:
-                return f"{node.path}: invalid parameters for {node.name}: " + "; ".join(
-                    problems)
+            if problems:  # each at its JSON path in the command
+                return f"invalid parameters for {node.name}: " + "; ".join(
+                    f"{node.path}.{p}" if p.startswith("params") else p for p in problems)
         return None
 
     def _build(self, node: Node, tree: TstTree, parent: TstNode | None) -> TstNode:
