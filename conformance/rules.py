@@ -335,8 +335,8 @@ _CATALOGUE: tuple[Rule, ...] = (
          "14: 'start of execution ... or direct failure to start'. Refused: execunit of a node "
          "not this unit (the reference unit does not delegate), a node name that is neither "
          "seq, conc nor an offered task, invalid task parameters (9), a malformed tree (no "
-         "name, children not a list, a node-uuid used twice, seq/conc without children). No "
-         "feedback follows a refusal."),
+         "name, children not a list, a node-uuid used twice, seq/conc without children), a "
+         "node-uuid an earlier tree of this life used. No feedback follows a refusal."),
     Rule("TST-006", "a start-tst resent with the same com-uuid is not started twice",
          "12.1 Commands (resend), 14.3.4", E, X, C,
          "12.1's resend holds for TST commands too: no second 'active'/'running' of a node, no "

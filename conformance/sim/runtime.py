@@ -6,8 +6,8 @@ handed to their unit on the runtime thread, so a unit's state is only ever touch
 thread. One connection for a whole fleet is what lets 500 units at 1 Hz run on one core
 (FIELD-NOTES: per-message cost is what counts).
 
-Safety (DESIGN): the client may publish only under the bases of its own units, and never to a
-command topic.
+Safety (DESIGN): the client may publish only under the bases of its own units (and of the TST
+operator whose tst/command they were told to listen to, 14.1), and never to a command topic.
 """
 
 from __future__ import annotations

@@ -6,8 +6,9 @@ for each message on its ``exec/command`` topic, and the unit hands what it publi
 ``emit(topic, payload, retain)``. ``SimUnit`` is the public face: one unit on one MQTT
 connection in a background thread.
 
-Conformant by default on the levels ``sensor`` and ``direct execution`` (spec 5, 6, 9, 12);
-each fault switch (``conformance.sim.faults``) bends one behaviour the way a real unit would.
+Conformant by default on the levels ``sensor`` and ``direct execution`` (spec 5, 6, 9, 12), and
+with ``tst_execution`` on ``tst execution`` (14; ``conformance.sim.tst``, reached through
+``tst_command``); each fault switch (``conformance.sim.faults``) bends one behaviour the way a real unit would.
 Times: ``now`` is ``time.monotonic()`` seconds; stamps are Unix seconds (5.1).
 """
 

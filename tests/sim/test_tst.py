@@ -5,11 +5,15 @@ commands arrive, and each TST fault switch changes exactly the rules it names.""
 from __future__ import annotations
 
 import json
+import random
 import threading
 from pathlib import Path
 from typing import Any
 
+import orjson
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from sim_tst_workout import TstView, new_uuid, node, start, tst_workout
 from sim_workout import UnitView
 
@@ -17,6 +21,7 @@ from conformance.checks import Monitor
 from conformance.profile import Profile
 from conformance.sim import FAULTS, Fleet, SimUnit
 from conformance.sim.faults import TST_FAULTS
+from conformance.sim.unit import UnitCore
 from conformance.sim.vehicle import GeoPoint, destination
 from conformance.topics import UnitAddress
 from conformance.violation import Verdict
@@ -274,3 +279,44 @@ def test_an_unknown_tst_fault_name_suggests_the_right_one() -> None:
 
     with pytest.raises(FaultError, match="did you mean tst-abort-ignored"):
         check_names(["tst-abort-ignore"])
+
+
+# --- hostile TST commands ---------------------------------------------------------------------
+
+SCALAR = (st.none() | st.booleans() | st.integers(-2**53, 2**53) | st.floats(allow_nan=False)
+          | st.text(max_size=8))
+JSON = st.recursive(SCALAR, lambda inner: st.lists(inner, max_size=3)
+                    | st.dictionaries(st.text(max_size=8), inner, max_size=3), max_leaves=12)
+NODE_KEYS = st.sampled_from(["name", "params", "children", "common_params", "common-params"])
+NODE = st.recursive(
+    st.dictionaries(NODE_KEYS, JSON | st.sampled_from(["seq", "conc", "take-off", "move-to"]),
+                    max_size=5),
+    lambda inner: st.fixed_dictionaries({"name": st.sampled_from(["seq", "conc"]),
+                                         "children": st.lists(inner, max_size=3)}),
+    max_leaves=8)
+COMMAND = st.fixed_dictionaries(
+    {"com-uuid": st.uuids().map(str),
+     "command": st.sampled_from(["start-tst", "signal-tst-node", "signal-tst-tree",
+                                 "signal-unit", "stop-tst"]) | JSON},
+    optional={"tst": NODE | JSON, "node-uuid": JSON, "unit": st.just("/dji0") | JSON,
+              "signal": st.sampled_from(["$abort", "$pause", "$continue", "$enough"]) | JSON})
+
+
+@settings(deadline=None)
+@given(commands=st.lists(COMMAND, min_size=1, max_size=6))
+def test_hostile_tst_commands_never_raise_and_are_answered(commands: list[dict]) -> None:
+    sent: list[tuple[str, bytes]] = []
+    unit = UnitCore(UnitAddress("h", "air", "simulation", "dji0"),
+                    lambda topic, payload, retain: sent.append((topic, payload)),
+                    tst_execution=True, rng=random.Random(1), task_seconds=0.5)
+    unit.start(0.0)
+    now = 0.0
+    for command in commands:
+        now += 0.3
+        unit.tst_command(orjson.dumps(command), now, "h/unit/air/simulation/dji0/tst/command")
+        unit.run(now)
+    answers = [orjson.loads(p) for t, p in sent if t.endswith("/tst/response")]
+    assert [a["response-to"] for a in answers] == [c["com-uuid"] for c in commands]
+    for a in answers:
+        assert a["response"] in ("ok", "started", "failed") and (
+            a["response"] != "failed" or a["fail-reason"])
