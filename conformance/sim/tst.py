@@ -283,8 +283,7 @@ class TstEngine:
         self._feedback(node, "active")
         if node.name == "seq":
             self._feedback(node, "running")
-            self._activate(node.children[0], now)
-            node.next_child = 1
+            self._next_of_seq(node, now)
         elif node.name == "conc":
             self._feedback(node, "running")
             for child in node.children:
@@ -304,6 +303,8 @@ class TstEngine:
         for other in list(unit.tasks.values()):  # the vehicle/camera/detector is this task's
             if not other.ended and other.group == task.group:
                 unit._end(other, "aborted", f"pre-empted by TST node {node.uuid}")
+        if node.ended:  # aborted with the task it pre-empted (a conc of two camera tasks)
+            return
         unit.tasks.pop(task.uuid, None)
         unit._remember(task)
         self._task_status(node, "running", "")
@@ -331,17 +332,13 @@ class TstEngine:
         parent = child.parent
         if parent is None or parent.ended:
             return
-        if parent.name == "seq":
+        if parent.name == "seq":  # (a revoked node never ran: only a child that ran ends)
             ok = child.status == "succeeded" or "tst-seq-ignores-failure" in self.faults
-            if ok and not parent.enough and parent.next_child < len(parent.children):
-                nxt = parent.children[parent.next_child]
-                parent.next_child += 1
-                self._activate(nxt, self._now())
-                return
-            for later in parent.children[parent.next_child:]:
-                self._revoke(later)
-            parent.next_child = len(parent.children)
-            self._end(parent, *self._outcome(parent))
+            if not ok or parent.enough:
+                for later in parent.children[parent.next_child:]:
+                    self._revoke(later)
+                parent.next_child = len(parent.children)
+            self._next_of_seq(parent, self._now())
             return
         # conc: when one child does not succeed, the others are aborted
         if child.status != "succeeded":
@@ -352,6 +349,17 @@ class TstEngine:
                     self._revoke(sibling)
         if all(c.ended for c in parent.children):
             self._end(parent, *self._outcome(parent))
+
+    def _next_of_seq(self, seq: TstNode, now: float) -> None:
+        """Start the seq's next child that is still to run; none left: the seq ends."""
+        while seq.next_child < len(seq.children):
+            child = seq.children[seq.next_child]
+            seq.next_child += 1
+            if child.status is None:  # not revoked by a signal meanwhile
+                self._activate(child, now)
+                return
+        if seq.live:
+            self._end(seq, *self._outcome(seq))
 
     def _outcome(self, node: TstNode) -> tuple[str, str]:
         ran = [c for c in node.children if c.status != "revoked"]
@@ -433,6 +441,8 @@ class TstEngine:
             for n in node.walk():
                 if n.task is not None and n.live:
                     self.unit._end(n.task, "finished", "ended by $enough")
+                elif n.status is None:  # not started yet: it will not be
+                    self._revoke(n)
         elif signal == "$pause":
             for n in node.walk():
                 if n.status in ("active", "running"):
@@ -451,11 +461,14 @@ class TstEngine:
     def _abort(self, node: TstNode, reason: str) -> None:
         if node.ended:
             return
+        if node.status is None:  # not started yet: it will not be
+            self._revoke(node)
+            return
         if node.task is not None:
             self.unit._end(node.task, "aborted", reason)
             return
-        if node.status is None:
-            self._revoke(node)
+        if not node.composite:  # a leaf between 'active' and its task
+            self._end(node, "aborted", reason)
             return
         for child in node.children:
             if child.live:

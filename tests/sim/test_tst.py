@@ -320,3 +320,66 @@ def test_hostile_tst_commands_never_raise_and_are_answered(commands: list[dict])
     for a in answers:
         assert a["response"] in ("ok", "started", "failed") and (
             a["response"] != "failed" or a["fail-reason"])
+
+
+# --- tree semantics, on the unit's core (no broker: simulated time) -----------------------------
+
+class Core:
+    """A ``UnitCore`` with the TST level, driven in simulated time; what it sent is kept."""
+
+    TOPIC = "h/unit/air/simulation/dji0/tst/command"
+
+    def __init__(self) -> None:
+        self.sent: list[tuple[str, Any]] = []
+        self.unit = UnitCore(UnitAddress("h", "air", "simulation", "dji0"),
+                             lambda t, p, r: self.sent.append((t, orjson.loads(p))),
+                             tst_execution=True, rng=random.Random(2), task_seconds=0.5)
+        self.now = 0.0
+        self.unit.start(self.now)
+
+    def command(self, body: dict[str, Any]) -> dict[str, Any]:
+        body = {"com-uuid": new_uuid(), **body}
+        self.unit.tst_command(orjson.dumps(body), self.now, self.TOPIC)
+        return next(p for t, p in reversed(self.sent) if t.endswith("/tst/response")
+                    and p["response-to"] == body["com-uuid"])
+
+    def run_for(self, seconds: float) -> None:
+        end = self.now + seconds
+        while self.now < end:
+            self.now += 0.1
+            self.unit.run(self.now)
+
+    def statuses(self, node_uuid: str) -> list[str]:
+        return [p["status"] for t, p in self.sent
+                if t.endswith("/tst/feedback") and p["node-uuid"] == node_uuid]
+
+
+def test_a_conc_of_two_camera_tasks_ends_aborted_when_one_pre_empts_the_other() -> None:
+    c = Core()
+    root, first, second = new_uuid(), new_uuid(), new_uuid()
+    assert c.command(start(node("conc", {}, root, [
+        node("look-at-bearing", {"bearing": 1.0}, first),
+        node("look-at-bearing", {"bearing": 2.0}, second)])))["response"] == "started"
+    assert c.statuses(first) == ["active", "running", "aborted"]
+    assert c.statuses(second) == ["active", "aborted"]
+    assert c.statuses(root) == ["active", "running", "aborted"]
+    assert c.unit.tst is not None and not any(not t.ended for t in c.unit.tasks.values())
+
+
+def test_a_seq_skips_a_revoked_child_and_enough_revokes_what_has_not_run() -> None:
+    c = Core()
+    root, up, skipped, again, look, never = (new_uuid() for _ in range(6))
+    c.command(start(node("seq", {}, root, [
+        node("take-off", {}, up), node("look-at-bearing", {"bearing": 3.0}, skipped),
+        node("take-off", {}, again), node("look-at-bearing", {"bearing": 4.0}, look),
+        node("take-off", {}, never)])))
+    assert c.command({"command": "signal-tst-node", "node-uuid": skipped,
+                      "signal": "$abort"})["response"] == "ok"
+    assert c.statuses(skipped) == ["revoked"]
+    c.run_for(5.0)  # the first take-off flies up; the second finds the unit airborne
+    assert c.statuses(up)[-1] == c.statuses(again)[-1] == "succeeded"
+    assert c.statuses(look) == ["active", "running"]
+    assert c.command({"command": "signal-tst-tree", "node-uuid": root,
+                      "signal": "$enough"})["response"] == "ok"
+    assert c.statuses(look)[-1] == "succeeded" and c.statuses(never) == ["revoked"]
+    assert c.statuses(root)[-1] == "succeeded"
