@@ -4,7 +4,8 @@
 
 Leaf nodes are section-9 tasks run by the unit's own task engine (``conformance.sim.tasks``, as
 for start-task: 14 'the Task execution is the same as for level 2'); a leaf's task reports to its
-node instead of ``exec/feedback``. Composite nodes are ``seq`` (children in order; fails when a
+node instead of ``exec/feedback``; its task-uuid is its node-uuid, so it shows in
+``tasks-executing`` like any task the unit runs. Composite nodes are ``seq`` (children in order; fails when a
 child fails) and ``conc`` (children in parallel; succeeds when all succeed). The decisions this
 follows are the catalogue's TST-004..TST-013 and ERR-009, ERR-015..ERR-018.
 
