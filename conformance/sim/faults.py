@@ -243,6 +243,51 @@ _ALL = (
        "a counter ('msg-17')."),
 )
 
+# --- 14 TST execution (issue 10; conformance.sim.tst) ------------------------------------------
+# Each switches the TST level on by itself (the unit then declares 'tst execution'). All but
+# tst-info-type-upper show only once TST commands are sent (stimulus).
+
+
+def _tst(name: str, rules: str, description: str, stimulus: bool = True) -> Fault:
+    return Fault(name, tuple(rules.split()), description, "unit", stimulus)
+
+
+_TST = (
+    _tst("tst-response-reuses-com-uuid", "TST-002",
+         "Sends each tst/response with the command's com-uuid instead of a fresh one."),
+    _tst("tst-feedback-finished", "TST-003",
+         "Reports a node that ended well as 'finished' (12.4's word) instead of 'succeeded'."),
+    _tst("tst-root-uuid-wrong", "TST-004",
+         "Answers start-tst 'started' with the start-tst's com-uuid as root-uuid."),
+    _tst("tst-common-params-only", "TST-004",
+         "Reads node-uuid and execunit from 'common-params' only: for trees written as the "
+         "spec's examples (common_params) it makes node-uuids of its own, so root-uuid is not "
+         "the root's node-uuid."),
+    _tst("tst-accept-foreign-execunit", "TST-005",
+         "Starts a tree whose execunit names another unit, and runs it itself."),
+    _tst("tst-resend-starts-twice", "TST-006",
+         "Starts a start-tst resent with the same com-uuid again from scratch."),
+    _tst("tst-resend-unanswered", "TST-007",
+         "Drops a resent TST command silently (no second answer)."),
+    _tst("tst-root-flag-everywhere", "TST-008",
+         "Sets root-flag true in every node's feedback (copied from 14.5's examples)."),
+    _tst("tst-no-final-feedback", "TST-009",
+         "Sends no final status for seq and conc nodes (only their leaves report an end)."),
+    _tst("tst-seq-ignores-failure", "TST-010",
+         "Goes on with a seq after a child failed, and reports the seq 'succeeded'."),
+    _tst("tst-signal-unknown-node-ok", "TST-011",
+         "Answers 'ok' to a signal for a node-uuid it has never seen."),
+    _tst("tst-abort-ignored", "TST-012", "Acknowledges $abort of a TST node ('ok') and goes on."),
+    _tst("tst-info-stale-nodes", "TST-013",
+         "Never removes ended nodes from nodes-executing in tst_execution_info."),
+    _tst("tst-start-answered-running", "ERR-015",
+         "Answers start-tst 'running' (start-task's word) instead of 'started'."),
+    _tst("tst-info-type-upper", "ERR-018",
+         "Sends tst_execution_info with type 'TSTExecutionInfo'.", stimulus=False),
+)
+TST_FAULTS = frozenset(f.name for f in _TST)
+_ALL = _ALL + _TST
+
 FAULTS: dict[str, Fault] = {f.name: f for f in _ALL}
 assert len(FAULTS) == len(_ALL), "duplicate fault name"
 
@@ -252,9 +297,11 @@ NOT_UNIT_BREAKABLE: dict[str, str] = {
     "TASK-001": "judges the parameters of a start-task command (the commander's)",
     "TASK-002": "judges the task name of a start-task command (the commander's)",
     "TASK-003": "judges the parameters of a start-task command (the commander's)",
-    "TST-001": "TST commands: the reference unit has no TST level (v0.7 leaves it to op0)",
-    "TST-002": "TST responses: the reference unit has no TST level",
-    "TST-003": "TST feedback: the reference unit has no TST level",
+    "TST-001": "judges TST commands (the commander's)",
+    "TST-014": "judges the tree of a start-tst command (the commander's)",
+    "ERR-016": "judges where a commander sends TST commands; a unit refuses start-tst on "
+               "exec/command (EXEC-003 'failed')",
+    "ERR-017": "unit names in TST commands (the commander's); a unit understands both forms",
     "ERR-002": "about the spec's example text; a unit copying it breaks MSG-002 (course-nan)",
     "ERR-003": "a misspelled parameter in a start-task command (the commander's)",
     "ERR-004": "observe-position parameter forms in a start-task command (the commander's)",

@@ -6,8 +6,9 @@ for each message on its ``exec/command`` topic, and the unit hands what it publi
 ``emit(topic, payload, retain)``. ``SimUnit`` is the public face: one unit on one MQTT
 connection in a background thread.
 
-Conformant by default on the levels ``sensor`` and ``direct execution`` (spec 5, 6, 9, 12);
-each fault switch (``conformance.sim.faults``) bends one behaviour the way a real unit would.
+Conformant by default on the levels ``sensor`` and ``direct execution`` (spec 5, 6, 9, 12), and
+with ``tst_execution`` on ``tst execution`` (14; ``conformance.sim.tst``, reached through
+``tst_command``); each fault switch (``conformance.sim.faults``) bends one behaviour the way a real unit would.
 Times: ``now`` is ``time.monotonic()`` seconds; stamps are Unix seconds (5.1).
 """
 
@@ -24,7 +25,7 @@ from typing import Any
 
 import orjson
 
-from conformance.sim.faults import check_names
+from conformance.sim.faults import TST_FAULTS, check_names
 from conformance.sim.tasks import (
     BUILTIN_SIGNALS,
     SKIP_WAYPOINT,
@@ -33,6 +34,7 @@ from conformance.sim.tasks import (
     plan,
     tasks_for,
 )
+from conformance.sim.tst import TstEngine, misdirected
 from conformance.sim.vehicle import LINKOPING, GeoPoint, Vehicle, bearing, destination
 from conformance.topics import UnitAddress
 
@@ -88,7 +90,8 @@ class UnitCore:
                  rate: float = 1.0, rng: random.Random | None = None,
                  position: GeoPoint | None = None, heading: float = 270.0,
                  task_seconds: float = 3.0, phase: float = 0.0,
-                 clock: Callable[[], float] = time.time) -> None:
+                 clock: Callable[[], float] = time.time, tst_execution: bool = False,
+                 tst_operator: UnitAddress | None = None) -> None:
         if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
             raise ValueError(f"rate {rate!r}: a rate is a positive number of Hz")
         self.address = address
@@ -104,6 +107,9 @@ class UnitCore:
         self.specs: dict[str, TaskSpec] = {t.name: t for t in tasks_for(address.agent_type)}
         self.base = self._base()
         self.command_topic = f"{self.base}/exec/command"
+        # The TST level (14), when declared (or a TST fault needs it): conformance.sim.tst.
+        self.tst = TstEngine(self, tst_operator.base if tst_operator else None) if (
+            tst_execution or self.faults & TST_FAULTS) else None
         self.camera_sensor = self._camera_sensor()
         self.levels = self._levels()
         # Identity and memory of one life (12.1: history is lost with a reboot).
@@ -169,7 +175,8 @@ class UnitCore:
             return ["sensor"]  # it answers commands and sends direct_execution_info all the same
         levels = ["sensor", "direct_execution" if "level-underscore" in self.faults
                   else "direct execution"]
-        if self.faults & {"level-unbacked", "tst-info-incomplete", "tst-info-rate-drift"}:
+        if self.faults & {"level-unbacked", "tst-info-incomplete", "tst-info-rate-drift"} \
+                or self.tst is not None:
             levels.append("tst execution")
         if "level-unknown" in self.faults:
             levels.append("telemetry")
@@ -264,6 +271,8 @@ class UnitCore:
     def _publish_tei(self, stream: _Stream, now: float) -> None:
         # tst_execution_info is named, not defined (ERR-011): name, rate, stamp, type.
         msg = self._info("TstExecutionInfo", self.rate)
+        if self.tst is not None:
+            self.tst.fill_info(msg)
         if "tst-info-incomplete" in self.faults:
             del msg["rate"]
         self.emit("tst_execution_info", _dumps(msg))
@@ -338,7 +347,7 @@ class UnitCore:
                     else self.period, first),
             _Stream("sensors", self.period, first),
         ]
-        if self.faults & {"tst-info-incomplete", "tst-info-rate-drift"}:
+        if self.faults & {"tst-info-incomplete", "tst-info-rate-drift"} or self.tst is not None:
             self._streams.append(_Stream("tst_execution_info", slow if "tst-info-rate-drift"
                                          in self.faults else self.period, first))
         self._last_step = now
@@ -504,6 +513,13 @@ class UnitCore:
             s.due = now  # the first heartbeat of the new life goes out at once
 
     # --- commands -----------------------------------------------------------------------------
+    def tst_command(self, payload: bytes, now: float, topic: str) -> None:
+        """Handle one message from a ``tst/command`` topic (14; ``conformance.sim.tst``)."""
+        if self.tst is None or not self.up or self.crashed:
+            return
+        self._step(now)
+        self.tst.command(payload, now, topic)
+
     def command(self, payload: bytes, now: float, size: int | None = None) -> None:
         """Handle one message from ``exec/command``; ``size`` is its length in bytes when
         ``payload`` is only its head. Never raises on hostile input."""
@@ -551,7 +567,7 @@ class UnitCore:
                          f"{', '.join(COMMANDS)})")
         else:
             self._answer(com, "failed", fail_reason=f"unknown command {command[:64]!r}: this "
-                         f"unit understands {', '.join(COMMANDS)} (12.1)")
+                         f"unit understands {', '.join(COMMANDS)} (12.1)" + misdirected(command))
 
     def _refuse_resend(self, com: str, msg: dict[str, Any]) -> None:
         """Fault resend-answered-failed (seen in the field): the resent start-task is taken for
@@ -648,6 +664,9 @@ class UnitCore:
 
     def _feedback(self, task: Task, status: str) -> None:
         """Send feedback for a status change of a task (12.4)."""
+        if task.node is not None:  # a TST leaf: its node reports (conformance.sim.tst)
+            task.node(status, "")
+            return
         agent = self.executor_uuid if "feedback-stale-agent-uuid" in self.faults \
             else self.agent_uuid
         body = {"agent-uuid": agent, "com-uuid": self._fresh_uuid(), "status": status,
@@ -748,6 +767,9 @@ class UnitCore:
         task.status, task.fail_reason = status, reason
         if task.group == "motion":
             self.vehicle.stop()
+        if task.node is not None:  # a TST leaf: its node reports (conformance.sim.tst)
+            task.node(status, reason)
+            return
         on_its_own = status == "finished" and not reason
         if not (on_its_own and "no-final-feedback" in self.faults):
             self._feedback(task, status)

@@ -2,8 +2,9 @@
 
 Two matrices over a real broker (the local Mosquitto: the fastest), each one fleet with one
 unit per fault plus a clean unit: the passive faults, observed and judged by the shared
-``Monitor``; the faults that need commands, driven by the workout in ``sim_workout`` and
-judged by it together with the ``Monitor``.
+``Monitor``; the faults that need commands, driven by the workouts in ``sim_tst_workout`` (spec
+14: every unit of that fleet declares 'tst execution') and ``sim_workout`` (spec 12), and judged
+by them together with the ``Monitor``.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import sys
 import threading
 
 import pytest
+from sim_tst_workout import TstView, tst_workout
 from sim_workout import UnitView, workout
 
 from conformance.checks import Monitor
@@ -21,6 +23,7 @@ from conformance.profile import Profile
 from conformance.rules import CATALOGUE
 from conformance.sim import FAULTS, NOT_UNIT_BREAKABLE, Fleet
 from conformance.sim.faults import FaultError, breaking, check_names, unit_breakable_rules
+from conformance.sim.vehicle import LINKOPING, GeoPoint, destination
 from conformance.topics import UnitAddress
 from conformance.violation import Verdict
 
@@ -32,6 +35,8 @@ scheduling jitter of a shared, loaded 2-core machine."""
 BAD = (Verdict.FAIL, Verdict.WARN)
 WAIT_ANSWER = 2.0  # sim_workout.WAIT: the deadline the workout gives an answer
 COMBINED = ("stamp-milliseconds", "heading-signed", "sensor-dot-info")
+COMMANDS = ("/exec/command", "/tst/command")
+"""The tests' own commands (their echoes show the observer kept up)."""
 
 
 # --- the catalogue ------------------------------------------------------------------------------
@@ -70,6 +75,11 @@ def test_list_faults_prints_every_fault_with_its_rules() -> None:
 
 
 # --- the matrices -------------------------------------------------------------------------------
+
+def _geo(p: GeoPoint) -> dict[str, object]:
+    return {"latitude": p.latitude, "longitude": p.longitude, "altitude": p.altitude,
+            "rostype": "GeoPoint"}
+
 
 def _fleet_plan(faults: list[str]) -> dict[int, tuple[str, ...]]:
     """Unit 0 is clean; unit i+1 has faults[i]."""
@@ -172,16 +182,24 @@ def test_each_fault_that_needs_commands_breaks_exactly_its_rules(mosquitto: str,
     plan = _fleet_plan(faults)
     address = UnitAddress(prefix, "air", "simulation", "dji0")
     with Fleet(address, mosquitto, len(plan) + 1, faults_by_index=plan, rate=ACTIVE_RATE,
-               task_seconds=1.0) as fleet:
-        topics = tuple(c.command_topic for c in fleet.cores)
+               task_seconds=1.0, tst_execution=True) as fleet:
+        topics = tuple(c.command_topic for c in fleet.cores) + tuple(
+            f"{c.base}/tst/command" for c in fleet.cores)
         obs = observe(mosquitto, f"{prefix}/#", topics)
         verdicts: dict[int, dict[str, bool]] = {}
         slots = threading.Semaphore(20)  # bounded concurrency: 2 shared cores
 
         def run(i: int) -> None:
             with slots:
-                verdicts[i] = workout(UnitView(obs, fleet.cores[i].base),
-                                      lambda: fleet.reboot(i, wait=True))
+                # TST first: the direct-execution workout ends with a malformed command (a
+                # fault's command thread dies on it) and a reboot.
+                base = fleet.cores[i].base
+                here = UnitView(obs, base).position() or GeoPoint(*LINKOPING, 0.0)
+                near, further = (_geo(destination(here, b, d, 10.0)) for b, d in
+                                 ((45.0, 15.0), (90.0, 25.0)))
+                tst = tst_workout(TstView(obs, base), near, further)
+                verdicts[i] = tst | workout(UnitView(obs, base),
+                                            lambda: fleet.reboot(i, wait=True))
 
         threads = [threading.Thread(target=run, args=(i,)) for i in range(len(fleet.cores))]
         for t in threads:
@@ -192,7 +210,7 @@ def test_each_fault_that_needs_commands_breaks_exactly_its_rules(mosquitto: str,
         n = len(obs.on(f"{fleet.cores[0].base}/heartbeat"))
         obs.count(f"{fleet.cores[0].base}/heartbeat", n + 1)
         assert fleet.errors == 0, fleet.runtime.last_error
-    seen = sum(m.topic.endswith("/exec/command") for m in obs.messages)
+    seen = sum(m.topic.endswith(COMMANDS) for m in obs.messages)
     assert seen == obs.sent, (f"the observer saw {seen} of the {obs.sent} commands it sent: it "
                               f"fell behind and the broker dropped messages; judging would "
                               f"report false EXEC-006")
