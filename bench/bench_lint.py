@@ -70,7 +70,8 @@ def unit_payloads(i: int, name: str, agent_type: str, uid: str, t: float, kinds:
                  "type": "DirectExecutionInfo", "tasks-executing": [],
                  "tasks-available": [
                      {"name": "move-to", "signals": ["$abort", "$enough", "$pause", "$continue"]},
-                     {"name": "look-at-position", "signals": ["$abort", "$enough"]}]}
+                     {"name": "look-at-position", "signals": ["$abort", "$enough"]},
+                     {"name": "look-at-bearing", "signals": ["$abort", "$enough"]}]}
         elif kind == "sensor/position":
             p = {"latitude": 58.39 + (i % 20) * 1e-3 + (t % 600) * 1e-6,
                  "longitude": 15.56 + (i // 20) * 1e-3, "altitude": 50.0 + i % 7,
@@ -138,6 +139,8 @@ def task_conversation(s: int, i: int, uid: str) -> list[tuple[str, object]]:
     if phase not in (0, 20):
         return []
     began = s - phase
+    if began < 0:
+        return []  # its start-task would have come before the recording began
     task = str(uuid.UUID(int=(began << 20) + i + 3, version=4))
 
     def com(k: int) -> str:

@@ -296,7 +296,8 @@ def rows_from_report(report: Any) -> list[UnitRow]:
         order = sorted(counts.items(), key=lambda rc: (rc[0] not in failed, -rc[1], rc[0]))
         rows.append(UnitRow(unit, "commander" if u.party == "commander" else u.agent_type,
                             u.role,
-                            tuple(u.levels) if u.levels or u.message_count == 0 else None,
+                            tuple(u.levels) if u.levels or u.message_count == 0
+                            or u.party == "commander" else None,
                             u.message_count, rate, u.last_seen,
                             errors=len(failed), warnings=len(warned),
                             violations=tuple((r, n) for r, n in order if r in failed | warned)))
