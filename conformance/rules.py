@@ -320,8 +320,9 @@ _CATALOGUE: tuple[Rule, ...] = (
          "14.5 Feedback Messages", E, X, P),
     Rule("TASK-001", "task parameters match the task's specification", "9 Tasks", E, D, P, side=K),
     Rule("TASK-002", "task name is a task of section 9", "9 Tasks", W, D, P,
-         "Units may implement tasks beyond section 9 (5.3 tasks-available is open), so an "
-         "unknown name warns; its params are then not checked.", side=K),
+         "Units may implement tasks beyond section 9 (5.3 tasks-available is open; 9.12 "
+         "vehicle-type specific tasks), so an unknown name warns, and a name the unit itself "
+         "lists in tasks-available is not judged unknown at all; its params are not checked.", side=K),
     Rule("TASK-003", "no parameter that the task does not define", "9 Tasks", W, D, P, side=K),
     # --- errata: the spec contradicts itself ---------------------------------------------------
     Rule("ERR-001", "sensor_info published on 'sensor.info' (5.2's spelling)",

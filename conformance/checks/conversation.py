@@ -896,3 +896,19 @@ def signal_task_response_form(ctx: CheckContext, unit: UnitState, msg: Message, 
                                   f"the suite expects a start-task response's form "
                                   f"({f.detail or 'agent-uuid, com-uuid, response-to, response'})")
             if f.rule == "EXEC-002" else f for f in found]
+
+
+@reinterprets("TASK-002", on=(TopicKind.EXEC_COMMAND,))
+def task_the_unit_offers(ctx: CheckContext, unit: UnitState, msg: Message, v: Validation,
+                         found: list[Violation]) -> list[Violation]:
+    """9.12: tasks are vehicle-type specific beyond section 9; a start-task of a task the unit
+    itself lists in tasks-available (5.3) is no unknown task (TASK-002 is for names no one
+    offers). Knowing what the unit offers needs its history: stateful."""
+    if not found or not unit.tasks_available:
+        return found
+    task = v.message.get("task") if isinstance(v.message, dict) else None
+    name = _str(task, "name")
+    if name is None or name not in unit.tasks_available:
+        return found
+    unit.examine("TASK-002")
+    return [f for f in found if f.rule != "TASK-002"]

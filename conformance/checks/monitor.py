@@ -284,6 +284,9 @@ class Monitor:
         state = entry.state
         before = dict(state.examined)
         found = list(v.violations)
+        if route.reinterpret and v.topic.kind is route.topic_kind:
+            for fn in route.reinterpret:
+                found = fn(self.ctx, state, message, v, found)
         checks = (route.checks_for(v.kind) if v.topic.kind is route.topic_kind
                   else self._checks_for(v))
         for fn in checks:

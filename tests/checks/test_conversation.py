@@ -279,3 +279,23 @@ def test_a_reboot_ends_what_the_old_life_left_open_unjudged(stream):
     rules = judge(stream, [cmd, stream.response(2.2, com_of(cmd), "running", **{
         "task-uuid": task}), stream.feedback(2.3, task, "running")], alive=before + after)
     assert rules["EXEC-START-003"].verdict is not Verdict.FAIL
+
+
+def test_a_task_the_unit_lists_is_no_unknown_task_of_the_commander(stream):
+    """9.12: vehicle-type specific tasks; TASK-002 is for names no one offers."""
+    import orjson
+
+    def offering(t: float):  # direct_execution_info that also lists a task beyond section 9
+        info = orjson.loads(stream.direct_execution_info(t).payload)
+        info["tasks-available"].append({"name": "spray-field", "signals": ["$abort"]})
+        return stream.msg("direct_execution_info", info, t)
+
+    traffic = [offering(t + 0.02) for t in range(7)] + stream.alive(6.0, info=False)
+    listed = start(stream, 2.1, new(), name="spray-field")
+    unknown = start(stream, 3.1, new(), name="dance")
+    m = Monitor(TIMEOUTS)
+    stream.feed(m, traffic + [listed, unknown])
+    m.finish()
+    commander = m.report().units["commander commander"].rules["TASK-002"]
+    assert commander.verdict is Verdict.WARN and len(commander.violations) == 1
+    assert "dance" in commander.violations[0].excerpt
