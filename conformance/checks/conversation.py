@@ -678,7 +678,7 @@ def deadlines_pass(ctx: CheckContext, unit: UnitState, msg: Message,
         return None
     m = v.message
     agent = m.get("agent-uuid") if type(m) is dict else None
-    if type(agent) is str and agent != c.life and not msg.retain:
+    if agent != c.life and type(agent) is str and not msg.retain:
         found = _new_life(ctx, unit, c, agent, msg.time) if c.life is not None else None
         c.life = agent
         if agent not in c.lives:

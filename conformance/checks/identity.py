@@ -112,19 +112,23 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
     examined = unit.examined
     examined["HB-010"] = examined.get("HB-010", 0) + 1
     silence = msg.time - last
-    tracker = unit.private.get("rates", {}).get(HB)
-    held = unit.private.get("hb010_held")
-    revived = next((r for r in ctx.reboots if last < r <= msg.time), None)
-    if revived is not None and revived - last > SILENCE_PERIODS * heartbeat_period(unit):
-        # Silent for good until the suite rebooted it: a death (HB-012), not a silence.
-        deaths = unit.private.setdefault("deaths", [])
-        deaths.append((last, revived))
-        del deaths[:-16]
-        return None
-    if silence <= SILENCE_PERIODS * period or ctx.in_gap(last, msg.time):
-        if held and tracker is not None and tracker.n:  # it keeps its period: they were silences
-            unit.private["hb010_held"] = []
+    private = unit.private
+    held = private.get("hb010_held")
+    if silence <= SILENCE_PERIODS * period:  # the usual case: one dict lookup more
+        if held:  # it keeps its period now: what was held were silences
+            private["hb010_held"] = []
             return held
+        return None
+    tracker = private.get("rates", {}).get(HB)
+    if ctx.reboots:
+        revived = next((r for r in ctx.reboots if last < r <= msg.time), None)
+        if revived is not None and revived - last > SILENCE_PERIODS * heartbeat_period(unit):
+            # Silent for good until the suite rebooted it: a death (HB-012), not a silence.
+            deaths = private.setdefault("deaths", [])
+            deaths.append((last, revived))
+            del deaths[:-16]
+            return None
+    if ctx.in_gap(last, msg.time):
         return None
     uuid = _uuid(v)
     if uuid is None:
@@ -142,7 +146,7 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
     if tracker is None or not tracker.n:
         # No interval yet within 3 periods: a unit that sends far slower than it declares is
         # HB-003's (its rate), not a string of silences. Held until it keeps its period once.
-        unit.private["hb010_held"] = [*(held or ()), *found][-8:]
+        private["hb010_held"] = [*(held or ()), *found][-8:]
         return None
     if held:
         unit.private["hb010_held"] = []

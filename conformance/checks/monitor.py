@@ -112,18 +112,23 @@ _IGNORED = _Entry(UnitState(UnitAddress(UNATTRIBUTED, "", "", "ignored")))
 _OVERFLOW = _Entry(UnitState(UnitAddress(UNATTRIBUTED, "", "", "overflow")))
 
 
+_COMMAND_KINDS = (TopicKind.EXEC_COMMAND, TopicKind.TST_COMMAND)
+
+
 class _Route:
     """Where the messages of one topic go, worked out once per topic: the unit's entry, the
     checks that re-read the validator's violations, and the message checks of the topic's kind
     (plus those of its validation kind where the topic fixes it: ``sensor/position``)."""
 
     __slots__ = ("entry", "reinterpret", "checks", "kind", "topic_kind", "scalar_groups",
-                 "shape_fields", "shape_groups", "dispatch_roots", "last_dispatch")
+                 "shape_fields", "shape_groups", "dispatch_roots", "last_dispatch", "command")
 
     def __init__(self, entry: _Entry, topic: str) -> None:
         parsed = parse_topic(topic)
         self.entry = entry
         self.topic_kind = parsed.kind
+        self.command = parsed.kind in _COMMAND_KINDS
+        """A command topic: what is found in its messages is the commander's."""
         if parsed.kind is TopicKind.SENSOR:
             self.kind: str | None = sys.intern(f"sensor/{parsed.sensor}")  # as the validator's
         elif parsed.kind in (TopicKind.EXEC_COMMAND, TopicKind.TST_COMMAND):
@@ -152,7 +157,6 @@ class _Route:
             tuple(c.fn for c in narrower) if narrower else ())
 
 
-_COMMAND_KINDS = (TopicKind.EXEC_COMMAND, TopicKind.TST_COMMAND)
 _IGNORED_ROUTE = _Route(_IGNORED, "")
 _OVERFLOW_ROUTE = _Route(_OVERFLOW, "")
 
@@ -242,7 +246,7 @@ class Monitor:
             else:
                 examined = examined_group(v)
         state = entry.state
-        if route.topic_kind in _COMMAND_KINDS:
+        if route.command:
             return self._feed_command(route, entry, message, v, examined)
         groups = entry.groups
         groups[examined] = groups.get(examined, 0) + 1
