@@ -557,7 +557,10 @@ def main(argv: list[str]) -> int:
                  "target >= 100,000"),
                 ("recorded: ratio full lint / baseline", f"{ratio:.2f}", ""),
                 ("recorded: messages / units / failing",
-                 f"{lint['messages']:,} / {lint['units']} / {lint['failing_units']}", ""),
+                 f"{lint['messages']:,} / {lint['units']} / {lint['failing_units']}",
+                 f"{lint['commanders']} commander row(s)"),
+                ("recorded: conversation judgements passed", f"{lint['conversation_checks_passed']:,}",
+                 f"open expectations dropped (bounded): {lint['expectations_dropped']}"),
                 ("recorded: peak memory", f"{lint['peak_rss_mb']} MiB",
                  "RSS at quarters: " + ", ".join(f"{v:.0f}" for _, v in
                                                  lint["rss_mb_by_messages"][1:]) + " MiB"),
