@@ -206,8 +206,9 @@ def unit_does_not_die(ctx: CheckContext, unit: UnitState, now: float,
     for last, end in deaths(ctx, unit, now):
         silence = min(end, now) - last
         command = last_command_before(unit, last + period)
-        said = (f"; the last command it received: {command.describe()}, "
-                f"{command.last_sent - last:+.2f} s from its last heartbeat"
+        gap = command.last_sent - last if command is not None else 0.0
+        said = (f"; the last command it received: {command.describe()}, {abs(gap):.2f} s "
+                f"{'after' if gap >= 0 else 'before'} its last heartbeat"
                 if command is not None else "; it had received no command")
         how = ("it never came back" if end == float("inf")
                else "it came back only when the suite rebooted it")

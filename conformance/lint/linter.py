@@ -112,7 +112,10 @@ class Linter:
             self._tally([violation], violation.time)
 
     def event(self, event: Event) -> None:
-        """A capture event: a lost or regained connection, or messages not examined."""
+        """A capture event: a lost or regained connection, or messages not examined; a
+        recording's start and end only mark how long the observation lasted."""
+        if event.kind in ("start", "end"):
+            return
         if event.kind == "disconnected":
             if self._open_gap is None:
                 self._open_gap = Gap(event.time, None, event.detail)
