@@ -270,32 +270,10 @@ def _monitor(profile: Any, units: tuple[Any, ...]) -> Any:
 def run_recorded(linter: Any, scorecard: Any, stream: IO[bytes], name: str,
                  options: Any) -> tuple[Any, float]:
     """Feed a recording to the linter at its recorded times; returns (reader, end time)."""
-    from conformance.message import Message
     from conformance.recording import RecordingReader
 
     reader = RecordingReader(stream, name)
-    feed = linter.feed_one
-    wants = options.wants if options.units else None
-    limit = None
-    n = 0
-    last_event = None
-    try:
-        for item in reader:
-            if type(item) is Message:
-                if limit is None and options.duration:
-                    limit = item.time + options.duration
-                if limit is not None and item.time > limit:
-                    break
-                if wants is None or wants(item.topic):
-                    feed(item)
-            else:
-                linter.event(item)
-                last_event = item.time
-            n += 1
-            if n & 0xFF == 0:  # a pipe from mosquitto_sub is live: show progress (throttled)
-                scorecard.update(linter)
-    except KeyboardInterrupt:
-        pass
+    last_event = feed_recorded(linter, scorecard, reader, options)
     if reader.unprintable:
         linter.event(_unexamined(linter.last_time or 0.0, reader.unprintable))
     end = max(t for t in (linter.last_time, last_event, 0.0) if t is not None)
@@ -306,13 +284,29 @@ def run_recorded(linter: Any, scorecard: Any, stream: IO[bytes], name: str,
 def run_bag(linter: Any, scorecard: Any, bag: Any, options: Any) -> float:
     """Feed a ROS bag's messages (at their record times) and ROS findings to the linter
     (``conformance.rosbag``); returns the end time. Raises ``BagError``."""
-    from conformance.client import Message
+    items = iter(bag)
+    try:
+        feed_recorded(linter, scorecard, items, options)
+    finally:
+        items.close()  # type: ignore[attr-defined]
+    end = linter.last_time or 0.0
+    linter.finish(end)
+    return end
+
+
+def feed_recorded(linter: Any, scorecard: Any, items: Any, options: Any) -> float | None:
+    """Feed recorded items at their recorded times, until ``--duration`` past the first
+    message or Ctrl-C: messages (of the ``--unit``s), capture events, and ROS findings
+    (``rosbag.Finding``). Returns the time of the last capture event, if any."""
+    from conformance.message import Message
+    from conformance.recording import Event
 
     units = set(options.units)
     wants = options.wants if units else None
+    feed = linter.feed_one
     limit = None
     n = 0
-    items = iter(bag)
+    last_event = None
     try:
         for item in items:
             if type(item) is Message:
@@ -321,19 +315,18 @@ def run_bag(linter: Any, scorecard: Any, bag: Any, options: Any) -> float:
                 if limit is not None and item.time > limit:
                     break
                 if wants is None or wants(item.topic):
-                    linter.feed_one(item)
-            elif not units or item.unit in units:
+                    feed(item)
+            elif type(item) is Event:
+                linter.event(item)
+                last_event = item.time
+            elif not units or item.unit in units:  # a ROS finding
                 linter.record(item.unit, item.rule, item.violation)
             n += 1
-            if n & 0xFF == 0:
+            if n & 0xFF == 0:  # a pipe from mosquitto_sub is live: show progress (throttled)
                 scorecard.update(linter)
     except KeyboardInterrupt:
         pass
-    finally:
-        items.close()  # type: ignore[attr-defined]
-    end = linter.last_time or 0.0
-    linter.finish(end)
-    return end
+    return last_event
 
 
 def _unexamined(t: float, n: int) -> Any:
