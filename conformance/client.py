@@ -21,7 +21,7 @@ from urllib.parse import urlsplit
 
 import paho.mqtt.client as paho
 
-from conformance.message import Message  # re-exported: ``from conformance.client import Message``
+from conformance.message import Gap, Message  # re-exported: ``from conformance.client import ...``
 
 SCHEMES = ("mqtt", "mqtts", "embedded")
 LOOPBACK = ("127.", "localhost", "::1")
@@ -108,19 +108,6 @@ class BrokerURL:
             return "embedded"
         user = f"{self.username}@" if self.username else ""
         return f"{self.scheme}://{user}{self.host}:{self.port}"
-
-
-@dataclass(frozen=True)
-class Gap:
-    """A time the client was not connected: from ``start`` to ``end`` (Unix seconds)."""
-
-    start: float
-    end: float | None
-    reason: str
-
-    @property
-    def duration(self) -> float | None:
-        return None if self.end is None else self.end - self.start
 
 
 PublishPolicy = Callable[[str], bool]

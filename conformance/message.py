@@ -1,10 +1,10 @@
-"""``Message``: one message as observed, whatever the source (live MQTT, a recording, a bag).
-
-Kept apart from ``client`` so that the checks, the linter and the recording formats never
-import paho."""
+"""What an observer sees, whatever the source (live MQTT, a recording, a bag): ``Message``, and
+``Gap``, a time it could not see. Kept apart from ``client`` so that the checks, the linter and
+the recording formats never import paho."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import NamedTuple
 
 
@@ -20,3 +20,17 @@ class Message(NamedTuple):
     payload: bytes
     qos: int = 0
     retain: bool = False
+
+
+@dataclass(frozen=True)
+class Gap:
+    """A time the observer was not connected: from ``start`` to ``end`` (Unix seconds; None
+    while it lasts), and why."""
+
+    start: float
+    end: float | None
+    reason: str = ""
+
+    @property
+    def duration(self) -> float | None:
+        return None if self.end is None else self.end - self.start

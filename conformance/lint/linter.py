@@ -7,10 +7,10 @@ from __future__ import annotations
 
 from collections import Counter, deque
 from collections.abc import Iterable
-from dataclasses import dataclass
 from typing import Any, Protocol
 
-from conformance.message import Message
+from conformance.checks.monitor import MAX_COMMANDERS, MAX_UNITS, UNATTRIBUTED
+from conformance.message import Gap, Message
 from conformance.profile import Profile
 from conformance.recording import Event
 from conformance.rules import Severity
@@ -20,12 +20,12 @@ from conformance.violation import Violation
 FLEET_RULES = ("HB-010", "HB-011", "HB-012", "HB-006", "EXEC-006", "EXEC-008", "MSG-007")
 """Observations about the fleet over time (silence, identity, commands and answers, retained
 state): the scorecard lists them as they happen."""
-NOT_A_UNIT = "(unattributed)"
-"""Violations of topics that name no unit (the Monitor's report uses the same name)."""
+NOT_A_UNIT = UNATTRIBUTED
+"""Violations of topics that name no unit (the Monitor's report entry)."""
 OTHER_UNITS = "(other units)"
-MAX_UNITS = 5000
-"""Units tallied one by one; a flood of invented unit names is tallied together beyond this
-(bounded memory)."""
+MAX_TALLIED = MAX_UNITS + MAX_COMMANDERS
+"""Units and commanders tallied one by one, as many as the Monitor tracks; a flood of invented
+unit names is tallied together beyond this (bounded memory)."""
 MAX_TOPIC_CACHE = 20_000
 
 
@@ -40,19 +40,6 @@ class MonitorLike(Protocol):
     def units(self) -> Iterable[Any]: ...
     def state(self, unit: Any) -> Any: ...
     def report(self, **meta: Any) -> Any: ...
-
-
-@dataclass(frozen=True)
-class Gap:
-    """A time the linter could not see the broker: ``start`` to ``end`` in Unix seconds."""
-
-    start: float
-    end: float | None
-    reason: str = ""
-
-    @property
-    def duration(self) -> float | None:
-        return None if self.end is None else self.end - self.start
 
 
 class Linter:
@@ -170,7 +157,7 @@ class Linter:
             unit = self.unit_of(v)
             counts = by_unit.get(unit)
             if counts is None:
-                if len(by_unit) >= MAX_UNITS:
+                if len(by_unit) >= MAX_TALLIED:
                     unit = OTHER_UNITS
                     counts = by_unit.setdefault(unit, Counter())
                 else:
