@@ -457,13 +457,13 @@ def _targets(unit: UnitState, c: TstConversations, cmd: TstCommand
         roots = [t.root for t in list(c.trees.values())
                  if t.state == "started" and t.life == c.life and not t.ambiguous
                  and t.root is not None and t.ended_at is None]
-        return [r for r in roots if r.live], None
+        return [r for r in roots if _runs(r)], None
     node = c.nodes.get(cmd.target) if cmd.target else None
     if node is None:
         return [], None
     tree = node.tree
     if tree.state != "started" or tree.life != c.life or tree.ambiguous \
-            or tree.ended_at is not None or not node.live:
+            or tree.ended_at is not None or not _runs(node) or not _runs(tree.roots[0]):
         return [], node
     if cmd.name == "signal-tst-tree" and not node.root:
         return [], node  # 14.3.2 names the tree by its root: a refusal is right
@@ -824,7 +824,7 @@ def _expire(ctx: CheckContext, unit: UnitState, c: TstConversations, now: float,
         if e.deadline >= now:
             continue
         c.expects.remove(e)
-        if _silent_composite(e.node):
+        if e.node.final is None and not _runs(e.node):
             continue  # its children did as signalled; its own silence is TST-009's
         unit.examine("TST-012")
         found.append(_late("TST-012", e.command, f"'{e.wanted}' for node {e.node.node_uuid} "
@@ -855,10 +855,13 @@ def _expire(ctx: CheckContext, unit: UnitState, c: TstConversations, now: float,
     return found
 
 
-def _silent_composite(node: TstNode) -> bool:
-    """A composite without a final status whose every child has one."""
-    return node.composite and node.final is None and all(
-        ch.final is not None for ch in node.children)
+def _runs(node: TstNode) -> bool:
+    """Whether the traffic shows the node still running: a live leaf, or a live composite
+    with a child that runs or is still to run. A composite whose children all ended, but
+    which said no end of its own, has ended silently (TST-009's finding)."""
+    if node.final is not None or node.status is None:
+        return False
+    return not node.children or any(ch.status is None or _runs(ch) for ch in node.children)
 
 
 @check("TST-004", "TST-009", "TST-011", finish=True)
