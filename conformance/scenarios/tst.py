@@ -9,9 +9,10 @@ lists, TST-005 for the trees it must refuse).
 
 The stimuli, with tasks the safety policy lets it start (DESIGN 'Safety'; positions near the
 unit):
-- a one-leaf tree per task, each ended by a signal: tree $abort, unit $enough, unit $abort;
-- seq [a, b]: node $pause, $continue and $enough of a (then b runs), tree $pause, $continue
-  and $enough;
+- a one-leaf tree per task, each ended by a signal: tree $abort and $enough, unit $enough
+  and $abort;
+- seq [a, b, c]: node $pause, $continue and $enough of a (then b runs), tree $pause and
+  $continue, node $abort of b (the seq then revokes c and ends aborted);
 - conc [a, b] of two tasks of different kinds: unit $pause and $continue, node $abort of b
   (the conc then aborts a and ends aborted);
 - trees it must refuse (TST-005): a node name no unit offers, and a seq with a node for
@@ -37,8 +38,8 @@ from conformance.violation import Verdict
 RULES = ("TST-004", "TST-005", "TST-006", "TST-007", "TST-008", "TST-009", "TST-010",
          "TST-011", "TST-012", "TST-013")
 LIVE = ("active", "running", "waiting")
-LEAF_ENDINGS = (("signal-tst-tree", "$abort"), ("signal-unit", "$enough"),
-                ("signal-unit", "$abort"))
+LEAF_ENDINGS = (("signal-tst-tree", "$abort"), ("signal-tst-tree", "$enough"),
+                ("signal-unit", "$enough"), ("signal-unit", "$abort"))
 """The signals the leaf trees end with: those the seq and conc trees do not send."""
 NO_SUCH_TASK = "waraps-conformance-no-such-task"
 
@@ -51,6 +52,9 @@ class _Drive:
         self.refused: list[tuple[list[str], int, str]] = []
         """(node-uuids, mark, what) of trees it refused: nothing of them may run."""
         self.salt = 0
+        self.misread = False
+        """A tree came back under a root-uuid of the unit's own: it did not read the nodes'
+        common_params (TST-004's finding), so it cannot see an execunit either."""
 
     def params(self, task: str) -> dict[str, object]:
         self.salt += 1
@@ -92,21 +96,23 @@ class _Drive:
     # --- the trees ----------------------------------------------------------------------
     def leaf(self, task: str, ending: tuple[str, str]) -> None:
         ctx, tc = self.ctx, self.tc
-        sent, answer, root = tc.start(node(task, self.params(task), new_uuid(),
-                                           execunit=tc.me), ctx.timing.response)
+        given = new_uuid()
+        sent, answer, root = tc.start(node(task, self.params(task), given, execunit=tc.me),
+                                      ctx.timing.response)
         if not self.started(task, answer):
             return
+        self.misread |= root != given
         if tc.feedback(root, LIVE, ctx.timing.response, after=sent.mark) is None:
             return
         self.end(root, *ending)
 
     def seq(self, a: str, b: str) -> None:
         ctx, tc = self.ctx, self.tc
-        s, na, nb = new_uuid(), new_uuid(), new_uuid()
+        s, na, nb, nc = new_uuid(), new_uuid(), new_uuid(), new_uuid()
         sent, answer, root = tc.start(node("seq", {}, s, [
-            node(a, self.params(a), na), node(b, self.params(b), nb)], execunit=tc.me),
-            ctx.timing.response)
-        if not self.started(f"seq [{a}, {b}]", answer):
+            node(a, self.params(a), na), node(b, self.params(b), nb),
+            node(a, self.params(a), nc)], execunit=tc.me), ctx.timing.response)
+        if not self.started(f"seq [{a}, {b}, {a}]", answer):
             return
         if root == s and tc.feedback(na, ("running",), ctx.timing.response,
                                      after=sent.mark) is not None:
@@ -117,7 +123,9 @@ class _Drive:
                 tc.feedback(nb, ("running",), ctx.timing.response, after=sent.mark)
             self.signal("signal-tst-tree", s, "$pause", s, ("paused",))
             self.signal("signal-tst-tree", s, "$continue", s, ("running",))
-        self.end(root, "signal-tst-tree", "$enough")
+            self.signal("signal-tst-node", nb, "$abort", s, FINAL)
+        if not tc.final(root, sent.mark):
+            self.end(root, "signal-tst-tree", "$enough")
 
     def conc(self, a: str, b: str) -> None:
         ctx, tc = self.ctx, self.tc
@@ -142,13 +150,14 @@ class _Drive:
         unknown = new_uuid()
         s, foreign = new_uuid(), new_uuid()
         other = f"/{ctx.unit.name}-not"
-        for ids, tree, what in (
-                ([unknown], node(NO_SUCH_TASK, {}, unknown, execunit=tc.me),
-                 f"a tree of '{NO_SUCH_TASK}', a name no unit offers"),
-                ([s, foreign], node("seq", {}, s, [node(task, self.params(task), foreign,
-                                                        execunit=other)], execunit=tc.me),
-                 f"a tree with a node for execunit {other} (the catalogue's decision: a unit "
-                 "runs only its own nodes)")):
+        trees = [([unknown], node(NO_SUCH_TASK, {}, unknown, execunit=tc.me),
+                  f"a tree of '{NO_SUCH_TASK}', a name no unit offers")]
+        if not self.misread:  # else it cannot see the execunit: TST-004's finding
+            trees.append(([s, foreign], node("seq", {}, s, [
+                node(task, self.params(task), foreign, execunit=other)], execunit=tc.me),
+                f"a tree with a node for execunit {other} (the catalogue's decision: a unit "
+                "runs only its own nodes)"))
+        for ids, tree, what in trees:
             sent, answer, root = tc.start(tree, ctx.timing.response)
             if answer is None:
                 continue  # unanswered: the Monitor's finding (TST-004)
