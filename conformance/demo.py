@@ -26,11 +26,16 @@ class Reference:
     """
 
     def __init__(self, unit: UnitAddress, *, faults: Iterable[str] = (), rate: float = 1.0,
-                 seed: int | None = None) -> None:
+                 seed: int | None = None, tst: bool = False,
+                 tst_operator: UnitAddress | None = None) -> None:
         self.unit = unit
         self.faults = tuple(faults)
         self.rate = rate
         self.seed = seed
+        self.tst = tst
+        """It declares 'tst execution' and runs trees (14), also those sent to
+        ``tst_operator``'s tst/command (14.1)."""
+        self.tst_operator = tst_operator
         self.broker: Any = None
         self.sim: Any = None
 
@@ -41,7 +46,8 @@ class Reference:
         self.broker = EmbeddedBroker().start()
         try:
             self.sim = SimUnit(self.unit, self.broker.url, faults=self.faults, rate=self.rate,
-                               seed=self.seed).start()
+                               seed=self.seed, tst_execution=self.tst,
+                               tst_operator=self.tst_operator).start()
         except BaseException:
             self.broker.stop()
             raise
@@ -94,6 +100,8 @@ def parser() -> argparse.ArgumentParser:
                    help="switch on a fault of the reference unit, to see a failure "
                         "(see waraps-conformance sim --list-faults)")
     p.add_argument("--profile", default=None, help="profile name or file (default: default)")
+    p.add_argument("--tst", action="store_true",
+                   help="the reference unit also declares 'tst execution' (14): certify both")
     p.add_argument("--reports-dir", default="reports", help="where the reports go")
     p.add_argument("--seed", default=None, help="seed of generated task parameters")
     p.add_argument("-q", "--quiet", action="store_true", help="pytest -q")
@@ -117,6 +125,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.rate != 1.0:
         command += ["--sim-rate", str(args.rate)]
     command += [f"--sim-fault={f}" for f in args.fault]
+    if args.tst:
+        command.append("--sim-tst")
     if args.profile:
         command += [f"--profile={args.profile}"]
     if args.seed is not None:

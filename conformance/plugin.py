@@ -64,6 +64,14 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                                           "bundled reference unit (repeatable)")
     group.addoption("--sim-rate", dest="waraps_sim_rate", type=float, default=None,
                     metavar="HZ", help="with --broker embedded: the reference unit's rate")
+    group.addoption("--sim-tst", dest="waraps_sim_tst", action="store_true", default=False,
+                    help="with --broker embedded: the reference unit declares 'tst execution' "
+                         "and runs TST trees (14)")
+    group.addoption("--tst-command-topic", dest="waraps_tst_command_topic", default=None,
+                    metavar="own|ADDRESS", help="where TST commands go (14.1): 'own' (the "
+                    "unit's tst/command, the default) or an operator's address or tst/command "
+                    "topic, e.g. waraps/unit/ground/real/op0; the suite publishes there and "
+                    "to the unit's exec/command, nowhere else")
     for name, help_ in (
             ("waraps_broker", "default for --broker"), ("waraps_profile", "default for --profile"),
             ("waraps_timing_scale", "default for --timing-scale"),
@@ -71,7 +79,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
             ("waraps_reports_dir", "default for --reports-dir"),
             ("waraps_ca_file", "default for --ca-file"),
             ("waraps_cert_file", "default for --cert-file"),
-            ("waraps_key_file", "default for --key-file")):
+            ("waraps_key_file", "default for --key-file"),
+            ("waraps_tst_command_topic", "default for --tst-command-topic")):
         parser.addini(name, help_, default="")
     for name, help_ in (("waraps_allow_motion", "default for --allow-motion"),
                         ("waraps_dry_run", "default for --dry-run"),

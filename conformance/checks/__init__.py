@@ -4,8 +4,10 @@
 checks are registered by rule id (``conformance.checks.base.CHECKS``), one module per spec
 area: ``rates`` (HB-003, SI-002, DEI-002, TEI-002), ``identity`` (HB-006, HB-008, HB-010,
 HB-011, HB-012, MSG-007), ``sensors`` (SI-003, SI-004, SI-005, SENS-005), ``execution``
-(EXEC-004, EXEC-FB-003) and ``conversation`` (every command, its answers, the task it started:
-the conversation rules of spec 12, EXEC-006, EXEC-008, EXEC-FB-004, HB-013).
+(EXEC-004, EXEC-FB-003), ``conversation`` (every command, its answers, the task it started:
+the conversation rules of spec 12, EXEC-006, EXEC-008, EXEC-FB-004, HB-013) and
+``tst_conversation`` (the same one level up, spec 14: TST-004, TST-006..TST-013; commands on an
+operator's tst/command are attributed by ``tst_routing``).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from conformance.checks import (  # noqa: F401  (registers)
     identity,
     rates,
     sensors,
+    tst_conversation,
 )
 from conformance.checks.base import CHECKS, Check, CheckContext, UnitState, check, covered_rules
 from conformance.checks.monitor import Monitor

@@ -18,6 +18,8 @@ import time as _time
 from collections.abc import Collection
 from typing import Any
 
+import orjson
+
 from conformance.checks.base import (
     AT_FINISH,
     ON_KIND,
@@ -27,6 +29,7 @@ from conformance.checks.base import (
     UnitState,
 )
 from conformance.checks.examined import dispatch_roots, examined_group, shape_fields
+from conformance.checks.tst_routing import TstRouting
 from conformance.message import Message
 from conformance.profile import Profile
 from conformance.results import RunReport, UnitReport, judge_rule, skip_reason
@@ -109,6 +112,8 @@ class _Entry:
 
 
 _IGNORED = _Entry(UnitState(UnitAddress(UNATTRIBUTED, "", "", "ignored")))
+_UNRESOLVED = _Entry(UnitState(UnitAddress(UNATTRIBUTED, "", "", "unresolved")))
+"""The entry of a tst topic until a message shows whose it is (``Monitor._tst_route``)."""
 _OVERFLOW = _Entry(UnitState(UnitAddress(UNATTRIBUTED, "", "", "overflow")))
 
 
@@ -121,14 +126,18 @@ class _Route:
     (plus those of its validation kind where the topic fixes it: ``sensor/position``)."""
 
     __slots__ = ("entry", "reinterpret", "checks", "kind", "topic_kind", "scalar_groups",
-                 "shape_fields", "shape_groups", "dispatch_roots", "last_dispatch", "command")
+                 "shape_fields", "shape_groups", "dispatch_roots", "last_dispatch", "address",
+                 "shared_tst", "command")
 
     def __init__(self, entry: _Entry, topic: str) -> None:
         parsed = parse_topic(topic)
         self.entry = entry
+        self.address = parsed.unit
         self.topic_kind = parsed.kind
         self.command = parsed.kind in _COMMAND_KINDS
         """A command topic: what is found in its messages is the commander's."""
+        self.shared_tst = False
+        """A tst topic: its messages may concern another unit (14.1, ``checks/tst_routing``)."""
         if parsed.kind is TopicKind.SENSOR:
             self.kind: str | None = sys.intern(f"sensor/{parsed.sensor}")  # as the validator's
         elif parsed.kind in (TopicKind.EXEC_COMMAND, TopicKind.TST_COMMAND):
@@ -157,6 +166,8 @@ class _Route:
             tuple(c.fn for c in narrower) if narrower else ())
 
 
+_TST_KINDS = (TopicKind.TST_COMMAND, TopicKind.TST_RESPONSE, TopicKind.TST_FEEDBACK)
+MAX_TST_ROUTES = 4096
 _IGNORED_ROUTE = _Route(_IGNORED, "")
 _OVERFLOW_ROUTE = _Route(_OVERFLOW, "")
 
@@ -183,6 +194,9 @@ class Monitor:
         self._commanders: dict[str, _Entry] = {}
         """Commander name -> its row: what is wrong in a command is the commander's fault."""
         self._by_topic: dict[str, _Route] = {}
+        self._tst_routing = TstRouting()
+        self._tst_routes: dict[tuple[str, UnitAddress], _Route] = {}
+        """(operator's tst topic, unit it concerns) -> the route of such messages."""
         # Whether the validator says itself which rules it examined (Validation.examined).
         self._validator_says_examined = "examined" in getattr(
             Validation, "__dataclass_fields__", {}) or hasattr(Validation, "examined")
@@ -200,6 +214,8 @@ class Monitor:
         route = self._by_topic.get(topic)
         if route is None:
             route = self._route_for_topic(topic)
+        if route.shared_tst:
+            route = self._tst_route(route, message)
         entry = route.entry
         if entry is _IGNORED:
             return []
@@ -335,9 +351,53 @@ class Monitor:
         return (tuple(c.fn for c in ON_MESSAGE.get(v.topic.kind, ()))
                 + tuple(c.fn for c in ON_KIND.get(v.kind, ())))
 
+    def _tst_route(self, route: _Route, message: Message) -> _Route:
+        """14.1: a message on an operator's tst topic (op0/tst/...) is the conversation of the
+        unit it concerns (``checks/tst_routing``); else the topic's own unit's. TST messages
+        are rare: decoding one twice costs nothing that matters."""
+        try:
+            m = orjson.loads(message.payload)
+        except (orjson.JSONDecodeError, TypeError, ValueError):
+            m = None
+        own = route.address
+        entry = self._entries.get(own) if own is not None else None
+        # An operator that runs or delegates trees itself answers for them: its own.
+        address = None if entry is not None and entry.state.claims("tst execution") else \
+            self._tst_routing.party(route.topic_kind, m, lambda name: self._follows(name, own))
+        if address is None or address == own:
+            if route.entry is _UNRESOLVED:
+                route.entry = self._entry_for_topic(message.topic)
+            return route
+        key = (message.topic, address)
+        found = self._tst_routes.get(key)
+        if found is None:
+            entry = self._entries.get(address) or self._new_entry(address, force=True)
+            assert entry is not None
+            found = _Route(entry, message.topic)
+            if len(self._tst_routes) < MAX_TST_ROUTES:
+                self._tst_routes[key] = found
+        return found
+
+    def _follows(self, name: str, near: UnitAddress | None) -> UnitAddress | None:
+        """The unit named ``name`` that this observation follows (under ``near``'s prefix
+        first), or None."""
+        if near is not None and near.name == name:
+            return None
+        units = self._only if self._only is not None else [a for a in self._entries if a]
+        named = [a for a in units if a.name == name]
+        named.sort(key=lambda a: near is None or a.prefix != near.prefix)
+        return named[0] if named else None
+
     def _route_for_topic(self, topic: str) -> _Route:
         """The route of a topic not seen before (cached: topic strings hash fast, unit
         addresses do not)."""
+        if parse_topic(topic).kind in _TST_KINDS:
+            # The topic's own unit gets a row only when a message is its own (_tst_route).
+            route = _Route(_UNRESOLVED, topic)
+            route.shared_tst = True
+            if len(self._by_topic) < MAX_TOPICS:
+                self._by_topic[topic] = route
+            return route
         entry = self._entry_for_topic(topic)
         if entry is _IGNORED:
             route = _IGNORED_ROUTE

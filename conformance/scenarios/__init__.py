@@ -1,9 +1,10 @@
 """Active scenarios: the stimuli the certification suite sends to the unit under test, and the
 expectations it checks (DESIGN 'Active scenarios').
 
-Each scenario drives the unit through one part of spec 12 and records a verdict for each of
+Each scenario drives the unit through one part of spec 12 (``tst``: spec 14) and records a verdict for each of
 its rules through ``Context.record``, the same way the passive checks do. ``SCENARIOS`` lists
-them in the order the suite runs them: reboot last, because it wipes the unit's history.
+them in the order the suite runs them: reboot last, because it wipes the unit's history; tst
+before robust, whose malformed commands may kill a faulty unit's command handling.
 """
 
 from __future__ import annotations
@@ -11,13 +12,15 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from conformance.scenarios import ping, query, reboot, resend, robust, signal, start
+from conformance.scenarios import ping, query, reboot, resend, robust, signal, start, tst
 from conformance.scenarios.commander import Commander, DryRun
 from conformance.scenarios.context import Context, Timing
 from conformance.scenarios.safety import Position, Safety
 from conformance.scenarios.traffic import Entry, Traffic
+from conformance.scenarios.tst_commander import TstCommander
 
 DIRECT_EXECUTION = "direct execution"
+TST_EXECUTION = "tst execution"
 
 
 @dataclass(frozen=True)
@@ -41,6 +44,8 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
     Scenario("query", query.RULES, query.run, doc="query-status over the history (12.1)"),
     Scenario("resend", resend.RULES, resend.run,
              doc="a resent command is answered again, executed once (12.1)"),
+    Scenario("tst", tst.RULES, tst.run, level=TST_EXECUTION,
+             doc="TST trees, signals at node, tree and unit level, refusals, a resend (14)"),
     Scenario("robust", robust.RULES, robust.run,
              doc="malformed and unknown commands do not stop the unit (12.1)"),
     Scenario("reboot", reboot.RULES, reboot.run, level=None,
@@ -50,4 +55,4 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
 RULE_SCENARIO: dict[str, str] = {rule: s.name for s in SCENARIOS.values() for rule in s.rules}
 
 __all__ = ["SCENARIOS", "RULE_SCENARIO", "Scenario", "Context", "Timing", "Commander", "DryRun",
-           "Safety", "Position", "Traffic", "Entry"]
+           "Safety", "Position", "Traffic", "Entry", "TstCommander"]

@@ -17,6 +17,7 @@ from conformance.profile import Profile
 from conformance.scenarios.commander import FINAL_STATUSES, Commander
 from conformance.scenarios.safety import Position, Safety
 from conformance.scenarios.traffic import Entry, Traffic
+from conformance.scenarios.tst_commander import TstCommander
 from conformance.topics import UnitAddress
 from conformance.violation import Verdict, Violation
 
@@ -74,6 +75,11 @@ class Context:
     reboot_how: str = ""
     notes: dict[str, Any] = field(default_factory=dict)
     """What scenarios leave for later ones (e.g. tasks that ended, for query and reboot)."""
+    tst: TstCommander | None = None
+    """Sends TST commands (14) to the tst/command topic the run was told; None: no TST."""
+    settle: Callable[[], None] = lambda: None
+    """Waits until the Monitor has judged what the conversations left open (their deadlines
+    passed on a heartbeat of the unit): conversation verdicts are the Monitor's."""
 
     # --- what the unit says about itself -------------------------------------------------
     def heartbeat(self) -> dict[str, Any]:

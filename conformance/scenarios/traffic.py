@@ -43,9 +43,13 @@ Predicate = Callable[[Entry], bool]
 class Traffic:
     """The unit's messages in arrival order, with the latest of each subtopic at hand."""
 
-    def __init__(self, unit: UnitAddress, capacity: int = 20_000) -> None:
+    def __init__(self, unit: UnitAddress, capacity: int = 20_000, *,
+                 tst_operator: str | None = None) -> None:
         self.unit = unit
         self._base = unit.base + "/"
+        self._operator = f"{tst_operator}/tst/" if tst_operator else None
+        """An operator's topic base whose tst/response and tst/feedback carry this unit's TST
+        answers (14.1): kept under the same subtopics as the unit's own."""
         self._entries: deque[Entry] = deque(maxlen=capacity)
         self._latest: dict[str, Entry] = {}
         self._seq = 0
@@ -53,9 +57,12 @@ class Traffic:
 
     def add(self, message: Message) -> Entry | None:
         """Keep a message if it is the unit's; return its entry."""
-        if not message.topic.startswith(self._base):
+        if message.topic.startswith(self._base):
+            subtopic = message.topic[len(self._base):]
+        elif self._operator is not None and message.topic.startswith(self._operator):
+            subtopic = message.topic[len(self._operator) - 4:]  # tst/...
+        else:
             return None
-        subtopic = message.topic[len(self._base):]
         try:
             body = orjson.loads(message.payload)
         except (orjson.JSONDecodeError, TypeError, ValueError):

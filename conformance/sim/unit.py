@@ -38,6 +38,8 @@ from conformance.sim.tst import TstEngine, misdirected
 from conformance.sim.vehicle import LINKOPING, GeoPoint, Vehicle, bearing, destination
 from conformance.topics import UnitAddress
 
+TST_LEVEL_FAULTS = frozenset({"level-unbacked", "tst-info-incomplete", "tst-info-rate-drift"})
+"""Faults that declare 'tst execution' to bend what the unit says about it (HB-008, TEI-*)."""
 Emit = Callable[[str, bytes, bool], None]
 
 COMMANDS = ("ping", "start-task", "signal-task", "query-status")  # 12.1
@@ -107,9 +109,10 @@ class UnitCore:
         self.specs: dict[str, TaskSpec] = {t.name: t for t in tasks_for(address.agent_type)}
         self.base = self._base()
         self.command_topic = f"{self.base}/exec/command"
-        # The TST level (14), when declared (or a TST fault needs it): conformance.sim.tst.
+        # The TST level (14), when declared (or a fault declares it): conformance.sim.tst. A
+        # fault of tst_execution_info bends that message, not the running of trees.
         self.tst = TstEngine(self, tst_operator.base if tst_operator else None) if (
-            tst_execution or self.faults & TST_FAULTS) else None
+            tst_execution or self.faults & (TST_FAULTS | TST_LEVEL_FAULTS)) else None
         self.camera_sensor = self._camera_sensor()
         self.levels = self._levels()
         # Identity and memory of one life (12.1: history is lost with a reboot).
@@ -175,8 +178,7 @@ class UnitCore:
             return ["sensor"]  # it answers commands and sends direct_execution_info all the same
         levels = ["sensor", "direct_execution" if "level-underscore" in self.faults
                   else "direct execution"]
-        if self.faults & {"level-unbacked", "tst-info-incomplete", "tst-info-rate-drift"} \
-                or self.tst is not None:
+        if self.tst is not None:
             levels.append("tst execution")
         if "level-unknown" in self.faults:
             levels.append("telemetry")
@@ -347,7 +349,7 @@ class UnitCore:
                     else self.period, first),
             _Stream("sensors", self.period, first),
         ]
-        if self.faults & {"tst-info-incomplete", "tst-info-rate-drift"} or self.tst is not None:
+        if self.tst is not None and "level-unbacked" not in self.faults:
             self._streams.append(_Stream("tst_execution_info", slow if "tst-info-rate-drift"
                                          in self.faults else self.period, first))
         self._last_step = now

@@ -32,6 +32,7 @@ from conformance.scenarios import (
     Safety,
     Timing,
     Traffic,
+    TstCommander,
 )
 from conformance.scenarios.params import task_moves
 from conformance.suite.settings import Settings
@@ -62,7 +63,8 @@ class Certification:
         self.unit: UnitAddress = settings.unit
         self.profile = settings.profile
         self.timing = Timing(self.profile, settings.timing_scale)
-        self.traffic = Traffic(self.unit)
+        operator = settings.tst_operator
+        self.traffic = Traffic(self.unit, tst_operator=operator.base if operator else None)
         # The Monitor puts what is wrong in the suite's own commands (some broken on purpose:
         # the robustness scenario) on the commander's account, which a certification does not
         # report; it judges the unit's answers with the deadlines the scenarios wait for.
@@ -91,11 +93,16 @@ class Certification:
             self.unit, self.traffic, self._publish, dry_run=settings.dry_run, say=self._say,
             gaps=lambda: len(self.client.gaps) if self.client else 0,
             wait_connected=lambda t: self.client.wait_connected(t) if self.client else False)
+        self.tst = TstCommander(
+            self.unit, settings.tst_topic, self.traffic, self._publish, dry_run=settings.dry_run,
+            say=self._say,
+            wait_connected=lambda t: self.client.wait_connected(t) if self.client else False)
         self.safety = Safety(self.unit, self.profile, allow_motion=settings.allow_motion,
                              task_moves=task_moves)
         self.context = Context(self.unit, self.profile, self.traffic, self.commander,
                                self.safety, self.timing, settings.seed, self.record,
-                               reboot=self._reboot_method(), reboot_how=self._reboot_how())
+                               reboot=self._reboot_method(), reboot_how=self._reboot_how(),
+                               tst=self.tst, settle=self._settle)
 
     # --- connection and the alive check -------------------------------------------------------
     def start(self) -> None:
@@ -106,8 +113,9 @@ class Certification:
             from conformance.demo import Reference
 
             self.reference = Reference(self.unit, faults=self.settings.sim_faults,
-                                       rate=self.settings.sim_rate,
-                                       seed=self.settings.seed).start()
+                                       rate=self.settings.sim_rate, seed=self.settings.seed,
+                                       tst=self.settings.sim_tst,
+                                       tst_operator=self.settings.tst_operator).start()
             self.broker_url = BrokerURL.parse(self.reference.url)
         probe = _Probe(self.broker_url, self.unit)
         self.client = MqttClient(self.broker_url, on_message=self._on_message,
@@ -115,6 +123,8 @@ class Certification:
                                  on_connection_change=self._on_connection)
         self.client.connect(timeout=5.0 * self.settings.timing_scale)
         self.client.subscribe(self.unit.base + "/#")
+        if self.settings.tst_operator is not None:  # 14.1: commands and answers there
+            self.client.subscribe(self.settings.tst_operator.base + "/tst/#")
         probe.start()
         try:
             deadline = self.alive_timeout()
@@ -197,8 +207,9 @@ class Certification:
                                    f"the gap are not judged")
 
     def _may_publish(self, topic: str) -> bool:
-        # DESIGN 'Safety': only the command topic of the unit under test.
-        return topic == self.unit.topic("exec/command")
+        # DESIGN 'Safety': only the command topic of the unit under test, and the one TST
+        # command topic the run was told (14.1: the unit's own, or an operator's).
+        return topic == self.unit.topic("exec/command") or topic == self.settings.tst_topic
 
     def _publish(self, topic: str, payload: bytes) -> None:
         assert self.client is not None
@@ -312,7 +323,8 @@ class Certification:
             "allow_motion": str(s.allow_motion).lower(),
             "reboot": self._reboot_how() if self.context.reboot else "none",
             "agent_uuid": str(hb.get("agent-uuid")) if hb else "",
-            "commands_sent": str(self.commander.sent_count),
+            "commands_sent": str(self.commander.sent_count + self.tst.sent_count),
+            "tst_command_topic": s.tst_topic,
             "rerun": self.rerun_command(),
         }
 
@@ -323,6 +335,10 @@ class Certification:
         parts += [f"--sim-fault={f}" for f in s.sim_faults]
         if s.embedded and s.sim_rate != 1.0:
             parts += ["--sim-rate", f"{s.sim_rate:g}"]
+        if s.sim_tst:
+            parts.append("--sim-tst")
+        if s.tst_command_topic:
+            parts += ["--tst-command-topic", s.tst_command_topic]
         if self.profile.source.startswith("<built-in"):
             if self.profile.name != "default":
                 parts += ["--profile", self.profile.name]
@@ -351,9 +367,9 @@ class Certification:
             if not self._claims(scenario.level):
                 self._done[name] = False
                 return  # every rule of it: skip, not claimed (the Monitor's reason)
-            # Ping gates the other scenarios, except robustness, whose rule asks exactly
-            # whether the unit still pings.
-            if name not in ("ping", "robust"):
+            # Ping gates the other direct-execution scenarios, except robustness, whose rule
+            # asks exactly whether the unit still pings.
+            if name not in ("ping", "robust") and scenario.level == "direct execution":
                 self.run_scenario("ping")
                 if not self._answers_commands():
                     for rule in scenario.rules:
@@ -372,11 +388,24 @@ class Certification:
             self._done[name] = True
             if not self.settings.dry_run:
                 self.commander.abort_all(self.timing.response)
+                self.tst.abort_all(self.timing.response)
             self.write_reports()
 
+    def _settle(self) -> None:
+        """Wait until the Monitor has judged what the TST conversations left open: one
+        heartbeat of the unit after the latest deadline (none open: at once)."""
+        from conformance.checks.tst_conversation import open_until
+
+        with self._lock:
+            until = open_until(self.monitor.state(self.unit), self.monitor.ctx)
+        if until is None:
+            return
+        wait = until - time.time() + self.timing.periods(2, self.context.rate_of("heartbeat"))
+        self.traffic.wait_for(lambda e: e.time > until, max(0.0, wait), subtopic="heartbeat")
+
     def _claims(self, level: str) -> bool:
-        return level in self.context.levels() or (
-            level == "direct execution" and "direct_execution" in self.context.levels())
+        # ERR-008: a level written with an underscore is the same claim
+        return level in (lv.replace("_", " ") for lv in self.context.levels())
 
     def _answers_commands(self) -> bool:
         if self.settings.dry_run:
@@ -462,10 +491,12 @@ class Certification:
         try:
             if self.client is not None and self.client.is_connected and not self.settings.dry_run:
                 aborted = self.commander.abort_all(self.timing.response)
+                aborted += self.tst.abort_all(self.timing.response)
         except Exception as e:  # the reports must still be written
             self.events.append(f"aborting the suite's tasks failed: {e}")
         if aborted:
-            self.events.append(f"aborted {len(aborted)} task(s) the suite had started: "
+            self.events.append(f"aborted {len(aborted)} task(s) or TST tree(s) the suite had "
+                               f"started: "
                                f"{', '.join(aborted)}")
         try:
             with self._lock:
@@ -498,6 +529,8 @@ class Certification:
                           if s.allow_motion else "no task that moves the unit (no --allow-motion)")
         if s.dry_run:
             safety.append("DRY RUN: nothing is published")
+        if "tst execution" in self.context.levels():
+            safety.append(f"TST commands to {s.tst_topic}")
         return [
             f"waraps-conformance {__version__}: certifying {self.unit}",
             f"  broker:   {broker}",

@@ -33,6 +33,7 @@ INI = {
     "waraps_cert_file": "waraps_cert_file",
     "waraps_key_file": "waraps_key_file",
     "waraps_tls_insecure": "waraps_tls_insecure",
+    "waraps_tst_command_topic": "waraps_tst_command_topic",
 }
 TRUE = ("1", "true", "yes", "on")
 FALSE = ("", "0", "false", "no", "off")
@@ -54,7 +55,24 @@ class Settings:
     sim_faults: tuple[str, ...] = ()
     """--broker embedded runs the bundled reference unit; these are its fault switches."""
     sim_rate: float = 1.0
+    sim_tst: bool = False
+    """--broker embedded: the reference unit declares 'tst execution' and runs trees (14)."""
+    tst_command_topic: str | None = None
+    """Where start-tst and the TST signals go (14.1): an operator's tst/command such as
+    ``.../op0/tst/command``; None: the unit's own."""
     extra: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def tst_topic(self) -> str:
+        """The one tst/command topic the suite publishes TST commands to."""
+        return self.tst_command_topic or self.unit.topic("tst/command")
+
+    @property
+    def tst_operator(self) -> UnitAddress | None:
+        """The operator whose tst/command is used (14.1), or None (the unit's own)."""
+        if self.tst_command_topic is None:
+            return None
+        return UnitAddress.parse(self.tst_command_topic.rsplit("/", 2)[0])
 
     @property
     def embedded(self) -> bool:
@@ -138,11 +156,35 @@ def read(config: pytest.Config) -> Settings:
     sim_rate = config.getoption("waraps_sim_rate", None) or 1.0
     if not sim_rate > 0:
         raise pytest.UsageError(f"--sim-rate {sim_rate!r}: a positive rate in Hz is needed")
+    sim_tst = bool(config.getoption("waraps_sim_tst", False))
+    if sim_tst and not broker.scheme == "embedded":
+        raise pytest.UsageError("--sim-tst switches on the TST level of the bundled reference "
+                                "unit, which runs only with --broker embedded")
+    tst_topic = _tst_command_topic(_value(config, "waraps_tst_command_topic"), unit)
     return Settings(unit=unit, broker=broker, profile=profile, timing_scale=scale,
                     reboot_cmd=str(reboot) if reboot else None,
                     allow_motion=_flag(config, "waraps_allow_motion"),
                     dry_run=_flag(config, "waraps_dry_run"), reports_dir=reports, seed=seed,
-                    sim_faults=faults, sim_rate=float(sim_rate))
+                    sim_faults=faults, sim_rate=float(sim_rate), sim_tst=sim_tst,
+                    tst_command_topic=tst_topic)
+
+
+def _tst_command_topic(value: object, unit: UnitAddress) -> str | None:
+    """--tst-command-topic: 'own' (the unit's tst/command), an operator's address
+    (``waraps/unit/ground/real/op0``) or its tst/command topic; None for the unit's own."""
+    text = str(value or "").strip().rstrip("/")
+    if text in ("", "own") or text == unit.topic("tst/command"):
+        return None
+    base = text[:-len("/tst/command")] if text.endswith("/tst/command") else text
+    try:
+        operator = UnitAddress.parse(base)
+    except TopicError as e:
+        raise pytest.UsageError(
+            f"--tst-command-topic {text!r}: {e}; give 'own' (the unit's tst/command) or an "
+            f"operator's address, e.g. {unit.prefix}/unit/ground/real/op0 (14.1)") from None
+    if operator == unit:
+        return None
+    return operator.topic("tst/command")
 
 
 def _broker(config: pytest.Config) -> BrokerURL:

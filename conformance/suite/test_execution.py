@@ -1,4 +1,4 @@
-"""Active scenarios (spec 12): one test per rule, each test id carrying its rule id.
+"""Active scenarios (spec 12, and 14's TST): one test per rule, each test id carrying its rule id.
 
 A scenario runs once, the first time one of its rules is asked for; each of its tests then
 reports the verdict of its own rule (so ``-k EXEC-PING-002`` runs ping and judges only that).
@@ -64,6 +64,13 @@ def test_query_status(certification: Certification, rule: str,
 def test_resend(certification: Certification, rule: str,
                 request: pytest.FixtureRequest) -> None:
     """2, 12.1: a command resent with the same com-uuid is answered again, run once."""
+    judge(certification, rule, request)
+
+
+@pytest.mark.parametrize("rule", rules_of("tst"))
+def test_tst(certification: Certification, rule: str, request: pytest.FixtureRequest) -> None:
+    """14: trees run, report every node to a final status, take signals at node, tree and
+    unit level; trees the unit cannot run are refused; a resent start-tst starts once."""
     judge(certification, rule, request)
 
 

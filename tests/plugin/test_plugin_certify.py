@@ -17,10 +17,13 @@ pytestmark = pytest.mark.slow
 def test_reference_unit_passes_on_the_embedded_broker(pytester: pytest.Pytester) -> None:
     junit = pytester.path / "junit.xml"
     run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "3",
-                  f"--profile={FAST}", "--seed", "7", f"--junitxml={junit}")
+                  "--sim-tst", f"--profile={FAST}", "--seed", "7", f"--junitxml={junit}")
     assert run.result.ret == 0, run.text
     assert not run.failed
-    # Every rule has a test, and every active rule was really examined (not skipped).
+    # Every rule has a test, and every active rule was really examined (not skipped); on
+    # both levels, TST's conversation rules too.
+    tst = {r for r in CATALOGUE if r.startswith("TST-") and CATALOGUE[r].side.value == "unit"}
+    assert {r for r in tst if run.outcomes[r] != "passed"} == set(), run.text
     assert set(run.outcomes) == set(CATALOGUE)
     # (of the levels it declares: the bundled reference unit runs no TSTs by default)
     active = {r for r, rule in CATALOGUE.items() if rule.mode is Mode.ACTIVE

@@ -172,6 +172,15 @@ LINT_EXPECTED: dict[str, set[str]] = {
     "undeclared-direct-execution": {"HB-013"},
     "pong-late": {"EXEC-PING-001", "EXEC-010"},
     "response-twice": {"EXEC-009"},
+    # TST conversations (spec 14), judged from the TST workout's traffic alone. TST-005
+    # (tst-accept-foreign-execunit) is not for lint: only the commander knows which trees the
+    # unit can run.
+    **{name: set(FAULTS[name].rules) for name in (
+        "tst-response-reuses-com-uuid", "tst-feedback-finished", "tst-root-uuid-wrong",
+        "tst-common-params-only", "tst-resend-starts-twice", "tst-resend-unanswered",
+        "tst-root-flag-everywhere", "tst-no-final-feedback", "tst-seq-ignores-failure",
+        "tst-signal-unknown-node-ok", "tst-abort-ignored", "tst-info-stale-nodes",
+        "tst-start-answered-running", "tst-info-type-upper")},
 }
 
 

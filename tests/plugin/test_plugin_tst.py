@@ -1,0 +1,105 @@
+"""The TST level of a certification (14): the reference unit passes on both levels, TST commands
+go to the one tst/command topic chosen (the unit's own or an operator's, 14.1) and nowhere else,
+--dry-run prints trees and publishes nothing, and every tree started is aborted at teardown."""
+
+from __future__ import annotations
+
+import orjson
+import pytest
+from certify_helpers import FAST, UNIT, Rebooter, certify
+from test_plugin_safety import Wire
+
+from conformance.rules import CATALOGUE, Side
+from conformance.scenarios.traffic import Traffic
+from conformance.scenarios.tst_commander import TstCommander, node
+from conformance.sim import SimUnit
+from conformance.topics import UnitAddress
+
+TST_RULES = sorted(r for r, rule in CATALOGUE.items()
+                   if r.startswith("TST-") and rule.side is Side.UNIT)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("where", ["own", "operator"])
+def test_tst_commands_go_to_the_chosen_topic_only_and_the_unit_passes(
+        pytester: pytest.Pytester, mosquitto: str, prefix: str, where: str) -> None:
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    op0 = f"{prefix}/unit/ground/real/op0"
+    topic = f"{unit}/tst/command" if where == "own" else f"{op0}/tst/command"
+    args = ["--tst-command-topic", op0] if where == "operator" else []
+    with SimUnit(unit, mosquitto, rate=3.0, seed=5, tst_execution=True,
+                 tst_operator=op0 if where == "operator" else None) as sim, \
+            Wire(mosquitto, prefix) as wire:
+        run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={FAST}",
+                      "--seed", "5", *args, plugins=(Rebooter(sim),))
+        info = [m for m in wire.messages if m.topic == f"{unit}/tst_execution_info"][-1]
+    assert run.result.ret == 0, run.text
+    assert {r: run.outcomes[r] for r in TST_RULES} == dict.fromkeys(TST_RULES, "passed")
+    assert f"TST commands to {topic}" in run.text
+    # DESIGN 'Safety': the unit's exec/command and the one TST topic chosen, nothing else.
+    sent = {m.topic for m, _ in wire.commands()}
+    assert sent == {f"{unit}/exec/command", topic}
+    starts = [b for m, b in wire.commands() if b.get("command") == "start-tst"]
+    assert starts and all(b["tst"]["common_params"]["execunit"] == "/dji0" for b in starts
+                          if b["tst"]["name"] != "waraps-conformance-no-such-task")
+    # nothing the suite started still runs
+    assert orjson.loads(info.payload)["nodes-executing"] == []
+
+
+def test_dry_run_prints_the_trees_and_publishes_nothing(pytester: pytest.Pytester) -> None:
+    run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "3",
+                  "--sim-tst", f"--profile={FAST}", "--dry-run", "-k", "test_tst")
+    assert run.result.ret == 0, run.text
+    assert f"dry run: would publish to {UNIT}/tst/command: " in run.text
+    assert '"command":"start-tst"' in run.text
+    assert set(run.outcomes.values()) == {"skipped"}
+    assert run.unit_rules()["TST-004"]["verdict"] == "could-not-test"
+    assert run.report["meta"]["commands_sent"] == "0"
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--broker", "mqtt://127.0.0.1:1883", "--sim-tst"], "runs only with --broker embedded"),
+    (["--broker", "embedded", "--tst-command-topic", "op0"], "an operator's address"),
+])
+def test_bad_tst_options_are_usage_errors(pytester: pytest.Pytester, args: list[str],
+                                          message: str) -> None:
+    result = pytester.runpytest_inprocess("-p", "no:cacheprovider", "--unit", UNIT, *args)
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    assert message in "\n".join(result.errlines + result.outlines)
+
+
+def test_teardown_aborts_every_tree_that_has_not_ended() -> None:
+    """abort_all: signal-tst-tree $abort to the root of each tree started and not ended,
+    under every name the unit gave it; refused and ended trees are left alone."""
+    from conformance.client import Message
+
+    unit = UnitAddress.parse(UNIT)
+    traffic = Traffic(unit)
+    published: list[dict] = []
+    t = [1000.0]
+
+    def reply(sub: str, body: dict) -> None:
+        t[0] += 0.01
+        traffic.add(Message(t[0], unit.topic(sub), orjson.dumps(body), 0, False))
+
+    def publish(topic: str, payload: bytes) -> None:
+        body = orjson.loads(payload)
+        published.append(body)
+        com = body["com-uuid"]
+        if body["command"] == "start-tst":
+            root = body["tst"]["common_params"]["node-uuid"]
+            answer = "failed" if root == "refused" else "started"
+            reply("tst/response", {"response": answer, "response-to": com, "root-uuid": root,
+                                   "com-uuid": "x", "fail-reason": ""})
+            if root == "ended":
+                reply("tst/feedback", {"node-uuid": root, "status": "succeeded"})
+        else:
+            reply("tst/response", {"response": "ok", "response-to": com, "com-uuid": "y"})
+
+    tc = TstCommander(unit, unit.topic("tst/command"), traffic, publish)
+    for root in ("runs", "refused", "ended"):
+        tc.start(node("look-at-bearing", {}, root, execunit="/dji0"), 1.0)
+    assert tc.abort_all(1.0) == ["runs"]
+    aborts = [b for b in published if b["command"] == "signal-tst-tree"]
+    assert [(b["node-uuid"], b["signal"]) for b in aborts] == [("runs", "$abort")]
+    assert tc.abort_all(1.0) == [] and tc.open_trees == {}
