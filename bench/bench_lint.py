@@ -137,8 +137,8 @@ def task_conversation(s: int, i: int, uid: str) -> list[tuple[str, object]]:
     phase = (s + i * 13) % TASK_EVERY
     if phase not in (0, 20):
         return []
-    began = s - phase
-    task = str(uuid.UUID(int=(began << 20) + i + 3, version=4))
+    began = s - phase  # negative for a conversation that began before the recording
+    task = str(uuid.UUID(int=((began + TASK_EVERY) << 20) + i + 3, version=4))
 
     def com(k: int) -> str:
         return str(uuid.UUID(int=(s << 20) + (i << 3) + k + 11, version=4))
