@@ -33,7 +33,7 @@ import sys
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from functools import cache, cached_property, lru_cache
-from typing import Any
+from typing import Any, NamedTuple
 
 import jsonschema_rs
 import orjson
@@ -57,9 +57,9 @@ MAX_PAYLOAD_BYTES = 1 << 20  # MSG-004
 MAX_DEPTH = 64  # MSG-004
 
 
-@dataclass(frozen=True)
-class Validation:
-    """The result of validating one message.
+class Validation(NamedTuple):
+    """The result of validating one message (an immutable record: made for every message,
+    a NamedTuple costs 0.2 us less to make than a frozen dataclass).
 
     ``kind`` names the message: the topic kind (``heartbeat``, ``sensor_info``, ...), refined
     by content where the topic carries several messages: ``sensor/position``,
@@ -168,8 +168,13 @@ _SHALLOW_BYTES = 2 * MAX_DEPTH + 1
 MAX_TOPIC_PLANS = 65536
 """Topics whose plan is kept; further ones are worked out for each message (still correct)."""
 
-Problem = tuple[str, str, str, str]
-"""A payload that cannot be read: (rule, expected, observed, detail)."""
+class Unreadable(Exception):
+    """A payload that cannot be read as JSON: the rule it breaks, with what was expected,
+    what was observed and a detail for a person."""
+
+    def __init__(self, rule: str, expected: str, observed: str, detail: str = "") -> None:
+        super().__init__(rule, expected, observed, detail)
+        self.rule, self.expected, self.observed, self.detail = rule, expected, observed, detail
 
 
 def _depth_exceeds(payload: bytes, limit: int) -> bool:
@@ -188,27 +193,28 @@ def _depth_exceeds(payload: bytes, limit: int) -> bool:
     return False
 
 
-def _decode(raw: bytes) -> tuple[Any, Problem | None]:
-    """The JSON value of a payload, or the first rule that keeps it from being read: MSG-004
-    (size), MSG-001 (UTF-8), MSG-004 (depth), MSG-002 (JSON). The checks that cannot fail on
-    a short ASCII payload are not run on one (the usual case)."""
+def _decode(raw: bytes) -> Any:
+    """The JSON value of a payload; ``Unreadable`` names the first rule that keeps it from
+    being read: MSG-004 (size), MSG-001 (UTF-8), MSG-004 (depth), MSG-002 (JSON). The checks
+    that cannot fail on a short ASCII payload are not run on one (the usual case)."""
     if len(raw) > MAX_PAYLOAD_BYTES:
-        return None, ("MSG-004", f"at most {MAX_PAYLOAD_BYTES} bytes", f"{len(raw)} bytes", "")
+        raise Unreadable("MSG-004", f"at most {MAX_PAYLOAD_BYTES} bytes", f"{len(raw)} bytes")
     if not raw.isascii():
         try:
             raw.decode("utf-8")
         except UnicodeDecodeError as e:
-            return None, ("MSG-001", "UTF-8 text",
-                          f"byte 0x{raw[e.start]:02x} at offset {e.start}",
-                          "JSON messages are UTF-8 text; binary payloads belong elsewhere")
+            raise Unreadable("MSG-001", "UTF-8 text",
+                             f"byte 0x{raw[e.start]:02x} at offset {e.start}",
+                             "JSON messages are UTF-8 text; binary payloads belong "
+                             "elsewhere") from None
     if len(raw) > _SHALLOW_BYTES and _depth_exceeds(raw, MAX_DEPTH):
-        return None, ("MSG-004", f"nesting depth at most {MAX_DEPTH}", "deeper", "")
+        raise Unreadable("MSG-004", f"nesting depth at most {MAX_DEPTH}", "deeper")
     try:
-        return _loads(raw), None
+        return _loads(raw)
     except _JSONDecodeError as e:
-        return None, ("MSG-002", "valid JSON (RFC 8259)", str(e),
-                      "NaN/Infinity, trailing commas, single quotes and unquoted strings are "
-                      "not JSON (see ERR-002)")
+        raise Unreadable("MSG-002", "valid JSON (RFC 8259)", str(e),
+                         "NaN/Infinity, trailing commas, single quotes and unquoted strings "
+                         "are not JSON (see ERR-002)") from None
 
 
 class Validator:
@@ -232,12 +238,12 @@ class Validator:
         plan = self._plans.get(topic) or self._plan(topic)
         parsed = plan.parsed
         raw = payload.encode("utf-8", "surrogatepass") if isinstance(payload, str) else payload
-        message, problem = _decode(raw)
-        if problem is not None:
-            rule, expected, observed, detail = problem
+        try:
+            message = _decode(raw)
+        except Unreadable as e:
             return Validation(parsed, parsed.kind.value, None, plan.naming + (Violation.of(
-                rule, expected=expected, observed=observed, topic=topic, time=time,
-                payload=raw, detail=detail, unit=plan.unit),))
+                e.rule, expected=e.expected, observed=e.observed, topic=topic, time=time,
+                payload=raw, detail=e.detail, unit=plan.unit),))
         kind = plan.kind
         if kind is None:  # a command: its kind and schema follow its 'command'
             kind = self._kind(parsed, message)
