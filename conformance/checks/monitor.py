@@ -44,6 +44,8 @@ MAX_TOPICS = 65536
 """Topics whose unit is cached; further ones are looked up each time (still correct)."""
 MAX_SHAPES = 64
 """Message shapes whose examined rules are kept per topic (more are asked for each message)."""
+MAX_SHARED_SHAPES = 4096
+"""Message shapes whose examined rules are kept for every topic of their kind."""
 MAX_SHAPE_KEYS = 64
 """Top-level keys of a message beyond which its shape is not worked out (asked each time)."""
 UNATTRIBUTED = "(unattributed)"
@@ -141,11 +143,12 @@ class _Route:
         self.content_fields = content_fields
         """Fields whose types are part of a shape (``Validator.content_fields``)."""
         self.shapes: dict[tuple[Any, ...], Examined] = {}
-        """Shape -> examined set, for shapes no value decides."""
+        """Shape (and, where values decide, their values when scalars) -> examined set."""
         self.decided_by: tuple[str, ...] = ()
         """Top-level fields whose values decided a branch on some message of this topic (the
-        union of ``Examined.decided_by``): with any, only the last message's shape, values
-        there and examined set are kept, as (shape, values, examined)."""
+        union of ``Examined.decided_by``): their values are part of the key; the last
+        message's (shape, values, examined) is kept too, for values that are lists or
+        objects."""
         self.last_decided: tuple[Any, Any, Examined] | None = None
 
     def checks_for(self, kind: str | None) -> tuple[Any, ...]:
@@ -182,6 +185,8 @@ class Monitor:
         self._commanders: dict[str, _Entry] = {}
         """Commander name -> its row: what is wrong in a command is the commander's fault."""
         self._by_topic: dict[str, _Route] = {}
+        self._shared_shapes: dict[tuple[Any, ...], Examined] = {}
+        """Examined sets by topic kind and shape, for every topic (``_examined``)."""
         self._unexamined = 0
         self._last_time: float | None = None
         self._finished: float | None = None
@@ -271,18 +276,35 @@ class Monitor:
             values = tuple(map(m.get, decided_by))
             last = route.last_decided
             if last is not None and last[0] == key and last[1] == values:
-                return last[2]
+                return last[2]  # a steady stream (lists and objects compared, not hashed)
+            if _scalars(values):  # values that alternate (response, command): a dict
+                found = route.shapes.get((key, values))
+                if found is not None:
+                    route.last_decided = (key, values, found)
+                    return found
         else:
             found = route.shapes.get(key)
             if found is not None:
                 return found
-        examined = self.validator.examined(v)
+        # Units of one fleet send the same shapes: another topic's answer serves (its key
+        # says all that decides, with the topic kind and whether it names a unit).
+        shared_key = (route.topic_kind, v.topic.unit is None, decided_by, key,
+                      tuple(map(m.get, decided_by)) if decided_by else None)
+        try:
+            examined = self._shared_shapes[shared_key]
+        except (KeyError, TypeError):  # not seen, or a list or object among the values
+            examined = self.validator.examined(v)
+            if len(self._shared_shapes) < MAX_SHARED_SHAPES and _scalars(shared_key[4] or ()):
+                self._shared_shapes[shared_key] = examined
         if not set(examined.decided_by) <= set(decided_by):
             decided_by = route.decided_by = tuple(sorted({*decided_by, *examined.decided_by}))
             route.shapes.clear()
         if decided_by:
             if m_type is dict:
-                route.last_decided = (key, tuple(map(m.get, decided_by)), examined)
+                values = tuple(map(m.get, decided_by))
+                route.last_decided = (key, values, examined)
+                if _scalars(values) and len(route.shapes) < MAX_SHAPES:
+                    route.shapes[(key, values)] = examined
         elif len(route.shapes) < MAX_SHAPES:
             route.shapes[key] = examined
         return examined
@@ -583,6 +605,14 @@ class Monitor:
             examined={k: examined[k] for k in sorted(examined)}, violation_counts=counts,
             violation_times=times,
             facts=facts)
+
+
+_SCALAR_TYPES = (str, int, float, bool, type(None))
+
+
+def _scalars(values: tuple[Any, ...]) -> bool:
+    """Whether every value is a JSON scalar (hashable, and cheap to hash when short)."""
+    return all(type(x) in _SCALAR_TYPES for x in values)
 
 
 def _during(t: float | None, windows: list[tuple[float, float]]) -> bool:
