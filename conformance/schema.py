@@ -223,6 +223,123 @@ def rule_annotations(path: str, evaluation_path: tuple[str | int, ...]) -> Annot
     return Annotations(rule)
 
 
+# --- which rules a message reached (jsonschema-rs's evaluation) ----------------------------------
+
+_CONDITIONS = frozenset({"if", "not", "contains"})
+"""Keywords whose subschema is a test, not a requirement: nothing under them is examined."""
+_BRANCHES = frozenset({"anyOf", "oneOf"})
+"""Keywords whose branches count only where they hold (the alternative that applied)."""
+_NAMING = frozenset({"properties", "patternProperties", "dependentSchemas", "prefixItems",
+                     "allOf", "anyOf", "oneOf", "$defs", "definitions"})
+"""Keywords followed, in an evaluation path, by a name or index rather than a keyword."""
+_TO_CHILDREN = frozenset({"items", "additionalProperties", "unevaluatedItems",
+                          "unevaluatedProperties", "propertyNames"})
+"""Keywords applying one schema to each child: their own unit, at the parent's location, is
+the keyword (reached on an empty array too), not the schema applied to a child."""
+_VALUE_TESTS = frozenset({"const", "enum", "pattern", "format", "minimum", "maximum",
+                          "exclusiveMinimum", "exclusiveMaximum", "multipleOf", "minLength",
+                          "maxLength", "minItems", "maxItems", "uniqueItems"})
+"""Keywords that read a value beyond its type and keys (a test at the message's own level
+makes the message's value decide)."""
+
+
+@dataclass(frozen=True)
+class Reach:
+    """What evaluating one message against a schema reached.
+
+    ``rules``: the ``x-rule`` of every schema node applied to the message as a requirement
+    (JSON Schema's annotation semantics: ``then``/``else`` where they applied, every ``allOf``
+    part, the ``anyOf``/``oneOf`` branches that held; not the insides of ``if``, ``not`` and
+    ``contains``, which are tests). A node that failed counts too: its rule was examined and
+    the violation fails it. ``decided_by``: the top-level fields of the message whose values
+    chose among branches (``""``: the message's own value), so that a message of the same shape
+    and the same values there reaches the same rules.
+    """
+
+    rules: frozenset[str]
+    decided_by: frozenset[str]
+
+
+def _tokens(pointer: str) -> list[str]:
+    return [t.replace("~1", "/").replace("~0", "~") for t in pointer.split("/")[1:]]
+
+
+@lru_cache(maxsize=16384)
+def _rule_at(location: str) -> str | None:
+    """The ``x-rule`` of the schema node at an absolute schema location (URI#pointer)."""
+    uri, fragment = urldefrag(location)
+    try:
+        node: Any = _by_uri(uri)
+        for part in _tokens(fragment):
+            node = node[int(part)] if isinstance(node, list) else node[part]
+    except (SchemaError, KeyError, IndexError, ValueError, TypeError):
+        return None
+    rule = node.get("x-rule") if isinstance(node, dict) else None
+    return rule if isinstance(rule, str) else None
+
+
+def _held(valid: dict[tuple[str, str], bool], branch: str, at: str) -> bool:
+    """Whether the branch at evaluation path ``branch`` held where it was applied: at the
+    longest prefix of instance location ``at`` it was evaluated at."""
+    while True:
+        found = valid.get((branch, at))
+        if found is not None:
+            return found
+        if not at:
+            return False
+        at = at.rsplit("/", 1)[0]
+
+
+def reach(path: str, message: Any) -> Reach:
+    """The rules of schema file ``path`` that ``message`` reached (``Reach``), read off
+    jsonschema-rs's evaluation of it (its list output: every evaluated node, with its
+    evaluation path, schema location, instance location and validity).
+
+    It costs 10-100 times ``is_valid`` (bench/bench_validate.py): call it once per message
+    shape, not per message (the Monitor caches it by shape).
+    """
+    units = compiled(path).evaluate(message).list()["details"]
+    valid = {(u["evaluationPath"], u["instanceLocation"]): u["valid"] for u in units}
+    rules: set[str] = set()
+    decided: set[str] = set()
+    for unit in units:
+        counts, chosen = True, False
+        path_of_unit = unit["evaluationPath"]
+        token = path_of_unit.rsplit("/", 1)[-1]
+        at = unit["instanceLocation"]
+        if token in _TO_CHILDREN and (path_of_unit[: -len(token) - 1], at) in valid:
+            continue  # the keyword itself (at its parent's location), not a child's schema
+        prefix = ""
+        naming = False
+        branch = False
+        for token in _tokens(path_of_unit):
+            prefix += "/" + token.replace("~", "~0").replace("/", "~1")
+            if naming:  # a property name or an index
+                naming = False
+                if branch:
+                    branch = False
+                    chosen = True
+                    if not _held(valid, prefix, at):
+                        counts = False
+                continue
+            if token in _CONDITIONS:
+                counts = False
+                chosen = chosen or token == "if"
+            naming = token in _NAMING
+            branch = token in _BRANCHES
+        if chosen:
+            location = _tokens(unit["instanceLocation"])
+            if location:
+                decided.add(location[0])
+            elif token in _VALUE_TESTS:  # keys and types are the shape; a value is not
+                decided.add("")
+        if counts:
+            rule = _rule_at(unit["schemaLocation"])
+            if rule is not None:
+                rules.add(rule)
+    return Reach(frozenset(rules), frozenset(decided))
+
+
 # --- task specifications ---------------------------------------------------------------------
 
 _TASK_KEYS = {"name", "section", "group", "description", "spec-tags", "tags", "tags-why",

@@ -281,14 +281,16 @@ def start_tst_schema(specs: list[TaskSpec]) -> dict[str, Any]:
                 "properties": {
                     "name": {
                         "type": "string",
-                        "if": {"const": "look-at-angle"},
-                        "then": {
+                        # A prohibition is a node of its own, applied to every name, so that
+                        # its rule is examined (and passes) on every other name too.
+                        "allOf": [{
                             "x-rule": "ERR-005",
                             "x-expected": "a task of section 9 (look-at-bearing is the closest)",
                             "x-detail": "11.1.1's look-at-angle with pan parameters is not a "
                                         "task of section 9; its params are not checked",
-                            "not": {},
-                        },
+                            "not": {"const": "look-at-angle"},
+                        }],
+                        "if": {"const": "look-at-angle"},
                         "else": {
                             "x-rule": "TASK-002",
                             "x-expected": "seq, conc or a task of section 9: "

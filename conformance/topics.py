@@ -150,6 +150,23 @@ def parse_topic(topic: str) -> ParsedTopic:
     return ParsedTopic(topic, TopicKind.UNKNOWN, unit, subtopic=sub)
 
 
+GENERAL_NAMING_RULES = ("TOPIC-001", "TOPIC-002", "TOPIC-008")
+"""The naming rules ``naming_violations`` examines on every topic."""
+UNIT_NAMING_RULES = GENERAL_NAMING_RULES + ("TOPIC-003", "TOPIC-004", "TOPIC-005", "TOPIC-006",
+                                            "TOPIC-007")
+"""... and on every topic of a unit (ERR-001 too on its sensor_info topic)."""
+
+
+def naming_rules(parsed: ParsedTopic) -> tuple[str, ...]:
+    """The rules ``naming_violations`` examined on this topic (each passes where it found
+    nothing)."""
+    if parsed.unit is None:
+        return GENERAL_NAMING_RULES
+    if parsed.kind is TopicKind.SENSOR_INFO:
+        return UNIT_NAMING_RULES + ("ERR-001",)
+    return UNIT_NAMING_RULES
+
+
 def naming_violations(topic: str) -> list[Violation]:
     """Every section-3 naming rule the topic breaks (TOPIC-*, ERR-001).
 

@@ -72,8 +72,7 @@ def validate_tst(validator: Validator, payload: bytes) -> Validation:
     moved = tuple(dataclasses.replace(v, path="$" + v.path[len("$.tst"):],
                                       expected=v.expected.replace("$.tst", "$"))
                   if v.path.startswith("$.tst") else v for v in validation.violations)
-    return dataclasses.replace(validation, kind="tst (a tree)", message=message,
-                               violations=moved)
+    return validation._replace(kind="tst (a tree)", message=message, violations=moved)
 
 
 def _verdict(rule_id: str, profile: profile_module.Profile) -> Verdict:

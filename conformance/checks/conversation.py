@@ -34,8 +34,10 @@ from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
 
-COMMANDS_KEPT = 4096
-TASKS_KEPT = 4096
+COMMANDS_KEPT = 1024
+"""Commands remembered per unit (resends, late answers, EXEC-006): at one a minute, 17 hours;
+a few hundred bytes each, so a fleet of 200 units stays under about 100 MiB however long."""
+TASKS_KEPT = 1024
 PENDING_KEPT = 256
 """Commands awaiting an answer per unit; beyond it the oldest is dropped (and counted)."""
 UNANSWERED_KEPT = 64

@@ -4,9 +4,11 @@ The same object serves the linter (``kind="lint"``) and the certification suite
 (``kind="certification"``), which also records its active scenarios into it (``record``).
 
 ``feed`` runs on every message of a fleet (bench/bench_lint.py), so what depends on the topic
-alone is worked out once per topic (a ``_Route``: the unit's entry, the checks of its kind,
-caches of the rules the validator examined by message shape), and the rules examined are
-counted per shape and expanded into per-rule counts only when a report is made.
+alone is worked out once per topic (a ``_Route``: the unit's entry, the checks of its kind).
+Which rules the validator examined on a message (``Validator.examined``) costs an evaluation
+of its schema, 10-100 times validating it: ``feed`` asks once per message shape and keeps the
+answer on the route (``_examined``), and counts messages per examined set, expanded into
+per-rule counts only when a report is made.
 """
 
 from __future__ import annotations
@@ -28,14 +30,13 @@ from conformance.checks.base import (
     CheckContext,
     UnitState,
 )
-from conformance.checks.examined import dispatch_roots, examined_group, shape_fields
 from conformance.checks.tst_routing import TstRouting
 from conformance.message import Message
 from conformance.profile import Profile
 from conformance.results import RunReport, UnitReport, judge_rule, skip_reason
 from conformance.rules import CATALOGUE, Mode, Side
 from conformance.topics import TopicKind, UnitAddress, parse_topic
-from conformance.validator import Validation, Validator
+from conformance.validator import Examined, Validation, Validator
 from conformance.violation import Verdict, Violation
 
 MAX_EVIDENCE = 20
@@ -45,7 +46,11 @@ MAX_UNITS = 4096
 MAX_TOPICS = 65536
 """Topics whose unit is cached; further ones are looked up each time (still correct)."""
 MAX_SHAPES = 64
-"""Message shapes whose examined rules are kept per topic (more are looked up globally)."""
+"""Message shapes whose examined rules are kept per topic (more are asked for each message)."""
+MAX_SHARED_SHAPES = 4096
+"""Message shapes whose examined rules are kept for every topic of their kind."""
+MAX_SHAPE_KEYS = 64
+"""Top-level keys of a message beyond which its shape is not worked out (asked each time)."""
 UNATTRIBUTED = "(unattributed)"
 """The report entry for topics that name no unit (``waraps/foo``, ``waraps/unit/air``)."""
 MAX_COMMANDERS = 256
@@ -106,8 +111,9 @@ class _Entry:
         """``unit``, or ``commander``: a row of what commanders sent (DESIGN: blame)."""
         self.unit = label or ("" if state.address.prefix == UNATTRIBUTED else str(state.address))
         self.records: dict[str, _RuleRecord] = {}
-        self.groups: dict[tuple[str, ...], int] = {}
-        """Rule groups examined by the validator -> messages (expanded at report time)."""
+        self.groups: dict[Examined, int] = {}
+        """Rules examined by the validator (shared sets) -> messages (expanded at report
+        time)."""
         self.final: Findings | None = None
 
 
@@ -125,11 +131,11 @@ class _Route:
     checks that re-read the validator's violations, and the message checks of the topic's kind
     (plus those of its validation kind where the topic fixes it: ``sensor/position``)."""
 
-    __slots__ = ("entry", "reinterpret", "checks", "kind", "topic_kind", "scalar_groups",
-                 "shape_fields", "shape_groups", "dispatch_roots", "last_dispatch", "address",
-                 "shared_tst", "command")
+    __slots__ = ("entry", "reinterpret", "checks", "kind", "topic_kind", "content_fields",
+                 "shapes", "decided_by", "last_decided", "address", "shared_tst", "command")
 
-    def __init__(self, entry: _Entry, topic: str) -> None:
+    def __init__(self, entry: _Entry, topic: str,
+                 content_fields: tuple[str, ...] = ()) -> None:
         parsed = parse_topic(topic)
         self.entry = entry
         self.address = parsed.unit
@@ -146,18 +152,17 @@ class _Route:
             self.kind = parsed.kind.value
         self.reinterpret = tuple(c.fn for c in REINTERPRET.get(parsed.kind, ()))
         self.checks = self.checks_for(self.kind)
-        self.scalar_groups: dict[type, Any] = {}
-        """Type of a scalar message (a sensor value) -> the rules the validator examined on
-        it: for a scalar they follow from the topic and the type alone (checks/examined.py)."""
-        self.shape_fields = (shape_fields(self.kind, parsed.kind)
-                             if self.kind is not None and parsed.unit is not None else None)
-        self.shape_groups: dict[tuple[Any, ...], Any] = {}
-        """The same for JSON objects, by shape (top-level keys, which are empty, the types
-        of ``shape_fields``), where nothing else decides (``examined.shape_fields``)."""
-        self.dispatch_roots = dispatch_roots(self.kind) if self.shape_fields is not None else ()
-        """Where values decide too (``examined.dispatch_roots``): then the last message's
-        shape, values there and group are kept, (shape, values, group)."""
-        self.last_dispatch: tuple[Any, Any, Any] | None = None
+        # What the validator examined, by message shape (Monitor._examined).
+        self.content_fields = content_fields
+        """Fields whose types are part of a shape (``Validator.content_fields``)."""
+        self.shapes: dict[tuple[Any, ...], Examined] = {}
+        """Shape (and, where values decide, their values when scalars) -> examined set."""
+        self.decided_by: tuple[str, ...] = ()
+        """Top-level fields whose values decided a branch on some message of this topic (the
+        union of ``Examined.decided_by``): their values are part of the key; the last
+        message's (shape, values, examined) is kept too, for values that are lists or
+        objects."""
+        self.last_decided: tuple[Any, Any, Examined] | None = None
 
     def checks_for(self, kind: str | None) -> tuple[Any, ...]:
         """The message checks of a message of validation kind ``kind`` on this topic."""
@@ -197,9 +202,8 @@ class Monitor:
         self._tst_routing = TstRouting()
         self._tst_routes: dict[tuple[str, UnitAddress], _Route] = {}
         """(operator's tst topic, unit it concerns) -> the route of such messages."""
-        # Whether the validator says itself which rules it examined (Validation.examined).
-        self._validator_says_examined = "examined" in getattr(
-            Validation, "__dataclass_fields__", {}) or hasattr(Validation, "examined")
+        self._shared_shapes: dict[tuple[Any, ...], Examined] = {}
+        """Examined sets by topic kind and shape, for every topic (``_examined``)."""
         self._unexamined = 0
         self._last_time: float | None = None
         self._finished: float | None = None
@@ -230,37 +234,7 @@ class Monitor:
         if self._last_time is None or t > self._last_time:
             self._last_time = t
         same_kind = v.kind == route.kind and v.topic.kind is route.topic_kind
-        # Counted by shape, expanded to rules at report time.
-        if self._validator_says_examined:
-            examined = v.examined
-        else:
-            m = v.message
-            m_type = m.__class__
-            fields = route.shape_fields
-            if m_type is dict and fields is not None and same_kind and len(m) <= 64:
-                key = (tuple(m), tuple(map(bool, m.values())),
-                       tuple(map(type, map(m.get, fields))))
-                roots = route.dispatch_roots
-                if roots:  # values decide too: the same as the last message's?
-                    values = tuple(map(m.get, roots))
-                    last = route.last_dispatch
-                    if last is not None and last[0] == key and last[1] == values:
-                        examined = last[2]
-                    else:
-                        examined = examined_group(v)
-                        route.last_dispatch = (key, values, examined)
-                else:
-                    examined = route.shape_groups.get(key)
-                    if examined is None:
-                        examined = examined_group(v)
-                        if len(route.shape_groups) < MAX_SHAPES:
-                            route.shape_groups[key] = examined
-            elif (m_type is float or m_type is int) and same_kind:
-                examined = route.scalar_groups.get(m_type)
-                if examined is None:
-                    examined = route.scalar_groups[m_type] = examined_group(v)
-            else:
-                examined = examined_group(v)
+        examined = self._examined(route, v)  # counted by set, expanded at report time
         state = entry.state
         if route.command:
             return self._feed_command(route, entry, message, v, examined)
@@ -293,8 +267,69 @@ class Monitor:
                 self._add(entry, f)
         return found
 
+    def _examined(self, route: _Route, v: Validation) -> Examined:
+        """``Validator.examined(v)``, asked once per message shape of a topic: the kind, the
+        top-level keys, which of their values are empty, the types of the content fields,
+        and the values of the fields that decided a branch (``Examined.decided_by``, learnt
+        from the answers: a field newly seen deciding clears what was kept). Nested optional
+        parts are taken to be as in the first message of a shape. Without this cache the
+        full lint runs at a fraction of its speed (bench/bench_lint.py: evaluation costs
+        10-100x validation, bench/bench_validate.py)."""
+        m = v.message
+        m_type = m.__class__
+        if v.topic.kind is not route.topic_kind:  # a validator of its own mind: ask
+            return self.validator.examined(v)
+        if m_type is dict:
+            if len(m) > MAX_SHAPE_KEYS:
+                return self.validator.examined(v)
+            key: tuple[Any, ...] = (v.kind, tuple(m), tuple(map(bool, m.values())),
+                                    tuple(map(type, map(m.get, route.content_fields))))
+        elif m_type is float or m_type is int or m_type is str or m_type is bool:
+            key = (v.kind, m_type)
+        else:  # not decoded (few rules, no schema), or an array (its items decide)
+            return self.validator.examined(v)
+        decided_by = route.decided_by
+        if decided_by:
+            if m_type is not dict or "" in decided_by:
+                return self.validator.examined(v)  # the message's own value decides
+            values = tuple(map(m.get, decided_by))
+            last = route.last_decided
+            if last is not None and last[0] == key and last[1] == values:
+                return last[2]  # a steady stream (lists and objects compared, not hashed)
+            if _scalars(values):  # values that alternate (response, command): a dict
+                found = route.shapes.get((key, values))
+                if found is not None:
+                    route.last_decided = (key, values, found)
+                    return found
+        else:
+            found = route.shapes.get(key)
+            if found is not None:
+                return found
+        # Units of one fleet send the same shapes: another topic's answer serves (its key
+        # says all that decides, with the topic kind and whether it names a unit).
+        shared_key = (route.topic_kind, v.topic.unit is None, decided_by, key,
+                      tuple(map(m.get, decided_by)) if decided_by else None)
+        try:
+            examined = self._shared_shapes[shared_key]
+        except (KeyError, TypeError):  # not seen, or a list or object among the values
+            examined = self.validator.examined(v)
+            if len(self._shared_shapes) < MAX_SHARED_SHAPES and _scalars(shared_key[4] or ()):
+                self._shared_shapes[shared_key] = examined
+        if not set(examined.decided_by) <= set(decided_by):
+            decided_by = route.decided_by = tuple(sorted({*decided_by, *examined.decided_by}))
+            route.shapes.clear()
+        if decided_by:
+            if m_type is dict:
+                values = tuple(map(m.get, decided_by))
+                route.last_decided = (key, values, examined)
+                if _scalars(values) and len(route.shapes) < MAX_SHAPES:
+                    route.shapes[(key, values)] = examined
+        elif len(route.shapes) < MAX_SHAPES:
+            route.shapes[key] = examined
+        return examined
+
     def _feed_command(self, route: _Route, entry: _Entry, message: Message, v: Validation,
-                      examined: Any) -> list[Violation]:
+                      examined: Examined) -> list[Violation]:
         """A command: the unit's state learns of it (its conversations), but what is wrong in
         it is the commander's (by ``sender``), never the unit's. Commands are rare: the
         bookkeeping here may cost what the hot path may not."""
@@ -373,7 +408,7 @@ class Monitor:
         if found is None:
             entry = self._entries.get(address) or self._new_entry(address, force=True)
             assert entry is not None
-            found = _Route(entry, message.topic)
+            found = _Route(entry, message.topic, route.content_fields)
             if len(self._tst_routes) < MAX_TST_ROUTES:
                 self._tst_routes[key] = found
         return found
@@ -393,7 +428,8 @@ class Monitor:
         addresses do not)."""
         if parse_topic(topic).kind in _TST_KINDS:
             # The topic's own unit gets a row only when a message is its own (_tst_route).
-            route = _Route(_UNRESOLVED, topic)
+            route = _Route(_UNRESOLVED, topic,
+                           self.validator.content_fields(parse_topic(topic).kind))
             route.shared_tst = True
             if len(self._by_topic) < MAX_TOPICS:
                 self._by_topic[topic] = route
@@ -404,7 +440,8 @@ class Monitor:
         elif entry is _OVERFLOW:
             route = _OVERFLOW_ROUTE
         else:
-            route = _Route(entry, topic)
+            route = _Route(entry, topic,
+                           self.validator.content_fields(parse_topic(topic).kind))
         if len(self._by_topic) < MAX_TOPICS:
             self._by_topic[topic] = route
         return route
@@ -635,6 +672,14 @@ class Monitor:
             examined={k: examined[k] for k in sorted(examined)}, violation_counts=counts,
             violation_times=times,
             facts=facts)
+
+
+_SCALAR_TYPES = (str, int, float, bool, type(None))
+
+
+def _scalars(values: tuple[Any, ...]) -> bool:
+    """Whether every value is a JSON scalar (hashable, and cheap to hash when short)."""
+    return all(type(x) in _SCALAR_TYPES for x in values)
 
 
 def _during(t: float | None, windows: list[tuple[float, float]]) -> bool:
