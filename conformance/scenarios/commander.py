@@ -17,11 +17,11 @@ from typing import Any
 
 import orjson
 
+from conformance.scenarios.deviation import FINAL_STATUSES, Deviations, Kind, meaning
 from conformance.scenarios.traffic import Entry, Traffic
 from conformance.topics import UnitAddress
 
 SENDER = "waraps-conformance"
-FINAL_STATUSES = frozenset({"finished", "failed", "aborted"})  # 12.4: a task ends with these
 
 
 class DryRun(Exception):
@@ -65,7 +65,8 @@ class Commander:
     def __init__(self, unit: UnitAddress, traffic: Traffic,
                  publish: Callable[[str, bytes], None], *, dry_run: bool = False,
                  say: Callable[[str], None] = print, gaps: Callable[[], int] = lambda: 0,
-                 wait_connected: Callable[[float], bool] = lambda timeout: True) -> None:
+                 wait_connected: Callable[[float], bool] = lambda timeout: True,
+                 deviations: Deviations | None = None) -> None:
         self.unit = unit
         self.topic = unit.topic("exec/command")
         self.traffic = traffic
@@ -83,6 +84,9 @@ class Commander:
         """task-uuids that need no $abort any more (refused, or their $abort was answered)."""
         self._start_commands: dict[str, Sent] = {}
         """com-uuid -> start-task sent: the unit's answers name the task-uuids it generated."""
+        self.deviations = deviations if deviations is not None else Deviations()
+        self._unit_uuid: dict[str, str] = {}
+        """task-uuid sent -> the task-uuid the unit runs the task under, when it differs."""
         self.deliberately_invalid: set[bytes] = set()
         """Payloads sent broken on purpose (robustness, invalid parameters): not the unit's
         fault, so the passive checks are not fed these."""
@@ -156,6 +160,7 @@ class Commander:
         name = task.get("name", "") if isinstance(task, dict) else ""
         uuids = {sent.body.get("task-uuid"), answer.get("task-uuid") if answer else None}
         refused = answer is not None and answer.get("response") == "failed"
+        self._follow(sent, answer, name, refused)
         with self._lock:
             for task_uuid in uuids:
                 if refused:  # never started: nothing to abort
@@ -166,28 +171,90 @@ class Commander:
                         task_uuid, OpenTask(task_uuid, name, sent.mark))
                     known.com_uuids.append(sent.com_uuid)
 
+    def _follow(self, sent: Sent, answer: Entry | None, name: str, refused: bool) -> None:
+        """12.2.3: the answer carries the task-uuid sent. A unit that runs the task under one
+        of its own anyway (EXEC-START-002) is followed under that one from now on."""
+        wanted, got = sent.body.get("task-uuid"), answer.get("task-uuid") if answer else None
+        if refused or not (isinstance(wanted, str) and isinstance(got, str) and got.strip()) \
+                or got == wanted:
+            return
+        with self._lock:
+            self._unit_uuid[wanted] = got
+        self.deviations.note(
+            Kind.TASK_UUID_IGNORED,
+            f"start-task '{name}' sent task-uuid {wanted}, the unit answered {got}",
+            "the suite follows the task-uuid the unit uses")
+
+    def unit_task_uuid(self, task_uuid: str) -> str:
+        """The task-uuid the unit uses for the task started as ``task_uuid``."""
+        with self._lock:
+            return self._unit_uuid.get(task_uuid, task_uuid)
+
     def track_response(self, sent: Sent, answer: Entry | None) -> None:
         """Track a task started by a command sent with ``send`` (not ``request``)."""
         self._track(sent, answer)
 
     def feedback(self, task_uuid: str, statuses: Collection[str] | None, timeout: float, *,
-                 after: int) -> Entry | None:
-        """The first feedback for ``task_uuid`` after ``after`` whose status is one of
-        ``statuses`` (any status when None)."""
+                 after: int, what: str = "") -> Entry | None:
+        """The first feedback for ``task_uuid`` after ``after`` whose status means one of
+        ``statuses`` (any status when None), waiting up to ``timeout`` seconds.
+
+        Adapts to the unit's systematic deviations (``deviation``): a status outside 12.4's
+        list that plainly means a wanted one (``done`` for finished) matches, and is noted;
+        feedback without a task-uuid ends the wait at once (None: ``blind`` says why)."""
+        uuid_ = self.unit_task_uuid(task_uuid)
+        blind: list[Entry] = []
+
         def match(e: Entry) -> bool:
-            return e.get("task-uuid") == task_uuid and (statuses is None
-                                                       or e.get("status") in statuses)
-        return self.traffic.wait_for(match, timeout, after=after, subtopic="exec/feedback")
+            found = e.get("task-uuid")
+            if found in (None, ""):
+                blind.append(e)
+                return True
+            if found != uuid_:
+                return False
+            status = e.get("status")
+            if statuses is None:
+                return True
+            means = meaning(status)
+            if means in statuses and means != status:
+                self.deviations.note(
+                    Kind.STATUS_VOCABULARY,
+                    f"the unit sends feedback status {status!r} (not in 12.4's list) for "
+                    f"{means!r}", f"the suite takes {status!r} as {means!r}")
+            return means in statuses
+
+        wanted = "feedback" if statuses is None else "/".join(sorted(statuses)) + " feedback"
+        found = self.traffic.wait_for(
+            match, timeout, after=after, subtopic="exec/feedback",
+            what=what or f"{wanted} of {self._task_name(task_uuid)} {uuid_[:8]}")
+        if found is not None and blind and found is blind[-1]:
+            self.deviations.note(
+                Kind.FEEDBACK_WITHOUT_TASK_UUID,
+                f"the unit sends feedback without a task-uuid ({found.raw[:120]!r})",
+                "feedback cannot be told apart by task: what it would show is could-not-test")
+            return None
+        return found
+
+    def blind(self) -> str | None:
+        """Why feedback for a task cannot be found: the unit sends it without task-uuid."""
+        return self.deviations.reason(Kind.FEEDBACK_WITHOUT_TASK_UUID)
+
+    def _task_name(self, task_uuid: str) -> str:
+        with self._lock:
+            task = self.open_tasks.get(task_uuid) or self.open_tasks.get(
+                self._unit_uuid.get(task_uuid, ""))
+        return task.name if task and task.name else "task"
 
     def statuses(self, task_uuid: str, after: int) -> list[str]:
         """Every feedback status seen for ``task_uuid`` after ``after``, in order."""
+        uuid_ = self.unit_task_uuid(task_uuid)
         return [str(e.get("status")) for e in self.traffic.since(after, "exec/feedback")
-                if e.get("task-uuid") == task_uuid]
+                if e.get("task-uuid") == uuid_]
 
     def is_final(self, task_uuid: str) -> bool:
         task = self.open_tasks.get(task_uuid)
         mark = task.mark if task else 0
-        return any(s in FINAL_STATUSES for s in self.statuses(task_uuid, mark))
+        return any(meaning(s) in FINAL_STATUSES for s in self.statuses(task_uuid, mark))
 
     # --- the four commands of 12.1 ---------------------------------------------------------
     def ping(self, timeout: float) -> tuple[Sent, Entry | None]:
@@ -204,11 +271,12 @@ class Commander:
         return self.request(body, timeout, invalid=invalid)
 
     def signal(self, task_uuid: str, signal: str, timeout: float) -> tuple[Sent, Entry | None]:
-        return self.request({"command": "signal-task", "signal": signal, "task-uuid": task_uuid},
-                            timeout)
+        return self.request({"command": "signal-task", "signal": signal,
+                             "task-uuid": self.unit_task_uuid(task_uuid)}, timeout)
 
     def query(self, task_uuid: str, timeout: float) -> tuple[Sent, Entry | None]:
-        return self.request({"command": "query-status", "task-uuid": task_uuid}, timeout)
+        return self.request({"command": "query-status",
+                             "task-uuid": self.unit_task_uuid(task_uuid)}, timeout)
 
     # --- safety ----------------------------------------------------------------------------
     def abort_all(self, timeout: float) -> list[str]:
