@@ -49,6 +49,21 @@ class OpenTask:
     com_uuids: list[str] = field(default_factory=list)
 
 
+def _describe(body: dict[str, Any]) -> str:
+    """A command in a few words: ``start-task move-to``, ``signal-task $abort 3f2a1b0c``."""
+    command = body.get("command")
+    if not isinstance(command, str):
+        return ""
+    task = body.get("task")
+    name = task.get("name") if isinstance(task, dict) else None
+    signal = body.get("signal")
+    uuid_ = body.get("task-uuid")
+    words = [command, name if isinstance(name, str) else "",
+             signal if isinstance(signal, str) else "",
+             uuid_[:8] if isinstance(uuid_, str) and command != "start-task" else ""]
+    return " ".join(w for w in words if w)
+
+
 def new_uuid() -> str:
     # Fresh, not seeded: a com-uuid repeated across runs would look like a resend (12.1).
     return str(uuid.uuid4())
@@ -66,8 +81,10 @@ class Commander:
                  publish: Callable[[str, bytes], None], *, dry_run: bool = False,
                  say: Callable[[str], None] = print, gaps: Callable[[], int] = lambda: 0,
                  wait_connected: Callable[[float], bool] = lambda timeout: True,
-                 deviations: Deviations | None = None) -> None:
+                 deviations: Deviations | None = None,
+                 step: Callable[[str], None] | None = None) -> None:
         self.unit = unit
+        self._step = step
         self.topic = unit.topic("exec/command")
         self.traffic = traffic
         self._publish = publish
@@ -128,15 +145,23 @@ class Commander:
         self._publish(self.topic, payload)
         with self._lock:
             self.sent_count += 1
+        if self._step is not None:
+            self._step(f"sent {_describe(body) or 'a malformed command'} "
+                       f"(com-uuid {sent.com_uuid[:8]})")
         return sent
 
     # --- waiting for answers ---------------------------------------------------------------
     def response(self, sent: Sent, timeout: float, *, after: int | None = None) -> Entry | None:
         """The unit's response whose ``response-to`` is the command's com-uuid (12.3)."""
         com_uuid = sent.com_uuid
-        return self.traffic.wait_for(lambda e: e.get("response-to") == com_uuid, timeout,
-                                     after=sent.mark if after is None else after,
-                                     subtopic="exec/response")
+        answer = self.traffic.wait_for(
+            lambda e: e.get("response-to") == com_uuid, timeout,
+            after=sent.mark if after is None else after, subtopic="exec/response",
+            what=f"the response to {_describe(sent.body) or 'a malformed command'}")
+        if self._step is not None:
+            self._step(f"  answered {answer.get('response')!r}" if answer is not None else
+                       f"  no response within {timeout:.1f} s")
+        return answer
 
     def request(self, body: dict[str, Any], timeout: float, *,
                 invalid: bool = False) -> tuple[Sent, Entry | None]:

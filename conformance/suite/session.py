@@ -33,11 +33,16 @@ from conformance.scenarios import (
     Timing,
     Traffic,
 )
+from conformance.scenarios.deviation import Deviation, Deviations
 from conformance.scenarios.params import task_moves
+from conformance.scenarios.traffic import OutOfTime
 from conformance.suite.settings import Settings
 from conformance.topics import UnitAddress
 from conformance.validator import Validation, Validator
 from conformance.violation import RuleResult, Verdict
+
+NOT_CERTIFIED = "not certified"
+INTERRUPTED = "interrupted"
 
 CERTIFICATION = pytest.StashKey["Certification"]()
 
@@ -108,10 +113,24 @@ class Certification:
         self._done: dict[str, bool] = {}
         self._passive_ready = False
         self._last_write = 0.0
+        self.selected: list[str] = []
+        """The rules whose tests were selected to run (after -k, -m, --rule)."""
+        self.ran: set[str] = set()
+        """The rules whose tests ran (a test that never ran judged nothing)."""
+        self.out_of_time: str | None = None
+        """--max-duration passed: what the run was waiting for then."""
+        self.interrupted = False
+        from conformance.suite.progress import Progress
+
+        self.progress = Progress(config)
+        self.traffic.waits.on_tick = self.progress.tick
+        self.traffic.waits.on_end = self.progress.end
+        self.deviations = Deviations(on_new=self._adapted)
         self.commander = Commander(
             self.unit, self.traffic, self._publish, dry_run=settings.dry_run, say=self._say,
             gaps=lambda: len(self.client.gaps) if self.client else 0,
-            wait_connected=lambda t: self.client.wait_connected(t) if self.client else False)
+            wait_connected=lambda t: self.client.wait_connected(t) if self.client else False,
+            deviations=self.deviations, step=self.progress.step)
         self.safety = Safety(self.unit, self.profile, allow_motion=settings.allow_motion,
                              task_moves=task_moves)
         self.context = Context(self.unit, self.profile, self.traffic, self.commander,
@@ -123,6 +142,7 @@ class Certification:
         """Connect, observe ``<unit>/#`` and wait for the unit's first live heartbeat.
 
         Raises ``BrokerError`` (broker unreachable or refusing) or ``NotAlive``."""
+        self.traffic.waits.deadline = time.monotonic() + self.settings.max_duration
         if self.settings.embedded:
             from conformance.demo import Reference
 
@@ -236,6 +256,12 @@ class Certification:
         else:
             tw.line(text)
 
+    def _adapted(self, deviation: Deviation) -> None:
+        """A systematic deviation, seen for the first time: say so once (summary and -v)."""
+        text = f"{_clock(time.time())} adapted to {deviation}"
+        self.events.append(text)
+        self.progress.step(text)
+
     # --- reboot -------------------------------------------------------------------------------
     def _reboot_how(self) -> str:
         if self.settings.reboot_cmd:
@@ -294,7 +320,55 @@ class Certification:
             for rule in COMMANDER_RULES & unit.rules.keys():
                 if unit.rules[rule].verdict is not Verdict.FAIL:
                     unit.rules[rule] = RuleResult(rule, Verdict.SKIP, COMMANDER_REASON)
+        if self.error or self.interrupted:
+            self._mark_not_run(report)
+        report.meta["verdict"] = self.verdict(report)
         return report
+
+    def not_run_reason(self) -> str:
+        if self.error:
+            return f"not run: {self.error.splitlines()[0]}"
+        return f"not run: {self.out_of_time or 'the run was interrupted'}"
+
+    def _mark_not_run(self, report: RunReport) -> None:
+        """A run that did not complete: every selected rule whose test did not run is listed
+        as not run (could-not-test, never a pass); a failure already seen stays one."""
+        from conformance.results import UnitReport
+
+        name = str(self.unit)
+        unit = report.units.get(name)
+        if unit is None:
+            u = self.unit
+            unit = report.units[name] = UnitReport(name, u.agent_type, u.role, u.name)
+        why = self.not_run_reason()
+        not_run = []
+        for rule in self.selected or list(CATALOGUE):
+            if rule in self.ran:
+                continue
+            found = unit.rules.get(rule)
+            if found is not None and found.verdict is Verdict.FAIL:
+                continue
+            unit.rules[rule] = RuleResult(rule, Verdict.COULD_NOT_TEST, why)
+            not_run.append(rule)
+        report.meta["not_run"] = " ".join(not_run)
+
+    def verdict(self, report: RunReport) -> str:
+        """The run's verdict: 'not certified' when the broker or the unit could not be
+        reached, 'interrupted' when it did not complete, else the worst rule verdict."""
+        if self.error:
+            return NOT_CERTIFIED
+        if self.interrupted:
+            return INTERRUPTED
+        return report.worst().value
+
+    def counts(self, report: RunReport) -> dict[str, int]:
+        """Verdict counts, with the rules that never ran counted as 'not run'."""
+        counts = dict(report.verdict_counts())
+        not_run = len(report.meta.get("not_run", "").split())
+        if not_run:
+            counts[Verdict.COULD_NOT_TEST.value] -= not_run
+            counts["not run"] = not_run
+        return counts
 
     def meta(self) -> dict[str, Any]:
         s = self.settings
@@ -337,11 +411,21 @@ class Certification:
             return RuleResult(rule, Verdict.SKIP, "not examined")
         return unit.rules[rule]
 
+    def run_evidence(self, rule: str) -> None:
+        """Run (once) every scenario whose traffic is evidence for ``rule``."""
+        from conformance.scenarios import scenarios_for
+
+        for name in scenarios_for(rule):
+            self.run_scenario(name)
+
     def run_scenario(self, name: str) -> None:
-        """Run a scenario once (later calls return at once); ping first, as the gate."""
+        """Run a scenario once (later calls return at once); ping first, as the gate, and the
+        scenarios it works on (``Scenario.needs``)."""
         if name in self._done:
             return
         scenario = SCENARIOS[name]
+        for needed in scenario.needs:
+            self.run_scenario(needed)
         if scenario.level is not None:
             if not self._claims(scenario.level):
                 self._done[name] = False
@@ -363,11 +447,23 @@ class Certification:
         except DryRun as e:
             for rule in scenario.rules:
                 self.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=str(e))
+        except OutOfTime as e:
+            self._out_of_time(e)
         finally:
             self._done[name] = True
             if not self.settings.dry_run:
                 self.commander.abort_all(self.timing.response)
             self.write_reports()
+        self._fail_if_out_of_time()
+
+    def _out_of_time(self, e: OutOfTime) -> None:
+        self.out_of_time = (f"--max-duration {self.settings.max_duration:g} s reached while "
+                            f"waiting for {e}")
+        self.events.append(f"{_clock(time.time())} {self.out_of_time}: the run stops here")
+
+    def _fail_if_out_of_time(self) -> None:
+        if self.out_of_time:
+            pytest.fail(self.out_of_time, pytrace=False)
 
     def _claims(self, level: str) -> bool:
         return level in self.context.levels() or (
@@ -419,10 +515,15 @@ class Certification:
             return listed is None or all(s in seen for s in listed) or \
                 time.monotonic() - rates_ready[0] > 3 * period
 
-        while not enough() and (left := deadline - time.monotonic()) > 0:
-            # Look again after the next periodic message (at most one period from now).
-            self.traffic.wait_for(lambda e: e.subtopic in PERIODIC, min(left, period),
-                                  after=self.traffic.mark())
+        try:
+            while not enough() and (left := deadline - time.monotonic()) > 0:
+                # Look again after the next periodic message (at most one period from now).
+                self.traffic.wait_for(lambda e: e.subtopic in PERIODIC, min(left, period),
+                                      after=self.traffic.mark(),
+                                      what=f"{need} intervals of every declared rate")
+        except OutOfTime as e:
+            self._out_of_time(e)
+        self._fail_if_out_of_time()
         with self._lock:
             self.monitor.finish(time.time())
         self._passive_ready = True
@@ -453,6 +554,8 @@ class Certification:
         judge the end of the observation, write the final reports, disconnect."""
         if self.collect_only:
             return
+        self.interrupted = self.interrupted or interrupted
+        self.traffic.waits.deadline = None  # the teardown's waits have deadlines of their own
         aborted: list[str] = []
         try:
             if self.client is not None and self.client.is_connected and not self.settings.dry_run:

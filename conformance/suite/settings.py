@@ -33,7 +33,11 @@ INI = {
     "waraps_cert_file": "waraps_cert_file",
     "waraps_key_file": "waraps_key_file",
     "waraps_tls_insecure": "waraps_tls_insecure",
+    "waraps_max_duration": "waraps_max_duration",
 }
+MAX_DURATION = 600.0
+"""Seconds a certification may last by default (--max-duration): then it stops cleanly."""
+DURATION = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*(s|m|min|h)?\s*$")
 TRUE = ("1", "true", "yes", "on")
 FALSE = ("", "0", "false", "no", "off")
 
@@ -54,6 +58,10 @@ class Settings:
     sim_faults: tuple[str, ...] = ()
     """--broker embedded runs the bundled reference unit; these are its fault switches."""
     sim_rate: float = 1.0
+    max_duration: float = MAX_DURATION
+    """Seconds: past it the run stops, failing the test that waits (--max-duration)."""
+    rules: tuple[str, ...] = ()
+    """--rule: only these rules are judged (and the scenarios that produce their evidence)."""
     extra: dict[str, str] = field(default_factory=dict)
 
     @property
@@ -139,10 +147,39 @@ def read(config: pytest.Config) -> Settings:
     if not sim_rate > 0:
         raise pytest.UsageError(f"--sim-rate {sim_rate!r}: a positive rate in Hz is needed")
     return Settings(unit=unit, broker=broker, profile=profile, timing_scale=scale,
+                    max_duration=_duration(_value(config, "waraps_max_duration")),
+                    rules=_rules(config.getoption("waraps_rules", None) or ()),
                     reboot_cmd=str(reboot) if reboot else None,
                     allow_motion=_flag(config, "waraps_allow_motion"),
                     dry_run=_flag(config, "waraps_dry_run"), reports_dir=reports, seed=seed,
                     sim_faults=faults, sim_rate=float(sim_rate))
+
+
+def _duration(value: object) -> float:
+    """``--max-duration``: seconds, or a number with s, m (min) or h."""
+    if value in (None, ""):
+        return MAX_DURATION
+    m = DURATION.match(str(value))
+    if m is None or float(m.group(1)) <= 0:
+        raise pytest.UsageError(f"--max-duration {value!r}: a positive duration is needed, "
+                                f"e.g. 600, 90s, 10m or 1h")
+    unit = {"s": 1, None: 1, "m": 60, "min": 60, "h": 3600}[m.group(2)]
+    return float(m.group(1)) * unit
+
+
+def _rules(values: object) -> tuple[str, ...]:
+    """``--rule``: rule ids of the catalogue (also comma-separated)."""
+    from conformance.rules import CATALOGUE
+
+    out: list[str] = []
+    for value in values:  # type: ignore[attr-defined]
+        for rule in filter(None, (r.strip().upper() for r in str(value).split(","))):
+            if rule not in CATALOGUE:
+                raise pytest.UsageError(f"--rule {rule!r} is not a rule of the catalogue"
+                                        f"{_did_you_mean(rule, list(CATALOGUE))} "
+                                        f"(waraps-conformance rules lists them)")
+            out.append(rule)
+    return tuple(dict.fromkeys(out))
 
 
 def _broker(config: pytest.Config) -> BrokerURL:
