@@ -184,27 +184,32 @@ class Certification:
         others = sorted({base(t) for t in seen if t.lstrip("/").split("/")[1:2] == ["unit"]
                          and len(t.lstrip("/").split("/")) > 5} - {self.unit.base})
         prefix = self.unit.prefix
-        if others:
-            import difflib
+        import difflib
 
-            close = [c for c in difflib.get_close_matches(self.unit.base, others, n=3,
-                                                          cutoff=0.6) if _is_address(c)][:1]
-            lines.append(f"Units seen under {prefix}/: {', '.join(others[:10])}"
-                         + (f" (and {len(others) - 10} more)" if len(others) > 10 else "") + ".")
-            if close:
-                lines.append(f"Did you mean --unit {close[0]}?")
-        elif seen:
-            lines.append(f"Topics seen under {prefix}/: {', '.join(sorted(seen)[:10])}.")
+        # Only a unit whose address is close to this one is worth a line (a typo, a leading
+        # '/', another role or type): other units' topics say nothing about this one.
+        close = difflib.get_close_matches(self.unit.base, others, n=1, cutoff=0.8)
+        if close:
+            if _is_address(close[0]):
+                lines.append(f"A unit publishes at {close[0]}: did you mean --unit "
+                             f"{close[0]}?")
+            else:
+                lines.append(f"A unit publishes at {close[0]}.")
+        elif others:
+            lines.append(f"{len(others)} other unit(s) publish under {prefix}/, none at a "
+                         "similar address.")
         # A unit publishing where it should not (a leading '/', an unknown agent type or
         # role) breaks the naming rules of spec 3: say which, that is the finding.
         broken: dict[str, str] = {}
         validator = Validator(self.profile)
         for topic, payload in sorted(seen.items()):
+            if close and base(topic) != close[0]:
+                continue
             for v in validator.validate(topic, payload).violations:
                 if self.profile.severity_of(v.rule).value == "error":
                     broken.setdefault(v.rule, f"{v.rule} {CATALOGUE[v.rule].title} ({topic})")
-        if broken:
-            lines.append("Those topics break: " + "; ".join(broken[r] for r in sorted(broken)))
+        if broken and close:
+            lines.append("Its topics break: " + "; ".join(broken[r] for r in sorted(broken)))
         if not seen:
             lines.append(f"Nothing at all was published under {prefix}/ meanwhile: is the unit "
                          f"running and connected to this broker, under this prefix?")
