@@ -71,6 +71,9 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     metavar="DURATION", help="stop the run cleanly after this long (600, 90s, "
                     "10m, 1h; default 10m): the test waiting fails saying for what, started "
                     "tasks are aborted, reports are written, exit status 2")
+    group.addoption("--observe", dest="waraps_observe", default=None, metavar="DURATION",
+                    help="observe the unit at least this long before judging the passive "
+                         "rules (a rerun line adds it when the evidence came late)")
     group.addoption("--rule", dest="waraps_rules", action="append", default=None,
                     metavar="ID", help="judge only this rule (repeatable), running the "
                     "scenarios that produce its evidence; like -k ID, but exact")
@@ -198,6 +201,15 @@ class _CertificationPlugin:
     def pytest_runtestloop(self, session: pytest.Session) -> bool | None:
         """No broker or no unit: no test runs (the summary says why, once)."""
         return True if self.certification.error else None
+
+    @pytest.hookimpl(wrapper=True)
+    def pytest_runtest_makereport(self, item: pytest.Item,
+                                  call: pytest.CallInfo[None]) -> Any:
+        from conformance.suite.verdict import locate_skip
+
+        report = yield
+        locate_skip(item, report)
+        return report
 
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         c = self.certification

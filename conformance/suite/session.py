@@ -100,6 +100,7 @@ class Certification:
         self.reference: Any = None  # the bundled reference unit under --broker embedded
         self.broker_url: BrokerURL = settings.broker
         self.started = time.time()
+        self._started_monotonic = time.monotonic()
         self.stem = f"{self.unit.name}-{time.strftime('%Y%m%dT%H%M%S', time.localtime())}"
         self.report_paths: dict[str, Path] = {}
         self.collect_only = False
@@ -405,9 +406,33 @@ class Certification:
         if s.timing_scale != 1.0:
             parts += ["--timing-scale", f"{s.timing_scale:g}"]
         parts += ["--seed", str(s.seed)]
+        observe = self._observe_for(rule) if rule else 0
+        if observe or s.observe:
+            parts += ["--observe", f"{max(observe, int(s.observe))}"]
         if rule:
             parts += ["-k", rule]
         return " ".join(parts)
+
+    def _observe_for(self, rule: str) -> int:
+        """Seconds of observation a rerun of ``rule`` needs: when its first violation came
+        later than the passive window would last (a silence, a uuid change), as long as it
+        took then, so that the rerun sees it too; else 0."""
+        from conformance.scenarios import RULE_SCENARIO
+
+        if rule in RULE_SCENARIO:
+            return 0
+        times = [v.time for v in self.result(rule).violations if v.time is not None]
+        if not times:
+            return 0
+        took = min(times) - self.started
+        rates = [r for r in (self.context.rate_of(k) for k in PERIODIC) if r]
+        window = (self.profile.min_intervals + 2) / (min(rates) if rates else 1.0)
+        return int(took) + 2 if took > window else 0
+
+    def violation_total(self, rule: str) -> int:
+        """How many violations of ``rule`` the unit committed in all (not only those kept)."""
+        unit = self.report().units.get(str(self.unit))
+        return unit.violation_counts.get(rule, 0) if unit is not None else 0
 
     def result(self, rule: str) -> RuleResult:
         report = self.report()
@@ -497,12 +522,17 @@ class Certification:
         need = self.profile.min_intervals
         rates = [r for r in (self.context.rate_of(k) for k in PERIODIC) if r]
         slowest = min(rates) if rates else 1.0
-        deadline = time.monotonic() + 2 * (need + 2) / slowest + 5.0
+        # --observe: at least that long since the run started (a rerun of a rule whose
+        # evidence came late, e.g. a silence).
+        observed_until = self._started_monotonic + self.settings.observe
+        deadline = max(time.monotonic() + 2 * (need + 2) / slowest + 5.0, observed_until)
 
         period = 1.0 / slowest
         rates_ready: list[float] = []
 
         def enough() -> bool:
+            if time.monotonic() < observed_until:
+                return False
             if not rates_ready:
                 unit = self.report().units.get(str(self.unit))
                 if unit is None:

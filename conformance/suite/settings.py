@@ -60,6 +60,8 @@ class Settings:
     sim_rate: float = 1.0
     max_duration: float = MAX_DURATION
     """Seconds: past it the run stops, failing the test that waits (--max-duration)."""
+    observe: float = 0.0
+    """--observe: seconds to observe the unit at least before the passive rules are judged."""
     rules: tuple[str, ...] = ()
     """--rule: only these rules are judged (and the scenarios that produce their evidence)."""
     extra: dict[str, str] = field(default_factory=dict)
@@ -149,19 +151,21 @@ def read(config: pytest.Config) -> Settings:
     return Settings(unit=unit, broker=broker, profile=profile, timing_scale=scale,
                     max_duration=_duration(_value(config, "waraps_max_duration")),
                     rules=_rules(config.getoption("waraps_rules", None) or ()),
+                    observe=_duration(config.getoption("waraps_observe", None), 0.0, "--observe"),
                     reboot_cmd=str(reboot) if reboot else None,
                     allow_motion=_flag(config, "waraps_allow_motion"),
                     dry_run=_flag(config, "waraps_dry_run"), reports_dir=reports, seed=seed,
                     sim_faults=faults, sim_rate=float(sim_rate))
 
 
-def _duration(value: object) -> float:
-    """``--max-duration``: seconds, or a number with s, m (min) or h."""
+def _duration(value: object, default: float = MAX_DURATION,
+              option: str = "--max-duration") -> float:
+    """A duration option: seconds, or a number with s, m (min) or h."""
     if value in (None, ""):
-        return MAX_DURATION
+        return default
     m = DURATION.match(str(value))
     if m is None or float(m.group(1)) <= 0:
-        raise pytest.UsageError(f"--max-duration {value!r}: a positive duration is needed, "
+        raise pytest.UsageError(f"{option} {value!r}: a positive duration is needed, "
                                 f"e.g. 600, 90s, 10m or 1h")
     unit = {"s": 1, None: 1, "m": 60, "min": 60, "h": 3600}[m.group(2)]
     return float(m.group(1)) * unit
