@@ -248,7 +248,9 @@ class Commander:
                     f"{means!r}", f"the suite takes {status!r} as {means!r}")
             return means in statuses
 
-        wanted = "feedback" if statuses is None else "/".join(sorted(statuses)) + " feedback"
+        wanted = ("the feedback" if statuses is None else "the final feedback"
+                  if set(statuses) == FINAL_STATUSES else
+                  "'" + "' or '".join(sorted(statuses)) + "' feedback")
         found = self.traffic.wait_for(
             match, timeout, after=after, subtopic="exec/feedback",
             what=what or f"{wanted} of {self._task_name(task_uuid)} {uuid_[:8]}")

@@ -482,9 +482,15 @@ class Certification:
         finally:
             self._done[name] = True
             if not self.settings.dry_run:
-                self.commander.abort_all(self.timing.response)
+                aborted = self.commander.abort_all(self.timing.response)
+                if aborted and self.out_of_time:
+                    self._say_aborted(aborted)
             self.write_reports()
         self._fail_if_out_of_time()
+
+    def _say_aborted(self, aborted: list[str]) -> None:
+        self.events.append(f"aborted {len(aborted)} task(s) the suite had started: "
+                           f"{', '.join(aborted)}")
 
     def _out_of_time(self, e: OutOfTime) -> None:
         self.out_of_time = (f"--max-duration {self.settings.max_duration:g} s reached while "
@@ -598,8 +604,7 @@ class Certification:
         except Exception as e:  # the reports must still be written
             self.events.append(f"aborting the suite's tasks failed: {e}")
         if aborted:
-            self.events.append(f"aborted {len(aborted)} task(s) the suite had started: "
-                               f"{', '.join(aborted)}")
+            self._say_aborted(aborted)
         try:
             with self._lock:
                 self.monitor.finish(time.time())
