@@ -26,7 +26,7 @@ class Progress:
         self.config = config
         self.verbosity = config.get_verbosity()
         self._drawn = False
-        self._shown: tuple[int, int] = (0, 0)
+        self._shown: tuple[Wait | None, int] = (None, 0)
         """(the wait, how many LINE_EVERY periods of it were shown) off a terminal."""
 
     @property
@@ -62,9 +62,9 @@ class Progress:
             self._write(draw)
             return
         periods = int(wait.elapsed // LINE_EVERY)
-        shown = self._shown[1] if self._shown[0] == id(wait) else 0
+        shown = self._shown[1] if self._shown[0] is wait else 0
         if periods > shown:
-            self._shown = (id(wait), periods)
+            self._shown = (wait, periods)
             self.line(text)
 
     def end(self, wait: Wait) -> None:
