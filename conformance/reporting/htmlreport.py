@@ -139,6 +139,9 @@ def _summary(report: RunReport) -> str:
 
 def _header(report: RunReport) -> str:
     counts = report.verdict_counts()
+    # Rules that never ran are recorded could-not-test ('not run: ...'); counted apart.
+    not_run = len(report.meta.get("not_run", "").split())
+    counts[Verdict.COULD_NOT_TEST.value] -= not_run
     rows = [
         ("kind", esc(report.kind)),
         ("units", f"{len(report.units)}: " + " ".join(
@@ -152,7 +155,8 @@ def _header(report: RunReport) -> str:
         ("finished", esc(iso_time(report.finished)) or "(running)"),
         ("suite version", esc(report.suite_version)),
         ("schemas hash", f'<span class="mono">{esc(report.schemas_hash or "-")}</span>'),
-        ("verdicts", " ".join(badge(v, f"{counts[v.value]} {v.value}") for v in ORDER)),
+        ("verdicts", " ".join(badge(v, f"{counts[v.value]} {v.value}") for v in ORDER)
+         + (f" {_verdict_badge(f'{not_run} not run')}" if not_run else "")),
         ("exit status", esc(report.meta.get("exit_status", report.exit_code()))),
     ]
     if report.gaps:
