@@ -9,6 +9,7 @@ reason, or just that the rule was examined and held (``verdict=PASS``).
 from __future__ import annotations
 
 import random
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -183,17 +184,36 @@ class Context:
             return self.commander.feedback(task_uuid, FINAL_STATUSES, 0, after=after)
         return self.wait_final(task_uuid, after=after)
 
-    def wait_final(self, task_uuid: str, *, after: int, why: str = "") -> Entry | None:
+    def wait_final(self, task_uuid: str, *, after: int, why: str = "",
+                   listed: Entry | None = None) -> Entry | None:
         """The task's final feedback (12.4), waiting the feedback deadline; once a task's final
-        status has failed to come (a systematic deviation), only the response deadline."""
+        status has failed to come (a systematic deviation), only the response deadline.
+
+        ``listed``: a direct_execution_info that listed the task. Then a later one that no
+        longer lists it (5.3: the unit says the task ended) ends the wait early: its final
+        status gets the response deadline more to arrive."""
         known = self.commander.deviations.get(Kind.NO_FINAL_FEEDBACK)
         timeout = self.timing.response if known else self.timing.feedback
+        if listed is not None and not known:
+            unit_uuid = self.commander.unit_task_uuid(task_uuid)
+
+            def over(e: Entry) -> bool:
+                if e.subtopic == "direct_execution_info":
+                    return e.seq > listed.seq and unit_uuid not in self.executing(e)
+                return e.subtopic == "exec/feedback" and e.get("task-uuid") in (
+                    unit_uuid, None, "") and meaning(e.get("status")) in FINAL_STATUSES
+            started = time.monotonic()
+            self.traffic.wait_for(over, timeout, after=after,
+                                  what=f"the end of task {unit_uuid[:8]}")
+            timeout = min(self.timing.response, max(0.0, timeout - (time.monotonic() - started)))
         final = self.commander.feedback(task_uuid, FINAL_STATUSES, timeout, after=after)
         if final is None and not self.commander.blind():
             self.commander.deviations.note(
                 Kind.NO_FINAL_FEEDBACK,
                 f"no final status for task {self.commander.unit_task_uuid(task_uuid)}"
-                f"{' ' + why if why else ''} within {timeout:.1f} s",
+                f"{' ' + why if why else ''}"
+                + (" after it left tasks-executing" if listed is not None and not known else
+                   f" within {timeout:.1f} s"),
                 f"later waits for a final status last {self.timing.response:.1f} s; what "
                 "they judge is could-not-test")
         return final

@@ -119,7 +119,9 @@ def run(ctx: Context) -> None:
         judged = False
         if task == natural:
             noted = ctx.final_known()
-            final = ctx.wait_final(task_uuid, after=sent.mark, why=f"('{task}', ending on its own)")
+            final = ctx.wait_final(task_uuid, after=sent.mark, why=f"('{task}', ending on its "
+                                   "own)", listed=seen if seen is not None
+                                   and seen.subtopic == "direct_execution_info" else None)
             if final is None:
                 judged = True
                 _no_final(ctx, ctx.untestable(noted), violation=ctx.violation(
