@@ -17,7 +17,14 @@ from typing import Any
 
 import orjson
 
-from conformance.scenarios.deviation import FINAL_STATUSES, Deviations, Kind, meaning
+from conformance.scenarios.deviation import (
+    FINAL_STATUSES,
+    SHORT,
+    UNANSWERED,
+    Deviations,
+    Kind,
+    meaning,
+)
 from conformance.scenarios.traffic import Entry, Traffic
 from conformance.topics import UnitAddress
 
@@ -103,6 +110,8 @@ class Commander:
         """com-uuid -> start-task sent: the unit's answers name the task-uuids it generated."""
         self.deviations = deviations if deviations is not None else Deviations()
         self._unit_uuid: dict[str, str] = {}
+        self._answered_kinds: set[str] = set()
+        """Commands (start-task, ...) the unit has answered at least once."""
         """task-uuid sent -> the task-uuid the unit runs the task under, when it differs."""
         self.deliberately_invalid: set[bytes] = set()
         """Payloads sent broken on purpose (robustness, invalid parameters): not the unit's
@@ -167,13 +176,30 @@ class Commander:
                 invalid: bool = False) -> tuple[Sent, Entry | None]:
         """Send and wait for the response; resend once with the same com-uuid when the
         connection dropped meanwhile (2: 'resending commands with the same UUID')."""
+        kind = UNANSWERED.get(str(body.get("command"))) if not invalid else None
+        if kind is not None and self.deviations.get(kind) is not None and not self._answered(
+                str(body.get("command"))):
+            timeout *= SHORT  # none of this kind was ever answered: no full deadline again
         sent = self.send(body, invalid=invalid)
         answer = self.response(sent, timeout)
         if answer is None and self._gaps() != sent.gaps_before:
             self.resend(sent)
             answer = self.response(sent, timeout)
         self._track(sent, answer)
+        if kind is not None:
+            if answer is not None:
+                with self._lock:
+                    self._answered_kinds.add(str(body.get("command")))
+            elif not self._answered(str(body.get("command"))):
+                self.deviations.note(
+                    kind, f"the unit answered no {body.get('command')} within "
+                    f"{timeout:.1f} s", f"later ones get {SHORT * 100:.0f} % of the response "
+                    "deadline")
         return sent, answer
+
+    def _answered(self, command: str) -> bool:
+        with self._lock:
+            return command in self._answered_kinds
 
     def _track(self, sent: Sent, answer: Entry | None) -> None:
         """Remember every task this commander may have started, to abort it at the end."""

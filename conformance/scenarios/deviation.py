@@ -11,7 +11,9 @@ with its rule), and the scenarios adapt:
   end it means (its violation is the passive check's: EXEC-FB-002);
 - feedback without task-uuid: later waits for a task's feedback end at the next such message,
   and what they would judge is could-not-test with the reason;
-- no final feedback for a task that ends on its own: later waits for one are could-not-test.
+- no final feedback for a task that ends on its own: later waits for one are could-not-test;
+- a command of one kind (start-task, signal-task, query-status) never answered: later ones of
+  that kind get a short deadline (a fifth of the response deadline) for their answer.
 """
 
 from __future__ import annotations
@@ -56,10 +58,21 @@ class Kind(Enum):
     STATUS_VOCABULARY = "EXEC-FB-002"
     FEEDBACK_WITHOUT_TASK_UUID = "EXEC-FB-001"
     NO_FINAL_FEEDBACK = "EXEC-START-003"
+    START_UNANSWERED = "EXEC-START-001"
+    SIGNAL_UNANSWERED = "EXEC-SIG-001"
+    QUERY_UNANSWERED = "EXEC-QUERY-001"
 
     @property
     def rule(self) -> str:
         return self.value
+
+
+UNANSWERED: dict[str, Kind] = {"start-task": Kind.START_UNANSWERED,
+                               "signal-task": Kind.SIGNAL_UNANSWERED,
+                               "query-status": Kind.QUERY_UNANSWERED}
+"""Commands whose going unanswered is adapted to (12.1: every command is answered)."""
+SHORT = 0.2
+"""Share of the response deadline a command of a kind never answered so far is given."""
 
 
 @dataclass(frozen=True)
