@@ -46,6 +46,9 @@ MIX = {"heartbeat": 1.0, "sensor/position": 1.0, "sensor/speed": 1.0, "sensor/he
        "sensor/course": 0.5, "sensor_info": 0.2, "direct_execution_info": 0.2}
 PING_EVERY = 120.0
 """Seconds between a commander's ping to each unit (and its pong)."""
+TASK_EVERY = 300
+"""Seconds between a commander's start-task to each unit: answered 'running', feedback
+'running', 20 s later 'finished' and a query-status answered 'finished' (conversations)."""
 FAULTY_EVERY = 50
 """Every 50th unit is faulty: its heartbeat runs 20 % slow (HB-003) and its heading is signed
 (SENS-002), as the field has them."""
@@ -67,7 +70,8 @@ def unit_payloads(i: int, name: str, agent_type: str, uid: str, t: float, kinds:
                  "type": "DirectExecutionInfo", "tasks-executing": [],
                  "tasks-available": [
                      {"name": "move-to", "signals": ["$abort", "$enough", "$pause", "$continue"]},
-                     {"name": "look-at-position", "signals": ["$abort", "$enough"]}]}
+                     {"name": "look-at-position", "signals": ["$abort", "$enough"]},
+                     {"name": "look-at-bearing", "signals": ["$abort", "$enough"]}]}
         elif kind == "sensor/position":
             p = {"latitude": 58.39 + (i % 20) * 1e-3 + (t % 600) * 1e-6,
                  "longitude": 15.56 + (i // 20) * 1e-3, "altitude": 50.0 + i % 7,
@@ -121,7 +125,44 @@ def generate_recording(path: Path, units: int, seconds: int) -> int:
                                  "payload": dumps(pong).decode(), "qos": 0, "retain": False}))
                     write(b"\n")
                     count += 2
+                for sub, payload in task_conversation(s, i, uid):
+                    write(dumps({"ts": t + 0.1, "topic": f"{base}/{sub}",
+                                 "payload": dumps(payload).decode(), "qos": 0, "retain": False}))
+                    write(b"\n")
+                    count += 1
     return count
+
+
+def task_conversation(s: int, i: int, uid: str) -> list[tuple[str, object]]:
+    """The part of a start-task conversation due at second ``s`` for unit ``i``."""
+    phase = (s + i * 13) % TASK_EVERY
+    if phase not in (0, 20):
+        return []
+    began = s - phase
+    if began < 0:
+        return []  # its start-task would have come before the recording began
+    task = str(uuid.UUID(int=(began << 20) + i + 3, version=4))
+
+    def com(k: int) -> str:
+        return str(uuid.UUID(int=(s << 20) + (i << 3) + k + 11, version=4))
+
+    if phase == 0:
+        start = com(0)
+        return [
+            ("exec/command", {"com-uuid": start, "command": "start-task", "sender": "commander",
+                              "task-uuid": task, "task": {"name": "look-at-bearing",
+                                                          "params": {"bearing": 90.0}}}),
+            ("exec/response", {"agent-uuid": uid, "com-uuid": com(1), "response": "running",
+                               "response-to": start, "task-uuid": task}),
+            ("exec/feedback", {"agent-uuid": uid, "com-uuid": com(2), "status": "running",
+                               "task-uuid": task})]
+    query = com(4)
+    return [("exec/feedback", {"agent-uuid": uid, "com-uuid": com(3), "status": "finished",
+                               "task-uuid": task}),
+            ("exec/command", {"com-uuid": query, "command": "query-status",
+                              "sender": "commander", "task-uuid": task}),
+            ("exec/response", {"agent-uuid": uid, "com-uuid": com(5), "response": "finished",
+                               "response-to": query, "task-uuid": task})]
 
 
 # --- children: one measurement each, in a process of its own -------------------------------------
@@ -199,6 +240,13 @@ def child_recorded(mode: str, path: str, total: int, limit: int) -> dict:
     if mode == "lint":
         out["units"] = len(report.units)
         out["failing_units"] = sum(1 for u in report.units.values() if u.worst().value == "fail")
+        out["commanders"] = sum(1 for u in report.units.values() if u.party == "commander")
+        # Conversations: judged, and what the bounds dropped (said in each unit's report).
+        out["conversation_checks_passed"] = sum(
+            u.examined.get(r, 0) for u in report.units.values()
+            for r in ("EXEC-PING-001", "EXEC-START-001", "EXEC-START-003", "EXEC-QUERY-001"))
+        out["expectations_dropped"] = sum(u.facts.get("conversations_dropped", 0)
+                                          for u in report.units.values())
         out["violations"] = linter.violations
         out["reader_problems"] = reader.problem_count
     return out

@@ -17,10 +17,11 @@ import time
 import uuid
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
-from typing import NamedTuple
 from urllib.parse import urlsplit
 
 import paho.mqtt.client as paho
+
+from conformance.message import Message  # re-exported: ``from conformance.client import Message``
 
 SCHEMES = ("mqtt", "mqtts", "embedded")
 LOOPBACK = ("127.", "localhost", "::1")
@@ -107,20 +108,6 @@ class BrokerURL:
             return "embedded"
         user = f"{self.username}@" if self.username else ""
         return f"{self.scheme}://{user}{self.host}:{self.port}"
-
-
-class Message(NamedTuple):
-    """One received message. ``time`` is the arrival time in Unix seconds, taken by paho on
-    receipt (FIELD-NOTES: timing inside the callback lags by up to 2 ms).
-
-    Immutable. A NamedTuple, not a frozen dataclass: it is made for every message, and a
-    frozen dataclass costs 2-3 times as much to create (bench/bench_lint.py)."""
-
-    time: float
-    topic: str
-    payload: bytes
-    qos: int = 0
-    retain: bool = False
 
 
 @dataclass(frozen=True)

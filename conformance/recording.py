@@ -44,7 +44,7 @@ from typing import IO, Any
 
 import orjson
 
-from conformance.client import Message
+from conformance.message import Message
 
 MAX_LINE_BYTES = 64 << 20
 """A longer line is skipped as malformed (a message is at most 1 MiB examined, MSG-004; a

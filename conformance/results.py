@@ -18,7 +18,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
-from conformance.rules import CATALOGUE, Level, Mode, Rule, Severity
+from conformance.rules import CATALOGUE, Level, Mode, Rule, Severity, Side
 from conformance.violation import RuleResult, Verdict, Violation
 
 KINDS = ("certification", "lint")
@@ -54,15 +54,31 @@ def judge_rule(rule: Rule, *, severity: Severity, violations: list[Violation], c
     return RuleResult(rule.id, Verdict.SKIP, default_reason or "not examined", [])
 
 
+COMMANDER_REASON = ("commander-side rule: in a certification the suite itself is the commander "
+                    "(waraps-conformance lint judges commanders)")
+
+
 def skip_reason(rule: Rule, *, kind: str, unit: str, levels: tuple[str, ...] | None,
-                note: str = "") -> str:
+                note: str = "", party: str = "unit") -> str:
     """Why a rule that was never examined is skipped (the reason a person reads).
 
     ``levels`` is what the unit declares in its heartbeat, or None when no heartbeat was seen;
-    ``note`` is what the check itself said (``only 3 intervals observed; need 10``).
+    ``note`` is what the check itself said (``only 3 intervals observed; need 10``); ``party``
+    is whose row it is (``unit`` or ``commander``).
     """
+    if rule.side is Side.COMMANDER and party == "unit":
+        if kind == "certification":
+            return COMMANDER_REASON
+        return "commander-side rule: what commanders send is judged on their own rows"
+    if party == "commander":
+        return note or "no command of this commander that the rule applies to was seen"
+    if rule.id.startswith("ROS-") and not note:
+        return "judged from ROS bags that hold the topics it is about (lint --from run.bag)"
     if rule.mode is Mode.ACTIVE and kind == "lint":
         return f"needs a stimulus: run pytest --unit {unit}"
+    if rule.mode is Mode.CONVERSATION and kind == "lint" and not note:
+        return (f"no command to this unit that the rule applies to was seen (pytest --unit "
+                f"{unit} sends them)")
     level = LEVEL_NAMES.get(rule.level)
     if level is not None and note == "":
         if levels is None:
@@ -133,6 +149,8 @@ class UnitReport:
     agent_type: str
     role: str
     name: str
+    party: str = "unit"
+    """``unit``, or ``commander``: a row of what one commander sent (DESIGN: blame)."""
     agent_uuids: list[str] = field(default_factory=list)
     levels: list[str] = field(default_factory=list)
     message_count: int = 0
@@ -144,6 +162,8 @@ class UnitReport:
     """How many times each rule was examined."""
     violation_counts: dict[str, int] = field(default_factory=dict)
     """How many violations of each rule were seen (``rules`` keeps the first few as evidence)."""
+    violation_times: dict[str, tuple[float, float]] = field(default_factory=dict)
+    """Rule -> (first, latest) time of its violations, Unix seconds."""
     facts: dict[str, Any] = field(default_factory=dict)
     """What the unit declared and did, for people: sensors listed and seen, tasks, position."""
 
@@ -165,6 +185,8 @@ class UnitReport:
         d = dict(d)
         d["rules"] = {rid: _rule_result_from_dict(r) for rid, r in d.get("rules", {}).items()}
         d["rates"] = [RateStat.from_dict(r) for r in d.get("rates", [])]
+        d["violation_times"] = {r: (float(a), float(b))
+                                for r, (a, b) in d.get("violation_times", {}).items()}
         return cls(**d)
 
 
@@ -211,9 +233,11 @@ class RunReport:
     def worst(self) -> Verdict:
         return Verdict.worst([u.worst() for u in self.units.values()])
 
-    def exit_code(self) -> int:
-        """0 when no rule failed, 1 otherwise (warn, skip and could-not-test exit 0)."""
-        return 1 if self.worst() is Verdict.FAIL else 0
+    def exit_code(self, gate: str = "all") -> int:
+        """0 when no rule failed, 1 otherwise (warn, skip and could-not-test exit 0).
+        ``gate="units"`` looks only at units' rows, not at commanders'."""
+        rows = [u for u in self.units.values() if gate == "all" or u.party == "unit"]
+        return 1 if Verdict.worst([u.worst() for u in rows]) is Verdict.FAIL else 0
 
     def failures(self) -> list[tuple[str, RuleResult]]:
         """(unit, result) for every failed or warned rule, failures first."""

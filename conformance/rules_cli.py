@@ -1,4 +1,5 @@
-"""``waraps-conformance rules``: print the rule catalogue (id, severity, section, title)."""
+"""``waraps-conformance rules``: print the rule catalogue (id, severity, mode, side, section,
+title)."""
 
 from __future__ import annotations
 
@@ -26,13 +27,14 @@ def main(argv: list[str]) -> int:
     if args.format == "json":
         print(json.dumps([{"id": r.id, "title": r.title, "section": r.section,
                            "severity": profile.severity_of(r.id).value, "level": r.level.value,
-                           "mode": r.mode.value, "decision": r.decision} for r in rules],
+                           "mode": r.mode.value, "side": r.side.value,
+                           "decision": r.decision} for r in rules],
                          indent=2))
         return 0
     w = max(len(r.id) for r in rules)
     for r in rules:
-        print(f"{r.id:<{w}}  {profile.severity_of(r.id).value:<7}  {r.mode.value:<7}  "
-              f"{r.section:<32.32}  {r.title}")
+        print(f"{r.id:<{w}}  {profile.severity_of(r.id).value:<7}  {r.mode.value:<12}  "
+              f"{r.side.value:<9}  {r.section:<32.32}  {r.title}")
         if args.errata and r.decision:
             print(f"{'':<{w}}  decision: {r.decision}\n")
     return 0

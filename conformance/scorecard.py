@@ -1,9 +1,11 @@
 """The linter's live per-unit scorecard: redrawn in place on a terminal, plain lines in a pipe or
 CI log (first violation of each rule per unit, connection events, a summary line now and then).
 
-One row per unit: agent type, role, declared levels, message rate, last seen, status so far and
-violations by rule; below it the latest fleet observations (silence, two agents under one name,
-reboots, responses to nothing, reused com-uuids, stale retained state).
+One row per unit and per commander (what is wrong in a command is its commander's): agent type,
+role, declared levels, message rate, last seen, status so far and violations by rule; below it,
+live, the latest fleet observations (silence, deaths, two agents under one name, responses to
+nothing, reused com-uuids, stale retained state), and at the end every finding once, with its
+count and its first and last time.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import time
 from dataclasses import dataclass
 from typing import IO, Any
 
-from conformance.lint.linter import FLEET_RULES, NOT_A_UNIT, OTHER_UNITS, Linter
+from conformance.lint.linter import NOT_A_UNIT, OTHER_UNITS, Linter
 from conformance.recording import Event
 from conformance.rules import CATALOGUE
 from conformance.violation import Violation
@@ -269,9 +271,10 @@ class Scorecard:
             self.update(linter)  # pending violations and events first
         lines = [self.header(linter, None, None), ""]
         lines += self.table(rows_from_report(report), None, width=400)
-        fleet = fleet_from_report(report, limit=20)
-        if fleet:
-            lines += ["", "fleet observations:"] + ["  " + ln for ln in fleet]
+        found = findings_from_report(report)
+        if found:
+            lines += ["", "findings (each unit or commander and rule once: count, first and "
+                          "last time):"] + ["  " + ln for ln in found]
         self.out.write("\n".join(lines) + "\n")
         self.out.flush()
 
@@ -281,8 +284,9 @@ def rows_from_report(report: Any) -> list[UnitRow]:
     per rule, rate over the whole run (messages per second)."""
     rows = []
     for unit, u in report.units.items():
-        rate = None
-        if u.first_seen is not None and u.last_seen is not None and u.last_seen > u.first_seen:
+        rate = None  # a commander's commands come in bursts: no rate
+        if (u.party == "unit" and u.first_seen is not None and u.last_seen is not None
+                and u.last_seen > u.first_seen):
             rate = (u.message_count - 1) / (u.last_seen - u.first_seen)
         failed = {r for r, res in u.rules.items() if res.verdict.value == "fail"}
         warned = {r for r, res in u.rules.items() if res.verdict.value == "warn"}
@@ -290,8 +294,10 @@ def rows_from_report(report: Any) -> list[UnitRow]:
         for r in failed | warned:  # a fail without a counted violation (an explicit verdict)
             counts.setdefault(r, 0)
         order = sorted(counts.items(), key=lambda rc: (rc[0] not in failed, -rc[1], rc[0]))
-        rows.append(UnitRow(unit, u.agent_type, u.role,
-                            tuple(u.levels) if u.levels or u.message_count == 0 else None,
+        rows.append(UnitRow(unit, "commander" if u.party == "commander" else u.agent_type,
+                            u.role,
+                            tuple(u.levels) if u.levels or u.message_count == 0
+                            or u.party == "commander" else None,
                             u.message_count, rate, u.last_seen,
                             errors=len(failed), warnings=len(warned),
                             violations=tuple((r, n) for r, n in order if r in failed | warned)))
@@ -299,17 +305,28 @@ def rows_from_report(report: Any) -> list[UnitRow]:
     return sorted(rows, key=lambda r: (order_of[r.status], r.unit == NOT_A_UNIT, r.unit))
 
 
-def fleet_from_report(report: Any, limit: int = 20) -> list[str]:
-    """The fleet observations of a report (silence, identity, commands, retained), by time."""
+MAX_FINDINGS_SHOWN = 40
+
+
+def findings_from_report(report: Any, limit: int = MAX_FINDINGS_SHOWN) -> list[str]:
+    """One line per (unit or commander, rule) that failed or warned: its verdict, the rule, how
+    many violations, and the first and latest time; failures first, then by first time."""
     found = []
     for unit, u in report.units.items():
-        for rule in FLEET_RULES:
-            res = u.rules.get(rule)
-            if res is None or res.verdict.value not in ("fail", "warn"):
+        for rule, res in u.rules.items():
+            if res.verdict.value not in ("fail", "warn"):
                 continue
-            for v in res.violations:
-                found.append((v.time or 0.0, violation_line(v, unit, res.verdict.value.upper()
-                                                            if res.verdict.value == "fail"
-                                                            else "warn")))
+            n = u.violation_counts.get(rule, len(res.violations))
+            first, last = u.violation_times.get(rule, (None, None))
+            when = (f"at {_clock(first)}" if n == 1 or first == last
+                    else f"first {_clock(first)}, last {_clock(last)}") if first else ""
+            title = CATALOGUE[rule].title if rule in CATALOGUE else ""
+            verdict = "FAIL" if res.verdict.value == "fail" else "warn"
+            found.append(((res.verdict.value != "fail", first or 0.0, unit, rule),
+                          f"{verdict:<4} {unit} {rule} {title}: {n}x {when}".rstrip()
+                          if n else f"{verdict:<4} {unit} {rule} {title}: {res.reason}"))
     found.sort()
-    return [line for _, line in found[-limit:]]
+    lines = [line for _, line in found[:limit]]
+    if len(found) > limit:
+        lines.append(f"... and {len(found) - limit} more: every finding is in the reports")
+    return lines

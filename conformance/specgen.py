@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from conformance.schema import BASE_URI, PACKAGE, Parameter, TaskSpec, task_specs
+from conformance.tst import COMPOSITES
 
 DRAFT = "https://json-schema.org/draft/2020-12/schema"
 GENERATED = "generated"
@@ -244,7 +245,12 @@ def start_tst_schema(specs: list[TaskSpec]) -> dict[str, Any]:
         "description": "The node's common parameters (11): the executing unit and the node's "
                        "uuid (14.3.4: best set, at least for the top node).",
         "properties": {
-            "execunit": {"type": "string"},
+            "execunit": {"type": "string", "allOf": [{
+                "x-rule": "ERR-017",
+                "x-expected": "'/NAME' (11's execunit '/op0', 14.3.3's '/dji21')",
+                "x-detail": "a bare unit name is accepted with a warning (strict: fail)",
+                "pattern": "^/",
+            }]},
             "node-uuid": {"$ref": f"{COMMON}#/$defs/node-uuid"},
         },
     }
@@ -253,8 +259,10 @@ def start_tst_schema(specs: list[TaskSpec]) -> dict[str, Any]:
         "$id": BASE_URI + f"{GENERATED}/start-tst.json",
         "title": "start-tst command (spec 14.3.4, examples 11)",
         "description": "Starts a fully instantiated TST tree. Each node names a task of section "
-                       "9 (its params are checked against the task's schema) and lists its "
-                       "children; the tree is recursive.",
+                       "9 (its params are checked against the task's schema) or a composite "
+                       "node, seq or conc (TST-010), and lists its children; the tree is "
+                       "recursive. Its structure beyond a schema (unique node-uuids, children "
+                       "only under seq and conc) is conformance.tst's (TST-014).",
         "x-rule": "TST-001",
         "type": "object",
         "required": ["com-uuid", "command", "tst"],
@@ -283,10 +291,11 @@ def start_tst_schema(specs: list[TaskSpec]) -> dict[str, Any]:
                         },
                         "else": {
                             "x-rule": "TASK-002",
-                            "x-expected": "a task of section 9: " + ", ".join(names),
+                            "x-expected": "seq, conc or a task of section 9: "
+                                          + ", ".join(names),
                             "x-detail": "a unit may offer other tasks (5.3); their parameters "
                                         "are not checked",
-                            "enum": names,
+                            "enum": list(COMPOSITES) + names,
                         },
                     },
                     "children": {"type": "array", "items": {"$ref": "#/$defs/node"}},

@@ -34,6 +34,7 @@ from orjson import loads as _loads
 from conformance import schema
 from conformance.profile import Profile
 from conformance.topics import AGENT_TYPES, ParsedTopic, TopicKind, naming_violations, parse_topic
+from conformance.tst import read_tree
 from conformance.violation import Violation
 
 MAX_PAYLOAD_BYTES = 1 << 20  # MSG-004
@@ -359,6 +360,19 @@ class Validator:
             "task-specific status", observed=repr(status), topic=parsed.topic, path="$.status",
             time=time, payload=raw, unit=_unit(parsed), detail=detail)]
 
+    def _tst_command_checks(self, parsed: ParsedTopic, message: dict[str, Any], raw: bytes,
+                            time: float | None) -> list[Violation] | None:
+        """TST-014: a start-tst tree's structure beyond its schema (``conformance.tst``):
+        node-uuids used twice, children where only seq and conc have them, a seq or conc
+        without children, common_params and common-params that disagree."""
+        if message.get("command") != "start-tst" or not isinstance(message.get("tst"), dict):
+            return None
+        _root, problems = read_tree(message["tst"])
+        return [Violation.of(p.rule, expected=p.expected, observed=p.observed,
+                             topic=parsed.topic, path=p.path, time=time, payload=raw,
+                             unit=_unit(parsed), detail="14.3.4, 11: a fully instantiated tree")
+                for p in problems if not p.in_schema] or None
+
     @cached_property
     def _statuses(self) -> frozenset[str]:
         """Feedback statuses that are no violation: 12.4's standard ones, those of the tasks'
@@ -375,6 +389,7 @@ _CONTENT_CHECKS = {
     TopicKind.EXEC_RESPONSE: Validator._response_checks,
     TopicKind.TST_RESPONSE: Validator._response_checks,
     TopicKind.EXEC_FEEDBACK: Validator._feedback_checks,
+    TopicKind.TST_COMMAND: Validator._tst_command_checks,
 }
 
 

@@ -18,7 +18,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
-from conformance.client import Message
+from conformance.message import Message
 from conformance.profile import Profile
 from conformance.topics import TopicKind, UnitAddress
 from conformance.validator import Validation
@@ -117,7 +117,7 @@ def covered_rules() -> set[str]:
 class BoundedDict(OrderedDict):  # type: ignore[type-arg]
     """An LRU mapping holding at most ``limit`` entries (bounded memory for any run length)."""
 
-    def __init__(self, limit: int) -> None:
+    def __init__(self, limit: int = 4096) -> None:  # a default: copy and pickle call cls()
         super().__init__()
         self.limit = limit
         self.evicted = 0
@@ -405,6 +405,9 @@ class CheckContext:
         self.started: float | None = None
         """Arrival time of the first message the observer saw (of any unit)."""
         self.gaps: list[tuple[float, float]] = []
+        self.reboots: list[float] = []
+        """When the observer's side (the suite) rebooted the unit: a silence that only such a
+        reboot ended was a death (HB-012), not a silence the unit came back from."""
 
     MAX_GAPS = 1000
 

@@ -8,7 +8,7 @@ from collections.abc import Iterator
 from typing import Any
 
 from conformance.checks.base import CheckContext, UnitState, check
-from conformance.client import Message
+from conformance.message import Message
 from conformance.topics import INFO_KIND_OF_LEVEL, TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
@@ -112,7 +112,19 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
     examined = unit.examined
     examined["HB-010"] = examined.get("HB-010", 0) + 1
     silence = msg.time - last
+    tracker = unit.private.get("rates", {}).get(HB)
+    held = unit.private.get("hb010_held")
+    revived = next((r for r in ctx.reboots if last < r <= msg.time), None)
+    if revived is not None and revived - last > SILENCE_PERIODS * heartbeat_period(unit):
+        # Silent for good until the suite rebooted it: a death (HB-012), not a silence.
+        deaths = unit.private.setdefault("deaths", [])
+        deaths.append((last, revived))
+        del deaths[:-16]
+        return None
     if silence <= SILENCE_PERIODS * period or ctx.in_gap(last, msg.time):
+        if held and tracker is not None and tracker.n:  # it keeps its period: they were silences
+            unit.private["hb010_held"] = []
+            return held
         return None
     uuid = _uuid(v)
     if uuid is None:
@@ -121,29 +133,88 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
         came_back = "came back with the same agent-uuid (resumed)"
     else:
         came_back = f"came back with a new agent-uuid {uuid} (a reboot)"
-    return [Violation.of(
+    found = [Violation.of(
         "HB-010", expected=f"a heartbeat at least every {SILENCE_PERIODS * period:.2f} s "
                            f"({SILENCE_PERIODS:g} declared periods)",
         observed=f"silent for {silence:.2f} s ({silence / period:.1f} periods), then {came_back}",
         topic=msg.topic, time=last, payload=msg.payload,
         detail="a silence makes the unit look gone to every commander")]
+    if tracker is None or not tracker.n:
+        # No interval yet within 3 periods: a unit that sends far slower than it declares is
+        # HB-003's (its rate), not a string of silences. Held until it keeps its period once.
+        unit.private["hb010_held"] = [*(held or ()), *found][-8:]
+        return None
+    if held:
+        unit.private["hb010_held"] = []
+        return [*held, *found]
+    return found
 
 
-@check("HB-010", finish=True)
-def unit_is_not_silent_at_the_end(ctx: CheckContext, unit: UnitState, now: float,
-                                  findings: Any) -> Iterator[Violation]:
+def heartbeat_period(unit: UnitState) -> float:
+    """The period silences are measured in, seconds: the declared one, or the mean interval
+    measured when every one of at least 3 intervals was over 3 declared periods, so that a unit
+    sending far slower than it declares is judged by its rate (HB-003), not as silent again and
+    again."""
+    declared = unit.period(HB) or 0.0
+    tracker = unit.private.get("rates", {}).get(HB)
+    if tracker is not None and tracker.n == 0 and tracker.all_n >= 3:
+        # every interval so far was over 3 declared periods: the unit's own period is longer
+        return max(declared, tracker.all_total / tracker.all_n)
+    return declared
+
+
+def deaths(ctx: CheckContext, unit: UnitState, now: float) -> list[tuple[float, float]]:
+    """(last heartbeat, end) of every death: silent for good until the suite rebooted the unit
+    (end: the reboot), or until ``now`` (end: infinity)."""
+    found = list(unit.private.get("deaths", ()))
+    dead = death(ctx, unit, now)
+    if dead is not None:
+        found.append((dead[1], float("inf")))
+    return found
+
+
+def death(ctx: CheckContext, unit: UnitState, now: float) -> tuple[float, float] | None:
+    """(dying since, last heartbeat) when the unit's heartbeat stopped and never resumed before
+    ``now``: silent for more than 3 periods (``heartbeat_period``), the observer connected.
+    'Dying since' is one period before the last heartbeat: a command that killed it was
+    received about then."""
     last = unit.last_heartbeat
-    period = unit.period(HB)
-    if last is None or period is None:
+    if last is None or unit.period(HB) is None:
+        return None
+    period = heartbeat_period(unit)
+    if now - last <= SILENCE_PERIODS * period or (
+            ctx.in_gap(last, now) and not any(last < r <= now for r in ctx.reboots)):
+        return None
+    return last - period, last
+
+
+@check("HB-012", finish=True)
+def unit_does_not_die(ctx: CheckContext, unit: UnitState, now: float,
+                      findings: Any) -> Iterator[Violation]:
+    """5.1: the heartbeat registers availability. One that stops for good is a death (error):
+    the finding names the last command the unit received before it fell silent."""
+    from conformance.checks.conversation import last_command_before
+
+    if unit.last_heartbeat is None or unit.period(HB) is None:
         return
-    findings.examine("HB-010")
-    silence = now - last
-    if silence > SILENCE_PERIODS * period and not ctx.in_gap(last, now):
+    findings.examine("HB-012")
+    period = heartbeat_period(unit)
+    for last, end in deaths(ctx, unit, now):
+        silence = min(end, now) - last
+        command = last_command_before(unit, last + period)
+        said = (f"; the last command it received: {command.describe()}, "
+                f"{command.last_sent - last:+.2f} s from its last heartbeat"
+                if command is not None else "; it had received no command")
+        how = ("it never came back" if end == float("inf")
+               else "it came back only when the suite rebooted it")
         yield Violation.of(
-            "HB-010", expected=f"a heartbeat at least every {SILENCE_PERIODS * period:.2f} s",
-            observed=f"no heartbeat for the last {silence:.2f} s of the run "
-                     f"({silence / period:.1f} periods); it did not come back",
-            topic=unit.address.topic("heartbeat"), time=last)
+            "HB-012", expected=f"a heartbeat at least every {SILENCE_PERIODS * period:.2f} s "
+                               f"until the end of the observation",
+            observed=f"no heartbeat for {silence:.2f} s ({silence / period:.1f} periods); "
+                     f"{how}{said}",
+            topic=unit.address.topic("heartbeat"), time=last,
+            payload=command.excerpt if command is not None else None,
+            detail="a unit that dies on a command must survive it (12.1)")
 
 
 @check("MSG-007", on=(HB, TopicKind.SENSOR_INFO, TopicKind.DIRECT_EXECUTION_INFO,

@@ -12,6 +12,7 @@ counted per shape and expanded into per-rule counts only when a report is made.
 from __future__ import annotations
 
 import dataclasses
+import re
 import sys
 import time as _time
 from collections.abc import Collection
@@ -26,10 +27,10 @@ from conformance.checks.base import (
     UnitState,
 )
 from conformance.checks.examined import dispatch_roots, examined_group, shape_fields
-from conformance.client import Message
+from conformance.message import Message
 from conformance.profile import Profile
 from conformance.results import RunReport, UnitReport, judge_rule, skip_reason
-from conformance.rules import CATALOGUE
+from conformance.rules import CATALOGUE, Mode, Side
 from conformance.topics import TopicKind, UnitAddress, parse_topic
 from conformance.validator import Validation, Validator
 from conformance.violation import Verdict, Violation
@@ -44,22 +45,35 @@ MAX_SHAPES = 64
 """Message shapes whose examined rules are kept per topic (more are looked up globally)."""
 UNATTRIBUTED = "(unattributed)"
 """The report entry for topics that name no unit (``waraps/foo``, ``waraps/unit/air``)."""
+MAX_COMMANDERS = 256
+"""Commanders with a row of their own; the commands of further ones share one row."""
+MAX_SENDER = 64
+_SENDER = re.compile(rb'"sender"\s*:\s*"([^"\\]{1,64})"')
 
 class _RuleRecord:
     """What was recorded for one rule of one unit: a count and the first few violations."""
 
-    __slots__ = ("count", "evidence", "explicit", "reason")
+    __slots__ = ("count", "evidence", "explicit", "reason", "first", "last")
 
     def __init__(self) -> None:
         self.count = 0
         self.evidence: list[Violation] = []
         self.explicit: Verdict | None = None
         self.reason = ""
+        self.first: float | None = None
+        self.last: float | None = None
+        """Times of the first and the latest violation (of all, not only those kept)."""
 
     def add(self, v: Violation) -> None:
         self.count += 1
         if len(self.evidence) < MAX_EVIDENCE:
             self.evidence.append(v)
+        t = v.time
+        if t is not None:
+            if self.first is None or t < self.first:
+                self.first = t
+            if self.last is None or t > self.last:
+                self.last = t
 
 
 class Findings:
@@ -81,11 +95,13 @@ class Findings:
 
 
 class _Entry:
-    __slots__ = ("state", "records", "groups", "final", "unit")
+    __slots__ = ("state", "records", "groups", "final", "unit", "party")
 
-    def __init__(self, state: UnitState) -> None:
+    def __init__(self, state: UnitState, party: str = "unit", label: str = "") -> None:
         self.state = state
-        self.unit = "" if state.address.prefix == UNATTRIBUTED else str(state.address)
+        self.party = party
+        """``unit``, or ``commander``: a row of what commanders sent (DESIGN: blame)."""
+        self.unit = label or ("" if state.address.prefix == UNATTRIBUTED else str(state.address))
         self.records: dict[str, _RuleRecord] = {}
         self.groups: dict[tuple[str, ...], int] = {}
         """Rule groups examined by the validator -> messages (expanded at report time)."""
@@ -136,6 +152,7 @@ class _Route:
             tuple(c.fn for c in narrower) if narrower else ())
 
 
+_COMMAND_KINDS = (TopicKind.EXEC_COMMAND, TopicKind.TST_COMMAND)
 _IGNORED_ROUTE = _Route(_IGNORED, "")
 _OVERFLOW_ROUTE = _Route(_OVERFLOW, "")
 
@@ -159,6 +176,8 @@ class Monitor:
         self.ctx = CheckContext(self.profile, kind)
         self._only = frozenset(units) if units is not None else None
         self._entries: dict[UnitAddress | None, _Entry] = {}
+        self._commanders: dict[str, _Entry] = {}
+        """Commander name -> its row: what is wrong in a command is the commander's fault."""
         self._by_topic: dict[str, _Route] = {}
         # Whether the validator says itself which rules it examined (Validation.examined).
         self._validator_says_examined = "examined" in getattr(
@@ -222,9 +241,11 @@ class Monitor:
                     examined = route.scalar_groups[m_type] = examined_group(v)
             else:
                 examined = examined_group(v)
+        state = entry.state
+        if route.topic_kind in _COMMAND_KINDS:
+            return self._feed_command(route, entry, message, v, examined)
         groups = entry.groups
         groups[examined] = groups.get(examined, 0) + 1
-        state = entry.state
         violations = v.violations
         found = list(violations) if violations else None
         if route.reinterpret and v.topic.kind is route.topic_kind:
@@ -250,6 +271,56 @@ class Monitor:
             found = [f if f.unit or not unit else dataclasses.replace(f, unit=unit) for f in found]
             for f in found:
                 self._add(entry, f)
+        return found
+
+    def _feed_command(self, route: _Route, entry: _Entry, message: Message, v: Validation,
+                      examined: Any) -> list[Violation]:
+        """A command: the unit's state learns of it (its conversations), but what is wrong in
+        it is the commander's (by ``sender``), never the unit's. Commands are rare: the
+        bookkeeping here may cost what the hot path may not."""
+        commander = self._commander_entry(entry, v.message, message.payload)
+        commander.groups[examined] = commander.groups.get(examined, 0) + 1
+        commander.state.observe(message, v)
+        state = entry.state
+        before = dict(state.examined)
+        found = list(v.violations)
+        checks = (route.checks_for(v.kind) if v.topic.kind is route.topic_kind
+                  else self._checks_for(v))
+        for fn in checks:
+            out = fn(self.ctx, state, message, v)
+            if out:
+                found.extend(out)
+        state.observe(message, v)
+        for rule, n in list(state.examined.items()):
+            gained = n - before.get(rule, 0)
+            if gained and CATALOGUE[rule].side is not Side.UNIT:
+                commander.state.examine(rule, gained)
+                state.examined[rule] = n - gained
+        found = [dataclasses.replace(f, unit=commander.unit) for f in found]
+        for f in found:
+            self._add(commander, f)
+        return found
+
+    def _commander_entry(self, unit_entry: _Entry, m: Any, payload: Any = None) -> _Entry:
+        """The row of the commander that sent a command: its ``sender``, else 'the commander
+        of UNIT' (v0.7 has no sender field in 12.2; implementations add one)."""
+        sender = m.get("sender") if isinstance(m, dict) else None
+        if m is None and isinstance(payload, bytes):  # not JSON: the sender may still be read
+            found = _SENDER.search(payload, 0, 65536)
+            sender = found.group(1).decode("utf-8", "replace") if found else None
+        if isinstance(sender, str) and sender.strip():
+            name = "".join(ch if ch.isprintable() else "?" for ch in sender.strip()[:MAX_SENDER])
+        else:
+            name = f"of {unit_entry.state.address.name or unit_entry.unit}"
+        found = self._commanders.get(name)
+        if found is None:
+            if len(self._commanders) >= MAX_COMMANDERS:
+                name = "(other commanders)"
+                found = self._commanders.get(name)
+            if found is None:
+                label = f"commander {name}"
+                found = self._commanders[name] = _Entry(
+                    UnitState(UnitAddress(UNATTRIBUTED, "", "", label)), "commander", label)
         return found
 
     @staticmethod
@@ -285,6 +356,14 @@ class Monitor:
         the messages received after the reconnect."""
         self.ctx.add_gap(float(start), float(end))
 
+    def reboot_requested(self, t: float) -> None:
+        """The observer's side rebooted the unit at ``t`` (Unix seconds): the restart is not
+        judged as a silence or a rate gap, but a unit already silent for good before it had
+        died (HB-012), however it came back."""
+        self.ctx.add_gap(float(t), float(t))
+        self.ctx.reboots.append(float(t))
+        del self.ctx.reboots[:-1000]
+
     def unexamined(self, count: int) -> None:
         """``count`` messages the observer could not examine (dropped, queue overflow)."""
         self._unexamined += int(count)
@@ -311,10 +390,11 @@ class Monitor:
         assert entry is not None
         return entry.state
 
-    def record(self, unit: UnitAddress, rule: str, *, violation: Violation | None = None,
+    def record(self, unit: UnitAddress | None, rule: str, *, violation: Violation | None = None,
                verdict: Verdict | None = None, reason: str = "") -> None:
         """Record an active scenario's outcome for ``rule``: a violation; or an explicit
-        skip / could-not-test / fail / warn with its reason; or ``verdict=PASS``: examined."""
+        skip / could-not-test / fail / warn with its reason; or ``verdict=PASS``: examined.
+        ``unit`` None: a finding that names no unit (a ROS bag's, reported unattributed)."""
         if rule not in CATALOGUE:
             from conformance.rules import get
 
@@ -324,7 +404,10 @@ class Monitor:
         if violation is not None:
             if violation.rule != rule:
                 violation = dataclasses.replace(violation, rule=rule)
-            if not violation.unit:
+            if violation.time is None and self._last_time is not None:
+                # when it was found (no answer came by then): a death before it explains it
+                violation = dataclasses.replace(violation, time=self._last_time)
+            if not violation.unit and unit is not None:
                 violation = dataclasses.replace(violation, unit=str(unit))
             self._add(entry, violation)
         if verdict is Verdict.PASS:
@@ -352,8 +435,13 @@ class Monitor:
         for address, entry in sorted(self._entries.items(),
                                      key=lambda kv: (kv[0] is None, str(kv[0] or ""))):
             final = entry.final if entry.final is not None else self._run_finish(entry, now)
-            report = self._unit_report(address, entry, final)
+            report = self._unit_report(address, entry, final, now)
             units[report.unit] = report
+        # In a certification the suite itself is the commander: no row of its own.
+        if self.kind == "lint":
+            for _, entry in sorted(self._commanders.items()):
+                report = self._unit_report(None, entry, Findings(), now)
+                units[report.unit] = report
         started = meta.pop("started", None)
         if started is None:
             started = min([self.ctx.started or self.created, self.created])
@@ -399,8 +487,10 @@ class Monitor:
                     v if v.unit else dataclasses.replace(v, unit=unit) for v in out)
         return findings
 
-    def _unit_report(self, address: UnitAddress | None, entry: _Entry,
-                     final: Findings) -> UnitReport:
+    def _unit_report(self, address: UnitAddress | None, entry: _Entry, final: Findings,
+                     now: float) -> UnitReport:
+        from conformance.checks.conversation import dropped
+        from conformance.checks.identity import deaths
         from conformance.checks.rates import rate_stats
 
         state = entry.state
@@ -414,13 +504,18 @@ class Monitor:
         extra: dict[str, list[Violation]] = {}
         for v in final.violations:
             extra.setdefault(v.rule, []).append(v)
-        unit = str(address) if address is not None else UNATTRIBUTED
-        if address is None:  # no unit: only the rules that were examined or broken
+        unit = str(address) if address is not None else (entry.unit or UNATTRIBUTED)
+        if entry.party == "commander":  # the commander's rules, and any other it broke
+            rule_ids = [r for r, rule in CATALOGUE.items() if rule.side is Side.COMMANDER
+                        or r in examined or r in entry.records]
+        elif address is None:  # no unit: only the rules that were examined or broken
             rule_ids = sorted(set(examined) | set(entry.records))
         else:
             rule_ids = list(CATALOGUE)
         rules = {}
         counts = {}
+        times: dict[str, tuple[float, float]] = {}
+        died = deaths(self.ctx, state, now) if address is not None else []
         for rid in rule_ids:
             rule = CATALOGUE.get(rid)
             if rule is None:
@@ -428,14 +523,30 @@ class Monitor:
             rec = entry.records.get(rid)
             evidence = (rec.evidence if rec else []) + extra.get(rid, [])
             count = (rec.count if rec else 0) + len(extra.get(rid, ()))
+            explicit, reason = (rec.explicit, rec.reason) if rec else (None, "")
+            if died and evidence and rule.mode is not Mode.PASSIVE:
+                # A dead unit answers nothing: what a scenario found missing while it was
+                # dead is its death's evidence (HB-012), not a fault of its own.
+                kept = [v for v in evidence if not _during(v.time, died)]
+                if len(kept) < len(evidence):
+                    count -= len(evidence) - len(kept)
+                    evidence = kept
+                    if not count and explicit is None:
+                        explicit, reason = Verdict.COULD_NOT_TEST, (
+                            "the unit died (HB-012) before it could answer")
             if count:
                 counts[rid] = count
+                when = [t for t in (rec.first if rec else None, rec.last if rec else None,
+                                    *(v.time for v in extra.get(rid, ()))) if t is not None]
+                if when:
+                    times[rid] = (min(when), max(when))
             rules[rid] = judge_rule(
                 rule, severity=self.profile.severity_of(rid), violations=evidence[:MAX_EVIDENCE],
                 count=count, examined=examined.get(rid, 0),
-                explicit=rec.explicit if rec else None, explicit_reason=rec.reason if rec else "",
+                explicit=explicit, explicit_reason=reason,
                 default_reason=skip_reason(rule, kind=self.kind, unit=unit,
-                                           levels=state.levels, note=notes.get(rid, "")))
+                                           levels=state.levels, note=notes.get(rid, ""),
+                                           party=entry.party))
         facts: dict[str, Any] = {
             "declared_rates": dict(state.declared_rates),
             "sensors_listed": list(state.sensors_listed or ()),
@@ -444,8 +555,10 @@ class Monitor:
             "tasks_executing": dict(state.tasks_executing),
             "position": list(state.position) if state.position else None,
             "message_counts": dict(state.counts),
+            "conversations_dropped": dropped(state),
         }
         return UnitReport(
+            party=entry.party,
             unit=unit, agent_type=address.agent_type if address else "",
             role=address.role if address else "", name=address.name if address else "",
             agent_uuids=list(state.agent_uuids), levels=list(state.levels or ()),
@@ -453,7 +566,12 @@ class Monitor:
             last_seen=state.last_seen, rules=rules,
             rates=rate_stats(self.ctx, state) if address is not None else [],
             examined={k: examined[k] for k in sorted(examined)}, violation_counts=counts,
+            violation_times=times,
             facts=facts)
+
+
+def _during(t: float | None, windows: list[tuple[float, float]]) -> bool:
+    return t is not None and any(start <= t <= end for start, end in windows)
 
 
 def _suite_version() -> str:

@@ -22,7 +22,7 @@ from collections.abc import Iterator
 from operator import add
 
 from conformance.checks.base import CheckContext, UnitState, check
-from conformance.client import Message
+from conformance.message import Message
 from conformance.results import RateStat
 from conformance.topics import TopicKind
 from conformance.validator import Validation
@@ -35,6 +35,8 @@ RATE_RULES = {
     TopicKind.TST_EXECUTION_INFO: "TEI-002",
 }
 SILENCE_PERIODS = 3.0  # HB-010's decision
+GROSS_FACTOR = 3.0  # HB-003's decision: a mean this far off fails early
+GROSS_MIN_INTERVALS = 3
 MAX_SERIES = 600
 MAX_CLOSED_SEGMENTS = 8
 MAX_AGENTS = 4
@@ -175,15 +177,26 @@ class RateTracker:
         if not declared:
             stat.reason = f"no valid declared rate in {self.kind.value}.rate"
             return stat, []
-        if n < need:
+        period = 1.0 / declared
+        gross = n >= GROSS_MIN_INTERVALS and mean is not None and (
+            mean > GROSS_FACTOR * period or mean < period / GROSS_FACTOR)
+        if n < need and not gross:
             stat.reason = f"only {n} intervals observed; need {need}"
             return stat, []
-        period = 1.0 / declared
         found: list[Violation] = []
         silences = f", {silences_in} silences counted in" if silences_in else ""
         window = (f"over {n} intervals (min {lo:.3f} s, max {hi:.3f} s{silences})")
         assert mean is not None
-        if abs(mean - period) > profile.rate_tolerance * period:
+        if gross and n < need:
+            found.append(Violation.of(
+                self.rule,
+                expected=f"{declared:.2f} Hz (declared in {self.kind.value}.rate)",
+                observed=f"{1.0 / mean:.3f} Hz {window}, off by more than {GROSS_FACTOR:g}x "
+                         f"(judged after {n} intervals: a gross mismatch)",
+                topic=self.topic, time=self.end, unit=unit,
+                detail=f"mean interval {mean:.3f} s, declared period {period:.3f} s: is the "
+                       f"rate in Hz? publish at the declared rate, or declare the rate used"))
+        elif abs(mean - period) > profile.rate_tolerance * period:
             found.append(Violation.of(
                 self.rule,
                 expected=f"{declared:.2f} Hz +-{profile.rate_tolerance:.0%} "
@@ -192,7 +205,7 @@ class RateTracker:
                 topic=self.topic, time=self.end, unit=unit,
                 detail=f"mean interval {mean:.3f} s, declared period {period:.3f} s: publish at "
                        f"the declared rate, or declare the rate actually used"))
-        if hi > profile.max_gap_periods * period:
+        if n >= need and hi > profile.max_gap_periods * period:
             found.append(Violation.of(
                 self.rule,
                 expected=f"no interval over {profile.max_gap_periods:g} declared periods "

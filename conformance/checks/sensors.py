@@ -9,7 +9,7 @@ from collections.abc import Iterator
 from typing import Any
 
 from conformance.checks.base import CheckContext, UnitState, check, geopoint
-from conformance.client import Message
+from conformance.message import Message
 from conformance.topics import MANDATORY_SENSORS, TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation

@@ -2,6 +2,7 @@
 
     waraps-conformance lint --broker mqtts://broker.example:8883 --duration 10m
     waraps-conformance lint --from field-test.jsonl
+    waraps-conformance lint --from run.bag --ros-unit waraps/unit/ground/real/husky0
     mosquitto_sub -t 'waraps/#' -F %j | waraps-conformance lint --from -
 
 Live, it subscribes read-only (its client may publish nowhere) and shows a per-unit scorecard;
@@ -22,6 +23,7 @@ from pathlib import Path
 from typing import IO, Any
 
 EXIT_PASS, EXIT_FAIL, EXIT_USAGE, EXIT_NOT_RUN = 0, 1, 2, 3
+GATES = ("all", "units")
 REPORT_FORMATS = ("json", "html", "junit")
 
 
@@ -32,12 +34,20 @@ def build_parser() -> argparse.ArgumentParser:
         prog="waraps-conformance lint",
         description="Lint the traffic of a whole fleet, live (read-only: it never publishes) "
                     "or from a recording, and report a verdict per unit and rule.",
-        epilog="Exit status: 0 no unit fails a rule of severity error, 1 some unit does, "
-               "2 bad usage, 3 nothing could be linted (no broker, no messages).")
+        epilog="Exit status: 0 no unit or commander fails a rule of severity error (with "
+               "--gate units: no unit), 1 one does, 2 bad usage, 3 nothing could be linted "
+               "(no broker, no messages). What is wrong in a command is its commander's "
+               "fault: commanders (by the command's 'sender', else 'of UNIT') have rows of "
+               "their own.")
     src = p.add_argument_group("recorded traffic")
     src.add_argument("--from", dest="source", metavar="FILE",
                      help="a recording: JSON Lines as 'waraps-conformance record' writes, or "
-                          "'mosquitto_sub -F %%j' / '-F %%J' output; '-' reads standard input")
+                          "'mosquitto_sub -F %%j' / '-F %%J' output; '-' reads standard input; "
+                          "or a ROS bag: a ROS 1 .bag file, a ROS 2 bag directory (sqlite3 or "
+                          "MCAP)")
+    src.add_argument("--ros-unit", metavar="ADDRESS",
+                     help="the unit address of a ROS bag's namespaced topics when no "
+                          "/heartbeat_info TopicMsg names it, e.g. waraps/unit/ground/real/husky0")
     add_capture_arguments(p)
     out = p.add_argument_group("judging and reports")
     out.add_argument("--profile", default="default", metavar="NAME|FILE",
@@ -47,6 +57,10 @@ def build_parser() -> argparse.ArgumentParser:
     out.add_argument("--format", default=",".join(REPORT_FORMATS), metavar="LIST",
                      help="report formats, comma-separated from json, html, junit; or none "
                           "(default: all three)")
+    out.add_argument("--gate", choices=GATES, default="all",
+                     help="what the exit status judges: all (units and commanders, the "
+                          "default) or units (a fleet gate that commanders' faults do not "
+                          "fail)")
     out.add_argument("--plain", action="store_true",
                      help="plain lines even on a terminal (the default in a pipe or CI)")
     return p
@@ -85,6 +99,20 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
         profile = load(args.profile)
     except (CaptureOptionsError, ProfileError, ValueError) as e:
         return usage(str(e))
+    from conformance.rosbag import is_bag
+
+    bag = bool(args.source) and is_bag(args.source)
+    ros_unit = None
+    if args.ros_unit:
+        from conformance.topics import TopicError, UnitAddress
+
+        if not bag:
+            return usage("--ros-unit applies to ROS bags only (--from run.bag or a ROS 2 bag "
+                         "directory)")
+        try:
+            ros_unit = UnitAddress.parse(args.ros_unit)
+        except TopicError as e:
+            return usage(f"--ros-unit: {e}")
 
     from conformance.lint.linter import Linter
     from conformance.scorecard import Scorecard
@@ -92,7 +120,21 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
     monitor = _monitor(profile, options.units)
     linter = Linter(monitor, profile)
     started = time.time()
-    if args.source:
+    if bag:
+        from conformance.rosbag import BagError, BagReader
+
+        reader_of_bag = BagReader(args.source, ros_unit)
+        scorecard = Scorecard(out, tty=False if args.plain else None, title=reader_of_bag.name,
+                              live=False)
+        try:
+            end = run_bag(linter, scorecard, reader_of_bag, options)
+        except BagError as e:
+            print(f"waraps-conformance lint: {e}", file=err)
+            return EXIT_NOT_RUN
+        meta = {"source": reader_of_bag.name, "recording_formats": reader_of_bag.format,
+                "bag_messages_read": str(reader_of_bag.read)}
+        notes, broker, problems, problem_count = list(reader_of_bag.notes), "", [], 0
+    elif args.source:
         from conformance.recording import RecordingError, open_recording
 
         try:
@@ -170,9 +212,11 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
     evidence = failures(report)
     if evidence:
         print(f"\n{evidence}\n", file=out)
-    code = int(report.exit_code())
-    failing = sorted(u for u, rep in report.units.items() if rep.worst().value == "fail")
-    print(("FAIL: " + ", ".join(failing)) if failing else "PASS: no unit fails a rule of "
+    code = int(report.exit_code(args.gate))
+    failing = sorted(u for u, rep in report.units.items() if rep.worst().value == "fail"
+                     and (args.gate == "all" or rep.party == "unit"))
+    gated = "no unit or commander" if args.gate == "all" else "no unit"
+    print(("FAIL: " + ", ".join(failing)) if failing else f"PASS: {gated} fails a rule of "
           "severity error", file=out)
     out.flush()
     return EXIT_FAIL if code else EXIT_PASS
@@ -198,7 +242,7 @@ def failures(report: Any, limit: int = MAX_FAILURES_SHOWN) -> str:
                 continue
             text = render_violation(rule, result.violations[0], unit, report=report,
                                     verdict=Verdict.FAIL)
-            extra = len(result.violations) - 1
+            extra = rep.violation_counts.get(rule, len(result.violations)) - 1  # a total
             shown.append(f"{unit}\n{text}" + (f"\n  (and {extra} more violations of {rule})"
                                                 if extra else ""))
     if not shown:
@@ -226,7 +270,7 @@ def _monitor(profile: Any, units: tuple[Any, ...]) -> Any:
 def run_recorded(linter: Any, scorecard: Any, stream: IO[bytes], name: str,
                  options: Any) -> tuple[Any, float]:
     """Feed a recording to the linter at its recorded times; returns (reader, end time)."""
-    from conformance.client import Message
+    from conformance.message import Message
     from conformance.recording import RecordingReader
 
     reader = RecordingReader(stream, name)
@@ -257,6 +301,39 @@ def run_recorded(linter: Any, scorecard: Any, stream: IO[bytes], name: str,
     end = max(t for t in (linter.last_time, last_event, 0.0) if t is not None)
     linter.finish(end)
     return reader, end
+
+
+def run_bag(linter: Any, scorecard: Any, bag: Any, options: Any) -> float:
+    """Feed a ROS bag's messages (at their record times) and ROS findings to the linter
+    (``conformance.rosbag``); returns the end time. Raises ``BagError``."""
+    from conformance.client import Message
+
+    units = set(options.units)
+    wants = options.wants if units else None
+    limit = None
+    n = 0
+    items = iter(bag)
+    try:
+        for item in items:
+            if type(item) is Message:
+                if limit is None and options.duration:
+                    limit = item.time + options.duration
+                if limit is not None and item.time > limit:
+                    break
+                if wants is None or wants(item.topic):
+                    linter.feed_one(item)
+            elif not units or item.unit in units:
+                linter.record(item.unit, item.rule, item.violation)
+            n += 1
+            if n & 0xFF == 0:
+                scorecard.update(linter)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        items.close()  # type: ignore[attr-defined]
+    end = linter.last_time or 0.0
+    linter.finish(end)
+    return end
 
 
 def _unexamined(t: float, n: int) -> Any:

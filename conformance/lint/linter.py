@@ -10,14 +10,14 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from conformance.client import Message
+from conformance.message import Message
 from conformance.profile import Profile
 from conformance.recording import Event
 from conformance.rules import Severity
 from conformance.topics import parse_topic
 from conformance.violation import Violation
 
-FLEET_RULES = ("HB-010", "HB-011", "HB-006", "EXEC-006", "EXEC-008", "MSG-007")
+FLEET_RULES = ("HB-010", "HB-011", "HB-012", "HB-006", "EXEC-006", "EXEC-008", "MSG-007")
 """Observations about the fleet over time (silence, identity, commands and answers, retained
 state): the scorecard lists them as they happen."""
 NOT_A_UNIT = "(unattributed)"
@@ -33,6 +33,7 @@ class MonitorLike(Protocol):
     """The contract of ``conformance.checks.Monitor`` that the linter relies on."""
 
     def feed(self, message: Message) -> list[Violation]: ...
+    def record(self, unit: Any, rule: str, *, violation: Violation | None = None) -> None: ...
     def connection_gap(self, start: float, end: float) -> None: ...
     def unexamined(self, n: int) -> None: ...
     def finish(self, now: float) -> Any: ...
@@ -101,6 +102,14 @@ class Linter:
         if self.first_time is None:
             self.first_time = m.time
         self.last_time = m.time
+
+    def record(self, unit: Any, rule: str, violation: Violation | None = None) -> None:
+        """A finding made outside the message checks (a ROS bag's types and names,
+        ``conformance.rosbag``): into the Monitor's report, tallied like the others. ``unit``
+        is a ``UnitAddress``, or None for a finding that names no unit."""
+        self.monitor.record(unit, rule, violation=violation)
+        if violation is not None:
+            self._tally([violation], violation.time)
 
     def event(self, event: Event) -> None:
         """A capture event: a lost or regained connection, or messages not examined."""

@@ -177,6 +177,19 @@ def _unit(report: RunReport, name: str, unit: UnitReport) -> str:
     out = [f'<h2 id="{anchor(name)}"><span class="mono">{esc(name)}</span> '
            f"{badge(unit.worst())}</h2>"]
     counts = unit.verdict_counts()
+    if unit.party == "commander":  # what it sent, judged by the commander's rules
+        facts = [("party", "commander: the rules of what it sent (its commands)"),
+                 ("commands", esc(unit.message_count)),
+                 ("seen", f"{esc(iso_time(unit.first_seen))} – {esc(iso_time(unit.last_seen))}"),
+                 ("verdicts", " ".join(badge(v, f"{counts[v.value]} {v.value}")
+                                       for v in ORDER))]
+        out.append("<table>" + "".join(f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in facts)
+                   + "</table>")
+        out.append("<h3>Scorecard</h3>")
+        out.append(_scorecard(sorted((r for r in unit.rules.values()
+                                      if r.verdict is not Verdict.SKIP),
+                                     key=lambda r: ORDER.index(r.verdict))))
+        return "".join(out)
     facts = [
         ("agent-type / role / name", esc(f"{unit.agent_type} / {unit.role} / {unit.name}")),
         ("agent-uuid", f'<span class="mono">{esc(", ".join(unit.agent_uuids) or "-")}</span>'),

@@ -60,7 +60,8 @@ EVIDENCE: dict[str, tuple[str, ...]] = {
     "EXEC-005": ("ping", "start"), "EXEC-006": ("ping", "start"), "EXEC-007": ("refuse",),
     "EXEC-FB-001": ("start",), "EXEC-FB-002": ("start",), "EXEC-FB-003": ("start",),
     "EXEC-FB-004": ("start",), "ERR-006": ("query",), "ERR-013": ("signal",),
-    "ERR-014": ("start",),
+    "ERR-014": ("start",), "EXEC-009": ("ping", "start"), "EXEC-010": ("ping",),
+    "HB-012": ("start",),
 }
 
 

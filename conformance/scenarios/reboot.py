@@ -68,6 +68,13 @@ def run(ctx: Context) -> None:
     ctx.commander.ping(ctx.timing.reboot)
     task_uuid, name, status = ended[0]
     sent, answer = ctx.commander.query(task_uuid, ctx.timing.response)
+    if answer is None:
+        # Its history cannot be read off a unit that does not answer query-status at all:
+        # that is EXEC-QUERY-001's finding, not a history kept or lost.
+        ctx.record("REBOOT-002", verdict=Verdict.COULD_NOT_TEST,
+                   reason=f"query-status was not answered within {ctx.timing.response:.1f} s "
+                          f"(EXEC-QUERY-001)")
+        return
     got = status_answer(answer)
     # Compared with the unit's own answer for a task it never saw, so that a wrong word for
     # 'unknown' stays EXEC-QUERY-002's finding and is not counted here again.

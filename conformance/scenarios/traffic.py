@@ -18,7 +18,7 @@ from typing import Any
 
 import orjson
 
-from conformance.client import Message
+from conformance.message import Message
 from conformance.topics import UnitAddress
 
 

@@ -3,6 +3,7 @@
     waraps-conformance sim --unit waraps/unit/air/simulation/dji0 --broker mqtt://127.0.0.1:1883
     waraps-conformance sim --broker embedded --count 500 --fault heartbeat-rate-drift@3
     waraps-conformance sim --list-faults
+    waraps-conformance sim --tst --tst-operator waraps/unit/ground/real/op0 --count 3
 
 When ready it prints one line, ``ready pid=... broker=... unit=...`` (with ``--broker
 embedded`` the broker's URL comes first, on a line of its own), then runs until SIGINT or
@@ -31,7 +32,8 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="waraps-conformance sim",
         description="Run the WARA-PS reference unit: conformant on the levels 'sensor' and "
-                    "'direct execution', unless faults are switched on.")
+                    "'direct execution' (and 'tst execution' with --tst), unless faults are "
+                    "switched on.")
     p.add_argument("--unit", default=DEFAULT_UNIT, metavar="ADDRESS",
                    help=f"PREFIX1/unit/TYPE/ROLE/NAME (default {DEFAULT_UNIT})")
     p.add_argument("--broker", default=None, metavar="URL",
@@ -51,6 +53,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=None,
                    help="repeatable agent-uuids and com-uuids (a process restarted with the "
                         "same seed starts with the same agent-uuid: reboot it with SIGHUP)")
+    p.add_argument("--tst", action="store_true",
+                   help="declare 'tst execution' and run TST trees (spec 14) sent to the "
+                        "unit's own tst/command")
+    p.add_argument("--tst-operator", default=None, metavar="ADDRESS",
+                   help="with --tst: also take TST commands for this unit from the operator's "
+                        "tst/command (14.1: 'usually sent to op0'), e.g. "
+                        "waraps/unit/ground/real/op0; answered on the operator's topics")
     p.add_argument("--task-seconds", type=float, default=3.0, metavar="S",
                    help="about how long a simulated task takes (time compression; default 3)")
     return p
@@ -103,8 +112,11 @@ def main(argv: list[str]) -> int:
         parser.error(f"--count {args.count}: at least 1")
     if not args.rate > 0:
         parser.error(f"--rate {args.rate}: a rate is a positive number of Hz")
+    if args.tst_operator and not args.tst:
+        parser.error("--tst-operator needs --tst")
     try:
         address = UnitAddress.parse(args.unit)
+        operator = UnitAddress.parse(args.tst_operator) if args.tst_operator else None
         common, by_index = parse_faults(args.fault, args.count)
     except (TopicError, FaultError) as e:
         parser.error(str(e))
@@ -130,11 +142,13 @@ def main(argv: list[str]) -> int:
     runner: SimUnit | Fleet
     if args.count == 1:
         runner = SimUnit(address, broker, faults=common | by_index.get(0, set()),
-                         rate=args.rate, seed=args.seed, task_seconds=args.task_seconds)
+                         rate=args.rate, seed=args.seed, task_seconds=args.task_seconds,
+                         tst_execution=args.tst, tst_operator=operator)
         units = f"unit={runner.base} agent-uuid={runner.agent_uuid}"
     else:
         runner = Fleet(address, broker, args.count, faults=common, faults_by_index=by_index,
-                       rate=args.rate, seed=args.seed, task_seconds=args.task_seconds)
+                       rate=args.rate, seed=args.seed, task_seconds=args.task_seconds,
+                       tst_execution=args.tst, tst_operator=operator)
         units = (f"units={runner.addresses[0]}..{runner.addresses[-1].name} "
                  f"count={args.count}")
     stop = threading.Event()
@@ -160,8 +174,9 @@ def main(argv: list[str]) -> int:
     threading.Thread(target=_read_control, args=(reboot, stop), daemon=True,
                      name="sim-stdin").start()
     faults = ",".join(args.fault) or "none"
+    tst = f" tst=on{f' operator={operator}' if operator else ''}" if args.tst else ""
     print(f"ready pid={os.getpid()} broker={broker} {units} rate={args.rate:g} "
-          f"faults={faults}", flush=True)
+          f"faults={faults}{tst}", flush=True)
     try:
         while not stop.wait(0.2):
             pass

@@ -37,12 +37,13 @@ class Fault:
     @property
     def active(self) -> bool:
         """Whether showing it needs commands sent: an active rule, or a ``stimulus`` fault."""
-        return self.stimulus or any(CATALOGUE[r].mode is Mode.ACTIVE for r in self.rules)
+        return self.stimulus or any(CATALOGUE[r].mode is not Mode.PASSIVE for r in self.rules)
 
 
-def _f(name: str, rules: str, description: str, scope: str = "unit") -> Fault:
-    stimulus = any(r.startswith(("EXEC-", "ERR-006", "ERR-013", "ERR-014")) for r in
-                   rules.split())
+def _f(name: str, rules: str, description: str, scope: str = "unit",
+       stimulus: bool = False) -> Fault:
+    stimulus = stimulus or any(r.startswith(("EXEC-", "ERR-006", "ERR-013", "ERR-014"))
+                               for r in rules.split())
     return Fault(name, tuple(rules.split()), description, scope, stimulus)
 
 
@@ -99,6 +100,9 @@ _ALL = (
        "Makes a new agent-uuid every 5 heartbeat periods without rebooting or going silent "
        "(the uuid is generated in the heartbeat thread, which restarts)."),
     _f("level-unknown", "HB-007", "Declares an extra level 'telemetry'."),
+    _f("undeclared-direct-execution", "HB-013",
+       "Declares only the 'sensor' level, yet sends direct_execution_info and answers "
+       "commands (seen in the field)."),
     _f("level-unbacked", "HB-008",
        "Declares 'tst execution' (copied from 5.1) without sending tst_execution_info."),
     _f("rate-zero", "HB-009", "Declares heartbeat rate 0 ('unknown')."),
@@ -157,10 +161,24 @@ _ALL = (
     _f("fail-reason-empty", "EXEC-007 EXEC-START-004",
        "Refuses commands with fail-reason '' (the reason is only logged)."),
     _f("pong-missing", "EXEC-PING-001 EXEC-ROBUST-001", "Never answers ping."),
+    _f("pong-late", "EXEC-PING-001 EXEC-010 EXEC-ROBUST-001",
+       "Answers ping 3 periods late (its executor answers pings from a slow loop; past the "
+       "short response timeouts of the self-test profiles, not the default 5 s at 1 Hz)."),
+    _f("response-twice", "EXEC-009",
+       "Publishes every response twice (a retry loop that does not wait for the PUBACK)."),
     _f("pong-response-to-uppercase", "EXEC-PING-002 EXEC-006",
        "Answers ping with the ping's com-uuid in upper case as response-to."),
     _f("start-response-no-task-uuid", "EXEC-START-002",
        "Leaves task-uuid out of the start-task response when the commander sent one."),
+    _f("start-response-unpublished", "EXEC-START-001",
+       "Runs start-task, but builds its response into a message that is never published "
+       "(seen in the field): feedback flows, no answer comes."),
+    _f("start-no-generated-task-uuid", "EXEC-START-002",
+       "Generates a task-uuid for a start-task that has none, but does not return it."),
+    _f("dies-on-missing-task-uuid", "HB-012",
+       "Its MQTT thread dies on a start-task without task-uuid (a KeyError): from then on it "
+       "publishes and answers nothing, while the process lives on (seen in the field).",
+       stimulus=True),
     _f("no-final-feedback", "EXEC-START-003",
        "Sends no feedback when a task ends on its own (only on signals)."),
     _f("accept-invalid-params", "EXEC-START-004",
@@ -178,6 +196,8 @@ _ALL = (
        "Answers 'ok' to a signal for a task-uuid it has never seen."),
     _f("query-forgets-finished", "EXEC-QUERY-001",
        "Answers query-status from the running tasks only: an ended task is 'unknown'."),
+    _f("query-unanswered", "EXEC-QUERY-001 EXEC-QUERY-002",
+       "Never answers query-status (every agent seen in the field)."),
     _f("query-unknown-failed", "EXEC-QUERY-002",
        "Answers query-status of a task it does not know 'failed' ('no such task'), never seen "
        "or forgotten in a reboot (REBOOT-002 is judged against that same answer)."),
@@ -185,6 +205,9 @@ _ALL = (
        "Executes a command resent with the same com-uuid again."),
     _f("resend-unanswered", "EXEC-RESEND-002",
        "Drops a resent command silently (no second answer)."),
+    _f("resend-answered-failed", "EXEC-RESEND-001",
+       "Takes a resent start-task for a new one: answers it 'failed' (task-uuid in use) and "
+       "sends a 'failed' feedback for the task, which runs on (seen in the field)."),
     # --- 12.4 feedback ------------------------------------------------------------------------
     _f("feedback-no-com-uuid", "EXEC-FB-001", "Leaves com-uuid out of feedback messages."),
     _f("feedback-status-typo", "EXEC-FB-002",
@@ -226,6 +249,51 @@ _ALL = (
        "a counter ('msg-17')."),
 )
 
+# --- 14 TST execution (issue 10; conformance.sim.tst) ------------------------------------------
+# Each switches the TST level on by itself (the unit then declares 'tst execution'). All but
+# tst-info-type-upper show only once TST commands are sent (stimulus).
+
+
+def _tst(name: str, rules: str, description: str, stimulus: bool = True) -> Fault:
+    return Fault(name, tuple(rules.split()), description, "unit", stimulus)
+
+
+_TST = (
+    _tst("tst-response-reuses-com-uuid", "TST-002",
+         "Sends each tst/response with the command's com-uuid instead of a fresh one."),
+    _tst("tst-feedback-finished", "TST-003",
+         "Reports a node that ended well as 'finished' (12.4's word) instead of 'succeeded'."),
+    _tst("tst-root-uuid-wrong", "TST-004",
+         "Answers start-tst 'started' with the start-tst's com-uuid as root-uuid."),
+    _tst("tst-common-params-only", "TST-004",
+         "Reads node-uuid and execunit from 'common-params' only: for trees written as the "
+         "spec's examples (common_params) it makes node-uuids of its own, so root-uuid is not "
+         "the root's node-uuid."),
+    _tst("tst-accept-foreign-execunit", "TST-005",
+         "Starts a tree whose execunit names another unit, and runs it itself."),
+    _tst("tst-resend-starts-twice", "TST-006",
+         "Starts a start-tst resent with the same com-uuid again from scratch."),
+    _tst("tst-resend-unanswered", "TST-007",
+         "Drops a resent TST command silently (no second answer)."),
+    _tst("tst-root-flag-everywhere", "TST-008",
+         "Sets root-flag true in every node's feedback (copied from 14.5's examples)."),
+    _tst("tst-no-final-feedback", "TST-009",
+         "Sends no final status for seq and conc nodes (only their leaves report an end)."),
+    _tst("tst-seq-ignores-failure", "TST-010",
+         "Goes on with a seq after a child failed, and reports the seq 'succeeded'."),
+    _tst("tst-signal-unknown-node-ok", "TST-011",
+         "Answers 'ok' to a signal for a node-uuid it has never seen."),
+    _tst("tst-abort-ignored", "TST-012", "Acknowledges $abort of a TST node ('ok') and goes on."),
+    _tst("tst-info-stale-nodes", "TST-013",
+         "Never removes ended nodes from nodes-executing in tst_execution_info."),
+    _tst("tst-start-answered-running", "ERR-015",
+         "Answers start-tst 'running' (start-task's word) instead of 'started'."),
+    _tst("tst-info-type-upper", "ERR-018",
+         "Sends tst_execution_info with type 'TSTExecutionInfo'.", stimulus=False),
+)
+TST_FAULTS = frozenset(f.name for f in _TST)
+_ALL = _ALL + _TST
+
 FAULTS: dict[str, Fault] = {f.name: f for f in _ALL}
 assert len(FAULTS) == len(_ALL), "duplicate fault name"
 
@@ -235,9 +303,11 @@ NOT_UNIT_BREAKABLE: dict[str, str] = {
     "TASK-001": "judges the parameters of a start-task command (the commander's)",
     "TASK-002": "judges the task name of a start-task command (the commander's)",
     "TASK-003": "judges the parameters of a start-task command (the commander's)",
-    "TST-001": "TST commands: the reference unit has no TST level (v0.7 leaves it to op0)",
-    "TST-002": "TST responses: the reference unit has no TST level",
-    "TST-003": "TST feedback: the reference unit has no TST level",
+    "TST-001": "judges TST commands (the commander's)",
+    "TST-014": "judges the tree of a start-tst command (the commander's)",
+    "ERR-016": "judges where a commander sends TST commands; a unit refuses start-tst on "
+               "exec/command (EXEC-003 'failed')",
+    "ERR-017": "unit names in TST commands (the commander's); a unit understands both forms",
     "ERR-002": "about the spec's example text; a unit copying it breaks MSG-002 (course-nan)",
     "ERR-003": "a misspelled parameter in a start-task command (the commander's)",
     "ERR-004": "observe-position parameter forms in a start-task command (the commander's)",
@@ -245,6 +315,9 @@ NOT_UNIT_BREAKABLE: dict[str, str] = {
     "ERR-007": "the signal-executor command (sent by a commander)",
     "ERR-009": "common_params of a TST node in start-tst (the commander's)",
     "ERR-011": "about the spec's text: tst_execution_info is not defined (TEI-001 judges it)",
+    **{rule: "the ROS side (4, 7, 13): the reference unit speaks MQTT only; judged from ROS "
+             "bags, failing on the fault bags of tests/ros/test_rosbag_rules.py"
+       for rule in ("ROS-001", "ROS-002", "ROS-003", "ROS-004", "ROS-005", "ROS-006")},
 }
 
 for _fault in _ALL:

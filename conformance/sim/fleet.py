@@ -75,19 +75,25 @@ class SimUnit(_Running):
     ``broker`` is an ``mqtt://host:port`` URL; ``rate`` the declared rate in Hz of heartbeat,
     info messages and sensors; ``faults`` names from ``conformance.sim.faults.FAULTS``;
     ``seed`` makes agent-uuids and com-uuids repeatable; ``position`` defaults to Linköping;
-    ``task_seconds`` is about how long a simulated task takes.
+    ``task_seconds`` is about how long a simulated task takes. ``tst_execution`` declares the
+    level 'tst execution' and runs TST trees (spec 14, ``conformance.sim.tst``) sent to its own
+    ``tst/command`` and, with ``tst_operator`` (an operator's address such as
+    ``waraps/unit/ground/real/op0``), to the operator's.
     """
 
     def __init__(self, address: UnitAddress | str, broker: str | BrokerURL, *,
                  faults: Iterable[str] = (), rate: float = 1.0, seed: int | None = None,
                  position: GeoPoint | None = None, heading: float = 270.0,
-                 task_seconds: float = 3.0) -> None:
+                 task_seconds: float = 3.0, tst_execution: bool = False,
+                 tst_operator: UnitAddress | str | None = None) -> None:
         self.address = _address(address)
         self.runtime = Runtime(broker, client_id=f"waraps-sim-{self.address.name}-"
                                f"{random.getrandbits(32):08x}")
         self.core = UnitCore(self.address, self.runtime_emit, faults=check_names(list(faults)),
                              rate=rate, rng=_rng(seed, self.address.name), position=position,
-                             heading=heading, task_seconds=task_seconds)
+                             heading=heading, task_seconds=task_seconds,
+                             tst_execution=tst_execution,
+                             tst_operator=_address(tst_operator) if tst_operator else None)
         self.runtime.add(self.core)
 
     def runtime_emit(self, topic: str, payload: bytes, retain: bool) -> None:
@@ -126,14 +132,16 @@ class Fleet(_Running):
     connection, their publications spread evenly over one period.
 
     ``faults`` apply to every unit; ``faults_by_index`` adds faults to single units
-    (``{3: ["heartbeat-rate-drift"]}``).
+    (``{3: ["heartbeat-rate-drift"]}``); ``tst_execution`` and ``tst_operator`` as for
+    ``SimUnit``, for every unit.
     """
 
     def __init__(self, address: UnitAddress | str, broker: str | BrokerURL, count: int, *,
                  faults: Iterable[str] = (),
                  faults_by_index: Mapping[int, Iterable[str]] | None = None,
                  rate: float = 1.0, seed: int | None = None, task_seconds: float = 3.0,
-                 heading: float = 270.0) -> None:
+                 heading: float = 270.0, tst_execution: bool = False,
+                 tst_operator: UnitAddress | str | None = None) -> None:
         if count < 1:
             raise ValueError(f"count {count}: a fleet has at least one unit")
         base = _address(address)
@@ -146,6 +154,7 @@ class Fleet(_Running):
         side = max(1, int(count ** 0.5 + 0.999))
         home = GeoPoint(*LINKOPING, 0.0)
         phases = spread(count, 1.0 / rate)
+        operator = _address(tst_operator) if tst_operator else None
         self.cores: list[UnitCore] = []
         for i, a in enumerate(self.addresses):
             row, col = divmod(i, side)
@@ -153,7 +162,8 @@ class Fleet(_Running):
                                col * FLEET_SPACING)
             core = UnitCore(a, self._emit, faults=common | extra.get(i, frozenset()),
                             rate=rate, rng=_rng(seed, a.name), position=spot,
-                            heading=heading, task_seconds=task_seconds, phase=phases[i])
+                            heading=heading, task_seconds=task_seconds, phase=phases[i],
+                            tst_execution=tst_execution, tst_operator=operator)
             self.cores.append(core)
             self.runtime.add(core)
 

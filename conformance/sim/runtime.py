@@ -6,8 +6,8 @@ handed to their unit on the runtime thread, so a unit's state is only ever touch
 thread. One connection for a whole fleet is what lets 500 units at 1 Hz run on one core
 (FIELD-NOTES: per-message cost is what counts).
 
-Safety (DESIGN): the client may publish only under the bases of its own units, and never to a
-command topic.
+Safety (DESIGN): the client may publish only under the bases of its own units (and of the TST
+operator whose tst/command they were told to listen to, 14.1), and never to a command topic.
 """
 
 from __future__ import annotations
@@ -43,6 +43,8 @@ class Runtime:
         self.broker = broker if isinstance(broker, BrokerURL) else BrokerURL.parse(broker)
         self.units: list[UnitCore] = []
         self._by_topic: dict[str, int] = {}
+        self._tst_by_topic: dict[str, list[int]] = {}
+        """tst/command topic -> the units listening (an operator's is shared: 14.1)."""
         self._bases: set[str] = set()
         self._client_id = client_id
         self.client: MqttClient | None = None
@@ -70,6 +72,11 @@ class Runtime:
         index = len(self.units) - 1
         self._by_topic[unit.command_topic] = index
         self._bases.add(unit.base)
+        if unit.tst is not None:
+            for topic in unit.tst.topics:
+                self._tst_by_topic.setdefault(topic, []).append(index)
+            if unit.tst.operator:  # it answers there too (14.1; ERR-016)
+                self._bases.add(unit.tst.operator)
         return index
 
     # --- safety -------------------------------------------------------------------------------
@@ -77,23 +84,16 @@ class Runtime:
         """Only under one of our units' bases, never to a command topic (DESIGN: safety)."""
         lead = 1 if topic.startswith("/") else 0
         parts = topic.split("/", 5 + lead)
-        if len(parts) <= 5 + lead or topic.endswith("/exec/command"):
+        if len(parts) <= 5 + lead or topic.endswith(("/exec/command", "/tst/command")):
             return False
         return "/".join(parts[:5 + lead]) in self._bases
 
     def subscriptions(self) -> list[str]:
         """The command topics to subscribe: one wildcard for a fleet sharing prefix, type and
-        role (``<prefix>/unit/<type>/<role>/+/exec/command``), plus any unit outside it."""
-        topics = list(self._by_topic)
-        if len(topics) <= 2:
-            return topics
-        shared: dict[str, int] = {}
-        for t in topics:
-            head = t.rsplit("/", 3)[0]
-            shared[head] = shared.get(head, 0) + 1
-        head = max(shared, key=lambda h: shared[h])
-        wildcard = f"{head}/+/exec/command"
-        return [wildcard] + [t for t in topics if t.rsplit("/", 3)[0] != head]
+        role (``<prefix>/unit/<type>/<role>/+/exec/command``), plus any unit outside it; the
+        same for ``tst/command`` (and an operator's, as it is)."""
+        return (_compress(list(self._by_topic), "exec/command")
+                + _compress(list(self._tst_by_topic), "tst/command"))
 
     # --- lifecycle ----------------------------------------------------------------------------
     def start(self, timeout: float = 10.0) -> None:
@@ -235,14 +235,33 @@ class Runtime:
                 topic, payload, size = self._inbox.popleft()
                 self._inbox_bytes -= len(payload)
             i = self._by_topic.get(topic)
-            if i is None:
-                continue  # a unit of the same fleet pattern that is not ours
-            unit = self.units[i]
-            before = unit.due
-            self._guarded(unit.command, payload, now, size)
-            if unit.due != before or unit.busy():
-                unit.due = min(unit.due, now)
-                self._reschedule(i)
+            if i is not None:
+                self._deliver(i, now, self.units[i].command, payload, now, size)
+                continue
+            for i in self._tst_by_topic.get(topic, ()):  # else: a unit that is not ours
+                self._deliver(i, now, self.units[i].tst_command, payload, now, topic)
+
+    def _deliver(self, i: int, now: float, handler, *args) -> None:  # type: ignore[no-untyped-def]
+        unit = self.units[i]
+        before = unit.due
+        self._guarded(handler, *args)
+        if unit.due != before or unit.busy():
+            unit.due = min(unit.due, now)
+            self._reschedule(i)
+
+
+def _compress(topics: list[str], tail: str) -> list[str]:
+    """``<head>/+/<tail>`` for the largest group of topics sharing a head, plus the others."""
+    if len(topics) <= 2:
+        return topics
+    shared: dict[str, int] = {}
+    for t in topics:
+        head = t.rsplit("/", 3)[0]
+        shared[head] = shared.get(head, 0) + 1
+    head = max(shared, key=lambda h: shared[h])
+    if shared[head] < 2:
+        return topics
+    return [f"{head}/+/{tail}"] + [t for t in topics if t.rsplit("/", 3)[0] != head]
 
 
 def spread(count: int, period: float) -> Sequence[float]:

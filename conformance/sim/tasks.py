@@ -256,6 +256,9 @@ class Task:
     in_view_sent: bool = False
     fail_at: float | None = None
     """When a task accepted despite bad parameters fails (fault accept-invalid-params)."""
+    node: Callable[[str, str], None] | None = None
+    """For a leaf of a TST tree (``conformance.sim.tst``): told each status change (status,
+    reason) instead of sending exec/feedback."""
 
     @property
     def group(self) -> str:

@@ -6,8 +6,9 @@ for each message on its ``exec/command`` topic, and the unit hands what it publi
 ``emit(topic, payload, retain)``. ``SimUnit`` is the public face: one unit on one MQTT
 connection in a background thread.
 
-Conformant by default on the levels ``sensor`` and ``direct execution`` (spec 5, 6, 9, 12);
-each fault switch (``conformance.sim.faults``) bends one behaviour the way a real unit would.
+Conformant by default on the levels ``sensor`` and ``direct execution`` (spec 5, 6, 9, 12), and
+with ``tst_execution`` on ``tst execution`` (14; ``conformance.sim.tst``, reached through
+``tst_command``); each fault switch (``conformance.sim.faults``) bends one behaviour the way a real unit would.
 Times: ``now`` is ``time.monotonic()`` seconds; stamps are Unix seconds (5.1).
 """
 
@@ -24,7 +25,7 @@ from typing import Any
 
 import orjson
 
-from conformance.sim.faults import check_names
+from conformance.sim.faults import TST_FAULTS, check_names
 from conformance.sim.tasks import (
     BUILTIN_SIGNALS,
     SKIP_WAYPOINT,
@@ -33,6 +34,7 @@ from conformance.sim.tasks import (
     plan,
     tasks_for,
 )
+from conformance.sim.tst import TstEngine, misdirected
 from conformance.sim.vehicle import LINKOPING, GeoPoint, Vehicle, bearing, destination
 from conformance.topics import UnitAddress
 
@@ -45,6 +47,10 @@ MAX_HISTORY = 5000
 """Commands (and ended tasks) remembered per life; the oldest are forgotten first, so memory
 stays bounded under a flood of commands."""
 STEP = 0.1
+LATE_PONG_PERIODS = 3.0
+"""Fault pong-late: a pong is held back 3 periods (1.5 s at the fault matrix's 2 Hz, past its
+1 s response timeout; 3 s at the workout's 1 Hz, past its 2 s), so it arrives before the
+suite's reboot kills the process that held it."""
 """Seconds between simulation steps while a task runs or the vehicle moves."""
 CAMERA_URL_EVERY = 2
 """The camera URL changes rarely: it is published every this many periods, inside SI-003's
@@ -84,7 +90,8 @@ class UnitCore:
                  rate: float = 1.0, rng: random.Random | None = None,
                  position: GeoPoint | None = None, heading: float = 270.0,
                  task_seconds: float = 3.0, phase: float = 0.0,
-                 clock: Callable[[], float] = time.time) -> None:
+                 clock: Callable[[], float] = time.time, tst_execution: bool = False,
+                 tst_operator: UnitAddress | None = None) -> None:
         if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
             raise ValueError(f"rate {rate!r}: a rate is a positive number of Hz")
         self.address = address
@@ -100,6 +107,9 @@ class UnitCore:
         self.specs: dict[str, TaskSpec] = {t.name: t for t in tasks_for(address.agent_type)}
         self.base = self._base()
         self.command_topic = f"{self.base}/exec/command"
+        # The TST level (14), when declared (or a TST fault needs it): conformance.sim.tst.
+        self.tst = TstEngine(self, tst_operator.base if tst_operator else None) if (
+            tst_execution or self.faults & TST_FAULTS) else None
         self.camera_sensor = self._camera_sensor()
         self.levels = self._levels()
         # Identity and memory of one life (12.1: history is lost with a reboot).
@@ -111,6 +121,10 @@ class UnitCore:
         self.tasks: OrderedDict[str, Task] = OrderedDict()
         self.up = True
         self.crashed = False
+        self.delayed: list[tuple[float, bytes]] = []
+        """Fault pong-late: (when, payload) of answers held back."""
+        self.dead = False
+        """Fault dies-on-missing-task-uuid: the MQTT thread died; the process lives on (silent)."""
         self.back_at: float | None = None
         self.reboot_requested = False
         self._counter = 0
@@ -157,9 +171,12 @@ class UnitCore:
         return "camera_url"
 
     def _levels(self) -> list[str]:
+        if "undeclared-direct-execution" in self.faults:
+            return ["sensor"]  # it answers commands and sends direct_execution_info all the same
         levels = ["sensor", "direct_execution" if "level-underscore" in self.faults
                   else "direct execution"]
-        if self.faults & {"level-unbacked", "tst-info-incomplete", "tst-info-rate-drift"}:
+        if self.faults & {"level-unbacked", "tst-info-incomplete", "tst-info-rate-drift"} \
+                or self.tst is not None:
             levels.append("tst execution")
         if "level-unknown" in self.faults:
             levels.append("telemetry")
@@ -254,6 +271,8 @@ class UnitCore:
     def _publish_tei(self, stream: _Stream, now: float) -> None:
         # tst_execution_info is named, not defined (ERR-011): name, rate, stamp, type.
         msg = self._info("TstExecutionInfo", self.rate)
+        if self.tst is not None:
+            self.tst.fill_info(msg)
         if "tst-info-incomplete" in self.faults:
             del msg["rate"]
         self.emit("tst_execution_info", _dumps(msg))
@@ -328,7 +347,7 @@ class UnitCore:
                     else self.period, first),
             _Stream("sensors", self.period, first),
         ]
-        if self.faults & {"tst-info-incomplete", "tst-info-rate-drift"}:
+        if self.faults & {"tst-info-incomplete", "tst-info-rate-drift"} or self.tst is not None:
             self._streams.append(_Stream("tst_execution_info", slow if "tst-info-rate-drift"
                                          in self.faults else self.period, first))
         self._last_step = now
@@ -357,7 +376,12 @@ class UnitCore:
             else:
                 self.due = self.back_at if self.back_at is not None else now + self.period
                 return
+        if self.dead:  # publishes nothing until a reboot restarts the process
+            self.due = now + self.period
+            return
         self._step(now)
+        while self.delayed and self.delayed[0][0] <= now:
+            self.emit("exec/response", self.delayed.pop(0)[1])
         silent = "dropouts" in self.faults and self._in_dropout(now)
         for s in self._streams:
             if now >= s.due:
@@ -368,6 +392,8 @@ class UnitCore:
                 if s.due < now:  # fell behind (a stalled process): skip, do not burst
                     s.due = now + s.period
         due = min(s.due for s in self._streams)
+        if self.delayed:
+            due = min(due, self.delayed[0][0])
         if self.busy():
             due = min(due, now + STEP)
         self.due = due
@@ -460,6 +486,7 @@ class UnitCore:
     def _go_down(self, now: float) -> None:
         self.reboot_requested = False
         self.up = False
+        self.delayed.clear()  # what the old process held back dies with it
         last = self.last_heartbeat if self.last_heartbeat is not None else now
         self.back_at = max(now + 0.1 * self.period, last + REBOOT_SILENCE * self.period)
         self.vehicle.stop()
@@ -478,6 +505,7 @@ class UnitCore:
                 if not t.ended:
                     t.status, t.fail_reason = "failed", "interrupted by a reboot"
         self.crashed = False
+        self.dead = False
         self.up = True
         self.back_at = None
         self._last_step = now
@@ -485,11 +513,18 @@ class UnitCore:
             s.due = now  # the first heartbeat of the new life goes out at once
 
     # --- commands -----------------------------------------------------------------------------
+    def tst_command(self, payload: bytes, now: float, topic: str) -> None:
+        """Handle one message from a ``tst/command`` topic (14; ``conformance.sim.tst``)."""
+        if self.tst is None or not self.up or self.crashed:
+            return
+        self._step(now)
+        self.tst.command(payload, now, topic)
+
     def command(self, payload: bytes, now: float, size: int | None = None) -> None:
         """Handle one message from ``exec/command``; ``size`` is its length in bytes when
         ``payload`` is only its head. Never raises on hostile input."""
-        if not self.up or self.crashed:
-            return  # rebooting, or the command thread died (fault crash-on-malformed)
+        if not self.up or self.crashed or self.dead:
+            return  # rebooting, or the command thread died (faults crash-on-malformed, dies-...)
         self.commands += 1
         self._step(now)
         size = len(payload) if size is None else size
@@ -507,6 +542,10 @@ class UnitCore:
             return
         assert isinstance(msg, dict)
         com = msg["com-uuid"]
+        if (com in self.history and "resend-answered-failed" in self.faults
+                and msg.get("command") == "start-task"):
+            self._refuse_resend(com, msg)
+            return
         if com in self.history and "resend-executes-twice" not in self.faults:
             # 12.1: a resent command reuses its com-uuid; answer it again, do not run it twice.
             cached = self.history[com]
@@ -528,7 +567,22 @@ class UnitCore:
                          f"{', '.join(COMMANDS)})")
         else:
             self._answer(com, "failed", fail_reason=f"unknown command {command[:64]!r}: this "
-                         f"unit understands {', '.join(COMMANDS)} (12.1)")
+                         f"unit understands {', '.join(COMMANDS)} (12.1)" + misdirected(command))
+
+    def _refuse_resend(self, com: str, msg: dict[str, Any]) -> None:
+        """Fault resend-answered-failed (seen in the field): the resent start-task is taken for
+        a new one whose task-uuid is taken, answered 'failed', and the running task gets a
+        'failed' feedback too, although it runs on."""
+        cached = self.history.get(com)
+        task_uuid = cached.get("task-uuid") if cached else msg.get("task-uuid")
+        task = self.tasks.get(task_uuid) if isinstance(task_uuid, str) else None
+        reason = f"task-uuid {task_uuid} is already used by another task"
+        body: dict[str, Any] = {"agent-uuid": self.agent_uuid, "response": "failed",
+                                "response-to": com, "task-uuid": task_uuid,
+                                "fail-reason": reason}
+        self._send_response(body, command_com=com)
+        if task is not None and not task.ended:
+            self._feedback(task, "failed")
 
     def _decode(self, payload: bytes) -> tuple[Any, str | None]:
         """The command as a dict with a string com-uuid, or what is wrong with it."""
@@ -571,6 +625,11 @@ class UnitCore:
         if kind == "ping":
             if "pong-missing" in self.faults:
                 return
+            if "pong-late" in self.faults:
+                self.history[com] = body
+                self._send_response(dict(body), command_com=com,
+                                    delay=LATE_PONG_PERIODS * self.period)
+                return
             if "pong-response-to-uppercase" in self.faults:
                 body["response-to"] = com.upper()
         if kind == "signal" and "signal-response-tst-form" in self.faults:
@@ -584,7 +643,8 @@ class UnitCore:
         if not silent:
             self._send_response(dict(body), command_com=com)
 
-    def _send_response(self, body: dict[str, Any], command_com: str | None = None) -> None:
+    def _send_response(self, body: dict[str, Any], command_com: str | None = None,
+                       delay: float = 0.0) -> None:
         com = body.get("response-to", "") if command_com is None else command_com
         body["com-uuid"] = com if "response-reuses-com-uuid" in self.faults else self._fresh_uuid()
         if "agent-uuid" in body:
@@ -594,10 +654,19 @@ class UnitCore:
                 body["agent-uuid"] = self.executor_uuid
             else:
                 body["agent-uuid"] = self.agent_uuid
+        if delay:
+            # in the clock ``run`` is given (the runtime's monotonic one): the last step's
+            self.delayed.append(((self._last_step or 0.0) + delay, _dumps(body)))
+            return
         self.emit("exec/response", _dumps(body))
+        if "response-twice" in self.faults:  # a retry loop that does not wait for the PUBACK
+            self.emit("exec/response", _dumps(body))
 
     def _feedback(self, task: Task, status: str) -> None:
         """Send feedback for a status change of a task (12.4)."""
+        if task.node is not None:  # a TST leaf: its node reports (conformance.sim.tst)
+            task.node(status, "")
+            return
         agent = self.executor_uuid if "feedback-stale-agent-uuid" in self.faults \
             else self.agent_uuid
         if status == "finished" and "feedback-status-done" in self.faults:
@@ -618,6 +687,9 @@ class UnitCore:
                                       or len(sent_uuid) > 128):
             self._answer(com, "failed", fail_reason="task-uuid must be a UUID string",
                          task_uuid=None)
+            return
+        if sent_uuid is None and "dies-on-missing-task-uuid" in self.faults:
+            self.dead = True  # msg["task-uuid"] raised a KeyError in the MQTT thread
             return
         task_uuid = sent_uuid if sent_uuid is not None else self._task_uuid()
         if sent_uuid is not None and "task-uuid-ignored" in self.faults:
@@ -662,9 +734,13 @@ class UnitCore:
                 self._end(other, "aborted", f"pre-empted by task {task_uuid}")
         self._remember(task)
         response = "started" if "start-answered-started" in self.faults else "running"
-        shown = None if (sent_uuid is not None and "start-response-no-task-uuid"
-                         in self.faults) else task_uuid
-        self._answer(com, response, task_uuid=shown, fail_reason="", kind="start")
+        shown = None if (sent_uuid is not None and "start-response-no-task-uuid" in self.faults
+                         or sent_uuid is None and "start-no-generated-task-uuid" in self.faults
+                         ) else task_uuid
+        if "start-response-unpublished" in self.faults:
+            self.history[com] = None  # built into a response that is never published
+        else:
+            self._answer(com, response, task_uuid=shown, fail_reason="", kind="start")
         if "feedback-status-typo" in self.faults:
             self._feedback(task, "Starting")
         self._feedback(task, "running")
@@ -697,6 +773,9 @@ class UnitCore:
         task.status, task.fail_reason = status, reason
         if task.group == "motion":
             self.vehicle.stop()
+        if task.node is not None:  # a TST leaf: its node reports (conformance.sim.tst)
+            task.node(status, reason)
+            return
         on_its_own = status == "finished" and not reason
         if not (on_its_own and "no-final-feedback" in self.faults):
             self._feedback(task, status)
@@ -778,6 +857,8 @@ class UnitCore:
 
     # --- query-status ---------------------------------------------------------------------------
     def _query_status(self, com: str, msg: dict[str, Any]) -> None:
+        if "query-unanswered" in self.faults:
+            return  # never answered (every agent seen in the field)
         task_uuid = msg.get("task-uuid")
         if not isinstance(task_uuid, str) or not task_uuid or len(task_uuid) > 128:
             self._answer(com, "failed", fail_reason="query-status needs the task-uuid of the "

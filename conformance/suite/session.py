@@ -22,8 +22,8 @@ import pytest
 from conformance import __version__
 from conformance.checks import Monitor
 from conformance.client import BrokerError, BrokerURL, Message, MqttClient
-from conformance.results import RunReport
-from conformance.rules import CATALOGUE
+from conformance.results import COMMANDER_REASON, RunReport
+from conformance.rules import CATALOGUE, Mode, Side
 from conformance.scenarios import (
     SCENARIOS,
     Commander,
@@ -38,7 +38,7 @@ from conformance.scenarios.params import task_moves
 from conformance.scenarios.traffic import OutOfTime
 from conformance.suite.settings import Settings
 from conformance.topics import UnitAddress
-from conformance.validator import Validation, Validator
+from conformance.validator import Validator
 from conformance.violation import RuleResult, Verdict
 
 NOT_CERTIFIED = "not certified"
@@ -46,40 +46,16 @@ INTERRUPTED = "interrupted"
 
 CERTIFICATION = pytest.StashKey["Certification"]()
 
-# Rules about what a commander sends. In a certification the suite itself is the commander, so
-# they say nothing about the unit: `waraps-conformance lint` judges commanders.
-COMMANDER_RULES = frozenset({"EXEC-001", "EXEC-008", "TASK-001", "TASK-002", "TASK-003",
-                             "TST-001", "ERR-003", "ERR-004", "ERR-005", "ERR-007", "ERR-009"})
-COMMANDER_REASON = ("commander-side rule: in a certification the suite itself is the commander "
-                    "(waraps-conformance lint judges commanders)")
+# Rules about what a commander sends (the catalogue's side). In a certification the suite
+# itself is the commander, so they say nothing about the unit: `waraps-conformance lint` judges
+# commanders.
+COMMANDER_RULES = frozenset(r.id for r in CATALOGUE.values() if r.side is Side.COMMANDER)
 PERIODIC = ("heartbeat", "sensor_info", "direct_execution_info", "tst_execution_info")
 MAX_PROBE_TOPICS = 500
 
 
 class NotAlive(Exception):
     """The unit under test sent no heartbeat in time; the message says what was seen."""
-
-
-class SuiteValidator(Validator):
-    """The validator, except that the suite's own commands are not judged against the unit.
-
-    The commands on ``<unit>/exec/command`` are the suite's (some broken on purpose: the
-    robustness scenario); the Monitor still sees them, so it can match responses to them
-    (EXEC-006), but their rule violations are the commander's, not the unit's.
-    """
-
-    def __init__(self, profile: Any, command_topics: frozenset[str]) -> None:
-        super().__init__(profile)
-        self.command_topics = command_topics
-
-    def validate(self, topic: str, payload: bytes | str, time: float | None = None) -> Validation:
-        v = super().validate(topic, payload, time)
-        if topic not in self.command_topics:
-            return v
-        changes: dict[str, Any] = {"violations": ()}
-        if any(f.name == "examined" for f in dataclasses.fields(v)):
-            changes["examined"] = ()
-        return dataclasses.replace(v, **changes)
 
 
 class Certification:
@@ -92,9 +68,12 @@ class Certification:
         self.profile = settings.profile
         self.timing = Timing(self.profile, settings.timing_scale)
         self.traffic = Traffic(self.unit)
-        command_topic = self.unit.topic("exec/command")
-        self.monitor = Monitor(self.profile, units=[self.unit], kind="certification",
-                               validator=SuiteValidator(self.profile, frozenset({command_topic})))
+        # The Monitor puts what is wrong in the suite's own commands (some broken on purpose:
+        # the robustness scenario) on the commander's account, which a certification does not
+        # report; it judges the unit's answers with the deadlines the scenarios wait for.
+        self.monitor = Monitor(dataclasses.replace(
+            self.profile, response_timeout=self.timing.response,
+            feedback_timeout=self.timing.feedback), units=[self.unit], kind="certification")
         self._lock = threading.RLock()
         self.client: MqttClient | None = None
         self.reference: Any = None  # the bundled reference unit under --broker embedded
@@ -288,7 +267,7 @@ class Certification:
         (REBOOT-001 judges the reboot itself)."""
         now = time.time()
         with self._lock:
-            self.monitor.connection_gap(now, now)
+            self.monitor.reboot_requested(now)
         self.events.append(f"{_clock(now)} reboot requested ({self._reboot_how()})")
         if self.config.pluginmanager.hook.pytest_waraps_reboot(
                 config=self.config, unit=str(self.unit)):
@@ -311,10 +290,36 @@ class Certification:
     # --- verdicts ------------------------------------------------------------------------------
     def record(self, rule: str, *, violation: Any = None, verdict: Verdict | None = None,
                reason: str = "") -> None:
-        """Where scenarios report (``Context.record``): into the Monitor's results."""
+        """Where scenarios report (``Context.record``): into the Monitor's results. What a
+        scenario found missing from a unit that has died is not a fault of its own: the death
+        is the finding (HB-012), so the rule could not be tested."""
+        if violation is not None and CATALOGUE[rule].mode is not Mode.PASSIVE:
+            died = self.unit_died()
+            if died:
+                violation, verdict, reason = None, Verdict.COULD_NOT_TEST, died
         with self._lock:
             self.monitor.record(self.unit, rule, violation=violation, verdict=verdict,
                                 reason=reason)
+
+    def unit_died(self) -> str:
+        """Why the unit counts as dead (no heartbeat for 3 declared periods, HB-012's
+        decision), or "" while it heartbeats. Waits at most until that is certain: a
+        healthy unit's latest heartbeat answers at once."""
+        from conformance.checks.identity import SILENCE_PERIODS
+
+        latest = self.traffic.latest("heartbeat")
+        rate = self.context.rate_of("heartbeat")
+        if latest is None or rate is None:
+            return ""
+        window = SILENCE_PERIODS / rate * self.timing.scale
+        left = latest.time + window - time.time()
+        if left > 0 and self.traffic.wait_for(lambda e: True, left, after=latest.seq,
+                                              subtopic="heartbeat") is not None:
+            return ""
+        if time.time() - latest.time <= window:
+            return ""
+        return (f"the unit fell silent at {_clock(latest.time)} and did not come back "
+                f"(HB-012): no answer could come")
 
     def report(self, **extra: Any) -> RunReport:
         with self._lock:

@@ -6,7 +6,7 @@ import uuid
 
 import orjson
 
-from conformance.checks import Monitor, base, execution, monitor
+from conformance.checks import Monitor, base, conversation, monitor
 from conformance.client import Message
 from conformance.topics import UnitAddress
 
@@ -14,8 +14,8 @@ T0 = 1_700_000_000.0
 
 
 def test_hostile_variety_is_capped(stream, monkeypatch):
-    monkeypatch.setattr(execution, "COMMANDS_KEPT", 32)
-    monkeypatch.setattr(execution, "TASKS_KEPT", 32)
+    monkeypatch.setattr(conversation, "COMMANDS_KEPT", 32)
+    monkeypatch.setattr(conversation, "TASKS_KEPT", 32)
     monkeypatch.setattr(base, "MAX_SENSORS", 16)
     monkeypatch.setattr(base, "MAX_KIND_COUNTS", 8)
     monkeypatch.setattr(monitor, "MAX_UNITS", 8)
@@ -35,7 +35,8 @@ def test_hostile_variety_is_capped(stream, monkeypatch):
         m.feed(Message(t, u.topic("Bad"), b"{}"))  # TOPIC-002 every time
     s = m.state(u)
     assert len(s.sensors_seen) == 16 and len(s.counts) == 8
-    assert len(s.private["commands"]) == 32 and len(s.private["final"]) == 32
+    kept = s.private["conversations"]
+    assert len(kept.commands) == 32 and len(kept.tasks) == 32
     assert len(m.units()) == 8
     assert len(m._by_topic) == 50
     report = m.report()
@@ -58,7 +59,7 @@ def test_gaps_are_capped_and_a_point_gap_excludes_its_interval(stream):
 
 
 def test_commands_kept_cost_little_memory_each(stream):
-    """EXEC-008 keeps thousands of commands per unit: a digest and an excerpt each, never the
+    """Conversations keep thousands of commands per unit: a digest and an excerpt each, never the
     content (a command may be 1 MiB; orjson's output holds a 4 KiB buffer)."""
     import tracemalloc
 
@@ -77,5 +78,5 @@ def test_commands_kept_cost_little_memory_each(stream):
         grown = tracemalloc.get_traced_memory()[0] - before
     finally:
         tracemalloc.stop()
-    assert len(m.state(u).private["commands"]) == 300
+    assert len(m.state(u).private["conversations"].commands) == 300
     assert grown < 300 * 1500, f"{grown / 299:.0f} bytes per command kept"

@@ -199,14 +199,17 @@ def test_silence_warns_and_says_how_the_unit_came_back(stream):
     assert r.verdict is Verdict.WARN and "same agent-uuid (resumed)" in r.violations[0].observed
 
 
-def test_silence_at_the_end_warns_at_finish(stream):
+def test_a_heartbeat_that_stops_for_good_is_a_death_at_finish(stream):
     m = Monitor()
     stream.feed(m, [stream.heartbeat(i) for i in range(3)])
     m.finish(now=stream.heartbeat(10).time)
-    r = m.report().units[str(stream.address)].rules["HB-010"]
-    assert r.verdict is Verdict.WARN and "did not come back" in r.violations[0].observed
+    rules = m.report().units[str(stream.address)].rules
+    r = rules["HB-012"]
+    assert r.verdict is Verdict.FAIL and "never came back" in r.violations[0].observed
+    assert "it had received no command" in r.violations[0].observed
+    assert rules["HB-010"].verdict is Verdict.PASS  # a silence that resumed is HB-010's
     m.finish(now=stream.heartbeat(3).time)  # finish again: re-judged, not counted twice
-    assert m.report().units[str(stream.address)].rules["HB-010"].verdict is Verdict.PASS
+    assert m.report().units[str(stream.address)].rules["HB-012"].verdict is Verdict.PASS
 
 
 def test_stale_retained_heartbeat_warns(stream):
@@ -425,7 +428,13 @@ def test_com_uuid_reused_for_another_command_fails(stream):
             stream.command(2, "query-status", com_uuid=C1, **{"task-uuid": str(uuid.uuid4())})]
     found = stream.feed(m, msgs)
     assert stateful(found) == ["EXEC-008"]  # the identical resend is fine
-    assert verdict(m, stream, "EXEC-008").verdict is Verdict.FAIL
+    m.finish()
+    report = m.report()
+    # What is wrong in a command is the commander's fault: its own row, not the unit's.
+    commander = report.units["commander commander"]
+    assert commander.party == "commander" and commander.rules["EXEC-008"].verdict is Verdict.FAIL
+    unit = report.units[str(stream.address)].rules["EXEC-008"]
+    assert unit.verdict is Verdict.SKIP and "commander-side" in unit.reason
 
 
 def test_feedback_after_final_status_fails(stream):

@@ -28,8 +28,11 @@ def test_never_examined_is_skip_with_a_reason(stream):
     rules = rules_of(m, stream.address)
     assert rules["HB-003"].verdict is Verdict.SKIP
     assert "only 0 intervals" in rules["HB-003"].reason
+    assert rules["EXEC-QUERY-002"].verdict is Verdict.SKIP
+    assert "needs a stimulus: run pytest --unit" in rules["EXEC-QUERY-002"].reason
+    # A conversation rule is judged where the traffic holds the command: here it does not.
     assert rules["EXEC-PING-001"].verdict is Verdict.SKIP
-    assert "needs a stimulus: run pytest --unit" in rules["EXEC-PING-001"].reason
+    assert "no command to this unit" in rules["EXEC-PING-001"].reason
 
 
 def test_unclaimed_level_is_skip_not_claimed(stream):

@@ -35,7 +35,7 @@ def test_user_file_extends_a_builtin(tmp_path: Path) -> None:
     ("rate-tolerence: 0.1\n", "unknown key 'rate-tolerence' (did you mean 'rate_tolerance'?)"),
     ("safe-radius: -3\n", "safe-radius must be a non-negative number"),
     ("tasks: move-to\n", "tasks must be a list of strings"),
-    ("severity: {HB-03: error}\n", "'HB-03' matches no rule id (did you mean HB-003?)"),
+    ("severity: {HB003: error}\n", "'HB003' matches no rule id (did you mean HB-003?)"),
     ("severity: {HB-003: fatal}\n", "'fatal' is not error or warning"),
     ("min-intervals: 1\n", "min-intervals must be a whole number >= 2"),
     ("- a\n- b\n", "a profile is a mapping"),

@@ -32,7 +32,7 @@ def test_every_erratum_records_its_decision() -> None:
 
 def test_unknown_rule_id_suggests_close_ones() -> None:
     with pytest.raises(KeyError, match="did you mean HB-003"):
-        rules.get("HB-03")
+        rules.get("HB003")
 
 
 def test_rules_command_prints_text_and_json(capsys: pytest.CaptureFixture[str]) -> None:

@@ -1,4 +1,4 @@
-"""The live scorecard: redrawn in place on a terminal, plain lines in a pipe; fleet observations
+"""The live scorecard: redrawn in place on a terminal, plain lines in a pipe; findings
 in the final view. Fed through the real Monitor with synthetic traffic (no broker needed)."""
 
 from __future__ import annotations
@@ -81,9 +81,10 @@ def test_plain_view_prints_each_first_violation_once_and_summaries(prefix: str) 
     assert out.getvalue() == text  # nothing new to say, and no summary before 10 s
 
 
-def test_fleet_observations_are_listed_in_the_final_view(tmp_path: Path, reports_dir: Path,
-                                                         prefix: str) -> None:
-    """Two processes under one unit name, alternating agent-uuids (HB-011)."""
+def test_findings_are_listed_once_each_with_count_and_times(tmp_path: Path, reports_dir: Path,
+                                                             prefix: str) -> None:
+    """Two processes under one unit name, alternating agent-uuids (HB-011): one line for the
+    rule, however many heartbeats show it."""
     a = unit_traffic(prefix, "dji0", seconds=20, agent_uuid="11111111-1111-4111-8111-111111111111")
     b = unit_traffic(prefix, "dji0", seconds=20, agent_uuid="22222222-2222-4222-8222-222222222222",
                      t0=T0 + 0.5)
@@ -91,8 +92,13 @@ def test_fleet_observations_are_listed_in_the_final_view(tmp_path: Path, reports
     run = run_lint(["--from", str(write_recording(tmp_path / "twin.jsonl", a + twin))],
                    reports_dir)
     assert run.code == 1
-    final = run.out[run.out.index("fleet observations:"):]
-    assert "HB-011" in final and f"{prefix}/unit/air/simulation/dji0" in final
+    final = run.out[run.out.index("findings (each unit or commander and rule once"):]
+    final = final[:final.index("\n\n")]
+    hb011 = [ln for ln in final.splitlines() if " HB-011 " in ln]
+    assert len(hb011) == 1 and f"{prefix}/unit/air/simulation/dji0" in hb011[0]
+    count = run.report["units"][f"{prefix}/unit/air/simulation/dji0"]["violation_counts"][
+        "HB-011"]
+    assert count > 10 and f": {count}x first " in hb011[0] and ", last " in hb011[0]
 
 
 def test_recorded_duration_limits_what_is_judged(tmp_path: Path, reports_dir: Path,

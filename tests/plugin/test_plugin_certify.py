@@ -75,10 +75,76 @@ def test_warn_is_a_pass_with_a_warning_and_strict_makes_it_a_failure(
     run = certify(pytester, *args, f"--junitxml={junit}")
     assert run.result.ret == 0, run.text
     assert run.outcomes == {"ERR-001": "passed"}
-    assert "ConformanceWarning: ERR-001 sensor level topic is 'sensor_info'" in run.text
+    assert "ConformanceWarning: ERR-001 sensor_info published on 'sensor.info'" in run.text
     verdicts = [p.get("value") for p in ET.parse(junit).iter("property")
                 if p.get("name") == "verdict"]
     assert verdicts == ["warn"]
     strict = certify(pytester, *args, "--profile", "strict")
     assert strict.result.ret == pytest.ExitCode.TESTS_FAILED
     assert strict.outcomes == {"ERR-001": "failed"}
+
+
+def test_a_recording_of_a_certification_lints_clean_with_every_command_answered(
+        pytester: pytest.Pytester, mosquitto: str, unit_address: UnitAddress,
+        tmp_path) -> None:
+    """Lint judges conversations the way the suite does: a recording taken while the suite
+    certifies the reference unit shows every command of the suite matched to its answer, and
+    no failure of the unit (the suite's deliberately broken commands are the commander's)."""
+    import io
+    import json
+    import threading
+
+    import orjson
+
+    from conformance.client import BrokerURL, MqttClient
+    from conformance.lint import main as lint_main
+    from conformance.recording import RecordingWriter
+
+    recording = tmp_path / "certification.jsonl"
+    lock = threading.Lock()
+    with recording.open("wb") as f:
+        writer = RecordingWriter(f)
+
+        def keep(m) -> None:  # type: ignore[no-untyped-def]
+            with lock:
+                writer.write(m)
+
+        recorder = MqttClient(BrokerURL.parse(mosquitto), on_message=keep)
+        recorder.connect()
+        recorder.subscribe(f"{unit_address.prefix}/#", qos=1)
+        try:
+            with SimUnit(unit_address, mosquitto, rate=3.0, seed=3) as sim:
+                run = certify(pytester, "--unit", str(unit_address), "--broker", mosquitto,
+                              f"--profile={FAST}", "--seed", "7", plugins=(Rebooter(sim),))
+        finally:
+            recorder.close()
+    assert run.result.ret == 0, run.text
+    out = io.StringIO()
+    code = lint_main(["--from", str(recording), f"--profile={FAST}", "--plain", "--format",
+                      "json", "--reports-dir", str(tmp_path / "lint")], stdout=out)
+    report = json.loads(next((tmp_path / "lint").glob("*.json")).read_text())
+    unit = report["units"][str(unit_address)]
+    bad = {r: res["violations"][:1] for r, res in unit["rules"].items()
+           if res["verdict"] == "fail"}
+    assert bad == {}, out.getvalue()
+    for rule in ("EXEC-PING-001", "EXEC-START-001", "EXEC-START-002", "EXEC-SIG-001",
+                 "EXEC-RESEND-002", "EXEC-ROBUST-002", "EXEC-006", "EXEC-009"):
+        assert unit["rules"][rule]["verdict"] == "pass", (rule, unit["rules"][rule])
+    # Every command with a com-uuid got an answer with that response-to (12.3).
+    lines = [orjson.loads(line) for line in recording.read_bytes().splitlines() if line]
+    sent, answered = set(), set()
+    for line in lines:
+        topic, payload = line.get("topic", ""), line.get("payload")
+        try:
+            body = orjson.loads(payload) if isinstance(payload, str) else None
+        except orjson.JSONDecodeError:
+            body = None
+        if isinstance(body, dict) and isinstance(body.get("com-uuid"), str):
+            if topic.endswith("/exec/command"):
+                sent.add(body["com-uuid"])
+            elif topic.endswith("/exec/response") and isinstance(body.get("response-to"), str):
+                answered.add(body["response-to"])
+    assert len(sent) > 20 and sent <= answered, sorted(sent - answered)
+    commanders = [u for u in report["units"].values() if u["party"] == "commander"]
+    assert commanders, "the suite's broken commands are on a commander's row"
+    assert code == 1  # that commander sent malformed commands on purpose (robustness)

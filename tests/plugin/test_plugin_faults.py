@@ -28,11 +28,15 @@ from certify_helpers import (
 
 from conformance.plugin import NOT_CERTIFIED_EXIT
 from conformance.sim import FAULTS
+from conformance.sim.faults import TST_FAULTS
 
 pytestmark = pytest.mark.slow
 
 # Where the suite and the reference unit's fault table disagree on the rules a fault breaks.
 # strict: once they agree, the XPASS fails this test and the entry must go.
+AWAITING_SCENARIOS = {
+    name: "no TST scenario of the certification suite sends TST commands yet (issue 10)"
+    for name in sorted(TST_FAULTS) if FAULTS[name].stimulus}
 # Areas whose faults change what every scenario sees (levels, identity, timing, answers).
 # Signal faults too (the scenarios end their tasks with signals), and tst_execution_info ones
 # (they declare one more level).
@@ -57,7 +61,7 @@ def groups() -> list[list[str]]:
     """Unit faults, combined when they touch different spec areas (greedy, deterministic)."""
     out: list[list[str]] = []
     for name, fault in sorted(FAULTS.items()):
-        if fault.scope != "unit":
+        if fault.scope != "unit" or name in AWAITING_SCENARIOS:
             continue
         mine = {area(r) for r in fault.rules}
         if mine & ALONE:
@@ -89,8 +93,9 @@ def parameters() -> None:
     warm_parameters(("look-at-bearing", "move-to", "navigate"), range(1, 5))
 
 
-@pytest.mark.parametrize("faults", [
-    pytest.param(g, id="+".join(g)) for g in groups()])
+@pytest.mark.parametrize("faults", [pytest.param(g, id="+".join(g)) for g in groups()] + [
+    pytest.param([name], id=name, marks=pytest.mark.xfail(strict=True, reason=why))
+    for name, why in AWAITING_SCENARIOS.items()])
 def test_faults_fail_exactly_their_rules(pytester: pytest.Pytester, faults: list[str],
                                          mosquitto: str, prefix: str) -> None:
     # On Mosquitto: a broker in its own process leaves this one's CPU to the unit and the suite.

@@ -89,6 +89,8 @@ def test_fleet_with_a_fault_on_one_unit_on_its_own_embedded_broker(observe) -> N
     (["--unit", "waraps/unit/boat/real/x"], "agent type 'boat'"),
     (["--rate", "0"], "positive number of Hz"),
     (["--broker", "http://example"], "scheme 'http'"),
+    (["--tst-operator", "waraps/unit/ground/real/op0"], "--tst-operator needs --tst"),
+    (["--tst", "--tst-operator", "op0"], "PREFIX1/unit/TYPE/ROLE/UNIT"),
 ])
 def test_usage_errors_say_how_to_fix(args: list[str], message: str) -> None:
     out = subprocess.run([sys.executable, "-m", "conformance.cli", "sim", *args],
@@ -103,3 +105,31 @@ def test_unreachable_broker_is_one_clear_error() -> None:
                           f"mqtt://127.0.0.1:{free_port()}"], capture_output=True, text=True,
                          timeout=30)
     assert out.returncode == 1 and "cannot reach the broker" in out.stderr
+
+
+def test_tst_unit_takes_trees_from_the_operators_topic(observe, mosquitto: str,
+                                                       unit_address: UnitAddress) -> None:
+    operator = unit_address.with_name("op0")
+    obs = observe(mosquitto, f"{unit_address.prefix}/#", (operator.topic("tst/command"),))
+    proc = launch("--unit", str(unit_address), "--broker", mosquitto, "--rate", "5", "--tst",
+                  "--tst-operator", str(operator), "--task-seconds", "1")
+    try:
+        fields = ready(proc)
+        assert fields["tst"] == "on" and fields["operator"] == str(operator)
+        root = "5184d315-15c4-42d4-a647-fa74f794c03b"
+        com = obs.send({"command": "start-tst", "tst": {
+            "name": "look-at-bearing", "params": {"bearing": 90.0}, "children": [],
+            "common_params": {"execunit": f"/{unit_address.name}", "node-uuid": root}}},
+            topic=operator.topic("tst/command"))
+        answer = obs.wait_for(lambda _: next((r for r in obs.json_on(operator.topic(
+            "tst/response")) if r.get("response-to") == com), None), 10, "the start-tst answer")
+        assert (answer["response"], answer["root-uuid"]) == ("started", root)
+        info = obs.wait_for(lambda _: [i for i in obs.json_on(unit_address.topic(
+            "tst_execution_info")) if i["nodes-executing"]], 10, "the tree in tst_execution_info")
+        assert info[0]["nodes-executing"][0]["node-uuid"] == root
+        proc.terminate()
+        assert proc.wait(10) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(5)

@@ -136,8 +136,12 @@ def start_tst() -> st.SearchStrategy[dict[str, Any]]:
                                    "common_params": {"execunit": "/dji0",
                                                      "node-uuid": node_uuid}},
         UUID, _strategy(schema.params_schema_path(name))))
-    tree = st.builds(lambda root, kids: {**root, "children": kids}, node,
-                     st.lists(node, max_size=2))
+    # A task node is a leaf; only the composites seq and conc have children (TST-014).
+    composite = st.builds(lambda name, node_uuid, kids: {
+        "name": name, "params": {}, "children": kids,
+        "common_params": {"execunit": "/dji0", "node-uuid": node_uuid}},
+        st.sampled_from(("seq", "conc")), UUID, st.lists(node, min_size=1, max_size=2))
+    tree = st.one_of(node, composite)
     return st.builds(lambda com, tst: {"com-uuid": com, "command": "start-tst",
                                        "receiver": "op0", "tst": tst}, UUID, tree)
 

@@ -57,15 +57,16 @@ def test_wrong_shapes_never_raise(topic: str, message: object) -> None:
 
 def test_deep_but_allowed_nesting_is_validated() -> None:
     deep = {"command": "start-tst", "com-uuid": "b992552b-90b0-4911-8707-d6f808362bd2",
-            "tst": {"name": "move-to", "params": {}}}
+            "tst": {"name": "seq", "params": {}}}
     node = deep["tst"]
-    for _ in range(25):  # 2 levels per node: 50 deep, under MSG-004's 64
-        child = {"name": "move-to", "params": {}}
+    for i in range(25):  # 2 levels per node: 50 deep, under MSG-004's 64
+        child = {"name": "seq" if i < 24 else "move-to", "params": {}}
         node["children"] = [child]
         node = child
     v = validate("waraps/unit/ground/simulation/op0/tst/command", json.dumps(deep), 1.0)
     assert v.decoded
-    assert {x.rule for x in v.violations} == {"TASK-001"}  # every node misses its waypoint
+    assert [(x.rule, x.path.count("children")) for x in v.violations] == [
+        ("TASK-001", 25)]  # the leaf at the bottom misses its waypoint
 
 
 def test_cli_prints_kind_and_violations_and_exit_code(tmp_path) -> None:  # type: ignore[no-untyped-def]

@@ -53,10 +53,11 @@ GOOD: dict[str, tuple[str, dict[str, Any] | Any]] = {
                                    "task-uuid": U3}),
     "start-tst": ("tst/command", {
         "com-uuid": U1, "command": "start-tst", "receiver": "op0", "sender": "commander",
-        "tst": {"name": "move-to", "children": [
-            {"name": "look-at-position", "params": {"geopoint": dict(GEO)}, "children": []}],
-            "common_params": {"execunit": "/op0", "node-uuid": U2},
-            "params": {"waypoint": dict(GEO)}}}),
+        "tst": {"name": "seq", "params": {}, "children": [
+            {"name": "look-at-position", "params": {"geopoint": dict(GEO)}, "children": []},
+            {"name": "move-to", "params": {"waypoint": dict(GEO)}, "children": [],
+             "common_params": {"node-uuid": U3}}],
+            "common_params": {"execunit": "/op0", "node-uuid": U2}}}),
     "signal-tst-node": ("tst/command", {"com-uuid": U1, "command": "signal-tst-node",
                                         "node-uuid": U2, "sender": "commander",
                                         "signal": "$abort"}),
@@ -190,6 +191,26 @@ FAULTS = [
     ("tst-response", _set("response-to", U1), "TST-002", "$.com-uuid"),
     ("tst-feedback", _set("status", "finished"), "TST-003", "$.status"),
     ("tst-feedback", _set("root-flag", "true"), "TST-003", "$.root-flag"),
+    # section 14's errata and tree structure (issue 10)
+    ("tst-response", _set("response", "running"), "ERR-015", "$.response"),
+    ("ping", _set("command", "start-tst"), "ERR-016", "$.command"),
+    ("ping", _set("command", "signal-unit"), "ERR-016", "$.command"),
+    ("signal-unit", _set("unit", "dji21"), "ERR-017", "$.unit"),
+    ("start-tst", _set("tst/common_params/execunit", "op0"), "ERR-017",
+     "$.tst.common_params.execunit"),
+    ("tst_execution_info", _set("type", "TSTExecutionInfo"), "ERR-018", "$.type"),
+    ("tst_execution_info", _set("type", "TstExecInfo"), "TEI-001", "$.type"),
+    ("start-tst", _set("tst/children/1/common_params/node-uuid", U2), "TST-014",
+     "$.tst.children[1].common_params.node-uuid"),
+    ("start-tst", _set("tst/children/0/children", [{"name": "seq", "children": []}]), "TST-014",
+     "$.tst.children[0].children"),
+    ("start-tst", _set("tst/children", []), "TST-014", "$.tst.children"),
+    ("start-tst", _set("tst/common-params", {"execunit": "/dji0"}), "TST-014",
+     "$.tst.common_params"),
+    ("start-tst", _set("tst/children/0/common-params", {"node-uuid": U2}), "TST-014",
+     "$.tst.children[0].common-params.node-uuid"),
+    ("start-tst", _set("tst/children/1/common-params", {"node-uuid": U2}), "TST-014",
+     "$.tst.children[1].common_params"),
 ]
 
 

@@ -1,0 +1,281 @@
+"""Conversations judged from traffic alone (checks/conversation.py): every judgement shown
+passing on a conformant exchange and failing on the matching fault, with the blame on the root
+cause (a dead or deaf unit is one finding, not one per unanswered command)."""
+
+from __future__ import annotations
+
+import uuid
+
+from conformance.checks import Monitor
+from conformance.profile import Profile
+from conformance.violation import Verdict
+
+TIMEOUTS = Profile(response_timeout=1.0, feedback_timeout=3.0)
+
+
+def new() -> str:
+    return str(uuid.uuid4())
+
+
+def judge(stream, extra, seconds: float = 20.0, *, alive=None, profile=TIMEOUTS):
+    """The unit's rule results after ``seconds`` of healthy traffic plus ``extra``."""
+    m = Monitor(profile)
+    stream.feed(m, (stream.alive(seconds) if alive is None else alive) + extra)
+    m.finish()
+    return m.report().units[str(stream.address)].rules
+
+
+def verdicts(rules, *ids):
+    return {r: rules[r].verdict.value for r in ids}
+
+
+def start(stream, t, task_uuid=None, com=None, name="move-to", **extra):
+    body = {"task": {"name": name, "params": {}}, **extra}
+    if task_uuid is not None:
+        body["task-uuid"] = task_uuid
+    return stream.command(t, "start-task", com_uuid=com, **body)
+
+
+def com_of(msg) -> str:
+    import orjson
+
+    return orjson.loads(msg.payload)["com-uuid"]
+
+
+def test_answered_ping_passes_and_an_unanswered_one_fails_naming_it(stream):
+    ping = stream.command(2.1, "ping")
+    ok = judge(stream, [ping, stream.response(2.3, com_of(ping))])
+    assert verdicts(ok, "EXEC-PING-001", "EXEC-PING-002", "EXEC-006", "EXEC-009",
+                    "EXEC-010") == dict.fromkeys(
+        ("EXEC-PING-001", "EXEC-PING-002", "EXEC-006", "EXEC-009", "EXEC-010"), "pass")
+    lost = stream.command(2.1, "ping")
+    later = stream.command(5.1, "ping")
+    bad = judge(stream, [lost, later, stream.response(5.2, com_of(later))])
+    r = bad["EXEC-PING-001"]
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 1
+    assert com_of(lost) in r.violations[0].expected and r.violations[0].observed == "no answer"
+
+
+def test_a_pong_to_another_com_uuid_fails_ping_002_not_ping_001(stream):
+    ping = stream.command(2.1, "ping")
+    other = stream.command(6.1, "ping")
+    rules = judge(stream, [ping, stream.response(2.2, com_of(ping).upper()), other,
+                           stream.response(6.2, com_of(other))])
+    assert verdicts(rules, "EXEC-PING-001", "EXEC-PING-002", "EXEC-006") == {
+        "EXEC-PING-001": "pass", "EXEC-PING-002": "fail", "EXEC-006": "fail"}
+
+
+def test_start_task_running_with_feedback_to_the_end_passes(stream):
+    task = new()
+    cmd = start(stream, 2.1, task)
+    rules = judge(stream, [cmd, stream.response(2.2, com_of(cmd), "running", **{
+        "task-uuid": task}), stream.feedback(2.3, task, "running"),
+        stream.feedback(6.5, task, "finished")])
+    assert set(verdicts(rules, "EXEC-START-001", "EXEC-START-002", "EXEC-START-003",
+                        "EXEC-FB-004").values()) == {"pass"}
+
+
+def test_start_task_answers_that_do_not_fit(stream):
+    third = new()
+    cmd1 = start(stream, 2.1, new())
+    cmd2 = start(stream, 4.1)  # no task-uuid: the unit must generate one
+    cmd3 = start(stream, 6.1, third)
+    rules = judge(stream, [
+        cmd1, stream.response(2.2, com_of(cmd1), "running"),  # task-uuid left out
+        cmd2, stream.response(4.2, com_of(cmd2), "running"),  # none generated
+        cmd3, stream.response(6.2, com_of(cmd3), "started", **{  # 14.4.4's word
+            "task-uuid": third})])
+    assert rules["EXEC-START-002"].verdict is Verdict.FAIL
+    assert len(rules["EXEC-START-002"].violations) == 2
+    assert rules["EXEC-START-001"].verdict is Verdict.FAIL
+    assert "'started'" in rules["EXEC-START-001"].violations[0].observed
+
+
+def test_a_dropped_start_task_fails_when_the_unit_answers_the_next_command(stream):
+    dropped, ping = start(stream, 2.1, new()), stream.command(5.1, "ping")
+    rules = judge(stream, [dropped, ping, stream.response(5.2, com_of(ping))])
+    assert rules["EXEC-START-001"].verdict is Verdict.FAIL
+    assert "start-task 'move-to'" in rules["EXEC-START-001"].violations[0].expected
+    assert rules["EXEC-PING-001"].verdict is Verdict.PASS
+
+
+def test_a_task_that_leaves_tasks_executing_without_final_feedback_fails(stream):
+    quiet = stream.alive(20.0, info=False)  # its direct_execution_info is this test's
+    task = new()
+    cmd = start(stream, 2.1, task)
+    listed = [stream.direct_execution_info(t + 0.5, executing=[
+        {"task-uuid": task, "task-name": "move-to"}]) for t in (3, 4, 5)]
+    rules = judge(stream, [cmd, stream.response(2.2, com_of(cmd), "running", **{
+        "task-uuid": task}), stream.feedback(2.3, task, "running"), *listed,
+        *[stream.direct_execution_info(t + 0.5) for t in range(6, 20)]], alive=quiet)
+    r = rules["EXEC-START-003"]
+    assert r.verdict is Verdict.FAIL and "left tasks-executing" in r.violations[0].observed
+    # Still listed (running) when the observation ends: not judged.
+    still = [stream.direct_execution_info(t + 0.5, executing=[
+        {"task-uuid": task, "task-name": "move-to"}]) for t in range(3, 20)]
+    rules = judge(stream, [cmd, stream.response(2.2, com_of(cmd), "running", **{
+        "task-uuid": task}), stream.feedback(2.3, task, "running"), *still], alive=quiet)
+    assert rules["EXEC-START-003"].verdict is Verdict.SKIP
+    assert "still running" in rules["EXEC-START-003"].reason
+
+
+def _resent(stream, task, *, second, feedback):
+    cmd = start(stream, 2.1, task)
+    again = start(stream, 3.1, task, com=com_of(cmd))
+    return [cmd, stream.response(2.2, com_of(cmd), "running", **{"task-uuid": task}),
+            stream.feedback(2.3, task, "running"), again, *second(com_of(cmd)), *feedback,
+            stream.feedback(8.5, task, "finished")]
+
+
+def test_a_resend_answered_again_and_not_executed_again_passes(stream):
+    task = new()
+    rules = judge(stream, _resent(stream, task, second=lambda c: [stream.response(
+        3.2, c, "running", **{"task-uuid": task})], feedback=[]))
+    assert verdicts(rules, "EXEC-RESEND-001", "EXEC-RESEND-002", "EXEC-009",
+                    "EXEC-FB-004") == dict.fromkeys(
+        ("EXEC-RESEND-001", "EXEC-RESEND-002", "EXEC-009", "EXEC-FB-004"), "pass")
+
+
+def test_a_resend_left_unanswered_warns(stream):
+    task = new()
+    rules = judge(stream, _resent(stream, task, second=lambda c: [], feedback=[]))
+    assert rules["EXEC-RESEND-002"].verdict is Verdict.WARN
+    assert rules["EXEC-START-001"].verdict is Verdict.PASS  # the first send was answered
+
+
+def test_a_resend_executed_again_fails_resend_001(stream):
+    task = new()
+    rules = judge(stream, _resent(stream, task, second=lambda c: [stream.response(
+        3.2, c, "running", **{"task-uuid": task})], feedback=[stream.feedback(3.3, task,
+                                                                              "running")]))
+    assert rules["EXEC-RESEND-001"].verdict is Verdict.FAIL
+    assert "new 'running'" in rules["EXEC-RESEND-001"].violations[0].observed
+
+
+def test_a_resend_answered_failed_with_failed_feedback_is_one_fault_of_resends(stream):
+    """Seen in the field: the resend is answered 'failed' with a 'failed' feedback for the task
+    that runs on; its later feedback is the resend's fault, not EXEC-FB-004's."""
+    task = new()
+    rules = judge(stream, _resent(stream, task, second=lambda c: [stream.response(
+        3.2, c, "failed", **{"task-uuid": task, "fail-reason": "task exists"})],
+        feedback=[stream.feedback(3.3, task, "failed")]))
+    assert rules["EXEC-RESEND-001"].verdict is Verdict.FAIL
+    assert rules["EXEC-FB-004"].verdict is Verdict.PASS
+    assert rules["EXEC-RESEND-002"].verdict is Verdict.PASS
+
+
+def test_query_status_agrees_with_the_history(stream):
+    task = new()
+    cmd = start(stream, 2.1, task)
+    run = [cmd, stream.response(2.2, com_of(cmd), "running", **{"task-uuid": task}),
+           stream.feedback(2.3, task, "running"), stream.feedback(4.3, task, "finished")]
+    q = stream.command(5.1, "query-status", **{"task-uuid": task})
+    ok = judge(stream, [*run, q, stream.response(5.2, com_of(q), "finished")])
+    assert ok["EXEC-QUERY-001"].verdict is Verdict.PASS
+    forgot = judge(stream, [*run, q, stream.response(5.2, com_of(q), "unknown")])
+    assert forgot["EXEC-QUERY-001"].verdict is Verdict.FAIL
+    assert "'finished'" in forgot["EXEC-QUERY-001"].violations[0].expected
+    ping = stream.command(7.1, "ping")
+    unanswered = judge(stream, [*run, q, ping, stream.response(7.2, com_of(ping))])
+    assert unanswered["EXEC-QUERY-001"].verdict is Verdict.FAIL
+
+
+def test_a_late_answer_says_how_late_and_is_not_also_a_missing_one(stream):
+    ping = stream.command(2.1, "ping")
+    rules = judge(stream, [ping, stream.response(4.5, com_of(ping))])
+    assert rules["EXEC-010"].verdict is Verdict.WARN
+    assert "2.40 s after ping" in rules["EXEC-010"].violations[0].observed
+    r = rules["EXEC-PING-001"]  # not within the deadline, once: late, not 'no answer'
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 1
+    assert "answered only after 2.40 s" in r.violations[0].observed
+
+
+def test_an_answer_too_many_fails_exec_009(stream):
+    ping = stream.command(2.1, "ping")
+    rules = judge(stream, [ping, stream.response(2.2, com_of(ping)),
+                           stream.response(2.3, com_of(ping))])
+    assert rules["EXEC-009"].verdict is Verdict.FAIL
+
+
+def test_a_unit_deaf_after_a_malformed_command_is_one_robustness_finding(stream):
+    ping0 = stream.command(2.1, "ping")
+    bad = stream.msg("exec/command", b'{"com-uuid": "' + new().encode() + b'", signal: $abort}',
+                     3.1)
+    later = [stream.command(4.1, "ping"), stream.command(5.1, "query-status",
+                                                         **{"task-uuid": new()})]
+    rules = judge(stream, [ping0, stream.response(2.2, com_of(ping0)), bad, *later])
+    r = rules["EXEC-ROBUST-001"]
+    assert r.verdict is Verdict.FAIL and "a malformed command" in r.violations[0].detail
+    assert rules["EXEC-PING-001"].verdict is Verdict.PASS  # the deafness is the finding
+    assert rules["EXEC-QUERY-001"].verdict is not Verdict.FAIL
+
+
+def test_a_unit_that_dies_on_a_command_is_one_death_naming_it(stream):
+    """Seen in the field: the MQTT thread dies on a start-task without task-uuid; its heartbeat
+    stops for good while the process lives on."""
+    cmd = start(stream, 9.5)  # no task-uuid
+    ping = stream.command(12.0, "ping")
+    rules = judge(stream, [cmd, ping, stream.heartbeat(30.0, agent_uuid=new())][:-1],
+                  alive=stream.alive(10.0) + [stream.sensor("speed", 1.0, 30.0)])
+    r = rules["HB-012"]
+    assert r.verdict is Verdict.FAIL
+    assert f"start-task 'move-to' (com-uuid {com_of(cmd)})" in r.violations[0].observed
+    assert rules["EXEC-START-001"].verdict is not Verdict.FAIL
+    assert rules["EXEC-PING-001"].verdict is not Verdict.FAIL
+    assert rules["HB-010"].verdict is not Verdict.WARN
+
+
+def test_levels_acted_on_but_not_declared_fail_once(stream):
+    stream.levels = ["sensor"]
+    ping = stream.command(2.1, "ping")
+    rules = judge(stream, [ping, stream.response(2.2, com_of(ping))])
+    r = rules["HB-013"]
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 1
+    assert "'direct execution'" in r.violations[0].expected
+    stream.levels = ["sensor", "direct execution"]
+    assert judge(stream, [])["HB-013"].verdict is Verdict.PASS
+
+
+def test_a_signal_answered_ok_implies_its_feedback(stream):
+    task = new()
+    cmd = start(stream, 2.1, task)
+    run = [cmd, stream.response(2.2, com_of(cmd), "running", **{"task-uuid": task}),
+           stream.feedback(2.3, task, "running")]
+    sig = stream.command(3.1, "signal-task", **{"task-uuid": task, "signal": "$abort"})
+    answered = stream.response(3.2, com_of(sig), "ok", **{"task-uuid": task})
+    ok = judge(stream, [*run, sig, answered, stream.feedback(3.3, task, "aborted")])
+    assert verdicts(ok, "EXEC-SIG-001", "EXEC-SIG-002") == {"EXEC-SIG-001": "pass",
+                                                            "EXEC-SIG-002": "pass"}
+    ignored = judge(stream, [*run, sig, answered])
+    assert ignored["EXEC-SIG-002"].verdict is Verdict.FAIL
+    enough = stream.command(3.1, "signal-task", **{"task-uuid": task, "signal": "$enough"})
+    wrong = judge(stream, [*run, enough, stream.response(3.2, com_of(enough), "ok"),
+                           stream.feedback(3.3, task, "aborted")])
+    assert wrong["EXEC-SIG-004"].verdict is Verdict.FAIL
+
+
+def test_commands_to_a_unit_that_claims_no_execution_are_not_judged(stream):
+    stream.levels = ["sensor"]
+    ping = stream.command(2.1, "ping")
+    rules = judge(stream, [ping, stream.command(5.1, "ping")])
+    assert rules["EXEC-PING-001"].verdict is Verdict.SKIP
+
+
+def test_a_gross_rate_mismatch_fails_early_and_is_not_a_string_of_silences(stream):
+    stream.rate = 5.0  # declared 5 Hz, sent every 5 s (seen in the field)
+    beats = [stream.heartbeat(t) for t in range(0, 20, 5)]
+    rules = judge(stream, [], alive=beats)
+    r = rules["HB-003"]
+    assert r.verdict is Verdict.FAIL and "more than 3x" in r.violations[0].observed
+    assert rules["HB-010"].verdict is not Verdict.WARN
+
+
+def test_a_reboot_ends_what_the_old_life_left_open_unjudged(stream):
+    task = new()
+    cmd = start(stream, 2.1, task)
+    other = new()
+    after = [stream.heartbeat(t, agent_uuid=other) for t in range(8, 20)]
+    before = [m for m in stream.alive(5.0)]
+    rules = judge(stream, [cmd, stream.response(2.2, com_of(cmd), "running", **{
+        "task-uuid": task}), stream.feedback(2.3, task, "running")], alive=before + after)
+    assert rules["EXEC-START-003"].verdict is not Verdict.FAIL
