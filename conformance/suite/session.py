@@ -321,6 +321,20 @@ class Certification:
         return (f"the unit fell silent at {_clock(latest.time)} and did not come back "
                 f"(HB-012): no answer could come")
 
+    def _silent(self) -> str:
+        """``unit_died``'s reason when the unit has been silent for longer than HB-012's
+        window already, without waiting: "" for a unit that heartbeats (or just paused)."""
+        from conformance.checks.identity import SILENCE_PERIODS
+
+        latest = self.traffic.latest("heartbeat")
+        rate = self.context.rate_of("heartbeat")
+        if latest is None or rate is None:
+            return ""
+        if time.time() - latest.time <= SILENCE_PERIODS / rate * self.timing.scale:
+            return ""
+        return (f"the unit fell silent at {_clock(latest.time)} and did not come back "
+                f"(HB-012): no answer could come")
+
     def report(self, **extra: Any) -> RunReport:
         with self._lock:
             report = self.monitor.report(**self.meta(), **extra)
@@ -461,6 +475,14 @@ class Certification:
         scenario = SCENARIOS[name]
         for needed in scenario.needs:
             self.run_scenario(needed)
+        silent = self._silent() if name != "reboot" else ""
+        if silent:
+            # A dead unit answers nothing: each wait would only run out (HB-012 is the
+            # finding). The reboot scenario may bring it back, so it still runs.
+            for rule in scenario.rules:
+                self.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=silent)
+            self._done[name] = False
+            return
         if scenario.level is not None:
             if not self._claims(scenario.level):
                 self._done[name] = False
