@@ -276,7 +276,7 @@ class Commander:
 
         wanted = ("the feedback" if statuses is None else "the final feedback"
                   if set(statuses) == FINAL_STATUSES else
-                  "'" + "' or '".join(sorted(statuses)) + "' feedback")
+                  "the '" + "' or '".join(sorted(statuses)) + "' feedback")
         found = self.traffic.wait_for(
             match, timeout, after=after, subtopic="exec/feedback",
             what=what or f"{wanted} of {self._task_name(task_uuid)} {uuid_[:8]}")

@@ -23,33 +23,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
 
-# 12.4: "running - failed - aborted - paused - finished - starting - task specific strings".
-STANDARD_STATUSES = frozenset({"running", "failed", "aborted", "paused", "finished", "starting"})
-FINAL_STATUSES = frozenset({"finished", "failed", "aborted"})
-# Words real units end tasks with instead of 12.4's (FIELD-NOTES 'Vocabulary'): the final
-# status each one means. Compared in lower case, without surrounding blanks.
-FINAL_LOOKING: dict[str, str] = {
-    "done": "finished", "complete": "finished", "completed": "finished",
-    "success": "finished", "succeeded": "finished", "successful": "finished",
-    "finnished": "finished", "finish": "finished", "ended": "finished", "end": "finished",
-    "enough": "finished", "stopped": "aborted", "cancelled": "aborted", "canceled": "aborted",
-    "abort": "aborted", "killed": "aborted", "error": "failed", "failure": "failed",
-    "fail": "failed", "rejected": "failed",
-}
+from conformance.status import FINAL_STATUSES, STANDARD_STATUSES, meaning
 
-
-def meaning(status: object) -> str | None:
-    """The 12.4 status a feedback status stands for: itself when standard, the standard word
-    of a known other spelling (``Finished``, ``done``), else None."""
-    if not isinstance(status, str):
-        return None
-    if status in STANDARD_STATUSES:
-        return status
-    word = status.strip().lower()
-    if word in STANDARD_STATUSES:
-        return word
-    return FINAL_LOOKING.get(word)
-
+__all__ = ["FINAL_STATUSES", "STANDARD_STATUSES", "Deviation", "Deviations", "Kind", "meaning"]
 
 class Kind(Enum):
     """The deviations the scenarios adapt to, each with the rule whose evidence it is."""
