@@ -57,7 +57,7 @@ RULE_SCENARIO: dict[str, str] = {rule: s.name for s in SCENARIOS.values() for ru
 # the stimulus).
 EVIDENCE: dict[str, tuple[str, ...]] = {
     "EXEC-002": ("ping", "start"), "EXEC-003": ("start",), "EXEC-004": ("ping", "start"),
-    "EXEC-005": ("ping", "start"), "EXEC-006": ("ping", "start"), "EXEC-007": ("refuse",),
+    "EXEC-005": ("ping", "start"), "EXEC-006": ("ping", "start", "robust"), "EXEC-007": ("refuse",),
     "EXEC-FB-001": ("start",), "EXEC-FB-002": ("start",), "EXEC-FB-003": ("start",),
     "EXEC-FB-004": ("start",), "ERR-006": ("query",), "ERR-013": ("signal",),
     "ERR-014": ("start",), "EXEC-009": ("ping", "start"), "EXEC-010": ("ping",),

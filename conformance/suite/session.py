@@ -322,15 +322,23 @@ class Certification:
                 f"(HB-012): no answer could come")
 
     def _silent(self) -> str:
-        """``unit_died``'s reason when the unit has been silent for longer than HB-012's
-        window already, without waiting: "" for a unit that heartbeats (or just paused)."""
+        """``unit_died``'s reason when the unit is silent for good: no heartbeat for 3
+        declared periods (HB-012's window) and none within 10 periods or the response
+        deadline, whichever is longer (a dropout of a few periods, HB-010's, is not death).
+        A unit that heartbeats answers at once."""
         from conformance.checks.identity import SILENCE_PERIODS
 
         latest = self.traffic.latest("heartbeat")
         rate = self.context.rate_of("heartbeat")
         if latest is None or rate is None:
             return ""
-        if time.time() - latest.time <= SILENCE_PERIODS / rate * self.timing.scale:
+        period = self.timing.scale / rate
+        if time.time() - latest.time <= SILENCE_PERIODS * period:
+            return ""
+        left = latest.time + max(10 * period, self.timing.response) - time.time()
+        if left > 0 and self.traffic.wait_for(lambda e: True, left, after=latest.seq,
+                                              subtopic="heartbeat",
+                                              what="the unit's heartbeat") is not None:
             return ""
         return (f"the unit fell silent at {_clock(latest.time)} and did not come back "
                 f"(HB-012): no answer could come")
