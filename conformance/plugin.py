@@ -18,14 +18,22 @@ if TYPE_CHECKING:
 
 SUITE_PACKAGE = "conformance.suite"
 PLUGIN_NAME = "waraps-conformance-certification"
-BROKER_EXIT = pytest.ExitCode.USAGE_ERROR
-"""Exit status when the broker cannot be reached or refuses the connection."""
-NOT_ALIVE_EXIT = pytest.ExitCode.TESTS_FAILED
-"""Exit status when the unit sends no heartbeat: the certification fails."""
+# Exit statuses: pytest's own (ExitCode 0-5) keep their meaning; one is added.
+CERTIFIED_EXIT = pytest.ExitCode.OK
+"""0: every rule judged passed, warned, or was skipped with its reason (certified)."""
+FAILED_EXIT = pytest.ExitCode.TESTS_FAILED
+"""1: a rule failed."""
+INTERRUPTED_EXIT = pytest.ExitCode.INTERRUPTED
+"""2: interrupted (Ctrl-C, or --max-duration reached): not every rule ran."""
+NOT_CERTIFIED_EXIT = 6
+"""6: not certified: the broker or the unit could not be reached (no rule ran)."""
+EXIT_HELP = ("exit status: 0 certified, 1 a rule failed, 2 interrupted (Ctrl-C or "
+             "--max-duration), 4 usage error, 6 not certified (broker or unit unreachable)")
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
-    group = parser.getgroup("waraps-conformance", "WARA-PS conformance (certify one unit)")
+    group = parser.getgroup("waraps-conformance",
+                            f"WARA-PS conformance (certify one unit; {EXIT_HELP})")
     group.addoption("--unit", dest="waraps_unit", default=None, metavar="ADDRESS",
                     help="certify this unit, e.g. waraps/unit/air/simulation/dji0 (switches the "
                          "plugin on; without test paths, runs the packaged conformance suite)")
@@ -59,6 +67,16 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     help="where the JSON and HTML certification reports go (default reports/)")
     group.addoption("--seed", dest="waraps_seed", default=None, metavar="N",
                     help="seed for generated task parameters (the header shows each run's)")
+    group.addoption("--max-duration", dest="waraps_max_duration", default=None,
+                    metavar="DURATION", help="stop the run cleanly after this long (600, 90s, "
+                    "10m, 1h; default 10m): the test waiting fails saying for what, started "
+                    "tasks are aborted, reports are written, exit status 2")
+    group.addoption("--observe", dest="waraps_observe", default=None, metavar="DURATION",
+                    help="observe the unit at least this long before judging the passive "
+                         "rules (a rerun line adds it when the evidence came late)")
+    group.addoption("--rule", dest="waraps_rules", action="append", default=None,
+                    metavar="ID", help="judge only this rule (repeatable), running the "
+                    "scenarios that produce its evidence; like -k ID, but exact")
     group.addoption("--sim-fault", dest="waraps_sim_faults", action="append", default=None,
                     metavar="FAULT", help="with --broker embedded: switch on a fault of the "
                                           "bundled reference unit (repeatable)")
@@ -80,7 +98,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
             ("waraps_ca_file", "default for --ca-file"),
             ("waraps_cert_file", "default for --cert-file"),
             ("waraps_key_file", "default for --key-file"),
-            ("waraps_tst_command_topic", "default for --tst-command-topic")):
+            ("waraps_tst_command_topic", "default for --tst-command-topic"),
+            ("waraps_max_duration", "default for --max-duration (10m)")):
         parser.addini(name, help_, default="")
     for name, help_ in (("waraps_allow_motion", "default for --allow-motion"),
                         ("waraps_dry_run", "default for --dry-run"),
@@ -134,61 +153,100 @@ class _CertificationPlugin:
     def __init__(self, certification: Certification) -> None:
         self.certification = certification
         self.finished = False
+        self.session: pytest.Session | None = None
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_sessionstart(self, session: pytest.Session) -> None:
         """Before anything else: the broker is reachable and the unit alive. Otherwise ONE
-        clear error, not a wall of failures."""
+        clear error (in the summary), no test runs, and the run is not certified."""
         from conformance.client import BrokerError
         from conformance.suite.session import NotAlive
 
+        self.session = session
         c = self.certification
         if session.config.getoption("collectonly", False):
             c.collect_only = True  # listing the tests needs no broker and no unit
             return
         try:
             c.start()
-        except BrokerError as e:
+        except (BrokerError, NotAlive) as e:
             c.error = str(e)
-            pytest.exit(f"waraps-conformance: {e}", returncode=BROKER_EXIT)
-        except NotAlive as e:
-            c.error = str(e)
-            pytest.exit(f"waraps-conformance: {e}", returncode=NOT_ALIVE_EXIT)
 
     def pytest_report_header(self, config: pytest.Config) -> list[str]:
         return self.certification.header()
 
     @pytest.hookimpl(trylast=True)
-    def pytest_collection_modifyitems(self, items: list[pytest.Item]) -> None:
-        """Active scenarios first, in the order of ``SCENARIOS`` (reboot last: it wipes the
-        unit's history); the passive rules at the end, over the whole observation."""
+    def pytest_collection_modifyitems(self, config: pytest.Config,
+                                      items: list[pytest.Item]) -> None:
+        """``--rule``: only those rules. Active scenarios first, in the order of
+        ``SCENARIOS`` (reboot last: it wipes the unit's history); the passive rules at the
+        end, over the whole observation."""
         from conformance.scenarios import RULE_SCENARIO, SCENARIOS
 
+        def rule_of(item: pytest.Item) -> str | None:
+            marker = item.get_closest_marker("waraps_rule")
+            return marker.args[0] if marker is not None else None
+
+        wanted = self.certification.settings.rules
+        if wanted:
+            dropped = [i for i in items if rule_of(i) not in wanted]
+            if dropped:
+                items[:] = [i for i in items if rule_of(i) in wanted]
+                config.hook.pytest_deselected(items=dropped)
         order = {name: i for i, name in enumerate(SCENARIOS)}
 
         def key(item: pytest.Item) -> tuple[int, int]:
-            marker = item.get_closest_marker("waraps_rule")
-            if marker is None:
+            rule = rule_of(item)
+            if rule is None:
                 return (0, 0)
-            rule = marker.args[0]
             if rule in RULE_SCENARIO:
                 return (1, order[RULE_SCENARIO[rule]])
             return (2, 0)
 
         items.sort(key=key)  # stable: the file order within each group stays
+        self.certification.selected = [r for r in map(rule_of, items) if r]
 
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_runtestloop(self, session: pytest.Session) -> bool | None:
+        """No broker or no unit: no test runs (the summary says why, once)."""
+        return True if self.certification.error else None
+
+    @pytest.hookimpl(wrapper=True)
+    def pytest_runtest_makereport(self, item: pytest.Item,
+                                  call: pytest.CallInfo[None]) -> Any:
+        from conformance.suite.verdict import locate_skip
+
+        report = yield
+        locate_skip(item, report)
+        return report
+
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        c = self.certification
+        marker = report.keywords.get("waraps_rule") if report.when == "call" or (
+            report.when == "setup" and report.outcome != "passed") else None
+        if marker is not None:
+            rule = report.nodeid.rsplit("[", 1)[-1].rstrip("]")
+            c.ran.add(rule)
+        if c.out_of_time and self.session is not None:
+            self.session.shouldstop = c.out_of_time
+
+    @pytest.hookimpl(tryfirst=True)
     def pytest_sessionfinish(self, session: pytest.Session, exitstatus: int) -> None:
-        """Abort every task the suite started (also after a failure or Ctrl-C), then write
-        the final reports."""
+        """Abort every task the suite started (also after a failure or Ctrl-C), write the
+        final reports, and say in the exit status whether the unit could be certified."""
         self.finished = True
-        self.certification.finish(interrupted=exitstatus == pytest.ExitCode.INTERRUPTED,
-                                  exitstatus=int(exitstatus))
+        c = self.certification
+        interrupted = exitstatus == pytest.ExitCode.INTERRUPTED or bool(c.out_of_time)
+        if c.error:
+            session.exitstatus = NOT_CERTIFIED_EXIT
+        elif interrupted:
+            session.exitstatus = INTERRUPTED_EXIT
+        c.finish(interrupted=interrupted, exitstatus=int(session.exitstatus))
 
     def pytest_unconfigure(self, config: pytest.Config) -> None:
-        # pytest.exit in sessionstart skips sessionfinish: still write what is known.
-        if not self.finished:
+        if not self.finished:  # a usage error or an internal error before the session
             self.finished = True
-            self.certification.finish(interrupted=False, exitstatus=-1)
+            self.certification.finish(interrupted=True, exitstatus=-1)
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         c = self.certification
@@ -196,12 +254,15 @@ class _CertificationPlugin:
             return
         tr = terminalreporter
         tr.section("waraps-conformance")
+        if c.error:
+            tr.line(f"not certified: {c.error}", red=True)
         for event in c.events:
             tr.line(event)
         report = c.report()
-        counts = ", ".join(f"{n} {v}" for v, n in report.verdict_counts().items() if n)
-        tr.line(f"{c.unit}: {counts} (worst: {report.worst().value})")
-        if c.report_paths:
-            for kind, path in sorted(c.report_paths.items()):
-                tr.line(f"{kind} report: {path}")
+        counts = ", ".join(f"{n} {v}" for v, n in c.counts(report).items() if n)
+        tr.line(f"{c.unit}: {c.verdict(report)} ({counts})")
+        for kind, path in sorted(c.report_paths.items()):
+            tr.line(f"{kind} report: {path}")
+        if not c.report_paths:
+            tr.line("no report was written")
         tr.line(f"repeat this run: {c.rerun_command()}")

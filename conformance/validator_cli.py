@@ -9,7 +9,7 @@ tree (the ``tst`` node object); every problem of the tree is listed with its JSO
 file (schemas, task parameters, structure: TST-001, TASK-*, TST-014, ERR-*).
 
 Exit code: 0 when nothing fails under the profile (warnings allowed), 1 when a rule fails,
-2 for a usage error.
+2 for a usage error (also a topic it cannot place: it says which forms it accepts).
 """
 
 from __future__ import annotations
@@ -27,6 +27,23 @@ from conformance import profile as profile_module
 from conformance.rules import CATALOGUE, Severity
 from conformance.validator import Validation, Validator
 from conformance.violation import Verdict
+
+# 3: PREFIX/unit/AGENT-TYPE/ROLE/NAME/<subtopic> (a leading '/' is placed, and judged TOPIC-001).
+FORMS = ("<prefix>/unit/<agent-type>/<role>/<name>/heartbeat",
+         "<prefix>/unit/<agent-type>/<role>/<name>/sensor_info",
+         "<prefix>/unit/<agent-type>/<role>/<name>/direct_execution_info",
+         "<prefix>/unit/<agent-type>/<role>/<name>/tst_execution_info",
+         "<prefix>/unit/<agent-type>/<role>/<name>/sensor/<sensor>",
+         "<prefix>/unit/<agent-type>/<role>/<name>/exec/command|response|feedback",
+         "<prefix>/unit/<agent-type>/<role>/<name>/tst/command|response|feedback")
+
+
+def unplaceable(topic: str) -> str:
+    """Why ``topic`` is refused: it names no unit, so no message kind can be judged."""
+    forms = "\n".join(f"  {f}" for f in FORMS)
+    return (f"waraps-conformance validate: cannot place topic {topic!r}: it is not under "
+            f"a unit's address (spec 3). Accepted forms, e.g. "
+            f"waraps/unit/air/simulation/dji0/heartbeat:\n{forms}")
 
 
 def render(validation: Validation, profile: profile_module.Profile) -> str:
@@ -126,6 +143,9 @@ def main(argv: list[str] | None = None) -> int:
         validation = validate_tst(Validator(profile), payload)
     else:
         validation = Validator(profile).validate(args.topic, payload, arrival)
+        if validation.topic.unit is None:
+            print(unplaceable(args.topic), file=sys.stderr)
+            return 2
     if args.json:
         print(json.dumps({
             "topic": validation.topic.topic, "kind": validation.kind,

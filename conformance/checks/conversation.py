@@ -30,6 +30,7 @@ import orjson
 
 from conformance.checks.base import BoundedDict, CheckContext, UnitState, check, reinterprets
 from conformance.message import Message
+from conformance.status import meaning
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
@@ -44,6 +45,8 @@ UNANSWERED_KEPT = 64
 EXPECTS_KEPT = 64
 STRAY_PONGS_KEPT = 8
 FINAL_STATUSES = frozenset({"finished", "failed", "aborted"})  # 12.4
+FEEDBACK_WITHOUT_TASK_UUID = "feedback-without-task-uuid"
+"""UnitState.private key: the unit sent feedback without a task-uuid."""
 _COM_UUID = re.compile(rb'"com-uuid"\s*:\s*"([^"\\]{1,100})"')
 
 ANSWER_RULE = {"ping": "EXEC-PING-001", "start-task": "EXEC-START-001",
@@ -546,7 +549,10 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
     feedback)."""
     m = v.message
     task_uuid, status = _str(m, "task-uuid"), _str(m, "status")
+    status = meaning(status) or status  # 'done' ends a task as 'finished' (EXEC-FB-002's word)
     if task_uuid is None or status is None:
+        if status is not None:  # which task it ends cannot be told (EXEC-FB-001's finding)
+            unit.private[FEEDBACK_WITHOUT_TASK_UUID] = True
         return
     c = conversations(unit)
     t = msg.time
@@ -752,6 +758,8 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
     for task in list(c.running.values()):
         if task.left_at is not None and task.left_at + timeout < now:
             c.ended(task, ("left tasks-executing", None, task.left_at))
+            if unit.private.get(FEEDBACK_WITHOUT_TASK_UUID):
+                continue  # its final feedback may be one without task-uuid
             unit.examine("EXEC-START-003")
             found.append(_late("EXEC-START-003", unit, task.command, f"a final feedback for "
                                f"task {task.task_uuid} (finished, failed or aborted)",

@@ -23,8 +23,9 @@ def write_all(report: RunReport, directory: str | os.PathLike[str], stem: str,
     ``directory``; the paths by format. Cheap and safe to call repeatedly (each file is
     replaced atomically, so a reader never sees half a report)."""
     directory = Path(directory)
+    others = [f"{stem}.json"] + ([f"{stem}.xml"] if junit else [])
     paths = {"json": write_json(report, directory / f"{stem}.json"),
-             "html": write_html(report, directory / f"{stem}.html")}
+             "html": write_html(report, directory / f"{stem}.html", others)}
     if junit:
         paths["junit"] = write_junit(report, directory / f"{stem}.xml")
     return paths

@@ -1,7 +1,9 @@
 """The HTML report: one self-contained file (inline CSS and SVG, no script, no network).
 
-Header (kind, units, broker, profile, agent-uuids, times, suite version, schemas hash, verdict
-counts), then per unit a scorecard (verdict per rule with title, spec section and reason), a
+It opens with what a person came for: the run's verdict (``not certified`` or
+``interrupted`` when the run did not complete, never a pass), the levels certified and the
+failing rules. Then the header facts, each once and in words (kind, units, broker, profile,
+agent-uuids, times, suite version, schemas hash, verdict counts), then per unit a scorecard (verdict per rule with title, spec section and reason), a
 plot of every measured rate over time against the declared rate, and the evidence of every
 failure and warning. Everything that came from the wire is escaped: payload excerpts are
 hostile input.
@@ -24,6 +26,15 @@ COLOURS = {
     Verdict.SKIP: "#6e7781", Verdict.COULD_NOT_TEST: "#8250df",
 }
 ORDER = [Verdict.FAIL, Verdict.WARN, Verdict.COULD_NOT_TEST, Verdict.PASS, Verdict.SKIP]
+RUN_VERDICT_COLOURS = {"not certified": "#cf222e", "interrupted": "#bc4c00"}
+# Run facts (RunReport.meta) in words, in this order; keys shown elsewhere are left out.
+META_WORDS = (("error", "why not certified"), ("not_run", "rules not run"),
+              ("profile_source", "profile file"), ("timing_scale", "timing scale"),
+              ("seed", "seed"), ("dry_run", "dry run"), ("allow_motion", "motion allowed"),
+              ("reboot", "reboot"), ("commands_sent", "commands sent"),
+              ("rerun", "repeat this run"))
+META_SHOWN_ELSEWHERE = {"unit", "broker", "started", "finished", "suite_version", "agent_uuid",
+                        "verdict", "interrupted", "exit_status"}
 SERIES_COLOURS = ["#0969da", "#bf3989", "#1a7f37", "#bc4c00", "#8250df", "#6e7781"]
 
 CSS = """
@@ -62,25 +73,75 @@ def anchor(unit: str) -> str:
     return "u-" + "".join(c if c.isalnum() else "-" for c in unit)
 
 
-def render_html(report: RunReport) -> str:
-    """The whole report as one HTML document."""
+def run_verdict(report: RunReport) -> str:
+    """The run's verdict: the certification's own (``meta['verdict']``), else the worst."""
+    return report.meta.get("verdict") or report.worst().value
+
+
+def _verdict_badge(text: str) -> str:
+    try:
+        return badge(Verdict(text))
+    except ValueError:
+        colour = RUN_VERDICT_COLOURS.get(text, "#6e7781")
+        return (f'<span class="badge v-run" style="background:{colour}">{esc(text)}</span>')
+
+
+def render_html(report: RunReport, files: list[str] | None = None) -> str:
+    """The whole report as one HTML document; ``files`` are the names of the files written
+    with it (the footer says which)."""
     out: list[str] = []
     title = f"WARA-PS conformance {report.kind} report"
     out.append(f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
                f'<meta name="viewport" content="width=device-width,initial-scale=1">'
                f"<title>{esc(title)}</title><style>{CSS}</style></head><body>")
-    out.append(f"<h1>{esc(title)} {badge(report.worst(), report.worst().value)}</h1>")
+    out.append(f"<h1>{esc(title)} {_verdict_badge(run_verdict(report))}</h1>")
+    out.append(_summary(report))
     out.append(_header(report))
     for name, unit in report.units.items():
         out.append(_unit(report, name, unit))
+    written = ", ".join(files or [])
     out.append(f'<p class="muted">waraps-conformance {esc(report.suite_version)} — '
-               f"generated from the same results as the JSON and JUnit reports.</p>")
+               + (f"written together with {esc(written)}, from the same results."
+                  if written else "written on its own.") + "</p>")
     out.append("</body></html>\n")
     return "".join(out)
 
 
+def _summary(report: RunReport) -> str:
+    """Verdict, levels certified and failing rules: the first thing a person reads."""
+    from conformance.results import LEVEL_NAMES
+
+    verdict = run_verdict(report)
+    rows = [("verdict", _verdict_badge(verdict))]
+    complete = verdict not in RUN_VERDICT_COLOURS
+    for name, unit in report.units.items():
+        levels = []
+        for level in unit.levels:
+            failing = [r for r in unit.rules.values() if r.verdict is Verdict.FAIL
+                       and CATALOGUE.get(r.rule) is not None
+                       and LEVEL_NAMES.get(CATALOGUE[r.rule].level) == level]
+            state = ("not certified: the run did not complete" if not complete else
+                     f"not certified: {len(failing)} failing rule(s)" if failing else
+                     "certified")
+            levels.append(f"{esc(level)} — {esc(state)}")
+        rows.append((f"levels of {esc(name)}" if len(report.units) > 1 else "levels",
+                     "<br>".join(levels) or "none declared"))
+    failing = [(u, r) for u, r in report.failures() if r.verdict is Verdict.FAIL]
+    if failing:
+        rows.append(("failing rules", "<br>".join(
+            f'<a href="#{anchor(u)}-{esc(r.rule)}" class="mono">{esc(r.rule)}</a> '
+            f"{esc(CATALOGUE[r.rule].title if r.rule in CATALOGUE else '')}"
+            + (f' <span class="muted">({esc(u)})</span>' if len(report.units) > 1 else "")
+            for u, r in failing)))
+    return '<table class="summary">' + "".join(
+        f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in rows) + "</table>"
+
+
 def _header(report: RunReport) -> str:
     counts = report.verdict_counts()
+    # Rules that never ran are recorded could-not-test ('not run: ...'); counted apart.
+    not_run = len(report.meta.get("not_run", "").split())
+    counts[Verdict.COULD_NOT_TEST.value] -= not_run
     rows = [
         ("kind", esc(report.kind)),
         ("units", f"{len(report.units)}: " + " ".join(
@@ -94,16 +155,20 @@ def _header(report: RunReport) -> str:
         ("finished", esc(iso_time(report.finished)) or "(running)"),
         ("suite version", esc(report.suite_version)),
         ("schemas hash", f'<span class="mono">{esc(report.schemas_hash or "-")}</span>'),
-        ("verdicts", " ".join(badge(v, f"{counts[v.value]} {v.value}") for v in ORDER)),
-        ("exit code", esc(report.exit_code())),
+        ("verdicts", " ".join(badge(v, f"{counts[v.value]} {v.value}") for v in ORDER)
+         + (f" {_verdict_badge(f'{not_run} not run')}" if not_run else "")),
+        ("exit status", esc(report.meta.get("exit_status", report.exit_code()))),
     ]
     if report.gaps:
         rows.append(("observer gaps", "<br>".join(
             f"{esc(iso_time(a))} – {esc(iso_time(b))} ({b - a:.1f} s)" for a, b in report.gaps)))
     if report.unexamined:
         rows.append(("unexamined", f"{report.unexamined} messages could not be examined"))
-    for k, v in sorted(report.meta.items()):
-        rows.append((esc(k), esc(v)))
+    words = dict(META_WORDS)
+    for key in dict.fromkeys([k for k, _ in META_WORDS] + sorted(report.meta)):
+        value = report.meta.get(key)
+        if value and key not in META_SHOWN_ELSEWHERE:
+            rows.append((esc(words.get(key, key.replace("_", " "))), esc(value)))
     return '<table class="head">' + "".join(
         f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in rows) + "</table>"
 
@@ -154,7 +219,7 @@ def _unit(report: RunReport, name: str, unit: UnitReport) -> str:
     if bad:
         out.append("<h3>Evidence</h3>")
         for r in bad:
-            out.append(_evidence(unit, r))
+            out.append(_evidence(unit, r, f"{anchor(name)}-{r.rule}"))
     return "".join(out)
 
 
@@ -170,12 +235,12 @@ def _scorecard(results: list[RuleResult]) -> str:
             "<th>reason</th></tr>" + "".join(rows) + "</table>")
 
 
-def _evidence(unit: UnitReport, r: RuleResult) -> str:
+def _evidence(unit: UnitReport, r: RuleResult, ident: str = "") -> str:
     rule = CATALOGUE.get(r.rule)
     total = unit.violation_counts.get(r.rule, len(r.violations))
     more = (f' <span class="muted">(showing {len(r.violations)} of {total})</span>'
             if total > len(r.violations) else "")
-    out = [f'<div class="ev {r.verdict.value}"><b class="mono">{esc(r.rule)}</b> '
+    out = [f'<div class="ev {r.verdict.value}" id="{esc(ident)}"><b class="mono">{esc(r.rule)}</b> '
            f"{esc(rule.title if rule else '')} {badge(r.verdict)}{more}"
            f'<div class="muted">spec {esc(rule.section if rule else "")}</div>']
     if not r.violations:
@@ -267,6 +332,8 @@ def _rate_plot(stat: RateStat, index: int) -> str:
     return f'<figure class="plot" style="margin:0">{caption}{"".join(svg)}</figure>'
 
 
-def write_html(report: RunReport, path: str | os.PathLike[str]) -> Path:
-    """Write the report as one self-contained HTML file (atomically); the path written."""
-    return atomic_write(path, render_html(report))
+def write_html(report: RunReport, path: str | os.PathLike[str],
+               files: list[str] | None = None) -> Path:
+    """Write the report as one self-contained HTML file (atomically); the path written.
+    ``files``: the names of the other files written with it."""
+    return atomic_write(path, render_html(report, files))

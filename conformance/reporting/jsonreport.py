@@ -13,7 +13,11 @@ from conformance.results import RunReport
 
 def dumps(report: RunReport) -> bytes:
     # Non-finite floats become null in orjson; wire strings are stored as they are (JSON-escaped).
-    return orjson.dumps(report.to_dict(), option=orjson.OPT_INDENT_2 | orjson.OPT_SORT_KEYS
+    data = report.to_dict()
+    # The run's verdict: 'not certified' / 'interrupted' for a run that did not complete
+    # (meta, from the certification), else the worst rule verdict.
+    data["verdict"] = report.meta.get("verdict") or data["worst"]
+    return orjson.dumps(data, option=orjson.OPT_INDENT_2 | orjson.OPT_SORT_KEYS
                         | orjson.OPT_NON_STR_KEYS) + b"\n"
 
 

@@ -32,6 +32,8 @@ class Scenario:
     run: Callable[[Context], None]
     level: str | None = DIRECT_EXECUTION
     doc: str = ""
+    needs: tuple[str, ...] = ()
+    """Scenarios whose outcome this one works on (run first, once)."""
 
 
 SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
@@ -49,10 +51,35 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
     Scenario("robust", robust.RULES, robust.run,
              doc="malformed and unknown commands do not stop the unit (12.1)"),
     Scenario("reboot", reboot.RULES, reboot.run, level=None,
-             doc="a reboot gives a new agent-uuid and forgets the history (5, 12.1)"),
+             doc="a reboot gives a new agent-uuid and forgets the history (5, 12.1)",
+             needs=("start",)),  # REBOOT-002 asks about tasks that ended before it
 )}
 
 RULE_SCENARIO: dict[str, str] = {rule: s.name for s in SCENARIOS.values() for rule in s.rules}
 
-__all__ = ["SCENARIOS", "RULE_SCENARIO", "Scenario", "Context", "Timing", "Commander", "DryRun",
-           "Safety", "Position", "Traffic", "Entry", "TstCommander"]
+# Passive rules that judge answers to commands: the scenarios whose traffic is their evidence
+# (so that selecting one of them alone, `-k EXEC-FB-002` or `--rule EXEC-FB-002`, still sends
+# the stimulus).
+EVIDENCE: dict[str, tuple[str, ...]] = {
+    "EXEC-002": ("ping", "start"), "EXEC-003": ("start",), "EXEC-004": ("ping", "start"),
+    "EXEC-005": ("ping", "start"), "EXEC-006": ("ping", "start", "robust"), "EXEC-007": ("refuse",),
+    "EXEC-FB-001": ("start",), "EXEC-FB-002": ("start",), "EXEC-FB-003": ("start",),
+    "EXEC-FB-004": ("start",), "ERR-006": ("query",), "ERR-013": ("signal",),
+    "ERR-014": ("start",), "EXEC-009": ("ping", "start"), "EXEC-010": ("ping",),
+    "HB-012": ("start",),
+}
+
+
+def scenarios_for(rule: str) -> tuple[str, ...]:
+    """The scenarios that produce the evidence of ``rule``, in the order they run."""
+    names = set(EVIDENCE.get(rule, ()))
+    if rule in RULE_SCENARIO:
+        names.add(RULE_SCENARIO[rule])
+    for name in list(names):
+        names.update(SCENARIOS[name].needs)
+    return tuple(n for n in SCENARIOS if n in names)
+
+
+__all__ = ["SCENARIOS", "RULE_SCENARIO", "EVIDENCE", "scenarios_for", "Scenario", "Context",
+           "Timing", "Commander", "DryRun", "Safety", "Position", "Traffic", "Entry",
+           "TstCommander"]

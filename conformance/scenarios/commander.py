@@ -17,11 +17,18 @@ from typing import Any
 
 import orjson
 
+from conformance.scenarios.deviation import (
+    FINAL_STATUSES,
+    SHORT,
+    UNANSWERED,
+    Deviations,
+    Kind,
+    meaning,
+)
 from conformance.scenarios.traffic import Entry, Traffic
 from conformance.topics import UnitAddress
 
 SENDER = "waraps-conformance"
-FINAL_STATUSES = frozenset({"finished", "failed", "aborted"})  # 12.4: a task ends with these
 
 
 class DryRun(Exception):
@@ -49,6 +56,21 @@ class OpenTask:
     com_uuids: list[str] = field(default_factory=list)
 
 
+def _describe(body: dict[str, Any]) -> str:
+    """A command in a few words: ``start-task move-to``, ``signal-task $abort 3f2a1b0c``."""
+    command = body.get("command")
+    if not isinstance(command, str):
+        return ""
+    task = body.get("task")
+    name = task.get("name") if isinstance(task, dict) else None
+    signal = body.get("signal")
+    uuid_ = body.get("task-uuid")
+    words = [command, name if isinstance(name, str) else "",
+             signal if isinstance(signal, str) else "",
+             uuid_[:8] if isinstance(uuid_, str) and command != "start-task" else ""]
+    return " ".join(w for w in words if w)
+
+
 def new_uuid() -> str:
     # Fresh, not seeded: a com-uuid repeated across runs would look like a resend (12.1).
     return str(uuid.uuid4())
@@ -65,8 +87,11 @@ class Commander:
     def __init__(self, unit: UnitAddress, traffic: Traffic,
                  publish: Callable[[str, bytes], None], *, dry_run: bool = False,
                  say: Callable[[str], None] = print, gaps: Callable[[], int] = lambda: 0,
-                 wait_connected: Callable[[float], bool] = lambda timeout: True) -> None:
+                 wait_connected: Callable[[float], bool] = lambda timeout: True,
+                 deviations: Deviations | None = None,
+                 step: Callable[[str], None] | None = None) -> None:
         self.unit = unit
+        self._step = step
         self.topic = unit.topic("exec/command")
         self.traffic = traffic
         self._publish = publish
@@ -83,6 +108,11 @@ class Commander:
         """task-uuids that need no $abort any more (refused, or their $abort was answered)."""
         self._start_commands: dict[str, Sent] = {}
         """com-uuid -> start-task sent: the unit's answers name the task-uuids it generated."""
+        self.deviations = deviations if deviations is not None else Deviations()
+        self._unit_uuid: dict[str, str] = {}
+        self._answered_kinds: set[str] = set()
+        """Commands (start-task, ...) the unit has answered at least once."""
+        """task-uuid sent -> the task-uuid the unit runs the task under, when it differs."""
         self.deliberately_invalid: set[bytes] = set()
         """Payloads sent broken on purpose (robustness, invalid parameters): not the unit's
         fault, so the passive checks are not fed these."""
@@ -124,27 +154,52 @@ class Commander:
         self._publish(self.topic, payload)
         with self._lock:
             self.sent_count += 1
+        if self._step is not None:
+            self._step(f"sent {_describe(body) or 'a malformed command'} "
+                       f"(com-uuid {sent.com_uuid[:8]})")
         return sent
 
     # --- waiting for answers ---------------------------------------------------------------
     def response(self, sent: Sent, timeout: float, *, after: int | None = None) -> Entry | None:
         """The unit's response whose ``response-to`` is the command's com-uuid (12.3)."""
         com_uuid = sent.com_uuid
-        return self.traffic.wait_for(lambda e: e.get("response-to") == com_uuid, timeout,
-                                     after=sent.mark if after is None else after,
-                                     subtopic="exec/response")
+        answer = self.traffic.wait_for(
+            lambda e: e.get("response-to") == com_uuid, timeout,
+            after=sent.mark if after is None else after, subtopic="exec/response",
+            what=f"the response to {_describe(sent.body) or 'a malformed command'}")
+        if self._step is not None:
+            self._step(f"  answered {answer.get('response')!r}" if answer is not None else
+                       f"  no response within {timeout:.1f} s")
+        return answer
 
     def request(self, body: dict[str, Any], timeout: float, *,
                 invalid: bool = False) -> tuple[Sent, Entry | None]:
         """Send and wait for the response; resend once with the same com-uuid when the
         connection dropped meanwhile (2: 'resending commands with the same UUID')."""
+        kind = UNANSWERED.get(str(body.get("command"))) if not invalid else None
+        if kind is not None and self.deviations.get(kind) is not None and not self._answered(
+                str(body.get("command"))):
+            timeout *= SHORT  # none of this kind was ever answered: no full deadline again
         sent = self.send(body, invalid=invalid)
         answer = self.response(sent, timeout)
         if answer is None and self._gaps() != sent.gaps_before:
             self.resend(sent)
             answer = self.response(sent, timeout)
         self._track(sent, answer)
+        if kind is not None:
+            if answer is not None:
+                with self._lock:
+                    self._answered_kinds.add(str(body.get("command")))
+            elif not self._answered(str(body.get("command"))):
+                self.deviations.note(
+                    kind, f"the unit answered no {body.get('command')} within "
+                    f"{timeout:.1f} s", f"later ones get {SHORT * 100:.0f} % of the response "
+                    "deadline")
         return sent, answer
+
+    def _answered(self, command: str) -> bool:
+        with self._lock:
+            return command in self._answered_kinds
 
     def _track(self, sent: Sent, answer: Entry | None) -> None:
         """Remember every task this commander may have started, to abort it at the end."""
@@ -156,6 +211,7 @@ class Commander:
         name = task.get("name", "") if isinstance(task, dict) else ""
         uuids = {sent.body.get("task-uuid"), answer.get("task-uuid") if answer else None}
         refused = answer is not None and answer.get("response") == "failed"
+        self._follow(sent, answer, name, refused)
         with self._lock:
             for task_uuid in uuids:
                 if refused:  # never started: nothing to abort
@@ -166,28 +222,92 @@ class Commander:
                         task_uuid, OpenTask(task_uuid, name, sent.mark))
                     known.com_uuids.append(sent.com_uuid)
 
+    def _follow(self, sent: Sent, answer: Entry | None, name: str, refused: bool) -> None:
+        """12.2.3: the answer carries the task-uuid sent. A unit that runs the task under one
+        of its own anyway (EXEC-START-002) is followed under that one from now on."""
+        wanted, got = sent.body.get("task-uuid"), answer.get("task-uuid") if answer else None
+        if refused or not (isinstance(wanted, str) and isinstance(got, str) and got.strip()) \
+                or got == wanted:
+            return
+        with self._lock:
+            self._unit_uuid[wanted] = got
+        self.deviations.note(
+            Kind.TASK_UUID_IGNORED,
+            f"start-task '{name}' sent task-uuid {wanted}, the unit answered {got}",
+            "the suite follows the task-uuid the unit uses")
+
+    def unit_task_uuid(self, task_uuid: str) -> str:
+        """The task-uuid the unit uses for the task started as ``task_uuid``."""
+        with self._lock:
+            return self._unit_uuid.get(task_uuid, task_uuid)
+
     def track_response(self, sent: Sent, answer: Entry | None) -> None:
         """Track a task started by a command sent with ``send`` (not ``request``)."""
         self._track(sent, answer)
 
     def feedback(self, task_uuid: str, statuses: Collection[str] | None, timeout: float, *,
-                 after: int) -> Entry | None:
-        """The first feedback for ``task_uuid`` after ``after`` whose status is one of
-        ``statuses`` (any status when None)."""
+                 after: int, what: str = "") -> Entry | None:
+        """The first feedback for ``task_uuid`` after ``after`` whose status means one of
+        ``statuses`` (any status when None), waiting up to ``timeout`` seconds.
+
+        Adapts to the unit's systematic deviations (``deviation``): a status outside 12.4's
+        list that plainly means a wanted one (``done`` for finished) matches, and is noted;
+        feedback without a task-uuid ends the wait at once (None: ``blind`` says why)."""
+        uuid_ = self.unit_task_uuid(task_uuid)
+        blind: list[Entry] = []
+
         def match(e: Entry) -> bool:
-            return e.get("task-uuid") == task_uuid and (statuses is None
-                                                       or e.get("status") in statuses)
-        return self.traffic.wait_for(match, timeout, after=after, subtopic="exec/feedback")
+            found = e.get("task-uuid")
+            if found in (None, ""):
+                blind.append(e)
+                return True
+            if found != uuid_:
+                return False
+            status = e.get("status")
+            if statuses is None:
+                return True
+            means = meaning(status)
+            if means in statuses and means != status:
+                self.deviations.note(
+                    Kind.STATUS_VOCABULARY,
+                    f"the unit sends feedback status {status!r} (not in 12.4's list) for "
+                    f"{means!r}", f"the suite takes {status!r} as {means!r}")
+            return means in statuses
+
+        wanted = ("the feedback" if statuses is None else "the final feedback"
+                  if set(statuses) == FINAL_STATUSES else
+                  "the '" + "' or '".join(sorted(statuses)) + "' feedback")
+        found = self.traffic.wait_for(
+            match, timeout, after=after, subtopic="exec/feedback",
+            what=what or f"{wanted} of {self._task_name(task_uuid)} {uuid_[:8]}")
+        if found is not None and blind and found is blind[-1]:
+            self.deviations.note(
+                Kind.FEEDBACK_WITHOUT_TASK_UUID,
+                f"the unit sends feedback without a task-uuid ({found.raw[:120]!r})",
+                "feedback cannot be told apart by task: what it would show is could-not-test")
+            return None
+        return found
+
+    def blind(self) -> str | None:
+        """Why feedback for a task cannot be found: the unit sends it without task-uuid."""
+        return self.deviations.reason(Kind.FEEDBACK_WITHOUT_TASK_UUID)
+
+    def _task_name(self, task_uuid: str) -> str:
+        with self._lock:
+            task = self.open_tasks.get(task_uuid) or self.open_tasks.get(
+                self._unit_uuid.get(task_uuid, ""))
+        return task.name if task and task.name else "task"
 
     def statuses(self, task_uuid: str, after: int) -> list[str]:
         """Every feedback status seen for ``task_uuid`` after ``after``, in order."""
+        uuid_ = self.unit_task_uuid(task_uuid)
         return [str(e.get("status")) for e in self.traffic.since(after, "exec/feedback")
-                if e.get("task-uuid") == task_uuid]
+                if e.get("task-uuid") == uuid_]
 
     def is_final(self, task_uuid: str) -> bool:
         task = self.open_tasks.get(task_uuid)
         mark = task.mark if task else 0
-        return any(s in FINAL_STATUSES for s in self.statuses(task_uuid, mark))
+        return any(meaning(s) in FINAL_STATUSES for s in self.statuses(task_uuid, mark))
 
     # --- the four commands of 12.1 ---------------------------------------------------------
     def ping(self, timeout: float) -> tuple[Sent, Entry | None]:
@@ -204,11 +324,12 @@ class Commander:
         return self.request(body, timeout, invalid=invalid)
 
     def signal(self, task_uuid: str, signal: str, timeout: float) -> tuple[Sent, Entry | None]:
-        return self.request({"command": "signal-task", "signal": signal, "task-uuid": task_uuid},
-                            timeout)
+        return self.request({"command": "signal-task", "signal": signal,
+                             "task-uuid": self.unit_task_uuid(task_uuid)}, timeout)
 
     def query(self, task_uuid: str, timeout: float) -> tuple[Sent, Entry | None]:
-        return self.request({"command": "query-status", "task-uuid": task_uuid}, timeout)
+        return self.request({"command": "query-status",
+                             "task-uuid": self.unit_task_uuid(task_uuid)}, timeout)
 
     # --- safety ----------------------------------------------------------------------------
     def abort_all(self, timeout: float) -> list[str]:

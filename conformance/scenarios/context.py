@@ -9,12 +9,14 @@ reason, or just that the rule was examined and held (``verdict=PASS``).
 from __future__ import annotations
 
 import random
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from conformance.profile import Profile
-from conformance.scenarios.commander import FINAL_STATUSES, Commander
+from conformance.scenarios.commander import Commander
+from conformance.scenarios.deviation import FINAL_STATUSES, Deviation, Kind, meaning
 from conformance.scenarios.safety import Position, Safety
 from conformance.scenarios.traffic import Entry, Traffic
 from conformance.scenarios.tst_commander import TstCommander
@@ -146,12 +148,15 @@ class Context:
         """The first direct_execution_info after ``after`` that lists ``task_uuid`` in
         tasks-executing, or the task's final feedback if that comes first (a task that ended
         between two infos cannot be listed); None after two declared periods."""
+        task_uuid = self.commander.unit_task_uuid(task_uuid)
+
         def listed_or_ended(e: Entry) -> bool:
             if e.subtopic == "direct_execution_info":
                 return task_uuid in self.executing(e)
             return e.subtopic == "exec/feedback" and e.get("task-uuid") == task_uuid \
-                and e.get("status") in FINAL_STATUSES
-        return self.traffic.wait_for(listed_or_ended, self.info_deadline(), after=after)
+                and meaning(e.get("status")) in FINAL_STATUSES
+        return self.traffic.wait_for(listed_or_ended, self.info_deadline(), after=after,
+                                     what=f"task {task_uuid[:8]} in tasks-executing")
 
     # --- helpers for scenarios --------------------------------------------------------------
     def violation(self, rule: str, *, expected: str, observed: str, subtopic: str = "exec/response",
@@ -171,16 +176,68 @@ class Context:
 
     def end_task(self, task_uuid: str, signals: list[str], *, after: int) -> Entry | None:
         """End a running task: ``$enough`` or ``$abort`` when it lists them, then wait for its
-        final status (12.4). Returns the final feedback, or None past the deadline."""
+        final status (12.4). Returns the final feedback, or None past the deadline, or at once
+        when the unit refuses the signal (the task is no longer running)."""
         final = self.commander.feedback(task_uuid, FINAL_STATUSES, 0, after=after)
-        if final is not None:
+        if final is not None or self.commander.blind():
+            if final is None:  # still end it (DESIGN 'Safety'), without waiting for feedback
+                self.commander.signal(task_uuid, "$abort", self.timing.response)
             return final
         # 12.2.2: the built-in signals; $abort when the task does not list $enough.
         signal = "$enough" if "$enough" in signals else "$abort"
-        self.commander.signal(task_uuid, signal, self.timing.response)
-        return self.commander.feedback(task_uuid, FINAL_STATUSES, self.timing.feedback,
-                                       after=after)
+        _, answer = self.commander.signal(task_uuid, signal, self.timing.response)
+        if answer is not None and answer.get("response") == "failed":
+            return self.commander.feedback(task_uuid, FINAL_STATUSES, 0, after=after)
+        return self.wait_final(task_uuid, after=after)
 
+    def wait_final(self, task_uuid: str, *, after: int, why: str = "",
+                   listed: Entry | None = None) -> Entry | None:
+        """The task's final feedback (12.4), waiting the feedback deadline; once a task's final
+        status has failed to come (a systematic deviation), only the response deadline.
+
+        ``listed``: a direct_execution_info that listed the task. Then a later one that no
+        longer lists it (5.3: the unit says the task ended) ends the wait early: its final
+        status gets the response deadline more to arrive."""
+        known = self.commander.deviations.get(Kind.NO_FINAL_FEEDBACK)
+        timeout = self.timing.response if known else self.timing.feedback
+        if listed is not None and not known:
+            unit_uuid = self.commander.unit_task_uuid(task_uuid)
+
+            def over(e: Entry) -> bool:
+                if e.subtopic == "direct_execution_info":
+                    return e.seq > listed.seq and unit_uuid not in self.executing(e)
+                return e.subtopic == "exec/feedback" and e.get("task-uuid") in (
+                    unit_uuid, None, "") and meaning(e.get("status")) in FINAL_STATUSES
+            started = time.monotonic()
+            self.traffic.wait_for(over, timeout, after=after,
+                                  what=f"the end of task {unit_uuid[:8]}")
+            timeout = min(self.timing.response, max(0.0, timeout - (time.monotonic() - started)))
+        final = self.commander.feedback(task_uuid, FINAL_STATUSES, timeout, after=after)
+        if final is None and not self.commander.blind():
+            self.commander.deviations.note(
+                Kind.NO_FINAL_FEEDBACK,
+                f"no final status for task {self.commander.unit_task_uuid(task_uuid)}"
+                f"{' ' + why if why else ''}"
+                + (" after it left tasks-executing" if listed is not None and not known else
+                   f" within {timeout:.1f} s"),
+                f"later waits for a final status last {self.timing.response:.1f} s; what "
+                "they judge is could-not-test")
+        return final
+
+    def final_known(self) -> Deviation | None:
+        """The no-final-status deviation, if noted already (take it before a wait)."""
+        return self.commander.deviations.get(Kind.NO_FINAL_FEEDBACK)
+
+    def untestable(self, noted: Deviation | None = None) -> str | None:
+        """Why a missing feedback is could-not-test rather than the unit's failure (again):
+        its feedback carries no task-uuid, or ``noted`` (``final_known()`` taken before the
+        wait) says no final status comes, which was held against it once already."""
+        blind = self.commander.blind()
+        if blind:
+            return blind
+        if noted is not None:
+            return self.commander.deviations.reason(Kind.NO_FINAL_FEEDBACK)
+        return None
 
 def describe(entry: Entry | None) -> str:
     """A short text for a person: the body of a message, or that none came."""

@@ -3,8 +3,9 @@ and 'unknown' for a task the unit never saw."""
 
 from __future__ import annotations
 
-from conformance.scenarios.commander import FINAL_STATUSES, new_uuid
+from conformance.scenarios.commander import new_uuid
 from conformance.scenarios.context import Context, describe
+from conformance.scenarios.deviation import FINAL_STATUSES, meaning
 from conformance.scenarios.params import valid_params
 from conformance.violation import Verdict
 
@@ -45,12 +46,13 @@ def run(ctx: Context) -> None:
         if answer is not None and answer.get("response") == "running":
             task_uuid = sent.body["task-uuid"]
             first = ctx.commander.feedback(task_uuid, None, ctx.timing.response, after=sent.mark)
-            if first is not None and first.get("status") not in FINAL_STATUSES:
+            if first is not None and meaning(first.get("status")) not in FINAL_STATUSES:
                 ask(ctx, task_uuid, {"running", str(first.get("status"))},
                     f"running task '{task}'")
             final = ctx.end_task(task_uuid, available.get(task, []), after=sent.mark)
             if final is not None:
-                ctx.notes.setdefault("ended", []).append((task_uuid, task, final.get("status")))
+                ctx.notes.setdefault("ended", []).append(
+                    (task_uuid, task, meaning(final.get("status")) or final.get("status")))
     # Ended tasks, the oldest first: the history is kept for the unit's whole life (12.1).
     for task_uuid, name, status in ctx.notes.get("ended", [])[:3]:
         ask(ctx, task_uuid, ACCEPTED.get(str(status), {str(status)}),

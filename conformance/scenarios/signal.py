@@ -43,28 +43,34 @@ def _start(ctx: Context, task: str) -> tuple[str, int] | None:
     sent, answer = ctx.commander.start_task(task, params, ctx.timing.response)
     if answer is None or answer.get("response") != "running":
         return None
-    task_uuid = sent.body["task-uuid"]
+    task_uuid = ctx.commander.unit_task_uuid(sent.body["task-uuid"])
     # Signals are judged on a task that has started: wait for its first feedback (12.4).
     ctx.commander.feedback(task_uuid, None, ctx.timing.response, after=sent.mark)
     return task_uuid, sent.mark
 
 
-def _signal(ctx: Context, task: str, task_uuid: str, signal: str, mark: int) -> None:
-    """Send one signal and judge its answer and the feedback it implies."""
+def _signal(ctx: Context, task: str, task_uuid: str, signal: str, mark: int) -> bool:
+    """Send one signal and judge its answer and the feedback it implies; False when that
+    feedback did not come."""
     after = ctx.traffic.mark()
     sent, answer = ctx.commander.signal(task_uuid, signal, ctx.timing.response)
     if not _answered(ctx, signal, task, answer) or signal not in IMPLIED:
-        return
+        return answer is not None
     rule, status = RULE_OF[signal], IMPLIED[signal]
     got = ctx.commander.feedback(task_uuid, {status}, ctx.timing.feedback, after=after)
     if got is not None:
         ctx.record(rule, verdict=Verdict.PASS)
-        return
+        return True
+    blind = ctx.commander.blind()
+    if blind:
+        ctx.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=blind)
+        return False
     statuses = ctx.commander.statuses(task_uuid, after)
     ctx.record(rule, violation=ctx.violation(
         rule, expected=f"feedback '{status}' after {signal}", observed=f"statuses "
         f"{statuses or 'none'} within {ctx.timing.feedback:.1f} s", subtopic="exec/feedback",
         entry=answer, detail=f"task '{task}' {task_uuid}; answer: {describe(answer)}"))
+    return False
 
 
 def run(ctx: Context) -> None:
@@ -92,8 +98,9 @@ def run(ctx: Context) -> None:
         if signal == "$pause" and "$continue" in available[task]:
             batch.append("$continue")
         for s in batch:
-            _signal(ctx, task, task_uuid, s, mark)
             done.add(s)
+            if not _signal(ctx, task, task_uuid, s, mark):
+                break  # 'paused' never came: nothing to continue from (no second timeout)
         if signal not in ("$enough", "$abort"):
             ctx.end_task(task_uuid, available[task], after=mark)
     for rule in RULES[:-1]:

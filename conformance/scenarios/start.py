@@ -11,11 +11,11 @@ one (12.1). Then a start-task with invalid parameters is refused with a reason
 
 from __future__ import annotations
 
-from conformance.scenarios.commander import FINAL_STATUSES
 from conformance.scenarios.context import Context
+from conformance.scenarios.deviation import meaning
 from conformance.scenarios.params import invalid_params, valid_params
 from conformance.scenarios.traffic import Entry
-from conformance.violation import Verdict
+from conformance.violation import Verdict, Violation
 
 RULES = ("EXEC-START-001", "EXEC-START-002", "EXEC-START-003", "DEI-004")
 REFUSAL_RULES = ("EXEC-START-004", "EXEC-START-005")
@@ -100,43 +100,69 @@ def run(ctx: Context) -> None:
             ctx.record("EXEC-START-002", violation=ctx.violation(
                 "EXEC-START-002", expected=f"task-uuid {wanted}", observed=f"{task_uuid!r}",
                 entry=answer, detail=f"task '{task}'"))
-            task_uuid = wanted
+            # Follow the task-uuid the unit runs the task under (the commander does, too).
+            task_uuid = ctx.commander.unit_task_uuid(wanted)
         if response != "running" or not isinstance(task_uuid, str):
             continue
         # 5.3: a running task is listed in tasks-executing (unless it ended before the next
         # direct_execution_info: then it cannot be judged here).
         seen = ctx.wait_listed(task_uuid, after=sent.mark)
+        unlisted: Violation | None = None
         if seen is not None and seen.subtopic == "direct_execution_info":
             ctx.record("DEI-004", verdict=Verdict.PASS)
-        elif seen is None:
-            ctx.record("DEI-004", violation=ctx.violation(
+        elif seen is None:  # judged once its end is known: it may have ended unannounced
+            unlisted = ctx.violation(
                 "DEI-004", expected=f"task {task_uuid} ('{task}') in tasks-executing while "
                 "it runs", observed=f"not listed within {ctx.info_deadline():.1f} s of "
                 "'running'", subtopic="direct_execution_info",
-                entry=ctx.traffic.latest("direct_execution_info")))
+                entry=ctx.traffic.latest("direct_execution_info"))
+        judged = False
         if task == natural:
-            final = ctx.commander.feedback(task_uuid, FINAL_STATUSES, ctx.timing.feedback,
-                                           after=sent.mark)
+            noted = ctx.final_known()
+            final = ctx.wait_final(task_uuid, after=sent.mark, why=f"('{task}', ending on its "
+                                   "own)", listed=seen if seen is not None
+                                   and seen.subtopic == "direct_execution_info" else None)
             if final is None:
-                ctx.record("EXEC-START-003", violation=ctx.violation(
+                judged = True
+                _no_final(ctx, ctx.untestable(noted), violation=ctx.violation(
                     "EXEC-START-003", expected=f"'{task}' ends on its own with a final status "
                     f"(finished or failed) within {ctx.timing.feedback:.1f} s",
                     observed=f"statuses {ctx.commander.statuses(task_uuid, sent.mark) or 'none'}",
                     subtopic="exec/feedback", detail=f"task-uuid {task_uuid}; params "
                     f"{sent.body.get('task', {}).get('params')}"))
+        noted = ctx.final_known()
         final = ctx.end_task(task_uuid, available.get(task, []), after=sent.mark)
         statuses = ctx.commander.statuses(task_uuid, sent.mark)
         if final is not None:
             ctx.record("EXEC-START-003", verdict=Verdict.PASS)
-            ended.append((task_uuid, ctx.traffic.mark()))
-            ctx.notes.setdefault("ended", []).append((task_uuid, task, final.get("status")))
-        else:
-            ctx.record("EXEC-START-003", violation=ctx.violation(
+            ended.append((ctx.commander.unit_task_uuid(task_uuid), ctx.traffic.mark()))
+            ctx.notes.setdefault("ended", []).append(
+                (task_uuid, task, meaning(final.get("status")) or final.get("status")))
+        elif not judged:
+            _no_final(ctx, ctx.untestable(noted), violation=ctx.violation(
                 "EXEC-START-003", expected=f"feedback for task '{task}' until finished, "
                 "failed or aborted (12.4)", observed=f"statuses {statuses or 'none'} within "
                 f"{ctx.timing.feedback:.1f} s", subtopic="exec/feedback",
                 detail=f"task-uuid {task_uuid}"))
+        if unlisted is not None:
+            # Without a final status the task may have ended before the next info: then not
+            # being listed is no violation (EXEC-START-003 or EXEC-FB-001 says what is).
+            unknown = ctx.untestable(ctx.final_known()) if final is None else None
+            if unknown:
+                ctx.record("DEI-004", verdict=Verdict.COULD_NOT_TEST,
+                           reason=f"whether the task was listed before it ended: {unknown}")
+            else:
+                ctx.record("DEI-004", violation=unlisted)
     _check_left(ctx, ended)
+
+
+def _no_final(ctx: Context, untestable: str | None, *, violation: Violation) -> None:
+    """EXEC-START-003 without a final status: the unit's failure, unless a deviation seen
+    earlier explains it (then could-not-test, with that reason)."""
+    if untestable:
+        ctx.record("EXEC-START-003", verdict=Verdict.COULD_NOT_TEST, reason=untestable)
+    else:
+        ctx.record("EXEC-START-003", violation=violation)
 
 
 def _check_left(ctx: Context, ended: list[tuple[str, int]]) -> None:

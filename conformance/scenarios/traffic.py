@@ -2,6 +2,8 @@
 
 The MQTT network thread calls ``add``; scenarios call ``wait_for`` with a predicate and a
 deadline (never a fixed sleep). Memory is bounded: the newest ``capacity`` messages are kept.
+Every wait says what it waits for: ``Waits`` lets the suite show it while it lasts (progress)
+and end it when the whole run is out of time (``--max-duration``).
 """
 
 from __future__ import annotations
@@ -38,6 +40,45 @@ class Entry:
 
 
 Predicate = Callable[[Entry], bool]
+TICK = 1.0
+"""Seconds between two progress reports of a wait that lasts."""
+
+
+class OutOfTime(Exception):
+    """The run's time (``--max-duration``) is up; the message says what was being waited for."""
+
+
+@dataclass(frozen=True)
+class Wait:
+    """A wait in progress: what for, since when (monotonic seconds) and for how long at most."""
+
+    what: str
+    started: float
+    timeout: float
+
+    @property
+    def elapsed(self) -> float:
+        return time.monotonic() - self.started
+
+
+class Waits:
+    """What the suite is waiting for: ``on_tick(wait)`` hears about a wait about once a second
+    while it lasts (on the waiting thread); past ``deadline`` (monotonic seconds) a wait raises
+    ``OutOfTime``, once: the waits of the teardown that follows run to their own deadlines."""
+
+    def __init__(self) -> None:
+        self.on_tick: Callable[[Wait], None] | None = None
+        self.on_end: Callable[[Wait], None] | None = None
+        self.deadline: float | None = None
+        self.current: Wait | None = None
+        self.expired: str | None = None
+        """What was being waited for when the time ran out."""
+
+    def check(self, what: str) -> None:
+        if self.deadline is not None and time.monotonic() >= self.deadline:
+            self.deadline = None
+            self.expired = what
+            raise OutOfTime(what)
 
 
 class Traffic:
@@ -54,6 +95,7 @@ class Traffic:
         self._latest: dict[str, Entry] = {}
         self._seq = 0
         self._cond = threading.Condition()
+        self.waits = Waits()
 
     def add(self, message: Message) -> Entry | None:
         """Keep a message if it is the unit's; return its entry."""
@@ -95,19 +137,42 @@ class Traffic:
             return set(self._latest)
 
     def wait_for(self, predicate: Predicate, timeout: float, *, after: int = 0,
-                 subtopic: str | None = None) -> Entry | None:
+                 subtopic: str | None = None, what: str = "") -> Entry | None:
         """The first message after ``after`` (a ``mark``) that satisfies ``predicate``, waiting
-        up to ``timeout`` seconds for it to arrive; None when the deadline passes."""
-        deadline = time.monotonic() + max(0.0, timeout)
+        up to ``timeout`` seconds for it to arrive; None when the deadline passes. ``what``
+        says what is awaited, for a person (``the response to ping``). Raises ``OutOfTime``
+        when the run's own deadline passes first."""
+        waits = self.waits
+        what = what or (f"{subtopic} of {self.unit.name}" if subtopic else "the unit")
+        waits.check(what)
+        wait = Wait(what, time.monotonic(), max(0.0, timeout))
+        deadline = wait.started + wait.timeout
         checked = after
-        with self._cond:
-            while True:
-                first = self._entries[0].seq if self._entries else checked + 1
-                for entry in islice(self._entries, max(0, checked + 1 - first), None):
-                    checked = entry.seq
-                    if (subtopic is None or entry.subtopic == subtopic) and predicate(entry):
-                        return entry
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    return None
-                self._cond.wait(left)
+        ticked = wait.started
+        try:
+            with self._cond:
+                waits.current = wait
+                while True:
+                    first = self._entries[0].seq if self._entries else checked + 1
+                    for entry in islice(self._entries, max(0, checked + 1 - first), None):
+                        checked = entry.seq
+                        if (subtopic is None or entry.subtopic == subtopic) \
+                                and predicate(entry):
+                            return entry
+                    now = time.monotonic()
+                    left = deadline - now
+                    if left <= 0:
+                        return None
+                    if now - ticked >= TICK:
+                        ticked = now
+                        if waits.on_tick is not None:
+                            waits.on_tick(wait)
+                        waits.check(what)
+                    stop = waits.deadline
+                    self._cond.wait(min(left, TICK, max(0.0, stop - now) if stop else TICK))
+                    if stop is not None and time.monotonic() >= stop:
+                        waits.check(what)
+        finally:
+            waits.current = None
+            if waits.on_end is not None and time.monotonic() - wait.started >= TICK:
+                waits.on_end(wait)

@@ -216,6 +216,12 @@ _ALL = (
        "Its feedback publisher has an agent-uuid of its own, which feedback carries."),
     _f("feedback-after-final", "EXEC-FB-004",
        "Sends a task's final feedback twice."),
+    _f("feedback-status-done", "EXEC-FB-002",
+       "Ends its tasks with feedback status 'done' where 12.4 says 'finished'."),
+    _f("feedback-no-task-uuid", "EXEC-FB-001", "Leaves task-uuid out of feedback messages."),
+    _f("task-uuid-ignored", "EXEC-START-002",
+       "Runs every task under a task-uuid it generates, ignoring the one start-task gives "
+       "(and answers with its own)."),
     # --- robustness and reboot ----------------------------------------------------------------
     _f("crash-on-malformed", "EXEC-ROBUST-001 EXEC-ROBUST-002",
        "Its command thread dies on the first command that is not a JSON object: no command is "

@@ -671,10 +671,14 @@ class UnitCore:
             return
         agent = self.executor_uuid if "feedback-stale-agent-uuid" in self.faults \
             else self.agent_uuid
+        if status == "finished" and "feedback-status-done" in self.faults:
+            status = "done"
         body = {"agent-uuid": agent, "com-uuid": self._fresh_uuid(), "status": status,
                 "task-uuid": task.uuid}
         if "feedback-no-com-uuid" in self.faults:
             del body["com-uuid"]
+        if "feedback-no-task-uuid" in self.faults:
+            del body["task-uuid"]
         self.emit("exec/feedback", _dumps(body))
 
     # --- start-task -----------------------------------------------------------------------------
@@ -690,6 +694,8 @@ class UnitCore:
             self.dead = True  # msg["task-uuid"] raised a KeyError in the MQTT thread
             return
         task_uuid = sent_uuid if sent_uuid is not None else self._task_uuid()
+        if sent_uuid is not None and "task-uuid-ignored" in self.faults:
+            task_uuid = self._task_uuid()
         if not isinstance(task_field, dict) or not isinstance(task_field.get("name"), str):
             self._answer(com, "failed", task_uuid=task_uuid, fail_reason="start-task needs "
                          "'task': {'name': ..., 'params': {...}} (12.2.3, section 10)")

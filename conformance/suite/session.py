@@ -34,11 +34,16 @@ from conformance.scenarios import (
     Traffic,
     TstCommander,
 )
+from conformance.scenarios.deviation import Deviation, Deviations
 from conformance.scenarios.params import task_moves
+from conformance.scenarios.traffic import OutOfTime
 from conformance.suite.settings import Settings
 from conformance.topics import UnitAddress
 from conformance.validator import Validator
 from conformance.violation import RuleResult, Verdict
+
+NOT_CERTIFIED = "not certified"
+INTERRUPTED = "interrupted"
 
 CERTIFICATION = pytest.StashKey["Certification"]()
 
@@ -76,6 +81,7 @@ class Certification:
         self.reference: Any = None  # the bundled reference unit under --broker embedded
         self.broker_url: BrokerURL = settings.broker
         self.started = time.time()
+        self._started_monotonic = time.monotonic()
         self.stem = f"{self.unit.name}-{time.strftime('%Y%m%dT%H%M%S', time.localtime())}"
         self.report_paths: dict[str, Path] = {}
         self.collect_only = False
@@ -89,10 +95,24 @@ class Certification:
         self._done: dict[str, bool] = {}
         self._passive_ready = False
         self._last_write = 0.0
+        self.selected: list[str] = []
+        """The rules whose tests were selected to run (after -k, -m, --rule)."""
+        self.ran: set[str] = set()
+        """The rules whose tests ran (a test that never ran judged nothing)."""
+        self.out_of_time: str | None = None
+        """--max-duration passed: what the run was waiting for then."""
+        self.interrupted = False
+        from conformance.suite.progress import Progress
+
+        self.progress = Progress(config)
+        self.traffic.waits.on_tick = self.progress.tick
+        self.traffic.waits.on_end = self.progress.end
+        self.deviations = Deviations(on_new=self._adapted)
         self.commander = Commander(
             self.unit, self.traffic, self._publish, dry_run=settings.dry_run, say=self._say,
             gaps=lambda: len(self.client.gaps) if self.client else 0,
-            wait_connected=lambda t: self.client.wait_connected(t) if self.client else False)
+            wait_connected=lambda t: self.client.wait_connected(t) if self.client else False,
+            deviations=self.deviations, step=self.progress.step)
         self.tst = TstCommander(
             self.unit, settings.tst_topic, self.traffic, self._publish, dry_run=settings.dry_run,
             say=self._say,
@@ -109,6 +129,7 @@ class Certification:
         """Connect, observe ``<unit>/#`` and wait for the unit's first live heartbeat.
 
         Raises ``BrokerError`` (broker unreachable or refusing) or ``NotAlive``."""
+        self.traffic.waits.deadline = time.monotonic() + self.settings.max_duration
         if self.settings.embedded:
             from conformance.demo import Reference
 
@@ -153,27 +174,32 @@ class Certification:
         others = sorted({base(t) for t in seen if t.lstrip("/").split("/")[1:2] == ["unit"]
                          and len(t.lstrip("/").split("/")) > 5} - {self.unit.base})
         prefix = self.unit.prefix
-        if others:
-            import difflib
+        import difflib
 
-            close = [c for c in difflib.get_close_matches(self.unit.base, others, n=3,
-                                                          cutoff=0.6) if _is_address(c)][:1]
-            lines.append(f"Units seen under {prefix}/: {', '.join(others[:10])}"
-                         + (f" (and {len(others) - 10} more)" if len(others) > 10 else "") + ".")
-            if close:
-                lines.append(f"Did you mean --unit {close[0]}?")
-        elif seen:
-            lines.append(f"Topics seen under {prefix}/: {', '.join(sorted(seen)[:10])}.")
+        # Only a unit whose address is close to this one is worth a line (a typo, a leading
+        # '/', another role or type): other units' topics say nothing about this one.
+        close = difflib.get_close_matches(self.unit.base, others, n=1, cutoff=0.8)
+        if close:
+            if _is_address(close[0]):
+                lines.append(f"A unit publishes at {close[0]}: did you mean --unit "
+                             f"{close[0]}?")
+            else:
+                lines.append(f"A unit publishes at {close[0]}.")
+        elif others:
+            lines.append(f"{len(others)} other unit(s) publish under {prefix}/, none at a "
+                         "similar address.")
         # A unit publishing where it should not (a leading '/', an unknown agent type or
         # role) breaks the naming rules of spec 3: say which, that is the finding.
         broken: dict[str, str] = {}
         validator = Validator(self.profile)
         for topic, payload in sorted(seen.items()):
+            if close and base(topic) != close[0]:
+                continue
             for v in validator.validate(topic, payload).violations:
                 if self.profile.severity_of(v.rule).value == "error":
                     broken.setdefault(v.rule, f"{v.rule} {CATALOGUE[v.rule].title} ({topic})")
-        if broken:
-            lines.append("Those topics break: " + "; ".join(broken[r] for r in sorted(broken)))
+        if broken and close:
+            lines.append("Its topics break: " + "; ".join(broken[r] for r in sorted(broken)))
         if not seen:
             lines.append(f"Nothing at all was published under {prefix}/ meanwhile: is the unit "
                          f"running and connected to this broker, under this prefix?")
@@ -225,6 +251,12 @@ class Certification:
                 tw.line(text)
         else:
             tw.line(text)
+
+    def _adapted(self, deviation: Deviation) -> None:
+        """A systematic deviation, seen for the first time: say so once (summary and -v)."""
+        text = f"{_clock(time.time())} adapted to {deviation}"
+        self.events.append(text)
+        self.progress.step(text)
 
     # --- reboot -------------------------------------------------------------------------------
     def _reboot_how(self) -> str:
@@ -281,21 +313,23 @@ class Certification:
                                 reason=reason)
 
     def unit_died(self) -> str:
-        """Why the unit counts as dead (no heartbeat for 3 declared periods, HB-012's
-        decision), or "" while it heartbeats. Waits at most until that is certain: a
-        healthy unit's latest heartbeat answers at once."""
+        """Why the unit counts as dead, or "" while it lives: no heartbeat for 3
+        declared periods (HB-012's window) and none within 10 periods or the response
+        deadline, whichever is longer (a dropout of a few periods, HB-010's, is not death).
+        A unit that heartbeats answers at once."""
         from conformance.checks.identity import SILENCE_PERIODS
 
         latest = self.traffic.latest("heartbeat")
         rate = self.context.rate_of("heartbeat")
         if latest is None or rate is None:
             return ""
-        window = SILENCE_PERIODS / rate * self.timing.scale
-        left = latest.time + window - time.time()
-        if left > 0 and self.traffic.wait_for(lambda e: True, left, after=latest.seq,
-                                              subtopic="heartbeat") is not None:
+        period = self.timing.scale / rate
+        if time.time() - latest.time <= SILENCE_PERIODS * period:
             return ""
-        if time.time() - latest.time <= window:
+        left = latest.time + max(10 * period, self.timing.response) - time.time()
+        if left > 0 and self.traffic.wait_for(lambda e: True, left, after=latest.seq,
+                                              subtopic="heartbeat",
+                                              what="the unit's heartbeat") is not None:
             return ""
         return (f"the unit fell silent at {_clock(latest.time)} and did not come back "
                 f"(HB-012): no answer could come")
@@ -310,7 +344,55 @@ class Certification:
             for rule in COMMANDER_RULES & unit.rules.keys():
                 if unit.rules[rule].verdict is not Verdict.FAIL:
                     unit.rules[rule] = RuleResult(rule, Verdict.SKIP, COMMANDER_REASON)
+        if self.error or self.interrupted:
+            self._mark_not_run(report)
+        report.meta["verdict"] = self.verdict(report)
         return report
+
+    def not_run_reason(self) -> str:
+        if self.error:
+            return f"not run: {self.error.splitlines()[0]}"
+        return f"not run: {self.out_of_time or 'the run was interrupted'}"
+
+    def _mark_not_run(self, report: RunReport) -> None:
+        """A run that did not complete: every selected rule whose test did not run is listed
+        as not run (could-not-test, never a pass); a failure already seen stays one."""
+        from conformance.results import UnitReport
+
+        name = str(self.unit)
+        unit = report.units.get(name)
+        if unit is None:
+            u = self.unit
+            unit = report.units[name] = UnitReport(name, u.agent_type, u.role, u.name)
+        why = self.not_run_reason()
+        not_run = []
+        for rule in self.selected or list(CATALOGUE):
+            if rule in self.ran:
+                continue
+            found = unit.rules.get(rule)
+            if found is not None and found.verdict is Verdict.FAIL:
+                continue
+            unit.rules[rule] = RuleResult(rule, Verdict.COULD_NOT_TEST, why)
+            not_run.append(rule)
+        report.meta["not_run"] = " ".join(not_run)
+
+    def verdict(self, report: RunReport) -> str:
+        """The run's verdict: 'not certified' when the broker or the unit could not be
+        reached, 'interrupted' when it did not complete, else the worst rule verdict."""
+        if self.error:
+            return NOT_CERTIFIED
+        if self.interrupted:
+            return INTERRUPTED
+        return report.worst().value
+
+    def counts(self, report: RunReport) -> dict[str, int]:
+        """Verdict counts, with the rules that never ran counted as 'not run'."""
+        counts = dict(report.verdict_counts())
+        not_run = len(report.meta.get("not_run", "").split())
+        if not_run:
+            counts[Verdict.COULD_NOT_TEST.value] -= not_run
+            counts["not run"] = not_run
+        return counts
 
     def meta(self) -> dict[str, Any]:
         s = self.settings
@@ -347,9 +429,33 @@ class Certification:
         if s.timing_scale != 1.0:
             parts += ["--timing-scale", f"{s.timing_scale:g}"]
         parts += ["--seed", str(s.seed)]
+        observe = self._observe_for(rule) if rule else 0
+        if observe or s.observe:
+            parts += ["--observe", f"{max(observe, int(s.observe))}"]
         if rule:
             parts += ["-k", rule]
         return " ".join(parts)
+
+    def _observe_for(self, rule: str) -> int:
+        """Seconds of observation a rerun of ``rule`` needs: when its first violation came
+        later than the passive window would last (a silence, a uuid change), as long as it
+        took then, so that the rerun sees it too; else 0."""
+        from conformance.scenarios import RULE_SCENARIO
+
+        if rule in RULE_SCENARIO:
+            return 0
+        times = [v.time for v in self.result(rule).violations if v.time is not None]
+        if not times:
+            return 0
+        took = min(times) - self.started
+        rates = [r for r in (self.context.rate_of(k) for k in PERIODIC) if r]
+        window = (self.profile.min_intervals + 2) / (min(rates) if rates else 1.0)
+        return int(took) + 2 if took > window else 0
+
+    def violation_total(self, rule: str) -> int:
+        """How many violations of ``rule`` the unit committed in all (not only those kept)."""
+        unit = self.report().units.get(str(self.unit))
+        return unit.violation_counts.get(rule, 0) if unit is not None else 0
 
     def result(self, rule: str) -> RuleResult:
         report = self.report()
@@ -358,11 +464,29 @@ class Certification:
             return RuleResult(rule, Verdict.SKIP, "not examined")
         return unit.rules[rule]
 
+    def run_evidence(self, rule: str) -> None:
+        """Run (once) every scenario whose traffic is evidence for ``rule``."""
+        from conformance.scenarios import scenarios_for
+
+        for name in scenarios_for(rule):
+            self.run_scenario(name)
+
     def run_scenario(self, name: str) -> None:
-        """Run a scenario once (later calls return at once); ping first, as the gate."""
+        """Run a scenario once (later calls return at once); ping first, as the gate, and the
+        scenarios it works on (``Scenario.needs``)."""
         if name in self._done:
             return
         scenario = SCENARIOS[name]
+        for needed in scenario.needs:
+            self.run_scenario(needed)
+        silent = self.unit_died() if name != "reboot" else ""
+        if silent:
+            # A dead unit answers nothing: each wait would only run out (HB-012 is the
+            # finding). The reboot scenario may bring it back, so it still runs.
+            for rule in scenario.rules:
+                self.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=silent)
+            self._done[name] = False
+            return
         if scenario.level is not None:
             if not self._claims(scenario.level):
                 self._done[name] = False
@@ -384,12 +508,30 @@ class Certification:
         except DryRun as e:
             for rule in scenario.rules:
                 self.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=str(e))
+        except OutOfTime as e:
+            self._out_of_time(e)
         finally:
             self._done[name] = True
             if not self.settings.dry_run:
-                self.commander.abort_all(self.timing.response)
-                self.tst.abort_all(self.timing.response)
+                aborted = self.commander.abort_all(self.timing.response)
+                aborted += self.tst.abort_all(self.timing.response)
+                if aborted and self.out_of_time:
+                    self._say_aborted(aborted)
             self.write_reports()
+        self._fail_if_out_of_time()
+
+    def _say_aborted(self, aborted: list[str]) -> None:
+        self.events.append(f"aborted {len(aborted)} task(s) or TST tree(s) the suite had "
+                           f"started: {', '.join(aborted)}")
+
+    def _out_of_time(self, e: OutOfTime) -> None:
+        self.out_of_time = (f"--max-duration {self.settings.max_duration:g} s reached while "
+                            f"waiting for {e}")
+        self.events.append(f"{_clock(time.time())} {self.out_of_time}: the run stops here")
+
+    def _fail_if_out_of_time(self) -> None:
+        if self.out_of_time:
+            pytest.fail(self.out_of_time, pytrace=False)
 
     def _settle(self) -> None:
         """Wait until the Monitor has judged what the TST conversations left open: one
@@ -430,12 +572,17 @@ class Certification:
         need = self.profile.min_intervals
         rates = [r for r in (self.context.rate_of(k) for k in PERIODIC) if r]
         slowest = min(rates) if rates else 1.0
-        deadline = time.monotonic() + 2 * (need + 2) / slowest + 5.0
+        # --observe: at least that long since the run started (a rerun of a rule whose
+        # evidence came late, e.g. a silence).
+        observed_until = self._started_monotonic + self.settings.observe
+        deadline = max(time.monotonic() + 2 * (need + 2) / slowest + 5.0, observed_until)
 
         period = 1.0 / slowest
         rates_ready: list[float] = []
 
         def enough() -> bool:
+            if time.monotonic() < observed_until:
+                return False
             if not rates_ready:
                 unit = self.report().units.get(str(self.unit))
                 if unit is None:
@@ -453,10 +600,15 @@ class Certification:
             return listed is None or all(s in seen for s in listed) or \
                 time.monotonic() - rates_ready[0] > 3 * period
 
-        while not enough() and (left := deadline - time.monotonic()) > 0:
-            # Look again after the next periodic message (at most one period from now).
-            self.traffic.wait_for(lambda e: e.subtopic in PERIODIC, min(left, period),
-                                  after=self.traffic.mark())
+        try:
+            while not enough() and (left := deadline - time.monotonic()) > 0:
+                # Look again after the next periodic message (at most one period from now).
+                self.traffic.wait_for(lambda e: e.subtopic in PERIODIC, min(left, period),
+                                      after=self.traffic.mark(),
+                                      what=f"{need} intervals of every declared rate")
+        except OutOfTime as e:
+            self._out_of_time(e)
+        self._fail_if_out_of_time()
         with self._lock:
             self.monitor.finish(time.time())
         self._passive_ready = True
@@ -487,6 +639,8 @@ class Certification:
         judge the end of the observation, write the final reports, disconnect."""
         if self.collect_only:
             return
+        self.interrupted = self.interrupted or interrupted
+        self.traffic.waits.deadline = None  # the teardown's waits have deadlines of their own
         aborted: list[str] = []
         try:
             if self.client is not None and self.client.is_connected and not self.settings.dry_run:
@@ -495,9 +649,7 @@ class Certification:
         except Exception as e:  # the reports must still be written
             self.events.append(f"aborting the suite's tasks failed: {e}")
         if aborted:
-            self.events.append(f"aborted {len(aborted)} task(s) or TST tree(s) the suite had "
-                               f"started: "
-                               f"{', '.join(aborted)}")
+            self._say_aborted(aborted)
         try:
             with self._lock:
                 self.monitor.finish(time.time())

@@ -34,7 +34,11 @@ INI = {
     "waraps_key_file": "waraps_key_file",
     "waraps_tls_insecure": "waraps_tls_insecure",
     "waraps_tst_command_topic": "waraps_tst_command_topic",
+    "waraps_max_duration": "waraps_max_duration",
 }
+MAX_DURATION = 600.0
+"""Seconds a certification may last by default (--max-duration): then it stops cleanly."""
+DURATION = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*(s|m|min|h)?\s*$")
 TRUE = ("1", "true", "yes", "on")
 FALSE = ("", "0", "false", "no", "off")
 
@@ -60,6 +64,12 @@ class Settings:
     tst_command_topic: str | None = None
     """Where start-tst and the TST signals go (14.1): an operator's tst/command such as
     ``.../op0/tst/command``; None: the unit's own."""
+    max_duration: float = MAX_DURATION
+    """Seconds: past it the run stops, failing the test that waits (--max-duration)."""
+    observe: float = 0.0
+    """--observe: seconds to observe the unit at least before the passive rules are judged."""
+    rules: tuple[str, ...] = ()
+    """--rule: only these rules are judged (and the scenarios that produce their evidence)."""
     extra: dict[str, str] = field(default_factory=dict)
 
     @property
@@ -162,6 +172,9 @@ def read(config: pytest.Config) -> Settings:
                                 "unit, which runs only with --broker embedded")
     tst_topic = _tst_command_topic(_value(config, "waraps_tst_command_topic"), unit)
     return Settings(unit=unit, broker=broker, profile=profile, timing_scale=scale,
+                    max_duration=_duration(_value(config, "waraps_max_duration")),
+                    rules=_rules(config.getoption("waraps_rules", None) or ()),
+                    observe=_duration(config.getoption("waraps_observe", None), 0.0, "--observe"),
                     reboot_cmd=str(reboot) if reboot else None,
                     allow_motion=_flag(config, "waraps_allow_motion"),
                     dry_run=_flag(config, "waraps_dry_run"), reports_dir=reports, seed=seed,
@@ -185,6 +198,34 @@ def _tst_command_topic(value: object, unit: UnitAddress) -> str | None:
     if operator == unit:
         return None
     return operator.topic("tst/command")
+
+
+def _duration(value: object, default: float = MAX_DURATION,
+              option: str = "--max-duration") -> float:
+    """A duration option: seconds, or a number with s, m (min) or h."""
+    if value in (None, ""):
+        return default
+    m = DURATION.match(str(value))
+    if m is None or float(m.group(1)) <= 0:
+        raise pytest.UsageError(f"{option} {value!r}: a positive duration is needed, "
+                                f"e.g. 600, 90s, 10m or 1h")
+    unit = {"s": 1, None: 1, "m": 60, "min": 60, "h": 3600}[m.group(2)]
+    return float(m.group(1)) * unit
+
+
+def _rules(values: object) -> tuple[str, ...]:
+    """``--rule``: rule ids of the catalogue (also comma-separated)."""
+    from conformance.rules import CATALOGUE
+
+    out: list[str] = []
+    for value in values:  # type: ignore[attr-defined]
+        for rule in filter(None, (r.strip().upper() for r in str(value).split(","))):
+            if rule not in CATALOGUE:
+                raise pytest.UsageError(f"--rule {rule!r} is not a rule of the catalogue"
+                                        f"{_did_you_mean(rule, list(CATALOGUE))} "
+                                        f"(waraps-conformance rules lists them)")
+            out.append(rule)
+    return tuple(dict.fromkeys(out))
 
 
 def _broker(config: pytest.Config) -> BrokerURL:

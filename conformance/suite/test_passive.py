@@ -18,6 +18,8 @@ PASSIVE = [pytest.param(r.id, id=r.id, marks=pytest.mark.waraps_rule(r.id))
 
 @pytest.mark.parametrize("rule", PASSIVE)
 def test_rule(certification: Certification, rule: str, request: pytest.FixtureRequest) -> None:
-    """The verdict of one passive rule over the whole observation."""
+    """The verdict of one passive rule over the whole observation (after the scenarios whose
+    traffic is its evidence: they have run already, unless this rule was selected alone)."""
+    certification.run_evidence(rule)
     certification.wait_passive_window()
     enact(certification, rule, request.node)

@@ -32,11 +32,24 @@ def explain(certification: Certification, result: RuleResult) -> str:
     if not texts:
         texts = [f"{rule.id} {rule.title}  [{result.verdict.value}]\n  {result.reason}\n"
                  f"  spec      {rule.section}\n  rerun     {rerun}"]
-    more = len(result.violations) - SHOWN
-    if more > 0 or (result.reason and "violation" in result.reason and more >= 0):
+    total = certification.violation_total(result.rule) or len(result.violations)
+    shown = min(SHOWN, len(result.violations))
+    if total > shown:
+        # A total, not the number kept as evidence (the Monitor keeps the first few).
+        kept = len(result.violations)
         paths = certification.report_paths.get("html")
-        texts.append(f"({result.reason}" + (f"; all in {paths})" if paths else ")"))
+        where = "" if not paths or kept <= shown else (
+            f"; all in {paths}" if kept >= total else f"; the first {kept} in {paths}")
+        texts.append(f"({shown} of {total} violations shown{where})")
     return "\n\n".join(texts)
+
+
+def locate_skip(item: pytest.Item, report: pytest.TestReport) -> None:
+    """A skip of a rule's test is located at its rule (``SKIPPED [1] HB-010: ...``), not at
+    the line of the suite that raised it."""
+    marker = item.get_closest_marker("waraps_rule")
+    if marker is not None and report.skipped and isinstance(report.longrepr, tuple):
+        report.longrepr = (marker.args[0], None, report.longrepr[2])
 
 
 def enact(certification: Certification, rule: str, node: pytest.Item) -> None:
@@ -48,7 +61,9 @@ def enact(certification: Certification, rule: str, node: pytest.Item) -> None:
     if result.verdict is Verdict.FAIL:
         pytest.fail(explain(certification, result), pytrace=False)
     if result.verdict is Verdict.WARN:
-        warnings.warn(ConformanceWarning(explain(certification, result)), stacklevel=2)
+        # Located at the rule, not at this line: the suite's source is not the finding.
+        warnings.warn_explicit(ConformanceWarning(explain(certification, result)),
+                               ConformanceWarning, filename=rule, lineno=0, registry=None)
     elif result.verdict is Verdict.SKIP:
         pytest.skip(result.reason or "not examined")
     elif result.verdict is Verdict.COULD_NOT_TEST:

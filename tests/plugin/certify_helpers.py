@@ -48,16 +48,18 @@ class Certified:
         return unit["rules"]
 
 
-def certify(pytester: pytest.Pytester, *args: str, plugins: tuple[object, ...] = ()
-            ) -> Certified:
-    """Run ``pytest --unit ...`` in process in the pytester folder; reports go to ./reports."""
+def certify(pytester: pytest.Pytester, *args: str, plugins: tuple[object, ...] = (),
+            no_reraise_ctrlc: bool = False) -> Certified:
+    """Run ``pytest --unit ...`` in process in the pytester folder; reports go to ./reports.
+    ``no_reraise_ctrlc``: a Ctrl-C inside stays inside (the run's exit status says it)."""
     runs = len(list(pytester.path.glob("reports*")))
     reports = pytester.path / ("reports" if runs == 0 else f"reports-{runs}")
     # --opt=value: a value in its own argument would be taken for a test path while pytest
     # picks the rootdir and ini file (plugin options are not known yet at that point).
     result = pytester.runpytest_inprocess("-p", "no:cacheprovider", "-o", "addopts=",
                                           f"--reports-dir={reports}", *args,
-                                          plugins=list(plugins))
+                                          plugins=list(plugins),
+                                          no_reraise_ctrlc=no_reraise_ctrlc)
     outcomes: dict[str, str] = {}
     reprec = getattr(result, "reprec", None)
     if reprec is not None:

@@ -25,6 +25,7 @@ from certify_helpers import (
 
 from conformance.broker import free_port
 from conformance.client import BrokerURL, MqttClient
+from conformance.plugin import NOT_CERTIFIED_EXIT
 from conformance.sim import SimUnit
 from conformance.topics import UnitAddress
 
@@ -50,20 +51,30 @@ def test_a_unit_that_answers_nothing(pytester: pytest.Pytester, mosquitto: str,
 def test_a_broker_that_is_down_is_one_error(pytester: pytest.Pytester) -> None:
     port = free_port()
     run = certify(pytester, "--unit", UNIT, "--broker", f"mqtt://127.0.0.1:{port}")
-    assert run.result.ret == pytest.ExitCode.USAGE_ERROR
+    assert run.result.ret == NOT_CERTIFIED_EXIT
     assert run.outcomes == {}
-    errors = [line for line in run.result.errlines if line.startswith("Exit:")]
-    assert len(errors) == 1 and f"cannot reach the broker at mqtt://127.0.0.1:{port}" in errors[0]
+    # Said once, in the summary, without pytest's wrapping.
+    assert run.text.count(f"cannot reach the broker at mqtt://127.0.0.1:{port}") == 1
+    assert "Exit" not in run.text and "_pytest" not in run.text
+    assert f"not certified: cannot reach the broker at mqtt://127.0.0.1:{port}" in run.text
     assert run.report is not None and "cannot reach" in run.report["meta"]["error"]
+    # The report never reads as a pass: its verdict says why, every rule is listed not run.
+    assert run.report["meta"]["verdict"] == "not certified"
+    assert run.report["worst"] != "pass"
+    rules = run.unit_rules()
+    assert rules and all(r["reason"].startswith("not run: cannot reach") for r in rules.values())
+    assert set(run.report["meta"]["not_run"].split()) == set(rules)
 
 
 def test_a_unit_that_is_not_there(pytester: pytest.Pytester, mosquitto: str,
                                   prefix: str) -> None:
     nobody = f"{prefix}/unit/air/simulation/dji0"
     run = certify(pytester, "--unit", nobody, "--broker", mosquitto, f"--profile={FAST}")
-    assert run.result.ret == pytest.ExitCode.TESTS_FAILED
+    assert run.result.ret == NOT_CERTIFIED_EXIT  # not a failed rule: nothing was judged
     assert run.outcomes == {}
-    assert f"the unit {nobody} is not alive: no heartbeat" in run.text
+    assert run.text.count(f"the unit {nobody} is not alive: no heartbeat") == 1
+    assert "_pytest" not in run.text
+    assert run.report is not None and run.report["meta"]["verdict"] == "not certified"
     assert f"Nothing at all was published under {prefix}/" in run.text
 
 
@@ -72,8 +83,8 @@ def test_a_unit_by_another_name_is_suggested(pytester: pytest.Pytester, mosquitt
     with SimUnit(f"{prefix}/unit/air/simulation/dji1", mosquitto, rate=3.0):
         run = certify(pytester, "--unit", f"{prefix}/unit/air/simulation/dji0", "--broker",
                       mosquitto, f"--profile={FAST}")
-    assert run.result.ret == pytest.ExitCode.TESTS_FAILED
-    assert f"Did you mean --unit {prefix}/unit/air/simulation/dji1?" in run.text
+    assert run.result.ret == NOT_CERTIFIED_EXIT
+    assert f"did you mean --unit {prefix}/unit/air/simulation/dji1?" in run.text
 
 
 class DropBroker:

@@ -1,5 +1,7 @@
 """Every fault of the reference unit makes its certification fail, naming exactly the rules the
-fault breaks (no other rule fails by accident).
+fault breaks (no other rule fails by accident); and each failure's printed rerun line, run
+against the same fault, fails that rule again (it runs the scenarios that produce its
+evidence).
 
 To keep the matrix within a couple of minutes on 2 cores (-n 2), faults that touch different
 spec areas run together, at 2 Hz with the matrix profile's short windows; faults of the areas
@@ -11,10 +13,20 @@ alone, and each alone must fail exactly its own rules.
 from __future__ import annotations
 
 import re
+import shlex
 
 import pytest
-from certify_helpers import MATRIX, UNIT, Certified, certify, certify_sim, warm_parameters
+from certify_helpers import (
+    MATRIX,
+    UNIT,
+    Certified,
+    Rebooter,
+    certify,
+    certify_sim,
+    warm_parameters,
+)
 
+from conformance.plugin import NOT_CERTIFIED_EXIT
 from conformance.sim import FAULTS
 
 pytestmark = pytest.mark.slow
@@ -99,11 +111,27 @@ def test_faults_fail_exactly_their_rules(pytester: pytest.Pytester, faults: list
             own = set(FAULTS[fault].rules)
             assert alone.failed == own, f"{fault}:\n{explain(alone, own)}"
             assert alone.result.ret == pytest.ExitCode.TESTS_FAILED
+            rerun_fails_again(pytester, alone, own, [fault], mosquitto, unit)
         return
     assert run.failed == expected, explain(run, expected)
     assert run.result.ret == pytest.ExitCode.TESTS_FAILED
-    for rule in expected:  # each failure names its rule and how to rerun just that rule
-        assert f"-k {rule}" in run.text
+    rerun_fails_again(pytester, run, expected, faults, mosquitto, unit)
+
+
+def rerun_fails_again(pytester: pytest.Pytester, run: Certified, rules: set[str],
+                      faults: list[str], broker: str, unit: str) -> None:
+    """Each failure names its rule and how to rerun just that rule; that line, run against
+    the same faults, fails the rule again (and judges nothing else)."""
+    from conformance.sim import SimUnit
+
+    for rule in sorted(rules):
+        found = re.search(rf"^\s*rerun\s+(pytest .* -k {re.escape(rule)})$", run.text, re.M)
+        assert found, f"no rerun line for {rule}"
+        args = shlex.split(found.group(1))[1:]
+        with SimUnit(unit, broker, faults=tuple(faults), rate=2.0, seed=1) as sim:
+            again = certify(pytester, *args, plugins=(Rebooter(sim),))
+        assert again.failed == {rule}, f"{found.group(1)}:\n{explain(again, {rule})}"
+        assert again.result.ret == pytest.ExitCode.TESTS_FAILED
 
 
 @pytest.mark.parametrize("fault", sorted(n for n, f in FAULTS.items() if f.scope == "broker"))
@@ -113,7 +141,7 @@ def test_fault_outside_the_unit_address_stops_with_one_error(pytester: pytest.Py
     where it was said to be), and the one error names what is wrong with the topics seen."""
     run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "3",
                   f"--sim-fault={fault}", f"--profile={MATRIX}")
-    assert run.result.ret == pytest.ExitCode.TESTS_FAILED
+    assert run.result.ret == NOT_CERTIFIED_EXIT
     assert run.outcomes == {}
     assert "is not alive" in run.text
     for rule in FAULTS[fault].rules:

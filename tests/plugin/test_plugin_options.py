@@ -6,6 +6,7 @@ import pytest
 from certify_helpers import FAST, UNIT, certify
 
 from conformance.broker import free_port
+from conformance.plugin import NOT_CERTIFIED_EXIT
 
 
 def test_without_unit_the_plugin_changes_nothing(pytester: pytest.Pytester) -> None:
@@ -104,7 +105,7 @@ def test_password_from_the_environment_never_shows(pytester: pytest.Pytester,
     monkeypatch.setenv("WARAPS_PASSWORD", "hunter2-secret")
     port = free_port()  # nothing listens there
     run = certify(pytester, "--unit", UNIT, "--broker", f"mqtt://127.0.0.1:{port}")
-    assert run.result.ret == pytest.ExitCode.USAGE_ERROR  # the broker cannot be reached
+    assert run.result.ret == NOT_CERTIFIED_EXIT  # the broker cannot be reached
     assert f"cannot reach the broker at mqtt://certifier@127.0.0.1:{port}" in run.text
     assert "hunter2" not in run.text
     assert run.report is not None and "hunter2" not in str(run.report)
@@ -131,5 +132,5 @@ def test_the_arena_environment_variables_name_the_broker(pytester: pytest.Pytest
     monkeypatch.setenv("WARAPS_PORT", str(port))
     monkeypatch.setenv("WARAPS_TLS_CONNECTION", "false")
     run = certify(pytester, "--unit", UNIT)
-    assert run.result.ret == pytest.ExitCode.USAGE_ERROR
+    assert run.result.ret == NOT_CERTIFIED_EXIT
     assert f"cannot reach the broker at mqtt://127.0.0.1:{port}" in run.text

@@ -11,6 +11,7 @@ import pytest
 from certify_helpers import FAST, PrivateMosquitto, Rebooter, certify
 
 from conformance.client import BrokerURL
+from conformance.plugin import NOT_CERTIFIED_EXIT
 from conformance.sim import SimUnit
 
 pytestmark = [pytest.mark.slow, pytest.mark.skipif(
@@ -73,7 +74,7 @@ def test_a_wrong_password_is_one_clear_error(pytester: pytest.Pytester, tls_brok
     monkeypatch.setenv("WARAPS_PASSWORD", "not-" + PASSWORD)
     run = certify(pytester, "--unit", "waraps/unit/air/simulation/dji0", "--broker",
                   f"mqtts://127.0.0.1:{broker.port}", f"--ca-file={d / 'ca.crt'}")
-    assert run.result.ret == pytest.ExitCode.USAGE_ERROR
+    assert run.result.ret == NOT_CERTIFIED_EXIT
     assert "check WARAPS_USERNAME / WARAPS_PASSWORD" in run.text
     assert PASSWORD not in run.text
 
@@ -85,5 +86,5 @@ def test_an_unknown_ca_is_one_clear_error(pytester: pytest.Pytester, tls_broker,
     monkeypatch.setenv("WARAPS_PASSWORD", PASSWORD)
     run = certify(pytester, "--unit", "waraps/unit/air/simulation/dji0", "--broker",
                   f"mqtts://127.0.0.1:{broker.port}")
-    assert run.result.ret == pytest.ExitCode.USAGE_ERROR
+    assert run.result.ret == NOT_CERTIFIED_EXIT
     assert "TLS handshake with mqtts://" in run.text and "--ca-file" in run.text

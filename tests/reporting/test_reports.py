@@ -158,3 +158,47 @@ def test_rate_plot_clips_a_burst_and_says_so():
                     rule="HB-003", start=0.0, end=2.0, tolerance=0.2)
     svg = _rate_plot(stat, 0)
     assert "clipped at 4 Hz" in svg and "declared 1.00 Hz" in svg
+
+
+def test_html_opens_with_verdict_levels_and_failing_rules(run_report: RunReport):
+    page = render_html(run_report)
+    summary = page.index('<table class="summary">')
+    assert summary < page.index('<table class="head">')  # before the header facts
+    head = page[summary:page.index('<table class="head">')]
+    assert "fail</span>" in head and "levels" in head and "failing rules" in head
+    assert "HB-003" in head  # the failing rule, linked to its evidence
+    slow = next(n for n in run_report.units if n.endswith("piraya0"))
+    assert f'id="u-{slow.replace("/", "-")}-HB-003"' in page
+
+
+def test_html_header_facts_once_each_in_words(run_report: RunReport):
+    run_report.meta.update({"unit": "waraps/unit/air/simulation/dji0", "timing_scale": "1",
+                            "rerun": "pytest --unit x --seed 1", "broker": run_report.broker,
+                            "started": "1", "suite_version": "9"})
+    page = render_html(run_report)
+    head = page[page.index('<table class="head">'):page.index("</table>",
+                                                                 page.index('class="head"'))]
+    assert "timing scale" in head and "timing_scale" not in head
+    assert "repeat this run" in head
+    assert head.count(">broker<") == 1 and head.count(">started<") == 1
+    assert ">unit<" not in head
+
+
+def test_html_footer_names_the_files_written_with_it(run_report: RunReport, tmp_path):
+    page = write_all(run_report, tmp_path, "run")["html"].read_text()
+    assert "written together with run.json, from the same results" in page
+    assert "JUnit" not in page.split("</table>")[-1]
+    assert "run.xml" in write_all(run_report, tmp_path, "run", junit=True)["html"].read_text()
+    assert "written on its own" in render_html(run_report)
+
+
+@pytest.mark.parametrize("verdict", ["not certified", "interrupted"])
+def test_a_run_that_did_not_complete_never_reads_as_a_pass(run_report: RunReport, verdict: str,
+                                                          tmp_path):
+    run_report.meta["verdict"] = verdict
+    page = render_html(run_report)
+    title = page[page.index("<h1>"):page.index("</h1>")]
+    assert verdict in title and "pass" not in title
+    assert "certified</td>" not in page  # no level reads certified
+    data = orjson.loads(write_all(run_report, tmp_path, "run")["json"].read_bytes())
+    assert data["verdict"] == verdict

@@ -92,3 +92,17 @@ def test_cli_prints_kind_and_violations_and_exit_code(tmp_path) -> None:  # type
     missing = subprocess.run([*run, str(tmp_path / "nope.json")], capture_output=True,
                              text=True, timeout=60)
     assert missing.returncode == 2 and "cannot read" in missing.stderr
+
+
+
+@pytest.mark.parametrize("topic", ["dji1/heartbeat", "waraps/air/simulation/dji0/heartbeat"])
+def test_cli_refuses_a_topic_it_cannot_place_and_lists_the_forms(
+        topic: str, tmp_path, capsys: pytest.CaptureFixture[str]) -> None:  # type: ignore[no-untyped-def]
+    from conformance.validator_cli import main
+
+    payload = tmp_path / "hb.json"
+    payload.write_text('{"rate": 1}')
+    assert main([topic, str(payload)]) == 2
+    err = capsys.readouterr().err
+    assert f"cannot place topic {topic!r}" in err
+    assert "<prefix>/unit/<agent-type>/<role>/<name>/heartbeat" in err
