@@ -161,7 +161,7 @@ _ALL = (
     _f("fail-reason-empty", "EXEC-007 EXEC-START-004",
        "Refuses commands with fail-reason '' (the reason is only logged)."),
     _f("pong-missing", "EXEC-PING-001 EXEC-ROBUST-001", "Never answers ping."),
-    _f("pong-late", "EXEC-PING-001 EXEC-010 EXEC-ROBUST-001",
+    _f("pong-late", "EXEC-PING-001 EXEC-010",
        "Answers ping 3 periods late (its executor answers pings from a slow loop; past the "
        "short response timeouts of the self-test profiles, not the default 5 s at 1 Hz)."),
     _f("response-twice", "EXEC-009",

@@ -305,18 +305,19 @@ class Certification:
         scenario found missing from a unit that has died is not a fault of its own: the death
         is the finding (HB-012), so the rule could not be tested."""
         if violation is not None and CATALOGUE[rule].mode is not Mode.PASSIVE:
-            died = self.unit_died()
+            died = self.unit_died(settle=True)
             if died:
                 violation, verdict, reason = None, Verdict.COULD_NOT_TEST, died
         with self._lock:
             self.monitor.record(self.unit, rule, violation=violation, verdict=verdict,
                                 reason=reason)
 
-    def unit_died(self) -> str:
+    def unit_died(self, *, settle: bool = False) -> str:
         """Why the unit counts as dead, or "" while it lives: no heartbeat for 3
         declared periods (HB-012's window) and none within 10 periods or the response
         deadline, whichever is longer (a dropout of a few periods, HB-010's, is not death).
-        A unit that heartbeats answers at once."""
+        A unit that heartbeats answers at once. ``settle``: a unit still within its 3
+        periods is waited for too (before a verdict, not before a command)."""
         from conformance.checks.identity import SILENCE_PERIODS
 
         latest = self.traffic.latest("heartbeat")
@@ -324,7 +325,7 @@ class Certification:
         if latest is None or rate is None:
             return ""
         period = self.timing.scale / rate
-        if time.time() - latest.time <= SILENCE_PERIODS * period:
+        if not settle and time.time() - latest.time <= SILENCE_PERIODS * period:
             return ""
         left = latest.time + max(10 * period, self.timing.response) - time.time()
         if left > 0 and self.traffic.wait_for(lambda e: True, left, after=latest.seq,

@@ -66,7 +66,7 @@ def test_max_duration_stops_cleanly_and_says_what_it_waited_for(
     assert "--max-duration 25 s reached while waiting for the 'paused' feedback of " \
         "look-at-bearing" in run.text
     assert run.failed == {"EXEC-SIG-001"}  # the test that was waiting; then it stops
-    assert "aborted 1 task(s) the suite had started" in run.text
+    assert "aborted 1 task(s) or TST tree(s) the suite had started" in run.text
     # Progress (not a terminal: plain lines) and -v's steps.
     assert "waiting for the 'paused' feedback of look-at-bearing" in run.text
     assert " s of 30 s" in run.text
