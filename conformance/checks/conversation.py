@@ -719,10 +719,12 @@ def _new_life(ctx: CheckContext, unit: UnitState, c: Conversations, agent: str, 
     return found
 
 
-def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
-            reboot: bool = False, dead_since: float | None = None) -> list[Violation]:
-    found: list[Violation] = []
-    timeout = _timeout(ctx)
+def overdue(c: Any, now: float, timeout: float, reboot: bool) -> list[Any]:
+    """Take the commands whose answer deadline has passed (at a reboot: all) off
+    ``c.pending``. Those never answered join ``c.unanswered``, to be judged when the unit next
+    answers or at the end; those answered fewer times than sent (a resend left unanswered) are
+    returned. ``c`` is an exec or a TST conversation (``pending``, ``unanswered``, ``dropped``)."""
+    resent: list[Any] = []
     while c.pending:
         cmd = next(iter(c.pending.values()))
         if cmd.last_sent + timeout >= now and not reboot:
@@ -736,10 +738,19 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
                 c.unanswered.pop(0)
                 c.dropped += 1
         elif cmd.answers < cmd.sends:
-            unit.examine("EXEC-RESEND-002")
-            found.append(_late("EXEC-RESEND-002", unit, cmd, f"a second answer to the resent "
-                               f"{cmd.describe()} within {timeout:.1f} s", "none", cmd.last_sent,
-                               "12.1: answer a resend again, with the first answer"))
+            resent.append(cmd)
+    return resent
+
+
+def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
+            reboot: bool = False, dead_since: float | None = None) -> list[Violation]:
+    found: list[Violation] = []
+    timeout = _timeout(ctx)
+    for cmd in overdue(c, now, timeout, reboot):
+        unit.examine("EXEC-RESEND-002")
+        found.append(_late("EXEC-RESEND-002", unit, cmd, f"a second answer to the resent "
+                           f"{cmd.describe()} within {timeout:.1f} s", "none", cmd.last_sent,
+                           "12.1: answer a resend again, with the first answer"))
     if reboot:
         found.extend(_judge_streak(ctx, unit, c, ended_by="a reboot", dead_since=dead_since))
     for e in list(c.expects):

@@ -36,7 +36,7 @@ from typing import Any
 import orjson
 
 from conformance.checks.base import BoundedDict, CheckContext, UnitState, check
-from conformance.checks.conversation import _str, _timeout, _violation
+from conformance.checks.conversation import _str, _timeout, _violation, overdue
 from conformance.message import Message
 from conformance.topics import TopicKind
 from conformance.tst import FINAL, Node, read_tree, unit_name
@@ -47,7 +47,6 @@ COMMANDS_KEPT = 1024
 TREES_KEPT = 512
 NODES_KEPT = 8192
 PENDING_KEPT = 256
-UNANSWERED_KEPT = 64
 EXPECTS_KEPT = 256
 WATCH_KEPT = 512
 """Nodes that ended recently, watched in nodes-executing (TST-013's staleness)."""
@@ -801,23 +800,11 @@ def _expire(ctx: CheckContext, unit: UnitState, c: TstConversations, now: float,
             reboot: bool = False) -> list[Violation]:
     found: list[Violation] = []
     timeout = _timeout(ctx)
-    while c.pending:
-        cmd = next(iter(c.pending.values()))
-        if cmd.last_sent + timeout >= now and not reboot:
-            break
-        c.pending.popitem(last=False)
-        if cmd.judged:
-            continue
-        if cmd.answers == 0:
-            c.unanswered.append(cmd)
-            if len(c.unanswered) > UNANSWERED_KEPT:
-                c.unanswered.pop(0)
-                c.dropped += 1
-        elif cmd.answers < cmd.sends:
-            unit.examine("TST-007")
-            found.append(_late("TST-007", cmd, f"a second answer to the resent "
-                               f"{cmd.describe()} within {timeout:.1f} s", "none",
-                               cmd.last_sent, "12.1: answer a resend again, as the first time"))
+    for cmd in overdue(c, now, timeout, reboot):
+        unit.examine("TST-007")
+        found.append(_late("TST-007", cmd, f"a second answer to the resent "
+                           f"{cmd.describe()} within {timeout:.1f} s", "none",
+                           cmd.last_sent, "12.1: answer a resend again, as the first time"))
     if reboot:
         return found
     for e in list(c.expects):
