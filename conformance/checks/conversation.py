@@ -177,14 +177,20 @@ class Conversations:
         self.running.pop(task.task_uuid, None)
 
 
-def conversations(unit: UnitState) -> Conversations:
-    c = unit.private.get("conversations")
+def per_unit(unit: UnitState, key: str, make: Any) -> Any:
+    """The unit's conversation state under ``key``, made on first use and starting in the
+    unit's current life (its agent-uuid): exec and TST conversations alike."""
+    c = unit.private.get(key)
     if c is None:
-        c = unit.private["conversations"] = Conversations()
+        c = unit.private[key] = make()
         c.life = unit.agent_uuid
         if c.life is not None:
             c.lives.append(c.life)
-    return c  # type: ignore[no-any-return]
+    return c
+
+
+def conversations(unit: UnitState) -> Conversations:
+    return per_unit(unit, "conversations", Conversations)  # type: ignore[no-any-return]
 
 
 def last_command_before(unit: UnitState, t: float) -> Command | None:

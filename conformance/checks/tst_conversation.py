@@ -36,7 +36,7 @@ from typing import Any
 import orjson
 
 from conformance.checks.base import BoundedDict, CheckContext, UnitState, check
-from conformance.checks.conversation import _str, _timeout, _violation, overdue
+from conformance.checks.conversation import _str, _timeout, _violation, overdue, per_unit
 from conformance.message import Message
 from conformance.topics import TopicKind
 from conformance.tst import FINAL, Node, read_tree, unit_name
@@ -202,13 +202,7 @@ class TstConversations:
 
 
 def tst_conversations(unit: UnitState) -> TstConversations:
-    c = unit.private.get("tst_conversations")
-    if c is None:
-        c = unit.private["tst_conversations"] = TstConversations()
-        c.life = unit.agent_uuid
-        if c.life is not None:
-            c.lives.append(c.life)
-    return c  # type: ignore[no-any-return]
+    return per_unit(unit, "tst_conversations", TstConversations)  # type: ignore[no-any-return]
 
 
 def open_until(unit: UnitState, ctx: CheckContext) -> float | None:

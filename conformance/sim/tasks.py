@@ -268,6 +268,14 @@ class Task:
     def ended(self) -> bool:
         return self.status in ("finished", "aborted", "failed")
 
+    def resume_clock(self, now: float) -> None:
+        """$continue: a timed stay resumes where it paused (``paused_left`` seconds were left)."""
+        if self.paused_left is not None:
+            leg = self.legs[self.leg]
+            if math.isfinite(leg.seconds):
+                self.leg_started = now - (leg.seconds - self.paused_left)
+            self.paused_left = None
+
 
 def plan(task: Task, vehicle: Vehicle, task_seconds: float) -> None:
     """Fill in the task's legs, cruise speed and camera target from its parameters."""

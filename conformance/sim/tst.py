@@ -20,7 +20,6 @@ Like ``UnitCore`` it is free of threads and sockets; ``now`` is ``time.monotonic
 from __future__ import annotations
 
 import copy
-import math
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -494,11 +493,7 @@ class TstEngine:
         if task.status != "paused":
             return
         task.status = "running"
-        if task.paused_left is not None:
-            leg = task.legs[task.leg]
-            if math.isfinite(leg.seconds):  # a timed stay resumes where it paused
-                task.leg_started = now - (leg.seconds - task.paused_left)
-            task.paused_left = None
+        task.resume_clock(now)
         if task.group == "motion" and task.leg < len(task.legs):
             self.unit._start_leg(task)
         assert task.node is not None

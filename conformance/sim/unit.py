@@ -836,11 +836,7 @@ class UnitCore:
         elif signal == "$continue":
             if task.status == "paused":
                 task.status = "running"
-                if task.paused_left is not None:
-                    leg = task.legs[task.leg]
-                    if math.isfinite(leg.seconds):  # a timed stay resumes where it paused
-                        task.leg_started = now - (leg.seconds - task.paused_left)
-                    task.paused_left = None
+                task.resume_clock(now)
                 if task.group == "motion" and task.leg < len(task.legs):
                     for other in self.tasks.values():  # the vehicle is this task's again
                         if other is not task and other.group == "motion" and not other.ended:
