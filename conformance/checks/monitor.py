@@ -282,8 +282,11 @@ class Monitor:
         if m_type is dict:
             if len(m) > MAX_SHAPE_KEYS:
                 return self.validator.examined(v)
-            key: tuple[Any, ...] = (v.kind, tuple(m), tuple(map(bool, m.values())),
-                                    tuple(map(type, map(m.get, route.content_fields))))
+            # Which values are empty: True when none is (the usual case, one C loop).
+            fields = route.content_fields
+            key: tuple[Any, ...] = (v.kind, tuple(m),
+                                    all(m.values()) or tuple(map(bool, m.values())),
+                                    tuple(map(type, map(m.get, fields))) if fields else ())
         elif m_type is float or m_type is int or m_type is str or m_type is bool:
             key = (v.kind, m_type)
         else:  # not decoded (few rules, no schema), or an array (its items decide)
