@@ -202,12 +202,8 @@ class Plot:
     """(y, rate in Hz) of the axis labels."""
     span: float = 0.0
     """Seconds the plot covers."""
-    w: int = 380
-    h: int = 170
-    left: int = 44
-    right: int = 10
-    top: int = 10
-    bottom: int = 26
+    # The frame in SVG user units: its size, and the margins around the plotting area.
+    w, h, left, right, top, bottom = 380, 170, 44, 10, 10, 26
 
 
 def plot_of(stat: RateStat, index: int) -> Plot:
