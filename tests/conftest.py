@@ -4,15 +4,12 @@ prefix of its own for every test, so tests never see each other's traffic."""
 from __future__ import annotations
 
 import os
-import shutil
-import socket
-import subprocess
-import time
 import uuid
 from collections.abc import Iterator
 
 import pytest
 from hypothesis import HealthCheck, settings
+from shared_mosquitto import shared_mosquitto
 
 from conformance.broker import EmbeddedBroker
 from conformance.topics import UnitAddress
@@ -38,14 +35,6 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
                 item.add_marker(pytest.mark.timeout(TEST_TIMEOUT))
 
 
-def _listening(host: str, port: int) -> bool:
-    try:
-        with socket.create_connection((host, port), timeout=0.5):
-            return True
-    except OSError:
-        return False
-
-
 @pytest.fixture(scope="session")
 def embedded_broker() -> Iterator[EmbeddedBroker]:
     """An amqtt broker on a free loopback port, shared by the session (tests use own prefixes).
@@ -57,19 +46,18 @@ def embedded_broker() -> Iterator[EmbeddedBroker]:
 
 
 @pytest.fixture(scope="session")
-def mosquitto() -> str:
-    """The local Mosquitto on 127.0.0.1:1883, started if it is not running; its URL."""
-    if not _listening(*MOSQUITTO):
-        exe = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
-        if os.path.exists(exe):
-            subprocess.run([exe, "-d", "-c", "/etc/mosquitto/mosquitto.conf"], check=False)
-            deadline = time.monotonic() + 5
-            while time.monotonic() < deadline and not _listening(*MOSQUITTO):
-                time.sleep(0.05)
-    if not _listening(*MOSQUITTO):
-        pytest.fail("Mosquitto is not listening on 127.0.0.1:1883 and could not be started: "
-                    "run `mosquitto -d -c /etc/mosquitto/mosquitto.conf`")
-    return "mqtt://127.0.0.1:1883"
+def mosquitto() -> Iterator[str]:
+    """The local Mosquitto on 127.0.0.1:1883, its URL. Started if it is not running, and then
+    stopped by the last test process that used it (xdist workers and other runs share it);
+    one that was already running is left alone (``shared_mosquitto``).
+
+    Example: ``MqttClient(BrokerURL.parse(mosquitto)).connect()``
+    """
+    with shared_mosquitto(*MOSQUITTO) as up:
+        if not up:
+            pytest.fail("Mosquitto is not listening on 127.0.0.1:1883 and could not be "
+                        "started: run `mosquitto -d -c /etc/mosquitto/mosquitto.conf`")
+        yield "mqtt://127.0.0.1:1883"
 
 
 @pytest.fixture(params=["embedded", "mosquitto"])
