@@ -17,6 +17,7 @@ from conformance.topics import UnitAddress
 pytest_plugins = ["pytester"]
 
 # Hypothesis: a bounded 'ci' profile (2 cores, CI time), a 'dev' one for deeper local runs.
+# Tests take their number of examples from a profile, never from an inline max_examples.
 settings.register_profile("ci", max_examples=60, deadline=None,
                           suppress_health_check=[HealthCheck.too_slow])
 settings.register_profile("dev", max_examples=300, deadline=None)
@@ -24,6 +25,18 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 MOSQUITTO = ("127.0.0.1", 1883)
 TEST_TIMEOUT = 120  # seconds: a hung broker or unit fails one test instead of the whole run
+
+
+@pytest.hookimpl(trylast=True)  # after hypothesis loaded the profile of --hypothesis-profile
+def pytest_configure(config: pytest.Config) -> None:
+    active = settings.default
+    # A property run once per message kind (a dozen tests) takes a sixth of the active
+    # profile's examples, so the family costs about what a few tests do: 10 under ci.
+    settings.register_profile("share", settings(
+        active, max_examples=max(5, active.max_examples // 6)))
+    # Each example is costly (a strategy drawn from a JSON Schema, a simulated run): 4 under ci.
+    settings.register_profile("expensive", settings(
+        active, max_examples=max(2, active.max_examples // 15)))
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
