@@ -489,6 +489,10 @@ class Monitor:
         """Every unit seen (or recorded into), in address order."""
         return sorted(a for a in self._entries if a is not None)
 
+    def topics_cached(self) -> int:
+        """Topics whose route ``feed`` keeps (at most ``MAX_TOPICS``: bounded memory)."""
+        return len(self._by_topic)
+
     def state(self, unit: UnitAddress) -> UnitState:
         """What is known about ``unit`` (an empty state when nothing was seen yet)."""
         entry = self._entries.get(unit)

@@ -38,8 +38,7 @@ def test_hostile_variety_is_capped(stream, monkeypatch):
     kept = s.private["conversations"]
     assert len(kept.commands) == 32 and len(kept.tasks) == 32
     assert len(m.units()) == 8
-    # TODO(public): a Monitor accessor for the size of feed's topic cache (capped: MAX_TOPICS)
-    assert len(m._by_topic) == 50
+    assert m.topics_cached() == 50
     report = m.report()
     assert report.unexamined > 0  # messages of units beyond the cap are counted, not lost
     unit = report.units[str(u)]
