@@ -292,6 +292,8 @@ _TST = (
          "Sends tst_execution_info with type 'TSTExecutionInfo'.", stimulus=False),
 )
 TST_FAULTS = frozenset(f.name for f in _TST)
+TST_LEVEL_FAULTS = frozenset({"level-unbacked", "tst-info-incomplete", "tst-info-rate-drift"})
+"""Faults that declare 'tst execution' to bend what the unit says about it (HB-008, TEI-*)."""
 _ALL = _ALL + _TST
 
 FAULTS: dict[str, Fault] = {f.name: f for f in _ALL}

@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 from conformance.client import BrokerURL, Message, MqttClient
-from conformance.sim.unit import MAX_COMMAND_BYTES
+from conformance.sim.executor import MAX_COMMAND_BYTES
 
 if TYPE_CHECKING:
     from conformance.sim.unit import UnitCore
