@@ -8,8 +8,7 @@ import uuid
 import pytest
 
 from conformance.client import Message
-from conformance.sim import SimUnit
-from conformance.sim import memory
+from conformance.sim import SimUnit, memory
 from conformance.sim.runtime import INBOX_BYTES, Runtime
 from conformance.topics import UnitAddress
 
