@@ -79,6 +79,12 @@ class Runtime:
                 self._bases.add(unit.tst.operator)
         return index
 
+    def publish(self, topic: str, payload: bytes, retain: bool) -> None:
+        """What a unit emits, at QoS 0 while connected (the ``emit`` of each ``UnitCore``)."""
+        client = self.client
+        if client is not None:
+            client.publish(topic, payload, qos=0, retain=retain)
+
     # --- safety -------------------------------------------------------------------------------
     def may_publish(self, topic: str) -> bool:
         """Only under one of our units' bases, never to a command topic (DESIGN: safety)."""
