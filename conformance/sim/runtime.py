@@ -135,14 +135,13 @@ class Runtime:
         self._wake.set()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout)
-        client = self.client
+        client, self.client = self.client, None
         if client is not None:
-            for unit in self.units:  # while still connected: they publish through self.client
+            for unit in self.units:
                 try:
                     unit.clear_retained()
                 except Exception:  # the broker may already be gone
                     pass
-            self.client = None
             client.close()
 
     def reboot(self, index: int | None = None, *, wait: bool = False,

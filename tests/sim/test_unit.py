@@ -299,18 +299,3 @@ def test_headings_stay_in_degrees_and_speed_non_negative(obs, unit) -> None:
         assert all(0.0 <= v < 360.0 and math.isfinite(v) for v in values)
         assert len(set(values)) > 3  # it turned while circling
     assert all(float(m.payload) >= 0.0 for m in obs.on("/sensor/speed"))
-
-
-@ONE_BROKER
-def test_a_stopped_unit_leaves_nothing_retained(observe, broker_url: str,
-                                                unit_address: UnitAddress) -> None:
-    def retained_heartbeats() -> list:
-        late = observe(broker_url, f"{unit_address.base}/#", (unit_address.topic("exec/command"),))
-        marker = late.send({"command": "ping"})  # comes back after what the broker retained
-        late.wait_for(lambda ms: any(marker.encode() in m.payload for m in ms),
-                      what="the marker command")
-        return [m for m in late.on("/heartbeat") if m.retain]
-
-    with SimUnit(unit_address, broker_url, rate=RATE, faults=["retained-stale-heartbeat"]):
-        assert retained_heartbeats(), "the fault's birth heartbeat is retained while it runs"
-    assert retained_heartbeats() == [], "stop() clears it"
