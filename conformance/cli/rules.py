@@ -7,6 +7,7 @@ import argparse
 import json
 
 from conformance import profile as profiles
+from conformance.cli.options import add_profile_option
 from conformance.rules import CATALOGUE
 
 
@@ -14,8 +15,7 @@ def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="waraps-conformance rules",
                                      description="Print the rule catalogue.")
     parser.add_argument("--format", choices=("text", "json"), default="text")
-    parser.add_argument("--profile", default="default",
-                        help="severities as this profile sets them (e.g. strict)")
+    add_profile_option(parser)  # the severities as this profile sets them (e.g. strict)
     parser.add_argument("--errata", action="store_true", help="only the spec's errata, with "
                         "the decision taken on each")
     args = parser.parse_args(argv)
