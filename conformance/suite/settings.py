@@ -11,6 +11,7 @@ import difflib
 import os
 import re
 import secrets
+import shlex
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -87,6 +88,50 @@ class Settings:
     @property
     def embedded(self) -> bool:
         return self.broker.scheme == "embedded"
+
+    def rerun_command(self, rule: str | None = None, observe: float = 0.0) -> str:
+        """The pytest command that repeats this run (``rule``: only that rule, observing at
+        least ``observe`` seconds): every option that changes what is tested or how, TLS
+        files included. Never a secret: the broker URL carries no password (the password
+        comes only from WARAPS_PASSWORD)."""
+        b = self.broker
+        # '=' for paths: a path in its own argument could be taken for a test path by pytest.
+        parts = ["pytest", "--unit", str(self.unit), "--broker", str(b)]
+        parts += [f"{option}={shlex.quote(path)}" for option, path in (
+            ("--ca-file", b.ca_file), ("--cert-file", b.cert_file), ("--key-file", b.key_file))
+            if path]
+        if b.insecure:
+            parts.append("--tls-insecure")
+        parts += [f"--sim-fault={f}" for f in self.sim_faults]
+        if self.embedded and self.sim_rate != 1.0:
+            parts += ["--sim-rate", f"{self.sim_rate:g}"]
+        if self.sim_tst:
+            parts.append("--sim-tst")
+        if self.tst_command_topic:
+            parts += ["--tst-command-topic", self.tst_command_topic]
+        if self.profile.source.startswith("<built-in"):
+            if self.profile.name != "default":
+                parts += ["--profile", self.profile.name]
+        else:
+            parts += [f"--profile={shlex.quote(self.profile.source)}"]
+        if self.timing_scale != 1.0:
+            parts += ["--timing-scale", f"{self.timing_scale:g}"]
+        if self.reboot_cmd:
+            parts += ["--reboot-cmd", shlex.quote(self.reboot_cmd)]
+        if self.allow_motion:
+            parts.append("--allow-motion")
+        if self.dry_run:
+            parts.append("--dry-run")
+        if self.max_duration != MAX_DURATION:
+            parts += ["--max-duration", f"{self.max_duration:g}"]
+        parts += ["--seed", str(self.seed)]
+        if observe or self.observe:
+            parts += ["--observe", f"{max(int(observe), int(self.observe))}"]
+        if rule:
+            parts += ["-k", rule]
+        else:
+            parts += [f"--rule={r}" for r in self.rules]
+        return " ".join(parts)
 
 
 def _value(config: pytest.Config, dest: str) -> object:
