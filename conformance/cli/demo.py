@@ -7,21 +7,17 @@ from __future__ import annotations
 import argparse
 import sys
 
-from conformance.cli.options import (
-    add_profile_option,
-    add_reference_unit_options,
-    add_reports_dir_option,
-)
+from conformance.cli import options as opts
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="waraps-conformance demo",
-        description="Certify the bundled reference unit on the embedded broker, end to end.")
-    add_reference_unit_options(p)
-    add_profile_option(p, default=None)
-    add_reports_dir_option(p)
-    p.add_argument("--seed", default=None, help="seed of generated task parameters")
+    p = opts.parser("demo", "Certify the bundled reference unit on the embedded broker, end to "
+                            "end.")
+    opts.add_reference_unit_options(p)
+    opts.add_profile_option(p, default=None)
+    opts.add_reports_dir_option(p)
+    p.add_argument("--seed", default=None, metavar="N",
+                   help="seed of generated task parameters")
     p.add_argument("-q", "--quiet", action="store_true", help="pytest -q")
     p.add_argument("pytest_args", nargs="*", help="more pytest arguments, after --")
     return p

@@ -18,22 +18,17 @@ import sys
 from pathlib import Path
 from typing import IO
 
-from conformance.cli.options import (
-    add_capture_options,
-    add_profile_option,
-    add_reports_dir_option,
-    capture_options,
-)
+from conformance.cli import options as opts
 from conformance.lint import EXIT_USAGE
 from conformance.lint.runner import GATES, REPORT_FORMATS, lint
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="waraps-conformance lint",
-        description="Lint the traffic of a whole fleet, live (read-only: it never publishes) "
+    p = opts.parser(
+        "lint",
+        "Lint the traffic of a whole fleet, live (read-only: it never publishes) "
                     "or from a recording, and report a verdict per unit and rule.",
-        epilog="Exit status: 0 no unit or commander fails a rule of severity error (with "
+        "Exit status: 0 no unit or commander fails a rule of severity error (with "
                "--gate units: no unit), 1 one does, 2 bad usage, 3 nothing could be linted "
                "(no broker, no messages). What is wrong in a command is its commander's "
                "fault: commanders (by the command's 'sender', else 'of UNIT') have rows of "
@@ -47,19 +42,19 @@ def build_parser() -> argparse.ArgumentParser:
     src.add_argument("--ros-unit", metavar="ADDRESS",
                      help="the unit address of a ROS bag's namespaced topics when no "
                           "/heartbeat_info TopicMsg names it, e.g. waraps/unit/ground/real/husky0")
-    add_capture_options(p)
+    opts.add_capture_options(p)
     out = p.add_argument_group("judging and reports")
-    add_profile_option(out)
-    add_reports_dir_option(out)
+    opts.add_profile_option(out)
+    opts.add_reports_dir_option(out)
     out.add_argument("--format", default=",".join(REPORT_FORMATS), metavar="LIST",
                      help="report formats, comma-separated from json, html, junit; or none "
                           "(default: all three)")
+    out.add_argument("--plain", action="store_true",
+                     help="plain lines even on a terminal (the default in a pipe or CI)")
     out.add_argument("--gate", choices=GATES, default="all",
                      help="what the exit status judges: all (units and commanders, the "
                           "default) or units (a fleet gate that commanders' faults do not "
                           "fail)")
-    out.add_argument("--plain", action="store_true",
-                     help="plain lines even on a terminal (the default in a pipe or CI)")
     return p
 
 
@@ -89,7 +84,7 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
     if args.source and args.broker:
         return usage("--from and --broker exclude each other: lint a recording or a live broker")
     try:
-        options = capture_options(args, need_broker=not args.source)
+        options = opts.capture_options(args, need_broker=not args.source)
         formats = parse_formats(args.format)
         profile = load(args.profile)
     except (CaptureOptionsError, ProfileError, ValueError) as e:

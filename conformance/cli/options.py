@@ -29,6 +29,13 @@ TLS_INSECURE = ("--tls-insecure",
                 "do not verify the mqtts:// broker's certificate (test brokers only)")
 
 
+def parser(command: str, description: str, epilog: str | None = None
+           ) -> argparse.ArgumentParser:
+    """The argument parser of ``waraps-conformance COMMAND``."""
+    return argparse.ArgumentParser(prog=f"waraps-conformance {command}",
+                                   description=description, epilog=epilog)
+
+
 class _DeprecatedFlag(argparse.Action):
     """A hidden old spelling of a flag: still works, and says which spelling replaces it."""
 

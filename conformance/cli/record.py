@@ -6,16 +6,16 @@ from __future__ import annotations
 import argparse
 import sys
 
-from conformance.cli.options import add_capture_options, capture_options
+from conformance.cli import options as opts
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="waraps-conformance record",
-        description="Record live traffic (read-only: it never publishes) to a JSON Lines file "
+    p = opts.parser(
+        "record",
+        "Record live traffic (read-only: it never publishes) to a JSON Lines file "
                     "that 'waraps-conformance lint --from FILE' judges later. Connection "
                     "losses and messages the recorder could not keep up with are recorded too.")
-    add_capture_options(p)
+    opts.add_capture_options(p)
     p.add_argument("-o", "--output", required=True, metavar="FILE",
                    help="the JSON Lines file to write ('-' for standard output)")
     return p
@@ -28,7 +28,7 @@ def main(argv: list[str] | None = None) -> int:
 
     args = build_parser().parse_args(argv)
     try:
-        options = capture_options(args)
+        options = opts.capture_options(args)
     except CaptureOptionsError as e:
         print(f"waraps-conformance record: {e}", file=sys.stderr)
         return 2

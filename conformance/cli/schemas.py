@@ -7,11 +7,12 @@ import argparse
 import sys
 from pathlib import Path
 
+from conformance.cli import options as opts
+
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="waraps-conformance schemas",
-        description="Generate the JSON Schemas and TASKS.md from schemas/tasks/*.yaml.")
+    parser = opts.parser("schemas",
+                         "Generate the JSON Schemas and TASKS.md from schemas/tasks/*.yaml.")
     sub = parser.add_subparsers(dest="action")
     gen = sub.add_parser("generate", help="write schemas/generated/ (deterministic; the default)")
     gen.add_argument("--out", type=Path, default=None,

@@ -11,28 +11,22 @@ from __future__ import annotations
 
 import argparse
 
-from conformance.cli.options import (
-    BROKER_ENV,
-    add_broker_options,
-    add_reference_unit_options,
-    with_tls,
-)
+from conformance.cli import options as opts
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="waraps-conformance sim",
-        description="Run the WARA-PS reference unit: conformant on the levels 'sensor' and "
+    p = opts.parser(
+        "sim",
+        "Run the WARA-PS reference unit: conformant on the levels 'sensor' and "
                     "'direct execution' (and 'tst execution' with --tst), unless faults are "
                     "switched on.")
-    add_reference_unit_options(p, fault_metavar="NAME[@I,J]")
+    opts.add_reference_unit_options(p, fault_metavar="NAME[@I,J]")
     p.add_argument("--count", type=int, default=1, metavar="N",
                    help="run N units named with a numeric suffix (dji0, dji1, ...) on one "
                         "connection; --fault NAME@I,J only for the units with those indexes "
                         "(0-based)")
-    p.add_argument("--list-faults", action="store_true",
-                   help="print the faults with the rule ids each one breaks, and exit")
-    p.add_argument("--json", action="store_true", help="with --list-faults: as JSON")
+    p.add_argument("--task-seconds", type=float, default=3.0, metavar="S",
+                   help="about how long a simulated task takes (time compression; default 3)")
     p.add_argument("--seed", type=int, default=None,
                    help="repeatable agent-uuids and com-uuids (a process restarted with the "
                         "same seed starts with the same agent-uuid: reboot it with SIGHUP)")
@@ -40,11 +34,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --tst: also take TST commands for this unit from the operator's "
                         "tst/command (14.1: 'usually sent to op0'), e.g. "
                         "waraps/unit/ground/real/op0; answered on the operator's topics")
-    p.add_argument("--task-seconds", type=float, default=3.0, metavar="S",
-                   help="about how long a simulated task takes (time compression; default 3)")
-    add_broker_options(p, broker_help=f"mqtt://host:port, mqtts://host:port or 'embedded' "
-                                      f"(start one in this process); default: {BROKER_ENV}, "
-                                      f"else embedded")
+    opts.add_broker_options(p, broker_help=f"mqtt://host:port, mqtts://host:port or "
+                                           f"'embedded' (start one in this process); default: "
+                                           f"{opts.BROKER_ENV}, else embedded")
+    faults = p.add_argument_group("the faults")
+    faults.add_argument("--list-faults", action="store_true",
+                        help="print the faults with the rule ids each one breaks, and exit")
+    faults.add_argument("--json", action="store_true", help="with --list-faults: as JSON")
     return p
 
 
@@ -77,7 +73,7 @@ def main(argv: list[str]) -> int:
     broker = None  # embedded: run() starts one
     if text != "embedded":
         try:
-            broker = with_tls(BrokerURL.parse(text), args)
+            broker = opts.with_tls(BrokerURL.parse(text), args)
         except ValueError as e:
             parser.error(str(e))
     try:

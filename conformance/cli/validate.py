@@ -15,23 +15,21 @@ Exit code: 0 when nothing fails under the profile (warnings allowed), 1 when a r
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time as time_module
 from pathlib import Path
 
 from conformance import profile as profile_module
-from conformance.cli.options import add_profile_option
+from conformance.cli import options as opts
 from conformance.explanation import overall_verdict, render, to_dict, unplaceable, validate_tst
 from conformance.validator import Validator
 from conformance.violation import Verdict
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="waraps-conformance validate",
-        description="Validate one WARA-PS message: print its kind and every violation.")
+    parser = opts.parser("validate",
+                         "Validate one WARA-PS message: print its kind and every violation.")
     parser.add_argument("topic", nargs="?", default=None,
                         help="the MQTT topic, e.g. waraps/unit/air/simulation/dji0/heartbeat "
                              "(not with --tst)")
@@ -40,7 +38,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tst", action="store_true",
                         help="the file is a TST plan: a start-tst command or its tree; list "
                              "every problem of the tree with its JSON path")
-    add_profile_option(parser)
+    opts.add_profile_option(parser)
     when = parser.add_mutually_exclusive_group()
     when.add_argument("--time", type=float, default=None,
                       help="arrival time (Unix seconds) to judge the stamp against (MSG-005)")
