@@ -8,6 +8,7 @@ Only argparse is imported here; what an option means is decided by the part that
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from typing import TYPE_CHECKING, Any
 
@@ -27,6 +28,29 @@ TLS_FILES: tuple[tuple[str, str], ...] = (
 """The TLS file options (metavar PEM) of every command that connects, and of the plugin."""
 TLS_INSECURE = ("--tls-insecure",
                 "do not verify the mqtts:// broker's certificate (test brokers only)")
+
+
+_DURATION = re.compile(r"(\d+(?:\.\d*)?|\.\d+)(ms|min|h|m|s)?")
+_UNIT_SECONDS = {"h": 3600.0, "min": 60.0, "m": 60.0, "s": 1.0, "ms": 0.001, None: 1.0}
+
+
+def parse_duration(text: str) -> float:
+    """Seconds from a duration as a person types it: ``10m``, ``90s``, ``1h30m``, ``1.5h``,
+    ``10min`` or a plain number of seconds; the same for every option that takes one (the
+    plugin's ``--max-duration`` and ``--observe``, ``lint``/``record --duration``).
+    ValueError says what is accepted."""
+    s = text.strip().lower().replace(" ", "")
+    pos, total = 0, 0.0
+    while pos < len(s):
+        m = _DURATION.match(s, pos)
+        if m is None:
+            break
+        total += float(m.group(1)) * _UNIT_SECONDS[m.group(2)]
+        pos = m.end()
+    if not s or pos != len(s) or total <= 0:
+        raise ValueError(f"duration {text!r} is not a positive time like 90s, 10m, 1h30m or a "
+                         f"number of seconds")
+    return total
 
 
 def parser(command: str, description: str, epilog: str | None = None
@@ -96,10 +120,15 @@ def add_capture_options(parser: argparse.ArgumentParser) -> None:
 
 def capture_options(args: argparse.Namespace, *, need_broker: bool = True) -> CaptureOptions:
     """The capture options of parsed arguments; ``CaptureOptionsError`` says what to fix."""
+    from conformance.lint.capture import CaptureOptionsError
     from conformance.lint.capture import capture_options as build
 
+    try:
+        duration = parse_duration(args.duration) if args.duration else None
+    except ValueError as e:
+        raise CaptureOptionsError(str(e)) from None
     options = build(args.broker, topics=args.topic or (), units=args.unit or (),
-                    duration=args.duration, need_broker=need_broker)
+                    duration=duration, need_broker=need_broker)
     return options if options.broker is None else options.with_broker(with_tls(options.broker,
                                                                                args))
 

@@ -14,7 +14,6 @@ Shared by ``waraps-conformance lint`` and ``waraps-conformance record``.
 from __future__ import annotations
 
 import logging
-import re
 import threading
 import time
 from collections import deque
@@ -43,26 +42,6 @@ class CaptureOptionsError(ValueError):
     """Capture options that cannot be used; the message says which and how to fix them."""
 
 
-_DURATION = re.compile(r"(\d+(?:\.\d*)?|\.\d+)\s*(h|m|s|ms)?", re.I)
-_UNIT_SECONDS = {"h": 3600.0, "m": 60.0, "s": 1.0, "ms": 0.001, None: 1.0}
-
-
-def parse_duration(text: str) -> float:
-    """Seconds from ``10m``, ``90s``, ``1h30m``, ``1.5h`` or a plain number of seconds."""
-    s = text.strip().lower().replace(" ", "")
-    pos, total = 0, 0.0
-    while pos < len(s):
-        m = _DURATION.match(s, pos)
-        if m is None:
-            break
-        total += float(m.group(1)) * _UNIT_SECONDS[m.group(2)]
-        pos = m.end()
-    if not s or pos != len(s) or total <= 0:
-        raise CaptureOptionsError(f"duration {text!r} is not a positive time like 90s, 10m, 1h30m "
-                                  f"or a number of seconds")
-    return total
-
-
 @dataclass(frozen=True)
 class CaptureOptions:
     """What to capture: the broker, the subscriptions, the units of interest, for how long."""
@@ -86,10 +65,11 @@ class CaptureOptions:
 
 
 def capture_options(broker: str | None, *, topics: Sequence[str] = (),
-                    units: Sequence[str] = (), duration: str | None = None,
+                    units: Sequence[str] = (), duration: float | None = None,
                     need_broker: bool = True) -> CaptureOptions:
-    """Capture options from their texts as a person gives them (``broker`` None: from the
-    environment, when ``need_broker``); CaptureOptionsError says what to fix."""
+    """Capture options from the broker URL, filters and unit addresses as a person gives
+    them (``broker`` None: from the environment, when ``need_broker``), for ``duration``
+    seconds (None: until stopped); CaptureOptionsError says what to fix."""
     addresses: list[UnitAddress] = []
     for text in units:
         try:
@@ -101,7 +81,6 @@ def capture_options(broker: str | None, *, topics: Sequence[str] = (),
         if not t or "#" in t[:-1] or (t.endswith("#") and len(t) > 1 and t[-2] != "/"):
             raise CaptureOptionsError(f"--topic {t!r} is not an MQTT subscription filter "
                                       f"('#' only as the last level, e.g. waraps/#)")
-    seconds = parse_duration(duration) if duration else None
     url = None
     if need_broker:
         try:
@@ -114,7 +93,7 @@ def capture_options(broker: str | None, *, topics: Sequence[str] = (),
         if url.scheme == "embedded":
             raise CaptureOptionsError("--broker embedded: an embedded broker has no fleet to "
                                       "observe; pass its mqtt:// URL instead")
-    return CaptureOptions(url, filters, tuple(addresses), seconds)
+    return CaptureOptions(url, filters, tuple(addresses), duration)
 
 
 class LiveCapture:

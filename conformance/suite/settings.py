@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 
+from conformance.cli.options import parse_duration
 from conformance.client import BrokerURL
 from conformance.profile import Profile, ProfileError, builtin_names, load
 from conformance.topics import TopicError, UnitAddress
@@ -39,7 +40,6 @@ INI = {
 }
 MAX_DURATION = 600.0
 """Seconds a certification may last by default (--max-duration): then it stops cleanly."""
-DURATION = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*(s|m|min|h)?\s*$")
 TRUE = ("1", "true", "yes", "on")
 FALSE = ("", "0", "false", "no", "off")
 
@@ -247,15 +247,15 @@ def _tst_command_topic(value: object, unit: UnitAddress) -> str | None:
 
 def _duration(value: object, default: float = MAX_DURATION,
               option: str = "--max-duration") -> float:
-    """A duration option: seconds, or a number with s, m (min) or h."""
+    """A duration option in seconds, read as every subcommand reads one (``parse_duration``:
+    600, 90s, 10m, 10min, 1h, 1h30m)."""
     if value in (None, ""):
         return default
-    m = DURATION.match(str(value))
-    if m is None or float(m.group(1)) <= 0:
+    try:
+        return parse_duration(str(value))
+    except ValueError:
         raise pytest.UsageError(f"{option} {value!r}: a positive duration is needed, "
-                                f"e.g. 600, 90s, 10m or 1h")
-    unit = {"s": 1, None: 1, "m": 60, "min": 60, "h": 3600}[m.group(2)]
-    return float(m.group(1)) * unit
+                                f"e.g. 600, 90s, 10m or 1h") from None
 
 
 def _rules(values: object) -> tuple[str, ...]:

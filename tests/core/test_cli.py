@@ -11,7 +11,7 @@ from conformance.cli import COMMANDS, main
 from conformance.cli import lint as lint_cli
 from conformance.cli import record as record_cli
 from conformance.cli import sim as sim_cli
-from conformance.cli.options import capture_options
+from conformance.cli.options import capture_options, parse_duration
 
 
 @pytest.mark.parametrize("command", sorted(COMMANDS))
@@ -81,3 +81,24 @@ def test_sim_refuses_a_fault_it_does_not_have(capsys: pytest.CaptureFixture[str]
         main(["sim", "--broker", "mqtt://127.0.0.1:1", "--fault", "no-such-fault"])
     assert exit_.value.code == 2
     assert "no-such-fault" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("text", "seconds"), [
+    ("600", 600.0), ("90s", 90.0), ("10m", 600.0), ("10min", 600.0), ("1h30m", 5400.0),
+    ("1.5h", 5400.0), ("250ms", 0.25), (" 2 m ", 120.0)])
+def test_one_duration_syntax_for_every_option(text: str, seconds: float) -> None:
+    assert parse_duration(text) == pytest.approx(seconds)
+
+
+@pytest.mark.parametrize("text", ["", "0", "-5s", "10 parsecs", "m", "1h-30m"])
+def test_a_bad_duration_says_what_is_accepted(text: str) -> None:
+    with pytest.raises(ValueError, match="not a positive time like 90s, 10m, 1h30m"):
+        parse_duration(text)
+
+
+def test_lint_reads_the_duration_as_the_plugin_does(capsys: pytest.CaptureFixture[str]) -> None:
+    args = lint_cli.build_parser().parse_args(["--broker", "mqtt://127.0.0.1:1",
+                                               "--duration", "10min"])
+    assert capture_options(args).duration == 600.0
+    assert main(["lint", "--broker", "mqtt://127.0.0.1:1", "--duration", "soon"]) == 2
+    assert "duration 'soon' is not a positive time" in capsys.readouterr().err

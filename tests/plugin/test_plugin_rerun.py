@@ -78,3 +78,10 @@ def test_defaults_stay_off_the_line(pytester: pytest.Pytester) -> None:
     line = settings_of(pytester, "--unit", UNIT, "--broker", "embedded", "--seed", "3",
                        ).rerun_command()
     assert line == f"pytest --unit {UNIT} --broker embedded --seed 3"
+
+
+def test_durations_read_as_the_subcommands_read_them(pytester: pytest.Pytester) -> None:
+    s = settings_of(pytester, "--unit", UNIT, "--broker", "embedded", "--seed", "3",
+                    "--max-duration", "1h30m", "--observe", "10min")
+    assert (s.max_duration, s.observe) == (5400.0, 600.0)
+    assert "--max-duration 5400 --seed 3 --observe 600" in s.rerun_command()
