@@ -1,8 +1,10 @@
 """Option groups the subcommands share, defined once, so an option has one spelling and one
 meaning everywhere: the broker and its TLS files (also the pytest plugin's names), the live
-traffic to capture, the profile, where reports go.
+traffic to capture, the reference unit, the profile, where reports go, and how a duration is
+written (also for the plugin's durations).
 
-Only argparse is imported here; what an option means is decided by the part that does the work.
+Only the standard library is imported at module level (the plugin imports this module, and
+must stay cheap); what an option means is decided by the part that does the work.
 """
 
 from __future__ import annotations
