@@ -131,7 +131,7 @@ class Certification:
         Raises ``BrokerError`` (broker unreachable or refusing) or ``NotAlive``."""
         self.traffic.waits.deadline = time.monotonic() + self.settings.max_duration
         if self.settings.embedded:
-            from conformance.demo import Reference
+            from conformance.sim.reference import Reference
 
             self.reference = Reference(self.unit, faults=self.settings.sim_faults,
                                        rate=self.settings.sim_rate, seed=self.settings.seed,
@@ -412,30 +412,7 @@ class Certification:
         }
 
     def rerun_command(self, rule: str | None = None) -> str:
-        s = self.settings
-        parts = ["pytest", "--unit", str(self.unit)]
-        parts += ["--broker", str(s.broker)]
-        parts += [f"--sim-fault={f}" for f in s.sim_faults]
-        if s.embedded and s.sim_rate != 1.0:
-            parts += ["--sim-rate", f"{s.sim_rate:g}"]
-        if s.sim_tst:
-            parts.append("--sim-tst")
-        if s.tst_command_topic:
-            parts += ["--tst-command-topic", s.tst_command_topic]
-        if self.profile.source.startswith("<built-in"):
-            if self.profile.name != "default":
-                parts += ["--profile", self.profile.name]
-        else:  # '=': a path in its own argument could be taken for a test path by pytest
-            parts += [f"--profile={self.profile.source}"]
-        if s.timing_scale != 1.0:
-            parts += ["--timing-scale", f"{s.timing_scale:g}"]
-        parts += ["--seed", str(s.seed)]
-        observe = self._observe_for(rule) if rule else 0
-        if observe or s.observe:
-            parts += ["--observe", f"{max(observe, int(s.observe))}"]
-        if rule:
-            parts += ["-k", rule]
-        return " ".join(parts)
+        return self.settings.rerun_command(rule, self._observe_for(rule) if rule else 0)
 
     def _observe_for(self, rule: str) -> int:
         """Seconds of observation a rerun of ``rule`` needs: when its first violation came
