@@ -7,7 +7,7 @@ The same object serves the linter (``kind="lint"``) and the certification suite
 alone is worked out once per topic (a ``_Route``: the unit's entry, the checks of its kind).
 Which rules the validator examined on a message (``Validator.examined``) costs an evaluation
 of its schema, 10-100 times validating it: ``feed`` asks once per message shape and keeps the
-answer on the route (``_examined``), and counts messages per examined set, expanded into
+answer on the route (``checks/shapes.py``), and counts messages per examined set, expanded into
 per-rule counts only when a report is made.
 """
 
@@ -30,97 +30,38 @@ from conformance.checks.base import (
     CheckContext,
     UnitState,
 )
+from conformance.checks.rows import (
+    UNATTRIBUTED,
+    Findings,
+    Row,
+    RuleRecord,
+    row_report,
+    schemas_hash,
+    suite_version,
+)
+from conformance.checks.shapes import Shapes
 from conformance.checks.tst_routing import TstRouting
 from conformance.message import Message
 from conformance.profile import Profile
-from conformance.results import RunReport, UnitReport, judge_rule, skip_reason
-from conformance.rules import CATALOGUE, Mode, Side
+from conformance.results import RunReport, UnitReport
+from conformance.rules import CATALOGUE, Side
 from conformance.topics import TopicKind, UnitAddress, parse_topic
 from conformance.validator import Examined, Validation, Validator
 from conformance.violation import Verdict, Violation
 
-MAX_EVIDENCE = 20
-"""Violations kept as evidence per rule and unit; the rest are only counted (bounded memory)."""
 MAX_UNITS = 4096
 """Units tracked at once; messages of further units are counted as unexamined."""
 MAX_TOPICS = 65536
 """Topics whose unit is cached; further ones are looked up each time (still correct)."""
-MAX_SHAPES = 64
-"""Message shapes whose examined rules are kept per topic (more are asked for each message)."""
-MAX_SHARED_SHAPES = 4096
-"""Message shapes whose examined rules are kept for every topic of their kind."""
-MAX_SHAPE_KEYS = 64
-"""Top-level keys of a message beyond which its shape is not worked out (asked each time)."""
-UNATTRIBUTED = "(unattributed)"
-"""The report entry for topics that name no unit (``waraps/foo``, ``waraps/unit/air``)."""
 MAX_COMMANDERS = 256
 """Commanders with a row of their own; the commands of further ones share one row."""
 MAX_SENDER = 64
 _SENDER = re.compile(rb'"sender"\s*:\s*"([^"\\]{1,64})"')
 
-class _RuleRecord:
-    """What was recorded for one rule of one unit: a count and the first few violations."""
-
-    __slots__ = ("count", "evidence", "explicit", "reason", "first", "last")
-
-    def __init__(self) -> None:
-        self.count = 0
-        self.evidence: list[Violation] = []
-        self.explicit: Verdict | None = None
-        self.reason = ""
-        self.first: float | None = None
-        self.last: float | None = None
-        """Times of the first and the latest violation (of all, not only those kept)."""
-
-    def add(self, v: Violation) -> None:
-        self.count += 1
-        if len(self.evidence) < MAX_EVIDENCE:
-            self.evidence.append(v)
-        t = v.time
-        if t is not None:
-            if self.first is None or t < self.first:
-                self.first = t
-            if self.last is None or t > self.last:
-                self.last = t
-
-
-class Findings:
-    """What the finish checks found for one unit: kept apart, so a provisional report (before
-    ``finish``) and a repeated ``finish`` never count twice."""
-
-    __slots__ = ("examined", "notes", "violations")
-
-    def __init__(self) -> None:
-        self.examined: dict[str, int] = {}
-        self.notes: dict[str, str] = {}
-        self.violations: list[Violation] = []
-
-    def examine(self, rule: str, times: int = 1) -> None:
-        self.examined[rule] = self.examined.get(rule, 0) + times
-
-    def note(self, rule: str, why: str) -> None:
-        self.notes[rule] = why
-
-
-class _Entry:
-    __slots__ = ("state", "records", "groups", "final", "unit", "party")
-
-    def __init__(self, state: UnitState, party: str = "unit", label: str = "") -> None:
-        self.state = state
-        self.party = party
-        """``unit``, or ``commander``: a row of what commanders sent (DESIGN: blame)."""
-        self.unit = label or ("" if state.address.prefix == UNATTRIBUTED else str(state.address))
-        self.records: dict[str, _RuleRecord] = {}
-        self.groups: dict[Examined, int] = {}
-        """Rules examined by the validator (shared sets) -> messages (expanded at report
-        time)."""
-        self.final: Findings | None = None
-
-
-_IGNORED = _Entry(UnitState(UnitAddress(UNATTRIBUTED, "", "", "ignored")))
-_UNRESOLVED = _Entry(UnitState(UnitAddress(UNATTRIBUTED, "", "", "unresolved")))
+_IGNORED = Row(UnitState(UnitAddress(UNATTRIBUTED, "", "", "ignored")))
+_UNRESOLVED = Row(UnitState(UnitAddress(UNATTRIBUTED, "", "", "unresolved")))
 """The entry of a tst topic until a message shows whose it is (``Monitor._tst_route``)."""
-_OVERFLOW = _Entry(UnitState(UnitAddress(UNATTRIBUTED, "", "", "overflow")))
+_OVERFLOW = Row(UnitState(UnitAddress(UNATTRIBUTED, "", "", "overflow")))
 
 
 _COMMAND_KINDS = (TopicKind.EXEC_COMMAND, TopicKind.TST_COMMAND)
@@ -134,7 +75,7 @@ class _Route:
     __slots__ = ("entry", "reinterpret", "checks", "kind", "topic_kind", "content_fields",
                  "shapes", "decided_by", "last_decided", "address", "shared_tst", "command")
 
-    def __init__(self, entry: _Entry, topic: str,
+    def __init__(self, entry: Row, topic: str,
                  content_fields: tuple[str, ...] = ()) -> None:
         parsed = parse_topic(topic)
         self.entry = entry
@@ -152,7 +93,7 @@ class _Route:
             self.kind = parsed.kind.value
         self.reinterpret = tuple(c.fn for c in REINTERPRET.get(parsed.kind, ()))
         self.checks = self.checks_for(self.kind)
-        # What the validator examined, by message shape (Monitor._examined).
+        # What the validator examined, by message shape (``checks/shapes.py``).
         self.content_fields = content_fields
         """Fields whose types are part of a shape (``Validator.content_fields``)."""
         self.shapes: dict[tuple[Any, ...], Examined] = {}
@@ -195,15 +136,15 @@ class Monitor:
         self.kind = kind
         self.ctx = CheckContext(self.profile, kind)
         self._only = frozenset(units) if units is not None else None
-        self._entries: dict[UnitAddress | None, _Entry] = {}
-        self._commanders: dict[str, _Entry] = {}
+        self._entries: dict[UnitAddress | None, Row] = {}
+        self._commanders: dict[str, Row] = {}
         """Commander name -> its row: what is wrong in a command is the commander's fault."""
         self._by_topic: dict[str, _Route] = {}
         self._tst_routing = TstRouting()
         self._tst_routes: dict[tuple[str, UnitAddress], _Route] = {}
         """(operator's tst topic, unit it concerns) -> the route of such messages."""
-        self._shared_shapes: dict[tuple[Any, ...], Examined] = {}
-        """Examined sets by topic kind and shape, for every topic (``_examined``)."""
+        self._examined = Shapes(self.validator).examined
+        """What the validator examined on a message, asked once per shape (``shapes.py``)."""
         self._unexamined = 0
         self._last_time: float | None = None
         self._finished: float | None = None
@@ -264,74 +205,10 @@ class Monitor:
             unit = entry.unit
             found = [f if f.unit or not unit else dataclasses.replace(f, unit=unit) for f in found]
             for f in found:
-                self._add(entry, f)
+                entry.add(f)
         return found
 
-    def _examined(self, route: _Route, v: Validation) -> Examined:
-        """``Validator.examined(v)``, asked once per message shape of a topic: the kind, the
-        top-level keys, which of their values are empty, the types of the content fields,
-        and the values of the fields that decided a branch (``Examined.decided_by``, learnt
-        from the answers: a field newly seen deciding clears what was kept). Nested optional
-        parts are taken to be as in the first message of a shape. Without this cache the
-        full lint runs at a fraction of its speed (bench/bench_lint.py: evaluation costs
-        10-100x validation, bench/bench_validate.py)."""
-        m = v.message
-        m_type = m.__class__
-        if v.topic.kind is not route.topic_kind:  # a validator of its own mind: ask
-            return self.validator.examined(v)
-        if m_type is dict:
-            if len(m) > MAX_SHAPE_KEYS:
-                return self.validator.examined(v)
-            # Which values are empty: True when none is (the usual case, one C loop).
-            fields = route.content_fields
-            key: tuple[Any, ...] = (v.kind, tuple(m),
-                                    all(m.values()) or tuple(map(bool, m.values())),
-                                    tuple(map(type, map(m.get, fields))) if fields else ())
-        elif m_type is float or m_type is int or m_type is str or m_type is bool:
-            key = (v.kind, m_type)
-        else:  # not decoded (few rules, no schema), or an array (its items decide)
-            return self.validator.examined(v)
-        decided_by = route.decided_by
-        if decided_by:
-            if m_type is not dict or "" in decided_by:
-                return self.validator.examined(v)  # the message's own value decides
-            values = tuple(map(m.get, decided_by))
-            last = route.last_decided
-            if last is not None and last[0] == key and last[1] == values:
-                return last[2]  # a steady stream (lists and objects compared, not hashed)
-            if _scalars(values):  # values that alternate (response, command): a dict
-                found = route.shapes.get((key, values))
-                if found is not None:
-                    route.last_decided = (key, values, found)
-                    return found
-        else:
-            found = route.shapes.get(key)
-            if found is not None:
-                return found
-        # Units of one fleet send the same shapes: another topic's answer serves (its key
-        # says all that decides, with the topic kind and whether it names a unit).
-        shared_key = (route.topic_kind, v.topic.unit is None, decided_by, key,
-                      tuple(map(m.get, decided_by)) if decided_by else None)
-        try:
-            examined = self._shared_shapes[shared_key]
-        except (KeyError, TypeError):  # not seen, or a list or object among the values
-            examined = self.validator.examined(v)
-            if len(self._shared_shapes) < MAX_SHARED_SHAPES and _scalars(shared_key[4] or ()):
-                self._shared_shapes[shared_key] = examined
-        if not set(examined.decided_by) <= set(decided_by):
-            decided_by = route.decided_by = tuple(sorted({*decided_by, *examined.decided_by}))
-            route.shapes.clear()
-        if decided_by:
-            if m_type is dict:
-                values = tuple(map(m.get, decided_by))
-                route.last_decided = (key, values, examined)
-                if _scalars(values) and len(route.shapes) < MAX_SHAPES:
-                    route.shapes[(key, values)] = examined
-        elif len(route.shapes) < MAX_SHAPES:
-            route.shapes[key] = examined
-        return examined
-
-    def _feed_command(self, route: _Route, entry: _Entry, message: Message, v: Validation,
+    def _feed_command(self, route: _Route, entry: Row, message: Message, v: Validation,
                       examined: Examined) -> list[Violation]:
         """A command: the unit's state learns of it (its conversations), but what is wrong in
         it is the commander's (by ``sender``), never the unit's. Commands are rare: the
@@ -359,10 +236,10 @@ class Monitor:
                 state.examined[rule] = n - gained
         found = [dataclasses.replace(f, unit=commander.unit) for f in found]
         for f in found:
-            self._add(commander, f)
+            commander.add(f)
         return found
 
-    def _commander_entry(self, unit_entry: _Entry, m: Any, payload: Any = None) -> _Entry:
+    def _commander_entry(self, unit_entry: Row, m: Any, payload: Any = None) -> Row:
         """The row of the commander that sent a command: its ``sender``, else 'the commander
         of UNIT' (v0.7 has no sender field in 12.2; implementations add one)."""
         sender = m.get("sender") if isinstance(m, dict) else None
@@ -380,7 +257,7 @@ class Monitor:
                 found = self._commanders.get(name)
             if found is None:
                 label = f"commander {name}"
-                found = self._commanders[name] = _Entry(
+                found = self._commanders[name] = Row(
                     UnitState(UnitAddress(UNATTRIBUTED, "", "", label)), "commander", label)
         return found
 
@@ -449,7 +326,7 @@ class Monitor:
             self._by_topic[topic] = route
         return route
 
-    def _entry_for_topic(self, topic: str) -> _Entry:
+    def _entry_for_topic(self, topic: str) -> Row:
         """The entry of the unit a topic belongs to."""
         address = parse_topic(topic).unit
         if self._only is not None and address not in self._only:
@@ -520,13 +397,13 @@ class Monitor:
                 violation = dataclasses.replace(violation, time=self._last_time)
             if not violation.unit and unit is not None:
                 violation = dataclasses.replace(violation, unit=str(unit))
-            self._add(entry, violation)
+            entry.add(violation)
         if verdict is Verdict.PASS:
             entry.state.examine(rule)
         elif verdict is not None:
             rec = entry.records.get(rule)
             if rec is None:
-                rec = entry.records[rule] = _RuleRecord()
+                rec = entry.records[rule] = RuleRecord()
             if rec.explicit is None or verdict.rank >= rec.explicit.rank:
                 rec.explicit, rec.reason = verdict, reason
         elif violation is None:
@@ -546,12 +423,12 @@ class Monitor:
         for address, entry in sorted(self._entries.items(),
                                      key=lambda kv: (kv[0] is None, str(kv[0] or ""))):
             final = entry.final if entry.final is not None else self._run_finish(entry, now)
-            report = self._unit_report(address, entry, final, now)
+            report = row_report(self.ctx, self.profile, self.kind, address, entry, final, now)
             units[report.unit] = report
         # In a certification the suite itself is the commander: no row of its own.
         if self.kind == "lint":
             for _, entry in sorted(self._commanders.items()):
-                report = self._unit_report(None, entry, Findings(), now)
+                report = row_report(self.ctx, self.profile, self.kind, None, entry, Findings(), now)
                 units[report.unit] = report
         started = meta.pop("started", None)
         if started is None:
@@ -560,8 +437,8 @@ class Monitor:
             kind=self.kind, started=float(started),
             finished=meta.pop("finished", self._finished),
             broker=str(meta.pop("broker", "")), profile=self.profile.name,
-            suite_version=str(meta.pop("suite_version", "") or _suite_version()),
-            schemas_hash=str(meta.pop("schemas_hash", "") or _schemas_hash()),
+            suite_version=str(meta.pop("suite_version", "") or suite_version()),
+            schemas_hash=str(meta.pop("schemas_hash", "") or schemas_hash()),
             units=units, gaps=list(self.ctx.gaps), unexamined=self._unexamined,
             meta={k: str(v) for k, v in meta.items()},
         )
@@ -573,20 +450,14 @@ class Monitor:
             return float(now)
         return self._last_time if self._last_time is not None else _time.time()
 
-    def _new_entry(self, address: UnitAddress | None, force: bool = False) -> _Entry | None:
+    def _new_entry(self, address: UnitAddress | None, force: bool = False) -> Row | None:
         if not force and len(self._entries) >= MAX_UNITS:
             return None
         state_address = address or UnitAddress(UNATTRIBUTED, "", "", "")
-        entry = self._entries[address] = _Entry(UnitState(state_address))
+        entry = self._entries[address] = Row(UnitState(state_address))
         return entry
 
-    def _add(self, entry: _Entry, v: Violation) -> None:
-        rec = entry.records.get(v.rule)
-        if rec is None:
-            rec = entry.records[v.rule] = _RuleRecord()
-        rec.add(v)
-
-    def _run_finish(self, entry: _Entry, now: float) -> Findings:
+    def _run_finish(self, entry: Row, now: float) -> Findings:
         findings = Findings()
         if entry.state.address.prefix == UNATTRIBUTED:
             return findings
@@ -597,119 +468,3 @@ class Monitor:
                 findings.violations.extend(
                     v if v.unit else dataclasses.replace(v, unit=unit) for v in out)
         return findings
-
-    def _unit_report(self, address: UnitAddress | None, entry: _Entry, final: Findings,
-                     now: float) -> UnitReport:
-        from conformance.checks.conversation import dropped
-        from conformance.checks.identity import deaths
-        from conformance.checks.rates import rate_stats
-
-        state = entry.state
-        examined = dict(state.examined)
-        for group, n in entry.groups.items():
-            for rule in group:
-                examined[rule] = examined.get(rule, 0) + n
-        for rule, n in final.examined.items():
-            examined[rule] = examined.get(rule, 0) + n
-        notes = {**state.notes, **final.notes}
-        extra: dict[str, list[Violation]] = {}
-        for v in final.violations:
-            extra.setdefault(v.rule, []).append(v)
-        unit = str(address) if address is not None else (entry.unit or UNATTRIBUTED)
-        if entry.party == "commander":  # the commander's rules, and any other it broke
-            rule_ids = [r for r, rule in CATALOGUE.items() if rule.side is Side.COMMANDER
-                        or r in examined or r in entry.records]
-        elif address is None:  # no unit: only the rules that were examined or broken
-            rule_ids = sorted(set(examined) | set(entry.records))
-        else:
-            rule_ids = list(CATALOGUE)
-        rules = {}
-        counts = {}
-        times: dict[str, tuple[float, float]] = {}
-        died = deaths(self.ctx, state, now) if address is not None else []
-        for rid in rule_ids:
-            rule = CATALOGUE.get(rid)
-            if rule is None:
-                continue
-            rec = entry.records.get(rid)
-            evidence = (rec.evidence if rec else []) + extra.get(rid, [])
-            count = (rec.count if rec else 0) + len(extra.get(rid, ()))
-            explicit, reason = (rec.explicit, rec.reason) if rec else (None, "")
-            if died and evidence and rule.mode is not Mode.PASSIVE:
-                # A dead unit answers nothing: what a scenario found missing while it was
-                # dead is its death's evidence (HB-012), not a fault of its own.
-                kept = [v for v in evidence if not _during(v.time, died)]
-                if len(kept) < len(evidence):
-                    count -= len(evidence) - len(kept)
-                    evidence = kept
-                    if not count and explicit is None:
-                        explicit, reason = Verdict.COULD_NOT_TEST, (
-                            "the unit died (HB-012) before it could answer")
-            if count:
-                counts[rid] = count
-                when = [t for t in (rec.first if rec else None, rec.last if rec else None,
-                                    *(v.time for v in extra.get(rid, ()))) if t is not None]
-                if when:
-                    times[rid] = (min(when), max(when))
-            rules[rid] = judge_rule(
-                rule, severity=self.profile.severity_of(rid), violations=evidence[:MAX_EVIDENCE],
-                count=count, examined=examined.get(rid, 0),
-                explicit=explicit, explicit_reason=reason,
-                default_reason=skip_reason(rule, kind=self.kind, unit=unit,
-                                           levels=state.levels, note=notes.get(rid, ""),
-                                           party=entry.party))
-        facts: dict[str, Any] = {
-            "declared_rates": dict(state.declared_rates),
-            "sensors_listed": list(state.sensors_listed or ()),
-            "sensors_seen": dict(state.sensors_seen),
-            "tasks_available": {k: list(v) for k, v in state.tasks_available.items()},
-            "tasks_executing": dict(state.tasks_executing),
-            "position": list(state.position) if state.position else None,
-            "message_counts": dict(state.counts),
-            "conversations_dropped": dropped(state),
-        }
-        return UnitReport(
-            party=entry.party,
-            unit=unit, agent_type=address.agent_type if address else "",
-            role=address.role if address else "", name=address.name if address else "",
-            agent_uuids=list(state.agent_uuids), levels=list(state.levels or ()),
-            message_count=state.message_count, first_seen=state.first_seen,
-            last_seen=state.last_seen, rules=rules,
-            rates=rate_stats(self.ctx, state) if address is not None else [],
-            examined={k: examined[k] for k in sorted(examined)}, violation_counts=counts,
-            violation_times=times,
-            facts=facts)
-
-
-_SCALAR_TYPES = (str, int, float, bool, type(None))
-
-
-def _scalars(values: tuple[Any, ...]) -> bool:
-    """Whether every value is a JSON scalar (hashable, and cheap to hash when short)."""
-    return all(type(x) in _SCALAR_TYPES for x in values)
-
-
-def _during(t: float | None, windows: list[tuple[float, float]]) -> bool:
-    return t is not None and any(start <= t <= end for start, end in windows)
-
-
-def _suite_version() -> str:
-    try:
-        from importlib.metadata import version
-
-        return version("waraps-conformance")
-    except Exception:  # not installed: the source tree's version
-        from conformance import __version__
-
-        return __version__
-
-
-def _schemas_hash() -> str:
-    try:
-        from conformance.schema import schemas_hash  # type: ignore[attr-defined]
-    except Exception:  # the schema module is not there (yet)
-        return ""
-    try:
-        return str(schemas_hash())
-    except Exception:
-        return ""

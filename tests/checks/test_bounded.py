@@ -6,7 +6,7 @@ import uuid
 
 import orjson
 
-from conformance.checks import Monitor, base, conversation, monitor
+from conformance.checks import Monitor, base, conversation, monitor, rows
 from conformance.message import Message
 from conformance.topics import UnitAddress
 
@@ -43,7 +43,7 @@ def test_hostile_variety_is_capped(stream, monkeypatch):
     assert report.unexamined > 0  # messages of units beyond the cap are counted, not lost
     unit = report.units[str(u)]
     assert unit.violation_counts["TOPIC-002"] == 400
-    assert len(unit.rules["TOPIC-002"].violations) == monitor.MAX_EVIDENCE
+    assert len(unit.rules["TOPIC-002"].violations) == rows.MAX_EVIDENCE
 
 
 def test_gaps_are_capped_and_a_point_gap_excludes_its_interval(stream):

@@ -1,0 +1,199 @@
+"""A row of the report: what was found for one unit, or for one commander (DESIGN: blame),
+and the ``UnitReport`` made of it (verdicts per rule, facts, rates).
+
+The Monitor keeps a ``Row`` per unit and per commander while it feeds; ``row_report`` turns one
+into the report's row at report time (examined sets expanded into per-rule counts there).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from conformance.checks.base import CheckContext, UnitState
+from conformance.profile import Profile
+from conformance.results import UnitReport, judge_rule, skip_reason
+from conformance.rules import CATALOGUE, Mode, Side
+from conformance.topics import UnitAddress
+from conformance.validator import Examined
+from conformance.violation import Verdict, Violation
+
+MAX_EVIDENCE = 20
+"""Violations kept as evidence per rule and unit; the rest are only counted (bounded memory)."""
+UNATTRIBUTED = "(unattributed)"
+"""The report entry for topics that name no unit (``waraps/foo``, ``waraps/unit/air``)."""
+
+
+class RuleRecord:
+    """What was recorded for one rule of one unit: a count and the first few violations."""
+
+    __slots__ = ("count", "evidence", "explicit", "reason", "first", "last")
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.evidence: list[Violation] = []
+        self.explicit: Verdict | None = None
+        self.reason = ""
+        self.first: float | None = None
+        self.last: float | None = None
+        """Times of the first and the latest violation (of all, not only those kept)."""
+
+    def add(self, v: Violation) -> None:
+        self.count += 1
+        if len(self.evidence) < MAX_EVIDENCE:
+            self.evidence.append(v)
+        t = v.time
+        if t is not None:
+            if self.first is None or t < self.first:
+                self.first = t
+            if self.last is None or t > self.last:
+                self.last = t
+
+
+class Findings:
+    """What the finish checks found for one unit: kept apart, so a provisional report (before
+    ``finish``) and a repeated ``finish`` never count twice."""
+
+    __slots__ = ("examined", "notes", "violations")
+
+    def __init__(self) -> None:
+        self.examined: dict[str, int] = {}
+        self.notes: dict[str, str] = {}
+        self.violations: list[Violation] = []
+
+    def examine(self, rule: str, times: int = 1) -> None:
+        self.examined[rule] = self.examined.get(rule, 0) + times
+
+    def note(self, rule: str, why: str) -> None:
+        self.notes[rule] = why
+
+
+class Row:
+    __slots__ = ("state", "records", "groups", "final", "unit", "party")
+
+    def __init__(self, state: UnitState, party: str = "unit", label: str = "") -> None:
+        self.state = state
+        self.party = party
+        """``unit``, or ``commander``: a row of what commanders sent (DESIGN: blame)."""
+        self.unit = label or ("" if state.address.prefix == UNATTRIBUTED else str(state.address))
+        self.records: dict[str, RuleRecord] = {}
+        self.groups: dict[Examined, int] = {}
+        """Rules examined by the validator (shared sets) -> messages (expanded at report
+        time)."""
+        self.final: Findings | None = None
+
+    def add(self, v: Violation) -> None:
+        rec = self.records.get(v.rule)
+        if rec is None:
+            rec = self.records[v.rule] = RuleRecord()
+        rec.add(v)
+
+
+def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddress | None,
+           entry: Row, final: Findings, now: float) -> UnitReport:
+    """The report's row of ``entry`` (the unit at ``address``, or a commander or the
+    unattributed topics when None), with the end-of-run ``final`` findings, at ``now``."""
+    from conformance.checks.conversation import dropped
+    from conformance.checks.identity import deaths
+    from conformance.checks.rates import rate_stats
+
+    state = entry.state
+    examined = dict(state.examined)
+    for group, n in entry.groups.items():
+        for rule in group:
+            examined[rule] = examined.get(rule, 0) + n
+    for rule, n in final.examined.items():
+        examined[rule] = examined.get(rule, 0) + n
+    notes = {**state.notes, **final.notes}
+    extra: dict[str, list[Violation]] = {}
+    for v in final.violations:
+        extra.setdefault(v.rule, []).append(v)
+    unit = str(address) if address is not None else (entry.unit or UNATTRIBUTED)
+    if entry.party == "commander":  # the commander's rules, and any other it broke
+        rule_ids = [r for r, rule in CATALOGUE.items() if rule.side is Side.COMMANDER
+                    or r in examined or r in entry.records]
+    elif address is None:  # no unit: only the rules that were examined or broken
+        rule_ids = sorted(set(examined) | set(entry.records))
+    else:
+        rule_ids = list(CATALOGUE)
+    rules = {}
+    counts = {}
+    times: dict[str, tuple[float, float]] = {}
+    died = deaths(ctx, state, now) if address is not None else []
+    for rid in rule_ids:
+        rule = CATALOGUE.get(rid)
+        if rule is None:
+            continue
+        rec = entry.records.get(rid)
+        evidence = (rec.evidence if rec else []) + extra.get(rid, [])
+        count = (rec.count if rec else 0) + len(extra.get(rid, ()))
+        explicit, reason = (rec.explicit, rec.reason) if rec else (None, "")
+        if died and evidence and rule.mode is not Mode.PASSIVE:
+            # A dead unit answers nothing: what a scenario found missing while it was
+            # dead is its death's evidence (HB-012), not a fault of its own.
+            kept = [v for v in evidence if not _during(v.time, died)]
+            if len(kept) < len(evidence):
+                count -= len(evidence) - len(kept)
+                evidence = kept
+                if not count and explicit is None:
+                    explicit, reason = Verdict.COULD_NOT_TEST, (
+                        "the unit died (HB-012) before it could answer")
+        if count:
+            counts[rid] = count
+            when = [t for t in (rec.first if rec else None, rec.last if rec else None,
+                                *(v.time for v in extra.get(rid, ()))) if t is not None]
+            if when:
+                times[rid] = (min(when), max(when))
+        rules[rid] = judge_rule(
+            rule, severity=profile.severity_of(rid), violations=evidence[:MAX_EVIDENCE],
+            count=count, examined=examined.get(rid, 0),
+            explicit=explicit, explicit_reason=reason,
+            default_reason=skip_reason(rule, kind=kind, unit=unit,
+                                       levels=state.levels, note=notes.get(rid, ""),
+                                       party=entry.party))
+    facts: dict[str, Any] = {
+        "declared_rates": dict(state.declared_rates),
+        "sensors_listed": list(state.sensors_listed or ()),
+        "sensors_seen": dict(state.sensors_seen),
+        "tasks_available": {k: list(v) for k, v in state.tasks_available.items()},
+        "tasks_executing": dict(state.tasks_executing),
+        "position": list(state.position) if state.position else None,
+        "message_counts": dict(state.counts),
+        "conversations_dropped": dropped(state),
+    }
+    return UnitReport(
+        party=entry.party,
+        unit=unit, agent_type=address.agent_type if address else "",
+        role=address.role if address else "", name=address.name if address else "",
+        agent_uuids=list(state.agent_uuids), levels=list(state.levels or ()),
+        message_count=state.message_count, first_seen=state.first_seen,
+        last_seen=state.last_seen, rules=rules,
+        rates=rate_stats(ctx, state) if address is not None else [],
+        examined={k: examined[k] for k in sorted(examined)}, violation_counts=counts,
+        violation_times=times,
+        facts=facts)
+
+
+def _during(t: float | None, windows: list[tuple[float, float]]) -> bool:
+    return t is not None and any(start <= t <= end for start, end in windows)
+
+
+def suite_version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("waraps-conformance")
+    except Exception:  # not installed: the source tree's version
+        from conformance import __version__
+
+        return __version__
+
+
+def schemas_hash() -> str:
+    try:
+        from conformance.schema import schemas_hash  # type: ignore[attr-defined]
+    except Exception:  # the schema module is not there (yet)
+        return ""
+    try:
+        return str(schemas_hash())
+    except Exception:
+        return ""

@@ -1,0 +1,104 @@
+"""Which rules the validator examined on a message, asked once per message shape.
+
+``Validator.examined`` costs an evaluation of the message's schema, 10-100 times validating it
+(bench/bench_validate.py). The Monitor asks here for every message; the answer is kept by
+shape on the message's route (the Monitor's per-topic ``_Route``: ``content_fields``,
+``shapes``, ``decided_by``, ``last_decided``) and, for a fleet whose units send the same
+shapes, shared across topics of a kind.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from conformance.validator import Examined, Validation, Validator
+
+MAX_SHAPES = 64
+"""Message shapes whose examined rules are kept per topic (more are asked for each message)."""
+
+MAX_SHARED_SHAPES = 4096
+"""Message shapes whose examined rules are kept for every topic of their kind."""
+
+MAX_SHAPE_KEYS = 64
+"""Top-level keys of a message beyond which its shape is not worked out (asked each time)."""
+
+
+class Shapes:
+    """The examined sets of one Monitor's messages, by shape."""
+
+    def __init__(self, validator: Validator) -> None:
+        self.validator = validator
+        self.shared: dict[tuple[Any, ...], Examined] = {}
+        """Examined sets by topic kind and shape, for every topic."""
+
+    def examined(self, route: Any, v: Validation) -> Examined:
+        """``Validator.examined(v)``, asked once per message shape of a topic: the kind, the
+        top-level keys, which of their values are empty, the types of the content fields,
+        and the values of the fields that decided a branch (``Examined.decided_by``, learnt
+        from the answers: a field newly seen deciding clears what was kept). Nested optional
+        parts are taken to be as in the first message of a shape. Without this cache the
+        full lint runs at a fraction of its speed (bench/bench_lint.py: evaluation costs
+        10-100x validation, bench/bench_validate.py)."""
+        m = v.message
+        m_type = m.__class__
+        if v.topic.kind is not route.topic_kind:  # a validator of its own mind: ask
+            return self.validator.examined(v)
+        if m_type is dict:
+            if len(m) > MAX_SHAPE_KEYS:
+                return self.validator.examined(v)
+            # Which values are empty: True when none is (the usual case, one C loop).
+            fields = route.content_fields
+            key: tuple[Any, ...] = (v.kind, tuple(m),
+                                    all(m.values()) or tuple(map(bool, m.values())),
+                                    tuple(map(type, map(m.get, fields))) if fields else ())
+        elif m_type is float or m_type is int or m_type is str or m_type is bool:
+            key = (v.kind, m_type)
+        else:  # not decoded (few rules, no schema), or an array (its items decide)
+            return self.validator.examined(v)
+        decided_by = route.decided_by
+        if decided_by:
+            if m_type is not dict or "" in decided_by:
+                return self.validator.examined(v)  # the message's own value decides
+            values = tuple(map(m.get, decided_by))
+            last = route.last_decided
+            if last is not None and last[0] == key and last[1] == values:
+                return last[2]  # a steady stream (lists and objects compared, not hashed)
+            if _scalars(values):  # values that alternate (response, command): a dict
+                found = route.shapes.get((key, values))
+                if found is not None:
+                    route.last_decided = (key, values, found)
+                    return found
+        else:
+            found = route.shapes.get(key)
+            if found is not None:
+                return found
+        # Units of one fleet send the same shapes: another topic's answer serves (its key
+        # says all that decides, with the topic kind and whether it names a unit).
+        shared_key = (route.topic_kind, v.topic.unit is None, decided_by, key,
+                      tuple(map(m.get, decided_by)) if decided_by else None)
+        try:
+            examined = self.shared[shared_key]
+        except (KeyError, TypeError):  # not seen, or a list or object among the values
+            examined = self.validator.examined(v)
+            if len(self.shared) < MAX_SHARED_SHAPES and _scalars(shared_key[4] or ()):
+                self.shared[shared_key] = examined
+        if not set(examined.decided_by) <= set(decided_by):
+            decided_by = route.decided_by = tuple(sorted({*decided_by, *examined.decided_by}))
+            route.shapes.clear()
+        if decided_by:
+            if m_type is dict:
+                values = tuple(map(m.get, decided_by))
+                route.last_decided = (key, values, examined)
+                if _scalars(values) and len(route.shapes) < MAX_SHAPES:
+                    route.shapes[(key, values)] = examined
+        elif len(route.shapes) < MAX_SHAPES:
+            route.shapes[key] = examined
+        return examined
+
+
+_SCALAR_TYPES = (str, int, float, bool, type(None))
+
+
+def _scalars(values: tuple[Any, ...]) -> bool:
+    """Whether every value is a JSON scalar (hashable, and cheap to hash when short)."""
+    return all(type(x) in _SCALAR_TYPES for x in values)
