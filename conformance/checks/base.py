@@ -138,19 +138,22 @@ MAX_TASKS = 256
 
 
 class Arrivals:
-    """The messages of one validation kind of one unit: how many, and when the first and the
-    latest live (not retained) one arrived. Counted on every message in slots (a few attribute
+    """The messages of one validation kind of one unit: how many, when the first and the latest
+    arrived, and when the first and the latest live (not retained) one arrived. Counted on every message in slots (a few attribute
     stores instead of a dozen dict updates); ``UnitState``'s per-kind dicts are made from
     these when read."""
 
-    __slots__ = ("kind", "vkind", "sensor", "order", "n", "first_live", "last_live")
+    __slots__ = ("kind", "vkind", "sensor", "order", "n", "first", "last", "first_live",
+                 "last_live")
 
-    def __init__(self, kind: TopicKind, vkind: str, sensor: str, order: int) -> None:
+    def __init__(self, kind: TopicKind, vkind: str, sensor: str, order: int, t: float) -> None:
         self.kind = kind
         self.vkind = vkind
         self.sensor = sensor
         self.order = order
         self.n = 0
+        self.first = t
+        self.last = t
         self.first_live: float | None = None
         self.last_live: float | None = None
 
@@ -188,9 +191,6 @@ class UnitState:
     """Arrival time of the latest live (not retained) heartbeat."""
     heartbeat_retained: bool = True
     """Whether the latest heartbeat was a retained copy (its publication time is unknown)."""
-    first_seen: float | None = None
-    last_seen: float | None = None
-    message_count: int = 0
     arrivals: dict[str, Arrivals] = field(default_factory=dict, repr=False)
     """Validation kind -> its arrivals: the first MAX_KIND_COUNTS kinds that are not sensors
     and the first MAX_SENSORS sensors; the messages of further kinds are counted by topic
@@ -228,6 +228,22 @@ class UnitState:
         return {a.vkind: a.n for a in kept}
 
     @property
+    def message_count(self) -> int:
+        return sum(a.n for a in (*self.arrivals.values(), *self.arrivals_beyond.values()))
+
+    @property
+    def first_seen(self) -> float | None:
+        """Arrival time of the unit's first message (retained ones included)."""
+        return min((a.first for a in (*self.arrivals.values(), *self.arrivals_beyond.values())),
+                   default=None)
+
+    @property
+    def last_seen(self) -> float | None:
+        """Arrival time of the unit's latest message (retained ones included)."""
+        return max((a.last for a in (*self.arrivals.values(), *self.arrivals_beyond.values())),
+                   default=None)
+
+    @property
     def kinds_seen(self) -> dict[TopicKind, int]:
         """Topic kind -> messages, retained ones included."""
         out: dict[TopicKind, int] = {}
@@ -259,18 +275,18 @@ class UnitState:
                 out[a.kind] = a.last_live
         return out
 
-    def _arrivals_of(self, v: Validation) -> Arrivals:
+    def _arrivals_of(self, v: Validation, t: float) -> Arrivals:
         """The arrivals a message of a validation kind not seen before is counted in."""
         kind = v.topic.kind
         sensor = v.topic.sensor if kind is _SENSOR else ""
         arrivals = self.arrivals
         same = [a for a in arrivals.values() if bool(a.sensor) == bool(sensor)]
         if len(same) < (MAX_SENSORS if sensor else MAX_KIND_COUNTS):
-            a = arrivals[v.kind] = Arrivals(kind, v.kind, sensor, len(arrivals))
+            a = arrivals[v.kind] = Arrivals(kind, v.kind, sensor, len(arrivals), t)
             return a
         beyond = self.arrivals_beyond.get(kind)
         if beyond is None:
-            beyond = self.arrivals_beyond[kind] = Arrivals(kind, "", "", -1)
+            beyond = self.arrivals_beyond[kind] = Arrivals(kind, "", "", -1, t)
         return beyond
 
     # -- updating from one message (after the message checks ran) --------------------------
@@ -279,14 +295,11 @@ class UnitState:
         # On every message: module constants, not TopicKind.X (an Enum class attribute costs
         # ~0.2 us in Python 3.11), and no more dict operations than needed.
         t = msg.time
-        if self.first_seen is None:
-            self.first_seen = t
-        self.last_seen = t
-        self.message_count += 1
         a = self.arrivals.get(v.kind)
         if a is None:
-            a = self._arrivals_of(v)
+            a = self._arrivals_of(v, t)
         a.n += 1
+        a.last = t
         retain = msg.retain
         if not retain:
             a.last_live = t

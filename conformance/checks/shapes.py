@@ -33,7 +33,8 @@ class Shapes:
 
     def examined(self, route: Any, v: Validation) -> Examined:
         """``Validator.examined(v)``, asked once per message shape of a topic: the kind, the
-        top-level keys, which of their values are empty, the types of the content fields,
+        top-level keys, which of their values are empty, the types of the content fields (of a
+        message that broke a rule),
         and the values of the fields that decided a branch (``Examined.decided_by``, learnt
         from the answers: a field newly seen deciding clears what was kept). Nested optional
         parts are taken to be as in the first message of a shape. Without this cache the
@@ -46,11 +47,14 @@ class Shapes:
         if m_type is dict:
             if len(m) > MAX_SHAPE_KEYS:
                 return self.validator.examined(v)
-            # Which values are empty: True when none is (the usual case, one C loop).
+            # Which values are empty: True when none is (the usual case, one C loop). The
+            # content fields' types only where the message broke a rule: in a valid one they
+            # are those its content rules examine (test_examined_coverage.py).
             fields = route.content_fields
             key: tuple[Any, ...] = (v.kind, tuple(m),
                                     all(m.values()) or tuple(map(bool, m.values())),
-                                    tuple(map(type, map(m.get, fields))) if fields else ())
+                                    tuple(map(type, map(m.get, fields)))
+                                    if fields and v.violations else ())
         elif m_type is float or m_type is int or m_type is str or m_type is bool:
             key = (v.kind, m_type)
         else:  # not decoded (few rules, no schema), or an array (its items decide)

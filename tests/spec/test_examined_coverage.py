@@ -158,3 +158,32 @@ def test_every_rule_a_valid_message_can_reach_is_reported_examined() -> None:
     assert valid > 100
     assert not missing, "reachable by a valid message, yet never examined: " + ", ".join(
         f"{r} ({', '.join(nodes.get(r, ['in code']))})" for r in missing)
+
+
+def test_a_valid_message_has_the_types_its_content_rules_examine() -> None:
+    """The examined cache (``checks/shapes.py``) leaves the content fields' types out of the
+    shape of a message with no violation: it relies on this. Every valid message of the
+    corpus and the reference unit, its content field set to a value of another JSON type,
+    either has the type the content rule examines or is no longer valid."""
+    from conformance.content import CONTENT_CHECKS
+
+    other_values: list[Any] = ["text", 1.5, 7, True, None, [1], {"a": 1}]
+    validator = Validator()
+    tried = set()
+    for topic, raw in (*corpus_messages(), *reference_unit_messages()):
+        v = validator.validate(topic, raw, None)
+        check = CONTENT_CHECKS.get(v.topic.kind)
+        if check is None or v.violations or type(v.message) is not dict:
+            continue
+        for rule, field, types in check.examines:
+            if field not in v.message:
+                continue
+            tried.add(rule)
+            for value in other_values:
+                if type(value) in types:
+                    continue
+                changed = orjson.dumps({**v.message, field: value})
+                assert validator.validate(topic, changed, None).violations, (
+                    f"{topic}: {field}={value!r} is valid, but {rule} examines only "
+                    f"{[t.__name__ for t in types]}")
+    assert tried == CONTENT_RULES
