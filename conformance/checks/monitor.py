@@ -146,7 +146,9 @@ class Monitor:
         self._examined = Shapes(self.validator).examined
         """What the validator examined on a message, asked once per shape (``shapes.py``)."""
         self._unexamined = 0
-        self._last_time: float | None = None
+        self._latest = float("-inf")
+        """The latest arrival time fed (-inf before the first message)."""
+        self._validate = self.validator.validate
         self._finished: float | None = None
         self.created = _time.time()
 
@@ -168,29 +170,27 @@ class Monitor:
             self._unexamined += 1
             return []
         t = message.time
-        v = self.validator.validate(topic, message.payload, t)
-        ctx = self.ctx
-        if ctx.started is None:
-            ctx.started = t
-        if self._last_time is None or t > self._last_time:
-            self._last_time = t
-        same_kind = v.kind == route.kind and v.topic.kind is route.topic_kind
+        v = self._validate(topic, message.payload, t)
+        if t > self._latest:
+            self._latest = t
+            if self.ctx.started is None:
+                self.ctx.started = t
         examined = self._examined(route, v)  # counted by set, expanded at report time
-        state = entry.state
         if route.command:
             return self._feed_command(route, entry, message, v, examined)
         groups = entry.groups
         groups[examined] = groups.get(examined, 0) + 1
+        ctx, state = self.ctx, entry.state
         violations = v.violations
         found = list(violations) if violations else None
-        if route.reinterpret and v.topic.kind is route.topic_kind:
-            for fn in route.reinterpret:
-                found = fn(ctx, state, message, v, found or [])
-        if same_kind:
-            checks = route.checks
-        else:  # a command (its kind is in its content), or a validator of its own mind
-            checks = (route.checks_for(v.kind) if v.topic.kind is route.topic_kind
-                      else self._checks_for(v))
+        if v.topic.kind is route.topic_kind:
+            if route.reinterpret:
+                for fn in route.reinterpret:
+                    found = fn(ctx, state, message, v, found or [])
+            # The topic fixes the kind but for a command (its kind is in its content).
+            checks = route.checks if v.kind is route.kind else route.checks_for(v.kind)
+        else:  # a validator of its own mind
+            checks = self._checks_for(v)
         for fn in checks:
             out = fn(ctx, state, message, v)
             if out:
@@ -392,9 +392,9 @@ class Monitor:
         if violation is not None:
             if violation.rule != rule:
                 violation = dataclasses.replace(violation, rule=rule)
-            if violation.time is None and self._last_time is not None:
+            if violation.time is None and self._latest > float("-inf"):
                 # when it was found (no answer came by then): a death before it explains it
-                violation = dataclasses.replace(violation, time=self._last_time)
+                violation = dataclasses.replace(violation, time=self._latest)
             if not violation.unit and unit is not None:
                 violation = dataclasses.replace(violation, unit=str(unit))
             entry.add(violation)
@@ -448,7 +448,7 @@ class Monitor:
     def _now(self, now: float | None) -> float:
         if now is not None:
             return float(now)
-        return self._last_time if self._last_time is not None else _time.time()
+        return self._latest if self._latest > float("-inf") else _time.time()
 
     def _new_entry(self, address: UnitAddress | None, force: bool = False) -> Row | None:
         if not force and len(self._entries) >= MAX_UNITS:
