@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import orjson
+
 from conformance.validator import Examined, Validation, Validator
 
 MAX_SHAPES = 64
@@ -18,6 +20,9 @@ MAX_SHAPES = 64
 
 MAX_SHARED_SHAPES = 4096
 """Message shapes whose examined rules are kept for every topic of their kind."""
+
+MAX_FROZEN_BYTES = 1024
+"""Deciding values that are lists or objects longer than this as JSON are not kept as keys."""
 
 MAX_SHAPE_KEYS = 64
 """Top-level keys of a message beyond which its shape is not worked out (asked each time)."""
@@ -29,7 +34,9 @@ class Shapes:
     def __init__(self, validator: Validator) -> None:
         self.validator = validator
         self.shared: dict[tuple[Any, ...], Examined] = {}
-        """Examined sets by topic kind and shape, for every topic."""
+        """Examined sets by topic kind, shape and deciding values, for every topic."""
+        self.deciders: dict[tuple[Any, ...], tuple[str, ...]] = {}
+        """Topic kind and shape -> the fields learnt to decide a branch for that shape."""
 
     def examined(self, route: Any, v: Validation) -> Examined:
         """``Validator.examined(v)``, asked once per message shape of a topic: the kind, the
@@ -67,8 +74,9 @@ class Shapes:
             last = route.last_decided
             if last is not None and last[0] == key and last[1] == values:
                 return last[2]  # a steady stream (lists and objects compared, not hashed)
-            if _scalars(values):  # values that alternate (response, command): a dict
-                found = route.shapes.get((key, values))
+            frozen = _hashable(values)  # values that alternate (response, command): a dict
+            if frozen is not None:
+                found = route.shapes.get((key, frozen))
                 if found is not None:
                     route.last_decided = (key, values, found)
                     return found
@@ -76,16 +84,25 @@ class Shapes:
             found = route.shapes.get(key)
             if found is not None:
                 return found
-        # Units of one fleet send the same shapes: another topic's answer serves (its key
-        # says all that decides, with the topic kind and whether it names a unit).
-        shared_key = (route.topic_kind, v.topic.unit is None, decided_by, key,
-                      tuple(map(m.get, decided_by)) if decided_by else None)
-        try:
-            examined = self.shared[shared_key]
-        except (KeyError, TypeError):  # not seen, or a list or object among the values
+        # Units of one fleet send the same shapes: another topic's answer serves. Its key
+        # says all that decides: the topic kind, whether it names a unit, the shape, and the
+        # values of the fields learnt (on any topic) to decide a branch for that shape.
+        base = (route.topic_kind, v.topic.unit is None, key)
+        need = self.deciders.get(base, ())
+        if m_type is dict and not set(decided_by) <= set(need):
+            need = tuple(sorted({*need, *decided_by}))
+        frozen = _hashable(tuple(map(m.get, need))) if need and m_type is dict else ()
+        examined = self.shared.get((base, need, frozen)) if frozen is not None else None
+        if examined is None or not set(examined.decided_by) <= set(need):
             examined = self.validator.examined(v)
-            if len(self.shared) < MAX_SHARED_SHAPES and _scalars(shared_key[4] or ()):
-                self.shared[shared_key] = examined
+            if not set(examined.decided_by) <= set(need):
+                need = tuple(sorted({*need, *examined.decided_by}))
+                # The message's own value ("") decides: not kept (asked each time).
+                frozen = (_hashable(tuple(map(m.get, need))) if m_type is dict
+                          and "" not in need else None)
+            if len(self.shared) < MAX_SHARED_SHAPES and frozen is not None:
+                self.deciders[base] = need
+                self.shared[(base, need, frozen)] = examined
         if not set(examined.decided_by) <= set(decided_by):
             decided_by = route.decided_by = tuple(sorted({*decided_by, *examined.decided_by}))
             route.shapes.clear()
@@ -93,8 +110,9 @@ class Shapes:
             if m_type is dict:
                 values = tuple(map(m.get, decided_by))
                 route.last_decided = (key, values, examined)
-                if _scalars(values) and len(route.shapes) < MAX_SHAPES:
-                    route.shapes[(key, values)] = examined
+                frozen = _hashable(values)
+                if frozen is not None and len(route.shapes) < MAX_SHAPES:
+                    route.shapes[(key, frozen)] = examined
         elif len(route.shapes) < MAX_SHAPES:
             route.shapes[key] = examined
         return examined
@@ -103,6 +121,11 @@ class Shapes:
 _SCALAR_TYPES = (str, int, float, bool, type(None))
 
 
-def _scalars(values: tuple[Any, ...]) -> bool:
-    """Whether every value is a JSON scalar (hashable, and cheap to hash when short)."""
-    return all(type(x) in _SCALAR_TYPES for x in values)
+def _hashable(values: tuple[Any, ...]) -> Any:
+    """``values`` as a dict key: themselves when JSON scalars (the usual case), else their
+    canonical JSON text (a start-task's ``task`` object), or None when that is too long to
+    keep (such a message is evaluated each time: exact, only slower)."""
+    if all(type(x) in _SCALAR_TYPES for x in values):
+        return values
+    text = orjson.dumps(values, option=orjson.OPT_SORT_KEYS)
+    return text if len(text) <= MAX_FROZEN_BYTES else None
