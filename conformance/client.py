@@ -99,6 +99,16 @@ class BrokerURL:
         return replace(self, ca_file=ca_file, cert_file=cert_file, key_file=key_file,
                        insecure=insecure)
 
+    def tls_arguments(self) -> list[str]:
+        """The command-line options that give this broker's TLS files and checks, shell-quoted
+        (for a "repeat this run" line; '=' so that a path is never read as a test path)."""
+        import shlex
+
+        out = [f"{option}={shlex.quote(path)}" for option, path in (
+            ("--ca-file", self.ca_file), ("--cert-file", self.cert_file),
+            ("--key-file", self.key_file)) if path]
+        return out + ["--tls-insecure"] if self.insecure else out
+
     @property
     def is_loopback(self) -> bool:
         return self.scheme == "embedded" or self.host.startswith(LOOPBACK)

@@ -88,6 +88,8 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
                   file=out, flush=True)
         end = run_live(linter, scorecard, capture, options)
         meta = {"source": f"live {' '.join(options.topics)}"}
+        if options.broker.tls_arguments():  # the rerun line repeats them (reporting/text.py)
+            meta["tls_options"] = " ".join(options.broker.tls_arguments())
         if capture.dropped:
             meta["unexamined_reason"] = "the linter fell behind the broker; oldest dropped"
         notes, broker, problems, problem_count = [], str(options.broker), [], 0

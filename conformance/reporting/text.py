@@ -32,8 +32,8 @@ def iso_time(t: float | None) -> str:
 
 def rerun_command(report: Any, unit: str, rule_id: str) -> str:
     """How to repeat what found a violation of ``rule_id`` on ``unit``: for a lint report
-    ``waraps-conformance lint --from <recording> --unit <unit>`` (or ``--broker <url>`` when
-    it linted live traffic); for a certification (or no report) ``pytest --unit <unit> -k
+    ``waraps-conformance lint --from <recording> --unit <unit>`` (or ``--broker <url>`` and
+    its TLS options when it linted live traffic); for a certification (or no report) ``pytest --unit <unit> -k
     <rule>``. ``report`` is a ``RunReport``: its kind, broker and meta say which."""
     if getattr(report, "kind", "certification") != "lint":
         return f"pytest --unit {unit} -k {rule_id}"
@@ -41,7 +41,9 @@ def rerun_command(report: Any, unit: str, rule_id: str) -> str:
     source = meta.get("source", "")
     broker = getattr(report, "broker", "")
     if broker and "recording_lines" not in meta:  # live traffic (the URL has no password)
-        return f"waraps-conformance lint --broker {shlex.quote(broker)} --unit {unit}"
+        tls = meta.get("tls_options", "")  # already shell-quoted
+        return (f"waraps-conformance lint --broker {shlex.quote(broker)}"
+                + (f" {tls}" if tls else "") + f" --unit {unit}")
     if not source or source in ("-", "<stdin>") or source.startswith("live "):
         source = "<recording>"
     else:

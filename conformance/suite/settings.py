@@ -97,11 +97,7 @@ class Settings:
         b = self.broker
         # '=' for paths: a path in its own argument could be taken for a test path by pytest.
         parts = ["pytest", "--unit", str(self.unit), "--broker", str(b)]
-        parts += [f"{option}={shlex.quote(path)}" for option, path in (
-            ("--ca-file", b.ca_file), ("--cert-file", b.cert_file), ("--key-file", b.key_file))
-            if path]
-        if b.insecure:
-            parts.append("--tls-insecure")
+        parts += b.tls_arguments()
         parts += [f"--sim-fault={f}" for f in self.sim_faults]
         if self.embedded and self.sim_rate != 1.0:
             parts += ["--sim-rate", f"{self.sim_rate:g}"]

@@ -8,6 +8,7 @@ import xml.etree.ElementTree as ET
 import orjson
 import pytest
 
+from conformance.client import BrokerURL
 from conformance.reporting import files as files_mod
 from conformance.reporting import (
     read_json,
@@ -131,6 +132,13 @@ def test_rerun_line_says_how_to_repeat_a_lint_or_a_certification():
                      meta={"source": "live waraps/#"})
     assert rerun(live) == (f"waraps-conformance lint --broker mqtts://alice@broker.example:8883 "
                            f"--unit {unit}")
+    tls = BrokerURL.parse("mqtts://127.0.0.1:8883").with_tls_files(
+        "certs/my ca.pem", None, None, insecure=True).tls_arguments()
+    assert tls == ["--ca-file='certs/my ca.pem'", "--tls-insecure"]
+    live_tls = RunReport(kind="lint", started=0.0, finished=1.0, broker="mqtts://127.0.0.1:8883",
+                         meta={"source": "live waraps/#", "tls_options": " ".join(tls)})
+    assert rerun(live_tls) == ("waraps-conformance lint --broker mqtts://127.0.0.1:8883 "
+                               f"--ca-file='certs/my ca.pem' --tls-insecure --unit {unit}")
     certification = RunReport(kind="certification", started=0.0, finished=1.0)
     assert rerun(certification) == f"pytest --unit {unit} -k HB-003"
 
