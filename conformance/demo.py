@@ -10,70 +10,11 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Iterable
 from typing import Any
 
 from conformance.topics import UnitAddress
 
 DEFAULT_UNIT = "waraps/unit/air/simulation/dji0"
-
-
-class Reference:
-    """The embedded broker with the bundled reference unit at ``unit`` on it.
-
-    >>> with Reference(UnitAddress.parse(DEFAULT_UNIT)) as ref:
-    ...     ref.url               # 'mqtt://127.0.0.1:PORT'
-    """
-
-    def __init__(self, unit: UnitAddress, *, faults: Iterable[str] = (), rate: float = 1.0,
-                 seed: int | None = None, tst: bool = False,
-                 tst_operator: UnitAddress | None = None) -> None:
-        self.unit = unit
-        self.faults = tuple(faults)
-        self.rate = rate
-        self.seed = seed
-        self.tst = tst
-        """It declares 'tst execution' and runs trees (14), also those sent to
-        ``tst_operator``'s tst/command (14.1)."""
-        self.tst_operator = tst_operator
-        self.broker: Any = None
-        self.sim: Any = None
-
-    def start(self) -> Reference:
-        from conformance.broker import EmbeddedBroker
-        from conformance.sim import SimUnit
-
-        self.broker = EmbeddedBroker().start()
-        try:
-            self.sim = SimUnit(self.unit, self.broker.url, faults=self.faults, rate=self.rate,
-                               seed=self.seed, tst_execution=self.tst,
-                               tst_operator=self.tst_operator).start()
-        except BaseException:
-            self.broker.stop()
-            raise
-        return self
-
-    @property
-    def url(self) -> str:
-        return str(self.broker.url)
-
-    def reboot(self) -> None:
-        """Reboot the reference unit (silent for a moment, then a new agent-uuid)."""
-        self.sim.reboot()
-
-    def stop(self) -> None:
-        try:
-            if self.sim is not None:
-                self.sim.stop()
-        finally:
-            if self.broker is not None:
-                self.broker.stop()
-
-    def __enter__(self) -> Reference:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
 
 
 class _Collector:

@@ -131,7 +131,7 @@ class Certification:
         Raises ``BrokerError`` (broker unreachable or refusing) or ``NotAlive``."""
         self.traffic.waits.deadline = time.monotonic() + self.settings.max_duration
         if self.settings.embedded:
-            from conformance.demo import Reference
+            from conformance.sim.reference import Reference
 
             self.reference = Reference(self.unit, faults=self.settings.sim_faults,
                                        rate=self.settings.sim_rate, seed=self.settings.seed,
