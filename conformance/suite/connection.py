@@ -11,6 +11,7 @@ from __future__ import annotations
 import threading
 import time
 from contextlib import AbstractContextManager
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from conformance.checks import Monitor
@@ -20,28 +21,35 @@ from conformance.scenarios import Traffic
 from conformance.suite.events import Events
 from conformance.suite.probe import NotAlive, Probe, not_alive
 from conformance.suite.settings import Settings
+from conformance.topics import UnitAddress
 
 if TYPE_CHECKING:
     from conformance.sim.reference import Reference
 
 
+@dataclass(eq=False)
 class Connection:
     """The suite's connection for one certification; ``open`` it, then ``publish``."""
 
-    def __init__(self, settings: Settings, monitor: Monitor, traffic: Traffic,
-                 monitor_lock: AbstractContextManager[Any], events: Events) -> None:
-        self.settings = settings
-        self.unit = settings.unit
-        self.monitor = monitor
-        self.traffic = traffic
-        self._lock = monitor_lock
-        self.events = events
-        self.client: MqttClient | None = None
-        self.reference: Reference | None = None
-        """The bundled reference unit and its broker, under --broker embedded."""
-        self.broker_url: BrokerURL = settings.broker
-        self._alive = threading.Event()
-        self._gap_start: float | None = None
+    settings: Settings
+    monitor: Monitor
+    traffic: Traffic
+    monitor_lock: AbstractContextManager[Any]
+    """Held while the Monitor is fed or read (the MQTT network thread feeds it)."""
+    events: Events
+    client: MqttClient | None = field(default=None, init=False)
+    reference: Reference | None = field(default=None, init=False)
+    """The bundled reference unit and its broker, under --broker embedded."""
+    _alive: threading.Event = field(default_factory=threading.Event, init=False)
+    _gap_start: float | None = field(default=None, init=False)
+
+    def __post_init__(self) -> None:
+        self.broker_url: BrokerURL = self.settings.broker
+        """The broker connected to (under --broker embedded: the embedded one's address)."""
+
+    @property
+    def unit(self) -> UnitAddress:
+        return self.settings.unit
 
     def open(self, alive_timeout: float) -> None:
         """Connect, observe ``<unit>/#`` and wait up to ``alive_timeout`` seconds for the
@@ -77,7 +85,7 @@ class Connection:
 
     def _on_message(self, message: Message) -> None:
         """Every message of ``<unit>/#``, on the MQTT network thread: keep it quick."""
-        with self._lock:
+        with self.monitor_lock:
             self.monitor.feed(message)
         self.traffic.add(message)
         if not message.retain and message.topic.endswith("/heartbeat") \
@@ -86,7 +94,7 @@ class Connection:
 
     def _on_connection(self, connected: bool, reason: str) -> None:
         now = time.time()
-        with self._lock:
+        with self.monitor_lock:
             if not connected:
                 self._gap_start = now
                 # Mark the gap at once: rates, silences and uuid changes across it are not

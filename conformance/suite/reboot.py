@@ -7,25 +7,29 @@ from __future__ import annotations
 import subprocess
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import pytest
 
 from conformance.suite.connection import Connection
 from conformance.suite.events import Events
+from conformance.suite.settings import Settings
 
 
+@dataclass(eq=False)
 class Reboot:
     """Reboots the unit; ``requested(t)`` is told the time first (Unix seconds)."""
 
-    def __init__(self, config: pytest.Config, connection: Connection, timeout: float,
-                 requested: Callable[[float], None], events: Events) -> None:
-        self.config = config
-        self.settings = connection.settings
-        self.connection = connection
-        self.timeout = timeout
-        """Seconds --reboot-cmd may take."""
-        self._requested = requested
-        self.events = events
+    config: pytest.Config
+    connection: Connection
+    timeout: float
+    """Seconds --reboot-cmd may take."""
+    requested: Callable[[float], None]
+    events: Events
+
+    @property
+    def settings(self) -> Settings:
+        return self.connection.settings
 
     def how(self) -> str:
         """The way the unit is rebooted, in the words of the option that says so."""
@@ -44,7 +48,7 @@ class Reboot:
         marked as a gap in the observation: a rebooting unit is allowed its silence there
         (REBOOT-001 judges the reboot itself)."""
         now = time.time()
-        self._requested(now)
+        self.requested(now)
         self.events.at(now, f"reboot requested ({self.how()})")
         if self.config.pluginmanager.hook.pytest_waraps_reboot(
                 config=self.config, unit=str(self.settings.unit)):
