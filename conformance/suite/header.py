@@ -12,9 +12,9 @@ from conformance.client import BrokerURL
 from conformance.suite.settings import Settings
 
 
-def repeat_command(settings: Settings, *, observe: int = 0) -> str:
-    """The rerun line: the pytest command that repeats this run; ``observe``: seconds of observation it
-    needs at least (``--observe``)."""
+def repeat_command(settings: Settings, rule: str | None = None, *, observe: int = 0) -> str:
+    """The rerun line: the pytest command that repeats this run (of ``rule`` alone, when
+    given); ``observe``: seconds of observation it needs at least (``--observe``)."""
     s = settings
     parts = ["pytest", "--unit", str(s.unit)]
     parts += ["--broker", str(s.broker)]
@@ -35,11 +35,14 @@ def repeat_command(settings: Settings, *, observe: int = 0) -> str:
     parts += ["--seed", str(s.seed)]
     if observe or s.observe:
         parts += ["--observe", f"{max(observe, int(s.observe))}"]
+    if rule:
+        parts += ["-k", rule]
     return " ".join(parts)
 
 
 def header_lines(settings: Settings, *, broker: BrokerURL, heartbeat: dict[str, Any],
-           levels: list[str], reboot: str | None, reports: Path, rerun: str) -> list[str]:
+                 levels: list[str], reboot: str | None, reports: Path, rerun: str
+                 ) -> list[str]:
     """The lines pytest shows before the tests: ``broker`` connected to, the unit's
     ``heartbeat`` and ``levels``, how it is rebooted (None: it is not), where ``reports``
     go (without suffix), and the ``rerun`` line."""

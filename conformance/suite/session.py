@@ -215,7 +215,8 @@ class Certification:
 
     def rerun_command(self, rule: str | None = None) -> str:
         """The pytest command that repeats this run (of ``rule`` alone, when given)."""
-        return repeat_command(self.settings, observe=self._observe_for(rule) if rule else 0)
+        return repeat_command(self.settings, rule,
+                              observe=self._observe_for(rule) if rule else 0)
 
     def _observe_for(self, rule: str) -> int:
         """Seconds of observation a rerun of ``rule`` needs (0: the passive window will do)."""
