@@ -165,6 +165,8 @@ class _ChunkedPaho(paho.Client):
 # client is used (slower, equally correct).
 _Paho = _ChunkedPaho if all(callable(getattr(paho.Client, n, None)) for n in
                             ("_sock_recv", "_sock_close", "_packet_read")) else paho.Client
+CHUNKED_READS = _Paho is _ChunkedPaho
+"""Whether this paho release lets sockets be read in chunks (``READ_CHUNK``)."""
 
 
 class MqttClient:

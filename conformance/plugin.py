@@ -13,6 +13,8 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
+from conformance.cli.options import BROKER_ENV, CREDENTIALS, TLS_FILES, TLS_INSECURE
+
 if TYPE_CHECKING:
     from conformance.suite.session import Certification
 
@@ -38,18 +40,15 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     help="certify this unit, e.g. waraps/unit/air/simulation/dji0 (switches the "
                          "plugin on; without test paths, runs the packaged conformance suite)")
     group.addoption("--broker", dest="waraps_broker", default=None, metavar="URL",
-                    help="mqtt://HOST:PORT, mqtts://HOST:PORT or embedded (the embedded broker "
-                         "with the bundled reference unit). Default: WARAPS_BROKER, WARAPS_PORT, "
-                         "WARAPS_TLS_CONNECTION. User and password: WARAPS_USERNAME, "
-                         "WARAPS_PASSWORD (never on the command line)")
-    group.addoption("--ca-file", dest="waraps_ca_file", default=None, metavar="PEM",
-                    help="CA certificate to verify an mqtts:// broker")
-    group.addoption("--cert-file", dest="waraps_cert_file", default=None, metavar="PEM",
-                    help="client certificate for an mqtts:// broker")
-    group.addoption("--key-file", dest="waraps_key_file", default=None, metavar="PEM",
-                    help="client key for an mqtts:// broker")
-    group.addoption("--tls-insecure", dest="waraps_tls_insecure", action="store_true",
-                    default=False, help="do not verify the mqtts:// broker's certificate")
+                    help=f"mqtt://HOST:PORT, mqtts://HOST:PORT or embedded (the embedded broker "
+                         f"with the bundled reference unit). Default: {BROKER_ENV}; "
+                         f"{CREDENTIALS}")
+    # The same TLS options as every subcommand that connects (conformance.cli.options).
+    for option, help_ in TLS_FILES:
+        group.addoption(option, dest="waraps_" + option[2:].replace("-", "_"), default=None,
+                        metavar="PEM", help=help_)
+    group.addoption(TLS_INSECURE[0], dest="waraps_tls_insecure", action="store_true",
+                    default=False, help=TLS_INSECURE[1])
     group.addoption("--profile", dest="waraps_profile", default=None, metavar="NAME|FILE",
                     help="what the unit claims and how to test it: a built-in profile "
                          "(default, strict, ...) or a YAML file")

@@ -29,13 +29,11 @@ mosquitto_sub 2.0.11 (measured here, see ``tests/lint/test_recording.py``):
 
 from __future__ import annotations
 
-import argparse
 import base64
 import binascii
 import json
 import re
 import sys
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import datetime
@@ -431,73 +429,3 @@ class RecordingWriter:
 
     def flush(self) -> None:
         self.stream.flush()
-
-
-# --- waraps-conformance record ----------------------------------------------------------------
-
-def build_parser() -> argparse.ArgumentParser:
-    from conformance.lint.capture import add_capture_arguments
-
-    p = argparse.ArgumentParser(
-        prog="waraps-conformance record",
-        description="Record live traffic (read-only: it never publishes) to a JSON Lines file "
-                    "that 'waraps-conformance lint --from FILE' judges later. Connection "
-                    "losses and messages the recorder could not keep up with are recorded too.")
-    add_capture_arguments(p)
-    p.add_argument("-o", "--output", required=True, metavar="FILE",
-                   help="the JSON Lines file to write ('-' for standard output)")
-    return p
-
-
-def main(argv: list[str] | None = None) -> int:
-    from conformance.lint.capture import CaptureOptionsError, LiveCapture, options_from_args
-
-    args = build_parser().parse_args(argv)
-    try:
-        options = options_from_args(args)
-    except CaptureOptionsError as e:
-        print(f"waraps-conformance record: {e}", file=sys.stderr)
-        return 2
-    out = sys.stdout.buffer if args.output == "-" else open(args.output, "wb")
-    writer = RecordingWriter(out)
-    log = sys.stderr
-    capture = LiveCapture(options.broker, options.topics)
-    try:
-        capture.start()
-    except Exception as e:  # BrokerError: the message says what failed and how to fix it
-        print(f"waraps-conformance record: {e}", file=sys.stderr)
-        return 3
-    print(f"recording {', '.join(options.topics)} from {options.broker} to {args.output}"
-          + (f" for {options.duration:g} s" if options.duration else " until Ctrl-C"), file=log)
-    writer.write(Event(time.time(), "start", "subscribed"))
-    deadline = None if not options.duration else time.monotonic() + options.duration
-    try:
-        while deadline is None or time.monotonic() < deadline:
-            left = 0.5 if deadline is None else max(0.0, min(0.5, deadline - time.monotonic()))
-            batch, events = capture.take(timeout=left)
-            for event in events:
-                writer.write(event)
-                if event.kind != "unexamined":
-                    print(f"{time.strftime('%H:%M:%S', time.localtime(event.time))} "
-                          f"{event.kind}{': ' + event.detail if event.detail else ''}", file=log)
-            for message in batch:
-                if options.wants(message.topic):
-                    writer.write(message)
-            if len(batch) < capture.wake_at:  # not a burst: a pipe reader sees it now
-                writer.flush()
-    except KeyboardInterrupt:
-        pass
-    finally:
-        capture.stop()
-        batch, events = capture.take(timeout=0, max_messages=10**9)  # all that is left
-        for item in [*events, *(m for m in batch if options.wants(m.topic))]:
-            writer.write(item)
-        # Lint judges up to here: a unit silent since its last message until now has died.
-        writer.write(Event(time.time(), "end", "stopped"))
-        writer.flush()
-        if out is not sys.stdout.buffer:
-            out.close()
-    print(f"recorded {writer.messages} messages ({writer.bytes} bytes) to {args.output}"
-          + (f"; {capture.dropped} could not be kept up with (recorded as unexamined)"
-             if capture.dropped else ""), file=log)
-    return 0

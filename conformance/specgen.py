@@ -1,7 +1,6 @@
 """The schema generator: task specification files -> JSON Schemas (Draft 2020-12) and task docs.
 
     waraps-conformance schemas generate [--out DIR] [--check]
-    python -m conformance.specgen generate
 
 From ``schemas/tasks/*.yaml`` it writes ``schemas/generated/``: ``geopoint.json`` (the GeoPoint
 shared by all), ``params/<task>.json`` (one per task), ``start-task.json`` (the exec command,
@@ -14,9 +13,7 @@ temporary folder and fails when the committed copy is stale.
 
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -435,34 +432,3 @@ def stale_files(out_dir: Path) -> list[str]:
 
 
 REGENERATE = "waraps-conformance schemas generate"
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="waraps-conformance schemas",
-        description="Generate the JSON Schemas and TASKS.md from schemas/tasks/*.yaml.")
-    sub = parser.add_subparsers(dest="action")
-    gen = sub.add_parser("generate", help="write schemas/generated/ (deterministic; the default)")
-    gen.add_argument("--out", type=Path, default=None,
-                     help="output folder (default: schemas/generated of the source tree)")
-    gen.add_argument("--check", action="store_true",
-                     help="write nothing; exit 1 and list the files that are stale")
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv or argv[0].startswith("-") and argv[0] not in ("-h", "--help"):
-        argv.insert(0, "generate")  # `python -m conformance.specgen` generates
-    args = parser.parse_args(argv)
-    out_dir = args.out or default_out_dir()
-    if args.check:
-        stale = stale_files(out_dir)
-        for rel in stale:
-            print(f"stale: {out_dir / rel}")
-        if stale:
-            print(f"run `{REGENERATE}` and commit schemas/generated/", file=sys.stderr)
-        return 1 if stale else 0
-    written = write(out_dir)
-    print(f"wrote {len(written)} files to {out_dir}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

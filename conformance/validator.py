@@ -32,7 +32,7 @@ import re
 import sys
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from functools import cache, cached_property, lru_cache
+from functools import cache, cached_property, lru_cache, partial
 from typing import Any, NamedTuple
 
 import jsonschema_rs
@@ -80,6 +80,11 @@ class Validation(NamedTuple):
     @property
     def decoded(self) -> bool:
         return self.message is not None
+
+
+_validation = partial(tuple.__new__, Validation)
+"""``Validation(...)`` without the NamedTuple's Python-level ``__new__``: made for every message
+(bench/bench_lint.py)."""
 
 
 class Examined:
@@ -241,9 +246,9 @@ class Validator:
         try:
             message = _decode(raw)
         except Unreadable as e:
-            return Validation(parsed, parsed.kind.value, None, plan.naming + (Violation.of(
+            return _validation((parsed, parsed.kind.value, None, plan.naming + (Violation.of(
                 e.rule, expected=e.expected, observed=e.observed, topic=topic, time=time,
-                payload=raw, detail=e.detail, unit=plan.unit),))
+                payload=raw, detail=e.detail, unit=plan.unit),)))
         kind = plan.kind
         if kind is None:  # a command: its kind and schema follow its 'command'
             kind = self._kind(parsed, message)
@@ -252,7 +257,7 @@ class Validator:
         else:
             path, validator = plan.path, plan.schema
         if path is None or validator is None:  # an optional sensor, an unknown subtopic
-            return Validation(parsed, kind, message, plan.naming)
+            return _validation((parsed, kind, message, plan.naming))
         found: list[Violation] | None
         if type(message) is not dict and _expects_object(path):
             found = [Violation.of(
@@ -269,8 +274,8 @@ class Validator:
                 out = content.run(self, parsed, message, raw, time)
                 if out:
                     found = out if found is None else found + out
-        return Validation(parsed, kind, message,
-                          plan.naming + tuple(found) if found else plan.naming)
+        return _validation((parsed, kind, message,
+                            plan.naming + tuple(found) if found else plan.naming))
 
     def examined(self, v: Validation) -> Examined:
         """The rules examined in validating ``v``: the topic's naming rules and MSG-004 on

@@ -4,15 +4,12 @@ prefix of its own for every test, so tests never see each other's traffic."""
 from __future__ import annotations
 
 import os
-import shutil
-import socket
-import subprocess
-import time
 import uuid
 from collections.abc import Iterator
 
 import pytest
 from hypothesis import HealthCheck, settings
+from shared_mosquitto import shared_mosquitto
 
 from conformance.broker import EmbeddedBroker
 from conformance.topics import UnitAddress
@@ -20,6 +17,7 @@ from conformance.topics import UnitAddress
 pytest_plugins = ["pytester"]
 
 # Hypothesis: a bounded 'ci' profile (2 cores, CI time), a 'dev' one for deeper local runs.
+# Tests take their number of examples from a profile, never from an inline max_examples.
 settings.register_profile("ci", max_examples=60, deadline=None,
                           suppress_health_check=[HealthCheck.too_slow])
 settings.register_profile("dev", max_examples=300, deadline=None)
@@ -29,6 +27,18 @@ MOSQUITTO = ("127.0.0.1", 1883)
 TEST_TIMEOUT = 120  # seconds: a hung broker or unit fails one test instead of the whole run
 
 
+@pytest.hookimpl(trylast=True)  # after hypothesis loaded the profile of --hypothesis-profile
+def pytest_configure(config: pytest.Config) -> None:
+    active = settings.default
+    # A property run once per message kind (a dozen tests) takes a sixth of the active
+    # profile's examples, so the family costs about what a few tests do: 10 under ci.
+    settings.register_profile("share", settings(
+        active, max_examples=max(5, active.max_examples // 6)))
+    # Each example is costly (a strategy drawn from a JSON Schema, a simulated run): 4 under ci.
+    settings.register_profile("expensive", settings(
+        active, max_examples=max(2, active.max_examples // 15)))
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     # pytest-timeout is a test extra; set here, not in the ini, so that `pytest --unit` run from
     # this folder without the extra gets no "unknown config option" warning.
@@ -36,14 +46,6 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         for item in items:
             if item.get_closest_marker("timeout") is None:
                 item.add_marker(pytest.mark.timeout(TEST_TIMEOUT))
-
-
-def _listening(host: str, port: int) -> bool:
-    try:
-        with socket.create_connection((host, port), timeout=0.5):
-            return True
-    except OSError:
-        return False
 
 
 @pytest.fixture(scope="session")
@@ -57,19 +59,18 @@ def embedded_broker() -> Iterator[EmbeddedBroker]:
 
 
 @pytest.fixture(scope="session")
-def mosquitto() -> str:
-    """The local Mosquitto on 127.0.0.1:1883, started if it is not running; its URL."""
-    if not _listening(*MOSQUITTO):
-        exe = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
-        if os.path.exists(exe):
-            subprocess.run([exe, "-d", "-c", "/etc/mosquitto/mosquitto.conf"], check=False)
-            deadline = time.monotonic() + 5
-            while time.monotonic() < deadline and not _listening(*MOSQUITTO):
-                time.sleep(0.05)
-    if not _listening(*MOSQUITTO):
-        pytest.fail("Mosquitto is not listening on 127.0.0.1:1883 and could not be started: "
-                    "run `mosquitto -d -c /etc/mosquitto/mosquitto.conf`")
-    return "mqtt://127.0.0.1:1883"
+def mosquitto() -> Iterator[str]:
+    """The local Mosquitto on 127.0.0.1:1883, its URL. Started if it is not running, and then
+    stopped by the last test process that used it (xdist workers and other runs share it);
+    one that was already running is left alone (``shared_mosquitto``).
+
+    Example: ``MqttClient(BrokerURL.parse(mosquitto)).connect()``
+    """
+    with shared_mosquitto(*MOSQUITTO) as up:
+        if not up:
+            pytest.fail("Mosquitto is not listening on 127.0.0.1:1883 and could not be "
+                        "started: run `mosquitto -d -c /etc/mosquitto/mosquitto.conf`")
+        yield "mqtt://127.0.0.1:1883"
 
 
 @pytest.fixture(params=["embedded", "mosquitto"])

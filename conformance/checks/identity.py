@@ -36,65 +36,43 @@ def _previous_live(unit: UnitState) -> float | None:
 # The heartbeat checks run on every heartbeat: they return a list or None (no generator), and
 # count examinations straight into ``unit.examined`` (what ``unit.examine`` does).
 
-@check("HB-006", on=(HB,))
-def agent_uuid_stays_the_same(ctx: CheckContext, unit: UnitState, msg: Message,
-                              v: Validation) -> list[Violation] | None:
-    """5.1: agent-uuid 'should change when rebooting', and only then: a new agent-uuid must
-    follow a silence of more than two declared periods (a reboot)."""
-    m = v.message  # _uuid(v) and _previous_live(unit), inline: this runs on every heartbeat
-    uuid = m.get("agent-uuid") if isinstance(m, dict) else None
-    if not isinstance(uuid, str):
-        uuid = None
-    prev = unit.agent_uuid
-    last = None if unit.heartbeat_retained else unit.last_heartbeat
+@check("HB-006", "HB-011", on=(HB,))
+def agent_uuid_changes_only_on_reboot(ctx: CheckContext, unit: UnitState, msg: Message,
+                                      v: Validation) -> list[Violation] | None:
+    """5.1: agent-uuid 'should change when rebooting', and only then. Against the previous
+    live heartbeat: a new agent-uuid must follow a silence of more than two declared periods
+    (a reboot, HB-006); an earlier one coming back without such a silence is a second agent
+    under the same name (HB-011)."""
+    uuid, prev, last = _uuid(v), unit.agent_uuid, _previous_live(unit)
     if uuid is None or prev is None or msg.retain or last is None:
         if uuid is not None and prev is None:
             unit.note("HB-006", "only one heartbeat with an agent-uuid seen")
         return None
     examined = unit.examined
     examined["HB-006"] = examined.get("HB-006", 0) + 1
-    if uuid == prev or uuid in unit.agent_uuids:  # a return to an earlier uuid is HB-011's
+    examined["HB-011"] = examined.get("HB-011", 0) + 1
+    if uuid == prev:  # the usual case
         return None
     period = unit.period(HB)
     silence = msg.time - last
-    if period is None or silence > REBOOT_SILENCE_PERIODS * period or ctx.in_gap(last, msg.time):
+    if (period is not None and silence > REBOOT_SILENCE_PERIODS * period) or ctx.in_gap(
+            last, msg.time):
         return None  # a reboot (or the observer was away and cannot tell)
+    if uuid in unit.agent_uuids:
+        return [Violation.of(
+            "HB-011", expected=f"one agent-uuid under {unit.address.name}",
+            observed=f"agent-uuid {uuid} again, {silence:.3f} s after a heartbeat of {prev}",
+            topic=msg.topic, path="$.agent-uuid", time=msg.time, payload=msg.payload,
+            detail="two agents publish under one unit name; give each its own UNIT name (3.1)")]
+    if period is None:
+        return None
     return [Violation.of(
         "HB-006", expected=f"agent-uuid {prev} until a reboot (a silence over "
                            f"{REBOOT_SILENCE_PERIODS:g} declared periods, "
                            f"{REBOOT_SILENCE_PERIODS * period:.2f} s)",
-        observed=f"agent-uuid {uuid} after only {silence:.3f} s", topic=msg.topic, path="$.agent-uuid",
-        time=msg.time, payload=msg.payload,
+        observed=f"agent-uuid {uuid} after only {silence:.3f} s", topic=msg.topic,
+        path="$.agent-uuid", time=msg.time, payload=msg.payload,
         detail="generate the agent-uuid once per process start, not per message")]
-
-
-@check("HB-011", on=(HB,))
-def one_agent_per_name(ctx: CheckContext, unit: UnitState, msg: Message,
-                       v: Validation) -> list[Violation] | None:
-    """Two processes under one name alternate agent-uuids without silence (HB-011)."""
-    m = v.message  # _uuid(v) and _previous_live(unit), inline: this runs on every heartbeat
-    uuid = m.get("agent-uuid") if isinstance(m, dict) else None
-    if not isinstance(uuid, str):
-        uuid = None
-    prev = unit.agent_uuid
-    last = None if unit.heartbeat_retained else unit.last_heartbeat
-    if uuid is None or prev is None or msg.retain or last is None:
-        return None
-    examined = unit.examined
-    examined["HB-011"] = examined.get("HB-011", 0) + 1
-    if uuid == prev or uuid not in unit.agent_uuids:
-        return None
-    period = unit.period(HB)
-    silence = msg.time - last
-    if period is not None and silence > REBOOT_SILENCE_PERIODS * period:
-        return None
-    if ctx.in_gap(last, msg.time):
-        return None
-    return [Violation.of(
-        "HB-011", expected=f"one agent-uuid under {unit.address.name}",
-        observed=f"agent-uuid {uuid} again, {silence:.3f} s after a heartbeat of {prev}",
-        topic=msg.topic, path="$.agent-uuid", time=msg.time, payload=msg.payload,
-        detail="two agents publish under one unit name; give each its own UNIT name (3.1)")]
 
 
 @check("HB-010", on=(HB,))
@@ -102,7 +80,7 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
                               v: Validation) -> list[Violation] | None:
     """5.1: the heartbeat registers availability; a silence over 3 declared periods warns,
     saying whether the unit came back with the same agent-uuid (resumed) or a new one."""
-    last = None if unit.heartbeat_retained else unit.last_heartbeat  # _previous_live, inline
+    last = _previous_live(unit)
     if msg.retain or last is None:
         return None
     period = unit.period(HB)

@@ -282,8 +282,11 @@ class Monitor:
         if m_type is dict:
             if len(m) > MAX_SHAPE_KEYS:
                 return self.validator.examined(v)
-            key: tuple[Any, ...] = (v.kind, tuple(m), tuple(map(bool, m.values())),
-                                    tuple(map(type, map(m.get, route.content_fields))))
+            # Which values are empty: True when none is (the usual case, one C loop).
+            fields = route.content_fields
+            key: tuple[Any, ...] = (v.kind, tuple(m),
+                                    all(m.values()) or tuple(map(bool, m.values())),
+                                    tuple(map(type, map(m.get, fields))) if fields else ())
         elif m_type is float or m_type is int or m_type is str or m_type is bool:
             key = (v.kind, m_type)
         else:  # not decoded (few rules, no schema), or an array (its items decide)
@@ -485,6 +488,10 @@ class Monitor:
     def units(self) -> list[UnitAddress]:
         """Every unit seen (or recorded into), in address order."""
         return sorted(a for a in self._entries if a is not None)
+
+    def topics_cached(self) -> int:
+        """Topics whose route ``feed`` keeps (at most ``MAX_TOPICS``: bounded memory)."""
+        return len(self._by_topic)
 
     def state(self, unit: UnitAddress) -> UnitState:
         """What is known about ``unit`` (an empty state when nothing was seen yet)."""

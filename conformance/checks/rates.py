@@ -108,15 +108,13 @@ class RateTracker:
         self.agents: tuple[object, ...] = ()
         """The agent-uuids seen on this topic, latest last (at most MAX_AGENTS)."""
 
-    def agent(self, agent: object) -> None:
-        """The message about to be added carries ``agent``. One never seen here means the unit
-        restarted (spec 5.1): the silence of its restart is not an interval of its rate (HB-006
+    def _agent(self, agent: object) -> None:
+        """The message being added carries ``agent``, not the latest seen here. One never seen
+        here means the unit restarted (spec 5.1): the silence of its restart is not an interval of its rate (HB-006
         and HB-010 judge it), so that message starts afresh. An agent-uuid seen before is no
         restart: two agents taking turns under one name (HB-011) double the topic's rate, and
         HB-003 says so."""
         agents = self.agents
-        if agents and agents[-1] == agent:
-            return
         if agent in agents:
             self.agents = (*(a for a in agents if a != agent), agent)
             return
@@ -125,7 +123,10 @@ class RateTracker:
             self.excluded += 1
         self.agents = (*agents[-(MAX_AGENTS - 1):], agent)
 
-    def add(self, ctx: CheckContext, t: float) -> None:
+    def add(self, ctx: CheckContext, t: float, agent: object = None) -> None:
+        """A message at ``t``, carrying ``agent`` (its agent-uuid, if any)."""
+        if agent is not None and (not self.agents or self.agents[-1] != agent):
+            self._agent(agent)
         last = self.last
         self.last = t
         if self.start is None:
@@ -261,10 +262,7 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
         tracker = None
     if tracker is None:
         tracker = trackers[kind] = RateTracker(kind, msg.topic, declared)
-    agent = m.get("agent-uuid") if type(m) is dict else None
-    if agent is not None:
-        tracker.agent(agent)
-    tracker.add(ctx, msg.time)
+    tracker.add(ctx, msg.time, m.get("agent-uuid") if type(m) is dict else None)
     return found
 
 

@@ -13,13 +13,12 @@ Shared by ``waraps-conformance lint`` and ``waraps-conformance record``.
 
 from __future__ import annotations
 
-import argparse
 import logging
-import re
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 
 from conformance.client import BrokerURL, Message, MqttClient, publish_nowhere
 from conformance.recording import Event
@@ -43,26 +42,6 @@ class CaptureOptionsError(ValueError):
     """Capture options that cannot be used; the message says which and how to fix them."""
 
 
-_DURATION = re.compile(r"(\d+(?:\.\d*)?|\.\d+)\s*(h|m|s|ms)?", re.I)
-_UNIT_SECONDS = {"h": 3600.0, "m": 60.0, "s": 1.0, "ms": 0.001, None: 1.0}
-
-
-def parse_duration(text: str) -> float:
-    """Seconds from ``10m``, ``90s``, ``1h30m``, ``1.5h`` or a plain number of seconds."""
-    s = text.strip().lower().replace(" ", "")
-    pos, total = 0, 0.0
-    while pos < len(s):
-        m = _DURATION.match(s, pos)
-        if m is None:
-            break
-        total += float(m.group(1)) * _UNIT_SECONDS[m.group(2)]
-        pos = m.end()
-    if not s or pos != len(s) or total <= 0:
-        raise CaptureOptionsError(f"duration {text!r} is not a positive time like 90s, 10m, 1h30m "
-                                  f"or a number of seconds")
-    return total
-
-
 @dataclass(frozen=True)
 class CaptureOptions:
     """What to capture: the broker, the subscriptions, the units of interest, for how long."""
@@ -80,58 +59,41 @@ class CaptureOptions:
         t = topic.lstrip("/")
         return any(t.startswith(u.base + "/") for u in self.units)
 
-
-def add_capture_arguments(parser: argparse.ArgumentParser, *, broker_required: bool = False) -> None:
-    """The options ``lint`` and ``record`` share: broker, TLS files, topics, units, duration."""
-    g = parser.add_argument_group("live traffic")
-    g.add_argument("--broker", metavar="URL",
-                   help="mqtt://host:port or mqtts://host:port (default: WARAPS_BROKER, "
-                        "WARAPS_PORT, WARAPS_TLS_CONNECTION; credentials only from "
-                        "WARAPS_USERNAME / WARAPS_PASSWORD)")
-    g.add_argument("--topic", action="append", metavar="FILTER",
-                   help=f"subscription filter, repeatable (default {DEFAULT_TOPIC!r}, or "
-                        f"UNIT/# for each --unit)")
-    g.add_argument("--unit", action="append", metavar="ADDRESS",
-                   help="only this unit, e.g. waraps/unit/air/real/dji0 (repeatable)")
-    g.add_argument("--duration", metavar="TIME",
-                   help="stop after this long: 90s, 10m, 1h (default: until Ctrl-C)")
-    g.add_argument("--ca-file", metavar="PEM", help="CA certificate for mqtts")
-    g.add_argument("--cert-file", metavar="PEM", help="client certificate for mqtts")
-    g.add_argument("--key-file", metavar="PEM", help="client key for mqtts")
-    g.add_argument("--insecure", action="store_true",
-                   help="mqtts without verifying the broker's certificate (test brokers only)")
+    def with_broker(self, broker: BrokerURL) -> CaptureOptions:
+        """The same capture from ``broker`` (e.g. with its TLS files)."""
+        return replace(self, broker=broker)
 
 
-def options_from_args(args: argparse.Namespace, *, need_broker: bool = True) -> CaptureOptions:
-    """Capture options from parsed arguments; CaptureOptionsError says what to fix."""
-    units: list[UnitAddress] = []
-    for text in args.unit or ():
+def capture_options(broker: str | None, *, topics: Sequence[str] = (),
+                    units: Sequence[str] = (), duration: float | None = None,
+                    need_broker: bool = True) -> CaptureOptions:
+    """Capture options from the broker URL, filters and unit addresses as a person gives
+    them (``broker`` None: from the environment, when ``need_broker``), for ``duration``
+    seconds (None: until stopped); CaptureOptionsError says what to fix."""
+    addresses: list[UnitAddress] = []
+    for text in units:
         try:
-            units.append(UnitAddress.parse(text))
+            addresses.append(UnitAddress.parse(text))
         except TopicError as e:
             raise CaptureOptionsError(f"--unit: {e}") from None
-    topics = tuple(args.topic or ([f"{u.base}/#" for u in units] or [DEFAULT_TOPIC]))
-    for t in topics:
+    filters = tuple(topics or ([f"{u.base}/#" for u in addresses] or [DEFAULT_TOPIC]))
+    for t in filters:
         if not t or "#" in t[:-1] or (t.endswith("#") and len(t) > 1 and t[-2] != "/"):
             raise CaptureOptionsError(f"--topic {t!r} is not an MQTT subscription filter "
                                       f"('#' only as the last level, e.g. waraps/#)")
-    duration = parse_duration(args.duration) if args.duration else None
-    broker = None
+    url = None
     if need_broker:
         try:
-            broker = BrokerURL.parse(args.broker) if args.broker else BrokerURL.from_env()
+            url = BrokerURL.parse(broker) if broker else BrokerURL.from_env()
         except ValueError as e:
             raise CaptureOptionsError(str(e)) from None
-        if broker is None:
+        if url is None:
             raise CaptureOptionsError("no broker: pass --broker mqtt://host:port (or set "
                                       "WARAPS_BROKER), or --from FILE to read a recording")
-        if broker.scheme == "embedded":
+        if url.scheme == "embedded":
             raise CaptureOptionsError("--broker embedded: an embedded broker has no fleet to "
                                       "observe; pass its mqtt:// URL instead")
-        if args.ca_file or args.cert_file or args.key_file or args.insecure:
-            broker = broker.with_tls_files(args.ca_file, args.cert_file, args.key_file,
-                                           args.insecure)
-    return CaptureOptions(broker, topics, tuple(units), duration)
+    return CaptureOptions(url, filters, tuple(addresses), duration)
 
 
 class LiveCapture:

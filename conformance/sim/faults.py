@@ -88,7 +88,8 @@ _ALL = (
     # --- 5.1 heartbeat ----------------------------------------------------------------------
     _f("heartbeat-missing-field", "HB-001",
        "Leaves 'levels' out of its heartbeat (it sends its info messages anyway)."),
-    _f("heartbeat-type-case", "HB-002", "Sends type 'Heartbeat' instead of 'HeartBeat'."),
+    _f("heartbeat-type-case", "HB-002",
+       "Sends type 'Heartbeat' instead of 'HeartBeat'."),
     _f("heartbeat-rate-drift", "HB-003",
        "Declares its heartbeat rate but sends at 1/1.35 of it (sleep(period) plus work)."),
     _f("agent-type-mismatch", "HB-004",
@@ -99,13 +100,15 @@ _ALL = (
     _f("agent-uuid-changes", "HB-006",
        "Makes a new agent-uuid every 5 heartbeat periods without rebooting or going silent "
        "(the uuid is generated in the heartbeat thread, which restarts)."),
-    _f("level-unknown", "HB-007", "Declares an extra level 'telemetry'."),
+    _f("level-unknown", "HB-007",
+       "Declares an extra level 'telemetry'."),
     _f("undeclared-direct-execution", "HB-013",
        "Declares only the 'sensor' level, yet sends direct_execution_info and answers "
        "commands (seen in the field)."),
     _f("level-unbacked", "HB-008",
        "Declares 'tst execution' (copied from 5.1) without sending tst_execution_info."),
-    _f("rate-zero", "HB-009", "Declares heartbeat rate 0 ('unknown')."),
+    _f("rate-zero", "HB-009",
+       "Declares heartbeat rate 0 ('unknown')."),
     _f("dropouts", "HB-010",
        "Falls silent for 4 periods every 25 periods (out of radio range) and comes back with "
        "the same agent-uuid (a silence is not judged as a rate: HB-003 stays clean)."),
@@ -113,7 +116,8 @@ _ALL = (
        "A second, stale process publishes heartbeats under the same name with another "
        "agent-uuid, interleaved with the unit's own."),
     # --- 5.2 sensor_info and 6 sensors -------------------------------------------------------
-    _f("sensor-info-type", "SI-001", "Sends sensor_info with type 'SensorInformation'."),
+    _f("sensor-info-type", "SI-001",
+       "Sends sensor_info with type 'SensorInformation'."),
     _f("sensor-info-rate-drift", "SI-002",
        "Sends sensor_info at 1/1.35 of its declared rate."),
     _f("sensor-listed-unpublished", "SI-003",
@@ -127,14 +131,16 @@ _ALL = (
     _f("heading-signed", "SENS-002",
        "Publishes heading in (-180, 180] (atan2 output); the unit faces west at start, so "
        "heading is negative."),
-    _f("speed-sentinel", "SENS-003", "Publishes speed -1 while it stands still ('no fix')."),
+    _f("speed-sentinel", "SENS-003",
+       "Publishes speed -1 while it stands still ('no fix')."),
     _f("camera-url-object", "SENS-004",
        "Publishes camera_url as an object {\"url\": ...} instead of a string."),
     _f("position-jumps", "SENS-005",
        "Two positions in every five come from a second GNSS receiver with an 800 m datum "
        "offset."),
     # --- 5.3 direct_execution_info -----------------------------------------------------------
-    _f("dei-type", "DEI-001", "Sends direct_execution_info with type 'DirectExecInfo'."),
+    _f("dei-type", "DEI-001",
+       "Sends direct_execution_info with type 'DirectExecInfo'."),
     _f("dei-rate-drift", "DEI-002",
        "Sends direct_execution_info at 1/1.35 of its declared rate."),
     _f("signal-nonstandard", "DEI-003",
@@ -160,7 +166,8 @@ _ALL = (
        "task-uuid, answering no command."),
     _f("fail-reason-empty", "EXEC-007 EXEC-START-004",
        "Refuses commands with fail-reason '' (the reason is only logged)."),
-    _f("pong-missing", "EXEC-PING-001 EXEC-ROBUST-001", "Never answers ping."),
+    _f("pong-missing", "EXEC-PING-001 EXEC-ROBUST-001",
+       "Never answers ping."),
     _f("pong-late", "EXEC-PING-001 EXEC-010",
        "Answers ping 3 periods late (its executor answers pings from a slow loop; past the "
        "short response timeouts of the self-test profiles, not the default 5 s at 1 Hz)."),
@@ -188,10 +195,12 @@ _ALL = (
        "Accepts start-task of any task name, listed or not, and runs it for a second."),
     _f("signal-unanswered", "EXEC-SIG-001 EXEC-SIG-005",
        "Executes signal-task but never answers it."),
-    _f("abort-ignored", "EXEC-SIG-002", "Acknowledges $abort ('ok') and goes on."),
+    _f("abort-ignored", "EXEC-SIG-002",
+       "Acknowledges $abort ('ok') and goes on."),
     _f("pause-ignored", "EXEC-SIG-003",
        "Acknowledges $pause ('ok') but neither pauses nor says 'paused'."),
-    _f("enough-aborts", "EXEC-SIG-004", "Ends a task on $enough with status 'aborted'."),
+    _f("enough-aborts", "EXEC-SIG-004",
+       "Ends a task on $enough with status 'aborted'."),
     _f("signal-unknown-task-ok", "EXEC-SIG-005",
        "Answers 'ok' to a signal for a task-uuid it has never seen."),
     _f("query-forgets-finished", "EXEC-QUERY-001",
@@ -209,7 +218,8 @@ _ALL = (
        "Takes a resent start-task for a new one: answers it 'failed' (task-uuid in use) and "
        "sends a 'failed' feedback for the task, which runs on (seen in the field)."),
     # --- 12.4 feedback ------------------------------------------------------------------------
-    _f("feedback-no-com-uuid", "EXEC-FB-001", "Leaves com-uuid out of feedback messages."),
+    _f("feedback-no-com-uuid", "EXEC-FB-001",
+       "Leaves com-uuid out of feedback messages."),
     _f("feedback-status-typo", "EXEC-FB-002",
        "Sends a 'Starting' feedback (capitalised) before 'running'."),
     _f("feedback-stale-agent-uuid", "EXEC-FB-003",
@@ -218,7 +228,8 @@ _ALL = (
        "Sends a task's final feedback twice."),
     _f("feedback-status-done", "EXEC-FB-002",
        "Ends its tasks with feedback status 'done' where 12.4 says 'finished'."),
-    _f("feedback-no-task-uuid", "EXEC-FB-001", "Leaves task-uuid out of feedback messages."),
+    _f("feedback-no-task-uuid", "EXEC-FB-001",
+       "Leaves task-uuid out of feedback messages."),
     _f("task-uuid-ignored", "EXEC-START-002",
        "Runs every task under a task-uuid it generates, ignoring the one start-task gives "
        "(and answers with its own)."),
@@ -233,12 +244,16 @@ _ALL = (
     _f("reboot-remembers-history", "REBOOT-002",
        "Gets a new agent-uuid on reboot but still knows its earlier tasks (history on disk)."),
     # --- errata readings ----------------------------------------------------------------------
-    _f("sensor-dot-info", "ERR-001", "Sends sensor_info on 'sensor.info' (5.2's spelling)."),
+    _f("sensor-dot-info", "ERR-001",
+       "Sends sensor_info on 'sensor.info' (5.2's spelling)."),
     _f("query-answers-success", "ERR-006",
        "Answers query-status of a finished task 'success' (12.1's word)."),
-    _f("level-underscore", "ERR-008", "Declares the level 'direct_execution'."),
-    _f("geopoint-type-tag", "ERR-010", "Tags its position \"type\": \"GeoPoint\"."),
-    _f("geopoint-untagged", "ERR-010", "Publishes its position without a rostype tag."),
+    _f("level-underscore", "ERR-008",
+       "Declares the level 'direct_execution'."),
+    _f("geopoint-type-tag", "ERR-010",
+       "Tags its position \"type\": \"GeoPoint\"."),
+    _f("geopoint-untagged", "ERR-010",
+       "Publishes its position without a rostype tag."),
     _f("info-no-agent-uuid", "ERR-012",
        "Leaves agent-uuid out of sensor_info and direct_execution_info (5.2/5.3's examples)."),
     _f("signal-response-tst-form", "ERR-013",
@@ -283,7 +298,8 @@ _TST = (
          "Goes on with a seq after a child failed, and reports the seq 'succeeded'."),
     _tst("tst-signal-unknown-node-ok", "TST-011",
          "Answers 'ok' to a signal for a node-uuid it has never seen."),
-    _tst("tst-abort-ignored", "TST-012", "Acknowledges $abort of a TST node ('ok') and goes on."),
+    _tst("tst-abort-ignored", "TST-012",
+         "Acknowledges $abort of a TST node ('ok') and goes on."),
     _tst("tst-info-stale-nodes", "TST-013",
          "Never removes ended nodes from nodes-executing in tst_execution_info."),
     _tst("tst-start-answered-running", "ERR-015",
@@ -292,6 +308,8 @@ _TST = (
          "Sends tst_execution_info with type 'TSTExecutionInfo'.", stimulus=False),
 )
 TST_FAULTS = frozenset(f.name for f in _TST)
+TST_LEVEL_FAULTS = frozenset({"level-unbacked", "tst-info-incomplete", "tst-info-rate-drift"})
+"""Faults that declare 'tst execution' to bend what the unit says about it (HB-008, TEI-*)."""
 _ALL = _ALL + _TST
 
 FAULTS: dict[str, Fault] = {f.name: f for f in _ALL}

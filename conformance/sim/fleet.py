@@ -11,6 +11,7 @@ from __future__ import annotations
 import random
 import re
 from collections.abc import Iterable, Mapping
+from typing import TypeVar
 
 from conformance.client import BrokerURL
 from conformance.sim.faults import check_names
@@ -40,10 +41,15 @@ def _rng(seed: int | None, name: str) -> random.Random:
     return random.Random(f"{seed}:{name}") if seed is not None else random.Random()
 
 
+_Self = TypeVar("_Self", bound="_Running")
+
+
 class _Running:
+    """What a unit and a fleet share: their runtime (one connection, one thread)."""
+
     runtime: Runtime
 
-    def start(self, timeout: float = 10.0) -> _Running:
+    def start(self: _Self, timeout: float = 10.0) -> _Self:
         """Connect and start; returns once every unit has sent its first heartbeat."""
         self.runtime.start(timeout)
         return self
@@ -52,7 +58,7 @@ class _Running:
         """Stop publishing, clear anything retained, disconnect."""
         self.runtime.stop()
 
-    def __enter__(self) -> _Running:
+    def __enter__(self: _Self) -> _Self:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:
@@ -89,24 +95,12 @@ class SimUnit(_Running):
         self.address = _address(address)
         self.runtime = Runtime(broker, client_id=f"waraps-sim-{self.address.name}-"
                                f"{random.getrandbits(32):08x}")
-        self.core = UnitCore(self.address, self.runtime_emit, faults=check_names(list(faults)),
+        self.core = UnitCore(self.address, self.runtime.publish, faults=check_names(list(faults)),
                              rate=rate, rng=_rng(seed, self.address.name), position=position,
                              heading=heading, task_seconds=task_seconds,
                              tst_execution=tst_execution,
                              tst_operator=_address(tst_operator) if tst_operator else None)
         self.runtime.add(self.core)
-
-    def runtime_emit(self, topic: str, payload: bytes, retain: bool) -> None:
-        client = self.runtime.client
-        if client is not None:
-            client.publish(topic, payload, qos=0, retain=retain)
-
-    def start(self, timeout: float = 10.0) -> SimUnit:
-        super().start(timeout)
-        return self
-
-    def __enter__(self) -> SimUnit:
-        return self.start()
 
     def reboot(self, *, wait: bool = False, timeout: float = 30.0) -> None:
         """Reboot: silent for 2.5 periods, history lost, back with a new agent-uuid. With
@@ -160,24 +154,12 @@ class Fleet(_Running):
             row, col = divmod(i, side)
             spot = destination(destination(home, 0.0, row * FLEET_SPACING), 90.0,
                                col * FLEET_SPACING)
-            core = UnitCore(a, self._emit, faults=common | extra.get(i, frozenset()),
+            core = UnitCore(a, self.runtime.publish, faults=common | extra.get(i, frozenset()),
                             rate=rate, rng=_rng(seed, a.name), position=spot,
                             heading=heading, task_seconds=task_seconds, phase=phases[i],
                             tst_execution=tst_execution, tst_operator=operator)
             self.cores.append(core)
             self.runtime.add(core)
-
-    def _emit(self, topic: str, payload: bytes, retain: bool) -> None:
-        client = self.runtime.client
-        if client is not None:
-            client.publish(topic, payload, qos=0, retain=retain)
-
-    def start(self, timeout: float = 10.0) -> Fleet:
-        super().start(timeout)
-        return self
-
-    def __enter__(self) -> Fleet:
-        return self.start()
 
     def __len__(self) -> int:
         return len(self.cores)

@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 from conformance.client import BrokerURL, Message, MqttClient
-from conformance.sim.unit import MAX_COMMAND_BYTES
+from conformance.sim.executor import MAX_COMMAND_BYTES
 
 if TYPE_CHECKING:
     from conformance.sim.unit import UnitCore
@@ -78,6 +78,12 @@ class Runtime:
             if unit.tst.operator:  # it answers there too (14.1; ERR-016)
                 self._bases.add(unit.tst.operator)
         return index
+
+    def publish(self, topic: str, payload: bytes, retain: bool) -> None:
+        """What a unit emits, at QoS 0 while connected (the ``emit`` of each ``UnitCore``)."""
+        client = self.client
+        if client is not None:
+            client.publish(topic, payload, qos=0, retain=retain)
 
     # --- safety -------------------------------------------------------------------------------
     def may_publish(self, topic: str) -> bool:

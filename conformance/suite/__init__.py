@@ -6,7 +6,7 @@
 run's state (``Certification``), with its parts: ``connection.py`` (broker, publish policy,
 first heartbeat; ``probe.py`` says why a unit is not alive), ``observation.py`` (waits in the
 unit's periods: death, the passive window), ``reboot.py``, ``outcome.py`` (the verdict and
-the rules not run), ``header.py`` (the header and the rerun line), ``events.py`` (the
+the rules not run), ``header.py`` (the header), ``events.py`` (the
 summary's events). ``settings.py`` is its options, ``verdict.py`` maps verdicts onto pytest
 outcomes, ``progress.py`` shows the waits.
 """

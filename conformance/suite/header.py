@@ -1,6 +1,6 @@
 """How a certification presents itself: the header of its pytest run (what is certified,
-where, how safely) and the line that repeats it (STYLE 'pytest-randomly': every run
-repeatable), shown in the header, the summary, every failure and the reports."""
+where, how safely, and the line that repeats it: STYLE 'pytest-randomly', every run
+repeatable; the line itself is ``Settings.rerun_command``)."""
 
 from __future__ import annotations
 
@@ -10,34 +10,6 @@ from typing import Any
 from conformance import __version__
 from conformance.client import BrokerURL
 from conformance.suite.settings import Settings
-
-
-def repeat_command(settings: Settings, rule: str | None = None, *, observe: int = 0) -> str:
-    """The rerun line: the pytest command that repeats this run (of ``rule`` alone, when
-    given); ``observe``: seconds of observation it needs at least (``--observe``)."""
-    s = settings
-    parts = ["pytest", "--unit", str(s.unit)]
-    parts += ["--broker", str(s.broker)]
-    parts += [f"--sim-fault={f}" for f in s.sim_faults]
-    if s.embedded and s.sim_rate != 1.0:
-        parts += ["--sim-rate", f"{s.sim_rate:g}"]
-    if s.sim_tst:
-        parts.append("--sim-tst")
-    if s.tst_command_topic:
-        parts += ["--tst-command-topic", s.tst_command_topic]
-    if s.profile.source.startswith("<built-in"):
-        if s.profile.name != "default":
-            parts += ["--profile", s.profile.name]
-    else:  # '=': a path in its own argument could be taken for a test path by pytest
-        parts += [f"--profile={s.profile.source}"]
-    if s.timing_scale != 1.0:
-        parts += ["--timing-scale", f"{s.timing_scale:g}"]
-    parts += ["--seed", str(s.seed)]
-    if observe or s.observe:
-        parts += ["--observe", f"{max(observe, int(s.observe))}"]
-    if rule:
-        parts += ["-k", rule]
-    return " ".join(parts)
 
 
 def header_lines(settings: Settings, *, broker: BrokerURL, heartbeat: dict[str, Any],

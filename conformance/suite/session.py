@@ -8,7 +8,7 @@ and HTML reports and the JUnit properties show.
 
 Its parts: the link to the broker ``connection.py`` (and ``probe.py`` when the unit is not
 there), how long the unit is watched ``observation.py``, rebooting it ``reboot.py``, what the
-report concludes ``outcome.py``, the header and the rerun line ``header.py``.
+report concludes ``outcome.py``, the header ``header.py``.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ from conformance.scenarios.traffic import OutOfTime
 from conformance.suite import outcome
 from conformance.suite.connection import Connection
 from conformance.suite.events import Events
-from conformance.suite.header import header_lines, repeat_command
+from conformance.suite.header import header_lines
 from conformance.suite.observation import Observation
 from conformance.suite.outcome import COMMANDER_RULES, INTERRUPTED, NOT_CERTIFIED
 from conformance.suite.probe import NotAlive
@@ -215,8 +215,7 @@ class Certification:
 
     def rerun_command(self, rule: str | None = None) -> str:
         """The pytest command that repeats this run (of ``rule`` alone, when given)."""
-        return repeat_command(self.settings, rule,
-                              observe=self._observe_for(rule) if rule else 0)
+        return self.settings.rerun_command(rule, self._observe_for(rule) if rule else 0)
 
     def _observe_for(self, rule: str) -> int:
         """Seconds of observation a rerun of ``rule`` needs (0: the passive window will do)."""

@@ -11,11 +11,13 @@ import difflib
 import os
 import re
 import secrets
+import shlex
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
 
+from conformance.cli.options import parse_duration
 from conformance.client import BrokerURL
 from conformance.profile import Profile, ProfileError, builtin_names, load
 from conformance.topics import TopicError, UnitAddress
@@ -38,7 +40,6 @@ INI = {
 }
 MAX_DURATION = 600.0
 """Seconds a certification may last by default (--max-duration): then it stops cleanly."""
-DURATION = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*(s|m|min|h)?\s*$")
 TRUE = ("1", "true", "yes", "on")
 FALSE = ("", "0", "false", "no", "off")
 
@@ -87,6 +88,50 @@ class Settings:
     @property
     def embedded(self) -> bool:
         return self.broker.scheme == "embedded"
+
+    def rerun_command(self, rule: str | None = None, observe: float = 0.0) -> str:
+        """The pytest command that repeats this run (``rule``: only that rule, observing at
+        least ``observe`` seconds): every option that changes what is tested or how, TLS
+        files included. Never a secret: the broker URL carries no password (the password
+        comes only from WARAPS_PASSWORD)."""
+        b = self.broker
+        # '=' for paths: a path in its own argument could be taken for a test path by pytest.
+        parts = ["pytest", "--unit", str(self.unit), "--broker", str(b)]
+        parts += [f"{option}={shlex.quote(path)}" for option, path in (
+            ("--ca-file", b.ca_file), ("--cert-file", b.cert_file), ("--key-file", b.key_file))
+            if path]
+        if b.insecure:
+            parts.append("--tls-insecure")
+        parts += [f"--sim-fault={f}" for f in self.sim_faults]
+        if self.embedded and self.sim_rate != 1.0:
+            parts += ["--sim-rate", f"{self.sim_rate:g}"]
+        if self.sim_tst:
+            parts.append("--sim-tst")
+        if self.tst_command_topic:
+            parts += ["--tst-command-topic", self.tst_command_topic]
+        if self.profile.source.startswith("<built-in"):
+            if self.profile.name != "default":
+                parts += ["--profile", self.profile.name]
+        else:
+            parts += [f"--profile={shlex.quote(self.profile.source)}"]
+        if self.timing_scale != 1.0:
+            parts += ["--timing-scale", f"{self.timing_scale:g}"]
+        if self.reboot_cmd:
+            parts += ["--reboot-cmd", shlex.quote(self.reboot_cmd)]
+        if self.allow_motion:
+            parts.append("--allow-motion")
+        if self.dry_run:
+            parts.append("--dry-run")
+        if self.max_duration != MAX_DURATION:
+            parts += ["--max-duration", f"{self.max_duration:g}"]
+        parts += ["--seed", str(self.seed)]
+        if observe or self.observe:
+            parts += ["--observe", f"{max(int(observe), int(self.observe))}"]
+        if rule:
+            parts += ["-k", rule]
+        else:
+            parts += [f"--rule={r}" for r in self.rules]
+        return " ".join(parts)
 
 
 def _value(config: pytest.Config, dest: str) -> object:
@@ -202,15 +247,15 @@ def _tst_command_topic(value: object, unit: UnitAddress) -> str | None:
 
 def _duration(value: object, default: float = MAX_DURATION,
               option: str = "--max-duration") -> float:
-    """A duration option: seconds, or a number with s, m (min) or h."""
+    """A duration option in seconds, read as every subcommand reads one (``parse_duration``:
+    600, 90s, 10m, 10min, 1h, 1h30m)."""
     if value in (None, ""):
         return default
-    m = DURATION.match(str(value))
-    if m is None or float(m.group(1)) <= 0:
+    try:
+        return parse_duration(str(value))
+    except ValueError:
         raise pytest.UsageError(f"{option} {value!r}: a positive duration is needed, "
-                                f"e.g. 600, 90s, 10m or 1h")
-    unit = {"s": 1, None: 1, "m": 60, "min": 60, "h": 3600}[m.group(2)]
-    return float(m.group(1)) * unit
+                                f"e.g. 600, 90s, 10m or 1h") from None
 
 
 def _rules(values: object) -> tuple[str, ...]:

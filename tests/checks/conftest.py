@@ -9,7 +9,7 @@ import orjson
 import pytest
 
 from conformance.checks import Monitor
-from conformance.client import Message
+from conformance.message import Message
 from conformance.topics import UnitAddress
 
 T0 = 1_700_000_000.0

@@ -7,7 +7,7 @@ import uuid
 import orjson
 
 from conformance.checks import Monitor, base, conversation, monitor
-from conformance.client import Message
+from conformance.message import Message
 from conformance.topics import UnitAddress
 
 T0 = 1_700_000_000.0
@@ -38,7 +38,7 @@ def test_hostile_variety_is_capped(stream, monkeypatch):
     kept = s.private["conversations"]
     assert len(kept.commands) == 32 and len(kept.tasks) == 32
     assert len(m.units()) == 8
-    assert len(m._by_topic) == 50
+    assert m.topics_cached() == 50
     report = m.report()
     assert report.unexamined > 0  # messages of units beyond the cap are counted, not lost
     unit = report.units[str(u)]

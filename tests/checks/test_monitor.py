@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from conformance.checks import Monitor, covered_rules
-from conformance.client import Message
+from conformance.message import Message
 from conformance.profile import Profile
 from conformance.topics import UnitAddress
 from conformance.violation import Verdict, Violation

@@ -15,8 +15,8 @@ from pathlib import Path
 import orjson
 from private_mosquitto import PrivateMosquitto as SharedMosquitto
 
+from conformance.cli.lint import main as lint_main
 from conformance.client import Message, MqttClient
-from conformance.lint import main as lint_main
 from conformance.recording import Event, RecordingWriter
 
 T0 = 1_763_700_000.0  # a fixed start: recordings replay at their recorded times

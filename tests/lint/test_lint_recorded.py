@@ -63,7 +63,7 @@ def test_exactly_the_faulty_unit_fails_and_the_exit_code_says_so(tmp_path: Path,
 
 def test_the_evidence_printed_is_capped_and_says_where_the_rest_is(prefix: str) -> None:
     from conformance.checks import Monitor
-    from conformance.lint import failures
+    from conformance.lint.runner import failures
 
     m = Monitor()
     for name in ("slow0", "slow1", "slow2"):  # each declares 1 Hz and heartbeats at 0.5 Hz

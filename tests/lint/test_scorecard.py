@@ -4,6 +4,7 @@ in the final view. Fed through the real Monitor with synthetic traffic (no broke
 from __future__ import annotations
 
 import io
+import re
 from pathlib import Path
 
 import orjson
@@ -29,6 +30,7 @@ def heartbeat_type_fault(msgs: list[Message]) -> list[Message]:
     return out
 
 
+ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
 DJI0 = "4774daa2-246c-4124-8d92-5e7806c5b385"
 
 
@@ -44,12 +46,11 @@ def test_terminal_view_is_redrawn_in_place(prefix: str, monkeypatch: pytest.Monk
     monkeypatch.setenv("COLUMNS", "160")  # the drawing fits the terminal: make it a known one
     monkeypatch.setenv("LINES", "40")
     out = io.StringIO()
-    card = Scorecard(out, tty=True, title="test")
+    card = Scorecard(out, tty=True, title="test")  # drawn by rich as on a terminal
     linter = linter_with(prefix)
     card.update(linter, elapsed=12.0, connected=True, force=True)
     first = out.getvalue()
-    lines = first.splitlines()
-    assert "\x1b[" not in first
+    lines = ANSI.sub("", first).splitlines()
     assert lines[0].startswith("waraps-conformance lint test | 00:00:12 |") and "connected" in lines[0]
     assert lines[1].split() == ["UNIT", "TYPE", "ROLE", "LEVELS", "MSG/S", "LAST", "SEEN",
                                 "STATUS", "VIOLATIONS", "BY", "RULE"]
@@ -58,10 +59,30 @@ def test_terminal_view_is_redrawn_in_place(prefix: str, monkeypatch: pytest.Monk
     assert "FAIL" in bad and "HB-002x12" in bad and "sensor,exec" in bad
     assert " ok " in good and "HB-002" not in good
     assert lines.index(bad) < lines.index(good)  # worst first
+    assert "\x1b[1;31mFAIL\x1b[0m" in first and "\x1b[32mok\x1b[0m" in first  # in colour
     card.update(linter, elapsed=13.0, connected=False, force=True)
     second = out.getvalue()[len(first):]
-    assert second.startswith(f"\x1b[{len(lines)}F\x1b[J")  # back up over the last drawing
+    # Back up over the last drawing, erasing each of its lines, and draw again.
+    assert second.startswith("\r\x1b[2K" + "\x1b[1A\x1b[2K" * (len(lines) - 1))
     assert "DISCONNECTED, reconnecting" in second
+    card.update(linter, elapsed=13.5, connected=False)
+    assert out.getvalue() == first + second  # at most one drawing a second
+    card.close()
+    assert "\x1b[?25h" in out.getvalue()[len(first + second):]  # the cursor is back
+
+
+def test_terminal_view_draws_control_characters_harmlessly() -> None:
+    """A unit name from a topic may hold escape sequences: the terminal is not told to obey
+    them, and the columns stay where they are."""
+    from rich.console import Console
+
+    from conformance.scorecard import styled
+
+    term = io.StringIO()
+    table = ["UNIT        STATUS", "evil\x1b[2J\x07 FAIL"]
+    Console(file=term, force_terminal=True, width=80).print(styled("h", table, [(1, 10, "FAIL")], []))
+    assert "\x1b[2J" not in term.getvalue() and "\x07" not in term.getvalue()
+    assert "evil\ufffd[2J\ufffd \x1b[1;31mFAIL" in term.getvalue()
 
 
 def test_plain_view_prints_each_first_violation_once_and_summaries(prefix: str) -> None:

@@ -101,8 +101,8 @@ def test_a_recording_of_a_certification_lints_clean_with_every_command_answered(
 
     import orjson
 
+    from conformance.cli.lint import main as lint_main
     from conformance.client import BrokerURL, MqttClient
-    from conformance.lint import main as lint_main
     from conformance.recording import RecordingWriter
 
     recording = tmp_path / "certification.jsonl"

@@ -1,45 +1,87 @@
-"""The rerun line (``conformance.suite.header.repeat_command``): it repeats every option that
-changes what the run judges, and a failure's line selects its rule alone. Run for real (a rule
-failing again) in ``test_plugin_faults.py``; here the line itself, with no broker."""
+"""The "repeat this run" line (header, summary, each failure's rerun): it repeats every option
+that changes what is tested or how, TLS files included, and never a password."""
 
 from __future__ import annotations
 
+import shlex
 from pathlib import Path
 
-from conformance.client import BrokerURL
-from conformance.profile import load
-from conformance.suite.header import repeat_command
-from conformance.suite.settings import Settings
-from conformance.topics import UnitAddress
+import pytest
 
-UNIT = "waraps/unit/air/simulation/dji0"
-FAST = Path(__file__).parent / "profiles" / "fast.yaml"
+from conformance.suite.settings import Settings, read
+
+UNIT = "waraps/unit/air/real/dji0"
 
 
-def settings(broker: str = "mqtt://127.0.0.1:1883", profile: str | Path = "default",
-             **options: object) -> Settings:
-    return Settings(UnitAddress.parse(UNIT), BrokerURL.parse(broker), load(profile), seed=3,
-                    **options)  # type: ignore[arg-type]
+def settings_of(pytester: pytest.Pytester, *args: str) -> Settings:
+    """The settings the plugin reads from this command line (nothing connects)."""
+    return read(pytester.parseconfig("-p", "no:cacheprovider", *args))
 
 
-def test_the_run_is_repeated_with_its_seed() -> None:
-    assert repeat_command(settings()) == \
-        f"pytest --unit {UNIT} --broker mqtt://127.0.0.1:1883 --seed 3"
+@pytest.fixture
+def pem_files(tmp_path: Path) -> dict[str, str]:
+    files = {}
+    for name in ("ca file", "cert", "key"):  # a space: the line must quote paths
+        path = tmp_path / f"{name}.pem"
+        path.write_text("not read: no connection is made\n")
+        files[name] = str(path)
+    return files
 
 
-def test_a_rule_is_rerun_alone_observed_as_long_as_its_evidence_took() -> None:
-    assert repeat_command(settings(), "HB-010", observe=42) == \
-        f"pytest --unit {UNIT} --broker mqtt://127.0.0.1:1883 --seed 3 --observe 42 -k HB-010"
-    # --observe of the run itself is kept when it is longer.
-    assert repeat_command(settings(observe=60.0), "HB-010", observe=42).endswith(
-        "--seed 3 --observe 60 -k HB-010")
+def test_the_rerun_line_repeats_every_option_that_matters(
+        pytester: pytest.Pytester, pem_files: dict[str, str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("WARAPS_USERNAME", "alice")
+    monkeypatch.setenv("WARAPS_PASSWORD", "pw-secret-1")
+    first = settings_of(
+        pytester, "--unit", UNIT, "--broker", "mqtts://broker.example:8883",
+        f"--ca-file={pem_files['ca file']}", f"--cert-file={pem_files['cert']}",
+        f"--key-file={pem_files['key']}", "--tls-insecure", "--profile", "strict",
+        "--timing-scale", "2.5", "--reboot-cmd", "ssh dji0 'sudo reboot'", "--allow-motion",
+        "--dry-run", "--max-duration", "20m", "--seed", "42", "--observe", "30",
+        "--tst-command-topic", "waraps/unit/ground/real/op0", "--rule", "HB-003")
+    line = first.rerun_command()
+    assert "pw-secret-1" not in line
+    for expected in ("--broker mqtts://alice@broker.example:8883", "--tls-insecure",
+                     f"--ca-file={shlex.quote(pem_files['ca file'])}",
+                     f"--cert-file={shlex.quote(pem_files['cert'])}",
+                     f"--key-file={shlex.quote(pem_files['key'])}",
+                     "--reboot-cmd ", "--allow-motion", "--dry-run", "--max-duration 1200",
+                     "--timing-scale 2.5", "--profile strict", "--seed 42", "--observe 30",
+                     "--rule=HB-003"):
+        assert expected in line, (expected, line)
+
+    # Run as a shell would split it, the line gives the same run (and the same line again).
+    words = shlex.split(line)
+    assert words[0] == "pytest"
+    again = settings_of(pytester, *words[1:])
+    assert again.broker == first.broker  # the TLS files and --tls-insecure included
+    assert again.broker.ca_file == pem_files["ca file"] and again.broker.insecure
+    for field in ("unit", "timing_scale", "reboot_cmd", "allow_motion", "dry_run",
+                  "max_duration", "seed", "observe", "rules", "tst_command_topic"):
+        assert getattr(again, field) == getattr(first, field), field
+    assert again.profile.name == "strict"
+    assert again.rerun_command() == line
 
 
-def test_the_reference_unit_and_the_profile_are_repeated() -> None:
-    line = repeat_command(settings("embedded", FAST, sim_faults=("abort-ignored",),
-                                   sim_rate=5.0, sim_tst=True, timing_scale=2.0),
-                          "EXEC-SIG-002")
-    assert line == (f"pytest --unit {UNIT} --broker embedded --sim-fault=abort-ignored "
-                    f"--sim-rate 5 --sim-tst --profile={FAST} --timing-scale 2 --seed 3 "
-                    "-k EXEC-SIG-002")
-    assert "--profile strict" in repeat_command(settings(profile="strict"))
+def test_a_rule_rerun_names_the_rule_and_keeps_the_tls_options(
+        pytester: pytest.Pytester, pem_files: dict[str, str]) -> None:
+    s = settings_of(pytester, "--unit", UNIT, "--broker", "mqtts://127.0.0.1:8883",
+                    f"--ca-file={pem_files['ca file']}", "--seed", "7")
+    line = s.rerun_command("HB-003", observe=12)
+    assert line.endswith("--seed 7 --observe 12 -k HB-003")
+    assert f"--ca-file={shlex.quote(pem_files['ca file'])}" in line
+    assert "--tls-insecure" not in line and "--cert-file" not in line
+
+
+def test_defaults_stay_off_the_line(pytester: pytest.Pytester) -> None:
+    line = settings_of(pytester, "--unit", UNIT, "--broker", "embedded", "--seed", "3",
+                       ).rerun_command()
+    assert line == f"pytest --unit {UNIT} --broker embedded --seed 3"
+
+
+def test_durations_read_as_the_subcommands_read_them(pytester: pytest.Pytester) -> None:
+    s = settings_of(pytester, "--unit", UNIT, "--broker", "embedded", "--seed", "3",
+                    "--max-duration", "1h30m", "--observe", "10min")
+    assert (s.max_duration, s.observe) == (5400.0, 600.0)
+    assert "--max-duration 5400 --seed 3 --observe 600" in s.rerun_command()

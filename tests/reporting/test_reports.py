@@ -64,7 +64,7 @@ def test_junit_has_a_suite_per_unit_and_a_case_per_rule(run_report: RunReport, t
 def test_html_escapes_hostile_payloads(run_report: RunReport):
     page = render_html(run_report)
     assert "<script" not in page and "<img" not in page and "\x00" not in page
-    assert "&lt;script&gt;alert(&quot;x&quot;)&lt;/script&gt;" in page
+    assert "&lt;script&gt;alert(&#34;x&#34;)&lt;/script&gt;" in page
     assert "\\x00" in page and "\\x1b" in page  # control characters made visible
     assert "&amp;amp;" in page  # an entity in the payload is shown, not interpreted
     assert "http://" not in page.replace('xmlns="http://www.w3.org/2000/svg"', "")
@@ -149,14 +149,14 @@ def test_summary_names_failing_rules(run_report: RunReport):
 
 
 def test_rate_plot_clips_a_burst_and_says_so():
-    from conformance.reporting.htmlreport import _rate_plot
+    from conformance.reporting.htmlreport import rate_plot
     from conformance.results import RateStat
 
     stat = RateStat(unit="u", kind="heartbeat", topic="t", declared_hz=1.0, measured_hz=500.0,
                     intervals=3, mean_interval=0.002, min_interval=0.001, max_interval=1.0,
                     verdict=Verdict.FAIL, series=[(0.0, 1.0), (1.0, 1000.0), (2.0, 1.0)],
                     rule="HB-003", start=0.0, end=2.0, tolerance=0.2)
-    svg = _rate_plot(stat, 0)
+    svg = rate_plot(stat, 0)
     assert "clipped at 4 Hz" in svg and "declared 1.00 Hz" in svg
 
 

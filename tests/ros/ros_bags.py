@@ -232,7 +232,7 @@ class LintRun:
 
 def lint_bag(bag: Path, reports: Path, *args: str) -> LintRun:
     """``waraps-conformance lint --from BAG ARGS --plain`` in-process, JSON report only."""
-    from conformance.lint import main
+    from conformance.cli.lint import main
 
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stderr(err):

@@ -270,7 +270,7 @@ def _lint_the_recording(messages, fleet: Fleet, plan: dict[int, tuple[str, ...]]
     field is exactly ``LINT_EXPECTED``, and nothing on the clean unit."""
     import io
 
-    from conformance.lint import main as lint_main
+    from conformance.cli.lint import main as lint_main
     from conformance.recording import RecordingWriter
 
     recording = tmp_path / "workout.jsonl"

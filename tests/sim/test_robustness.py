@@ -8,8 +8,7 @@ import uuid
 import pytest
 
 from conformance.client import Message
-from conformance.sim import SimUnit
-from conformance.sim import unit as unit_module
+from conformance.sim import SimUnit, memory
 from conformance.sim.runtime import INBOX_BYTES, Runtime
 from conformance.topics import UnitAddress
 
@@ -85,7 +84,7 @@ def test_hostile_commands_are_refused_and_the_unit_lives_on(
 
 def test_memory_stays_bounded_under_a_flood(mosquitto: str, observe, unit_address: UnitAddress,
                                             monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(unit_module, "MAX_HISTORY", 100)
+    monkeypatch.setattr(memory, "MAX_HISTORY", 100)
     obs = observe(mosquitto, f"{unit_address.base}/exec/response",
                   (unit_address.topic("exec/command"),))
     with SimUnit(unit_address, mosquitto, rate=5.0) as unit:

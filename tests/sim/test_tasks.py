@@ -26,7 +26,8 @@ def test_the_unit_offers_exactly_the_tasks_of_section_9() -> None:
 
 
 @pytest.mark.parametrize("name", NAMES)
-@settings(max_examples=4, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(settings.get_profile("expensive"), deadline=None,
+          suppress_health_check=list(HealthCheck))
 @given(data=st.data())
 def test_what_the_schema_accepts_the_unit_accepts(name: str, data: st.DataObject) -> None:
     params = data.draw(from_schema(schema.params_schema(name)))

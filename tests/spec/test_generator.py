@@ -11,6 +11,7 @@ import jsonschema
 import pytest
 
 from conformance import schema, specgen
+from conformance.cli import schemas as schemas_cli
 
 SECTION_9 = ["image-object-detection", "look-at-bearing", "look-at-position",
              "look-at-positions", "move-path", "move-to", "observe-position", "search-area",
@@ -96,16 +97,16 @@ def test_committed_generated_files_are_fresh(tmp_path: Path) -> None:
 
 def test_check_mode_reports_a_stale_copy(tmp_path: Path) -> None:
     specgen.write(tmp_path)
-    assert specgen.main(["generate", "--out", str(tmp_path), "--check"]) == 0
+    assert schemas_cli.main(["generate", "--out", str(tmp_path), "--check"]) == 0
     (tmp_path / "geopoint.json").write_text("{}\n")
     (tmp_path / "extra.json").write_text("{}\n")
     assert specgen.stale_files(tmp_path) == ["extra.json", "geopoint.json"]
-    assert specgen.main(["generate", "--out", str(tmp_path), "--check"]) == 1
+    assert schemas_cli.main(["generate", "--out", str(tmp_path), "--check"]) == 1
 
 
 def test_module_entry_point_generates(tmp_path: Path) -> None:
-    out = subprocess.run([sys.executable, "-m", "conformance.specgen", "--out", str(tmp_path)],
-                         capture_output=True, text=True, timeout=60)
+    out = subprocess.run([sys.executable, "-m", "conformance.cli", "schemas", "--out",
+                          str(tmp_path)], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     assert (tmp_path / "start-tst.json").is_file() and (tmp_path / "TASKS.md").is_file()
 

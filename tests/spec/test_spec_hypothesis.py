@@ -3,7 +3,8 @@ a schema validate; each mutation of one (drop a required key, wrong type, value 
 enum, extra nesting) is rejected with the rule that covers the field.
 
 Runs under the ``ci`` hypothesis profile (tests/conftest.py); ``HYPOTHESIS_PROFILE=dev``
-explores deeper. Each family gets a share of the profile's examples so the area stays fast.
+explores deeper. Each family gets a share of the profile's examples (the ``share`` profile) so
+the area stays fast.
 """
 
 from __future__ import annotations
@@ -22,8 +23,9 @@ from conformance import schema
 from conformance.validator import Validator
 
 UNIT = "waraps/unit/air/simulation/dji0"
-SHARE = max(5, settings.default.max_examples // 6)  # per test: 10 under ci, 50 under dev
-FAST = settings(max_examples=SHARE, deadline=None, database=None,
+# Each family runs once per message kind: the 'share' profile (tests/conftest.py) gives each
+# test a share of the active profile's examples.
+FAST = settings(settings.get_profile("share"), database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much,
                                        HealthCheck.data_too_large])
 

@@ -98,7 +98,7 @@ def test_cli_prints_kind_and_violations_and_exit_code(tmp_path) -> None:  # type
 @pytest.mark.parametrize("topic", ["dji1/heartbeat", "waraps/air/simulation/dji0/heartbeat"])
 def test_cli_refuses_a_topic_it_cannot_place_and_lists_the_forms(
         topic: str, tmp_path, capsys: pytest.CaptureFixture[str]) -> None:  # type: ignore[no-untyped-def]
-    from conformance.validator_cli import main
+    from conformance.cli.validate import main
 
     payload = tmp_path / "hb.json"
     payload.write_text('{"rate": 1}')

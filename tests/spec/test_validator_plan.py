@@ -35,8 +35,7 @@ def _same(topic: str, payload: bytes, t: float) -> None:
         assert Validator().validate(topic, text, t) == fresh, (topic, payload)
 
 
-@settings(max_examples=60, deadline=None, database=None,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@settings(database=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 @given(kind=st.sampled_from(sorted(TOPIC_OF)), data=st.data(), late=st.sampled_from([0, 45, 4e9]))
 def test_schema_messages_and_their_variants(kind: str, data: st.DataObject, late: float) -> None:
     message = data.draw(message_strategy(kind))
@@ -46,7 +45,7 @@ def test_schema_messages_and_their_variants(kind: str, data: st.DataObject, late
     _same(f"{UNIT}/{TOPIC_OF[kind]}", orjson.dumps(message), T0 + late)
 
 
-@settings(max_examples=60, deadline=None, database=None)
+@settings(database=None)
 @given(sub=st.sampled_from(SUBTOPICS), value=JSON, stamp=st.booleans())
 def test_any_json_on_any_topic(sub: str, value: object, stamp: bool) -> None:
     if stamp and isinstance(value, dict):
@@ -55,7 +54,7 @@ def test_any_json_on_any_topic(sub: str, value: object, stamp: bool) -> None:
     _same(f"/Waraps/unit/air/Simulation/dji 0/{sub}", orjson.dumps(value), T0)
 
 
-@settings(max_examples=40, deadline=None, database=None)
+@settings(database=None)
 @given(raw=st.binary(max_size=40) | st.just(b"[" * 70 + b"]" * 70) | st.just(b'{"a": NaN}'))
 def test_payloads_that_are_not_well_formed(raw: bytes) -> None:
     for sub in ("heartbeat", "exec/command", "sensor/speed"):

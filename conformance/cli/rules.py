@@ -3,19 +3,17 @@ title)."""
 
 from __future__ import annotations
 
-import argparse
 import json
 
 from conformance import profile as profiles
+from conformance.cli import options as opts
 from conformance.rules import CATALOGUE
 
 
 def main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="waraps-conformance rules",
-                                     description="Print the rule catalogue.")
+    parser = opts.parser("rules", "Print the rule catalogue.")
     parser.add_argument("--format", choices=("text", "json"), default="text")
-    parser.add_argument("--profile", default="default",
-                        help="severities as this profile sets them (e.g. strict)")
+    opts.add_profile_option(parser)  # the severities as this profile sets them (e.g. strict)
     parser.add_argument("--errata", action="store_true", help="only the spec's errata, with "
                         "the decision taken on each")
     args = parser.parse_args(argv)

@@ -1,7 +1,9 @@
 """The console script ``waraps-conformance``: one subcommand per product part.
 
-Each subcommand lives in the module that owns it and exposes ``main(argv) -> int``; this module
-only dispatches, so ``waraps-conformance --help`` stays fast (no amqtt, paho or schema import).
+Each subcommand is a thin module of this package, ``conformance.cli.<name>``, exposing
+``main(argv) -> int``: it parses its arguments (the shared option groups are in
+``conformance.cli.options``) and calls the part that does the work. This module only
+dispatches, so ``waraps-conformance --help`` stays fast (no amqtt, paho or schema import).
 """
 
 from __future__ import annotations
@@ -9,23 +11,23 @@ from __future__ import annotations
 import importlib
 import sys
 
-# name -> (module exposing main(argv), one-line help)
-COMMANDS: dict[str, tuple[str, str]] = {
-    "demo": ("conformance.demo", "certify the bundled reference unit on the embedded broker"),
-    "lint": ("conformance.lint", "lint live or recorded traffic of a whole fleet (never publishes)"),
-    "record": ("conformance.recording", "record live traffic to a JSON Lines file"),
-    "sim": ("conformance.sim.cli", "run the reference unit (or a fleet of them), with faults"),
-    "broker": ("conformance.broker_cli", "run the embedded amqtt broker on loopback"),
-    "rules": ("conformance.rules_cli", "print the rule catalogue"),
-    "schemas": ("conformance.specgen", "generate the JSON Schemas and task docs (schemas generate)"),
-    "validate": ("conformance.validator_cli", "validate one message: TOPIC [PAYLOAD-FILE|-]"),
+# name -> one-line help; the command is the module conformance.cli.<name>
+COMMANDS: dict[str, str] = {
+    "demo": "certify the bundled reference unit on the embedded broker",
+    "lint": "lint live or recorded traffic of a whole fleet (never publishes)",
+    "record": "record live traffic to a JSON Lines file",
+    "sim": "run the reference unit (or a fleet of them), with faults",
+    "broker": "run the embedded amqtt broker on loopback",
+    "rules": "print the rule catalogue",
+    "schemas": "generate the JSON Schemas and task docs (schemas generate)",
+    "validate": "validate one message: TOPIC [PAYLOAD-FILE|-]",
 }
 
 
 def usage() -> str:
     width = max(map(len, COMMANDS))
     lines = ["usage: waraps-conformance COMMAND [options]", "", "commands:"]
-    lines += [f"  {name:<{width}}  {help_}" for name, (_, help_) in COMMANDS.items()]
+    lines += [f"  {name:<{width}}  {help_}" for name, help_ in COMMANDS.items()]
     lines += ["", "Certify one unit with pytest: pytest --unit waraps/unit/air/simulation/dji0 "
               "--broker mqtt://127.0.0.1:1883",
               "Run 'waraps-conformance COMMAND --help' for a command's options."]
@@ -50,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
         hint = f" Did you mean {close[0]!r}?" if close else ""
         print(f"waraps-conformance: unknown command {name!r}.{hint}\n\n{usage()}", file=sys.stderr)
         return 2
-    module = importlib.import_module(COMMANDS[name][0])
+    module = importlib.import_module(f"{__name__}.{name}")
     try:
         return int(module.main(rest) or 0)
     except KeyboardInterrupt:
@@ -59,7 +61,3 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # `... | head`: the reader left; not an error of ours
         sys.stderr.close()
         return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

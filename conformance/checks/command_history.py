@@ -1,0 +1,212 @@
+"""The history of commands, as the observer keeps it: what exec (spec 12) and TST (spec 14)
+conversations have in common.
+
+12.1: 'If a response is not arriving re-send the command with the same com-uuid. The receiver
+of commands has to keep track of the history of commands' (and a new agent-uuid says it lost
+it). The observer keeps the same history to judge the answers: commands known by com-uuid,
+answers matched by response-to, resends, answers overdue, the unit's lives. TST is the same
+pattern one level up (DESIGN): ``conversation`` and ``tst_conversation`` build on this module.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from collections import OrderedDict
+from collections.abc import Callable
+from copy import deepcopy
+from typing import Any
+
+from conformance.checks.base import BoundedDict, CheckContext, UnitState
+from conformance.message import Message
+from conformance.violation import Violation
+
+PENDING_KEPT = 256
+"""Commands awaiting an answer per unit; beyond it the oldest is dropped (and counted)."""
+UNANSWERED_KEPT = 64
+LIVES_KEPT = 8
+VALUES_KEPT = 4
+
+Judge = Callable[[CheckContext, UnitState, Any, float], list[Violation]]
+"""``judge(ctx, unit, c, now)``: violations in what is still open in conversations ``c``."""
+FinishCheck = Callable[[CheckContext, UnitState, float, Any], list[Violation]]
+
+
+class SentCommand:
+    """One command sent to a unit, known by its com-uuid, and what came back."""
+
+    __slots__ = ("com_uuid", "name", "time", "last_sent", "sends", "answers", "values",
+                 "digest", "excerpt", "life", "judged")
+
+    def __init__(self, com_uuid: str, name: str, t: float, digest: bytes, excerpt: bytes,
+                 life: str | None) -> None:
+        self.com_uuid = com_uuid
+        self.name = name
+        self.time = self.last_sent = t
+        self.sends = 1
+        self.answers = 0
+        self.values: list[tuple[str | None, str | None]] = []
+        """(response, the task-uuid or root-uuid it named) of each answer, at most 4."""
+        self.digest = digest
+        """Of the content: a resend is the same content under the same com-uuid (12.1)."""
+        self.excerpt = excerpt
+        self.life = life
+        """The unit's agent-uuid when the command was sent."""
+        self.judged = False
+        """Not judged any further: its com-uuid was reused for another command (EXEC-008)."""
+
+
+class CommandHistory:
+    """What one unit was told and how it answered (bounded); ``life`` is its agent-uuid."""
+
+    def __init__(self, commands_kept: int) -> None:
+        self.commands: BoundedDict = BoundedDict(commands_kept)
+        self.pending: OrderedDict[str, Any] = OrderedDict()
+        """Commands (and resends) awaiting an answer, oldest first."""
+        self.unanswered: list[Any] = []
+        """Commands that got no answer in time, judged when the unit next answers (or not)."""
+        self.answered_any = False
+        self.life: str | None = None
+        self.lives: list[str] = []
+        self.first_command: float | None = None
+        self.dropped = 0
+        """Open expectations dropped for bounded memory (said in the report)."""
+
+    def await_answer(self, cmd: SentCommand) -> None:
+        self.pending.pop(cmd.com_uuid, None)
+        self.pending[cmd.com_uuid] = cmd
+        if len(self.pending) > PENDING_KEPT:
+            self.pending.popitem(last=False)
+            self.dropped += 1
+
+    def resent(self, cmd: SentCommand, t: float) -> None:
+        """12.1: a resend (same com-uuid, same content) is answered again, not executed again."""
+        cmd.sends += 1
+        cmd.last_sent = t
+        self.commands[cmd.com_uuid] = cmd
+        self.await_answer(cmd)
+
+    def heard(self, cmd: SentCommand, value: str | None, named: str | None) -> None:
+        """An answer to ``cmd``: once answered as often as sent, it awaits nothing more."""
+        cmd.answers += 1
+        if len(cmd.values) < VALUES_KEPT:
+            cmd.values.append((value, named))
+        if cmd.answers >= cmd.sends:
+            self.pending.pop(cmd.com_uuid, None)
+        if cmd in self.unanswered:
+            self.unanswered.remove(cmd)
+
+    def overdue(self, now: float, timeout: float, reboot: bool) -> list[Any]:
+        """Take the commands whose answer deadline has passed (at a reboot: all) off
+        ``pending``. Those never answered join ``unanswered``, to be judged when the unit next
+        answers or at the end; those answered fewer times than sent (a resend left unanswered)
+        are returned."""
+        resent: list[Any] = []
+        while self.pending:
+            cmd = next(iter(self.pending.values()))
+            if cmd.last_sent + timeout >= now and not reboot:
+                break
+            self.pending.popitem(last=False)
+            if cmd.judged:
+                continue
+            if cmd.answers == 0:
+                self.unanswered.append(cmd)
+                if len(self.unanswered) > UNANSWERED_KEPT:
+                    self.unanswered.pop(0)
+                    self.dropped += 1
+            elif cmd.answers < cmd.sends:
+                resent.append(cmd)
+        return resent
+
+    def unanswered_before(self, t: float) -> list[Any]:
+        """Take the commands left unanswered that were sent at or before ``t`` off
+        ``unanswered``: the unit answered a later command, so each is its own fault."""
+        due = [cmd for cmd in self.unanswered if cmd.last_sent <= t]
+        self.unanswered = [cmd for cmd in self.unanswered if cmd.last_sent > t]
+        return due
+
+    def begin_life(self, agent: str) -> None:
+        """12.1: a new agent-uuid is a new life, which lost the history of commands."""
+        self.life = agent
+        if agent not in self.lives:
+            self.lives.append(agent)
+            del self.lives[:-LIVES_KEPT]
+
+
+def per_unit(unit: UnitState, key: str, make: Any) -> Any:
+    """The unit's conversation state under ``key``, made on first use and starting in the
+    unit's current life (its agent-uuid): exec and TST conversations alike."""
+    c = unit.private.get(key)
+    if c is None:
+        c = unit.private[key] = make()
+        c.life = unit.agent_uuid
+        if c.life is not None:
+            c.lives.append(c.life)
+    return c
+
+
+def str_of(m: Any, key: str) -> str | None:
+    """``m[key]`` when ``m`` is an object and that is a string, else None."""
+    x = m.get(key) if isinstance(m, dict) else None
+    return x if isinstance(x, str) else None
+
+
+def response_timeout(ctx: CheckContext) -> float:
+    """Seconds an answer may take (the profile's ``response_timeout``)."""
+    return ctx.profile.response_timeout
+
+
+def dead_since(unit: UnitState, t: float, period: float, silence_periods: float
+               ) -> float | None:
+    """When a unit whose new life began at ``t`` went silent, if it was down for more than
+    ``silence_periods`` heartbeat periods of ``period`` seconds (``identity``'s measures):
+    what it left unanswered since then is the silence's (HB-010, HB-012), not each command's.
+    None when it was not down that long."""
+    last = unit.last_heartbeat
+    return (last - period if last is not None and period
+            and t - last > silence_periods * period else None)
+
+
+def judged_on_a_copy(key: str, dropped: tuple[str, str]) -> Callable[[Judge], FinishCheck]:
+    """Make ``judge(ctx, unit, c, now) -> violations``, which judges what is still open in the
+    unit's conversations ``c`` (under ``key``) when the observation ends, a finish check
+    ``(ctx, unit, now, findings)``. Pure, so that a provisional report changes nothing:
+    ``judge`` works on copies of the unit and of ``c``, and what they examined and noted is
+    told to ``findings``; what the bounds dropped is noted on ``dropped`` (rule, what)."""
+    def finish_check(judge: Judge) -> FinishCheck:
+        @functools.wraps(judge)
+        def at_end(ctx: CheckContext, unit: UnitState, now: float,
+                   findings: Any) -> list[Violation]:
+            original = unit.private.get(key)
+            if original is None:
+                return []
+            c = deepcopy(original)
+            copy = dataclasses.replace(unit, examined={}, notes={},
+                                       private={**unit.private, key: c})
+            found = judge(ctx, copy, c, now)
+            if c.dropped:
+                rule, what = dropped
+                copy.note(rule, f"{c.dropped} {what} dropped (bounded memory): not judged")
+            for rule, n in copy.examined.items():
+                findings.examine(rule, n)
+            for rule, why in copy.notes.items():
+                findings.note(rule, why)
+            return found
+
+        return at_end
+
+    return finish_check
+
+
+def violation(rule: str, msg: Message, *, expected: str, observed: str, path: str,
+              detail: str = "") -> Violation:
+    """A violation found in ``msg``: it is the evidence."""
+    return Violation.of(rule, expected=expected, observed=observed, topic=msg.topic, path=path,
+                        time=msg.time, payload=msg.payload, detail=detail)
+
+
+def late(rule: str, topic: str, cmd: SentCommand | None, expected: str, observed: str,
+         t: float, detail: str) -> Violation:
+    """A violation found when a deadline passed: its evidence is the command (on ``topic``)."""
+    return Violation.of(rule, expected=expected, observed=observed, topic=topic, path="$",
+                        time=t, payload=cmd.excerpt if cmd is not None else None, detail=detail)

@@ -1,0 +1,153 @@
+"""Deadlines of exec conversations, judged on the unit's heartbeats and at the end (12.1-12.4).
+
+Answers due (a resend left unanswered: EXEC-RESEND-002), feedback a signal's 'ok' implies
+(12.2.2), the final feedback of a task that left tasks-executing (EXEC-START-003). A new
+agent-uuid is a new life: what the old one left open is not judged (the reboot lost it).
+Commands still unanswered when a life or the observation ends are judged here: a unit that
+answers none of two or more commands of different kinds went deaf (EXEC-ROBUST-001); one that
+died is HB-012's finding.
+"""
+
+from __future__ import annotations
+
+from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.command_history import dead_since, judged_on_a_copy, late, response_timeout
+from conformance.checks.conversation import (
+    ANSWER_RULE,
+    FEEDBACK_WITHOUT_TASK_UUID,
+    MALFORMED,
+    Conversations,
+    expects_answers,
+)
+from conformance.checks.exec_response import judge_unanswered
+from conformance.message import Message
+from conformance.topics import TopicKind
+from conformance.validator import Validation
+from conformance.violation import Violation
+
+
+@check("EXEC-RESEND-002", "EXEC-START-003", "EXEC-SIG-002", on=(TopicKind.HEARTBEAT,))
+def deadlines_pass(ctx: CheckContext, unit: UnitState, msg: Message,
+                   v: Validation) -> list[Violation] | None:
+    """Deadlines are checked on each heartbeat of the unit (and at the end): answers due,
+    feedback a signal implies, final feedback of a task that left tasks-executing. A new
+    agent-uuid is a new life: what the old one left open is not judged (the reboot lost it).
+    (Runs on every heartbeat: cheap when nothing is open.)"""
+    c = unit.private.get("conversations")
+    if c is None:
+        return None
+    m = v.message
+    agent = m.get("agent-uuid") if type(m) is dict else None
+    if agent != c.life and type(agent) is str and not msg.retain:
+        found = _new_life(ctx, unit, c, agent, msg.time) if c.life is not None else None
+        c.begin_life(agent)
+        return found
+    last, period = unit.last_heartbeat, unit.period(TopicKind.HEARTBEAT)
+    if (last is not None and period is not None and not unit.heartbeat_retained
+            and msg.time - last > 2 * period):
+        c.silent_until = msg.time
+    if not (c.pending or c.expects or c.running):
+        return None
+    return _expire(ctx, unit, c, msg.time) or None
+
+
+def _new_life(ctx: CheckContext, unit: UnitState, c: Conversations, agent: str, t: float
+              ) -> list[Violation] | None:
+    if agent in c.lives:
+        return None  # an earlier uuid again: two agents under one name (HB-011), no reboot
+    from conformance.checks.identity import SILENCE_PERIODS, heartbeat_period
+
+    dead = dead_since(unit, t, heartbeat_period(unit), SILENCE_PERIODS)
+    found = _expire(ctx, unit, c, float("inf"), reboot=True, dead=dead)
+    c.running.clear()  # what the old life ran is not judged (the reboot lost it)
+    c.expects.clear()
+    return found
+
+
+def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
+            reboot: bool = False, dead: float | None = None) -> list[Violation]:
+    """Judge what is overdue at ``now`` (at a reboot: everything; ``dead``: when the unit went
+    silent before it, see ``dead_since``)."""
+    found: list[Violation] = []
+    timeout = response_timeout(ctx)
+    for cmd in c.overdue(now, timeout, reboot):
+        unit.examine("EXEC-RESEND-002")
+        found.append(late("EXEC-RESEND-002", unit.address.topic("exec/command"), cmd,
+                          f"a second answer to the resent {cmd.describe()} within "
+                          f"{timeout:.1f} s", "none", cmd.last_sent,
+                          "12.1: answer a resend again, with the first answer"))
+    if reboot:
+        found.extend(_judge_streak(ctx, unit, c, ended_by="a reboot", dead=dead))
+    for e in list(c.expects):
+        if e.deadline < now or reboot:
+            c.expects.remove(e)
+            if reboot:
+                continue
+            unit.examine(e.rule)
+            task = c.tasks.get(e.task_uuid)
+            said = task.last_status if task is not None else None
+            found.append(late(e.rule, unit.address.topic("exec/command"), e.command,
+                              f"{' or '.join(sorted(e.wanted))} within "
+                              f"{ctx.profile.feedback_timeout:.1f} s of the 'ok' to "
+                              f"{e.command.describe()}", f"latest status {said!r}",
+                              e.command.last_sent, "12.2.2: do what the signal says, and "
+                              "say so in feedback"))
+    for task in list(c.running.values()):
+        if task.left_at is not None and task.left_at + timeout < now:
+            c.ended(task, ("left tasks-executing", None, task.left_at))
+            if unit.private.get(FEEDBACK_WITHOUT_TASK_UUID):
+                continue  # its final feedback may be one without task-uuid
+            unit.examine("EXEC-START-003")
+            found.append(late("EXEC-START-003", unit.address.topic("exec/command"),
+                              task.command, f"a final feedback for task {task.task_uuid} "
+                              f"(finished, failed or aborted)", f"it left tasks-executing at "
+                              f"{task.left_at:.3f} with none (latest status "
+                              f"{task.last_status!r})", task.left_at,
+                              "12.4: send feedback with the final status when a task ends"))
+    return found
+
+
+def _judge_streak(ctx: CheckContext, unit: UnitState, c: Conversations, *, ended_by: str,
+                  dead: float | None = None) -> list[Violation]:
+    """The commands still unanswered when the life (or the observation) ends: deaf
+    (EXEC-ROBUST-001), or each unanswered; those sent since the unit died (``dead``) are its
+    death's (HB-012)."""
+    streak, c.unanswered = c.unanswered, []
+    if dead is not None:
+        died = [cmd for cmd in streak if cmd.last_sent >= dead]
+        if died:
+            unit.note(ANSWER_RULE.get(died[0].name, "EXEC-ROBUST-002"),
+                      f"{len(died)} command(s) sent while the unit was dying or dead (HB-012)")
+        streak = [cmd for cmd in streak if cmd.last_sent < dead]
+    kinds = {cmd.name for cmd in streak}
+    if len(streak) >= 2 and len(kinds) >= 2 and expects_answers(unit, c):
+        first = streak[0]
+        before = [cmd for cmd in c.commands.values() if cmd.last_sent < first.last_sent]
+        cause = max(before, key=lambda cmd: cmd.last_sent) if before else None
+        named = first if first.name == MALFORMED or cause is None else cause
+        unit.examine("EXEC-ROBUST-001")
+        return [late("EXEC-ROBUST-001", unit.address.topic("exec/command"), first,
+                     f"answers to commands after {named.describe()}", f"none of the next "
+                     f"{len(streak)} commands ({', '.join(sorted(kinds))}) answered until "
+                     f"{ended_by}", first.last_sent, f"the unit stopped answering after "
+                     f"{named.describe()}; it must survive any command (12.1)")]
+    return [v for cmd in streak for v in judge_unanswered(ctx, unit, c, cmd)]
+
+
+@check("EXEC-ROBUST-001", "EXEC-START-003", finish=True)
+@judged_on_a_copy("conversations", dropped=("EXEC-ROBUST-001", "open expectations"))
+def conversations_at_end(ctx: CheckContext, unit: UnitState, c: Conversations,
+                         now: float) -> list[Violation]:
+    """At the end: answers still due are judged (a unit that died is HB-012's finding);
+    tasks still running are not judged; what the bounds dropped is said."""
+    from conformance.checks.identity import death
+
+    found = _expire(ctx, unit, c, now)
+    dead = death(ctx, unit, now)
+    found += _judge_streak(ctx, unit, c, ended_by="the end of the observation",
+                           dead=dead[0] if dead else None)
+    running = [t for t in c.running.values() if t.left_at is None and t.life == c.life]
+    if running:
+        unit.note("EXEC-START-003", f"{len(running)} task(s) still running when the "
+                                    f"observation ended: not judged")
+    return found

@@ -1,0 +1,320 @@
+"""Responses on exec/response, matched to their command by response-to and judged (12.1, 12.3).
+
+A response answers a command once per time it was sent, in time, with a value that fits the
+command: 'pong' to a ping, 'running' or 'failed' (refusing invalid or unoffered tasks) to a
+start-task, an 'ok' to a signal-task implies feedback (checked by ``exec_feedback`` and
+``exec_deadline``), query-status agrees with the task's history, a resend is answered again
+the same way. Commands the unit left unanswered before the one it answers are its own faults.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterator
+from typing import Any
+
+from conformance.checks.base import CheckContext, UnitState, check, reinterprets
+from conformance.checks.command_history import late, response_timeout, str_of, violation
+from conformance.checks.conversation import (
+    ANSWER_RULE,
+    Command,
+    Conversations,
+    Expect,
+    Task,
+    conversations,
+    expects_answers,
+)
+from conformance.message import Message
+from conformance.topics import TopicKind
+from conformance.validator import Validation
+from conformance.violation import Violation
+
+EXPECTS_KEPT = 64
+STRAY_PONGS_KEPT = 8
+SIGNAL_FEEDBACK = {"$abort": ({"aborted"}, "EXEC-SIG-002"), "$enough": ({"finished"}, "EXEC-SIG-004"),
+                   "$pause": ({"paused"}, "EXEC-SIG-003"), "$continue": ({"running"}, "EXEC-SIG-003")}
+"""12.2.2: the feedback a signal answered 'ok' implies, and the rule it proves."""
+QUERY_ANSWERS = {"running": ("running",), "paused": ("running", "paused"),
+                 "finished": ("finished", "success"), "failed": ("failed",),
+                 "aborted": ("failed", "aborted")}
+"""12.1: what query-status may answer for a task whose latest feedback was this status
+('success' is ERR-006's reading, judged by the validator; 'paused' and 'aborted' are 12.4's
+words for what 12.1's list calls running and failed)."""
+
+
+@check("EXEC-006", "EXEC-009", "EXEC-010", "EXEC-PING-001", "EXEC-PING-002", "EXEC-START-001",
+       "EXEC-START-002", "EXEC-START-004", "EXEC-START-005", "EXEC-SIG-001", "EXEC-QUERY-001",
+       "EXEC-RESEND-001", "EXEC-RESEND-002", "EXEC-ROBUST-002", on=(TopicKind.EXEC_RESPONSE,))
+def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
+                             v: Validation) -> Iterator[Violation]:
+    """12.1, 12.3: a response answers a command (response-to = its com-uuid), once, in time,
+    with a value that fits the command."""
+    m = v.message
+    response_to = str_of(m, "response-to")
+    if response_to is None:
+        return
+    c = conversations(unit)
+    t = msg.time
+    cmd = c.commands.get(response_to)
+    if cmd is None:
+        yield from _answers_nothing(ctx, unit, c, msg, m, response_to)
+        return
+    unit.examine("EXEC-006")
+    c.answered_any = True
+    if cmd.judged:
+        return
+    value, task_uuid = str_of(m, "response"), str_of(m, "task-uuid")
+    c.heard(cmd, value, task_uuid)
+    if cmd.answers > cmd.sends:
+        yield violation("EXEC-009", msg, expected=f"one answer to {cmd.describe()} per time it "
+                        f"was sent ({cmd.sends})", observed=f"answer number {cmd.answers}",
+                        path="$.response-to", detail="answer each command once; a resend "
+                        "again, with the same answer")
+        return
+    unit.examine("EXEC-009")
+    waited, timeout = t - cmd.last_sent, response_timeout(ctx)
+    in_time = waited <= timeout
+    if in_time:
+        unit.examine("EXEC-010")
+    else:
+        # Late: how late is EXEC-010's finding; the command's own rule wanted it in time.
+        yield violation("EXEC-010", msg, expected=f"an answer within {timeout:.1f} s (the "
+                        f"profile's response_timeout)", observed=f"answered {waited:.2f} s "
+                        f"after {cmd.describe()}", path="$.response-to",
+                        detail="answer at once; a slow answer makes the commander resend")
+        if cmd.answers == 1:
+            rule = ANSWER_RULE.get(cmd.name, "EXEC-ROBUST-002")
+            unit.examine(rule)
+            yield violation(rule, msg, expected=f"an answer to {cmd.describe()} within "
+                            f"{timeout:.1f} s", observed=f"answered only after {waited:.2f} s",
+                            path="$.response-to")
+    if cmd.answers > 1:
+        yield from _judge_resend_answer(unit, c, cmd, msg, value, task_uuid)
+        return
+    # The unit answers: commands it left unanswered before this one were its own faults.
+    if c.unanswered:
+        for earlier in c.unanswered_before(cmd.last_sent):
+            yield from judge_unanswered(ctx, unit, c, earlier)
+    if in_time:
+        yield from _judge_first_answer(ctx, unit, c, cmd, msg, value, task_uuid)
+
+
+def _answers_nothing(ctx: CheckContext, unit: UnitState, c: Conversations, msg: Message,
+                     m: Any, response_to: str) -> Iterator[Violation]:
+    """EXEC-006: a response to no command seen. Judged only when the observer saw this unit's
+    commands, and not in the first response timeout (it may answer one sent before)."""
+    if str_of(m, "response") == "pong":
+        c.stray_pongs.append((msg.time, response_to))
+        del c.stray_pongs[:-STRAY_PONGS_KEPT]
+    if c.first_command is None:
+        unit.note("EXEC-006", f"no command seen on {unit.address.topic('exec/command')}: "
+                              f"subscribe to it to judge responses")
+        return
+    if ctx.started is not None and msg.time - ctx.started < response_timeout(ctx):
+        unit.note("EXEC-006", "responses in the first response-timeout of the observation "
+                              "may answer commands sent before it")
+        return
+    if c.commands.evicted:
+        return  # it may answer a command older than the ones kept: cannot tell
+    unit.examine("EXEC-006")
+    yield violation("EXEC-006", msg, expected=f"response-to = the com-uuid of a command sent "
+                    f"to {unit.address.name}", observed=f"response-to {response_to}: no such "
+                    f"command seen", path="$.response-to",
+                    detail="copy the command's com-uuid into response-to (12.3)")
+
+
+def _judge_first_answer(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: Command,
+                        msg: Message, value: str | None, task_uuid: str | None
+                        ) -> Iterator[Violation]:
+    """The first answer fits its command (12.1, 12.3)."""
+    rule = ANSWER_RULE.get(cmd.name, "EXEC-ROBUST-002")
+    t = msg.time
+    if cmd.name == "ping":
+        unit.examine("EXEC-PING-002")  # matched by its response-to
+        if value == "pong":
+            unit.examine(rule)
+        else:
+            yield violation(rule, msg, expected=f"'pong' answering {cmd.describe()}",
+                            observed=f"response {value!r}", path="$.response")
+    elif cmd.name == "start-task":
+        if value in ("running", "failed"):
+            unit.examine(rule)
+        else:
+            yield violation(rule, msg, expected=f"'running' or 'failed' answering "
+                            f"{cmd.describe()}", observed=f"response {value!r}",
+                            path="$.response", detail="12.3.3: a start-task is answered "
+                            "'running', or 'failed' with a fail-reason")
+        yield from _judge_task_uuid(unit, cmd, msg, value, task_uuid)
+        if value == "running":
+            yield from _judge_refusals(unit, cmd, msg)
+            started = task_uuid or cmd.task_uuid
+            if started is not None:
+                task = c.tasks.get(started)
+                if task is None or task.command is not None:
+                    task = c.tasks[started] = Task(started, cmd.task_name, cmd, c.life)
+                task.command, task.name = cmd, cmd.task_name  # its feedback may come first
+                if task.final is None:
+                    c.started(task)
+        elif value == "failed":
+            for r in ("EXEC-START-004", "EXEC-START-005"):
+                if _refusal_due(unit, cmd, r):
+                    unit.examine(r)
+    elif cmd.name == "signal-task":
+        unit.examine(rule)  # answered; its vocabulary is EXEC-003's (or ERR-013's)
+        expected = SIGNAL_FEEDBACK.get(cmd.signal or "")
+        task = c.tasks.get(cmd.task_uuid) if cmd.task_uuid else None
+        if value == "ok" and expected and task is not None and task.final is None \
+                and task.life == c.life:
+            if len(c.expects) < EXPECTS_KEPT:
+                c.expects.append(Expect(task.task_uuid, expected[0], expected[1],
+                                        t + ctx.profile.feedback_timeout, cmd))
+            else:
+                c.dropped += 1
+    elif cmd.name == "query-status":
+        yield from _judge_query(unit, c, cmd, msg, value)
+    else:  # unknown or malformed: 'failed' with a reason (12.1)
+        if value == "failed":
+            unit.examine(rule)
+        else:
+            yield violation(rule, msg, expected=f"'failed' answering {cmd.describe()}",
+                            observed=f"response {value!r}", path="$.response",
+                            detail="refuse what you cannot execute, with a fail-reason")
+
+
+def _judge_task_uuid(unit: UnitState, cmd: Command, msg: Message, value: str | None,
+                     task_uuid: str | None) -> Iterator[Violation]:
+    """12.1: the start-task response carries the task-uuid sent, or one the unit generated."""
+    if cmd.task_uuid is not None:
+        if task_uuid == cmd.task_uuid:
+            unit.examine("EXEC-START-002")
+        else:
+            yield violation("EXEC-START-002", msg, expected=f"task-uuid {cmd.task_uuid} (sent "
+                            f"in {cmd.describe()})", observed=f"task-uuid {task_uuid!r}",
+                            path="$.task-uuid", detail="return the task-uuid the commander "
+                            "sent (12.1)")
+    elif value == "running":
+        if task_uuid:
+            unit.examine("EXEC-START-002")
+        else:
+            yield violation("EXEC-START-002", msg, expected=f"a generated task-uuid "
+                            f"({cmd.describe()} sent none)", observed=f"task-uuid "
+                            f"{task_uuid!r}", path="$.task-uuid", detail="12.1: when "
+                            "start-task has no task-uuid, generate one and return it")
+
+
+def _refusal_due(unit: UnitState, cmd: Command, rule: str) -> bool:
+    if rule == "EXEC-START-004":
+        return cmd.invalid
+    available = unit.tasks_available
+    return bool(available) and cmd.task_name is not None and cmd.task_name not in available
+
+
+def _judge_refusals(unit: UnitState, cmd: Command, msg: Message) -> Iterator[Violation]:
+    """12.1: invalid parameters (EXEC-START-004) and a task not in tasks-available
+    (EXEC-START-005, 5.3) are refused, not run."""
+    if _refusal_due(unit, cmd, "EXEC-START-004"):
+        yield violation("EXEC-START-004", msg, expected=f"'failed' for {cmd.describe()}, "
+                        f"whose parameters break the task's specification (TASK-001)",
+                        observed="'running'", path="$.response")
+    if _refusal_due(unit, cmd, "EXEC-START-005"):
+        yield violation("EXEC-START-005", msg, expected=f"'failed' for {cmd.describe()}: not "
+                        f"in tasks-available ({', '.join(sorted(unit.tasks_available))})",
+                        observed="'running'", path="$.response")
+
+
+def _judge_query(unit: UnitState, c: Conversations, cmd: Command, msg: Message,
+                 value: str | None) -> Iterator[Violation]:
+    task = c.tasks.get(cmd.task_uuid) if cmd.task_uuid else None
+    if task is None or task.last_status is None or task.life != c.life:
+        unit.note("EXEC-QUERY-001", "query-status only of tasks the traffic did not show")
+        return
+    if task.left_at is not None or (task.final is not None and task.final[0] not in
+                                    QUERY_ANSWERS):
+        return  # it ended without saying how: the traffic cannot tell what is right
+    if (value == "unknown" and c.silent_until is not None and task.last_time is not None
+            and task.last_time < c.silent_until):
+        unit.note("EXEC-QUERY-001", "'unknown' for a task from before a silence of the unit "
+                                    "(a reboot keeping its agent-uuid is REBOOT-002's)")
+        return
+    allowed = QUERY_ANSWERS.get(task.last_status)
+    if allowed is None:
+        return  # a task-specific status: nothing to compare with
+    unit.examine("EXEC-QUERY-001")
+    if value not in allowed:
+        yield violation("EXEC-QUERY-001", msg, expected=f"{' or '.join(allowed)}: task "
+                        f"{task.task_uuid}'s latest feedback was '{task.last_status}'",
+                        observed=f"response {value!r}", path="$.response",
+                        detail="answer query-status from the task's whole history (12.1)")
+
+
+def _judge_resend_answer(unit: UnitState, c: Conversations, cmd: Command, msg: Message,
+                         value: str | None, task_uuid: str | None) -> Iterator[Violation]:
+    """12.1: a resend is answered again, with the same answer, and not executed again."""
+    unit.examine("EXEC-RESEND-002")
+    if cmd.name != "start-task" or not cmd.values:
+        return
+    unit.examine("EXEC-RESEND-001")
+    first, first_task = cmd.values[0]
+    if first != "running":
+        return
+    if value == "running" and task_uuid is not None and task_uuid != first_task:
+        yield violation("EXEC-RESEND-001", msg, expected=f"the resent {cmd.describe()} "
+                        f"executed once (task {first_task})", observed=f"started again as "
+                        f"task {task_uuid}", path="$.task-uuid",
+                        detail="12.1: remember com-uuids; answer a resend from memory")
+    elif value == "failed":
+        task = c.tasks.get(first_task) if first_task else None
+        if task is not None and task.final is None:
+            task.resend_failed = msg.time
+        yield violation("EXEC-RESEND-001", msg, expected=f"the first answer again ('running', "
+                        f"task {first_task}) to the resent {cmd.describe()}",
+                        observed="'failed', although the task runs", path="$.response",
+                        detail="12.1: a resend is the same command; answer it as before, "
+                        "do not execute it again")
+
+
+def judge_unanswered(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: Command
+                     ) -> Iterator[Violation]:
+    """A command the unit never answered fails its rule (12.1); a ping answered with another
+    response-to is EXEC-PING-002's."""
+    if not expects_answers(unit, c):
+        unit.note(ANSWER_RULE.get(cmd.name, "EXEC-ROBUST-002"),
+                  "commands seen, but the unit declares no 'direct execution' and answered none")
+        return
+    rule = ANSWER_RULE.get(cmd.name, "EXEC-ROBUST-002")
+    timeout = response_timeout(ctx)
+    if cmd.name == "ping":
+        stray = next((r for tt, r in c.stray_pongs
+                      if cmd.last_sent <= tt <= cmd.last_sent + timeout), None)
+        if stray is not None:
+            unit.examine("EXEC-PING-002")
+            yield late("EXEC-PING-002", unit.address.topic("exec/command"), cmd,
+                       f"a pong with response-to {cmd.com_uuid}",
+                       f"a pong with response-to {stray}", cmd.last_sent,
+                       "copy the command's com-uuid into response-to, unchanged (12.3)")
+            return
+    unit.examine(rule)
+    yield late(rule, unit.address.topic("exec/command"), cmd, f"an answer to "
+               f"{cmd.describe()} within {timeout:.1f} s", "no answer", cmd.last_sent,
+               "12.1: answer every command, 'failed' with a reason when it cannot be executed")
+
+
+@reinterprets("ERR-013", on=(TopicKind.EXEC_RESPONSE,))
+def signal_task_response_form(ctx: CheckContext, unit: UnitState, msg: Message, v: Validation,
+                              found: list[Violation]) -> list[Violation]:
+    """12.3.2 (signal-task response) is empty: the suite expects a start-task response's form
+    and judges a response to a signal-task that misses it by ERR-013 (a warning by default),
+    not by EXEC-002. Knowing what a response answers needs the command: stateful."""
+    response_to = str_of(v.message, "response-to")
+    c = unit.private.get("conversations")
+    if response_to is None or c is None:
+        return found
+    command = c.commands.get(response_to)
+    if command is None or command.name != "signal-task":
+        return found
+    unit.examine("ERR-013")
+    return [dataclasses.replace(
+        f, rule="ERR-013", detail=f"answering signal-task {response_to}: 12.3.2 is empty; "
+                                  f"the suite expects a start-task response's form "
+                                  f"({f.detail or 'agent-uuid, com-uuid, response-to, response'})")
+            if f.rule == "EXEC-002" else f for f in found]

@@ -1,0 +1,106 @@
+"""``waraps-conformance lint``: passive linting of a whole fleet, live or recorded.
+
+    waraps-conformance lint --broker mqtts://broker.example:8883 --duration 10m
+    waraps-conformance lint --from field-test.jsonl
+    waraps-conformance lint --from run.bag --ros-unit waraps/unit/ground/real/husky0
+    mosquitto_sub -t 'waraps/#' -F %j | waraps-conformance lint --from -
+
+Live, it subscribes read-only (its client may publish nowhere) and shows a per-unit scorecard;
+recorded, it judges the messages at their recorded times. Either way it ends with JSON, HTML
+and JUnit reports and exits non-zero when a unit fails a rule of severity error. The run
+itself is ``conformance.lint.runner.lint``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import IO
+
+from conformance.cli import options as opts
+from conformance.lint import EXIT_USAGE
+from conformance.lint.runner import GATES, REPORT_FORMATS, lint
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = opts.parser(
+        "lint",
+        "Lint the traffic of a whole fleet, live (read-only: it never publishes) "
+                    "or from a recording, and report a verdict per unit and rule.",
+        "Exit status: 0 no unit or commander fails a rule of severity error (with "
+               "--gate units: no unit), 1 one does, 2 bad usage, 3 nothing could be linted "
+               "(no broker, no messages). What is wrong in a command is its commander's "
+               "fault: commanders (by the command's 'sender', else 'of UNIT') have rows of "
+               "their own.")
+    src = p.add_argument_group("recorded traffic")
+    src.add_argument("--from", dest="source", metavar="FILE",
+                     help="a recording: JSON Lines as 'waraps-conformance record' writes, or "
+                          "'mosquitto_sub -F %%j' / '-F %%J' output; '-' reads standard input; "
+                          "or a ROS bag: a ROS 1 .bag file, a ROS 2 bag directory (sqlite3 or "
+                          "MCAP)")
+    src.add_argument("--ros-unit", metavar="ADDRESS",
+                     help="the unit address of a ROS bag's namespaced topics when no "
+                          "/heartbeat_info TopicMsg names it, e.g. waraps/unit/ground/real/husky0")
+    opts.add_capture_options(p)
+    out = p.add_argument_group("judging and reports")
+    opts.add_profile_option(out)
+    opts.add_reports_dir_option(out)
+    out.add_argument("--format", default=",".join(REPORT_FORMATS), metavar="LIST",
+                     help="report formats, comma-separated from json, html, junit; or none "
+                          "(default: all three)")
+    out.add_argument("--plain", action="store_true",
+                     help="plain lines even on a terminal (the default in a pipe or CI)")
+    out.add_argument("--gate", choices=GATES, default="all",
+                     help="what the exit status judges: all (units and commanders, the "
+                          "default) or units (a fleet gate that commanders' faults do not "
+                          "fail)")
+    return p
+
+
+def parse_formats(text: str) -> tuple[str, ...]:
+    """Report formats from ``--format``; ValueError names the valid ones."""
+    wanted = tuple(f.strip().lower() for f in text.split(",") if f.strip())
+    if wanted == ("none",):
+        return ()
+    bad = [f for f in wanted if f not in REPORT_FORMATS]
+    if bad or not wanted:
+        raise ValueError(f"--format {text!r}: use a comma-separated list of "
+                         f"{', '.join(REPORT_FORMATS)}, or none")
+    return wanted
+
+
+def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
+         stdin: IO[bytes] | None = None) -> int:
+    from conformance.lint.capture import CaptureOptionsError
+    from conformance.profile import ProfileError, load
+
+    args = build_parser().parse_args(argv)
+
+    def usage(message: str) -> int:
+        print(f"waraps-conformance lint: {message}", file=sys.stderr)
+        return EXIT_USAGE
+
+    if args.source and args.broker:
+        return usage("--from and --broker exclude each other: lint a recording or a live broker")
+    try:
+        options = opts.capture_options(args, need_broker=not args.source)
+        formats = parse_formats(args.format)
+        profile = load(args.profile)
+    except (CaptureOptionsError, ProfileError, ValueError) as e:
+        return usage(str(e))
+    ros_unit = None
+    if args.ros_unit:
+        from conformance.rosbag import is_bag
+        from conformance.topics import TopicError, UnitAddress
+
+        if not (args.source and is_bag(args.source)):
+            return usage("--ros-unit applies to ROS bags only (--from run.bag or a ROS 2 bag "
+                         "directory)")
+        try:
+            ros_unit = UnitAddress.parse(args.ros_unit)
+        except TopicError as e:
+            return usage(f"--ros-unit: {e}")
+    return lint(options, profile, source=args.source, ros_unit=ros_unit,
+                reports_dir=Path(args.reports_dir), formats=formats, gate=args.gate,
+                plain=args.plain, stdout=stdout, stdin=stdin)

@@ -1,0 +1,78 @@
+"""``waraps-conformance validate TOPIC [FILE|-]``: validate one message and say why, for a
+person (what it prints: ``conformance.explanation``).
+
+    waraps-conformance validate waraps/unit/air/simulation/dji0/heartbeat hb.json
+    mosquitto_sub -t '.../heartbeat' -C 1 | waraps-conformance validate .../heartbeat -
+    waraps-conformance validate --tst plan.json
+
+``--tst`` checks a TST plan before it is sent: the file holds a start-tst command or just its
+tree (the ``tst`` node object); every problem of the tree is listed with its JSON path in the
+file (schemas, task parameters, structure: TST-001, TASK-*, TST-014, ERR-*).
+
+Exit code: 0 when nothing fails under the profile (warnings allowed), 1 when a rule fails,
+2 for a usage error (also a topic it cannot place: it says which forms it accepts).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time as time_module
+from pathlib import Path
+
+from conformance import profile as profile_module
+from conformance.cli import options as opts
+from conformance.explanation import overall_verdict, render, to_dict, unplaceable, validate_tst
+from conformance.validator import Validator
+from conformance.violation import Verdict
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = opts.parser("validate",
+                         "Validate one WARA-PS message: print its kind and every violation.")
+    parser.add_argument("topic", nargs="?", default=None,
+                        help="the MQTT topic, e.g. waraps/unit/air/simulation/dji0/heartbeat "
+                             "(not with --tst)")
+    parser.add_argument("file", nargs="?", default="-",
+                        help="file with the raw payload, or - for standard input (default)")
+    parser.add_argument("--tst", action="store_true",
+                        help="the file is a TST plan: a start-tst command or its tree; list "
+                             "every problem of the tree with its JSON path")
+    opts.add_profile_option(parser)
+    when = parser.add_mutually_exclusive_group()
+    when.add_argument("--time", type=float, default=None,
+                      help="arrival time (Unix seconds) to judge the stamp against (MSG-005)")
+    when.add_argument("--now", action="store_true",
+                      help="judge the stamp against the current time (a message just captured)")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of text")
+    args = parser.parse_args(argv)
+    if args.tst:
+        if args.topic is not None and args.file != "-":
+            parser.error("--tst takes one FILE (or -), no topic")
+        args.file = args.topic if args.topic is not None else args.file
+    elif args.topic is None:
+        parser.error("a TOPIC is needed (or --tst FILE for a TST plan)")
+    try:
+        profile = profile_module.load(args.profile)
+    except profile_module.ProfileError as e:
+        print(f"waraps-conformance validate: {e}", file=sys.stderr)
+        return 2
+    try:
+        payload = sys.stdin.buffer.read() if args.file == "-" else Path(args.file).read_bytes()
+    except OSError as e:
+        print(f"waraps-conformance validate: cannot read {args.file}: {e.strerror}",
+              file=sys.stderr)
+        return 2
+    arrival = time_module.time() if args.now else args.time
+    if args.tst:
+        validation = validate_tst(Validator(profile), payload)
+    else:
+        validation = Validator(profile).validate(args.topic, payload, arrival)
+        if validation.topic.unit is None:
+            print(unplaceable(args.topic), file=sys.stderr)
+            return 2
+    if args.json:
+        print(json.dumps(to_dict(validation, profile), indent=2))
+    else:
+        print(render(validation, profile))
+    return 1 if overall_verdict(validation, profile) is Verdict.FAIL else 0

@@ -1,0 +1,53 @@
+"""Recording live traffic to JSON Lines (``waraps-conformance record``): what ``lint --from``
+judges later, with the capture's own events (start, connection losses, what it could not keep
+up with, end) so that silences and gaps are read right."""
+
+from __future__ import annotations
+
+import time
+from typing import IO
+
+from conformance.lint.capture import CaptureOptions, LiveCapture
+from conformance.recording import Event, RecordingWriter
+
+
+def record(options: CaptureOptions, out: IO[bytes], *, name: str, log: IO[str]) -> int:
+    """Record what ``options`` capture to ``out`` (called ``name`` in the messages on ``log``)
+    until their duration is over or Ctrl-C. Returns 0; raises ``BrokerError`` when the broker
+    cannot be reached (nothing is written then)."""
+    assert options.broker is not None
+    writer = RecordingWriter(out)
+    capture = LiveCapture(options.broker, options.topics)
+    capture.start()
+    print(f"recording {', '.join(options.topics)} from {options.broker} to {name}"
+          + (f" for {options.duration:g} s" if options.duration else " until Ctrl-C"), file=log)
+    writer.write(Event(time.time(), "start", "subscribed"))
+    deadline = None if not options.duration else time.monotonic() + options.duration
+    try:
+        while deadline is None or time.monotonic() < deadline:
+            left = 0.5 if deadline is None else max(0.0, min(0.5, deadline - time.monotonic()))
+            batch, events = capture.take(timeout=left)
+            for event in events:
+                writer.write(event)
+                if event.kind != "unexamined":
+                    print(f"{time.strftime('%H:%M:%S', time.localtime(event.time))} "
+                          f"{event.kind}{': ' + event.detail if event.detail else ''}", file=log)
+            for message in batch:
+                if options.wants(message.topic):
+                    writer.write(message)
+            if len(batch) < capture.wake_at:  # not a burst: a pipe reader sees it now
+                writer.flush()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        capture.stop()
+        batch, events = capture.take(timeout=0, max_messages=10**9)  # all that is left
+        for item in [*events, *(m for m in batch if options.wants(m.topic))]:
+            writer.write(item)
+        # Lint judges up to here: a unit silent since its last message until now has died.
+        writer.write(Event(time.time(), "end", "stopped"))
+        writer.flush()
+    print(f"recorded {writer.messages} messages ({writer.bytes} bytes) to {name}"
+          + (f"; {capture.dropped} could not be kept up with (recorded as unexamined)"
+             if capture.dropped else ""), file=log)
+    return 0

@@ -1,0 +1,314 @@
+"""A lint run: live traffic, a recording or a ROS bag fed to the ``Linter`` and the
+scorecard, then the reports, the evidence of the failures, and the exit status.
+
+``conformance.cli.lint`` parses the command line and calls ``lint``.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import IO, Any
+
+from conformance.lint import EXIT_FAIL, EXIT_NOT_RUN, EXIT_PASS
+
+GATES = ("all", "units")
+REPORT_FORMATS = ("json", "html", "junit")
+
+
+def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any = None,
+         reports_dir: Path = Path("reports"), formats: tuple[str, ...] = REPORT_FORMATS,
+         gate: str = "all", plain: bool = False, stdout: IO[str] | None = None,
+         stdin: IO[bytes] | None = None) -> int:
+    """Lint the traffic ``options`` (``CaptureOptions``) name, live, or the recording or ROS
+    bag at ``source``; print the scorecard and write the reports. Returns the exit status:
+    EXIT_PASS, EXIT_FAIL (a unit, or with ``gate`` all also a commander, fails a rule of
+    severity error) or EXIT_NOT_RUN (no broker, nothing read)."""
+    from conformance.lint.linter import Linter
+    from conformance.rosbag import is_bag
+    from conformance.scorecard import Scorecard
+
+    out = stdout or sys.stdout
+    err = sys.stderr
+    bag = bool(source) and is_bag(source)
+    monitor = _monitor(profile, options.units)
+    linter = Linter(monitor, profile)
+    started = time.time()
+    if bag:
+        from conformance.rosbag import BagError, BagReader
+
+        reader_of_bag = BagReader(source, ros_unit)
+        scorecard = Scorecard(out, tty=False if plain else None, title=reader_of_bag.name,
+                              live=False)
+        try:
+            end = run_bag(linter, scorecard, reader_of_bag, options)
+        except BagError as e:
+            print(f"waraps-conformance lint: {e}", file=err)
+            return EXIT_NOT_RUN
+        meta = {"source": reader_of_bag.name, "recording_formats": reader_of_bag.format,
+                "bag_messages_read": str(reader_of_bag.read)}
+        notes, broker, problems, problem_count = list(reader_of_bag.notes), "", [], 0
+    elif source:
+        from conformance.recording import RecordingError, open_recording
+
+        try:
+            stream, name = open_recording(source, stdin)
+        except RecordingError as e:
+            print(f"waraps-conformance lint: {e}", file=err)
+            return EXIT_NOT_RUN
+        scorecard = Scorecard(out, tty=False if plain else None, title=name, live=False)
+        with stream if stream is not (stdin or sys.stdin.buffer) else _noop():
+            reader, end = run_recorded(linter, scorecard, stream, name, options)
+        meta = {"source": name, "recording_lines": str(reader.lines),
+                "recording_formats": ", ".join(sorted(reader.formats))}
+        if reader.problem_count:
+            meta["recording_problems"] = str(reader.problem_count)
+            meta["recording_problem_lines"] = "; ".join(str(p) for p in reader.problems[:20])
+        notes = [*reader.notes]
+        broker = ""
+        problems = reader.problems
+        problem_count = reader.problem_count
+    else:
+        from conformance.client import BrokerError
+        from conformance.lint.capture import LiveCapture
+
+        assert options.broker is not None
+        capture = LiveCapture(options.broker, options.topics)
+        try:
+            capture.start()
+        except BrokerError as e:
+            print(f"waraps-conformance lint: {e}", file=err)
+            return EXIT_NOT_RUN
+        scorecard = Scorecard(out, tty=False if plain else None,
+                              title=f"{options.broker} {' '.join(options.topics)}", live=True)
+        if not scorecard.tty:
+            print(f"linting {', '.join(options.topics)} on {options.broker} (read-only)"
+                  + (f" for {options.duration:g} s" if options.duration else " until Ctrl-C"),
+                  file=out, flush=True)
+        end = run_live(linter, scorecard, capture, options)
+        meta = {"source": f"live {' '.join(options.topics)}"}
+        if capture.dropped:
+            meta["unexamined_reason"] = "the linter fell behind the broker; oldest dropped"
+        notes, broker, problems, problem_count = [], str(options.broker), [], 0
+    meta["duration_s"] = f"{(linter.last_time or end) - (linter.first_time or end):.3f}"
+    if options.units:
+        meta["units"] = " ".join(u.base for u in options.units)
+
+    if linter.messages == 0:
+        scorecard.update(linter, force=True)
+        for problem in problems:
+            print(f"malformed {problem}", file=out)
+        print("waraps-conformance lint: no messages were read, so nothing was judged"
+              + (f" ({problem_count} malformed lines)" if problem_count else ""), file=err)
+        return EXIT_NOT_RUN
+
+    report = _report(monitor, linter, kind_meta=meta, broker=broker,
+                     started=started if not source else (linter.first_time or started),
+                     finished=end)
+    scorecard.final(linter, report)
+    for problem in problems:
+        print(f"malformed {problem}", file=out)
+    if problem_count > len(problems):
+        print(f"... {problem_count - len(problems)} more malformed lines", file=out)
+    for note in notes:
+        print(f"note: {note}", file=out)
+    for gap in linter.gaps:
+        print(f"connection gap: {time.strftime('%H:%M:%S', time.localtime(gap.start))} for "
+              f"{gap.duration:.1f} s ({gap.reason or 'connection lost'}); rates over it not "
+              f"judged", file=out)
+    if report.unexamined:
+        print(f"not examined: {report.unexamined} messages (rates in those windows not judged)",
+              file=out)
+    if formats:
+        paths = write_reports(report, Path(reports_dir), formats, report_stem(source))
+        for path in paths:
+            print(f"report: {path}", file=out)
+    evidence = failures(report)
+    if evidence:
+        print(f"\n{evidence}\n", file=out)
+    code = int(report.exit_code(gate))
+    failing = sorted(u for u, rep in report.units.items() if rep.worst().value == "fail"
+                     and (gate == "all" or rep.party == "unit"))
+    gated = "no unit or commander" if gate == "all" else "no unit"
+    print(("FAIL: " + ", ".join(failing)) if failing else f"PASS: {gated} fails a rule of "
+          "severity error", file=out)
+    out.flush()
+    return EXIT_FAIL if code else EXIT_PASS
+
+
+MAX_FAILURES_SHOWN = 10
+
+
+def failures(report: Any, limit: int = MAX_FAILURES_SHOWN) -> str:
+    """The first violation of each failed (unit, rule), at most ``limit`` of them, in the form
+    the certification prints (STYLE.md): what a person reads before opening the HTML."""
+    from conformance.reporting.text import render_violation
+    from conformance.violation import Verdict
+
+    shown: list[str] = []
+    more = 0
+    for unit, rep in sorted(report.units.items()):
+        for rule, result in sorted(rep.rules.items()):
+            if result.verdict is not Verdict.FAIL or not result.violations:
+                continue
+            if len(shown) >= limit:
+                more += 1
+                continue
+            text = render_violation(rule, result.violations[0], unit, report=report,
+                                    verdict=Verdict.FAIL)
+            extra = rep.violation_counts.get(rule, len(result.violations)) - 1  # a total
+            shown.append(f"{unit}\n{text}" + (f"\n  (and {extra} more violations of {rule})"
+                                                if extra else ""))
+    if not shown:
+        return ""
+    if more:
+        shown.append(f"... and {more} more failed rule{'s' if more > 1 else ''}: every "
+                     f"violation is in the reports")
+    return "\n\n".join(shown)
+
+
+class _noop:
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+
+def _monitor(profile: Any, units: tuple[Any, ...]) -> Any:
+    from conformance.checks import Monitor
+
+    return Monitor(profile, units=list(units) or None, kind="lint")
+
+
+def run_recorded(linter: Any, scorecard: Any, stream: IO[bytes], name: str,
+                 options: Any) -> tuple[Any, float]:
+    """Feed a recording to the linter at its recorded times; returns (reader, end time)."""
+    from conformance.recording import RecordingReader
+
+    reader = RecordingReader(stream, name)
+    last_event = feed_recorded(linter, scorecard, reader, options)
+    if reader.unprintable:
+        linter.event(_unexamined(linter.last_time or 0.0, reader.unprintable))
+    end = max(t for t in (linter.last_time, last_event, 0.0) if t is not None)
+    linter.finish(end)
+    return reader, end
+
+
+def run_bag(linter: Any, scorecard: Any, bag: Any, options: Any) -> float:
+    """Feed a ROS bag's messages (at their record times) and ROS findings to the linter
+    (``conformance.rosbag``); returns the end time. Raises ``BagError``."""
+    items = iter(bag)
+    try:
+        feed_recorded(linter, scorecard, items, options)
+    finally:
+        items.close()  # type: ignore[attr-defined]
+    end = linter.last_time or 0.0
+    linter.finish(end)
+    return end
+
+
+def feed_recorded(linter: Any, scorecard: Any, items: Any, options: Any) -> float | None:
+    """Feed recorded items at their recorded times, until ``--duration`` past the first
+    message or Ctrl-C: messages (of the ``--unit``s), capture events, and ROS findings
+    (``rosbag.Finding``). Returns the time of the last capture event, if any."""
+    from conformance.message import Message
+    from conformance.recording import Event
+
+    units = set(options.units)
+    wants = options.wants if units else None
+    feed = linter.feed_one
+    limit = None
+    n = 0
+    last_event = None
+    try:
+        for item in items:
+            if type(item) is Message:
+                if limit is None and options.duration:
+                    limit = item.time + options.duration
+                if limit is not None and item.time > limit:
+                    break
+                if wants is None or wants(item.topic):
+                    feed(item)
+            elif type(item) is Event:
+                linter.event(item)
+                last_event = item.time
+            elif not units or item.unit in units:  # a ROS finding
+                linter.record(item.unit, item.rule, item.violation)
+            n += 1
+            if n & 0xFF == 0:  # a pipe from mosquitto_sub is live: show progress (throttled)
+                scorecard.update(linter)
+    except KeyboardInterrupt:
+        pass
+    return last_event
+
+
+def _unexamined(t: float, n: int) -> Any:
+    from conformance.recording import Event
+
+    return Event(t, "unexamined", "mosquitto_sub -F %J could not print them", n)
+
+
+def run_live(linter: Any, scorecard: Any, capture: Any, options: Any) -> float:
+    """Lint live traffic until the duration is over or Ctrl-C; returns the end time."""
+    start = time.monotonic()
+    deadline = None if not options.duration else start + options.duration
+    wants = options.wants if options.units else None
+    try:
+        while True:
+            left = 0.25 if deadline is None else min(0.25, deadline - time.monotonic())
+            if left <= 0:
+                break
+            batch, events = capture.take(timeout=left)
+            for event in events:
+                linter.event(event)
+            if wants is not None:
+                batch = [m for m in batch if wants(m.topic)]
+            linter.feed(batch)
+            scorecard.update(linter, elapsed=time.monotonic() - start,
+                             connected=capture.is_connected)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        capture.stop()
+    batch, events = capture.take(timeout=0, max_messages=10**9)
+    for event in events:
+        linter.event(event)
+    linter.feed([m for m in batch if wants is None or wants(m.topic)])
+    end = time.time()
+    linter.finish(end)
+    return end
+
+
+def _report(monitor: Any, linter: Any, *, kind_meta: dict[str, str], broker: str,
+            started: float, finished: float) -> Any:
+    """The run report from the Monitor (it holds the gaps and unexamined counts it was told),
+    with what the linter knows about its source in ``meta``."""
+    return monitor.report(broker=broker, started=started, finished=finished, **kind_meta)
+
+
+def report_stem(source: str | None) -> str:
+    """``lint-<recording name>`` for a recording (stable for a CI gate), else
+    ``lint-<local time>``."""
+    if source and source != "-":
+        name = Path(source).name.split(".")[0]
+        safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
+        if safe:
+            return f"lint-{safe}"
+    return time.strftime("lint-%Y%m%d-%H%M%S")
+
+
+def write_reports(report: Any, directory: Path, formats: tuple[str, ...], stem: str) -> list[Path]:
+    """Write the chosen report formats (``conformance.reporting``, the same writers as
+    certification); returns their paths."""
+    from conformance.reporting import write_html, write_json, write_junit
+
+    writers = {"json": (write_json, ".json"), "html": (write_html, ".html"),
+               "junit": (write_junit, ".xml")}
+    directory.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for fmt in formats:
+        write, suffix = writers[fmt]
+        paths.append(Path(write(report, directory / f"{stem}{suffix}")))
+    return paths

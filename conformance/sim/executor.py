@@ -1,0 +1,334 @@
+"""The command executor of the reference unit: it answers what arrives on ``exec/command``
+(12.1: ping, start-task, signal-task, query-status) on ``exec/response`` (12.3), and answers a
+resent command again instead of running it twice.
+
+The tasks it starts run on the unit's ``TaskRunner`` (``conformance.sim.runner``). Hostile
+input never raises: what cannot be read is refused when its com-uuid can be read
+(EXEC-ROBUST-002), else dropped.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import TYPE_CHECKING, Any
+
+import orjson
+
+from conformance.sim.memory import Resends
+from conformance.sim.tasks import BUILTIN_SIGNALS, SKIP_WAYPOINT, Task, plan
+from conformance.sim.tst import misdirected
+
+if TYPE_CHECKING:
+    from conformance.sim.unit import UnitCore
+
+COMMANDS = ("ping", "start-task", "signal-task", "query-status")  # 12.1
+MAX_COMMAND_BYTES = 1 << 20
+"""A command larger than this is refused unread (no WARA-PS command comes near 1 MiB)."""
+LATE_PONG_PERIODS = 3.0
+"""Fault pong-late: a pong is held back 3 periods (1.5 s at the fault matrix's 2 Hz, past its
+1 s response timeout; 3 s at the workout's 1 Hz, past its 2 s), so it arrives before the
+suite's reboot kills the process that held it."""
+_COM_UUID = re.compile(rb'"com-uuid"\s*:\s*"([^"\\\x00-\x1f]{1,128})"')
+
+
+class CommandExecutor:
+    """Answers the ``exec/command`` messages of one ``UnitCore``."""
+
+    def __init__(self, unit: UnitCore) -> None:
+        self.unit = unit
+        self.faults = unit.faults
+        self.runner = unit.runner
+        self.history: Resends[dict[str, Any] | None] = Resends()
+        """com-uuid -> the response sent (None: deliberately not answered), for resends."""
+        self.delayed: list[tuple[float, dict[str, Any]]] = []
+        """Fault pong-late: (when, response) of answers held back."""
+
+    def command(self, payload: bytes, now: float, size: int) -> None:
+        """Handle one command of ``size`` bytes (``payload`` may be only its head)."""
+        if size > MAX_COMMAND_BYTES:
+            msg, problem = None, f"a command of {size} bytes is larger than {MAX_COMMAND_BYTES}"
+        else:
+            msg, problem = _decode(payload)
+        if problem is not None:
+            com = _readable_com_uuid(payload, msg)
+            if "crash-on-malformed" in self.faults:
+                self.unit.crashed = True
+                return
+            if com is not None and "malformed-unanswered" not in self.faults:
+                self._answer(com, "failed", fail_reason=problem)
+            return
+        assert isinstance(msg, dict)
+        com = msg["com-uuid"]
+        if (com in self.history and "resend-answered-failed" in self.faults
+                and msg.get("command") == "start-task"):
+            self._refuse_resend(com, msg)
+            return
+        if com in self.history and "resend-executes-twice" not in self.faults:
+            # 12.1: a resent command reuses its com-uuid; answer it again, do not run it twice.
+            cached = self.history.resent(com)
+            if cached is not None and "resend-unanswered" not in self.faults:
+                self._send_response(dict(cached))
+            return
+        command = msg.get("command")
+        if command == "ping":
+            self._answer(com, "pong", kind="ping")
+        elif command == "start-task":
+            self._start_task(com, msg, now)
+        elif command == "signal-task":
+            self._signal_task(com, msg, now)
+        elif command == "query-status":
+            self._query_status(com, msg)
+        elif not isinstance(command, str):
+            self._answer(com, "failed", fail_reason="the command has no 'command' field (one of "
+                         f"{', '.join(COMMANDS)})")
+        else:
+            self._answer(com, "failed", fail_reason=f"unknown command {command[:64]!r}: this "
+                         f"unit understands {', '.join(COMMANDS)} (12.1)" + misdirected(command))
+
+    def send_delayed(self, now: float) -> float | None:
+        """Send the held-back answers that are due; when the next one is (None: none left)."""
+        while self.delayed and self.delayed[0][0] <= now:
+            self.unit.send("exec/response", self.delayed.pop(0)[1])
+        return self.delayed[0][0] if self.delayed else None
+
+    # --- responses --------------------------------------------------------------------------------
+    def _answer(self, com: str, response: str, *, task_uuid: str | None = None,
+                fail_reason: str | None = None, kind: str = "") -> None:
+        """Send a response (12.3) and remember it for a resend."""
+        body: dict[str, Any] = {"agent-uuid": self.unit.agent_uuid, "response": response,
+                                "response-to": com}
+        if task_uuid is not None:
+            body["task-uuid"] = task_uuid
+        if fail_reason is not None:
+            body["fail-reason"] = "" if "fail-reason-empty" in self.faults else fail_reason
+        if kind == "ping":
+            if "pong-missing" in self.faults:
+                return
+            if "pong-late" in self.faults:
+                self.history.remember(com, body)
+                self._send_response(dict(body), command_com=com,
+                                    delay=LATE_PONG_PERIODS * self.unit.period)
+                return
+            if "pong-response-to-uppercase" in self.faults:
+                body["response-to"] = com.upper()
+        if kind == "signal" and "signal-response-tst-form" in self.faults:
+            body = {"response": "ok" if response == "ok" else response, "response-to": com}
+            if response == "failed":
+                body["fail-reason"] = fail_reason or ""
+        silent = kind == "signal" and "signal-unanswered" in self.faults
+        self.history.remember(com, None if silent else body)
+        if not silent:
+            self._send_response(dict(body), command_com=com)
+
+    def _send_response(self, body: dict[str, Any], command_com: str | None = None,
+                       delay: float = 0.0) -> None:
+        unit = self.unit
+        com = body.get("response-to", "") if command_com is None else command_com
+        body["com-uuid"] = com if "response-reuses-com-uuid" in self.faults else unit.fresh_uuid()
+        if "agent-uuid" in body:
+            if "response-no-agent-uuid" in self.faults:
+                del body["agent-uuid"]
+            elif "response-stale-agent-uuid" in self.faults:
+                body["agent-uuid"] = unit.executor_uuid
+            else:
+                body["agent-uuid"] = unit.agent_uuid
+        if delay:  # in the runtime's monotonic clock, from the last step
+            self.delayed.append((self.runner.now + delay, body))
+            return
+        unit.send("exec/response", body)
+        if "response-twice" in self.faults:  # a retry loop that does not wait for the PUBACK
+            unit.send("exec/response", body)
+
+    def _refuse_resend(self, com: str, msg: dict[str, Any]) -> None:
+        """Fault resend-answered-failed (seen in the field): the resent start-task is taken for
+        a new one whose task-uuid is taken, answered 'failed', and the running task gets a
+        'failed' feedback too, although it runs on."""
+        cached = self.history.get(com)
+        task_uuid = cached.get("task-uuid") if cached else msg.get("task-uuid")
+        task = self.runner.tasks.get(task_uuid) if isinstance(task_uuid, str) else None
+        reason = f"task-uuid {task_uuid} is already used by another task"
+        body: dict[str, Any] = {"agent-uuid": self.unit.agent_uuid, "response": "failed",
+                                "response-to": com, "task-uuid": task_uuid,
+                                "fail-reason": reason}
+        self._send_response(body, command_com=com)
+        if task is not None and not task.ended:
+            self.runner.feedback(task, "failed")
+
+    # --- start-task -----------------------------------------------------------------------------
+    def _start_task(self, com: str, msg: dict[str, Any], now: float) -> None:
+        unit, tasks = self.unit, self.runner.tasks
+        task_field = msg.get("task")
+        sent_uuid = msg.get("task-uuid")
+        if sent_uuid is not None and (not isinstance(sent_uuid, str) or not sent_uuid
+                                      or len(sent_uuid) > 128):
+            self._answer(com, "failed", fail_reason="task-uuid must be a UUID string",
+                         task_uuid=None)
+            return
+        if sent_uuid is None and "dies-on-missing-task-uuid" in self.faults:
+            unit.dead = True  # msg["task-uuid"] raised a KeyError in the MQTT thread
+            return
+        task_uuid = sent_uuid if sent_uuid is not None else unit.task_uuid()
+        if sent_uuid is not None and "task-uuid-ignored" in self.faults:
+            task_uuid = unit.task_uuid()
+        if not isinstance(task_field, dict) or not isinstance(task_field.get("name"), str):
+            self._answer(com, "failed", task_uuid=task_uuid, fail_reason="start-task needs "
+                         "'task': {'name': ..., 'params': {...}} (12.2.3, section 10)")
+            return
+        if (task_uuid in tasks and "resend-executes-twice" in self.faults
+                and tasks[task_uuid].com_uuid == com):
+            del tasks[task_uuid]  # the resend starts the same task again from scratch
+        if task_uuid in tasks:
+            self._answer(com, "failed", task_uuid=task_uuid, fail_reason=f"task-uuid "
+                         f"{task_uuid} is already used by another task")
+            return
+        name = task_field["name"]
+        params = task_field.get("params", {})
+        spec = unit.specs.get(name)
+        problems: list[str] = []
+        if spec is None:
+            if "accept-unknown-task" not in self.faults:
+                known = ", ".join(unit.specs)
+                reason = (f"task {name[:64]!r} is not available on this "
+                          f"{unit.address.agent_type} unit; tasks-available: {known}")
+                self._fail_task(com, task_uuid, name, reason)
+                return
+        else:
+            problems = spec.problems(params)
+            if problems and "accept-invalid-params" not in self.faults:
+                self._fail_task(com, task_uuid, name,
+                                f"invalid parameters for {name}: " + "; ".join(problems))
+                return
+        task = Task(task_uuid, name, params if isinstance(params, dict) else {}, spec, com,
+                    leg_started=now)
+        if problems:
+            task.fail_at = now + 0.5  # fault accept-invalid-params: it fails once it runs
+        else:
+            plan(task, unit.vehicle, unit.task_seconds)
+        if task.spec is not None:
+            self.runner.preempt(task, f"pre-empted by task {task_uuid}")
+        self.runner.remember(task)
+        response = "started" if "start-answered-started" in self.faults else "running"
+        shown = None if (sent_uuid is not None and "start-response-no-task-uuid" in self.faults
+                         or sent_uuid is None and "start-no-generated-task-uuid" in self.faults
+                         ) else task_uuid
+        if "start-response-unpublished" in self.faults:
+            self.history.remember(com, None)  # built into a response that is never published
+        else:
+            self._answer(com, response, task_uuid=shown, fail_reason="", kind="start")
+        if "feedback-status-typo" in self.faults:
+            self.runner.feedback(task, "Starting")
+        self.runner.feedback(task, "running")
+        self.runner.start(task, now)
+
+    def _fail_task(self, com: str, task_uuid: str, name: str, reason: str) -> None:
+        task = Task(task_uuid, str(name)[:128], {}, None, com, status="failed",
+                    fail_reason=reason)
+        self.runner.remember(task)
+        self._answer(com, "failed", task_uuid=task_uuid, fail_reason=reason, kind="start")
+
+    # --- signal-task ----------------------------------------------------------------------------
+    def _signal_task(self, com: str, msg: dict[str, Any], now: float) -> None:
+        runner = self.runner
+        task_uuid, signal = msg.get("task-uuid"), msg.get("signal")
+        shown = task_uuid if isinstance(task_uuid, str) and len(task_uuid) <= 128 else None
+
+        def refuse(reason: str) -> None:
+            self._answer(com, "failed", task_uuid=shown, fail_reason=reason, kind="signal")
+
+        if not isinstance(task_uuid, str) or not isinstance(signal, str):
+            refuse("signal-task needs a task-uuid and a signal (strings, 12.2.2)")
+            return
+        task = runner.tasks.get(task_uuid)
+        if task is None:
+            if "signal-unknown-task-ok" in self.faults:
+                self._answer(com, "ok", task_uuid=shown, fail_reason="", kind="signal")
+            else:
+                refuse(f"no task with task-uuid {task_uuid[:64]} is known")
+            return
+        if task.ended:
+            refuse(f"task {task_uuid} has already ended ({task.status})")
+            return
+        signals = task.spec.signals if task.spec else BUILTIN_SIGNALS
+        if "signal-nonstandard" in self.faults and signal == "$resume":
+            signal = "$continue"
+        if signal not in signals:
+            refuse(f"task {task.name} does not understand {signal[:64]!r}; it understands "
+                   f"{', '.join(signals)}")
+            return
+        self._answer(com, "ok", task_uuid=task_uuid, fail_reason="", kind="signal")
+        runner.step(now)
+        if signal == "$abort":
+            if "abort-ignored" not in self.faults:
+                runner.end(task, "aborted", "aborted by $abort")
+        elif signal == "$enough":
+            runner.end(task, "aborted" if "enough-aborts" in self.faults else "finished",
+                       "ended by $enough")
+        elif signal == "$pause":
+            if "pause-ignored" not in self.faults:
+                runner.pause(task, now)
+        elif signal == "$continue":
+            runner.resume(task, now)
+        elif signal == SKIP_WAYPOINT:
+            if task.leg < len(task.legs):
+                runner.vehicle.stop()
+                task.leg += 1
+                task.leg_started = now
+                if task.leg < len(task.legs) and task.status == "running":
+                    runner.start_leg(task)
+        if task.status == "running":
+            runner.advance(task, now)
+
+    # --- query-status ---------------------------------------------------------------------------
+    def _query_status(self, com: str, msg: dict[str, Any]) -> None:
+        if "query-unanswered" in self.faults:
+            return  # never answered (every agent seen in the field)
+        task_uuid = msg.get("task-uuid")
+        if not isinstance(task_uuid, str) or not task_uuid or len(task_uuid) > 128:
+            self._answer(com, "failed", fail_reason="query-status needs the task-uuid of the "
+                         "task to query (12.1)", kind="query")
+            return
+        task = self.runner.tasks.get(task_uuid)
+        if task is not None and task.ended and "query-forgets-finished" in self.faults:
+            task = None
+        if task is None:
+            if "query-unknown-failed" in self.faults:
+                self._answer(com, "failed", task_uuid=task_uuid, fail_reason="no such task",
+                             kind="query")
+            else:  # 12.1: 'unknown' for a task this life has never seen
+                self._answer(com, "unknown", task_uuid=task_uuid, fail_reason="", kind="query")
+            return
+        status = task.status
+        if status == "finished" and "query-answers-success" in self.faults:
+            status = "success"
+        reason = task.fail_reason if status == "failed" else ""
+        self._answer(com, status, task_uuid=task_uuid, fail_reason=reason, kind="query")
+
+
+def _decode(payload: bytes) -> tuple[Any, str | None]:
+    """The command as a dict with a string com-uuid, or what is wrong with it."""
+    try:
+        msg = orjson.loads(payload)
+    except orjson.JSONDecodeError as e:
+        return None, f"the command is not valid JSON (UTF-8, RFC 8259): {str(e)[:120]}"
+    if not isinstance(msg, dict):
+        return msg, f"a command is a JSON object, not a JSON {type(msg).__name__}"
+    com = msg.get("com-uuid")
+    if not isinstance(com, str) or not com or len(com) > 128:
+        return msg, "the command has no com-uuid string"
+    return msg, None
+
+
+def _readable_com_uuid(payload: bytes, msg: Any) -> str | None:
+    """A com-uuid that can be read from a malformed command, if any (EXEC-ROBUST-002)."""
+    if isinstance(msg, dict):
+        com = msg.get("com-uuid")
+        return com if isinstance(com, str) and 0 < len(com) <= 128 else None
+    if msg is not None:
+        return None  # valid JSON but not an object: nothing to read it from
+    m = _COM_UUID.search(payload, 0, 65536)
+    if m is None:
+        return None
+    try:
+        return m.group(1).decode("utf-8")
+    except UnicodeDecodeError:
+        return None
