@@ -13,9 +13,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from conformance.scenarios import ping, query, reboot, resend, robust, signal, start, tst
-from conformance.scenarios.commander import Commander, DryRun
+from conformance.scenarios.commander import Commander
 from conformance.scenarios.context import Context, Timing
 from conformance.scenarios.safety import Position, Safety
+from conformance.scenarios.sender import DryRun
 from conformance.scenarios.traffic import Entry, Traffic
 from conformance.scenarios.tst_commander import TstCommander
 

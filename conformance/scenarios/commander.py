@@ -9,13 +9,9 @@ raises ``DryRun``.
 
 from __future__ import annotations
 
-import threading
-import uuid
 from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from typing import Any
-
-import orjson
 
 from conformance.scenarios.deviation import (
     FINAL_STATUSES,
@@ -25,26 +21,9 @@ from conformance.scenarios.deviation import (
     Kind,
     meaning,
 )
+from conformance.scenarios.sender import Sender, Sent, new_uuid
 from conformance.scenarios.traffic import Entry, Traffic
 from conformance.topics import UnitAddress
-
-SENDER = "waraps-conformance"
-
-
-class DryRun(Exception):
-    """Raised instead of publishing under ``--dry-run``; the message says what would be sent."""
-
-
-@dataclass
-class Sent:
-    """A command as published: its ``com_uuid``, body, and the traffic mark taken just before
-    it went out (answers arrive after ``mark``)."""
-
-    com_uuid: str
-    body: dict[str, Any]
-    payload: bytes
-    mark: int
-    gaps_before: int = 0
 
 
 @dataclass
@@ -71,12 +50,7 @@ def _describe(body: dict[str, Any]) -> str:
     return " ".join(w for w in words if w)
 
 
-def new_uuid() -> str:
-    # Fresh, not seeded: a com-uuid repeated across runs would look like a resend (12.1).
-    return str(uuid.uuid4())
-
-
-class Commander:
+class Commander(Sender):
     """Sends spec-12 commands to one unit and waits, with deadlines, for responses and feedback.
 
     ``publish(topic, payload)`` does the MQTT publish; ``gaps()`` returns how many connection
@@ -84,35 +58,27 @@ class Commander:
     com-uuid, as 2 and 12.1 prescribe for unreliable links).
     """
 
+    responses = "exec/response"
+
     def __init__(self, unit: UnitAddress, traffic: Traffic,
                  publish: Callable[[str, bytes], None], *, dry_run: bool = False,
                  say: Callable[[str], None] = print, gaps: Callable[[], int] = lambda: 0,
                  wait_connected: Callable[[float], bool] = lambda timeout: True,
                  deviations: Deviations | None = None,
                  step: Callable[[str], None] | None = None) -> None:
-        self.unit = unit
+        super().__init__(unit, unit.topic("exec/command"), traffic, publish, dry_run=dry_run,
+                         say=say, wait_connected=wait_connected, gaps=gaps)
         self._step = step
-        self.topic = unit.topic("exec/command")
-        self.traffic = traffic
-        self._publish = publish
-        self.dry_run = dry_run
-        self._say = say
-        self._gaps = gaps
-        self._wait_connected = wait_connected
-        self._lock = threading.Lock()
         self.open_tasks: dict[str, OpenTask] = {}
-        self.sent_count = 0
-        self.would_publish: list[tuple[str, bytes]] = []
-        """Under --dry-run: what would have been published."""
         self._closed: set[object] = set()
         """task-uuids that need no $abort any more (refused, or their $abort was answered)."""
         self._start_commands: dict[str, Sent] = {}
         """com-uuid -> start-task sent: the unit's answers name the task-uuids it generated."""
         self.deviations = deviations if deviations is not None else Deviations()
         self._unit_uuid: dict[str, str] = {}
+        """task-uuid sent -> the task-uuid the unit runs the task under, when it differs."""
         self._answered_kinds: set[str] = set()
         """Commands (start-task, ...) the unit has answered at least once."""
-        """task-uuid sent -> the task-uuid the unit runs the task under, when it differs."""
         self.deliberately_invalid: set[bytes] = set()
         """Payloads sent broken on purpose (robustness, invalid parameters): not the unit's
         fault, so the passive checks are not fed these."""
@@ -121,10 +87,7 @@ class Commander:
     def send(self, body: dict[str, Any], *, com_uuid: str | None = None,
              invalid: bool = False) -> Sent:
         """Publish a command; ``com-uuid`` and ``sender`` are filled in when missing."""
-        body = dict(body)
-        body.setdefault("com-uuid", com_uuid or new_uuid())
-        body.setdefault("sender", SENDER)
-        payload = orjson.dumps(body, option=orjson.OPT_SORT_KEYS)
+        payload, body = self.compose(body, com_uuid)
         return self._send_payload(payload, body, invalid=invalid)
 
     def send_raw(self, payload: bytes, *, com_uuid: str = "") -> Sent:
@@ -140,32 +103,20 @@ class Commander:
                       com_uuid: str = "") -> Sent:
         if invalid:
             self.deliberately_invalid.add(payload)
-        if self.dry_run:
-            self.would_publish.append((self.topic, payload))
-            shown = payload.decode("utf-8", "backslashreplace")
-            self._say(f"dry run: would publish to {self.topic}: {shown}")
-            raise DryRun(f"dry run: would publish to {self.topic}: {shown[:200]}")
-        self._wait_connected(5.0)  # a command sent into a gap is lost; wait for the link
-        mark = self.traffic.mark()
-        sent = Sent(str(body.get("com-uuid", com_uuid)), body, payload, mark, self._gaps())
-        # Remembered before it goes out: a Ctrl-C between publish and answer must not leave
-        # a task running that abort_all does not know about.
-        self._track(sent, None)
-        self._publish(self.topic, payload)
-        with self._lock:
-            self.sent_count += 1
+        sent = self.publish_command(payload, body, com_uuid=com_uuid)
         if self._step is not None:
             self._step(f"sent {_describe(body) or 'a malformed command'} "
                        f"(com-uuid {sent.com_uuid[:8]})")
         return sent
 
+    def _remember(self, sent: Sent) -> None:
+        self._track(sent, None)
+
     # --- waiting for answers ---------------------------------------------------------------
     def response(self, sent: Sent, timeout: float, *, after: int | None = None) -> Entry | None:
         """The unit's response whose ``response-to`` is the command's com-uuid (12.3)."""
-        com_uuid = sent.com_uuid
-        answer = self.traffic.wait_for(
-            lambda e: e.get("response-to") == com_uuid, timeout,
-            after=sent.mark if after is None else after, subtopic="exec/response",
+        answer = self.await_response(
+            sent, timeout, after=after,
             what=f"the response to {_describe(sent.body) or 'a malformed command'}")
         if self._step is not None:
             self._step(f"  answered {answer.get('response')!r}" if answer is not None else

@@ -3,10 +3,10 @@ and 'unknown' for a task the unit never saw."""
 
 from __future__ import annotations
 
-from conformance.scenarios.commander import new_uuid
 from conformance.scenarios.context import Context, describe
 from conformance.scenarios.deviation import FINAL_STATUSES, meaning
 from conformance.scenarios.params import valid_params
+from conformance.scenarios.sender import new_uuid
 from conformance.violation import Verdict
 
 RULES = ("EXEC-QUERY-001", "EXEC-QUERY-002")

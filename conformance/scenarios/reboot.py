@@ -5,9 +5,9 @@ both rules are could-not-test."""
 
 from __future__ import annotations
 
-from conformance.scenarios.commander import new_uuid
 from conformance.scenarios.context import Context, describe
 from conformance.scenarios.query import status_answer
+from conformance.scenarios.sender import new_uuid
 from conformance.violation import Verdict
 
 RULES = ("REBOOT-001", "REBOOT-002")

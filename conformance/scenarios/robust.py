@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import orjson
 
-from conformance.scenarios.commander import SENDER, Sent, new_uuid
 from conformance.scenarios.context import Context, describe
+from conformance.scenarios.sender import SENDER, Sent, new_uuid
 from conformance.violation import Verdict
 
 RULES = ("EXEC-ROBUST-001", "EXEC-ROBUST-002")

@@ -9,9 +9,9 @@ answered 'failed' (EXEC-SIG-005).
 
 from __future__ import annotations
 
-from conformance.scenarios.commander import new_uuid
 from conformance.scenarios.context import Context, describe
 from conformance.scenarios.params import valid_params
+from conformance.scenarios.sender import new_uuid
 from conformance.scenarios.traffic import Entry
 from conformance.violation import Verdict
 

@@ -26,10 +26,10 @@ from __future__ import annotations
 
 from itertools import cycle
 
-from conformance.scenarios.commander import new_uuid
 from conformance.scenarios.context import Context, describe
 from conformance.scenarios.params import valid_params
 from conformance.scenarios.safety import Position
+from conformance.scenarios.sender import new_uuid
 from conformance.scenarios.traffic import Entry
 from conformance.scenarios.tst_commander import TstCommander, node
 from conformance.tst import FINAL

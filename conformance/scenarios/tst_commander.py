@@ -12,14 +12,11 @@ what it would publish and raises ``DryRun``.
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Callable, Collection, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
-import orjson
-
-from conformance.scenarios.commander import SENDER, DryRun, Sent, new_uuid
+from conformance.scenarios.sender import Sender, Sent
 from conformance.scenarios.traffic import Entry, Traffic
 from conformance.topics import UnitAddress
 from conformance.tst import FINAL
@@ -48,26 +45,20 @@ class OpenTree:
     com_uuids: list[str] = field(default_factory=list)
 
 
-class TstCommander:
+class TstCommander(Sender):
     """Sends spec-14 commands for one unit to ``topic`` and waits, with deadlines, for its
     responses and node feedback. ``publish(topic, payload)`` does the MQTT publish."""
+
+    responses = "tst/response"
 
     def __init__(self, unit: UnitAddress, topic: str, traffic: Traffic,
                  publish: Callable[[str, bytes], None], *, dry_run: bool = False,
                  say: Callable[[str], None] = print,
                  wait_connected: Callable[[float], bool] = lambda timeout: True) -> None:
-        self.unit = unit
-        self.topic = topic
-        self.traffic = traffic
-        self._publish = publish
-        self.dry_run = dry_run
-        self._say = say
-        self._wait_connected = wait_connected
-        self._lock = threading.Lock()
+        super().__init__(unit, topic, traffic, publish, dry_run=dry_run, say=say,
+                         wait_connected=wait_connected)
         self.open_trees: dict[str, OpenTree] = {}
         """com-uuid of the start-tst -> the tree, until it ended or its $abort was answered."""
-        self.sent_count = 0
-        self.would_publish: list[tuple[str, bytes]] = []
 
     @property
     def shared(self) -> bool:
@@ -81,48 +72,33 @@ class TstCommander:
 
     # --- publishing ---------------------------------------------------------------------
     def send(self, body: dict[str, Any], *, com_uuid: str | None = None) -> Sent:
-        body = dict(body)
-        body.setdefault("com-uuid", com_uuid or new_uuid())
-        body.setdefault("sender", SENDER)
-        return self._send_payload(orjson.dumps(body, option=orjson.OPT_SORT_KEYS), body)
+        """Publish a command; ``com-uuid`` and ``sender`` are filled in when missing."""
+        return self.publish_command(*self.compose(body, com_uuid))
 
     def resend(self, sent: Sent) -> Sent:
         """The very same command again (12.1's resend, which holds for TST commands too)."""
-        return self._send_payload(sent.payload, sent.body)
+        return self.publish_command(sent.payload, sent.body)
 
-    def _send_payload(self, payload: bytes, body: dict[str, Any]) -> Sent:
-        if self.dry_run:
-            self.would_publish.append((self.topic, payload))
-            shown = payload.decode("utf-8", "backslashreplace")
-            self._say(f"dry run: would publish to {self.topic}: {shown}")
-            raise DryRun(f"dry run: would publish to {self.topic}: {shown[:200]}")
-        self._wait_connected(5.0)
-        sent = Sent(str(body.get("com-uuid", "")), body, payload, self.traffic.mark())
-        if body.get("command") == "start-tst":
-            # Remembered before it goes out: a Ctrl-C right after must still abort it.
-            tst = body.get("tst")
-            common = tst.get("common_params", {}) if isinstance(tst, dict) else {}
-            root = common.get("node-uuid") if isinstance(common, dict) else None
-            with self._lock:
-                known = self.open_trees.setdefault(sent.com_uuid, OpenTree(
-                    {root} if isinstance(root, str) else set(), sent.mark,
-                    str(tst.get("name", "")) if isinstance(tst, dict) else ""))
-                known.com_uuids.append(sent.com_uuid)
-        self._publish(self.topic, payload)
+    def _remember(self, sent: Sent) -> None:
+        """A start-tst: the tree it may start, to abort it at the end."""
+        if sent.body.get("command") != "start-tst":
+            return
+        tst = sent.body.get("tst")
+        common = tst.get("common_params", {}) if isinstance(tst, dict) else {}
+        root = common.get("node-uuid") if isinstance(common, dict) else None
         with self._lock:
-            self.sent_count += 1
-        return sent
+            known = self.open_trees.setdefault(sent.com_uuid, OpenTree(
+                {root} if isinstance(root, str) else set(), sent.mark,
+                str(tst.get("name", "")) if isinstance(tst, dict) else ""))
+            known.com_uuids.append(sent.com_uuid)
 
     # --- waiting ------------------------------------------------------------------------
     def response(self, sent: Sent, timeout: float, *, after: int | None = None
                  ) -> Entry | None:
         """The response whose response-to is the command's com-uuid (14.4)."""
-        com = sent.com_uuid
-        answer = self.traffic.wait_for(lambda e: e.get("response-to") == com, timeout,
-                                       after=sent.mark if after is None else after,
-                                       subtopic="tst/response")
+        answer = self.await_response(sent, timeout, after=after)
         if answer is not None and sent.body.get("command") == "start-tst":
-            self._track(com, answer)
+            self._track(sent.com_uuid, answer)
         return answer
 
     def request(self, body: dict[str, Any], timeout: float) -> tuple[Sent, Entry | None]:

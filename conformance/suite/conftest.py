@@ -3,14 +3,11 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from typing import Any
 
 import pytest
 
-from conformance.checks import Monitor
-from conformance.profile import Profile
-from conformance.scenarios import Traffic
 from conformance.suite.session import CERTIFICATION, Certification
-from conformance.topics import UnitAddress
 
 
 @pytest.fixture(scope="session")
@@ -25,28 +22,25 @@ def certification(pytestconfig: pytest.Config) -> Certification:
     return found
 
 
-@pytest.fixture(scope="session")
-def unit(certification: Certification) -> UnitAddress:
-    """The unit under test. Example: ``unit.topic("heartbeat")``."""
-    return certification.unit
+def certification_part(name: str, doc: str) -> Any:
+    """A session fixture ``name``: that attribute of the running certification."""
+    def part(certification: Certification) -> Any:
+        return getattr(certification, name)
+
+    part.__doc__ = doc
+    return pytest.fixture(scope="session", name=name)(part)
 
 
-@pytest.fixture(scope="session")
-def profile(certification: Certification) -> Profile:
-    """The profile in force. Example: ``profile.min_intervals``."""
-    return certification.profile
-
-
-@pytest.fixture(scope="session")
-def monitor(certification: Certification) -> Monitor:
-    """The passive checks over the whole run. Example: ``monitor.state(unit).agent_uuid``."""
-    return certification.monitor
-
-
-@pytest.fixture(scope="session")
-def traffic(certification: Certification) -> Traffic:
-    """The unit's messages, decoded. Example: ``traffic.latest("heartbeat").body``."""
-    return certification.traffic
+unit = certification_part(
+    "unit", "The unit under test (``UnitAddress``). Example: ``unit.topic(\"heartbeat\")``.")
+profile = certification_part(
+    "profile", "The profile in force (``Profile``). Example: ``profile.min_intervals``.")
+monitor = certification_part(
+    "monitor", "The passive checks over the whole run (``Monitor``). Example: "
+    "``monitor.state(unit).agent_uuid``.")
+traffic = certification_part(
+    "traffic", "The unit's messages, decoded (``Traffic``). Example: "
+    "``traffic.latest(\"heartbeat\").body``.")
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -1,0 +1,109 @@
+"""The suite as the sender of commands (spec 12's and spec 14's commanders alike): publish a
+command to the one command topic allowed (DESIGN 'Safety'), never under ``--dry-run``, and wait
+for the response whose ``response-to`` is its com-uuid (12.3, 14.4)."""
+
+from __future__ import annotations
+
+import threading
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import orjson
+
+from conformance.scenarios.traffic import Entry, Traffic
+from conformance.topics import UnitAddress
+
+SENDER = "waraps-conformance"
+"""The ``sender`` of every command the suite publishes."""
+
+
+class DryRun(Exception):
+    """Raised instead of publishing under ``--dry-run``; the message says what would be sent."""
+
+
+@dataclass
+class Sent:
+    """A command as published: its ``com_uuid``, body, and the traffic mark taken just before
+    it went out (answers arrive after ``mark``)."""
+
+    com_uuid: str
+    body: dict[str, Any]
+    payload: bytes
+    mark: int
+    gaps_before: int = 0
+
+
+def new_uuid() -> str:
+    # Fresh, not seeded: a com-uuid repeated across runs would look like a resend (12.1).
+    return str(uuid.uuid4())
+
+
+class Sender:
+    """Publishes commands for ``unit`` to ``topic`` and waits for their responses on the
+    ``responses`` subtopic. ``publish(topic, payload)`` does the MQTT publish; ``gaps()``
+    counts the connection gaps lived through; ``wait_connected(seconds)`` waits for the link.
+    A subclass remembers what it must abort later in ``_remember``, before the publish."""
+
+    responses = ""
+    """The subtopic the responses come on (``exec/response``, ``tst/response``)."""
+
+    def __init__(self, unit: UnitAddress, topic: str, traffic: Traffic,
+                 publish: Callable[[str, bytes], None], *, dry_run: bool,
+                 say: Callable[[str], None], wait_connected: Callable[[float], bool],
+                 gaps: Callable[[], int] = lambda: 0) -> None:
+        self.unit = unit
+        self.topic = topic
+        self.traffic = traffic
+        self._publish = publish
+        self.dry_run = dry_run
+        self._say = say
+        self._wait_connected = wait_connected
+        self._gaps = gaps
+        self._lock = threading.Lock()
+        self.sent_count = 0
+        self.would_publish: list[tuple[str, bytes]] = []
+        """Under --dry-run: what would have been published."""
+
+    @staticmethod
+    def compose(body: dict[str, Any], com_uuid: str | None = None
+                ) -> tuple[bytes, dict[str, Any]]:
+        """The payload of a command and its body, ``com-uuid`` and ``sender`` filled in when
+        missing."""
+        body = dict(body)
+        body.setdefault("com-uuid", com_uuid or new_uuid())
+        body.setdefault("sender", SENDER)
+        return orjson.dumps(body, option=orjson.OPT_SORT_KEYS), body
+
+    def publish_command(self, payload: bytes, body: dict[str, Any], *,
+                        com_uuid: str = "") -> Sent:
+        """Publish ``payload`` (whose decoded ``body`` it is) to the command topic; under
+        --dry-run say what would be published and raise ``DryRun``."""
+        if self.dry_run:
+            self.would_publish.append((self.topic, payload))
+            shown = payload.decode("utf-8", "backslashreplace")
+            self._say(f"dry run: would publish to {self.topic}: {shown}")
+            raise DryRun(f"dry run: would publish to {self.topic}: {shown[:200]}")
+        self._wait_connected(5.0)  # a command sent into a gap is lost; wait for the link
+        sent = Sent(str(body.get("com-uuid", com_uuid)), body, payload, self.traffic.mark(),
+                    self._gaps())
+        # Remembered before it goes out: a Ctrl-C between publish and answer must not leave
+        # a task or tree running that abort_all does not know about.
+        self._remember(sent)
+        self._publish(self.topic, payload)
+        with self._lock:
+            self.sent_count += 1
+        return sent
+
+    def _remember(self, sent: Sent) -> None:
+        """What a command about to be published may start (to abort it at the end)."""
+
+    def await_response(self, sent: Sent, timeout: float, *, after: int | None = None,
+                       what: str = "") -> Entry | None:
+        """The response whose response-to is the command's com-uuid (12.3, 14.4), after
+        ``after`` (default: the command's mark), waiting up to ``timeout`` seconds."""
+        com_uuid = sent.com_uuid
+        return self.traffic.wait_for(
+            lambda e: e.get("response-to") == com_uuid, timeout,
+            after=sent.mark if after is None else after, subtopic=self.responses, what=what)

@@ -1,0 +1,139 @@
+"""A certification's link to the broker: the reference pair first under ``--broker embedded``,
+then the suite's one MQTT client with its publish policy (DESIGN 'Safety'), the wait for the
+unit's first live heartbeat, and the connection gaps marked in the Monitor.
+
+Data flows one way (DESIGN): every message of ``<unit>/#`` goes to the ``Monitor`` (the same
+passive checks as the linter) and to ``Traffic`` (which the scenarios wait on).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from contextlib import AbstractContextManager
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from conformance.checks import Monitor
+from conformance.client import BrokerURL, MqttClient
+from conformance.message import Message
+from conformance.scenarios import Traffic
+from conformance.suite.events import Events
+from conformance.suite.probe import NotAlive, Probe, not_alive
+from conformance.suite.settings import Settings
+from conformance.topics import UnitAddress
+
+if TYPE_CHECKING:
+    from conformance.sim.reference import Reference
+
+
+@dataclass(eq=False)
+class Connection:
+    """The suite's connection for one certification; ``open`` it, then ``publish``."""
+
+    settings: Settings
+    monitor: Monitor
+    traffic: Traffic
+    monitor_lock: AbstractContextManager[Any]
+    """Held while the Monitor is fed or read (the MQTT network thread feeds it)."""
+    events: Events
+    client: MqttClient | None = field(default=None, init=False)
+    reference: Reference | None = field(default=None, init=False)
+    """The bundled reference unit and its broker, under --broker embedded."""
+    _alive: threading.Event = field(default_factory=threading.Event, init=False)
+    _gap_start: float | None = field(default=None, init=False)
+
+    def __post_init__(self) -> None:
+        self.broker_url: BrokerURL = self.settings.broker
+        """The broker connected to (under --broker embedded: the embedded one's address)."""
+
+    @property
+    def unit(self) -> UnitAddress:
+        return self.settings.unit
+
+    def open(self, alive_timeout: float) -> None:
+        """Connect, observe ``<unit>/#`` and wait up to ``alive_timeout`` seconds for the
+        unit's first live heartbeat.
+
+        Raises ``BrokerError`` (broker unreachable or refusing) or ``NotAlive``."""
+        s = self.settings
+        if s.embedded:
+            # Imported here: the broker and the simulator load only for --broker embedded.
+            from conformance.sim.reference import Reference
+
+            self.reference = Reference(self.unit, faults=s.sim_faults, rate=s.sim_rate,
+                                       seed=s.seed, tst=s.sim_tst,
+                                       tst_operator=s.tst_operator).start()
+            self.broker_url = BrokerURL.parse(self.reference.url)
+        probe = Probe(self.broker_url, self.unit)
+        self.client = MqttClient(self.broker_url, on_message=self._on_message,
+                                 may_publish=self.may_publish,
+                                 on_connection_change=self._on_connection)
+        self.client.connect(timeout=5.0 * s.timing_scale)
+        self.client.subscribe(self.unit.base + "/#")
+        if s.tst_operator is not None:  # 14.1: commands and answers there
+            self.client.subscribe(s.tst_operator.base + "/tst/#")
+        probe.start()
+        try:
+            if not self._alive.wait(alive_timeout):
+                raise NotAlive(not_alive(
+                    self.unit, s.profile, self.broker_url, waited=alive_timeout,
+                    own_subtopics=self.traffic.subtopics(), seen=probe.topics(),
+                    timing_scale=s.timing_scale))
+        finally:
+            probe.close()
+
+    def _on_message(self, message: Message) -> None:
+        """Every message of ``<unit>/#``, on the MQTT network thread: keep it quick."""
+        with self.monitor_lock:
+            self.monitor.feed(message)
+        self.traffic.add(message)
+        if not message.retain and message.topic.endswith("/heartbeat") \
+                and message.topic == self.unit.topic("heartbeat"):
+            self._alive.set()
+
+    def _on_connection(self, connected: bool, reason: str) -> None:
+        now = time.time()
+        with self.monitor_lock:
+            if not connected:
+                self._gap_start = now
+                # Mark the gap at once: rates, silences and uuid changes across it are not
+                # judged (the Monitor merges this with its end when the link comes back).
+                self.monitor.connection_gap(now, now)
+                self.events.at(now, f"broker connection lost ({reason})")
+            elif self._gap_start is not None:
+                start, self._gap_start = self._gap_start, None
+                self.monitor.connection_gap(start, now)
+                self.events.at(now, f"broker connection back after {now - start:.1f} s: "
+                                    f"rates, silences and uuid changes over the gap are not "
+                                    f"judged")
+
+    def may_publish(self, topic: str) -> bool:
+        # DESIGN 'Safety': only the command topic of the unit under test, and the one TST
+        # command topic the run was told (14.1: the unit's own, or an operator's).
+        return topic == self.unit.topic("exec/command") or topic == self.settings.tst_topic
+
+    def publish(self, topic: str, payload: bytes) -> None:
+        assert self.client is not None
+        # QoS 1 without waiting for the PUBACK: the unit's answer is what the scenario waits
+        # for, and paho resends an unacknowledged command after a reconnect.
+        self.client.publish(topic, payload, qos=1, timeout=0)
+
+    @property
+    def is_connected(self) -> bool:
+        return self.client is not None and self.client.is_connected
+
+    def gaps(self) -> int:
+        """How many connection gaps the client has lived through."""
+        return len(self.client.gaps) if self.client else 0
+
+    def wait_connected(self, timeout: float) -> bool:
+        """Wait up to ``timeout`` seconds for the link (a command sent into a gap is lost)."""
+        return self.client.wait_connected(timeout) if self.client else False
+
+    def close(self) -> None:
+        if self.client is not None:
+            self.client.close()
+        if self.reference is not None:
+            self.reference.stop()
+            self.reference = None

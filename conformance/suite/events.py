@@ -1,0 +1,21 @@
+"""What happened to the connection and the unit during a certification, for the terminal
+summary (``pytest_terminal_summary``): one line each, most stamped with the wall-clock time."""
+
+from __future__ import annotations
+
+import time
+
+
+def clock(t: float) -> str:
+    """Unix seconds as local wall-clock time to the millisecond: ``14:03:07.250``."""
+    return time.strftime("%H:%M:%S", time.localtime(t)) + f".{int(t % 1 * 1000):03d}"
+
+
+class Events(list[str]):
+    """The run's events, oldest first (a list of lines)."""
+
+    def at(self, t: float, text: str) -> str:
+        """Add ``text`` as happened at ``t`` (Unix seconds); returns the line added."""
+        line = f"{clock(t)} {text}"
+        self.append(line)
+        return line
