@@ -14,6 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from conformance.checks.base import geopoint
 from conformance.profile import Profile
 from conformance.scenarios.commander import Commander
 from conformance.scenarios.deviation import FINAL_STATUSES, Deviation, Kind, meaning
@@ -118,16 +119,15 @@ class Context:
         return out
 
     def position(self) -> Position | None:
-        """The unit's last reported position (6.1 sensor/position), or None."""
+        """The unit's last reported position (6.1 sensor/position), or None when it has none
+        in range."""
         e = self.traffic.latest("sensor/position")
-        body = e.body if e else None
-        if not isinstance(body, dict):
+        # Degrees in range, or no position: a position in 1e-7 degrees (SENS-003's fault) is
+        # no place to send the unit to (the commands made from it would be the suite's fault).
+        point = geopoint(e.body) if e else None
+        if point is None:
             return None
-        try:
-            return Position(float(body["latitude"]), float(body["longitude"]),
-                            float(body.get("altitude", 0.0) or 0.0))
-        except (KeyError, TypeError, ValueError):
-            return None
+        return Position(point[0], point[1], point[2] or 0.0)
 
     def rng(self, salt: str) -> random.Random:
         """A random generator derived from --seed and a name: the same run, the same values."""
