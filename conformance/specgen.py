@@ -197,25 +197,12 @@ def _dispatch_by_name(specs: list[TaskSpec], generic_params: dict[str, Any]) -> 
 def start_task_schema(specs: list[TaskSpec]) -> dict[str, Any]:
     """start-task (12.2.3, examples 10.1): the task's params schema chosen by task name."""
     names = [s.name for s in specs]
-    return {
-        "$schema": DRAFT,
-        "$id": BASE_URI + f"{GENERATED}/start-task.json",
-        "title": "start-task command (spec 12.2.3, examples 10.1)",
-        "description": "Starts a task of section 9 on the unit. task-uuid is optional (12.1: a "
-                       "generated one is returned when absent). execution-unit and sender "
-                       "appear in every example but no prose requires them.",
-        "x-rule": "EXEC-001",
-        "type": "object",
-        "required": ["com-uuid", "command", "task"],
-        "properties": {
-            "com-uuid": {"$ref": f"{COMMON}#/$defs/com-uuid"},
-            "command": {"const": "start-task"},
+    return _command_schema("start-task", {
             "sender": {"type": "string"},
             "execution-unit": {"type": "string"},
             "task-uuid": {"$ref": f"{COMMON}#/$defs/task-uuid"},
             "task": {"$ref": "#/$defs/task"},
-        },
-        "$defs": {
+        }, {
             "task": {
                 "type": "object",
                 "required": ["name", "params"],
@@ -230,7 +217,44 @@ def start_task_schema(specs: list[TaskSpec]) -> dict[str, Any]:
                 },
                 "allOf": _dispatch_by_name(specs, {"type": "object"}),
             },
+        })
+
+
+_STARTS = {
+    # command: (the field it starts, where the spec says so, its rule, the description)
+    "start-task": ("task", "spec 12.2.3, examples 10.1", "EXEC-001",
+                   "Starts a task of section 9 on the unit. task-uuid is optional (12.1: a "
+                   "generated one is returned when absent). execution-unit and sender appear "
+                   "in every example but no prose requires them."),
+    "start-tst": ("tst", "spec 14.3.4, examples 11", "TST-001",
+                  "Starts a fully instantiated TST tree. Each node names a task of section 9 "
+                  "(its params are checked against the task's schema) or a composite node, seq "
+                  "or conc (TST-010), and lists its children; the tree is recursive. Its "
+                  "structure beyond a schema (unique node-uuids, children only under seq and "
+                  "conc) is conformance.tst's (TST-014)."),
+}
+
+
+def _command_schema(command: str, properties: dict[str, Any],
+                    defs: dict[str, Any]) -> dict[str, Any]:
+    """The schema of a command that starts something (``_STARTS``): its com-uuid, its
+    ``command`` const and the field it starts (required), with its other ``properties`` and
+    ``defs``."""
+    field, where, rule, description = _STARTS[command]
+    return {
+        "$schema": DRAFT,
+        "$id": BASE_URI + f"{GENERATED}/{command}.json",
+        "title": f"{command} command ({where})",
+        "description": description,
+        "x-rule": rule,
+        "type": "object",
+        "required": ["com-uuid", "command", field],
+        "properties": {
+            "com-uuid": {"$ref": f"{COMMON}#/$defs/com-uuid"},
+            "command": {"const": command},
+            **properties,
         },
+        "$defs": defs,
     }
 
 
@@ -251,26 +275,11 @@ def start_tst_schema(specs: list[TaskSpec]) -> dict[str, Any]:
             "node-uuid": {"$ref": f"{COMMON}#/$defs/node-uuid"},
         },
     }
-    return {
-        "$schema": DRAFT,
-        "$id": BASE_URI + f"{GENERATED}/start-tst.json",
-        "title": "start-tst command (spec 14.3.4, examples 11)",
-        "description": "Starts a fully instantiated TST tree. Each node names a task of section "
-                       "9 (its params are checked against the task's schema) or a composite "
-                       "node, seq or conc (TST-010), and lists its children; the tree is "
-                       "recursive. Its structure beyond a schema (unique node-uuids, children "
-                       "only under seq and conc) is conformance.tst's (TST-014).",
-        "x-rule": "TST-001",
-        "type": "object",
-        "required": ["com-uuid", "command", "tst"],
-        "properties": {
-            "com-uuid": {"$ref": f"{COMMON}#/$defs/com-uuid"},
-            "command": {"const": "start-tst"},
+    return _command_schema("start-tst", {
             "receiver": {"type": "string"},
             "sender": {"type": "string"},
             "tst": {"$ref": "#/$defs/node"},
-        },
-        "$defs": {
+        }, {
             "common_params": common,
             "node": {
                 "type": "object",
@@ -308,8 +317,7 @@ def start_tst_schema(specs: list[TaskSpec]) -> dict[str, Any]:
                 },
                 "allOf": _dispatch_by_name(specs, {"type": "object"}),
             },
-        },
-    }
+        })
 
 
 def _md_escape(text: str) -> str:
