@@ -6,8 +6,9 @@
 Recorded: a one-hour recording of 200 units (about 3 million messages of a realistic mix:
 heartbeats, info messages, the four mandatory sensors, pings and pongs, a few faulty units) is
 generated, streaming, into a temporary file (never committed) and linted in a child process on
-one thread. Measured: messages per second for a same-run baseline (the standard library's
-json parsing each line and its payload, no checks: the shared machine's speed of the moment),
+one thread. Measured (the baseline and the full lint: best of two runs in turn): messages per
+second for a same-run baseline (the standard library's json parsing each line and its payload,
+no checks: the shared machine's speed of the moment),
 reading only, reading + validating, and the full lint (validator + Monitor + tallies); peak
 memory and memory at each quarter of the run (it must stay flat: bounded for any run length);
 a cProfile of the full lint on a slice, to show where the time goes.
@@ -511,7 +512,9 @@ def main(argv: list[str]) -> int:
     p.add_argument("--units", type=int, default=200)
     p.add_argument("--seconds", type=int, default=3600)
     p.add_argument("--live-messages", type=int, default=150_000)
-    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--repeats", type=int, default=3, help="live rounds")
+    p.add_argument("--recorded-repeats", type=int, default=2,
+                   help="recorded baseline and lint runs, the best of each reported")
     p.add_argument("--profile-messages", type=int, default=300_000)
     p.add_argument("--skip-live", action="store_true")
     p.add_argument("--modes", default="bare,lint",
@@ -538,11 +541,18 @@ def main(argv: list[str]) -> int:
             size_mb = path.stat().st_size / 2**20
             print(f"generated {total} messages ({size_mb:.0f} MiB) in {gen_s:.1f} s", flush=True)
             rec = {"messages": total, "file_mib": round(size_mb, 1)}
-            for mode in ("baseline", "read", "validate", "lint"):
-                r = run_child(["rec", mode, str(path), str(total), "0"])
-                rec[mode] = r
-                print(f"  {mode}: {r['per_second']:,} msg/s, peak {r['peak_rss_mb']} MiB",
-                      flush=True)
+            # The baseline and the full lint in turn, best of --recorded-repeats each: on a
+            # shared machine a neighbour's burst slows one run, never speeds one up.
+            runs: dict[str, list[dict]] = {"baseline": [], "lint": []}
+            for n in range(args.recorded_repeats):
+                for mode in ("baseline", "read", "validate", "lint") if n == 0 else runs:
+                    r = run_child(["rec", mode, str(path), str(total), "0"])
+                    runs.setdefault(mode, []).append(r)
+                    print(f"  {mode} #{n + 1}: {r['per_second']:,} msg/s, "
+                          f"peak {r['peak_rss_mb']} MiB", flush=True)
+            for mode, done in runs.items():
+                rec[mode] = max(done, key=lambda r: r["per_second"])
+                rec[mode]["all_per_second"] = [r["per_second"] for r in done]
             rec["profile"] = run_child(["prof", str(path), str(min(total, args.profile_messages))])
             results["recorded"] = rec
             lint = rec["lint"]
@@ -554,7 +564,7 @@ def main(argv: list[str]) -> int:
                 ("recorded: read only (orjson)", f"{rec['read']['per_second']:,} msg/s", ""),
                 ("recorded: read + validate", f"{rec['validate']['per_second']:,} msg/s", ""),
                 ("recorded: full lint (one thread)", f"{lint['per_second']:,} msg/s",
-                 "target >= 100,000"),
+                 f"target >= 100,000 (best of {lint['all_per_second']})"),
                 ("recorded: ratio full lint / baseline", f"{ratio:.2f}", ""),
                 ("recorded: messages / units / failing",
                  f"{lint['messages']:,} / {lint['units']} / {lint['failing_units']}",
