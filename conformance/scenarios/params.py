@@ -201,7 +201,9 @@ def for_generation(node: Any) -> Any:
 
 
 @lru_cache(maxsize=256)
-def _drawn(task: str, seed: int) -> bytes:
+def drawn(task: str, seed: int) -> bytes:
+    """Parameters of ``task`` drawn from its schema with ``seed``, as JSON (cached: a
+    certification draws the same ones again; tests warm the cache before a unit runs)."""
     schema = task_schema(task)
     raw = draw(for_generation(schema), seed) if schema else {}
     return orjson.dumps(raw if isinstance(raw, dict) else {})
@@ -215,7 +217,7 @@ def valid_params(task: str, origin: Position, safety: Safety, seed: int, *,
     Making them safe can make them invalid (a look-at-position that named another unit's
     position has nothing left to look at): then the spec's own example, made safe, is used.
     """
-    params = make_safe(orjson.loads(_drawn(task, seed)), origin, safety, random.Random(seed),
+    params = make_safe(orjson.loads(drawn(task, seed)), origin, safety, random.Random(seed),
                        radius=radius)
     if _is_valid(task, params):
         return params

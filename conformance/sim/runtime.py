@@ -108,7 +108,7 @@ class Runtime:
         if not self.units:
             raise ValueError("no units to run")
         client = MqttClient(self.broker, client_id=self._client_id,
-                            on_message=self._on_message, may_publish=self.may_publish)
+                            on_message=self.receive, may_publish=self.may_publish)
         client.connect(timeout=min(timeout, 5.0))
         self.client = client
         try:
@@ -165,8 +165,14 @@ class Runtime:
         return self._thread is not None and self._thread.is_alive() and not self._stopping
 
     # --- inbound ------------------------------------------------------------------------------
-    def _on_message(self, message: Message) -> None:
-        """paho's network thread: queue the command, bounded (never blocks, never grows)."""
+    @property
+    def inbox_bytes(self) -> int:
+        """Bytes of commands received and not yet handled (at most ``INBOX_BYTES``)."""
+        return self._inbox_bytes
+
+    def receive(self, message: Message) -> None:
+        """A message for the units (called on paho's network thread): queued, bounded (never
+        blocks, never grows); ``dropped`` counts what did not fit."""
         payload = message.payload
         size = len(payload)
         if size > MAX_COMMAND_BYTES:

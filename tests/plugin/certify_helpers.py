@@ -85,11 +85,11 @@ def certify_sim(pytester: pytest.Pytester, broker: str, unit: str, *args: str,
 def warm_parameters(tasks: tuple[str, ...], seeds: range) -> None:
     """Generate (and cache) the task parameters a certification with these seeds will use, so
     hypothesis does not hold the GIL while an in-process reference unit should publish."""
-    from conformance.scenarios.params import _drawn
+    from conformance.scenarios.params import drawn
 
     for task in tasks:
         for seed in seeds:
-            _drawn(task, seed)
+            drawn(task, seed)
 
 
 class Rebooter:

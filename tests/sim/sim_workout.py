@@ -27,7 +27,7 @@ class UnitView:
         self.obs, self.base = obs, base
         self.command_topic = f"{base}/exec/command"
 
-    def _json(self, sub: str, mark: int = 0) -> list[Any]:
+    def json_on(self, sub: str, mark: int = 0) -> list[Any]:
         return [x for x in self.obs.json_on(f"{self.base}/{sub}", mark) if isinstance(x, dict)]
 
     def send(self, body: dict[str, Any] | bytes) -> str:
@@ -97,7 +97,7 @@ def workout(u: UnitView, reboot: Callable[[], None], malformed: set[str] | None 
         """A ping and the first pong after it (matched by arrival: response-to is judged)."""
         mark = u.obs.mark()
         com = u.send({"command": "ping"})
-        return com, u.obs.wait_for(lambda _: next((r for r in u._json("exec/response", mark)
+        return com, u.obs.wait_for(lambda _: next((r for r in u.json_on("exec/response", mark)
                                                    if str(r.get("response")).lower() == "pong"),
                                                   None), wait, fail=False)
 
@@ -134,7 +134,7 @@ def workout(u: UnitView, reboot: Callable[[], None], malformed: set[str] | None 
     if r is not None:
         judge("EXEC-START-002", isinstance(looking, str) and bool(looking))
     if not isinstance(looking, str):  # not returned: follow the task by its feedback
-        looking = u.obs.wait_for(lambda _: next((f.get("task-uuid") for f in u._json(
+        looking = u.obs.wait_for(lambda _: next((f.get("task-uuid") for f in u.json_on(
             "exec/feedback", mark) if f.get("task-uuid") not in (moving, None)), None),
             WAIT, fail=False)
     if not isinstance(looking, str):
@@ -205,7 +205,7 @@ def workout(u: UnitView, reboot: Callable[[], None], malformed: set[str] | None 
     before = u.heartbeat_uuid()
     mark = u.obs.mark()
     reboot()  # returns once the unit is back and has sent its first heartbeat
-    after = u.obs.wait_for(lambda _: next((h["agent-uuid"] for h in u._json("heartbeat", mark)
+    after = u.obs.wait_for(lambda _: next((h["agent-uuid"] for h in u.json_on("heartbeat", mark)
                                            if h.get("agent-uuid") != before), None),
                            WAIT / 2, fail=False) or u.heartbeat_uuid(mark)
     judge("REBOOT-001", after is not None and after != before)

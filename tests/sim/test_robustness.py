@@ -104,6 +104,6 @@ def test_inbox_is_bounded_in_bytes() -> None:
     rt = Runtime("mqtt://127.0.0.1:1")
     big = b"x" * (1 << 20)  # at the limit: kept whole
     for _ in range(64):
-        rt._on_message(Message(0.0, "a/unit/air/simulation/x/exec/command", big))
-    assert rt._inbox_bytes <= INBOX_BYTES
+        rt.receive(Message(0.0, "a/unit/air/simulation/x/exec/command", big))
+    assert rt.inbox_bytes <= INBOX_BYTES
     assert rt.dropped > 0
