@@ -44,18 +44,24 @@ GROUP_SIZE = 4
 # Rules that judge the same messages as another area's: a fault of one and a fault of the
 # other would alter the same message (a sensor value, a query or signal answer).
 SAME_MESSAGES = {"MSG": "SENS", "ERR-010": "SENS", "ERR-006": "EXEC-QUERY",
-                 "ERR-013": "EXEC-SIG", "ERR-001": "SI", "ERR-012": "SI",
-                 # Feedback without task-uuid hides when a task ends: the query scenario then
-                 # has no finished task to ask about (ERR-006's evidence).
-                 "EXEC-FB-001": "EXEC-QUERY"}
+                 "ERR-013": "EXEC-SIG", "ERR-001": "SI", "ERR-012": "SI"}
+# Rules whose faults also change what another area's scenario relies on: feedback without
+# task-uuid hides when a task ends, so the query scenario has no finished task to ask about
+# (ERR-006's evidence).
+ALSO = {"EXEC-FB-001": ("EXEC-QUERY",)}
+# Faults that leave the unit without a readable position: the scenarios that start tasks
+# place them near it (DESIGN 'Safety') and cannot test without one, whatever their area.
+ALONE_FAULTS = {"position-deg-e7", "position-as-list"}
 
 
-def area(rule: str) -> str:
+def areas(rule: str) -> set[str]:
     if rule in ALONE or rule in SAME_MESSAGES:
-        return SAME_MESSAGES.get(rule, rule)
-    m = re.match(r"(EXEC-[A-Z]+|[A-Z]+)-\d+", rule)
-    name = m.group(1) if m else rule
-    return SAME_MESSAGES.get(name, name)
+        own = SAME_MESSAGES.get(rule, rule)
+    else:
+        m = re.match(r"(EXEC-[A-Z]+|[A-Z]+)-\d+", rule)
+        name = m.group(1) if m else rule
+        own = SAME_MESSAGES.get(name, name)
+    return {own, *ALSO.get(rule, ())}
 
 
 def groups() -> list[list[str]]:
@@ -64,13 +70,14 @@ def groups() -> list[list[str]]:
     for name, fault in sorted(FAULTS.items()):
         if fault.scope != "unit" or name in AWAITING_SCENARIOS:
             continue
-        mine = {area(r) for r in fault.rules}
-        if mine & ALONE:
+        mine = {a for r in fault.rules for a in areas(r)}
+        if mine & ALONE or name in ALONE_FAULTS:
             out.append([name])
             continue
         for group in out:
-            theirs = {area(r) for f in group for r in FAULTS[f].rules}
-            if len(group) < GROUP_SIZE and not theirs & (mine | ALONE):
+            theirs = {a for f in group for r in FAULTS[f].rules for a in areas(r)}
+            if (len(group) < GROUP_SIZE and not theirs & (mine | ALONE)
+                    and not ALONE_FAULTS & set(group)):
                 group.append(name)
                 break
         else:
