@@ -33,7 +33,7 @@ class TstView:
         self.name = base.rsplit("/", 1)[-1]
         self.command_topic = f"{base}/tst/command"
 
-    def _json(self, sub: str, mark: int = 0) -> list[dict[str, Any]]:
+    def json_on(self, sub: str, mark: int = 0) -> list[dict[str, Any]]:
         return [x for x in self.obs.json_on(f"{self.base}/{sub}", mark) if isinstance(x, dict)]
 
     def send(self, body: dict[str, Any]) -> str:
@@ -41,7 +41,7 @@ class TstView:
 
     def answer(self, com: str, n: int = 1, timeout: float = WAIT) -> dict[str, Any] | None:
         def found(_: Any) -> Any:
-            got = [r for r in self._json("tst/response") if r.get("response-to") == com]
+            got = [r for r in self.json_on("tst/response") if r.get("response-to") == com]
             return got[n - 1] if len(got) >= n else None
         return self.obs.wait_for(found, timeout, fail=False)
 
@@ -53,7 +53,7 @@ class TstView:
         return self.request({"command": command, key: target, "signal": signal})
 
     def feedback(self, node_uuid: str | None = None) -> list[dict[str, Any]]:
-        return [f for f in self._json("tst/feedback")
+        return [f for f in self.json_on("tst/feedback")
                 if node_uuid is None or f.get("node-uuid") == node_uuid]
 
     def statuses(self, node_uuid: str) -> list[str]:
@@ -73,7 +73,7 @@ class TstView:
 
     def next_info(self, timeout: float = WAIT) -> dict[str, Any] | None:
         mark = self.obs.mark()
-        return self.obs.wait_for(lambda _: (got := self._json("tst_execution_info", mark))
+        return self.obs.wait_for(lambda _: (got := self.json_on("tst_execution_info", mark))
                                  and got[0], timeout, fail=False)
 
 

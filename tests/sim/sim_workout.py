@@ -35,7 +35,7 @@ class UnitView:
 
     def answer(self, com: str, n: int = 1, timeout: float = WAIT) -> dict[str, Any] | None:
         def found(_: Any) -> Any:
-            got = [r for r in self._json("exec/response") if r.get("response-to") == com]
+            got = [r for r in self.json_on("exec/response") if r.get("response-to") == com]
             return got[n - 1] if len(got) >= n else None
         return self.obs.wait_for(found, timeout, fail=False)
 
@@ -43,7 +43,7 @@ class UnitView:
         return self.answer(self.send(body), timeout=timeout)
 
     def feedback(self, task_uuid: str) -> list[str]:
-        return [f.get("status") for f in self._json("exec/feedback")
+        return [f.get("status") for f in self.json_on("exec/feedback")
                 if f.get("task-uuid") == task_uuid]
 
     def wait_feedback(self, task_uuid: str, wanted: Callable[[list[str]], bool],
@@ -52,18 +52,18 @@ class UnitView:
                                  and fb, timeout, fail=False)
 
     def next_info(self, mark: int, timeout: float = WAIT) -> dict[str, Any] | None:
-        return self.obs.wait_for(lambda _: (got := self._json("direct_execution_info", mark))
+        return self.obs.wait_for(lambda _: (got := self.json_on("direct_execution_info", mark))
                                  and got[0], timeout, fail=False)
 
     def position(self) -> GeoPoint | None:
-        got = self.obs.wait_for(lambda _: self._json("sensor/position"), WAIT, fail=False)
+        got = self.obs.wait_for(lambda _: self.json_on("sensor/position"), WAIT, fail=False)
         if not got:
             return None
         p = got[-1]
         return GeoPoint(p["latitude"], p["longitude"], p.get("altitude", 0.0))
 
     def heartbeat_uuid(self, mark: int = 0, timeout: float = WAIT) -> str | None:
-        return self.obs.wait_for(lambda _: (got := self._json("heartbeat", mark))
+        return self.obs.wait_for(lambda _: (got := self.json_on("heartbeat", mark))
                                  and got[-1].get("agent-uuid"), timeout, fail=False)
 
 
