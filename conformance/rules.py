@@ -14,6 +14,8 @@ from importlib import resources
 
 import tomllib
 
+from conformance.topics import LEVELS
+
 
 class Severity(str, enum.Enum):
     """How a violation of a rule counts: ``error`` fails, ``warning`` warns."""
@@ -22,14 +24,13 @@ class Severity(str, enum.Enum):
     WARNING = "warning"
 
 
-class Level(str, enum.Enum):
-    """The API level a rule belongs to (spec 5.1 levels, plus topic naming and any message)."""
+PSEUDO_LEVELS = ("topic", "any")
+"""The suite's own levels, for rules no level of 5.1 owns: topic naming (3) and any message."""
 
-    TOPIC = "topic"
-    ANY = "any"
-    SENSOR = "sensor"
-    DIRECT_EXECUTION = "direct execution"
-    TST_EXECUTION = "tst execution"
+Level = enum.Enum("Level", [(name.upper().replace(" ", "_"), name)
+                            for name in (*PSEUDO_LEVELS, *LEVELS)], type=str, module=__name__)
+Level.__doc__ = """The level a rule belongs to: one of ``PSEUDO_LEVELS`` or a level of 5.1
+(``topics.LEVELS``), e.g. ``Level.TOPIC``, ``Level.DIRECT_EXECUTION``."""
 
 
 class Mode(str, enum.Enum):

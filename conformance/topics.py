@@ -1,4 +1,5 @@
-"""Topic grammar of spec section 3: unit addresses, topic kinds and the naming conventions.
+"""Topic grammar of spec section 3: unit addresses, topic kinds and the naming conventions;
+the vocabularies of 5.1 (agent types, levels).
 
     PREFIX1/unit/<agent-type>/<role>/<unit>/<subtopic...>
 
@@ -18,6 +19,13 @@ from conformance.violation import Violation
 AGENT_TYPES = ("air", "ground", "surface", "subsurface")  # 5.1
 ROLES = ("real", "simulation", "playback")  # 3.1 ("..." : open list, TOPIC-006 warns)
 MANDATORY_SENSORS = ("position", "heading", "course", "speed")  # 6.1
+
+# 5.1: the levels a heartbeat declares in `levels`, spelled as 5.1 does (ERR-008: a space).
+SENSOR_LEVEL = "sensor"
+DIRECT_EXECUTION = "direct execution"
+TST_EXECUTION = "tst execution"
+DELEGATION = "delegation"
+LEVELS = (SENSOR_LEVEL, DIRECT_EXECUTION, TST_EXECUTION, DELEGATION)
 
 
 class TopicKind(str, enum.Enum):
@@ -54,9 +62,9 @@ _FIXED_SUBTOPICS = {
 
 # The periodic info messages and the level of 5.1 each one backs (HB-008).
 INFO_KIND_OF_LEVEL = {
-    "sensor": TopicKind.SENSOR_INFO,
-    "direct execution": TopicKind.DIRECT_EXECUTION_INFO,
-    "tst execution": TopicKind.TST_EXECUTION_INFO,
+    SENSOR_LEVEL: TopicKind.SENSOR_INFO,
+    DIRECT_EXECUTION: TopicKind.DIRECT_EXECUTION_INFO,
+    TST_EXECUTION: TopicKind.TST_EXECUTION_INFO,
 }
 
 _NAME = re.compile(r"^[a-z0-9]+(_[a-z0-9]+)*$")  # 3.2: lowercase, words joined by '_'

@@ -58,3 +58,11 @@ def test_unit_address_round_trip_and_errors() -> None:
         UnitAddress.parse("waraps/dji0")
     with pytest.raises(TopicError, match="agent type 'car'"):
         UnitAddress.parse("waraps/unit/car/real/dji0")
+
+
+def test_the_levels_of_5_1_are_the_heartbeat_schemas() -> None:
+    from conformance import schema
+    from conformance.topics import LEVELS
+
+    # The hand-edited schema and the code name the same levels, in 5.1's order.
+    assert tuple(schema.load("messages/common.json")["$defs"]["levels"]["enum"]) == LEVELS
