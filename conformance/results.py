@@ -18,14 +18,10 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
-from conformance.rules import CATALOGUE, Level, Mode, Rule, Severity, Side
+from conformance.rules import CATALOGUE, Mode, Rule, Severity, Side
 from conformance.violation import RuleResult, Verdict, Violation
 
 KINDS = ("certification", "lint")
-
-# The level a rule belongs to, as written in the heartbeat's `levels` (5.1).
-LEVEL_NAMES = {Level.SENSOR: "sensor", Level.DIRECT_EXECUTION: "direct execution",
-               Level.TST_EXECUTION: "tst execution"}
 
 
 def judge_rule(rule: Rule, *, severity: Severity, violations: list[Violation], count: int = -1,
@@ -79,7 +75,7 @@ def skip_reason(rule: Rule, *, kind: str, unit: str, levels: tuple[str, ...] | N
     if rule.mode is Mode.CONVERSATION and kind == "lint" and not note:
         return (f"no command to this unit that the rule applies to was seen (pytest --unit "
                 f"{unit} sends them)")
-    level = LEVEL_NAMES.get(rule.level)
+    level = rule.spec_level
     if level is not None and note == "":
         if levels is None:
             return f"no heartbeat seen: cannot tell whether the unit claims the '{level}' level"

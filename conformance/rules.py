@@ -68,6 +68,12 @@ class Rule:
     """Whose fault a violation is; every rule on a command topic is the commander's."""
 
     @property
+    def spec_level(self) -> str | None:
+        """The level of 5.1 a unit declares for this rule to apply to it; None for a
+        pseudo-level (topic, any), which every unit is judged on."""
+        return None if self.level.value in PSEUDO_LEVELS else self.level.value
+
+    @property
     def is_erratum(self) -> bool:
         return self.id.startswith("ERR-")
 

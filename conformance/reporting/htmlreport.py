@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 from conformance.reporting.files import atomic_write
 from conformance.reporting.text import iso_time, printable
-from conformance.results import LEVEL_NAMES, RateStat, RunReport, UnitReport
+from conformance.results import RateStat, RunReport, UnitReport
 from conformance.rules import CATALOGUE
 from conformance.violation import RuleResult, Verdict
 
@@ -110,7 +110,7 @@ def _levels(report: RunReport) -> list[tuple[str, list[tuple[str, str]]]]:
         for level in unit.levels:
             failing = [r for r in unit.rules.values() if r.verdict is Verdict.FAIL
                        and CATALOGUE.get(r.rule) is not None
-                       and LEVEL_NAMES.get(CATALOGUE[r.rule].level) == level]
+                       and CATALOGUE[r.rule].spec_level == level]
             state = ("not certified: the run did not complete" if not complete else
                      f"not certified: {len(failing)} failing rule(s)" if failing else
                      "certified")

@@ -62,3 +62,11 @@ def test_headline_verdict_treats_skip_as_not_applicable() -> None:
     assert V.worst([V.PASS, V.SKIP, V.COULD_NOT_TEST]) is V.COULD_NOT_TEST
     assert V.worst([V.WARN, V.FAIL, V.PASS]) is V.FAIL
     assert V.worst([]) is V.PASS
+
+
+def test_a_rules_level_is_a_level_of_5_1_or_the_suites_own() -> None:
+    from conformance.topics import DIRECT_EXECUTION, LEVELS
+
+    assert {level.value for level in rules.Level} == {*rules.PSEUDO_LEVELS, *LEVELS}
+    assert rules.get("EXEC-PING-001").spec_level == DIRECT_EXECUTION
+    assert rules.get("TOPIC-001").spec_level is None  # every unit is judged on its topics
