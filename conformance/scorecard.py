@@ -26,14 +26,15 @@ from typing import IO, TYPE_CHECKING, Any
 from conformance.lint.linter import NOT_A_UNIT, OTHER_UNITS, Linter
 from conformance.recording import Event
 from conformance.rules import CATALOGUE
+from conformance.topics import DELEGATION, DIRECT_EXECUTION, SENSOR_LEVEL, TST_EXECUTION
 from conformance.violation import Violation
 
 if TYPE_CHECKING:
     from rich.live import Live
     from rich.text import Text
 
-LEVEL_SHORT = {"sensor": "sensor", "direct execution": "exec", "tst execution": "tst",
-               "delegation": "deleg"}
+LEVEL_SHORT = {SENSOR_LEVEL: "sensor", DIRECT_EXECUTION: "exec", TST_EXECUTION: "tst",
+               DELEGATION: "deleg"}
 PLAIN_SUMMARY_EVERY = 10.0
 """Seconds between summary lines in plain mode."""
 TTY_REFRESH_EVERY = 1.0

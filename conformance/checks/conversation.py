@@ -32,6 +32,7 @@ from conformance.checks.command_history import (
     per_unit,
     str_of,
 )
+from conformance.topics import DIRECT_EXECUTION
 
 COMMANDS_KEPT = 1024
 """Commands remembered per unit (resends, late answers, EXEC-006): at one a minute, 17 hours;
@@ -162,4 +163,4 @@ def dropped(unit: UnitState) -> int:
 
 def expects_answers(unit: UnitState, c: Conversations) -> bool:
     """12.1: a unit answers commands when it declares direct execution or has answered any."""
-    return c.answered_any or unit.claims("direct execution")
+    return c.answered_any or unit.claims(DIRECT_EXECUTION)

@@ -45,7 +45,7 @@ from conformance.message import Message
 from conformance.profile import Profile
 from conformance.results import RunReport, UnitReport
 from conformance.rules import CATALOGUE, Side
-from conformance.topics import TopicKind, UnitAddress, parse_topic
+from conformance.topics import TST_EXECUTION, TopicKind, UnitAddress, parse_topic
 from conformance.validator import Examined, Validation, Validator
 from conformance.violation import Verdict, Violation
 
@@ -277,7 +277,7 @@ class Monitor:
         own = route.address
         entry = self._entries.get(own) if own is not None else None
         # An operator that runs or delegates trees itself answers for them: its own.
-        address = None if entry is not None and entry.state.claims("tst execution") else \
+        address = None if entry is not None and entry.state.claims(TST_EXECUTION) else \
             self._tst_routing.party(route.topic_kind, m, lambda name: self._follows(name, own))
         if address is None or address == own:
             if route.entry is _UNRESOLVED:

@@ -24,7 +24,7 @@ from conformance.checks.tst_conversation import (
     tst_conversations,
 )
 from conformance.message import Message
-from conformance.topics import TopicKind
+from conformance.topics import TST_EXECUTION, TopicKind
 from conformance.tst import FINAL, unit_name
 from conformance.validator import Validation
 from conformance.violation import Violation
@@ -210,7 +210,7 @@ def judge_unanswered(ctx: CheckContext, unit: UnitState, c: TstConversations, cm
     """A TST command the unit never answered fails its rule (14.4), if the unit answers TST
     commands: it declares 'tst execution' or has answered any."""
     rule = ANSWER_RULE[cmd.name]
-    if not (c.answered_any or unit.claims("tst execution")):
+    if not (c.answered_any or unit.claims(TST_EXECUTION)):
         unit.note(rule, "TST commands seen, but the unit declares no 'tst execution' and "
                         "answered none")
         return

@@ -19,9 +19,7 @@ from conformance.scenarios.safety import Position, Safety
 from conformance.scenarios.sender import DryRun
 from conformance.scenarios.traffic import Entry, Traffic
 from conformance.scenarios.tst_commander import TstCommander
-
-DIRECT_EXECUTION = "direct execution"
-TST_EXECUTION = "tst execution"
+from conformance.topics import DIRECT_EXECUTION, TST_EXECUTION
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from conformance.sim.vehicle import destination
-from conformance.topics import UnitAddress
+from conformance.topics import DIRECT_EXECUTION, SENSOR_LEVEL, TST_EXECUTION, UnitAddress
 
 if TYPE_CHECKING:
     from conformance.sim.unit import UnitCore
@@ -67,11 +67,13 @@ class Publisher:
 
     def _levels(self) -> list[str]:
         if "undeclared-direct-execution" in self.faults:
-            return ["sensor"]  # it answers commands and sends direct_execution_info all the same
-        levels = ["sensor", "direct_execution" if "level-underscore" in self.faults
-                  else "direct execution"]
+            return [SENSOR_LEVEL]  # it answers commands and sends direct_execution_info all the same
+        # ERR-008: the fault writes 'direct_execution', as units found in practice do.
+        direct = DIRECT_EXECUTION.replace(" ", "_") if "level-underscore" in self.faults \
+            else DIRECT_EXECUTION
+        levels = [SENSOR_LEVEL, direct]
         if self.unit.tst is not None:
-            levels.append("tst execution")
+            levels.append(TST_EXECUTION)
         if "level-unknown" in self.faults:
             levels.append("telemetry")
         return levels

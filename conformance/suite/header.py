@@ -10,6 +10,7 @@ from typing import Any
 from conformance import __version__
 from conformance.client import BrokerURL
 from conformance.suite.settings import Settings
+from conformance.topics import TST_EXECUTION
 
 
 def header_lines(settings: Settings, *, broker: BrokerURL, heartbeat: dict[str, Any],
@@ -29,7 +30,7 @@ def header_lines(settings: Settings, *, broker: BrokerURL, heartbeat: dict[str, 
                       if s.allow_motion else "no task that moves the unit (no --allow-motion)")
     if s.dry_run:
         safety.append("DRY RUN: nothing is published")
-    if "tst execution" in levels:
+    if TST_EXECUTION in levels:
         safety.append(f"TST commands to {s.tst_topic}")
     return [
         f"waraps-conformance {__version__}: certifying {unit}",

@@ -48,7 +48,7 @@ from conformance.suite.outcome import COMMANDER_RULES, INTERRUPTED, NOT_CERTIFIE
 from conformance.suite.probe import NotAlive
 from conformance.suite.reboot import Reboot
 from conformance.suite.settings import Settings
-from conformance.topics import UnitAddress
+from conformance.topics import DIRECT_EXECUTION, UnitAddress
 from conformance.violation import RuleResult, Verdict
 
 CERTIFICATION = pytest.StashKey["Certification"]()
@@ -267,7 +267,7 @@ class Certification:
                 return  # every rule of it: skip, not claimed (the Monitor's reason)
             # Ping gates the other direct-execution scenarios, except robustness, whose rule
             # asks exactly whether the unit still pings.
-            if name not in ("ping", "robust") and scenario.level == "direct execution":
+            if name not in ("ping", "robust") and scenario.level == DIRECT_EXECUTION:
                 self.run_scenario("ping")
                 if not self._answers_commands():
                     for rule in scenario.rules:
