@@ -7,14 +7,18 @@ from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.command_history import violation
 from conformance.checks.conversation import conversations
 from conformance.message import Message
-from conformance.topics import TopicKind
+from conformance.topics import DIRECT_EXECUTION, INFO_KIND_OF_LEVEL, TST_EXECUTION, TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
 
+# The level of 5.1 each message a unit publishes acts on: its info message, its answers.
+_LEVEL_OF_KIND = {
+    **{kind: level for level, kind in INFO_KIND_OF_LEVEL.items()},
+    TopicKind.EXEC_RESPONSE: DIRECT_EXECUTION, TopicKind.EXEC_FEEDBACK: DIRECT_EXECUTION,
+    TopicKind.TST_RESPONSE: TST_EXECUTION, TopicKind.TST_FEEDBACK: TST_EXECUTION}
 
-@check("HB-013", on=(TopicKind.DIRECT_EXECUTION_INFO, TopicKind.EXEC_RESPONSE,
-                     TopicKind.EXEC_FEEDBACK, TopicKind.SENSOR_INFO, TopicKind.TST_EXECUTION_INFO,
-                     TopicKind.TST_RESPONSE, TopicKind.TST_FEEDBACK))
+
+@check("HB-013", on=tuple(_LEVEL_OF_KIND))
 def acted_on_level_is_declared(ctx: CheckContext, unit: UnitState, msg: Message,
                                v: Validation) -> list[Violation] | None:
     """5.1: levels say what a unit does; one that acts on a level it does not declare is
@@ -36,9 +40,3 @@ def acted_on_level_is_declared(ctx: CheckContext, unit: UnitState, msg: Message,
                       observed=f"{v.topic.kind.value} published", path="$",
                       detail=f"declare '{level}' in levels, or do not act on it")]
 
-
-_LEVEL_OF_KIND = {
-    TopicKind.DIRECT_EXECUTION_INFO: "direct execution", TopicKind.EXEC_RESPONSE:
-    "direct execution", TopicKind.EXEC_FEEDBACK: "direct execution",
-    TopicKind.SENSOR_INFO: "sensor", TopicKind.TST_EXECUTION_INFO: "tst execution",
-    TopicKind.TST_RESPONSE: "tst execution", TopicKind.TST_FEEDBACK: "tst execution"}
