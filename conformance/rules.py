@@ -9,10 +9,9 @@ and the built-in ``strict`` profile turns them into failures.
 from __future__ import annotations
 
 import enum
+import tomllib
 from dataclasses import dataclass
 from importlib import resources
-
-import tomllib
 
 from conformance.topics import LEVELS
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import re
 import shlex
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from typing import Any
 
 from conformance.rules import CATALOGUE, Rule, Severity
@@ -25,7 +25,7 @@ def iso_time(t: float | None) -> str:
     if t is None:
         return ""
     try:
-        return datetime.fromtimestamp(t, timezone.utc).isoformat(timespec="milliseconds")
+        return datetime.fromtimestamp(t, UTC).isoformat(timespec="milliseconds")
     except (OverflowError, OSError, ValueError):
         return repr(t)
 

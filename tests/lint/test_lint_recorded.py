@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+from datetime import UTC
 from pathlib import Path
 
 import orjson
@@ -121,11 +122,11 @@ def test_malformed_lines_are_reported_with_line_numbers_and_the_rest_judged(
 
 def test_mosquitto_sub_output_on_standard_input(reports_dir: Path, prefix: str) -> None:
     """``mosquitto_sub -F %j | lint --from -``: tst times drive the rate checks."""
-    from datetime import datetime, timezone
+    from datetime import datetime
 
     lines = []
     for m in unit_traffic(prefix, "dji0", seconds=20):
-        tst = datetime.fromtimestamp(m.time, timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%fZ+0000")
+        tst = datetime.fromtimestamp(m.time, UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ+0000")
         lines.append(orjson.dumps({"tst": tst, "topic": m.topic, "qos": 0, "retain": 0,
                                    "payloadlen": len(m.payload), "payload": m.payload.decode()}))
     run = run_lint(["--from", "-"], reports_dir, stdin=b"\n".join(lines) + b"\n")
