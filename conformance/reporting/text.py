@@ -8,6 +8,7 @@ from datetime import UTC, datetime
 from typing import Any
 
 from conformance.rules import CATALOGUE, Rule, Severity
+from conformance.topics import TopicError, UnitAddress, parse_topic
 from conformance.violation import Verdict, Violation
 
 _CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u2028\u2029\ud800-\udfff\ufffe\uffff]")
@@ -30,25 +31,33 @@ def iso_time(t: float | None) -> str:
         return repr(t)
 
 
-def rerun_command(report: Any, unit: str, rule_id: str) -> str:
+def rerun_command(report: Any, unit: str, rule_id: str, topic: str = "") -> str:
     """How to repeat what found a violation of ``rule_id`` on ``unit``: for a lint report
     ``waraps-conformance lint --from <recording> --unit <unit>`` (or ``--broker <url>`` and
     its TLS options when it linted live traffic); for a certification (or no report) ``pytest --unit <unit> -k
-    <rule>``. ``report`` is a ``RunReport``: its kind, broker and meta say which."""
+    <rule>``. ``report`` is a ``RunReport``: its kind, broker and meta say which. A
+    commander's row ('commander alice') is no unit: its finding is repeated by linting the
+    unit whose command ``topic`` it was found on (or every unit, when the topic names none)."""
     if getattr(report, "kind", "certification") != "lint":
         return f"pytest --unit {unit} -k {rule_id}"
+    try:
+        unit = UnitAddress.parse(unit).base
+    except TopicError:
+        parsed = parse_topic(topic).unit if topic else None
+        unit = parsed.base if parsed is not None else ""
+    only = f" --unit {shlex.quote(unit)}" if unit else ""
     meta = getattr(report, "meta", {}) or {}
     source = meta.get("source", "")
     broker = getattr(report, "broker", "")
     if broker and "recording_lines" not in meta:  # live traffic (the URL has no password)
         tls = meta.get("tls_options", "")  # already shell-quoted
         return (f"waraps-conformance lint --broker {shlex.quote(broker)}"
-                + (f" {tls}" if tls else "") + f" --unit {unit}")
+                + (f" {tls}" if tls else "") + only)
     if not source or source in ("-", "<stdin>") or source.startswith("live "):
         source = "<recording>"
     else:
         source = shlex.quote(source)
-    return f"waraps-conformance lint --from {source} --unit {unit}"
+    return f"waraps-conformance lint --from {source}{only}"
 
 
 def render_violation(rule: str | Rule, violation: Violation, unit: str = "",
@@ -80,7 +89,7 @@ def render_violation(rule: str | Rule, violation: Violation, unit: str = "",
     line("spec", r.section if r else "")
     line("hint", violation.detail)
     if rerun_hint is None and unit:
-        rerun_hint = rerun_command(report, unit, rule_id)
+        rerun_hint = rerun_command(report, unit, rule_id, violation.topic or "")
     line("rerun", rerun_hint or "")
     return "\n".join(lines)
 

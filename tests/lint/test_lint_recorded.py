@@ -214,3 +214,25 @@ def test_a_unit_silent_until_the_recording_ends_has_died(tmp_path: Path, reports
     cut = write_recording(tmp_path / "cut.jsonl", traffic)  # no end mark (mosquitto_sub)
     run = run_lint(["--from", str(cut)], reports_dir / "cut")
     assert run.report["units"][unit]["rules"]["HB-012"]["verdict"] == "pass"
+
+
+def test_a_commanders_rerun_line_lints_the_unit_it_commanded_and_finds_it_again(
+        tmp_path: Path, reports_dir: Path, prefix: str) -> None:
+    # A commander's row ('commander alice') is no unit address: its rerun line names the
+    # unit whose command topic the fault was on, and that line, run, shows the fault again.
+    import shlex
+
+    msgs = fleet_traffic(prefix, ["dji0", "dji1"], seconds=10)
+    dji1 = f"{prefix}/unit/air/simulation/dji1"
+    msgs.append(Message(T0 + 5.0, f"{dji1}/exec/command",
+                        b'{"sender": "alice", "command": "ping", com-uuid}'))
+    msgs.sort(key=lambda m: m.time)
+    rec = write_recording(tmp_path / "rec.jsonl", msgs)
+    run = run_lint(["--from", str(rec)], reports_dir)
+    assert "MSG-002" in failed_rules(run.report, "commander alice")
+    evidence = run.out[run.out.index("commander alice\nMSG-002 "):]
+    rerun = f"waraps-conformance lint --from {rec} --unit {dji1}"
+    assert f"rerun     {rerun}\n" in evidence + "\n"
+    again = run_lint(shlex.split(rerun)[2:], reports_dir)
+    assert "MSG-002" in failed_rules(again.report, "commander alice")
+    assert set(again.report["units"]) == {dji1, "commander alice"}
