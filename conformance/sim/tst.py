@@ -174,21 +174,21 @@ class TstEngine:
         signal = msg.get("signal")
 
         def refuse(reason: str) -> None:
-            if not shared:  # the operator's topic: someone else's command, maybe
-                self._answer(com, reply, "failed", reason)
+            self._answer(com, reply, "failed", reason)
 
         if command == "signal-unit":
             unit = msg.get("unit")
             if not isinstance(unit, str) or unit_name(unit) != self.unit.address.name:
-                refuse(f"signal-unit names unit {str(unit)[:64]!r}; this is "
-                       f"/{self.unit.address.name} (14.3.3)")
+                if not shared:  # on an operator's topic (14.1): another unit's command
+                    refuse(f"signal-unit names unit {str(unit)[:64]!r}; this is "
+                           f"/{self.unit.address.name} (14.3.3)")
                 return
             targets = self.trees.live_roots()
         else:
             node_uuid = msg.get("node-uuid")
             node = self.trees.nodes.get(node_uuid) if isinstance(node_uuid, str) else None
             if node is None:
-                if shared:
+                if shared:  # on an operator's topic (14.1): another unit's node, maybe
                     return
                 if "tst-signal-unknown-node-ok" in self.faults:
                     self._answer(com, reply, "ok")

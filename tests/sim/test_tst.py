@@ -206,13 +206,18 @@ def test_on_the_operators_topic_only_the_named_unit_acts(observe, mosquitto: str
         assert op.wait(lambda: "running" in op.statuses(root))
         assert op.signal("signal-tst-node", root, "$enough")["response"] == "ok"
         assert op.wait(lambda: op.final(root) == "succeeded")
+        # its own tree, ended: refused on the shared topic too (a suite aborting at teardown
+        # what just ended waits for that answer), never left unanswered
+        late = op.signal("signal-tst-tree", root, "$abort")
+        assert late is not None and late["response"] == "failed", late
+        assert "has ended" in late["fail-reason"]
         # nobody's node, another unit's tree: silence on a shared topic (no unit speaks for it)
         com = op.send({"command": "signal-tst-node", "node-uuid": new_uuid(), "signal": "$abort"})
         op.request(start(node("take-off", {}, new_uuid(), execunit="/dji5")))
         assert op.signal("signal-unit", "/dji0", "$abort")["response"] == "ok"  # a sync point
         responses = obs.json_on(operator.topic("tst/response"))
         assert [x for x in responses if x["response-to"] == com] == []
-        assert len(responses) == 3, responses
+        assert len(responses) == 4, responses
         own = [m.topic for m in obs.messages if "/dji0/tst/" in m.topic or "/dji1/tst/" in m.topic]
         assert own == [], "answers go where the command came from"
         assert fleet.errors == 0, fleet.runtime.last_error
