@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any, Protocol
 
-from conformance import schema
+from conformance import schema, taskspec
 from conformance.topics import AGENT_TYPES, ParsedTopic, TopicKind
 from conformance.tst import read_tree
 from conformance.violation import Violation
@@ -174,7 +174,7 @@ def standard_statuses() -> tuple[str, ...]:
 
 @lru_cache(maxsize=1)
 def task_feedback_statuses() -> frozenset[str]:
-    return frozenset(s for t in schema.task_specs() for s in t.feedback_statuses)
+    return frozenset(s for t in taskspec.task_specs() for s in t.feedback_statuses)
 
 
 def _edit_distance(a: str, b: str, limit: int) -> int:

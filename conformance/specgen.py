@@ -18,7 +18,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from conformance.schema import BASE_URI, PACKAGE, Parameter, TaskSpec, task_specs
+from conformance.schema import BASE_URI, PACKAGE
+from conformance.taskspec import Parameter, TaskSpec, task_specs
 from conformance.tst import COMPOSITES
 
 DRAFT = "https://json-schema.org/draft/2020-12/schema"

@@ -37,20 +37,20 @@ MAX_DURATION = 30  # 9.8 observe-position: seconds; the suite ends it with $enou
 def task_schema(task: str) -> dict[str, Any] | None:
     """The JSON Schema of ``task``'s params (GeoPoint inlined), or None for a task that is not
     in section 9 (5.3 lets units offer others: they are started with empty params)."""
-    from conformance import schema
+    from conformance import taskspec
 
     try:
-        return schema.params_schema(task)
+        return taskspec.params_schema(task)
     except KeyError:
         return None
 
 
 def task_moves(task: str) -> bool | None:
     """Whether a section-9 task moves the unit (its tags include 'vehicle'); None: unknown."""
-    from conformance import schema
+    from conformance import taskspec
 
     try:
-        return schema.task_spec(task).moves_unit
+        return taskspec.task_spec(task).moves_unit
     except KeyError:
         return None
 
@@ -231,10 +231,10 @@ def valid_params(task: str, origin: Position, safety: Safety, seed: int, *,
 
 def _is_valid(task: str, params: Any) -> bool:
     """Whether ``params`` is valid under the task's params schema (True: no schema)."""
-    from conformance import schema
+    from conformance import schema, taskspec
 
     try:
-        return bool(schema.compiled(schema.params_schema_path(task)).is_valid(params))
+        return bool(schema.compiled(taskspec.params_schema_path(task)).is_valid(params))
     except KeyError:
         return True
 

@@ -10,7 +10,7 @@ import orjson
 import pytest
 from certify_helpers import FAST, Rebooter, certify
 
-from conformance import schema
+from conformance import taskspec
 from conformance.client import BrokerURL, Message, MqttClient
 from conformance.scenarios.safety import MOVES_WITHOUT_TAG, Position
 from conformance.sim import SimUnit
@@ -20,7 +20,7 @@ pytestmark = pytest.mark.slow
 
 def moves(task: str) -> bool:
     try:
-        return schema.task_spec(task).moves_unit or task in MOVES_WITHOUT_TAG
+        return taskspec.task_spec(task).moves_unit or task in MOVES_WITHOUT_TAG
     except KeyError:
         return True
 

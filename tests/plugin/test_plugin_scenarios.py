@@ -9,7 +9,7 @@ import warnings
 import pytest
 from certify_helpers import FAST, Rebooter, certify
 
-from conformance import schema
+from conformance import taskspec
 from conformance.profile import Profile
 from conformance.scenarios.params import draw, invalid_params, task_moves, valid_params
 from conformance.scenarios.safety import Position, Safety
@@ -40,7 +40,7 @@ def points(value: object) -> list[dict]:
     return []
 
 
-@pytest.mark.parametrize("task", schema.task_names())
+@pytest.mark.parametrize("task", taskspec.task_names())
 def test_generated_parameters_are_valid_seeded_and_near_the_unit(task: str) -> None:
     safety = Safety(ADDRESS, Profile(safe_radius=40.0), allow_motion=True, task_moves=task_moves)
     with warnings.catch_warnings():
@@ -63,7 +63,7 @@ def test_a_schema_hypothesis_jsonschema_cannot_draw_from_falls_back_with_a_warni
     assert value == {"a": 1}  # the walk's plain reading of what it understands
 
 
-@pytest.mark.parametrize("task", schema.task_names())
+@pytest.mark.parametrize("task", taskspec.task_names())
 def test_invalid_parameters_are_invalid_for_the_schema(task: str) -> None:
     safety = Safety(ADDRESS, Profile(), allow_motion=True, task_moves=task_moves)
     bad = invalid_params(task, ORIGIN, safety, seed=11)

@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis_jsonschema import from_schema
 
-from conformance import schema
+from conformance import taskspec
 from conformance.sim.tasks import TASKS, Task, plan
 from conformance.sim.vehicle import GeoPoint, Vehicle, distance
 
@@ -20,9 +20,9 @@ NAMES = sorted(TASKS)
 
 
 def test_the_unit_offers_exactly_the_tasks_of_section_9() -> None:
-    assert set(NAMES) == set(schema.task_names())
+    assert set(NAMES) == set(taskspec.task_names())
     for name in NAMES:  # and knows every parameter the specification defines
-        assert set(TASKS[name].params) == {p.name for p in schema.task_spec(name).parameters}
+        assert set(TASKS[name].params) == {p.name for p in taskspec.task_spec(name).parameters}
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -30,8 +30,8 @@ def test_the_unit_offers_exactly_the_tasks_of_section_9() -> None:
           suppress_health_check=list(HealthCheck))
 @given(data=st.data())
 def test_what_the_schema_accepts_the_unit_accepts(name: str, data: st.DataObject) -> None:
-    params = data.draw(from_schema(schema.params_schema(name)))
-    assert jsonschema_rs.validator_for(schema.params_schema(name)).is_valid(params)
+    params = data.draw(from_schema(taskspec.params_schema(name)))
+    assert jsonschema_rs.validator_for(taskspec.params_schema(name)).is_valid(params)
     assert TASKS[name].problems(params) == [], params
 
 
@@ -42,8 +42,8 @@ WRONG = {"geopoint": "58.4,15.6", "geopoints": "58.4,15.6", "geopointarrays": 7,
 
 @pytest.mark.parametrize("name", NAMES)
 def test_a_wrong_type_or_a_missing_required_parameter_is_refused_by_both(name: str) -> None:
-    spec = schema.task_spec(name)
-    validator = jsonschema_rs.validator_for(schema.params_schema(name))
+    spec = taskspec.task_spec(name)
+    validator = jsonschema_rs.validator_for(taskspec.params_schema(name))
     example = dict(spec.example or {})
     assert validator.is_valid(example) and TASKS[name].problems(example) == []
     for p in spec.parameters:

@@ -20,7 +20,7 @@ from typing import Any
 
 import orjson
 
-from conformance import schema
+from conformance import schema, taskspec
 from conformance.sim.unit import UnitCore
 from conformance.topics import UNIT_NAMING_RULES, UnitAddress
 from conformance.validator import Validator
@@ -111,7 +111,7 @@ def reference_unit_messages() -> Iterator[tuple[str, bytes]]:
 
     run(3.0)
     command({"command": "ping"})
-    for spec in schema.task_specs():
+    for spec in taskspec.task_specs():
         if spec.name in unit.specs:
             task = str(uuid.uuid4())
             command({"command": "start-task", "execution-unit": "dji0", "task-uuid": task,
@@ -132,7 +132,7 @@ def reference_unit_messages() -> Iterator[tuple[str, bytes]]:
 
 def task_example_messages() -> Iterator[tuple[str, bytes]]:
     """A start-task of every task of section 9, with the example of its specification."""
-    for spec in schema.task_specs():
+    for spec in taskspec.task_specs():
         yield ADDRESS.topic("exec/command"), orjson.dumps({
             "com-uuid": str(uuid.uuid4()), "command": "start-task", "sender": "op0",
             "task-uuid": str(uuid.uuid4()), "execution-unit": "dji0",

@@ -10,7 +10,7 @@ from pathlib import Path
 import jsonschema
 import pytest
 
-from conformance import schema, specgen
+from conformance import schema, specgen, taskspec
 from conformance.cli import schemas as schemas_cli
 
 SECTION_9 = ["image-object-detection", "look-at-bearing", "look-at-position",
@@ -19,45 +19,45 @@ SECTION_9 = ["image-object-detection", "look-at-bearing", "look-at-position",
 
 
 def test_one_task_file_per_task_of_section_9() -> None:
-    assert sorted(schema.task_names()) == sorted(SECTION_9)
+    assert sorted(taskspec.task_names()) == sorted(SECTION_9)
 
 
 @pytest.mark.parametrize("name", SECTION_9)
 def test_task_file_states_name_description_tags_types_and_why(name: str) -> None:
-    spec = schema.task_spec(name)
+    spec = taskspec.task_spec(name)
     assert spec.description and spec.section.startswith("9.")
     assert spec.required_why, "the file must record why its parameters are (not) required"
     for p in spec.parameters:
-        assert p.type in schema.SPEC_TYPES and p.description
+        assert p.type in taskspec.SPEC_TYPES and p.description
     if spec.tags != spec.spec_tags:
         assert spec.raw.get("tags-why"), "a tag that differs from the spec needs a reason"
 
 
 def test_vehicle_tag_marks_every_task_that_moves_the_unit() -> None:
-    moving = {s.name for s in schema.task_specs() if s.moves_unit}
+    moving = {s.name for s in taskspec.task_specs() if s.moves_unit}
     assert {"move-to", "move-path", "navigate", "land", "take-off", "search-area",
             "search-areas", "search-around-position", "observe-position"} == moving
 
 
 @pytest.mark.parametrize("name", SECTION_9)
 def test_each_task_example_is_valid_under_its_params_schema(name: str) -> None:
-    spec = schema.task_spec(name)
-    errors = list(schema.compiled(schema.params_schema_path(name)).iter_errors(spec.example))
+    spec = taskspec.task_spec(name)
+    errors = list(schema.compiled(taskspec.params_schema_path(name)).iter_errors(spec.example))
     assert not errors, [e.message for e in errors]
     # The bundled form (no $ref) says the same, for colleagues' generators and jsonschema.
-    jsonschema.Draft202012Validator(schema.params_schema(name)).validate(spec.example)
+    jsonschema.Draft202012Validator(taskspec.params_schema(name)).validate(spec.example)
 
 
 def test_prose_constraints_are_in_the_schemas() -> None:
-    move = schema.params_schema("move-to")
+    move = taskspec.params_schema("move-to")
     assert move["properties"]["speed"]["enum"] == ["fast", "standard", "slow"]
-    area = schema.params_schema("search-area")["properties"]["area"]
+    area = taskspec.params_schema("search-area")["properties"]["area"]
     assert area["minItems"] == 3  # 9.9: a closed polygon
-    areas = schema.params_schema("search-areas")["properties"]["areas"]
+    areas = taskspec.params_schema("search-areas")["properties"]["areas"]
     assert areas["items"]["minItems"] == 3
-    nav = schema.params_schema("navigate")["properties"]["speed"]
+    nav = taskspec.params_schema("navigate")["properties"]["speed"]
     assert nav["items"]["enum"] == ["fast", "standard", "slow"]
-    duration = schema.params_schema("observe-position")["properties"]["duration"]
+    duration = taskspec.params_schema("observe-position")["properties"]["duration"]
     assert duration["type"] == "integer" and duration["minimum"] == -(2**31)
 
 
@@ -112,15 +112,15 @@ def test_module_entry_point_generates(tmp_path: Path) -> None:
 
 
 def test_task_file_typo_is_an_error_naming_file_and_key() -> None:
-    data = dict(schema.task_spec("move-to").raw)
+    data = dict(taskspec.task_spec("move-to").raw)
     data["paramters"] = {}
     with pytest.raises(schema.SchemaError, match=r"x\.yaml.*paramters"):
-        schema.parse_task(data, "x.yaml")
-    bad_type = dict(schema.task_spec("move-to").raw)
+        taskspec.parse_task(data, "x.yaml")
+    bad_type = dict(taskspec.task_spec("move-to").raw)
     bad_type["parameters"] = {"speed": {"type": "float32", "description": "d"}}
     bad_type["required"] = []
     with pytest.raises(schema.SchemaError, match="'float32' is not one of .*geopointarrays"):
-        schema.parse_task(bad_type, "x.yaml")
+        taskspec.parse_task(bad_type, "x.yaml")
 
 
 def test_schemas_hash_is_stable_and_hex() -> None:

@@ -12,7 +12,7 @@ from pathlib import Path
 import jsonschema
 import pytest
 
-from conformance import schema
+from conformance import schema, taskspec
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -34,10 +34,10 @@ def test_schema_for_each_kind(kind: str, path: str | None) -> None:
 
 
 def test_params_schema_is_self_contained_and_equivalent() -> None:
-    for spec in schema.task_specs():
-        bundled = schema.params_schema(spec.name)
+    for spec in taskspec.task_specs():
+        bundled = taskspec.params_schema(spec.name)
         assert "$ref" not in json.dumps(bundled)
-        shipped = schema.params_schema(spec.name, bundled=False)
+        shipped = taskspec.params_schema(spec.name, bundled=False)
         uses_geopoint = any(p.type.startswith("geopoint") for p in spec.parameters)
         assert ("$ref" in json.dumps(shipped)) == uses_geopoint
         assert jsonschema.Draft202012Validator(bundled).is_valid(spec.example)
@@ -46,18 +46,18 @@ def test_params_schema_is_self_contained_and_equivalent() -> None:
 
 def test_unknown_task_names_close_matches() -> None:
     with pytest.raises(KeyError, match="did you mean move-to"):
-        schema.task_spec("move_to")
+        taskspec.task_spec("move_to")
     with pytest.raises(KeyError):
-        schema.params_schema("dance")
+        taskspec.params_schema("dance")
 
 
 def test_task_spec_parameters() -> None:
-    spec = schema.task_spec("move-path")
+    spec = taskspec.task_spec("move-path")
     assert spec.parameter("speed").constraints["enum"] == ["fast", "standard", "slow"]
     assert spec.parameter("waypoints").required and spec.parameter("waypoints").type == "geopoints"
     with pytest.raises(KeyError, match="has no parameter"):
         spec.parameter("altitude")
-    assert schema.task_spec("look-at-position").feedback_statuses == (
+    assert taskspec.task_spec("look-at-position").feedback_statuses == (
         "in-view-center", "in-view", "not-in-view")
 
 

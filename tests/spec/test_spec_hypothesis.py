@@ -19,7 +19,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis_jsonschema import from_schema
 
-from conformance import schema
+from conformance import schema, taskspec
 from conformance.validator import Validator
 
 UNIT = "waraps/unit/air/simulation/dji0"
@@ -125,19 +125,19 @@ UUID = st.uuids().map(str)
 
 def start_task() -> st.SearchStrategy[dict[str, Any]]:
     """start-task with params generated from a task's own params schema (12.2.3)."""
-    return st.sampled_from(schema.task_names()).flatmap(lambda name: st.builds(
+    return st.sampled_from(taskspec.task_names()).flatmap(lambda name: st.builds(
         lambda com, task_uuid, params: {"com-uuid": com, "command": "start-task",
                                         "sender": "commander", "task-uuid": task_uuid,
                                         "task": {"name": name, "params": params}},
-        UUID, UUID, _strategy(schema.params_schema_path(name))))
+        UUID, UUID, _strategy(taskspec.params_schema_path(name))))
 
 
 def start_tst() -> st.SearchStrategy[dict[str, Any]]:
-    node = st.sampled_from(schema.task_names()).flatmap(lambda name: st.builds(
+    node = st.sampled_from(taskspec.task_names()).flatmap(lambda name: st.builds(
         lambda node_uuid, params: {"name": name, "params": params, "children": [],
                                    "common_params": {"execunit": "/dji0",
                                                      "node-uuid": node_uuid}},
-        UUID, _strategy(schema.params_schema_path(name))))
+        UUID, _strategy(taskspec.params_schema_path(name))))
     # A task node is a leaf; only the composites seq and conc have children (TST-014).
     composite = st.builds(lambda name, node_uuid, kids: {
         "name": name, "params": {}, "children": kids,
@@ -245,7 +245,7 @@ def test_start_task_param_faults_are_task_rules(message: dict[str, Any],
     """Inside params: a dropped required parameter or a wrong type is TASK-001, an unknown
     parameter TASK-003, an unknown task name TASK-002 (and its params are not checked)."""
     name = message["task"]["name"]
-    spec = schema.task_spec(name)
+    spec = taskspec.task_spec(name)
     params = message["task"]["params"]
     fault = data.draw(st.sampled_from(["drop", "type", "unknown", "name"]))
     broken = copy.deepcopy(message)
