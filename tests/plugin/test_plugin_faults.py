@@ -1,7 +1,8 @@
 """Every fault of the reference unit makes its certification fail, naming exactly the rules the
-fault breaks (no other rule fails by accident); and each failure's printed rerun line, run
-against the same fault, fails that rule again (it runs the scenarios that produce its
-evidence).
+fault breaks (no other rule fails by accident); and each failure's printed rerun line reproduces
+its rule: every line, as printed, repeats the run with ``-k RULE`` (and ``--observe`` when the
+evidence came late) and selects exactly that rule's test; one rule for each way a rerun selects
+what it runs (``RERUN``) is run again against the same faults and fails that rule again, alone.
 
 To keep the matrix within a couple of minutes on 2 cores (-n 2), faults that touch different
 spec areas run together, at 2 Hz with the matrix profile's short windows; faults of the areas
@@ -19,6 +20,7 @@ import shlex
 import pytest
 from certify_helpers import (
     MATRIX,
+    RULE_IN_NODEID,
     UNIT,
     Certified,
     Rebooter,
@@ -101,6 +103,50 @@ def parameters() -> None:
     warm_parameters(("look-at-bearing", "move-to", "navigate"), range(1, 5))
 
 
+# The rerun lines run again against their faults: one rule for each way a rerun selects what it
+# runs (``selection``), from a fault alone and from a combined group. Every other rule's line is
+# checked as printed, without a broker: it repeats the run with -k RULE and selects exactly
+# that rule's test, so it runs what the representative of its kind ran.
+RERUN: dict[str, str] = {  # fault -> the rule whose rerun line runs again
+    "pong-response-to-uppercase": "EXEC-PING-002",  # ping: the gate of the others
+    "start-response-no-task-uuid": "EXEC-START-002",
+    "accept-unknown-task": "EXEC-START-005",  # refuse
+    "signal-unknown-task-ok": "EXEC-SIG-005",
+    "query-forgets-finished": "EXEC-QUERY-001",  # in a combined group
+    "resend-unanswered": "EXEC-RESEND-002",  # in a combined group
+    "tst-root-flag-everywhere": "TST-008",  # the TST level
+    "malformed-unanswered": "EXEC-ROBUST-002",  # not gated by ping
+    "reboot-remembers-history": "REBOOT-002",  # runs start first (Scenario.needs)
+    "heading-signed": "SENS-002",  # passive, the window alone; in a combined group
+    "feedback-status-typo": "EXEC-FB-002",  # passive, after start (EVIDENCE)
+    "level-unbacked": "HB-008",  # passive, evidence late: the line adds --observe
+}
+LATE = {"level-unbacked"}
+"""Representatives whose evidence comes later than the passive window: their line must carry
+``--observe`` (else a rerun would end before the violation shows)."""
+
+
+def selection(rule: str) -> str:
+    """What ``-k RULE`` runs: the rule's own scenario (and the scenarios it needs), or the
+    passive window, after the scenarios whose traffic is the rule's evidence."""
+    from conformance.scenarios import EVIDENCE, RULE_SCENARIO
+
+    if rule in RULE_SCENARIO:
+        return f"the {RULE_SCENARIO[rule]} scenario"
+    return "the passive window after its evidence" if rule in EVIDENCE else "the passive window"
+
+
+def test_the_reruns_cover_every_way_a_rerun_selects_what_it_runs() -> None:
+    broken = {r for f in FAULTS.values() if f.scope == "unit" for r in f.rules}
+    assert all(RERUN[f] in FAULTS[f].rules for f in RERUN), "a representative its fault breaks"
+    kinds = {selection(r) for r in broken}
+    missing = kinds - {selection(r) for r in RERUN.values()}
+    assert not missing, f"no rerun runs again for: {sorted(missing)}"
+    sizes = {len(g) for g in groups() for f in g if f in RERUN}
+    assert 1 in sizes and max(sizes) > 1, "reruns from a fault alone and from a combined group"
+    assert LATE <= set(RERUN)
+
+
 @pytest.mark.parametrize("faults", [pytest.param(g, id="+".join(g)) for g in groups()] + [
     pytest.param([name], id=name, marks=pytest.mark.xfail(strict=True, reason=why))
     for name, why in AWAITING_SCENARIOS.items()])
@@ -114,23 +160,46 @@ def test_faults_fail_exactly_their_rules(pytester: pytest.Pytester, faults: list
     expected = {r for f in faults for r in FAULTS[f].rules}
     assert run.failed == expected, f"{' + '.join(faults)}:\n{explain(run, expected)}"
     assert run.result.ret == pytest.ExitCode.TESTS_FAILED
-    rerun_fails_again(pytester, run, expected, faults, mosquitto, unit)
+    lines = rerun_lines(pytester, run, expected)
+    for fault in faults:
+        if fault in RERUN:
+            rule = RERUN[fault]
+            assert fault not in LATE or "--observe" in lines[rule], lines[rule]
+            fails_again(pytester, lines[rule], rule, faults, mosquitto, unit)
 
 
-def rerun_fails_again(pytester: pytest.Pytester, run: Certified, rules: set[str],
-                      faults: list[str], broker: str, unit: str) -> None:
-    """Each failure names its rule and how to rerun just that rule; that line, run against
-    the same faults, fails the rule again (and judges nothing else)."""
-    from conformance.sim import SimUnit
-
+def rerun_lines(pytester: pytest.Pytester, run: Certified, rules: set[str]) -> dict[str, str]:
+    """Each failure names its rule and how to rerun just that rule: the run's own command
+    (its 'repeat this run' line) with -k RULE, and --observe when the evidence came late; that
+    command selects exactly the rule's test (collected only: no broker, no unit)."""
+    repeat = re.search(r"^repeat this run: (pytest .*)$", run.text, re.M)
+    assert repeat, "no 'repeat this run' line"
+    lines = {}
     for rule in sorted(rules):
         found = re.search(rf"^\s*rerun\s+(pytest .* -k {re.escape(rule)})$", run.text, re.M)
         assert found, f"no rerun line for {rule}"
-        args = shlex.split(found.group(1))[1:]
-        with SimUnit(unit, broker, faults=tuple(faults), rate=2.0, seed=1) as sim:
-            again = certify(pytester, *args, plugins=(Rebooter(sim),))
-        assert again.failed == {rule}, f"{found.group(1)}:\n{explain(again, {rule})}"
-        assert again.result.ret == pytest.ExitCode.TESTS_FAILED
+        line = lines[rule] = found.group(1)
+        assert re.fullmatch(rf"{re.escape(repeat.group(1))}( --observe \d+)? -k {re.escape(rule)}",
+                            line), line
+        listed = pytester.inline_run("-p", "no:cacheprovider", "-o", "addopts=",
+                                     *shlex.split(line)[1:], "--collect-only")
+        (done,) = listed.getcalls("pytest_collection_finish")
+        selected = [m.group(1) if (m := RULE_IN_NODEID.search(i.nodeid)) else i.nodeid
+                    for i in done.session.items]
+        assert selected == [rule], f"{line} selects {selected}"
+    return lines
+
+
+def fails_again(pytester: pytest.Pytester, line: str, rule: str, faults: list[str],
+                broker: str, unit: str) -> None:
+    """The rerun line, run against the same faults, fails the rule again (and judges nothing
+    else)."""
+    from conformance.sim import SimUnit
+
+    with SimUnit(unit, broker, faults=tuple(faults), rate=2.0, seed=1) as sim:
+        again = certify(pytester, *shlex.split(line)[1:], plugins=(Rebooter(sim),))
+    assert again.failed == {rule}, f"{line}:\n{explain(again, {rule})}"
+    assert again.result.ret == pytest.ExitCode.TESTS_FAILED
 
 
 @pytest.mark.parametrize("fault", sorted(n for n, f in FAULTS.items() if f.scope == "broker"))
