@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import re
 import shlex
+from collections import Counter
 
 import pytest
 from certify_helpers import (
@@ -42,15 +43,16 @@ AWAITING_SCENARIOS: dict[str, str] = {}
 # (they declare one more level).
 ALONE = {"HB", "EXEC-PING", "EXEC-ROBUST", "EXEC-START", "EXEC-SIG", "REBOOT", "TEI",
          "MSG-005", "MSG-007", "ERR-008", "ERR-014"}
-GROUP_SIZE = 4
+GROUP_SIZE = 5
 # Rules that judge the same messages as another area's: a fault of one and a fault of the
 # other would alter the same message (a sensor value, a query or signal answer).
 SAME_MESSAGES = {"MSG": "SENS", "ERR-010": "SENS", "ERR-006": "EXEC-QUERY",
                  "ERR-013": "EXEC-SIG", "ERR-001": "SI", "ERR-012": "SI"}
-# Rules whose faults also change what another area's scenario relies on: feedback without
-# task-uuid hides when a task ends, so the query scenario has no finished task to ask about
-# (ERR-006's evidence).
-ALSO = {"EXEC-FB-001": ("EXEC-QUERY",)}
+# Rules whose faults also change what another area's scenario or check relies on: feedback
+# without task-uuid hides when a task ends, so the query scenario has no finished task to ask
+# about (ERR-006's evidence); SENS-004 judges the camera sensor on sensor/camera_url, where the
+# topic faults that rename that sensor (TOPIC-002/003/004/008) leave nothing to judge.
+ALSO = {"EXEC-FB-001": ("EXEC-QUERY",), "SENS-004": ("TOPIC",)}
 # Faults that leave the unit without a readable position: the scenarios that start tasks
 # place them near it (DESIGN 'Safety') and cannot test without one, whatever their area.
 ALONE_FAULTS = {"position-deg-e7", "position-as-list"}
@@ -67,24 +69,31 @@ def areas(rule: str) -> set[str]:
 
 
 def groups() -> list[list[str]]:
-    """Unit faults, combined when they touch different spec areas (greedy, deterministic)."""
+    """Unit faults, combined when they touch different spec areas (deterministic): those of
+    ALONE areas one by one; the others first-fit into groups of GROUP_SIZE, the faults of the
+    most crowded areas first (every TST fault opens a group: the fewest runs)."""
     out: list[list[str]] = []
+    combinable: list[tuple[str, set[str]]] = []
     for name, fault in sorted(FAULTS.items()):
         if fault.scope != "unit" or name in AWAITING_SCENARIOS:
             continue
         mine = {a for r in fault.rules for a in areas(r)}
         if mine & ALONE or name in ALONE_FAULTS:
             out.append([name])
-            continue
-        for group in out:
+        else:
+            combinable.append((name, mine))
+    crowd = Counter(a for _, mine in combinable for a in mine)
+    combinable.sort(key=lambda f: (-max(crowd[a] for a in f[1]), -len(f[1]), f[0]))
+    combined: list[list[str]] = []
+    for name, mine in combinable:
+        for group in combined:
             theirs = {a for f in group for r in FAULTS[f].rules for a in areas(r)}
-            if (len(group) < GROUP_SIZE and not theirs & (mine | ALONE)
-                    and not ALONE_FAULTS & set(group)):
+            if len(group) < GROUP_SIZE and not theirs & mine:
                 group.append(name)
                 break
         else:
-            out.append([name])
-    return out
+            combined.append([name])
+    return combined + out
 
 
 def explain(run: Certified, expected: set[str]) -> str:
