@@ -116,21 +116,21 @@ def parameters() -> None:
 # runs (``selection``), from a fault alone and from a combined group. Every other rule's line is
 # checked as printed, without a broker: it repeats the run with -k RULE and selects exactly
 # that rule's test, so it runs what the representative of its kind ran.
-RERUN: dict[str, str] = {  # fault -> the rule whose rerun line runs again
-    "pong-response-to-uppercase": "EXEC-PING-002",  # ping: the gate of the others
-    "start-response-no-task-uuid": "EXEC-START-002",
-    "accept-unknown-task": "EXEC-START-005",  # refuse
-    "signal-unknown-task-ok": "EXEC-SIG-005",
-    "query-forgets-finished": "EXEC-QUERY-001",  # in a combined group
-    "resend-unanswered": "EXEC-RESEND-002",  # in a combined group
-    "tst-root-flag-everywhere": "TST-008",  # the TST level
-    "malformed-unanswered": "EXEC-ROBUST-002",  # not gated by ping
-    "reboot-remembers-history": "REBOOT-002",  # runs start first (Scenario.needs)
-    "heading-signed": "SENS-002",  # passive, the window alone; in a combined group
-    "feedback-status-typo": "EXEC-FB-002",  # passive, after start (EVIDENCE)
-    "level-unbacked": "HB-008",  # passive, evidence late: the line adds --observe
+RERUN: dict[str, str] = {  # rule -> the fault whose run reruns it
+    "EXEC-PING-001": "pong-missing",  # ping: the gate of the others
+    "EXEC-START-002": "start-response-no-task-uuid",
+    "EXEC-START-005": "accept-unknown-task",  # refuse
+    "EXEC-SIG-005": "signal-unknown-task-ok",
+    "EXEC-QUERY-001": "query-forgets-finished",  # in a combined group
+    "EXEC-RESEND-002": "resend-unanswered",  # in a combined group
+    "TST-008": "tst-root-flag-everywhere",  # the TST level; in a combined group
+    "EXEC-ROBUST-001": "pong-missing",  # not gated by ping
+    "REBOOT-002": "reboot-remembers-history",  # runs start first (Scenario.needs)
+    "SENS-002": "heading-signed",  # passive, the window alone; in a combined group
+    "EXEC-FB-002": "feedback-status-typo",  # passive, after start (EVIDENCE)
+    "HB-008": "level-unbacked",  # passive, evidence late: the line adds --observe
 }
-LATE = {"level-unbacked"}
+LATE = {"HB-008"}
 """Representatives whose evidence comes later than the passive window: their line must carry
 ``--observe`` (else a rerun would end before the violation shows)."""
 
@@ -147,11 +147,11 @@ def selection(rule: str) -> str:
 
 def test_the_reruns_cover_every_way_a_rerun_selects_what_it_runs() -> None:
     broken = {r for f in FAULTS.values() if f.scope == "unit" for r in f.rules}
-    assert all(RERUN[f] in FAULTS[f].rules for f in RERUN), "a representative its fault breaks"
+    assert all(rule in FAULTS[f].rules for rule, f in RERUN.items()), "a rule its fault breaks"
     kinds = {selection(r) for r in broken}
-    missing = kinds - {selection(r) for r in RERUN.values()}
+    missing = kinds - {selection(r) for r in RERUN}
     assert not missing, f"no rerun runs again for: {sorted(missing)}"
-    sizes = {len(g) for g in groups() for f in g if f in RERUN}
+    sizes = {len(g) for g in groups() for f in g if f in RERUN.values()}
     assert 1 in sizes and max(sizes) > 1, "reruns from a fault alone and from a combined group"
     assert LATE <= set(RERUN)
 
@@ -170,10 +170,9 @@ def test_faults_fail_exactly_their_rules(pytester: pytest.Pytester, faults: list
     assert run.failed == expected, f"{' + '.join(faults)}:\n{explain(run, expected)}"
     assert run.result.ret == pytest.ExitCode.TESTS_FAILED
     lines = rerun_lines(pytester, run, expected)
-    for fault in faults:
-        if fault in RERUN:
-            rule = RERUN[fault]
-            assert fault not in LATE or "--observe" in lines[rule], lines[rule]
+    for rule, fault in RERUN.items():
+        if fault in faults:
+            assert rule not in LATE or "--observe" in lines[rule], lines[rule]
             fails_again(pytester, lines[rule], rule, faults, mosquitto, unit)
 
 
