@@ -128,9 +128,11 @@ RERUN: dict[str, str] = {  # rule -> the fault whose run reruns it
     "REBOOT-002": "reboot-remembers-history",  # runs start first (Scenario.needs)
     "SENS-002": "heading-signed",  # passive, the window alone; in a combined group
     "EXEC-FB-002": "feedback-status-typo",  # passive, after start (EVIDENCE)
-    "HB-008": "level-unbacked",  # passive, evidence late: the line adds --observe
+    # passive, evidence late (a drifting rate shows after more intervals than the passive
+    # window holds): the line adds --observe
+    "TEI-002": "tst-info-rate-drift",
 }
-LATE = {"HB-008"}
+LATE = {"TEI-002"}
 """Representatives whose evidence comes later than the passive window: their line must carry
 ``--observe`` (else a rerun would end before the violation shows)."""
 
