@@ -40,6 +40,10 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    # Slow tests first (a stable sort: file order otherwise). They mostly wait on units and
+    # brokers; started early under -n 2, the many short tests fill in around them instead of
+    # one worker running the last long test alone at the end.
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
     # pytest-timeout is a test extra; set here, not in the ini, so that `pytest --unit` run from
     # this folder without the extra gets no "unknown config option" warning.
     if config.pluginmanager.hasplugin("timeout"):
