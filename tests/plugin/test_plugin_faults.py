@@ -6,10 +6,11 @@ what it runs (``RERUN``) is run again against the same faults and fails that rul
 
 To keep the matrix within a couple of minutes on 2 cores (-n 2), faults that touch different
 spec areas run together, at 2 Hz with the matrix profile's short windows; faults of the areas
-that gate others (heartbeat, ping, robustness, start-task, signals, reboot, stamps) run alone. A
-combined run must fail exactly the union of its faults' rules: one that does not fails, naming
-its faults and the rules (faults interact: those that legitimately affect each other are kept
-apart, in ALONE or SAME_MESSAGES, with a comment saying why).
+that gate others (heartbeat, ping, robustness, start-task, signals, reboot, stamps) run alone,
+but for those that change only what their own rule judges (JOIN). A combined run must fail
+exactly the union of its faults' rules: one that does not fails, naming its faults and the
+rules (faults interact: those that legitimately affect each other are kept apart, in ALONE,
+SAME_MESSAGES or ALSO, with a comment saying why).
 """
 
 from __future__ import annotations
@@ -53,6 +54,11 @@ SAME_MESSAGES = {"MSG": "SENS", "ERR-010": "SENS", "ERR-006": "EXEC-QUERY",
 # about (ERR-006's evidence); SENS-004 judges the camera sensor on sensor/camera_url, where the
 # topic faults that rename that sensor (TOPIC-002/003/004/008) leave nothing to judge.
 ALSO = {"EXEC-FB-001": ("EXEC-QUERY",), "SENS-004": ("TOPIC",)}
+# Faults of ALONE areas that only change what their own rule alone judges, and nothing a
+# scenario reads: the heartbeat's type (HB-002), an unknown level besides the known ones
+# (HB-007), stamps (MSG-005; MSG-007 reads them on retained messages only, and its fault runs
+# alone). They join combined groups, one of each area per group.
+JOIN = {"heartbeat-type-case", "level-unknown", "stamp-clock-skew", "stamp-milliseconds"}
 # Faults that leave the unit without a readable position: the scenarios that start tasks
 # place them near it (DESIGN 'Safety') and cannot test without one, whatever their area.
 ALONE_FAULTS = {"position-deg-e7", "position-as-list"}
@@ -78,7 +84,7 @@ def groups() -> list[list[str]]:
         if fault.scope != "unit" or name in AWAITING_SCENARIOS:
             continue
         mine = {a for r in fault.rules for a in areas(r)}
-        if mine & ALONE or name in ALONE_FAULTS:
+        if (mine & ALONE and name not in JOIN) or name in ALONE_FAULTS:
             out.append([name])
         else:
             combinable.append((name, mine))
