@@ -39,7 +39,23 @@ def pytest_configure(config: pytest.Config) -> None:
         active, max_examples=max(2, active.max_examples // 15)))
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object | None:
+    """-n 2 (xdist's default, --dist load) schedules by work stealing: a worker that runs out
+    takes half of the other's queue, so the slow tests (first, below) are shared out, not
+    sent in one consecutive chunk to one worker. Any other --dist is left as asked."""
+    if config.getoption("dist") != "load":
+        return None
+    from xdist.scheduler import WorkStealingScheduling
+
+    return WorkStealingScheduling(config, log)
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    # Slow tests first (a stable sort: file order otherwise). They mostly wait on units and
+    # brokers; started early under -n 2, the many short tests fill in around them instead of
+    # one worker running the last long test alone at the end (with work stealing, below).
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
     # pytest-timeout is a test extra; set here, not in the ini, so that `pytest --unit` run from
     # this folder without the extra gets no "unknown config option" warning.
     if config.pluginmanager.hasplugin("timeout"):

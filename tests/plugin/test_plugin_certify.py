@@ -51,18 +51,6 @@ def test_reference_unit_passes_on_the_embedded_broker(pytester: pytest.Pytester)
     assert len(list(run.reports_dir.glob("dji0-*.html"))) == 1
 
 
-def test_reference_unit_passes_on_mosquitto(pytester: pytest.Pytester, mosquitto: str,
-                                            unit_address: UnitAddress) -> None:
-    with SimUnit(unit_address, mosquitto, rate=3.0, seed=3) as sim:
-        rebooter = Rebooter(sim)
-        run = certify(pytester, "--unit", str(unit_address), "--broker", mosquitto,
-                      f"--profile={FAST}", "--seed", "7", plugins=(rebooter,))
-    assert run.result.ret == 0, run.text
-    assert not run.failed
-    assert rebooter.calls == 1
-    assert run.outcomes["REBOOT-001"] == run.outcomes["REBOOT-002"] == "passed"
-
-
 def test_one_rule_by_its_id(pytester: pytest.Pytester) -> None:
     run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "3",
                   f"--profile={FAST}", "-k", "EXEC-PING-002")
@@ -89,12 +77,13 @@ def test_warn_is_a_pass_with_a_warning_and_strict_makes_it_a_failure(
     assert strict.outcomes == {"ERR-001": "failed"}
 
 
-def test_a_recording_of_a_certification_lints_clean_with_every_command_answered(
+def test_reference_unit_passes_on_mosquitto_and_its_recording_lints_clean(
         pytester: pytest.Pytester, mosquitto: str, unit_address: UnitAddress,
         tmp_path) -> None:
-    """Lint judges conversations the way the suite does: a recording taken while the suite
-    certifies the reference unit shows every command of the suite matched to its answer, and
-    no failure of the unit (the suite's deliberately broken commands are the commander's)."""
+    """The reference unit passes on Mosquitto, rebooted once through the hook. Lint judges
+    conversations the way the suite does: a recording taken while the suite certifies it
+    shows every command of the suite matched to its answer, and no failure of the unit (the
+    suite's deliberately broken commands are the commander's)."""
     import io
     import json
     import threading
@@ -119,11 +108,15 @@ def test_a_recording_of_a_certification_lints_clean_with_every_command_answered(
         recorder.subscribe(f"{unit_address.prefix}/#", qos=1)
         try:
             with SimUnit(unit_address, mosquitto, rate=3.0, seed=3) as sim:
+                rebooter = Rebooter(sim)
                 run = certify(pytester, "--unit", str(unit_address), "--broker", mosquitto,
-                              f"--profile={FAST}", "--seed", "7", plugins=(Rebooter(sim),))
+                              f"--profile={FAST}", "--seed", "7", plugins=(rebooter,))
         finally:
             recorder.close()
     assert run.result.ret == 0, run.text
+    assert not run.failed
+    assert rebooter.calls == 1
+    assert run.outcomes["REBOOT-001"] == run.outcomes["REBOOT-002"] == "passed"
     out = io.StringIO()
     code = lint_main(["--from", str(recording), f"--profile={FAST}", "--plain", "--format",
                       "json", "--reports-dir", str(tmp_path / "lint")], stdout=out)

@@ -1,24 +1,28 @@
 """Every fault of the reference unit makes its certification fail, naming exactly the rules the
-fault breaks (no other rule fails by accident); and each failure's printed rerun line, run
-against the same fault, fails that rule again (it runs the scenarios that produce its
-evidence).
+fault breaks (no other rule fails by accident); and each failure's printed rerun line reproduces
+its rule: every line, as printed, repeats the run with ``-k RULE`` (and ``--observe`` when the
+evidence came late) and selects exactly that rule's test; one rule for each way a rerun selects
+what it runs (``RERUN``) is run again against the same faults and fails that rule again, alone.
 
 To keep the matrix within a couple of minutes on 2 cores (-n 2), faults that touch different
 spec areas run together, at 2 Hz with the matrix profile's short windows; faults of the areas
-that gate others (heartbeat, ping, robustness, start-task, signals, reboot, stamps) run alone. A
-combined run must fail exactly the union of its faults' rules: one that does not fails, naming
-its faults and the rules (faults interact: those that legitimately affect each other are kept
-apart, in ALONE or SAME_MESSAGES, with a comment saying why).
+that gate others (heartbeat, ping, robustness, start-task, signals, reboot, stamps) run alone,
+but for those that change only what their own rule judges (JOIN). A combined run must fail
+exactly the union of its faults' rules: one that does not fails, naming its faults and the
+rules (faults interact: those that legitimately affect each other are kept apart, in ALONE,
+SAME_MESSAGES or ALSO, with a comment saying why).
 """
 
 from __future__ import annotations
 
 import re
 import shlex
+from collections import Counter
 
 import pytest
 from certify_helpers import (
     MATRIX,
+    RULE_IN_NODEID,
     UNIT,
     Certified,
     Rebooter,
@@ -40,15 +44,21 @@ AWAITING_SCENARIOS: dict[str, str] = {}
 # (they declare one more level).
 ALONE = {"HB", "EXEC-PING", "EXEC-ROBUST", "EXEC-START", "EXEC-SIG", "REBOOT", "TEI",
          "MSG-005", "MSG-007", "ERR-008", "ERR-014"}
-GROUP_SIZE = 4
+GROUP_SIZE = 5
 # Rules that judge the same messages as another area's: a fault of one and a fault of the
 # other would alter the same message (a sensor value, a query or signal answer).
 SAME_MESSAGES = {"MSG": "SENS", "ERR-010": "SENS", "ERR-006": "EXEC-QUERY",
                  "ERR-013": "EXEC-SIG", "ERR-001": "SI", "ERR-012": "SI"}
-# Rules whose faults also change what another area's scenario relies on: feedback without
-# task-uuid hides when a task ends, so the query scenario has no finished task to ask about
-# (ERR-006's evidence).
-ALSO = {"EXEC-FB-001": ("EXEC-QUERY",)}
+# Rules whose faults also change what another area's scenario or check relies on: feedback
+# without task-uuid hides when a task ends, so the query scenario has no finished task to ask
+# about (ERR-006's evidence); SENS-004 judges the camera sensor on sensor/camera_url, where the
+# topic faults that rename that sensor (TOPIC-002/003/004/008) leave nothing to judge.
+ALSO = {"EXEC-FB-001": ("EXEC-QUERY",), "SENS-004": ("TOPIC",)}
+# Faults of ALONE areas that only change what their own rule alone judges, and nothing a
+# scenario reads: the heartbeat's type (HB-002), an unknown level besides the known ones
+# (HB-007), stamps (MSG-005; MSG-007 reads them on retained messages only, and its fault runs
+# alone). They join combined groups, one of each area per group.
+JOIN = {"heartbeat-type-case", "level-unknown", "stamp-clock-skew", "stamp-milliseconds"}
 # Faults that leave the unit without a readable position: the scenarios that start tasks
 # place them near it (DESIGN 'Safety') and cannot test without one, whatever their area.
 ALONE_FAULTS = {"position-deg-e7", "position-as-list"}
@@ -65,24 +75,31 @@ def areas(rule: str) -> set[str]:
 
 
 def groups() -> list[list[str]]:
-    """Unit faults, combined when they touch different spec areas (greedy, deterministic)."""
+    """Unit faults, combined when they touch different spec areas (deterministic): those of
+    ALONE areas one by one; the others first-fit into groups of GROUP_SIZE, the faults of the
+    most crowded areas first (every TST fault opens a group: the fewest runs)."""
     out: list[list[str]] = []
+    combinable: list[tuple[str, set[str]]] = []
     for name, fault in sorted(FAULTS.items()):
         if fault.scope != "unit" or name in AWAITING_SCENARIOS:
             continue
         mine = {a for r in fault.rules for a in areas(r)}
-        if mine & ALONE or name in ALONE_FAULTS:
+        if (mine & ALONE and name not in JOIN) or name in ALONE_FAULTS:
             out.append([name])
-            continue
-        for group in out:
+        else:
+            combinable.append((name, mine))
+    crowd = Counter(a for _, mine in combinable for a in mine)
+    combinable.sort(key=lambda f: (-max(crowd[a] for a in f[1]), -len(f[1]), f[0]))
+    combined: list[list[str]] = []
+    for name, mine in combinable:
+        for group in combined:
             theirs = {a for f in group for r in FAULTS[f].rules for a in areas(r)}
-            if (len(group) < GROUP_SIZE and not theirs & (mine | ALONE)
-                    and not ALONE_FAULTS & set(group)):
+            if len(group) < GROUP_SIZE and not theirs & mine:
                 group.append(name)
                 break
         else:
-            out.append([name])
-    return out
+            combined.append([name])
+    return combined + out
 
 
 def explain(run: Certified, expected: set[str]) -> str:
@@ -101,6 +118,52 @@ def parameters() -> None:
     warm_parameters(("look-at-bearing", "move-to", "navigate"), range(1, 5))
 
 
+# The rerun lines run again against their faults: one rule for each way a rerun selects what it
+# runs (``selection``), from a fault alone and from a combined group. Every other rule's line is
+# checked as printed, without a broker: it repeats the run with -k RULE and selects exactly
+# that rule's test, so it runs what the representative of its kind ran.
+RERUN: dict[str, str] = {  # rule -> the fault whose run reruns it
+    "EXEC-PING-001": "pong-missing",  # ping: the gate of the others
+    "EXEC-START-002": "start-response-no-task-uuid",
+    "EXEC-START-005": "accept-unknown-task",  # refuse
+    "EXEC-SIG-005": "signal-unknown-task-ok",
+    "EXEC-QUERY-001": "query-forgets-finished",  # in a combined group
+    "EXEC-RESEND-002": "resend-unanswered",  # in a combined group
+    "TST-008": "tst-root-flag-everywhere",  # the TST level; in a combined group
+    "EXEC-ROBUST-001": "pong-missing",  # not gated by ping
+    "REBOOT-002": "reboot-remembers-history",  # runs start first (Scenario.needs)
+    "SENS-002": "heading-signed",  # passive, the window alone; in a combined group
+    "EXEC-FB-002": "feedback-status-typo",  # passive, after start (EVIDENCE)
+    # passive, evidence late (a drifting rate shows after more intervals than the passive
+    # window holds): the line adds --observe
+    "TEI-002": "tst-info-rate-drift",
+}
+LATE = {"TEI-002"}
+"""Representatives whose evidence comes later than the passive window: their line must carry
+``--observe`` (else a rerun would end before the violation shows)."""
+
+
+def selection(rule: str) -> str:
+    """What ``-k RULE`` runs: the rule's own scenario (and the scenarios it needs), or the
+    passive window, after the scenarios whose traffic is the rule's evidence."""
+    from conformance.scenarios import EVIDENCE, RULE_SCENARIO
+
+    if rule in RULE_SCENARIO:
+        return f"the {RULE_SCENARIO[rule]} scenario"
+    return "the passive window after its evidence" if rule in EVIDENCE else "the passive window"
+
+
+def test_the_reruns_cover_every_way_a_rerun_selects_what_it_runs() -> None:
+    broken = {r for f in FAULTS.values() if f.scope == "unit" for r in f.rules}
+    assert all(rule in FAULTS[f].rules for rule, f in RERUN.items()), "a rule its fault breaks"
+    kinds = {selection(r) for r in broken}
+    missing = kinds - {selection(r) for r in RERUN}
+    assert not missing, f"no rerun runs again for: {sorted(missing)}"
+    sizes = {len(g) for g in groups() for f in g if f in RERUN.values()}
+    assert 1 in sizes and max(sizes) > 1, "reruns from a fault alone and from a combined group"
+    assert LATE <= set(RERUN)
+
+
 @pytest.mark.parametrize("faults", [pytest.param(g, id="+".join(g)) for g in groups()] + [
     pytest.param([name], id=name, marks=pytest.mark.xfail(strict=True, reason=why))
     for name, why in AWAITING_SCENARIOS.items()])
@@ -114,23 +177,45 @@ def test_faults_fail_exactly_their_rules(pytester: pytest.Pytester, faults: list
     expected = {r for f in faults for r in FAULTS[f].rules}
     assert run.failed == expected, f"{' + '.join(faults)}:\n{explain(run, expected)}"
     assert run.result.ret == pytest.ExitCode.TESTS_FAILED
-    rerun_fails_again(pytester, run, expected, faults, mosquitto, unit)
+    lines = rerun_lines(pytester, run, expected)
+    for rule, fault in RERUN.items():
+        if fault in faults:
+            assert rule not in LATE or "--observe" in lines[rule], lines[rule]
+            fails_again(pytester, lines[rule], rule, faults, mosquitto, unit)
 
 
-def rerun_fails_again(pytester: pytest.Pytester, run: Certified, rules: set[str],
-                      faults: list[str], broker: str, unit: str) -> None:
-    """Each failure names its rule and how to rerun just that rule; that line, run against
-    the same faults, fails the rule again (and judges nothing else)."""
-    from conformance.sim import SimUnit
-
+def rerun_lines(pytester: pytest.Pytester, run: Certified, rules: set[str]) -> dict[str, str]:
+    """Each failure names its rule and how to rerun just that rule: the run's own command
+    (its 'repeat this run' line) with -k RULE, and --observe when the evidence came late; that
+    command selects exactly the rule's test (collected only: no broker, no unit)."""
+    repeat = re.search(r"^repeat this run: (pytest .*)$", run.text, re.M)
+    assert repeat, "no 'repeat this run' line"
+    lines = {}
     for rule in sorted(rules):
         found = re.search(rf"^\s*rerun\s+(pytest .* -k {re.escape(rule)})$", run.text, re.M)
         assert found, f"no rerun line for {rule}"
-        args = shlex.split(found.group(1))[1:]
-        with SimUnit(unit, broker, faults=tuple(faults), rate=2.0, seed=1) as sim:
-            again = certify(pytester, *args, plugins=(Rebooter(sim),))
-        assert again.failed == {rule}, f"{found.group(1)}:\n{explain(again, {rule})}"
-        assert again.result.ret == pytest.ExitCode.TESTS_FAILED
+        line = lines[rule] = found.group(1)
+        assert re.fullmatch(rf"{re.escape(repeat.group(1))}( --observe \d+)? -k {re.escape(rule)}",
+                            line), line
+        listed = pytester.inline_run("-p", "no:cacheprovider", "-o", "addopts=",
+                                     *shlex.split(line)[1:], "--collect-only")
+        (done,) = listed.getcalls("pytest_collection_finish")
+        selected = [m.group(1) if (m := RULE_IN_NODEID.search(i.nodeid)) else i.nodeid
+                    for i in done.session.items]
+        assert selected == [rule], f"{line} selects {selected}"
+    return lines
+
+
+def fails_again(pytester: pytest.Pytester, line: str, rule: str, faults: list[str],
+                broker: str, unit: str) -> None:
+    """The rerun line, run against the same faults, fails the rule again (and judges nothing
+    else)."""
+    from conformance.sim import SimUnit
+
+    with SimUnit(unit, broker, faults=tuple(faults), rate=2.0, seed=1) as sim:
+        again = certify(pytester, *shlex.split(line)[1:], plugins=(Rebooter(sim),))
+    assert again.failed == {rule}, f"{line}:\n{explain(again, {rule})}"
+    assert again.result.ret == pytest.ExitCode.TESTS_FAILED
 
 
 @pytest.mark.parametrize("fault", sorted(n for n, f in FAULTS.items() if f.scope == "broker"))

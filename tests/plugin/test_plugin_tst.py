@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import orjson
 import pytest
-from certify_helpers import FAST, UNIT, Rebooter, certify
+from certify_helpers import FAST, MATRIX, UNIT, Rebooter, certify
 from test_plugin_safety import Wire
 
 from conformance.rules import CATALOGUE, Side
@@ -30,7 +30,9 @@ def test_tst_commands_go_to_the_chosen_topic_only_and_the_unit_passes(
     with SimUnit(unit, mosquitto, rate=3.0, seed=5, tst_execution=True,
                  tst_operator=op0 if where == "operator" else None) as sim, \
             Wire(mosquitto, prefix) as wire:
-        run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={FAST}",
+        # The matrix profile (three tasks, for trees and direct execution alike): every task
+        # of the reference unit runs, on both levels, with fast.yaml in test_plugin_certify.py.
+        run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={MATRIX}",
                       "--seed", "5", *args, plugins=(Rebooter(sim),))
         info = [m for m in wire.messages if m.topic == f"{unit}/tst_execution_info"][-1]
     assert run.result.ret == 0, run.text
