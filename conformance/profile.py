@@ -19,7 +19,6 @@ import yaml
 
 from conformance.rules import CATALOGUE, Severity
 
-
 DOCS = "schemas/generated/PROFILE.md"
 """Where the profile format is documented (rendered from the schema)."""
 
