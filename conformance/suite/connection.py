@@ -47,6 +47,8 @@ class Connection:
     """The bundled reference unit and its broker, under --broker embedded."""
     _alive: threading.Event = field(default_factory=threading.Event, init=False)
     _gap_start: float | None = field(default=None, init=False)
+    _linked: bool = field(default=False, init=False)
+    """Whether the broker ever accepted the connection (before that, nothing can be lost)."""
 
     def __post_init__(self) -> None:
         self.broker_url: BrokerURL = self.settings.broker
@@ -119,6 +121,10 @@ class Connection:
     def _on_connection(self, connected: bool, reason: str) -> None:
         now = time.time()
         with self.monitor_lock:
+            if connected:
+                self._linked = True
+            elif not self._linked:
+                return  # refused at connect (the error says why): no link was lost
             if not connected:
                 self._gap_start = now
                 # Mark the gap at once: rates, silences and uuid changes across it are not
