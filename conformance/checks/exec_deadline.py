@@ -23,7 +23,7 @@ from conformance.checks.exec_response import judge_unanswered
 from conformance.message import Message
 from conformance.topics import TopicKind
 from conformance.validator import Validation
-from conformance.violation import Violation
+from conformance.violation import Violation, clock
 
 
 @check("EXEC-RESEND-002", "EXEC-START-003", "EXEC-SIG-002", on=(TopicKind.HEARTBEAT,))
@@ -101,7 +101,7 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
             found.append(late("EXEC-START-003", unit.address.topic("exec/command"),
                               task.command, f"a final feedback for task {task.task_uuid} "
                               f"(finished, failed or aborted)", f"it left tasks-executing at "
-                              f"{task.left_at:.3f} with none (latest status "
+                              f"{clock(task.left_at)} with none (latest status "
                               f"{task.last_status!r})", task.left_at,
                               "12.4: send feedback with the final status when a task ends"))
     return found
