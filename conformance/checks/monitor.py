@@ -30,6 +30,7 @@ from conformance.checks.base import (
     CheckContext,
     UnitState,
 )
+from conformance.checks.rates import live_findings as live_rate_findings
 from conformance.checks.rows import (
     UNATTRIBUTED,
     Findings,
@@ -365,6 +366,13 @@ class Monitor:
     def units(self) -> list[UnitAddress]:
         """Every unit seen (or recorded into), in address order."""
         return sorted(a for a in self._entries if a is not None)
+
+    def live_findings(self, unit: UnitAddress) -> list[Violation]:
+        """What is wrong with ``unit`` right now that the rules judge only over the whole
+        observation (its rates over their latest intervals: ``rates.live_findings``). A view
+        for lint's live scorecard; nothing here is recorded."""
+        entry = self._entries.get(unit)
+        return [] if entry is None else live_rate_findings(self.ctx, entry.state)
 
     def topics_cached(self) -> int:
         """Topics whose route ``feed`` keeps (at most ``MAX_TOPICS``: bounded memory)."""
