@@ -55,3 +55,16 @@ def test_without_a_reboot_command_the_message_suggests_one(pytester: pytest.Pyte
                   mosquitto, f"--profile={FAST}")
     assert run.result.ret == NOT_CERTIFIED_EXIT
     assert "pass --reboot-cmd 'COMMAND' and the suite restarts it before judging it" in run.text
+
+
+def test_the_first_line_says_what_the_run_is_waiting_for(pytester: pytest.Pytester,
+                                                         mosquitto: str, prefix: str) -> None:
+    """Before the header (which needs the unit's first heartbeat), the run says what it
+    connects to and what it awaits, so a person never looks at a silent terminal."""
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={FAST}")
+    first = run.text.index(f"waraps-conformance: connecting to {mosquitto}, then waiting up "
+                           f"to 3 s for a heartbeat of {unit}")
+    assert first < run.text.index("test session starts")
+    quiet = certify(pytester, "-q", "--unit", unit, "--broker", mosquitto, f"--profile={FAST}")
+    assert "connecting to" not in quiet.text
