@@ -66,6 +66,9 @@ class CommandHistory:
         self.unanswered: list[Any] = []
         """Commands that got no answer in time, judged when the unit next answers (or not)."""
         self.answered_any = False
+        self.last_answer: float | None = None
+        """When the unit last answered a command it was sent (any answer, even a late one):
+        only commands sent after it, left unanswered, say it stopped answering."""
         self.life: str | None = None
         self.lives: list[str] = []
         self.first_command: float | None = None
@@ -156,15 +159,29 @@ def response_timeout(ctx: CheckContext) -> float:
     return ctx.profile.response_timeout
 
 
-def dead_since(unit: UnitState, t: float, period: float, silence_periods: float
-               ) -> float | None:
-    """When a unit whose new life began at ``t`` went silent, if it was down for more than
-    ``silence_periods`` heartbeat periods of ``period`` seconds (``identity``'s measures):
-    what it left unanswered since then is the silence's (HB-010, HB-012), not each command's.
-    None when it was not down that long."""
+def dead_since(unit: UnitState, c: CommandHistory, t: float, period: float,
+               silence_periods: float) -> tuple[float, float] | None:
+    """(dying since, last heartbeat) of a unit whose new life began at ``t``, if it was down
+    for more than ``silence_periods`` heartbeat periods of ``period`` seconds (``identity``'s
+    measures): what it left unanswered since then is the silence's (HB-010, HB-012), not
+    each command's (see ``dying_from``). None when it was not down that long."""
     last = unit.last_heartbeat
-    return (last - period if last is not None and period
-            and t - last > silence_periods * period else None)
+    if last is None or not period or t - last <= silence_periods * period:
+        return None
+    return dying_from(c, last, period), last
+
+
+def dying_from(c: CommandHistory, last: float, period: float) -> float:
+    """When a unit heard until its last heartbeat ``last`` began dying, as far as the commands
+    it left unanswered go: at the last command it received before it fell silent (HB-012 names
+    it: it may have died on it) when that came within a period of ``last``, else at ``last``.
+    Commands before that one were received by a live unit: each is its own finding
+    (FIELD-NOTES, precision: dying after a command)."""
+    named = max((cmd for cmd in c.commands.values() if cmd.last_sent <= last + period),
+                key=lambda cmd: cmd.last_sent, default=None)
+    if named is not None and named.last_sent >= last - period:
+        return min(named.last_sent, last)
+    return last
 
 
 def judged_on_a_copy(key: str, dropped: tuple[str, str]) -> Callable[[Judge], FinishCheck]:

@@ -10,10 +10,11 @@ judges a recording in ``lint`` and the suite's own commands in ``pytest --unit``
 TST conversations share is ``command_history``'s.
 
 Blame goes to the root cause, so that one fault fails one rule:
-- commands left unanswered are judged when the unit next answers a later command (each fails
-  its command's rule) or at the end: a unit that answers none of two or more later commands of
-  different kinds while it heartbeats went deaf (EXEC-ROBUST-001, naming the command before);
-  a unit that died (HB-012) answers nothing, and its death is the finding;
+- each command left unanswered fails its own rule, judged when the unit next answers or at the
+  end; a unit that also answers none of two or more commands of different kinds sent after
+  its last answer, while it heartbeats past their deadline, stopped answering (EXEC-ROBUST-001,
+  naming the command before them); the command a dying unit received last, and those after,
+  are its death's (HB-012); those before it were left unanswered by a live unit;
 - feedback after a final status that a resend caused is EXEC-RESEND-001's, not EXEC-FB-004's.
 
 Everything is bounded: histories are LRUs, open expectations are capped and expire, and what

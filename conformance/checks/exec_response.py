@@ -61,6 +61,7 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
         return
     unit.examine("EXEC-006")
     c.answered_any = True
+    c.last_answer = t  # credited at any time, late or not (FIELD-NOTES: answers in flight)
     if cmd.judged:
         return
     value, task_uuid = str_of(m, "response"), str_of(m, "task-uuid")
@@ -91,9 +92,10 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
     if cmd.answers > 1:
         yield from _judge_resend_answer(unit, c, cmd, msg, value, task_uuid)
         return
-    # The unit answers: commands it left unanswered before this one were its own faults.
+    # The unit answers: commands it left unanswered before now were its own faults, not a
+    # sign that it stopped answering.
     if c.unanswered:
-        for earlier in c.unanswered_before(cmd.last_sent):
+        for earlier in c.unanswered_before(t):
             yield from judge_unanswered(ctx, unit, c, earlier)
     if in_time:
         yield from _judge_first_answer(ctx, unit, c, cmd, msg, value, task_uuid)

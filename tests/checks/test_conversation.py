@@ -197,7 +197,9 @@ def test_an_answer_too_many_fails_exec_009(stream):
     assert rules["EXEC-009"].verdict is Verdict.FAIL
 
 
-def test_a_unit_deaf_after_a_malformed_command_is_one_robustness_finding(stream):
+def test_a_unit_deaf_after_a_malformed_command_fails_robust_001_and_each_command(stream):
+    """It stopped answering after the malformed command (EXEC-ROBUST-001), and that never
+    hides each unanswered command's own finding."""
     ping0 = stream.command(2.1, "ping")
     bad = stream.msg("exec/command", b'{"com-uuid": "' + new().encode() + b'", signal: $abort}',
                      3.1)
@@ -206,8 +208,50 @@ def test_a_unit_deaf_after_a_malformed_command_is_one_robustness_finding(stream)
     rules = judge(stream, [ping0, stream.response(2.2, com_of(ping0)), bad, *later])
     r = rules["EXEC-ROBUST-001"]
     assert r.verdict is Verdict.FAIL and "a malformed command" in r.violations[0].detail
-    assert rules["EXEC-PING-001"].verdict is Verdict.PASS  # the deafness is the finding
-    assert rules["EXEC-QUERY-001"].verdict is not Verdict.FAIL
+    assert rules["EXEC-PING-001"].verdict is Verdict.FAIL
+    assert com_of(later[0]) in rules["EXEC-PING-001"].violations[0].expected
+    assert rules["EXEC-QUERY-001"].verdict is Verdict.FAIL
+    assert rules["EXEC-ROBUST-002"].verdict is Verdict.WARN  # the malformed one, unanswered
+
+
+def test_answers_in_flight_are_credited_not_taken_for_deafness(stream):
+    """FIELD-NOTES (precision): a unit that ignored a malformed command and then, inside that
+    command's timeout, answered another has not stopped answering; a query-status it ignores
+    later is one kind of command unanswered, its own finding only."""
+    bad = stream.msg("exec/command", b'{"com-uuid": "' + new().encode() + b'", signal: $abort}',
+                     3.0)
+    ping = stream.command(3.4, "ping")
+    query = stream.command(6.0, "query-status", **{"task-uuid": new()})
+    rules = judge(stream, [bad, ping, stream.response(3.5, com_of(ping)), query])
+    assert rules["EXEC-ROBUST-001"].verdict is not Verdict.FAIL
+    assert rules["EXEC-PING-001"].verdict is Verdict.PASS
+    assert rules["EXEC-ROBUST-002"].verdict is Verdict.WARN
+    assert rules["EXEC-QUERY-001"].verdict is Verdict.FAIL
+
+
+def test_one_kind_unanswered_never_implies_the_others_are(stream):
+    ping = stream.command(2.0, "ping")
+    queries = [stream.command(3.0 + i, "query-status", **{"task-uuid": new()})
+               for i in range(3)]
+    rules = judge(stream, [ping, stream.response(2.1, com_of(ping)), *queries])
+    assert rules["EXEC-ROBUST-001"].verdict is not Verdict.FAIL
+    assert rules["EXEC-PING-001"].verdict is Verdict.PASS
+    r = rules["EXEC-QUERY-001"]
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 3
+
+
+def test_a_late_answer_is_credited(stream):
+    """An answer after the deadline is late (EXEC-010), not a sign of deafness: commands sent
+    before it say nothing about whether the unit still answers."""
+    start1 = start(stream, 3.0, new())
+    ping = stream.command(3.2, "ping")
+    late_answer = stream.response(6.0, com_of(start1), "failed")
+    query = stream.command(8.0, "query-status", **{"task-uuid": new()})
+    rules = judge(stream, [start1, ping, late_answer, query])
+    assert rules["EXEC-ROBUST-001"].verdict is not Verdict.FAIL
+    assert rules["EXEC-010"].verdict is Verdict.WARN
+    assert rules["EXEC-PING-001"].verdict is Verdict.FAIL
+    assert rules["EXEC-QUERY-001"].verdict is Verdict.FAIL
 
 
 def test_a_unit_that_dies_on_a_command_is_one_death_naming_it(stream):
@@ -223,6 +267,24 @@ def test_a_unit_that_dies_on_a_command_is_one_death_naming_it(stream):
     assert rules["EXEC-START-001"].verdict is not Verdict.FAIL
     assert rules["EXEC-PING-001"].verdict is not Verdict.FAIL
     assert rules["HB-010"].verdict is not Verdict.WARN
+
+
+def test_dying_after_commands_excuses_only_the_last_one(stream):
+    """FIELD-NOTES (precision): commands a unit received before the one it died on were left
+    unanswered by a live unit: each fails its rule; HB-012 names the last one."""
+    ping0 = stream.command(5.0, "ping")
+    ping = stream.command(9.2, "ping")
+    query = stream.command(9.4, "query-status", **{"task-uuid": new()})
+    cmd = start(stream, 9.6)  # no task-uuid: it dies on it
+    rules = judge(stream, [ping0, stream.response(5.1, com_of(ping0)), ping, query, cmd],
+                  alive=stream.alive(10.0) + [stream.sensor("speed", 1.0, 30.0)])
+    r = rules["HB-012"]
+    assert r.verdict is Verdict.FAIL and com_of(cmd) in r.violations[0].observed
+    assert rules["EXEC-PING-001"].verdict is Verdict.FAIL
+    assert com_of(ping) in rules["EXEC-PING-001"].violations[0].expected
+    assert rules["EXEC-QUERY-001"].verdict is Verdict.FAIL
+    assert rules["EXEC-START-001"].verdict is not Verdict.FAIL
+    assert rules["EXEC-ROBUST-001"].verdict is not Verdict.FAIL  # dead by their deadline
 
 
 def test_levels_acted_on_but_not_declared_fail_once(stream):
