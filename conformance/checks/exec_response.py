@@ -320,3 +320,21 @@ def signal_task_response_form(ctx: CheckContext, unit: UnitState, msg: Message, 
                                   f"the suite expects a start-task response's form "
                                   f"({f.detail or 'agent-uuid, com-uuid, response-to, response'})")
             if f.rule == "EXEC-002" else f for f in found]
+
+
+@reinterprets("ERR-014", on=(TopicKind.EXEC_RESPONSE,))
+def no_task_named_no_task_uuid(ctx: CheckContext, unit: UnitState, msg: Message,
+                               v: Validation, found: list[Violation]) -> list[Violation]:
+    """12.1: a response names the task of the command it answers. ``task-uuid: ""`` answering
+    a command that named no task (a malformed one, a ping) is no malformed id (ERR-014): there
+    is no task to name (FIELD-NOTES, precision: spec words). A started task must name one
+    (EXEC-START-002's)."""
+    m = v.message
+    if not found or str_of(m, "task-uuid") != "":
+        return found
+    c = unit.private.get("conversations")
+    command = c.commands.get(str_of(m, "response-to") or "") if c is not None else None
+    if command is None or command.task_uuid is not None or str_of(m, "response") == "running":
+        return found
+    unit.examine("ERR-014")
+    return [f for f in found if not (f.rule == "ERR-014" and f.path == "$.task-uuid")]

@@ -361,3 +361,35 @@ def test_a_task_the_unit_lists_is_no_unknown_task_of_the_commander(stream):
     commander = m.report().units["commander commander"].rules["TASK-002"]
     assert commander.verdict is Verdict.WARN and len(commander.violations) == 1
     assert "dance" in commander.violations[0].excerpt
+
+
+def test_an_empty_task_uuid_is_a_finding_per_message_not_a_pseudo_task(stream):
+    """FIELD-NOTES (precision): feedback with task-uuid "" is one fault per message, not one
+    task '' that received feedback after its final status."""
+    rules = judge(stream, [stream.feedback(2.0, "", "running"),
+                           stream.feedback(3.0, "", "finished"),
+                           stream.feedback(4.0, "", "running"),
+                           stream.feedback(5.0, "", "failed")])
+    assert rules["EXEC-FB-004"].verdict is not Verdict.FAIL
+    r = rules["EXEC-FB-001"]
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 4
+    assert rules["ERR-014"].verdict is not Verdict.WARN  # judged as missing, not as malformed
+    task = new()  # the fault with a real task-uuid is still found
+    again = judge(stream, [stream.feedback(2.0, task, "finished"),
+                           stream.feedback(3.0, task, "running")])
+    assert again["EXEC-FB-004"].verdict is Verdict.FAIL
+
+
+def test_an_empty_task_uuid_answering_a_command_that_named_no_task_is_no_fault(stream):
+    """FIELD-NOTES (precision: spec words): the 'failed' answer to a malformed command that
+    named no task has no task to name; ``task-uuid: ""`` there is not ERR-014's."""
+    bad = stream.command(2.0, "start-task")  # no task: malformed
+    ok = judge(stream, [bad, stream.response(2.1, com_of(bad), "failed", **{
+        "task-uuid": "", "fail-reason": "no task given"})])
+    assert ok["ERR-014"].verdict is not Verdict.WARN
+    assert ok["EXEC-ROBUST-002"].verdict is not Verdict.FAIL
+    task = new()  # a command that named a task: "" is no answer naming it
+    named = stream.command(2.0, "query-status", **{"task-uuid": task})
+    wrong = judge(stream, [named, stream.response(2.1, com_of(named), "unknown", **{
+        "task-uuid": ""})])
+    assert wrong["ERR-014"].verdict is Verdict.WARN
