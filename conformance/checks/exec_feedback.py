@@ -143,3 +143,24 @@ def empty_task_uuid_names_no_task(ctx: CheckContext, unit: UnitState, msg: Messa
         observed='task-uuid ""', topic=msg.topic, path="$.task-uuid", time=msg.time,
         payload=msg.payload, detail="send the task-uuid of the task, as in its start-task "
                                     "response")]
+
+
+@reinterprets("ERR-006", on=(TopicKind.EXEC_FEEDBACK,))
+def success_in_feedback(ctx: CheckContext, unit: UnitState, msg: Message, v: Validation,
+                        found: list[Violation]) -> list[Violation]:
+    """12.1 calls a completed task 'success' (query-status) where 12.4's feedback says
+    'finished': feedback 'success' follows 12.1's word in 12.4's place. Read as finished and
+    warned (ERR-006), not failed as an unknown status (EXEC-FB-002)."""
+    if not found or str_of(v.message, "status") != "success":
+        return found
+    out = []
+    for f in found:
+        if f.rule == "EXEC-FB-002" and f.path == "$.status":
+            unit.examine("ERR-006")
+            f = Violation.of("ERR-006", expected="'finished' (12.4) for a completed task",
+                             observed="status 'success' (12.1's query-status word)",
+                             topic=msg.topic, path="$.status", time=msg.time,
+                             payload=msg.payload, detail="12.4's feedback says 'finished'; "
+                             "'success' is what query-status answers (12.1)")
+        out.append(f)
+    return out

@@ -38,8 +38,8 @@ QUERY_ANSWERS = {"running": ("running",), "paused": ("running", "paused"),
                  "finished": ("finished", "success"), "failed": ("failed",),
                  "aborted": ("failed", "aborted")}
 """12.1: what query-status may answer for a task whose latest feedback was this status
-('success' is ERR-006's reading, judged by the validator; 'paused' and 'aborted' are 12.4's
-words for what 12.1's list calls running and failed)."""
+('success' is 12.1's own word, ERR-006; 'paused' and 'aborted' are 12.4's words for what
+12.1's list calls running and failed)."""
 
 
 @check("EXEC-006", "EXEC-009", "EXEC-010", "EXEC-PING-001", "EXEC-PING-002", "EXEC-START-001",
@@ -338,3 +338,24 @@ def no_task_named_no_task_uuid(ctx: CheckContext, unit: UnitState, msg: Message,
         return found
     unit.examine("ERR-014")
     return [f for f in found if not (f.rule == "ERR-014" and f.path == "$.task-uuid")]
+
+
+@reinterprets("ERR-006", on=(TopicKind.EXEC_RESPONSE,))
+def success_answers_query_status(ctx: CheckContext, unit: UnitState, msg: Message,
+                                 v: Validation, found: list[Violation]) -> list[Violation]:
+    """12.1 lists query-status's results as 'running, failed, success, unknown': 'success'
+    answering query-status is the spec's own word (ERR-006's decision), and so is no finding
+    there; answering another command it is out of place (the validator's warning stands). A
+    response to a command not seen cannot tell: not judged."""
+    if not found or str_of(v.message, "response") != "success":
+        return found
+    c = unit.private.get("conversations")
+    command = c.commands.get(str_of(v.message, "response-to") or "") if c is not None else None
+    if command is not None and command.name != "query-status":
+        unit.examine("ERR-006")
+        return found
+    if command is None:
+        unit.note("ERR-006", "'success' answering a command not seen: not judged")
+    else:
+        unit.examine("ERR-006")
+    return [f for f in found if f.rule != "ERR-006"]
