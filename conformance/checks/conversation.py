@@ -140,6 +140,16 @@ class Conversations(CommandHistory):
         self.running.pop(task.task_uuid, None)
 
 
+def task_uuid_sent(m: Any) -> str | None:
+    """The task a response or feedback names: its task-uuid, else the ``uuid`` some agents
+    send instead (FIELD-NOTES, precision: other keys). The wrong key is EXEC-FB-001's (or
+    EXEC-START-002's) finding; the task is still tracked by what the unit sends."""
+    found = str_of(m, "task-uuid")
+    if found is None and isinstance(m, dict) and "task-uuid" not in m:
+        found = str_of(m, "uuid")
+    return found
+
+
 def conversations(unit: UnitState) -> Conversations:
     return per_unit(unit, "conversations", Conversations)  # type: ignore[no-any-return]
 

@@ -17,6 +17,7 @@ from conformance.checks.conversation import (
     FINAL_STATUSES,
     Task,
     conversations,
+    task_uuid_sent,
 )
 from conformance.message import Message
 from conformance.status import meaning
@@ -33,7 +34,7 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
     nothing follows that (a repeated delivery of the final message, same com-uuid, is no new
     feedback)."""
     m = v.message
-    task_uuid, status = str_of(m, "task-uuid"), str_of(m, "status")
+    task_uuid, status = task_uuid_sent(m), str_of(m, "status")
     status = meaning(status) or status  # 'done' ends a task as 'finished' (EXEC-FB-002's word)
     if not task_uuid or status is None:
         # Missing or empty ("" names no task): which task it concerns cannot be told. Its own

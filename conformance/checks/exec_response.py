@@ -23,6 +23,7 @@ from conformance.checks.conversation import (
     Task,
     conversations,
     expects_answers,
+    task_uuid_sent,
 )
 from conformance.message import Message
 from conformance.topics import TopicKind
@@ -65,6 +66,7 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
     if cmd.judged:
         return
     value, task_uuid = str_of(m, "response"), str_of(m, "task-uuid")
+    tracked = task_uuid_sent(m)  # a task named under another key is still followed
     c.heard(cmd, value, task_uuid)
     if cmd.answers > cmd.sends:
         yield violation("EXEC-009", msg, expected=f"one answer to {cmd.describe()} per time it "
@@ -98,7 +100,7 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
         for earlier in c.unanswered_before(t):
             yield from judge_unanswered(ctx, unit, c, earlier)
     if in_time:
-        yield from _judge_first_answer(ctx, unit, c, cmd, msg, value, task_uuid)
+        yield from _judge_first_answer(ctx, unit, c, cmd, msg, value, task_uuid, tracked)
 
 
 def _answers_nothing(ctx: CheckContext, unit: UnitState, c: Conversations, msg: Message,
@@ -126,8 +128,8 @@ def _answers_nothing(ctx: CheckContext, unit: UnitState, c: Conversations, msg: 
 
 
 def _judge_first_answer(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: Command,
-                        msg: Message, value: str | None, task_uuid: str | None
-                        ) -> Iterator[Violation]:
+                        msg: Message, value: str | None, task_uuid: str | None,
+                        tracked: str | None = None) -> Iterator[Violation]:
     """The first answer fits its command (12.1, 12.3)."""
     rule = ANSWER_RULE.get(cmd.name, "EXEC-ROBUST-002")
     t = msg.time
@@ -149,7 +151,7 @@ def _judge_first_answer(ctx: CheckContext, unit: UnitState, c: Conversations, cm
         yield from _judge_task_uuid(unit, cmd, msg, value, task_uuid)
         if value == "running":
             yield from _judge_refusals(unit, cmd, msg)
-            started = task_uuid or cmd.task_uuid
+            started = task_uuid or cmd.task_uuid or tracked
             if started is not None:
                 task = c.tasks.get(started)
                 if task is None or task.command is not None:

@@ -393,3 +393,26 @@ def test_an_empty_task_uuid_answering_a_command_that_named_no_task_is_no_fault(s
     wrong = judge(stream, [named, stream.response(2.1, com_of(named), "unknown", **{
         "task-uuid": ""})])
     assert wrong["ERR-014"].verdict is Verdict.WARN
+
+
+def test_a_task_named_uuid_instead_of_task_uuid_is_still_tracked(stream):
+    """FIELD-NOTES (precision: other keys): some agents name the task 'uuid'. The wrong key is
+    each message's finding; the task is tracked by what the unit sends."""
+    import orjson
+
+    task = new()
+    cmd = start(stream, 2.1)  # no task-uuid: the unit generates one
+
+    def fb(t, status):
+        return stream.msg("exec/feedback", {"agent-uuid": stream.agent_uuid,
+                                            "com-uuid": new(), "status": status,
+                                            "uuid": task}, t)
+
+    answer = orjson.loads(stream.response(2.2, com_of(cmd), "running").payload)
+    answer["uuid"] = task
+    rules = judge(stream, [cmd, stream.msg("exec/response", answer, 2.2), fb(2.3, "running"),
+                           fb(4.0, "finished"), fb(5.0, "running")])
+    assert rules["EXEC-START-002"].verdict is Verdict.FAIL
+    assert len(rules["EXEC-FB-001"].violations) == 3
+    r = rules["EXEC-FB-004"]
+    assert r.verdict is Verdict.FAIL and task in r.violations[0].expected
