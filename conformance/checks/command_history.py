@@ -171,17 +171,25 @@ def dead_since(unit: UnitState, c: CommandHistory, t: float, period: float,
     return dying_from(c, last, period), last
 
 
+def died_on(c: CommandHistory, last: float, period: float) -> Any:
+    """The command a unit heard until its last heartbeat ``last`` may have died on: the last
+    one it left unanswered within a period before ``last`` (the last a live unit received),
+    else the first it left unanswered within a period after it; None when none came near."""
+    near = [cmd for cmd in c.commands.values()
+            if last - period <= cmd.last_sent <= last + period and cmd.answers == 0]
+    before = [cmd for cmd in near if cmd.last_sent <= last]
+    if before:
+        return max(before, key=lambda cmd: cmd.last_sent)
+    return min(near, key=lambda cmd: cmd.last_sent) if near else None
+
+
 def dying_from(c: CommandHistory, last: float, period: float) -> float:
     """When a unit heard until its last heartbeat ``last`` began dying, as far as the commands
-    it left unanswered go: at the last command it received before it fell silent (HB-012 names
-    it: it may have died on it) when that came within a period of ``last``, else at ``last``.
+    it left unanswered go: at the command it may have died on (``died_on``), else at ``last``.
     Commands before that one were received by a live unit: each is its own finding
     (FIELD-NOTES, precision: dying after a command)."""
-    named = max((cmd for cmd in c.commands.values() if cmd.last_sent <= last + period),
-                key=lambda cmd: cmd.last_sent, default=None)
-    if named is not None and named.last_sent >= last - period:
-        return min(named.last_sent, last)
-    return last
+    named = died_on(c, last, period)
+    return min(named.last_sent, last) if named is not None else last
 
 
 def judged_on_a_copy(key: str, dropped: tuple[str, str]) -> Callable[[Judge], FinishCheck]:

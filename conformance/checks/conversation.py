@@ -30,6 +30,7 @@ from conformance.checks.command_history import (
     PENDING_KEPT,
     CommandHistory,
     SentCommand,
+    died_on,
     per_unit,
     str_of,
 )
@@ -154,16 +155,20 @@ def conversations(unit: UnitState) -> Conversations:
     return per_unit(unit, "conversations", Conversations)  # type: ignore[no-any-return]
 
 
-def last_command_before(unit: UnitState, t: float) -> Command | None:
-    """The latest command sent to the unit at or before ``t`` (for HB-012's finding)."""
+def command_died_on(unit: UnitState, last: float, period: float) -> Command | None:
+    """The command a unit whose last heartbeat was at ``last`` may have died on
+    (``command_history.died_on``), else the last it received before it fell silent: HB-012's
+    finding names it."""
     c = unit.private.get("conversations")
     if c is None:
         return None
-    found = None
-    for cmd in c.commands.values():
-        if cmd.last_sent <= t and (found is None or cmd.last_sent >= found.last_sent):
-            found = cmd
-    return found
+    found = died_on(c, last, period)
+    if found is None:
+        for cmd in c.commands.values():
+            if cmd.last_sent <= last + period and (found is None
+                                                   or cmd.last_sent >= found.last_sent):
+                found = cmd
+    return found  # type: ignore[no-any-return]
 
 
 def dropped(unit: UnitState) -> int:

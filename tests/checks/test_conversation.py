@@ -271,7 +271,7 @@ def test_a_unit_that_dies_on_a_command_is_one_death_naming_it(stream):
 
 def test_dying_after_commands_excuses_only_the_last_one(stream):
     """FIELD-NOTES (precision): commands a unit received before the one it died on were left
-    unanswered by a live unit: each fails its rule; HB-012 names the last one."""
+    unanswered by a live unit: each fails its rule; HB-012 names the last one they received while alive."""
     ping0 = stream.command(5.0, "ping")
     ping = stream.command(9.2, "ping")
     query = stream.command(9.4, "query-status", **{"task-uuid": new()})
