@@ -36,7 +36,7 @@ class SentCommand:
     """One command sent to a unit, known by its com-uuid, and what came back."""
 
     __slots__ = ("com_uuid", "name", "time", "last_sent", "sends", "answers", "values",
-                 "digest", "excerpt", "life", "judged")
+                 "digest", "excerpt", "life", "judged", "missed")
 
     def __init__(self, com_uuid: str, name: str, t: float, digest: bytes, excerpt: bytes,
                  life: str | None) -> None:
@@ -54,6 +54,9 @@ class SentCommand:
         """The unit's agent-uuid when the command was sent."""
         self.judged = False
         """Not judged any further: its com-uuid was reused for another command (EXEC-008)."""
+        self.missed = False
+        """Already judged unanswered: a late answer after that is EXEC-010's, not again its
+        command's rule."""
 
 
 class CommandHistory:

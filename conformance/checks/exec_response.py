@@ -85,7 +85,7 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
                         f"profile's response_timeout)", observed=f"answered {waited:.2f} s "
                         f"after {cmd.describe()}", path="$.response-to",
                         detail="answer at once; a slow answer makes the commander resend")
-        if cmd.answers == 1:
+        if cmd.answers == 1 and not cmd.missed:
             rule = ANSWER_RULE.get(cmd.name, "EXEC-ROBUST-002")
             unit.examine(rule)
             yield violation(rule, msg, expected=f"an answer to {cmd.describe()} within "
@@ -298,6 +298,7 @@ def judge_unanswered(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: 
                        "copy the command's com-uuid into response-to, unchanged (12.3)")
             return
     unit.examine(rule)
+    cmd.missed = True
     yield late(rule, unit.address.topic("exec/command"), cmd, f"an answer to "
                f"{cmd.describe()} within {timeout:.1f} s", "no answer", cmd.last_sent,
                "12.1: answer every command, 'failed' with a reason when it cannot be executed")

@@ -416,3 +416,14 @@ def test_a_task_named_uuid_instead_of_task_uuid_is_still_tracked(stream):
     assert len(rules["EXEC-FB-001"].violations) == 3
     r = rules["EXEC-FB-004"]
     assert r.verdict is Verdict.FAIL and task in r.violations[0].expected
+
+
+def test_a_command_judged_unanswered_and_answered_later_fails_its_rule_once(stream):
+    """Credited at any time: an answer after the command was judged unanswered (the unit
+    answered a later one first) is late (EXEC-010), not a second failure of its rule."""
+    ping = stream.command(2.0, "ping")
+    other = stream.command(4.0, "ping")
+    rules = judge(stream, [ping, other, stream.response(4.1, com_of(other)),
+                           stream.response(6.0, com_of(ping))])
+    assert len(rules["EXEC-PING-001"].violations) == 1
+    assert rules["EXEC-010"].verdict is Verdict.WARN
