@@ -7,7 +7,6 @@ from __future__ import annotations
 import uuid
 
 import orjson
-from conftest import T0, UnitStream
 
 from conformance.checks import Monitor
 from conformance.message import Message
@@ -35,8 +34,15 @@ def _pings(stream, n, sender="op0"):
     return out
 
 
-def test_a_units_own_topic_fault_is_the_units_not_each_commanders(prefix):
-    stream = UnitStream(UnitAddress(prefix, "air", "simulated", "dji0"))  # 3.1: simulation
+def _simulated(stream):
+    """The stream's unit under the role 'simulated' (3.1 says simulation)."""
+    a = stream.address
+    stream.address = UnitAddress(a.prefix, a.agent_type, "simulated", a.name)
+    return stream
+
+
+def test_a_units_own_topic_fault_is_the_units_not_each_commanders(stream):
+    stream = _simulated(stream)
     units = _report(stream, _pings(stream, 16) + _pings(stream, 2, sender="op1"))
     unit = units[str(stream.address)].rules["TOPIC-006"]
     assert unit.verdict is Verdict.WARN or unit.verdict is Verdict.FAIL
@@ -47,8 +53,8 @@ def test_a_units_own_topic_fault_is_the_units_not_each_commanders(prefix):
         assert not commander.violation_counts.get("TOPIC-006"), name
 
 
-def test_a_unit_only_addressed_by_a_bad_topic_gets_the_finding_once(prefix):
-    stream = UnitStream(UnitAddress(prefix, "air", "simulated", "dji0"))
+def test_a_unit_only_addressed_by_a_bad_topic_gets_the_finding_once(stream):
+    stream = _simulated(stream)
     m = Monitor(PROFILE)
     stream.feed(m, [c for c in _pings(stream, 4) if c.topic.endswith("/command")])
     m.finish()
@@ -57,10 +63,11 @@ def test_a_unit_only_addressed_by_a_bad_topic_gets_the_finding_once(prefix):
     assert not units["commander op0"].violation_counts.get("TOPIC-006")
 
 
-def test_an_operators_command_on_a_topic_of_its_own_is_on_its_row(prefix):
+def test_an_operators_command_on_a_topic_of_its_own_is_on_its_row(stream, prefix):
     """An operator publishing commands on '.../None/command' (seen in the field)."""
+    t0 = stream.msg("heartbeat", {}, 0.0).time
     body = {"com-uuid": str(uuid.uuid4()), "command": "ping", "sender": "op0"}
-    msgs = [Message(T0 + t, f"{prefix}/unit/ground/real/None/command", orjson.dumps(body), 0,
+    msgs = [Message(t0 + t, f"{prefix}/unit/ground/real/None/command", orjson.dumps(body), 0,
                     False) for t in (1.0, 2.0)]
     m = Monitor(PROFILE)
     for msg in msgs:
