@@ -25,6 +25,12 @@ mosquitto_sub 2.0.11 (measured here, see ``tests/lint/test_recording.py``):
 - ``-F %J`` embeds the payload as a JSON value (re-serialised: whitespace is lost) and prints
   an *empty line* (plus an error on stderr) for a payload that is not JSON: that message, and
   its topic, are lost to the recording.
+- ``-v`` prints ``TOPIC PAYLOAD`` per message: no time at all. Such a line is told from JSON by
+  its content (a topic with a '/', a space, the payload); its message gets the time the line
+  was read, and the rules that need arrival times are not judged (``UNTIMED_RULES``).
+
+Every line is bounded (``conformance.bounds``): its length, the payload received and declared,
+its nesting, its time. A line past a bound is a problem of that line; reading goes on.
 """
 
 from __future__ import annotations
@@ -34,6 +40,7 @@ import binascii
 import json
 import re
 import sys
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import datetime
@@ -42,11 +49,15 @@ from typing import IO, Any
 
 import orjson
 
+from conformance.bounds import (
+    MAX_LINE_BYTES,
+    MAX_NESTING,
+    MAX_PAYLOAD_BYTES,
+    MAX_TIME,
+    MIN_TIME,
+)
 from conformance.message import Message
 
-MAX_LINE_BYTES = 64 << 20
-"""A longer line is skipped as malformed (a message is at most 1 MiB examined, MSG-004; a
-base64 or escaped 10 MB payload still fits)."""
 CHUNK_BYTES = 1 << 20
 MAX_PROBLEMS_KEPT = 100
 """Malformed lines kept with their text; beyond this they are only counted (bounded memory)."""
@@ -54,6 +65,14 @@ MAX_PROBLEMS_KEPT = 100
 FORMAT_JSONL = "jsonl"
 FORMAT_MOSQUITTO_J = "mosquitto_sub -F %j"
 FORMAT_MOSQUITTO_JJ = "mosquitto_sub -F %J"
+FORMAT_MOSQUITTO_V = "mosquitto_sub -v"
+UNTIMED_RULES = ("HB-003", "SI-002", "DEI-002", "TEI-002", "HB-010", "HB-011", "HB-012",
+                 "MSG-005", "MSG-007", "SENS-005", "EXEC-010", "EXEC-PING-001",
+                 "EXEC-ROBUST-001")
+"""Rules judged on arrival times (rates, silences, stamps against arrival, deadlines): not
+judged on a capture without times (``mosquitto_sub -v``), a could-not-test with
+``UNTIMED_REASON``, never a pass or a fail."""
+UNTIMED_REASON = "not judged: no timestamps (a mosquitto_sub -v capture)"
 
 
 @dataclass(frozen=True)
@@ -70,6 +89,9 @@ class Event:
 
 
 EVENT_KINDS = ("disconnected", "connected", "unexamined", "start", "end")
+UNTIMED = "untimed"
+"""The kind of the ``Event`` a reader yields before the first message without a recorded time
+(never read from a line): the consumer judges no rule of ``UNTIMED_RULES``."""
 
 
 @dataclass(frozen=True)
@@ -106,6 +128,18 @@ def parse_tst(text: str) -> float:
     elif ":" not in offset:
         offset = f"{offset[:3]}:{offset[3:]}"
     return datetime.fromisoformat(stamp + offset).timestamp()
+
+
+def check_time(ts: float, what: str = "ts") -> float:
+    """``ts`` if it is a time within the bounds (1970..2100), else ValueError naming them."""
+    if not MIN_TIME <= ts <= MAX_TIME:  # NaN fails too
+        raise ValueError(f"'{what}' {ts!r} is outside the times a recording may hold "
+                         f"({MIN_TIME:.0f}..{MAX_TIME:.0f} Unix seconds, 1970 to 2100)")
+    return ts
+
+
+# mosquitto_sub -v: TOPIC, one space, PAYLOAD (a topic holds no space and no wildcard).
+_VERBOSE = re.compile(rb"^([^\s{}\[\]\"#+]*/[^\s#+]*) (.*)$", re.DOTALL)
 
 
 def _excerpt(line: bytes, limit: int = 120) -> str:
@@ -223,7 +257,15 @@ class RecordingReader:
                         line = line.rstrip(b"\r")
                         obj = self._loads_not_utf8(line)
                         if obj is None:
-                            self.problem(number, f"not JSON ({e})", line)
+                            verbose = self._verbose(line)
+                            if verbose is not None:
+                                if FORMAT_MOSQUITTO_V not in self.formats:
+                                    self.formats.add(FORMAT_MOSQUITTO_V)
+                                    yield Event(verbose.time, UNTIMED)
+                                count += 1
+                                yield verbose
+                                continue
+                            self.problem(number, _not_json(e), line)
                             continue
                     # The common case first: one of our own lines with a text payload.
                     if type(obj) is dict:
@@ -231,7 +273,7 @@ class RecordingReader:
                         topic = obj.get("topic")
                         payload = obj.get("payload")
                         if (type(ts) is float and type(topic) is str and type(payload) is str
-                                and "payload_b64" not in obj):
+                                and "payload_b64" not in obj and MIN_TIME <= ts <= MAX_TIME):
                             qos = obj.get("qos", 0)
                             retain = obj.get("retain", False)
                             if (qos == 0 or qos == 1 or qos == 2) and type(qos) is int and \
@@ -242,7 +284,7 @@ class RecordingReader:
                                 continue
                     try:
                         item = self._item(obj)
-                    except ValueError as e:
+                    except (ValueError, OverflowError, OSError) as e:  # dates past any bound
                         self.problem(number, str(e), line)
                         continue
                     if isinstance(item, Message):
@@ -263,6 +305,14 @@ class RecordingReader:
                 f"recording (empty lines): mosquitto_sub prints nothing for a payload that is "
                 f"not JSON, so their topics are unknown. Record with -F %j or "
                 f"'waraps-conformance record' to have them judged.")
+
+    @staticmethod
+    def _verbose(line: bytes) -> Message | None:
+        """A ``mosquitto_sub -v`` line (``TOPIC PAYLOAD``) as a message read now, else None."""
+        m = _VERBOSE.match(line)
+        if m is None:
+            return None
+        return Message(time.time(), m[1].decode("utf-8", "surrogateescape"), m[2])
 
     @staticmethod
     def _loads_not_utf8(line: bytes) -> Any:
@@ -294,6 +344,7 @@ class RecordingReader:
         ts = obj["ts"]
         if isinstance(ts, bool) or not isinstance(ts, (int, float)) or ts != ts:
             raise ValueError(f"'ts' is {ts!r}, not a receive time in Unix seconds")
+        check_time(ts)
         if "event" in obj and "topic" not in obj:
             kind = obj["event"]
             if kind not in EVENT_KINDS:
@@ -325,13 +376,16 @@ class RecordingReader:
         tst = obj["tst"]
         if not isinstance(tst, str):
             raise ValueError(f"'tst' is {tst!r}, not an ISO 8601 time")
-        ts = parse_tst(tst)
+        ts = check_time(parse_tst(tst), "tst")
         topic = obj.get("topic")
         if not isinstance(topic, str):
             raise ValueError("'topic' is missing or not a string")
         length = obj.get("payloadlen")
         if isinstance(length, bool) or not isinstance(length, int) or length < 0:
             raise ValueError(f"'payloadlen' is {length!r}, not a byte count")
+        if length > MAX_PAYLOAD_BYTES:  # declared: nothing of that size is allocated
+            raise ValueError(f"'payloadlen' {length} is over the {MAX_PAYLOAD_BYTES >> 20} MiB "
+                             f"a recorded payload may take; skipped")
         if "payload" not in obj:
             raise ValueError("'payload' is missing")
         value = obj["payload"]
@@ -370,6 +424,12 @@ class RecordingReader:
         if qos not in (0, 1, 2) or isinstance(qos, bool):
             raise ValueError(f"'qos' is {qos!r}, not 0, 1 or 2")
         return Message(ts, topic, payload, int(qos), bool(retain))
+
+
+def _not_json(e: Exception) -> str:
+    if "recursion" in str(e).lower() or "depth" in str(e).lower():
+        return f"not JSON: nested deeper than the {MAX_NESTING} levels a line may take"
+    return f"not JSON ({e})"
 
 
 def open_recording(source: str, stdin: IO[bytes] | None = None) -> tuple[IO[bytes], str]:
