@@ -48,5 +48,6 @@ def bounds_help(*, validate: bool = False) -> str:
             f"({MIN_TIME:.0f}..{MAX_TIME:.0f} Unix seconds). A line past a bound is reported "
             f"as malformed and the run goes on. At most {MAX_UNITS} units are judged (past "
             f"that the run fails, naming what was not judged: narrow it with --unit or "
-            f"--topic); {MAX_COMMANDERS} commanders have rows of their own; a ROS bag is read "
-            f"whole or refused (exit 3).")
+            f"--topic); {MAX_COMMANDERS} commanders have rows of their own; any number of topics "
+            f"(the first {MAX_TOPICS_CACHED} cached); a ROS bag is read whole or refused "
+            f"(exit 3).")

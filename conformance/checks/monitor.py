@@ -22,6 +22,7 @@ from typing import Any
 
 import orjson
 
+from conformance import bounds
 from conformance.checks.base import (
     AT_FINISH,
     ON_KIND,
@@ -50,13 +51,14 @@ from conformance.topics import TST_EXECUTION, TopicKind, UnitAddress, parse_topi
 from conformance.validator import Examined, Validation, Validator
 from conformance.violation import Verdict, Violation
 
-MAX_UNITS = 4096
-"""Units tracked at once; messages of further units are counted as unexamined."""
+MAX_UNITS = bounds.MAX_UNITS
+"""Units tracked at once; messages of further units are counted as unexamined, and lint fails
+on them (``not_judged``)."""
 MAX_NAMED_OVER_CAP = 8
 """Units past MAX_UNITS named when the run says what it did not judge."""
-MAX_TOPICS = 65536
+MAX_TOPICS = bounds.MAX_TOPICS_CACHED
 """Topics whose unit is cached; further ones are looked up each time (still correct)."""
-MAX_COMMANDERS = 256
+MAX_COMMANDERS = bounds.MAX_COMMANDERS
 """Commanders with a row of their own; the commands of further ones share one row."""
 MAX_SENDER = 64
 _SENDER = re.compile(rb'"sender"\s*:\s*"([^"\\]{1,64})"')

@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 from typing import IO
 
+from conformance.bounds import bounds_help
 from conformance.cli import options as opts
 from conformance.lint import EXIT_USAGE
 from conformance.lint.runner import GATES, REPORT_FORMATS, lint
@@ -29,16 +30,19 @@ def build_parser() -> argparse.ArgumentParser:
         "Lint the traffic of a whole fleet, live (read-only: it never publishes) "
                     "or from a recording, and report a verdict per unit and rule.",
         "Exit status: 0 no unit or commander fails a rule of severity error (with "
-               "--gate units: no unit), 1 one does, 2 bad usage, 3 nothing could be linted "
-               "(no broker, no messages). What is wrong in a command is its commander's "
+               "--gate units: no unit), 1 one does (or units past the bound were not judged), "
+               "2 bad usage, 3 nothing could be linted (no broker, no messages, a ROS bag "
+               "that cannot be read whole). What is wrong in a command is its commander's "
                "fault: commanders (by the command's 'sender', else 'of UNIT') have rows of "
-               "their own.")
+               "their own. " + bounds_help())
     src = p.add_argument_group("recorded traffic")
     src.add_argument("--from", dest="source", metavar="FILE",
                      help="a recording: JSON Lines as 'waraps-conformance record' writes, or "
-                          "'mosquitto_sub -F %%j' / '-F %%J' output; '-' reads standard input; "
-                          "or a ROS bag: a ROS 1 .bag file, a ROS 2 bag directory (sqlite3 or "
-                          "MCAP)")
+                          "'mosquitto_sub -F %%j' / '-F %%J' / '-v' output (told from the "
+                          "content; -v has no times: the rules on rates, silences, stamps and "
+                          "deadlines are could-not-test); '-' reads standard input; or a ROS "
+                          "bag: a ROS 1 .bag file, a ROS 2 bag directory (sqlite3 or MCAP), "
+                          "read whole or refused")
     src.add_argument("--ros-unit", metavar="ADDRESS",
                      help="the unit address of a ROS bag's namespaced topics when no "
                           "/heartbeat_info TopicMsg names it, e.g. waraps/unit/ground/real/husky0")
