@@ -139,7 +139,9 @@ def check_time(ts: float, what: str = "ts") -> float:
 
 
 # mosquitto_sub -v: TOPIC, one space, PAYLOAD (a topic holds no space and no wildcard).
-_VERBOSE = re.compile(rb"^([^\s{}\[\]\"#+]*/[^\s#+]*) (.*)$", re.DOTALL)
+_VERBOSE = re.compile(rb"^([^\x00-\x20\x7f{}\[\]\"#+]*/[^\x00-\x20\x7f#+]*) (.*)$", re.DOTALL)
+_BOM = b"\xef\xbb\xbf"
+_UTF16_BOMS = (b"\xff\xfe", b"\xfe\xff")
 
 
 def _excerpt(line: bytes, limit: int = 120) -> str:
@@ -245,6 +247,7 @@ class RecordingReader:
         new = tuple.__new__  # Message(...) without its Python-level __new__: once per line
         message = Message
         count = 0
+        timed = False  # a line of our own JSON Lines was read (the fast path)
         try:
             for first, lines in self._batches():
                 for number, line in enumerate(lines, first):
@@ -256,8 +259,13 @@ class RecordingReader:
                             continue
                         line = line.rstrip(b"\r")
                         obj = self._loads_not_utf8(line)
+                        if obj is None and number == 1 and line.startswith(_BOM):
+                            obj = self._loads_not_utf8(line[3:], strict=False)
                         if obj is None:
-                            verbose = self._verbose(line)
+                            # mosquitto_sub -v, told from content: only in a capture that has
+                            # shown no line with times (one odd line must not untime it)
+                            verbose = (None if timed or self.formats - {FORMAT_MOSQUITTO_V}
+                                       else self._verbose(line))
                             if verbose is not None:
                                 if FORMAT_MOSQUITTO_V not in self.formats:
                                     self.formats.add(FORMAT_MOSQUITTO_V)
@@ -265,7 +273,7 @@ class RecordingReader:
                                 count += 1
                                 yield verbose
                                 continue
-                            self.problem(number, _not_json(e), line)
+                            self.problem(number, _not_json(e, line, number), line)
                             continue
                     # The common case first: one of our own lines with a text payload.
                     if type(obj) is dict:
@@ -279,6 +287,7 @@ class RecordingReader:
                             if (qos == 0 or qos == 1 or qos == 2) and type(qos) is int and \
                                     type(retain) is bool:
                                 count += 1
+                                timed = True
                                 yield new(message, (ts, topic, payload.encode(
                                     "utf-8", "surrogateescape"), qos, retain))
                                 continue
@@ -294,6 +303,8 @@ class RecordingReader:
                 count = 0
         finally:
             self.messages += count
+            if timed:
+                self.formats.add(FORMAT_JSONL)
         if self._truncated:
             self.notes.append(
                 f"{self._truncated} payload(s) were cut at a NUL byte by mosquitto_sub -F %j "
@@ -312,15 +323,21 @@ class RecordingReader:
         m = _VERBOSE.match(line)
         if m is None:
             return None
-        return Message(time.time(), m[1].decode("utf-8", "surrogateescape"), m[2])
+        try:
+            topic = m[1].decode("utf-8")  # a topic is UTF-8 text (MQTT 3.1.1, 1.5.3)
+        except UnicodeDecodeError:
+            return None
+        return Message(time.time(), topic, m[2])
 
     @staticmethod
-    def _loads_not_utf8(line: bytes) -> Any:
+    def _loads_not_utf8(line: bytes, strict: bool = True) -> Any:
         """mosquitto_sub -F %j copies non-UTF-8 payload bytes into the line as they are; read
-        them back as surrogate escapes, so the payload's bytes are recovered exactly."""
+        them back as surrogate escapes, so the payload's bytes are recovered exactly.
+        ``strict`` False: valid UTF-8 too (a first line after its byte order mark)."""
         try:
             line.decode("utf-8")
-            return None  # valid UTF-8: the line is simply not JSON
+            if strict:
+                return None  # valid UTF-8: the line is simply not JSON
         except UnicodeDecodeError:
             pass
         try:
@@ -426,9 +443,15 @@ class RecordingReader:
         return Message(ts, topic, payload, int(qos), bool(retain))
 
 
-def _not_json(e: Exception) -> str:
+def _not_json(e: Exception, line: bytes, number: int) -> str:
     if "recursion" in str(e).lower() or "depth" in str(e).lower():
         return f"not JSON: nested deeper than the {MAX_NESTING} levels a line may take"
+    if _VERBOSE.match(line):
+        return ("a mosquitto_sub -v line (TOPIC PAYLOAD) among lines with times: not read "
+                "(a capture is one format)")
+    if number == 1 and line.startswith(_UTF16_BOMS):
+        return ("not JSON: the file is UTF-16 (it starts with a UTF-16 byte order mark); a "
+                "recording is UTF-8: convert it with 'iconv -f UTF-16 -t UTF-8'")
     return f"not JSON ({e})"
 
 
