@@ -217,6 +217,13 @@ class BagReader:
         self._attribute(routes)
         linted = [c for c in reader.connections if routes.get(c.id, _SKIP).deserialize]
         indexed = sum(c.msgcount for c in linted)
+        total = getattr(reader, "message_count", None)
+        if total is not None and total != sum(c.msgcount for c in reader.connections):
+            raise BagError(
+                f"{self.path}: the bag's own counts disagree ({total} messages in all, "
+                f"{sum(c.msgcount for c in reader.connections)} over its topics): its index "
+                f"or metadata.yaml is damaged, so nothing was judged. Fix: reindex it "
+                f"('rosbag reindex' / 'ros2 bag reindex') or record it again")
         last = 0.0
         try:
             for conn, stamp, raw in reader.messages(connections=linted):
