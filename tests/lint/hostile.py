@@ -52,6 +52,25 @@ class Run:
         return "Traceback (most recent call last)" in self.err + self.out
 
 
+PEAK_WRAPPER = r"""
+import atexit, sys
+peak, script = sys.argv.pop(1), sys.argv.pop(1)
+
+def report():  # this process's own high-water mark (wait4's counts the parent's, forked)
+    with open("/proc/self/status") as status:
+        kb = next((ln.split()[1] for ln in status if ln.startswith("VmHWM")), "")
+    with open(peak, "w") as out:
+        out.write(kb)
+
+atexit.register(report)
+if script:
+    exec(compile(script, "<case>", "exec"))
+else:
+    from conformance.cli import main
+    sys.exit(main(sys.argv[1:]))
+"""
+
+
 def _cap() -> None:  # in the child, before exec
     resource.setrlimit(resource.RLIMIT_AS, (ADDRESS_SPACE, ADDRESS_SPACE))
 
@@ -59,10 +78,10 @@ def _cap() -> None:  # in the child, before exec
 def run_bounded(name: str, args: list[str], cwd: Path, *, stdin: str | Path | None = None,
                 script: str | None = None, timeout: float = MAX_SECONDS) -> Run:
     """``waraps-conformance ARGS`` (or ``python -c SCRIPT ARGS``) in a subprocess under the
-    address-space cap; its peak memory from the kernel (wait4's rusage of that child)."""
-    command = ([sys.executable, "-c", script, *args] if script is not None
-               else [sys.executable, "-m", "conformance.cli", *args])
+    address-space cap; its peak memory from the kernel (its own VmHWM at exit)."""
     out_path, err_path = cwd / f"{name}.out", cwd / f"{name}.err"
+    peak_path = cwd / f"{name}.peak"
+    command = [sys.executable, "-c", PEAK_WRAPPER, str(peak_path), script or "", *args]
     with open(out_path, "wb") as out, open(err_path, "wb") as err, \
             open(stdin if stdin is not None else os.devnull, "rb") as inp:
         start = time.monotonic()
@@ -82,8 +101,12 @@ def run_bounded(name: str, args: list[str], cwd: Path, *, stdin: str | Path | No
             timer.cancel()
         proc.returncode = os.waitstatus_to_exitcode(status)
         seconds = time.monotonic() - start
+    try:  # VmHWM, else (killed: no atexit) wait4's, which counts the forked parent too
+        peak_kb = float(peak_path.read_text())
+    except (OSError, ValueError):
+        peak_kb = float(usage.ru_maxrss)
     return Run(name, proc.returncode, out_path.read_text("utf-8", "replace"),
-               err_path.read_text("utf-8", "replace"), seconds, usage.ru_maxrss / 1024,
+               err_path.read_text("utf-8", "replace"), seconds, peak_kb / 1024,
                killed.is_set())
 
 
