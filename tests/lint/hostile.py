@@ -226,6 +226,9 @@ RECORDING_CASES = [
     Case("payload-nan-infinity", _recording(line(T0 + 0.5, f"{UNIT}/heartbeat",
                                                  b'{"stamp": NaN, "rate": Infinity}')),
          codes=frozenset({1}), says=("MSG-002",)),
+    Case("payload-stamp-1e308", _recording(line(T0 + 0.5, f"{UNIT}/heartbeat",
+                                                heartbeat(T0, stamp=1e308))),
+         codes=frozenset({1}), says=("MSG-005",)),
     Case("line-lone-surrogate-escape", _recording(
         b'{"ts": 1763700000.5, "topic": "' + UNIT.encode() + b'/heartbeat", '
         b'"payload": "{\\"name\\": \\"\\ud800\\"}"}'), says=NOT_JSON_SAYS),
