@@ -310,6 +310,11 @@ class RecordingReader:
                 f"{self._truncated} payload(s) were cut at a NUL byte by mosquitto_sub -F %j "
                 f"(payloadlen is longer than the payload); the missing bytes were replaced by "
                 f"NUL bytes. Record with 'waraps-conformance record' for byte-exact payloads.")
+        if FORMAT_MOSQUITTO_V in self.formats:
+            self.notes.append(
+                f"a mosquitto_sub -v capture has no times: {', '.join(UNTIMED_RULES)} are "
+                f"could-not-test ({UNTIMED_REASON}). Record with 'waraps-conformance record' "
+                f"or mosquitto_sub -F %j to have them judged.")
         if self.unprintable:
             self.notes.append(
                 f"{self.unprintable} message(s) are missing from this mosquitto_sub -F %J "

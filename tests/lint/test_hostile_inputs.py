@@ -153,3 +153,11 @@ def test_every_bound_is_named_in_help() -> None:
         assert said in text, said
     assert f"at most {bounds.MAX_VALIDATE_BYTES >> 20} MiB are read" in bounds.bounds_help(
         validate=True)
+
+
+def test_the_untimed_rules_are_rules_of_the_catalogue() -> None:
+    from conformance.recording import UNTIMED_RULES
+    from conformance.rules import CATALOGUE
+
+    assert set(UNTIMED_RULES) <= set(CATALOGUE)
+    assert {"HB-003", "SI-002", "DEI-002", "TEI-002"} <= set(UNTIMED_RULES)  # every rate rule
