@@ -25,7 +25,7 @@ mosquitto_sub 2.0.11 (measured here, see ``tests/lint/test_recording.py``):
 - ``-F %J`` embeds the payload as a JSON value (re-serialised: whitespace is lost) and prints
   an *empty line* (plus an error on stderr) for a payload that is not JSON: that message, and
   its topic, are lost to the recording.
-- ``-v`` prints ``TOPIC PAYLOAD`` per message: no time at all. Such a line is told from JSON by
+- ``-v`` prints ``TOPIC PAYLOAD`` per message (``(null)`` for an empty payload): no time. Such a line is told from JSON by
   its content (a topic with a '/', a space, the payload); its message gets the time the line
   was read, and the rules that need arrival times are not judged (``UNTIMED_RULES``).
 
@@ -332,7 +332,8 @@ class RecordingReader:
             topic = m[1].decode("utf-8")  # a topic is UTF-8 text (MQTT 3.1.1, 1.5.3)
         except UnicodeDecodeError:
             return None
-        return Message(time.time(), topic, m[2])
+        # mosquitto_sub 2.0 prints an empty payload (a retained message cleared) as "(null)"
+        return Message(time.time(), topic, b"" if m[2] == b"(null)" else m[2])
 
     @staticmethod
     def _loads_not_utf8(line: bytes, strict: bool = True) -> Any:
