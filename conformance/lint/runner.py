@@ -142,14 +142,13 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
     failing = sorted(u for u, rep in report.units.items() if rep.worst().value == "fail"
                      and (gate == "all" or rep.party == "unit"))
     gated = "no unit or commander" if gate == "all" else "no unit"
-    if over:  # past the cap: never a pass (issue 19)
+    if failing or not over:
+        print(("FAIL: " + ", ".join(failing)) if failing else f"PASS: {gated} fails a rule of "
+              "severity error", file=out)
+    if over:  # past the bound: never a pass (issue 19)
         print(f"FAIL: {meta['not_judged']}", file=out)
-        out.flush()
-        return EXIT_FAIL
-    print(("FAIL: " + ", ".join(failing)) if failing else f"PASS: {gated} fails a rule of "
-          "severity error", file=out)
     out.flush()
-    return EXIT_FAIL if code else EXIT_PASS
+    return EXIT_FAIL if code or over else EXIT_PASS
 
 
 def _not_judged(over: int, units: list[str]) -> str:

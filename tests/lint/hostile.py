@@ -112,8 +112,8 @@ def run_bounded(name: str, args: list[str], cwd: Path, *, stdin: str | Path | No
 
 # --- the corpus ----------------------------------------------------------------------------
 
-def heartbeat(t: float, name: str = "dji0", **extra: object) -> bytes:
-    return orjson.dumps({"agent-type": "air", "agent-uuid": "3f1c2a4e-1b2c-4d5e-8f90-0123456789ab",
+def heartbeat(t: float, name: str = "dji0", number: int = 0, **extra: object) -> bytes:
+    return orjson.dumps({"agent-type": "air", "agent-uuid": f"3f1c2a4e-1b2c-4d5e-8f90-{number:012d}",
                          "levels": ["sensor"], "name": name, "rate": 1.0, "stamp": t,
                          "type": "HeartBeat", **extra})
 
@@ -188,13 +188,17 @@ def _v_capture(tmp: Path) -> Path:
 
 
 def fleet(tmp: Path, units: int = 100_000) -> Path:
-    """A generated recording of ``units`` units, one heartbeat each (past the unit bound)."""
+    """A generated recording of ``units`` units, one heartbeat each; only the last unit is
+    faulty (its heartbeat's type is wrong: HB-002), so that a fleet past the unit bound
+    would pass if what lies past the bound were not judged. All within 1 s: none falls silent
+    at its declared 1 Hz (HB-010, HB-012)."""
     path = tmp / f"fleet{units}.jsonl"
     with open(path, "wb") as f:
         for i in range(units):
             name = f"u{i}"
-            f.write(line(T0 + i * 1e-4, f"waraps/unit/air/simulation/{name}/heartbeat",
-                         heartbeat(T0, name)) + b"\n")
+            bad = {"type": "Heartbeat"} if i == units - 1 else {}
+            f.write(line(T0 + i * 1e-5, f"waraps/unit/air/simulation/{name}/heartbeat",
+                         heartbeat(T0, name, i, **bad)) + b"\n")
     return path
 
 

@@ -95,8 +95,9 @@ def test_a_recording_with_times_is_not_untimed_by_one_line_that_looks_like_v(
 
 @pytest.mark.slow
 def test_a_fleet_past_the_unit_bound_fails_naming_what_was_not_judged(tmp_path: Path) -> None:
-    """100k units (a generated recording), the last ones conformant: never a pass. Reports are
-    not written here (their size is bounded elsewhere: issue 19 §4)."""
+    """100k units (a generated recording), every unit the linter judges conformant and the
+    last one faulty: never a pass. Reports are not written here (their size is bounded
+    elsewhere: issue 19 §4)."""
     path = fleet(tmp_path)
     run = run_bounded("fleet", ["lint", "--from", str(path), "--plain", "--format", "none"],
                       tmp_path)
@@ -105,14 +106,17 @@ def test_a_fleet_past_the_unit_bound_fails_naming_what_was_not_judged(tmp_path: 
     assert ("FAIL: not judged: 95904 messages of units past the 4096 units lint judges at "
             "once (waraps/unit/air/simulation/u4096, ") in run.out
     assert "lint them apart with --unit ADDRESS or --topic FILTER" in run.out
+    assert "FAIL: waraps" not in run.out  # the units judged all pass: the bound alone fails
 
 
 def test_a_fleet_within_the_unit_bound_is_judged_whole(tmp_path: Path) -> None:
+    """The same fleet, smaller: its last unit's fault is found, the others pass."""
     path = fleet(tmp_path, 50)
     run = run_bounded("fleet", ["lint", "--from", str(path), "--plain", "--format", "none"],
                       tmp_path)
     _bounded(run)
-    assert "not judged" not in run.out
+    assert run.code == EXIT_FAIL and "not judged" not in run.out
+    assert "FAIL: waraps/unit/air/simulation/u49\n" in run.out
 
 
 @pytest.mark.parametrize("storage", ["ros1", "sqlite3", "mcap"])
