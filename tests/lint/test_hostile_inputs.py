@@ -165,3 +165,39 @@ def test_the_untimed_rules_are_rules_of_the_catalogue() -> None:
 
     assert set(UNTIMED_RULES) <= set(CATALOGUE)
     assert {"HB-003", "SI-002", "DEI-002", "TEI-002"} <= set(UNTIMED_RULES)  # every rate rule
+
+
+def test_an_endless_stream_on_standard_input_is_read_in_bounded_memory(tmp_path: Path) -> None:
+    """``lint --from -`` is a stream (a live mosquitto_sub pipe): /dev/zero, one endless line,
+    is read without holding it (the line bound), until Ctrl-C; then nothing was judged."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from hostile import PEAK_WRAPPER, _cap
+
+    peak = tmp_path / "peak"
+    with open("/dev/zero", "rb") as zero:
+        proc = subprocess.Popen([sys.executable, "-c", PEAK_WRAPPER, str(peak), "", "lint",
+                                 "--from", "-", "--plain", "--format", "none"], stdin=zero,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                preexec_fn=_cap, cwd=tmp_path)
+    try:
+        deadline = time.monotonic() + MAX_SECONDS
+        read = 0
+        while read < 3 * (64 << 20):  # three times the line bound: the line is not held
+            assert proc.poll() is None and time.monotonic() < deadline, read
+            with open(f"/proc/{proc.pid}/io") as io:
+                read = int(next(ln for ln in io if ln.startswith("rchar")).split()[1])
+            time.sleep(0.05)  # polling a condition (with a deadline), not waiting a duration
+        os.kill(proc.pid, signal.SIGINT)
+        out, err = proc.communicate(timeout=MAX_SECONDS)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert b"Traceback" not in err, err.decode()
+    assert proc.returncode == EXIT_NOT_RUN and b"no messages were read" in err
+    assert float(peak.read_text()) / 1024 <= MAX_PEAK_MB
