@@ -307,6 +307,9 @@ class _Untimed:
         found = self._monitor.feed(message)
         return [v for v in found if v.rule not in self._rules] if found else found
 
+    def live_findings(self, unit: Any) -> list[Any]:
+        return [v for v in self._monitor.live_findings(unit) if v.rule not in self._rules]
+
     def __getattr__(self, name: str) -> Any:
         return getattr(self._monitor, name)
 
