@@ -347,9 +347,19 @@ class RecordingReader:
         except UnicodeDecodeError:
             pass
         try:
-            return json.loads(line.decode("utf-8", "surrogateescape"))
+            obj = json.loads(line.decode("utf-8", "surrogateescape"))
         except (ValueError, RecursionError):
             return None
+        if type(obj) is dict:
+            if type(obj.get("topic")) is str:
+                obj["topic"] = _utf8(obj["topic"])
+            payload = obj.get("payload")
+            if type(payload) is str:  # the bytes of the line, or a lone surrogate: not a payload
+                try:
+                    payload.encode("utf-8", "surrogateescape")
+                except UnicodeEncodeError:
+                    return None
+        return obj
 
     def _item(self, obj: Any) -> Message | Event:
         """One line's object as a message or event; ValueError says what is wrong."""
@@ -375,10 +385,11 @@ class RecordingReader:
             count = obj.get("count", 0)
             if isinstance(count, bool) or not isinstance(count, int) or count < 0:
                 raise ValueError(f"event count {count!r} is not a non-negative whole number")
-            return Event(float(ts), kind, str(obj.get("detail", "")), count)
+            return Event(float(ts), kind, _utf8(str(obj.get("detail", ""))), count)
         topic = obj.get("topic")
         if not isinstance(topic, str):
             raise ValueError("'topic' is missing or not a string")
+        topic = _utf8(topic)
         if isinstance(obj.get("payload"), str):
             payload = obj["payload"].encode("utf-8", "surrogateescape")
         elif isinstance(obj.get("payload_b64"), str):
@@ -403,6 +414,7 @@ class RecordingReader:
         topic = obj.get("topic")
         if not isinstance(topic, str):
             raise ValueError("'topic' is missing or not a string")
+        topic = _utf8(topic)
         length = obj.get("payloadlen")
         if isinstance(length, bool) or not isinstance(length, int) or length < 0:
             raise ValueError(f"'payloadlen' is {length!r}, not a byte count")
@@ -447,6 +459,17 @@ class RecordingReader:
         if qos not in (0, 1, 2) or isinstance(qos, bool):
             raise ValueError(f"'qos' is {qos!r}, not 0, 1 or 2")
         return Message(ts, topic, payload, int(qos), bool(retain))
+
+
+def _utf8(text: str) -> str:
+    """``text`` as UTF-8 can carry it: bytes that were not UTF-8 in the line (surrogate escapes)
+    or lone surrogates shown as backslash escapes, which the topic rules then judge (TOPIC-008)
+    and every report can write."""
+    try:
+        text.encode("utf-8")
+        return text
+    except UnicodeEncodeError:
+        return text.encode("utf-8", "backslashreplace").decode("utf-8")
 
 
 def _not_json(e: Exception, line: bytes, number: int) -> str:

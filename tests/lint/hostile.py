@@ -233,6 +233,9 @@ RECORDING_CASES = [
     Case("payload-stamp-1e308", _recording(line(T0 + 0.5, f"{UNIT}/heartbeat",
                                                 heartbeat(T0, stamp=1e308))),
          codes=frozenset({1}), says=("MSG-005",)),
+    Case("topic-not-utf8", _recording(b'{"ts": 1763700000.5, "topic": "waraps/unit/ai\xdd/'
+                                      b'simulation/dji0/heartbeat", "payload": "{}"}'),
+         codes=frozenset({1}), says=("TOPIC-005",)),
     Case("line-lone-surrogate-escape", _recording(
         b'{"ts": 1763700000.5, "topic": "' + UNIT.encode() + b'/heartbeat", '
         b'"payload": "{\\"name\\": \\"\\ud800\\"}"}'), says=NOT_JSON_SAYS),
@@ -365,3 +368,58 @@ def damaged_bags(tmp: Path, storage: str, copies: int) -> tuple[Path, list[Path]
 def bag_codes(run: Run) -> list[tuple[str, object, str]]:
     """(bag, exit code or traceback, end of its errors) of a BAG_DRIVER run."""
     return [tuple(x) for x in json.loads(run.out.strip().splitlines()[-1])]
+
+
+# --- mutations of a good recording ----------------------------------------------------------
+
+_INSERTS = (b"1e400", b"-", b'"', b"\\", b"NaN", b"[", b"{", b"\xff", b"\xdd", b"\n", b"9" * 30,
+            b"null", b"\\ud800", b"\xed\xa0\x80", b"\r", b"\x00")
+
+
+def mutations(seed: int, count: int) -> list[bytes]:
+    """``count`` recordings, each a good one (plus a -F %j line, an event, a -v line) with a
+    few random bytes overwritten, deleted, inserted or copied: deterministic for ``seed``."""
+    import random
+
+    rnd = random.Random(seed)
+    base = b"\n".join(good_lines(6)) + b"\n"
+    extra = [mosquitto_j(5, "hello"), b'{"ts": 1763700000.5, "event": "unexamined", "count": 5}',
+             f"{UNIT}/heartbeat {{}}".encode()]
+    out = []
+    for _ in range(count):
+        data = bytearray(base + b"\n".join(rnd.sample(extra, rnd.randint(0, 3))))
+        for _ in range(rnd.randint(1, 8)):
+            op, at = rnd.random(), rnd.randrange(len(data))
+            if op < 0.4:
+                data[at] = rnd.randrange(256)
+            elif op < 0.6:
+                del data[at:at + rnd.randint(1, 20)]
+            elif op < 0.8:
+                data[at:at] = rnd.choice(_INSERTS)
+            else:
+                data[at:at] = data[rnd.randrange(len(data)):][:50]
+        out.append(bytes(data))
+    return out
+
+
+MUTATION_DRIVER = r"""
+import contextlib, io, json, sys, traceback
+sys.path.insert(0, sys.argv[1])
+from hostile import mutations
+from conformance.cli.lint import main
+codes = []
+for i, data in enumerate(mutations(int(sys.argv[2]), int(sys.argv[3]))):
+    path = f"m{i}.jsonl"
+    with open(path, "wb") as f:
+        f.write(data)
+    out, err = io.StringIO(), io.StringIO()
+    try:
+        with contextlib.redirect_stderr(err):
+            code = main(["--from", path, "--plain", "--format", "json,html,junit",
+                         "--reports-dir", f"r{i}"], stdout=out)
+    except BaseException:
+        code = "traceback: " + traceback.format_exc()[-600:]
+    codes.append([path, code, err.getvalue()[-300:]])
+print(json.dumps(codes))
+"""
+"""Lints each mutation in one process (bounded as one run), every report format written."""
