@@ -4,9 +4,11 @@
     waraps-conformance lint --from field-test.jsonl
     waraps-conformance lint --from run.bag --ros-unit waraps/unit/ground/real/husky0
     mosquitto_sub -t 'waraps/#' -F %j | waraps-conformance lint --from -
+    mosquitto_sub -t 'waraps/#' -v > capture.txt; waraps-conformance lint --from capture.txt
 
 Live, it subscribes read-only (its client may publish nowhere) and shows a per-unit scorecard;
-recorded, it judges the messages at their recorded times. Either way it ends with JSON, HTML
+recorded, it judges the messages at their recorded times (a ``-v`` capture has none: the rules
+that need them are could-not-test), every input within the bounds of ``conformance.bounds``. Either way it ends with JSON, HTML
 and JUnit reports and exits non-zero when a unit fails a rule of severity error. The run
 itself is ``conformance.lint.runner.lint``.
 """
