@@ -3,6 +3,7 @@ the console script in a subprocess under the same 3 GiB address-space cap as the
 time and peak resident memory (the kernel's, wait4); then the slowest case and the largest peak.
 
     python bench/bench_hostile.py            # the corpus, the 100k-unit fleet, damaged bags
+                                             # (and 200 recordings damaged at random)
     python bench/bench_hostile.py --quick    # without the fleet and the bags
 
 The same-run baseline is a clean recording of the same size as the recording cases (each case
@@ -30,6 +31,7 @@ from hostile import (  # noqa: E402  (tests/lint/hostile.py: the corpus itself)
     ADDRESS_SPACE,
     BAG_DRIVER,
     COMMAND_CASES,
+    MUTATION_DRIVER,
     RECORDING_CASES,
     Case,
     Run,
@@ -55,6 +57,9 @@ def main(argv: list[str]) -> int:
             command, stdin = write_case(case, folder)
             runs.append(run_bounded(case.name, command, folder, stdin=stdin))
             _show(runs[-1])
+        runs.append(run_bounded("mutations-200", [str(HERE.parent / "tests" / "lint"), "19",
+                                                  "200"], tmp, script=MUTATION_DRIVER))
+        _show(runs[-1])
         if not args.quick:
             path = fleet(tmp)
             runs.append(run_bounded("fleet-100k-units", ["lint", "--from", str(path),
