@@ -25,6 +25,12 @@ mosquitto_sub 2.0.11 (measured here, see ``tests/lint/test_recording.py``):
 - ``-F %J`` embeds the payload as a JSON value (re-serialised: whitespace is lost) and prints
   an *empty line* (plus an error on stderr) for a payload that is not JSON: that message, and
   its topic, are lost to the recording.
+- ``-v`` prints ``TOPIC PAYLOAD`` per message (``(null)`` for an empty payload): no time. Such a line is told from JSON by
+  its content (a topic with a '/', a space, the payload); its message gets the time the line
+  was read, and the rules that need arrival times are not judged (``UNTIMED_RULES``).
+
+Every line is bounded (``conformance.bounds``): its length, the payload received and declared,
+its nesting, its time. A line past a bound is a problem of that line; reading goes on.
 """
 
 from __future__ import annotations
@@ -34,6 +40,7 @@ import binascii
 import json
 import re
 import sys
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import datetime
@@ -42,11 +49,15 @@ from typing import IO, Any
 
 import orjson
 
+from conformance.bounds import (
+    MAX_LINE_BYTES,
+    MAX_NESTING,
+    MAX_PAYLOAD_BYTES,
+    MAX_TIME,
+    MIN_TIME,
+)
 from conformance.message import Message
 
-MAX_LINE_BYTES = 64 << 20
-"""A longer line is skipped as malformed (a message is at most 1 MiB examined, MSG-004; a
-base64 or escaped 10 MB payload still fits)."""
 CHUNK_BYTES = 1 << 20
 MAX_PROBLEMS_KEPT = 100
 """Malformed lines kept with their text; beyond this they are only counted (bounded memory)."""
@@ -54,6 +65,14 @@ MAX_PROBLEMS_KEPT = 100
 FORMAT_JSONL = "jsonl"
 FORMAT_MOSQUITTO_J = "mosquitto_sub -F %j"
 FORMAT_MOSQUITTO_JJ = "mosquitto_sub -F %J"
+FORMAT_MOSQUITTO_V = "mosquitto_sub -v"
+UNTIMED_RULES = ("HB-003", "SI-002", "DEI-002", "TEI-002", "HB-010", "HB-011", "HB-012",
+                 "MSG-005", "MSG-007", "SENS-005", "EXEC-010", "EXEC-PING-001",
+                 "EXEC-ROBUST-001")
+"""Rules judged on arrival times (rates, silences, stamps against arrival, deadlines): not
+judged on a capture without times (``mosquitto_sub -v``), a could-not-test with
+``UNTIMED_REASON``, never a pass or a fail."""
+UNTIMED_REASON = "not judged: no timestamps (a mosquitto_sub -v capture)"
 
 
 @dataclass(frozen=True)
@@ -70,6 +89,9 @@ class Event:
 
 
 EVENT_KINDS = ("disconnected", "connected", "unexamined", "start", "end")
+UNTIMED = "untimed"
+"""The kind of the ``Event`` a reader yields before the first message without a recorded time
+(never read from a line): the consumer judges no rule of ``UNTIMED_RULES``."""
 
 
 @dataclass(frozen=True)
@@ -106,6 +128,20 @@ def parse_tst(text: str) -> float:
     elif ":" not in offset:
         offset = f"{offset[:3]}:{offset[3:]}"
     return datetime.fromisoformat(stamp + offset).timestamp()
+
+
+def check_time(ts: float, what: str = "ts") -> float:
+    """``ts`` if it is a time within the bounds (1970..2100), else ValueError naming them."""
+    if not MIN_TIME <= ts <= MAX_TIME:  # NaN fails too
+        raise ValueError(f"'{what}' {ts!r} is outside the times a recording may hold "
+                         f"({MIN_TIME:.0f}..{MAX_TIME:.0f} Unix seconds, 1970 to 2100)")
+    return ts
+
+
+# mosquitto_sub -v: TOPIC, one space, PAYLOAD (a topic holds no space and no wildcard).
+_VERBOSE = re.compile(rb"^([^\x00-\x20\x7f{}\[\]\"#+]*/[^\x00-\x20\x7f#+]*) (.*)$", re.DOTALL)
+_BOM = b"\xef\xbb\xbf"
+_UTF16_BOMS = (b"\xff\xfe", b"\xfe\xff")
 
 
 def _excerpt(line: bytes, limit: int = 120) -> str:
@@ -211,6 +247,7 @@ class RecordingReader:
         new = tuple.__new__  # Message(...) without its Python-level __new__: once per line
         message = Message
         count = 0
+        timed = False  # a line of our own JSON Lines was read (the fast path)
         try:
             for first, lines in self._batches():
                 for number, line in enumerate(lines, first):
@@ -222,8 +259,21 @@ class RecordingReader:
                             continue
                         line = line.rstrip(b"\r")
                         obj = self._loads_not_utf8(line)
+                        if obj is None and number == 1 and line.startswith(_BOM):
+                            obj = self._loads_not_utf8(line[3:], strict=False)
                         if obj is None:
-                            self.problem(number, f"not JSON ({e})", line)
+                            # mosquitto_sub -v, told from content: only in a capture that has
+                            # shown no line with times (one odd line must not untime it)
+                            verbose = (None if timed or self.formats - {FORMAT_MOSQUITTO_V}
+                                       else self._verbose(line))
+                            if verbose is not None:
+                                if FORMAT_MOSQUITTO_V not in self.formats:
+                                    self.formats.add(FORMAT_MOSQUITTO_V)
+                                    yield Event(verbose.time, UNTIMED)
+                                count += 1
+                                yield verbose
+                                continue
+                            self.problem(number, _not_json(e, line, number), line)
                             continue
                     # The common case first: one of our own lines with a text payload.
                     if type(obj) is dict:
@@ -231,18 +281,19 @@ class RecordingReader:
                         topic = obj.get("topic")
                         payload = obj.get("payload")
                         if (type(ts) is float and type(topic) is str and type(payload) is str
-                                and "payload_b64" not in obj):
+                                and "payload_b64" not in obj and MIN_TIME <= ts <= MAX_TIME):
                             qos = obj.get("qos", 0)
                             retain = obj.get("retain", False)
                             if (qos == 0 or qos == 1 or qos == 2) and type(qos) is int and \
                                     type(retain) is bool:
                                 count += 1
+                                timed = True
                                 yield new(message, (ts, topic, payload.encode(
                                     "utf-8", "surrogateescape"), qos, retain))
                                 continue
                     try:
                         item = self._item(obj)
-                    except ValueError as e:
+                    except (ValueError, OverflowError, OSError) as e:  # dates past any bound
                         self.problem(number, str(e), line)
                         continue
                     if isinstance(item, Message):
@@ -252,11 +303,18 @@ class RecordingReader:
                 count = 0
         finally:
             self.messages += count
+            if timed:
+                self.formats.add(FORMAT_JSONL)
         if self._truncated:
             self.notes.append(
                 f"{self._truncated} payload(s) were cut at a NUL byte by mosquitto_sub -F %j "
                 f"(payloadlen is longer than the payload); the missing bytes were replaced by "
                 f"NUL bytes. Record with 'waraps-conformance record' for byte-exact payloads.")
+        if FORMAT_MOSQUITTO_V in self.formats:
+            self.notes.append(
+                f"a mosquitto_sub -v capture has no times: {', '.join(UNTIMED_RULES)} are "
+                f"could-not-test ({UNTIMED_REASON}). Record with 'waraps-conformance record' "
+                f"or mosquitto_sub -F %j to have them judged.")
         if self.unprintable:
             self.notes.append(
                 f"{self.unprintable} message(s) are missing from this mosquitto_sub -F %J "
@@ -265,18 +323,43 @@ class RecordingReader:
                 f"'waraps-conformance record' to have them judged.")
 
     @staticmethod
-    def _loads_not_utf8(line: bytes) -> Any:
+    def _verbose(line: bytes) -> Message | None:
+        """A ``mosquitto_sub -v`` line (``TOPIC PAYLOAD``) as a message read now, else None."""
+        m = _VERBOSE.match(line)
+        if m is None:
+            return None
+        try:
+            topic = m[1].decode("utf-8")  # a topic is UTF-8 text (MQTT 3.1.1, 1.5.3)
+        except UnicodeDecodeError:
+            return None
+        # mosquitto_sub 2.0 prints an empty payload (a retained message cleared) as "(null)"
+        return Message(time.time(), topic, b"" if m[2] == b"(null)" else m[2])
+
+    @staticmethod
+    def _loads_not_utf8(line: bytes, strict: bool = True) -> Any:
         """mosquitto_sub -F %j copies non-UTF-8 payload bytes into the line as they are; read
-        them back as surrogate escapes, so the payload's bytes are recovered exactly."""
+        them back as surrogate escapes, so the payload's bytes are recovered exactly.
+        ``strict`` False: valid UTF-8 too (a first line after its byte order mark)."""
         try:
             line.decode("utf-8")
-            return None  # valid UTF-8: the line is simply not JSON
+            if strict:
+                return None  # valid UTF-8: the line is simply not JSON
         except UnicodeDecodeError:
             pass
         try:
-            return json.loads(line.decode("utf-8", "surrogateescape"))
+            obj = json.loads(line.decode("utf-8", "surrogateescape"))
         except (ValueError, RecursionError):
             return None
+        if type(obj) is dict:
+            if type(obj.get("topic")) is str:
+                obj["topic"] = _utf8(obj["topic"])
+            payload = obj.get("payload")
+            if type(payload) is str:  # the bytes of the line, or a lone surrogate: not a payload
+                try:
+                    payload.encode("utf-8", "surrogateescape")
+                except UnicodeEncodeError:
+                    return None
+        return obj
 
     def _item(self, obj: Any) -> Message | Event:
         """One line's object as a message or event; ValueError says what is wrong."""
@@ -294,6 +377,7 @@ class RecordingReader:
         ts = obj["ts"]
         if isinstance(ts, bool) or not isinstance(ts, (int, float)) or ts != ts:
             raise ValueError(f"'ts' is {ts!r}, not a receive time in Unix seconds")
+        check_time(ts)
         if "event" in obj and "topic" not in obj:
             kind = obj["event"]
             if kind not in EVENT_KINDS:
@@ -301,10 +385,11 @@ class RecordingReader:
             count = obj.get("count", 0)
             if isinstance(count, bool) or not isinstance(count, int) or count < 0:
                 raise ValueError(f"event count {count!r} is not a non-negative whole number")
-            return Event(float(ts), kind, str(obj.get("detail", "")), count)
+            return Event(float(ts), kind, _utf8(str(obj.get("detail", ""))), count)
         topic = obj.get("topic")
         if not isinstance(topic, str):
             raise ValueError("'topic' is missing or not a string")
+        topic = _utf8(topic)
         if isinstance(obj.get("payload"), str):
             payload = obj["payload"].encode("utf-8", "surrogateescape")
         elif isinstance(obj.get("payload_b64"), str):
@@ -325,13 +410,17 @@ class RecordingReader:
         tst = obj["tst"]
         if not isinstance(tst, str):
             raise ValueError(f"'tst' is {tst!r}, not an ISO 8601 time")
-        ts = parse_tst(tst)
+        ts = check_time(parse_tst(tst), "tst")
         topic = obj.get("topic")
         if not isinstance(topic, str):
             raise ValueError("'topic' is missing or not a string")
+        topic = _utf8(topic)
         length = obj.get("payloadlen")
         if isinstance(length, bool) or not isinstance(length, int) or length < 0:
             raise ValueError(f"'payloadlen' is {length!r}, not a byte count")
+        if length > MAX_PAYLOAD_BYTES:  # declared: nothing of that size is allocated
+            raise ValueError(f"'payloadlen' {length} is over the {MAX_PAYLOAD_BYTES >> 20} MiB "
+                             f"a recorded payload may take; skipped")
         if "payload" not in obj:
             raise ValueError("'payload' is missing")
         value = obj["payload"]
@@ -370,6 +459,29 @@ class RecordingReader:
         if qos not in (0, 1, 2) or isinstance(qos, bool):
             raise ValueError(f"'qos' is {qos!r}, not 0, 1 or 2")
         return Message(ts, topic, payload, int(qos), bool(retain))
+
+
+def _utf8(text: str) -> str:
+    """``text`` as UTF-8 can carry it: bytes that were not UTF-8 in the line (surrogate escapes)
+    or lone surrogates shown as backslash escapes, which the topic rules then judge (TOPIC-008)
+    and every report can write."""
+    try:
+        text.encode("utf-8")
+        return text
+    except UnicodeEncodeError:
+        return text.encode("utf-8", "backslashreplace").decode("utf-8")
+
+
+def _not_json(e: Exception, line: bytes, number: int) -> str:
+    if "recursion" in str(e).lower() or "depth" in str(e).lower():
+        return f"not JSON: nested deeper than the {MAX_NESTING} levels a line may take"
+    if _VERBOSE.match(line):
+        return ("a mosquitto_sub -v line (TOPIC PAYLOAD) among lines with times: not read "
+                "(a capture is one format)")
+    if number == 1 and line.startswith(_UTF16_BOMS):
+        return ("not JSON: the file is UTF-16 (it starts with a UTF-16 byte order mark); a "
+                "recording is UTF-8: convert it with 'iconv -f UTF-16 -t UTF-8'")
+    return f"not JSON ({e})"
 
 
 def open_recording(source: str, stdin: IO[bytes] | None = None) -> tuple[IO[bytes], str]:

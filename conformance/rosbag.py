@@ -56,6 +56,8 @@ SENSOR_TYPES = {  # 7.1 mandatory, 7.2 optional
 }
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
+MAX_DIR_ENTRIES = 1000
+"""Entries of a ROS 2 bag directory looked at before opening it."""
 MAX_LISTED = 8
 """Topics named in a note or an error before '... and N more'."""
 
@@ -89,7 +91,7 @@ def is_bag(source: str) -> bool:
         return False
     path = Path(source)
     if path.is_dir() or path.suffix in (".bag", ".db3", ".mcap"):
-        return True
+        return True  # BagReader refuses what is not a regular file (a FIFO would block)
     if path.is_file():  # not a FIFO: reading its head must not block
         try:
             with path.open("rb") as f:
@@ -155,6 +157,11 @@ class BagReader:
         if not path.exists():
             raise BagError(f"{path}: no such file or directory (pass a ROS 1 .bag file, a ROS 2 "
                            f"bag directory holding metadata.yaml, or a JSON Lines recording)")
+        for part in ([path] if not path.is_dir() else sorted(path.iterdir())[:MAX_DIR_ENTRIES]):
+            if not part.is_dir() and not part.is_file():  # rosbags seeks: a FIFO would block
+                raise BagError(f"{part} is not a regular file (a FIFO, a socket or a device), "
+                               f"and a bag is read by seeking in it. Fix: copy it to a file "
+                               f"first; a recording can be piped into '--from -'")
         if self.ros2 and path.is_dir() and not (path / "metadata.yaml").is_file():
             stores = sorted(p.name for p in path.iterdir() if p.suffix in (".db3", ".mcap"))
             if stores:
@@ -209,6 +216,14 @@ class BagReader:
         self.undecodable = self.not_topic_msg = 0  # counted again by the main pass
         self._attribute(routes)
         linted = [c for c in reader.connections if routes.get(c.id, _SKIP).deserialize]
+        indexed = sum(c.msgcount for c in linted)
+        total = getattr(reader, "message_count", None)
+        if total is not None and total != sum(c.msgcount for c in reader.connections):
+            raise BagError(
+                f"{self.path}: the bag's own counts disagree ({total} messages in all, "
+                f"{sum(c.msgcount for c in reader.connections)} over its topics): its index "
+                f"or metadata.yaml is damaged, so nothing was judged. Fix: reindex it "
+                f"('rosbag reindex' / 'ros2 bag reindex') or record it again")
         last = 0.0
         try:
             for conn, stamp, raw in reader.messages(connections=linted):
@@ -223,6 +238,14 @@ class BagReader:
                     yield from item
         except Exception as e:  # a damaged chunk or database page in the middle of the bag
             raise self._damaged(e) from None
+        if self.read != indexed:  # read whole or refused: never a verdict on part of a bag
+            own = ("metadata.yaml" if self.ros2 and self.path.is_dir()
+                   else "its index" if not self.ros2 else "its own message count")
+            raise BagError(
+                f"{self.path}: {own} says the bag holds {indexed} messages on the topics "
+                f"linted, but {self.read} could be read (the bag is damaged or cut off), so "
+                f"nothing was judged. Fix: reindex it ('rosbag reindex' / 'ros2 bag reindex') "
+                f"or record it again")
         if self.not_topic_msg:
             self.notes.append(f"{self.not_topic_msg} /heartbeat_info message(s) were not linted: "
                               f"they have no string fields 'topic' and 'msg' (ROS-003)")

@@ -22,6 +22,7 @@ from typing import Any
 
 import orjson
 
+from conformance import bounds
 from conformance.checks.base import (
     AT_FINISH,
     ON_KIND,
@@ -50,11 +51,14 @@ from conformance.topics import TST_EXECUTION, TopicKind, UnitAddress, parse_topi
 from conformance.validator import Examined, Validation, Validator
 from conformance.violation import Verdict, Violation
 
-MAX_UNITS = 4096
-"""Units tracked at once; messages of further units are counted as unexamined."""
-MAX_TOPICS = 65536
+MAX_UNITS = bounds.MAX_UNITS
+"""Units tracked at once; messages of further units are counted as unexamined, and lint fails
+on them (``not_judged``)."""
+MAX_NAMED_OVER_CAP = 8
+"""Units past MAX_UNITS named when the run says what it did not judge."""
+MAX_TOPICS = bounds.MAX_TOPICS_CACHED
 """Topics whose unit is cached; further ones are looked up each time (still correct)."""
-MAX_COMMANDERS = 256
+MAX_COMMANDERS = bounds.MAX_COMMANDERS
 """Commanders with a row of their own; the commands of further ones share one row."""
 MAX_SENDER = 64
 _SENDER = re.compile(rb'"sender"\s*:\s*"([^"\\]{1,64})"')
@@ -153,6 +157,8 @@ class Monitor:
         self._examined = Shapes(self.validator).examined
         """What the validator examined on a message, asked once per shape (``shapes.py``)."""
         self._unexamined = 0
+        self._over = 0
+        self._over_units: list[str] = []
         self._latest = float("-inf")
         """The latest arrival time fed (-inf before the first message)."""
         self._validate = self.validator.validate
@@ -175,6 +181,7 @@ class Monitor:
             return []
         if entry is _OVERFLOW:
             self._unexamined += 1
+            self._over_cap(topic)
             return []
         t = message.time
         v = self._validate(topic, message.payload, t)
@@ -370,6 +377,18 @@ class Monitor:
     def unexamined(self, count: int) -> None:
         """``count`` messages the observer could not examine (dropped, queue overflow)."""
         self._unexamined += int(count)
+
+    def _over_cap(self, topic: str) -> None:
+        self._over += 1
+        if len(self._over_units) < MAX_NAMED_OVER_CAP:
+            unit = parse_topic(topic).unit
+            if unit is not None and str(unit) not in self._over_units:
+                self._over_units.append(str(unit))
+
+    def not_judged(self) -> tuple[int, list[str]]:
+        """Messages of units past ``MAX_UNITS`` that were not judged, and the first units they
+        name (at most ``MAX_NAMED_OVER_CAP``): lint fails on them, never passes (issue 19)."""
+        return self._over, list(self._over_units)
 
     def finish(self, now: float | None = None) -> None:
         """End-of-run judgements at ``now`` (Unix seconds; default: the latest arrival time

@@ -4,9 +4,11 @@
     waraps-conformance lint --from field-test.jsonl
     waraps-conformance lint --from run.bag --ros-unit waraps/unit/ground/real/husky0
     mosquitto_sub -t 'waraps/#' -F %j | waraps-conformance lint --from -
+    mosquitto_sub -t 'waraps/#' -v > capture.txt; waraps-conformance lint --from capture.txt
 
 Live, it subscribes read-only (its client may publish nowhere) and shows a per-unit scorecard;
-recorded, it judges the messages at their recorded times. Either way it ends with JSON, HTML
+recorded, it judges the messages at their recorded times (a ``-v`` capture has none: the rules
+that need them are could-not-test), every input within the bounds of ``conformance.bounds``. Either way it ends with JSON, HTML
 and JUnit reports and exits non-zero when a unit fails a rule of severity error. The run
 itself is ``conformance.lint.runner.lint``.
 """
@@ -18,6 +20,7 @@ import sys
 from pathlib import Path
 from typing import IO
 
+from conformance.bounds import bounds_help
 from conformance.cli import options as opts
 from conformance.lint import EXIT_USAGE
 from conformance.lint.runner import GATES, REPORT_FORMATS, lint
@@ -29,16 +32,19 @@ def build_parser() -> argparse.ArgumentParser:
         "Lint the traffic of a whole fleet, live (read-only: it never publishes) "
                     "or from a recording, and report a verdict per unit and rule.",
         "Exit status: 0 no unit or commander fails a rule of severity error (with "
-               "--gate units: no unit), 1 one does, 2 bad usage, 3 nothing could be linted "
-               "(no broker, no messages). What is wrong in a command is its commander's "
+               "--gate units: no unit), 1 one does (or units past the bound were not judged), "
+               "2 bad usage, 3 nothing could be linted (no broker, no messages, a ROS bag "
+               "that cannot be read whole). What is wrong in a command is its commander's "
                "fault: commanders (by the command's 'sender', else 'of UNIT') have rows of "
-               "their own.")
+               "their own. " + bounds_help())
     src = p.add_argument_group("recorded traffic")
     src.add_argument("--from", dest="source", metavar="FILE",
                      help="a recording: JSON Lines as 'waraps-conformance record' writes, or "
-                          "'mosquitto_sub -F %%j' / '-F %%J' output; '-' reads standard input; "
-                          "or a ROS bag: a ROS 1 .bag file, a ROS 2 bag directory (sqlite3 or "
-                          "MCAP)")
+                          "'mosquitto_sub -F %%j' / '-F %%J' / '-v' output (told from the "
+                          "content; -v has no times: the rules on rates, silences, stamps and "
+                          "deadlines are could-not-test); '-' reads standard input; or a ROS "
+                          "bag: a ROS 1 .bag file, a ROS 2 bag directory (sqlite3 or MCAP), "
+                          "read whole or refused")
     src.add_argument("--ros-unit", metavar="ADDRESS",
                      help="the unit address of a ROS bag's namespaced topics when no "
                           "/heartbeat_info TopicMsg names it, e.g. waraps/unit/ground/real/husky0")

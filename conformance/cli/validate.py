@@ -10,7 +10,8 @@ tree (the ``tst`` node object); every problem of the tree is listed with its JSO
 file (schemas, task parameters, structure: TST-001, TASK-*, TST-014, ERR-*).
 
 Exit code: 0 when nothing fails under the profile (warnings allowed), 1 when a rule fails,
-2 for a usage error (also a topic it cannot place: it says which forms it accepts).
+2 for a usage error (also a topic it cannot place: it says which forms it accepts, and an input
+past ``bounds.MAX_VALIDATE_BYTES``: an endless stream such as /dev/zero is not read forever).
 """
 
 from __future__ import annotations
@@ -20,8 +21,10 @@ import json
 import sys
 import time as time_module
 from pathlib import Path
+from typing import Any
 
 from conformance import profile as profile_module
+from conformance.bounds import MAX_VALIDATE_BYTES, bounds_help
 from conformance.cli import options as opts
 from conformance.explanation import overall_verdict, render, to_dict, unplaceable, validate_tst
 from conformance.validator import Validator
@@ -35,7 +38,8 @@ or microseconds, or a clock that never synchronised, fails MSG-005."""
 
 def main(argv: list[str] | None = None) -> int:
     parser = opts.parser("validate",
-                         "Validate one WARA-PS message: print its kind and every violation.")
+                         "Validate one WARA-PS message: print its kind and every violation.",
+                         bounds_help(validate=True))
     parser.add_argument("topic", nargs="?", default=None,
                         help="the MQTT topic, e.g. waraps/unit/air/simulation/dji0/heartbeat "
                              "(not with --tst)")
@@ -66,10 +70,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"waraps-conformance validate: {e}", file=sys.stderr)
         return 2
     try:
-        payload = sys.stdin.buffer.read() if args.file == "-" else Path(args.file).read_bytes()
+        payload = read_bounded(args.file)
     except OSError as e:
         print(f"waraps-conformance validate: cannot read {args.file}: {e.strerror}",
               file=sys.stderr)
+        return 2
+    except ValueError as e:
+        print(f"waraps-conformance validate: {e}", file=sys.stderr)
         return 2
     arrival = time_module.time() if args.now else args.time
     notes: list[str] = []
@@ -97,3 +104,32 @@ def main(argv: list[str] | None = None) -> int:
         for note in notes:
             print(f"note      {note}")
     return 1 if overall_verdict(validation, profile) is Verdict.FAIL else 0
+
+
+def read_bounded(name: str, limit: int = MAX_VALIDATE_BYTES) -> bytes:
+    """The bytes of file ``name`` (``-``: standard input), at most ``limit``: ValueError past
+    it, so an endless stream (/dev/zero) is refused after ``limit`` + 1 bytes, never read to
+    the end of memory. A directory is an OSError (IsADirectoryError)."""
+    if name == "-":
+        data = _read_at_most(sys.stdin.buffer, limit)
+    else:
+        with Path(name).open("rb") as f:
+            data = _read_at_most(f, limit)
+    if data is not None:
+        return data
+    where = "standard input" if name == "-" else name
+    raise ValueError(f"{where} holds more than the {limit >> 20} MiB validate reads (one message "
+                     f"is examined up to 1 MiB, MSG-004); pass a file holding one message")
+
+
+def _read_at_most(f: Any, limit: int) -> bytes | None:
+    """All of ``f`` if it holds at most ``limit`` bytes, else None (``limit`` + 1 read)."""
+    chunks: list[bytes] = []
+    size = 0
+    while size <= limit:
+        chunk = f.read(min(1 << 20, limit + 1 - size))
+        if not chunk:
+            return b"".join(chunks)
+        chunks.append(chunk)
+        size += len(chunk)
+    return None

@@ -62,6 +62,8 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
             reader, end = run_recorded(linter, scorecard, stream, name, options)
         meta = {"source": name, "recording_lines": str(reader.lines),
                 "recording_formats": ", ".join(sorted(reader.formats))}
+        print(f"read {name} as {', '.join(sorted(reader.formats)) or 'no known format'}"
+              f" ({reader.messages} messages)", file=out)
         if reader.problem_count:
             meta["recording_problems"] = str(reader.problem_count)
             meta["recording_problem_lines"] = "; ".join(str(p) for p in reader.problems[:20])
@@ -102,12 +104,19 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
         for problem in problems:
             print(f"malformed {problem}", file=out)
         print("waraps-conformance lint: no messages were read, so nothing was judged"
-              + (f" ({problem_count} malformed lines)" if problem_count else ""), file=err)
+              + (f" ({problem_count} malformed lines; the formats read are JSON Lines as "
+                 f"'waraps-conformance record' writes, mosquitto_sub -F %j, -F %J and -v "
+                 f"output, and ROS bags)" if problem_count else ""), file=err)
         return EXIT_NOT_RUN
 
+    over, over_units = monitor.not_judged()
+    if over:
+        meta["not_judged"] = _not_judged(over, over_units)
     report = _report(monitor, linter, kind_meta=meta, broker=broker,
                      started=started if not source else (linter.first_time or started),
                      finished=end)
+    if untimed(linter):
+        not_judged_untimed(report)
     scorecard.final(linter, report)
     for problem in problems:
         print(f"malformed {problem}", file=out)
@@ -133,10 +142,42 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
     failing = sorted(u for u, rep in report.units.items() if rep.worst().value == "fail"
                      and (gate == "all" or rep.party == "unit"))
     gated = "no unit or commander" if gate == "all" else "no unit"
-    print(("FAIL: " + ", ".join(failing)) if failing else f"PASS: {gated} fails a rule of "
-          "severity error", file=out)
+    if failing or not over:
+        print(("FAIL: " + ", ".join(failing)) if failing else f"PASS: {gated} fails a rule of "
+              "severity error", file=out)
+    if over:  # past the bound: never a pass (issue 19)
+        print(f"FAIL: {meta['not_judged']}", file=out)
     out.flush()
-    return EXIT_FAIL if code else EXIT_PASS
+    return EXIT_FAIL if code or over else EXIT_PASS
+
+
+def _not_judged(over: int, units: list[str]) -> str:
+    from conformance.bounds import MAX_UNITS
+
+    return (f"not judged: {over} messages of units past the {MAX_UNITS} units lint judges at "
+            f"once ({', '.join(units)}{' and more' if len(units) >= 8 else ''}); lint them "
+            f"apart with --unit ADDRESS or --topic FILTER")
+
+
+def untimed(linter: Any) -> bool:
+    """Whether the traffic had no recorded times (``recording.UNTIMED``)."""
+    return bool(getattr(linter.monitor, "untimed", False))
+
+
+def not_judged_untimed(report: Any) -> None:
+    """The rules that need arrival times become could-not-test on every unit's row: a
+    capture without times (mosquitto_sub -v) neither passes nor fails them (issue 20)."""
+    from conformance.recording import UNTIMED_REASON, UNTIMED_RULES
+    from conformance.violation import RuleResult, Verdict
+
+    for rep in report.units.values():
+        for rule in UNTIMED_RULES:
+            if rule in rep.rules:
+                rep.rules[rule] = RuleResult(rule, Verdict.COULD_NOT_TEST, UNTIMED_REASON)
+                rep.violation_counts.pop(rule, None)
+                rep.violation_times.pop(rule, None)
+                rep.examined.pop(rule, None)
+        rep.rates = []
 
 
 MAX_FAILURES_SHOWN = 10
@@ -216,7 +257,7 @@ def feed_recorded(linter: Any, scorecard: Any, items: Any, options: Any) -> floa
     message or Ctrl-C: messages (of the ``--unit``s), capture events, and ROS findings
     (``rosbag.Finding``). Returns the time of the last capture event, if any."""
     from conformance.message import Message
-    from conformance.recording import Event
+    from conformance.recording import UNTIMED, Event
 
     units = set(options.units)
     wants = options.wants if units else None
@@ -234,6 +275,10 @@ def feed_recorded(linter: Any, scorecard: Any, items: Any, options: Any) -> floa
                 if wants is None or wants(item.topic):
                     feed(item)
             elif type(item) is Event:
+                if item.kind == UNTIMED:
+                    linter.monitor = _Untimed(linter.monitor)
+                    feed = linter.feed_one
+                    continue
                 linter.event(item)
                 last_event = item.time
             elif not units or item.unit in units:  # a ROS finding
@@ -244,6 +289,29 @@ def feed_recorded(linter: Any, scorecard: Any, items: Any, options: Any) -> floa
     except KeyboardInterrupt:
         pass
     return last_event
+
+
+class _Untimed:
+    """The Monitor of traffic without recorded times: what it finds on the rules that need
+    them is not shown while feeding (``not_judged_untimed`` turns them could-not-test)."""
+
+    untimed = True
+
+    def __init__(self, monitor: Any) -> None:
+        from conformance.recording import UNTIMED_RULES
+
+        self._monitor = monitor
+        self._rules = frozenset(UNTIMED_RULES)
+
+    def feed(self, message: Any) -> list[Any]:
+        found = self._monitor.feed(message)
+        return [v for v in found if v.rule not in self._rules] if found else found
+
+    def live_findings(self, unit: Any) -> list[Any]:
+        return [v for v in self._monitor.live_findings(unit) if v.rule not in self._rules]
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._monitor, name)
 
 
 def _unexamined(t: float, n: int) -> Any:

@@ -19,6 +19,8 @@ from conformance.client import BrokerURL, Message, MqttClient
 from conformance.recording import (
     FORMAT_MOSQUITTO_J,
     FORMAT_MOSQUITTO_JJ,
+    FORMAT_MOSQUITTO_V,
+    UNTIMED,
     Event,
     RecordingReader,
     RecordingWriter,
@@ -153,7 +155,8 @@ def capture_mosquitto_sub(fmt: str, prefix: str, publisher: MqttClient) -> bytes
     exe = shutil.which("mosquitto_sub")
     if exe is None:
         pytest.skip("mosquitto_sub is not installed")
-    proc = subprocess.Popen([exe, "-h", "127.0.0.1", "-p", "1883", "-t", f"{prefix}/#", "-F", fmt],
+    form = ["-v"] if fmt == "-v" else ["-F", fmt]
+    proc = subprocess.Popen([exe, "-h", "127.0.0.1", "-p", "1883", "-t", f"{prefix}/#", *form],
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     lines: queue.Queue[bytes] = queue.Queue()
     threading.Thread(target=lambda: [lines.put(ln) for ln in proc.stdout], daemon=True).start()  # type: ignore[union-attr]
@@ -207,6 +210,29 @@ def test_mosquitto_sub_big_j_format_reserialises_and_loses_non_json(prefix: str,
     assert not lost & set(got)
     assert reader.unprintable == len(lost)
     assert any("missing from this mosquitto_sub -F %J recording" in n for n in reader.notes)
+
+
+@pytest.mark.mosquitto
+def test_mosquitto_sub_v_format_is_told_from_its_content(prefix: str,
+                                                         publisher: MqttClient) -> None:
+    """Issue 20 §4: TOPIC PAYLOAD per line, no times; read as messages of the time they were
+    read, after an UNTIMED event (the rules that need times are not judged). A payload with a
+    newline is cut there by the format itself: its continuation is a problem of its line."""
+    data = capture_mosquitto_sub("-v", prefix, publisher)
+    before = time.time()
+    items, reader = read(data)
+    assert reader.formats == {FORMAT_MOSQUITTO_V}
+    assert isinstance(items[0], Event) and items[0].kind == UNTIMED
+    got = {m.topic.rsplit("/", 1)[1]: m.payload for m in items if isinstance(m, Message)}
+    for name, payload in SAMPLES:
+        if name == "nul":  # mosquitto_sub -v prints up to the NUL (the rest is lost)
+            assert got[name].startswith(b'{"a": 1}'), got[name]
+        elif name == "control":  # the newline ends the line
+            assert got[name] == payload.split(b"\n")[0]
+        else:
+            assert got[name] == payload, name  # "(null)" read back as the empty payload
+    assert all(before <= m.time <= time.time() for m in items)
+    assert reader.problem_count == 1 and reader.problems[0].text == "z"
 
 
 @pytest.mark.mosquitto

@@ -1,0 +1,53 @@
+"""The bounds of every input the tool reads (issue 19 §1): one place, named in the errors, in
+``--help`` (``bounds_help``) and in the README's "Bounds" table.
+
+A bound is never a silent cut: what lies past it is a finding on that line (a recording), a
+refusal that names the bound (``validate``, a bag), or a failing finding that names what was
+not judged (units past the fleet cap), never a pass.
+"""
+
+from __future__ import annotations
+
+MAX_LINE_BYTES = 64 << 20
+"""A recording line longer than this is skipped as a problem of that line (a message is at
+most 1 MiB examined, MSG-004; a base64 or escaped 10 MB payload still fits)."""
+MAX_PAYLOAD_BYTES = MAX_LINE_BYTES
+"""A payload as received (inside a line) or as declared (``mosquitto_sub -F %j``'s
+``payloadlen``) larger than this is a problem of its line: nothing of that size is allocated."""
+MAX_NESTING = 1024
+"""JSON nesting of a recording line (orjson's own limit; deeper is a problem of the line). A
+payload deeper than 64 levels is MSG-004's violation (``validator.MAX_DEPTH``)."""
+MIN_TIME = 0.0
+MAX_TIME = 4_102_444_800.0
+"""Recorded times (Unix seconds) from 1970-01-01 to 2100-01-01; a time outside is a problem
+of its line (1e17 or 1e308 overflow every date conversion), and the run goes on."""
+MAX_VALIDATE_BYTES = 16 << 20
+"""What ``validate`` reads of a file or standard input; past it (``/dev/zero``) it stops and
+says so (a message is examined up to 1 MiB, MSG-004)."""
+MAX_UNITS = 4096
+"""Units judged at once by lint (``checks.monitor.MAX_UNITS``); the messages of further units
+are not judged, and the run fails naming them."""
+MAX_TOPICS_CACHED = 65536
+"""Topics whose route is cached; further topics are still judged (looked up each time)."""
+MAX_COMMANDERS = 256
+"""Commanders with a row of their own; the commands of further ones share one row."""
+
+
+def _size(n: int) -> str:
+    return f"{n >> 20} MiB" if n >= 1 << 20 and not n & ((1 << 20) - 1) else f"{n} bytes"
+
+
+def bounds_help(*, validate: bool = False) -> str:
+    """The bounds as one paragraph for ``--help``."""
+    if validate:
+        return (f"Bounds: at most {_size(MAX_VALIDATE_BYTES)} are read (more is refused, exit "
+                f"2); a payload is examined up to 1 MiB and 64 levels of nesting (MSG-004).")
+    return (f"Bounds: a recording line up to {_size(MAX_LINE_BYTES)}; a payload as received and "
+            f"as declared (payloadlen) up to {_size(MAX_PAYLOAD_BYTES)}; JSON nesting of a line "
+            f"up to {MAX_NESTING} levels (of a payload 64, MSG-004); times from 1970 to 2100 "
+            f"({MIN_TIME:.0f}..{MAX_TIME:.0f} Unix seconds). A line past a bound is reported "
+            f"as malformed and the run goes on. At most {MAX_UNITS} units are judged (past "
+            f"that the run fails, naming what was not judged: narrow it with --unit or "
+            f"--topic); {MAX_COMMANDERS} commanders have rows of their own; any number of topics "
+            f"(the first {MAX_TOPICS_CACHED} cached); a ROS bag is read whole or refused "
+            f"(exit 3).")
