@@ -122,7 +122,7 @@ def _heartbeat(stamp: object) -> bytes:
     (time.time() * 1e6, 1, "looks like microseconds"),
     (12.0, 1, "behind the arrival time"),                # a clock left at 1970
     (time.time() - 3 * 86400, 0, None),                  # a recording from last week: plausible
-])
+], ids=["milliseconds", "microseconds", "1970", "last-week"])  # (ids: the same in each worker)
 def test_validate_without_an_arrival_time_judges_the_stamp_for_plausibility_and_says_so(
         tmp_path: Path, capsys: pytest.CaptureFixture[str], stamp: float, code: int,
         finding: str | None) -> None:
