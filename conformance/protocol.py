@@ -87,6 +87,8 @@ SIGNAL_EFFECT: dict[str, tuple[str, State]] = {
     "$pause": ("paused", State.PAUSED), "$continue": ("running", State.RUNNING)}
 """12.2.2: the feedback a signal answered 'ok' implies, and the state it leads to."""
 STOP_SIGNALS = ("$abort", "$enough")
+"""The signals that end a task (12.2.2); after an 'ok' to $abort nothing may run it on
+(EXEC-SEQ-001), $enough lets it wind down its own way until 'finished' (EXEC-SIG-004)."""
 QUERY_ANSWERS: dict[State, frozenset[str]] = {
     State.RUNNING: frozenset({"running"}),
     State.PAUSED: frozenset({"running", "paused"}),
@@ -220,8 +222,8 @@ class Model:
         self.tasks: OrderedDict[str, TaskRecord] = OrderedDict()
         self.commands: OrderedDict[str, Command] = OrderedDict()
         self.answered: OrderedDict[str, tuple[str | None, str | None]] = OrderedDict()
-        self.started_at: OrderedDict[str, float] = OrderedDict()
-        """com-uuid -> when a start-task was answered 'running' (pre-emption, EXEC-SEQ-002)."""
+        self.sent_at: OrderedDict[str, float] = OrderedDict()
+        """com-uuid -> when the command last arrived (what may explain a change, EXEC-SEQ-002)."""
         self.life: str | None = None
 
     # --- what the explorer asks ---------------------------------------------------------------
@@ -362,7 +364,7 @@ class Model:
             self.tasks.clear()
             self.commands.clear()
             self.answered.clear()
-            self.started_at.clear()
+            self.sent_at.clear()
         self.life = agent
 
     def command(self, cmd: Command, t: float) -> None:
@@ -370,6 +372,7 @@ class Model:
         if before is not None and before.content != cmd.content:
             self.answered.pop(cmd.com_uuid, None)  # another command (EXEC-008, commander's)
         _put(self.commands, cmd.com_uuid, cmd, COMMANDS_KEPT)
+        _put(self.sent_at, cmd.com_uuid, t, COMMANDS_KEPT)
 
     def response(self, m: Any, t: float) -> None:
         to = _str(m, "response-to")
@@ -390,7 +393,6 @@ class Model:
                     self._remember(TaskRecord(uuid, cmd.task_name, State.RUNNING, to))
                 else:  # its feedback came first
                     task.name, task.started_by = task.name or cmd.task_name, to
-                _put(self.started_at, to, t, COMMANDS_KEPT)
             elif value == "failed" and task is None:
                 self._remember(TaskRecord(uuid, cmd.task_name, State.FAILED, to, refused=True,
                                           ended_at=t))
@@ -441,10 +443,10 @@ class Model:
     # --- the sequence rules -------------------------------------------------------------------
     def _keeps_running(self, task: TaskRecord, status: str, previous: str | None,
                        t: float) -> list[Finding]:
-        """EXEC-SEQ-001 (12.2.2): once $abort or $enough is answered 'ok' the task stops. It
-        says 'running' again (from 'paused', or still, a response timeout after the answer):
-        it went on. One in-flight 'running' right after the answer is no evidence."""
-        stop = task.acked_since(float("-inf"), STOP_SIGNALS)
+        """EXEC-SEQ-001 (12.2.2): once $abort is answered 'ok' the task stops. It says
+        'running' again (from 'paused', or still, a response timeout after the answer): it
+        went on. One in-flight 'running' right after the answer is no evidence."""
+        stop = task.acked_since(float("-inf"), ("$abort",))
         if stop is None or status != "running":
             return []
         when, signal, com = stop
@@ -460,19 +462,26 @@ class Model:
                             t: float) -> list[Finding]:
         """EXEC-SEQ-002 (12.2.2): a signal names one task-uuid and changes only that task.
         A task says what another task's signal asked for ('paused' for $pause, 'running' again
-        after 'paused' for $continue, 'aborted' for $abort), within the feedback timeout of
-        that signal's 'ok', with no such signal of its own (and, for 'aborted', no start-task
-        in between that may have pre-empted it)."""
+        after 'paused' for $continue, 'aborted' for $abort), within the response timeout of
+        that signal's 'ok', with no such signal sent to it in that time (answered or not), and,
+        for 'aborted', no start-task or $continue in that time (either may pre-empt it)."""
         wanted = {"paused": "$pause", "aborted": "$abort"}.get(status)
         if status == "running" and previous == "paused":
             wanted = "$continue"
         if wanted is None:
             return []
-        since = t - self.feedback_timeout
-        if task.acked_since(since, (wanted,)) is not None:
-            return []
-        if wanted == "$abort" and any(s >= since for s in self.started_at.values()):
-            return []
+        since = t - self.response_timeout
+        for com, sent in reversed(self.sent_at.items()):
+            if sent < since:
+                break
+            cmd = self.commands.get(com)
+            if cmd is None:
+                continue
+            if cmd.name == "signal-task" and cmd.signal == wanted \
+                    and cmd.task_uuid == task.task_uuid:
+                return []  # its own (perhaps answered after its feedback)
+            if wanted == "$abort" and (cmd.name == "start-task" or cmd.signal == "$continue"):
+                return []  # pre-empted: a second task may end the first (EXEC-START-003)
         for other in self.tasks.values():
             if other is task:
                 continue
