@@ -15,7 +15,8 @@ Public API (stable):
 - ``State``: ``UNKNOWN`` (never seen), ``RUNNING``, ``PAUSED``, ``FINISHED``, ``ABORTED``,
   ``FAILED``; ``.live``, ``.ended``.
 - ``Command``: one command (``com_uuid``, ``name``, ``task_uuid``, ``signal``, ``task_name``,
-  ``content``); ``Command.read(payload)`` from JSON bytes or a dict (None if no com-uuid).
+  ``content``: a digest); ``Command.read(payload)`` from JSON bytes or a dict (None if no
+  com-uuid).
 - ``Model(whole_life=False, response_timeout=5.0, feedback_timeout=10.0)``:
   ``whole_life`` says the observer saw every command of the unit's current life (the suite,
   which commands it; lint of a recording cannot know that).
@@ -42,6 +43,7 @@ Public API (stable):
 from __future__ import annotations
 
 import enum
+import hashlib
 from collections import OrderedDict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -107,8 +109,9 @@ never ran); the spec does not say which (docs/MODEL.md)."""
 
 @dataclass(frozen=True)
 class Command:
-    """One command on exec/command. ``content``: its canonical JSON (a resend is the same
-    content under the same com-uuid, 12.1)."""
+    """One command on exec/command. ``content`` identifies its content: a 16-byte digest of
+    its canonical JSON (a resend is the same content under the same com-uuid, 12.1; a command
+    may be 1 MiB, and thousands are kept)."""
 
     com_uuid: str
     name: str
@@ -133,8 +136,10 @@ class Command:
             return None
         name = _str(m, "command") or "(malformed)"
         task = m.get("task")
-        return cls(com, name, _str(m, "task-uuid"), _str(m, "signal"),
-                   _str(task, "name"), orjson.dumps(dict(m), option=orjson.OPT_SORT_KEYS))
+        content = hashlib.blake2b(orjson.dumps(dict(m), option=orjson.OPT_SORT_KEYS),
+                                  digest_size=16).digest()
+        return cls(com, name, _str(m, "task-uuid"), _str(m, "signal"), _str(task, "name"),
+                   content)
 
 
 @dataclass(frozen=True)
