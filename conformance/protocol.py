@@ -52,7 +52,7 @@ from typing import Any
 import orjson
 
 from conformance.message import Message
-from conformance.status import meaning
+from conformance.status import FINAL_STATUSES, meaning
 
 BUILTIN_SIGNALS = ("$abort", "$continue", "$enough", "$pause")
 """12.2.2: 'The buildtin signals are $enough, $pause, $continue and $abort.'"""
@@ -83,7 +83,7 @@ class State(str, enum.Enum):
         return self in (State.FINISHED, State.ABORTED, State.FAILED)
 
 
-FINAL = {"finished": State.FINISHED, "aborted": State.ABORTED, "failed": State.FAILED}
+FINAL = {status: State(status) for status in FINAL_STATUSES}  # 12.4: finished, failed, aborted
 SIGNAL_EFFECT: dict[str, tuple[str, State]] = {
     "$abort": ("aborted", State.ABORTED), "$enough": ("finished", State.FINISHED),
     "$pause": ("paused", State.PAUSED), "$continue": ("running", State.RUNNING)}
@@ -230,6 +230,8 @@ class Model:
         self.sent_at: OrderedDict[str, float] = OrderedDict()
         """com-uuid -> when the command last arrived (what may explain a change, EXEC-SEQ-002)."""
         self.life: str | None = None
+        self._live: set[str] = set()
+        """The live tasks' uuids (what tasks-executing is compared with, per info message)."""
 
     # --- what the explorer asks ---------------------------------------------------------------
     def running(self) -> list[str]:
@@ -367,6 +369,7 @@ class Model:
             return
         if self.life is not None:
             self.tasks.clear()
+            self._live.clear()
             self.commands.clear()
             self.answered.clear()
             self.sent_at.clear()
@@ -427,6 +430,7 @@ class Model:
             return found  # after the final status: EXEC-FB-004 / EXEC-RESEND-001's to judge
         if status in FINAL:
             task.state, task.ended_at = FINAL[status], t
+            self._live.discard(uuid)
         elif status == "running":
             task.state = State.RUNNING
         elif status == "paused":
@@ -439,10 +443,11 @@ class Model:
         if not isinstance(executing, list):
             return
         listed = {e.get("task-uuid") for e in executing if isinstance(e, dict)}
-        for uuid, task in self.tasks.items():
+        for uuid in self._live:
+            task = self.tasks[uuid]
             if uuid in listed:
                 task.listed, task.left_at = True, None
-            elif task.state.live and task.listed and task.left_at is None:
+            elif task.listed and task.left_at is None:
                 task.left_at = t
 
     # --- the sequence rules -------------------------------------------------------------------
@@ -468,42 +473,49 @@ class Model:
         """EXEC-SEQ-002 (12.2.2): a signal names one task-uuid and changes only that task.
         A task says what another task's signal asked for ('paused' for $pause, 'running' again
         after 'paused' for $continue, 'aborted' for $abort), within the response timeout of
-        that signal's 'ok', with no such signal sent to it in that time (answered or not), and,
-        for 'aborted', no start-task or $continue in that time (either may pre-empt it)."""
+        that signal (answered 'ok'), with no such signal sent to it in that time (answered or
+        not), and, for 'aborted', no start-task or $continue in that time (either may pre-empt
+        it)."""
         wanted = {"paused": "$pause", "aborted": "$abort"}.get(status)
         if status == "running" and previous == "paused":
             wanted = "$continue"
         if wanted is None:
             return []
         since = t - self.response_timeout
-        for com, sent in reversed(self.sent_at.items()):
+        culprit: tuple[float, Command] | None = None
+        for com, sent in reversed(self.sent_at.items()):  # the latest first
             if sent < since:
                 break
             cmd = self.commands.get(com)
             if cmd is None:
                 continue
-            if cmd.name == "signal-task" and cmd.signal == wanted \
-                    and cmd.task_uuid == task.task_uuid:
-                return []  # its own (perhaps answered after its feedback)
-            if wanted == "$abort" and (cmd.name == "start-task" or cmd.signal == "$continue"):
+            if cmd.name == "signal-task" and cmd.signal == wanted:
+                if cmd.task_uuid == task.task_uuid:
+                    return []  # its own (perhaps answered after its feedback)
+                if culprit is None and self.answered.get(com, (None,))[0] == "ok":
+                    culprit = (sent, cmd)
+            elif wanted == "$abort" and (cmd.name == "start-task" or cmd.signal == "$continue"):
                 return []  # pre-empted: a second task may end the first (EXEC-START-003)
-        for other in self.tasks.values():
-            if other is task:
-                continue
-            acked = other.acked_since(since, (wanted,))
-            if acked is not None:
-                return [Finding("EXEC-SEQ-002", task.task_uuid, acked[2],
-                                f"only task {other.task_uuid} changed by {wanted} (its "
-                                f"task-uuid)", f"task {task.task_uuid} says '{status}' "
-                                f"{t - acked[0]:.2f} s after that 'ok'", t)]
-        return []
+        if culprit is None:
+            return []
+        sent, cmd = culprit
+        return [Finding("EXEC-SEQ-002", task.task_uuid, cmd.com_uuid,
+                        f"only task {cmd.task_uuid} changed by {wanted} (its task-uuid)",
+                        f"task {task.task_uuid} says '{status}' {t - sent:.2f} s after that "
+                        f"{wanted} was sent and answered 'ok'", t)]
 
     def _remember(self, task: TaskRecord) -> None:
+        self.tasks.pop(task.task_uuid, None)
         self.tasks[task.task_uuid] = task
+        if task.state.live:
+            self._live.add(task.task_uuid)
+        else:
+            self._live.discard(task.task_uuid)
         if len(self.tasks) > TASKS_KEPT:
             oldest = next((u for u, x in self.tasks.items() if x.state.ended),
                           next(iter(self.tasks)))
             del self.tasks[oldest]
+            self._live.discard(oldest)
 
 
 def _str(m: Any, key: str) -> str | None:

@@ -173,3 +173,15 @@ def test_a_new_life_forgets_the_tasks():
     assert model.live() == ["t1"]
     model.heartbeat({"agent-uuid": "two"}, 2.0)
     assert model.tasks == {} and model.query_answers("t1") == {"unknown"}
+
+
+def test_the_model_says_what_the_conversation_checks_say():
+    """One vocabulary: the model's tables agree with the conversation checks' (12.1, 12.2.2)."""
+    from conformance.checks.exec_response import QUERY_ANSWERS, SIGNAL_FEEDBACK
+    from conformance.protocol import QUERY_ANSWERS as MODEL_QUERY
+    from conformance.protocol import SIGNAL_EFFECT
+
+    for status, answers in QUERY_ANSWERS.items():
+        assert set(answers) <= MODEL_QUERY[State(status)], status
+    assert {s: {status} for s, (status, _) in SIGNAL_EFFECT.items()} == {
+        s: wanted for s, (wanted, _) in SIGNAL_FEEDBACK.items()}
