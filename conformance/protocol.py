@@ -24,9 +24,10 @@ Public API (stable):
   - ``observe(message) -> list[Finding]``: feed any ``conformance.message.Message`` (commands,
     responses, feedback, direct_execution_info, heartbeats; other topics are ignored); the
     findings are the sequence rules' (EXEC-SEQ-*). Or per kind: ``command``, ``response``,
-    ``feedback``, ``executing``, ``heartbeat`` (a payload dict and a time).
+    ``feedback``, ``executing_shown``, ``heartbeat`` (a payload dict and a time).
   - ``tasks``: task-uuid -> ``TaskRecord`` (``state``, ``name``, ``statuses``, ...), in start
-    order; ``running()``, ``paused()``, ``live()``, ``ended()``: task-uuids;
+    order; ``states()``: task-uuid -> State; ``running()``, ``paused()``, ``live()``,
+    ``ended()``: task-uuids;
     ``answered``: com-uuid -> (response, task-uuid) of the first answer;
     ``executing()``: the task-uuids tasks-executing must list (the live ones);
     ``query_answers(task_uuid)``: what query-status may answer for it now.
@@ -245,6 +246,10 @@ class Model:
 
     def ended(self) -> list[str]:
         return [u for u, t in self.tasks.items() if t.state.ended]
+
+    def states(self) -> dict[str, State]:
+        """task-uuid -> its state, in start order."""
+        return {u: t.state for u, t in self.tasks.items()}
 
     def executing(self) -> frozenset[str]:
         """5.3: tasks-executing lists the tasks that run (paused ones too: they have not

@@ -147,6 +147,7 @@ def test_the_model_says_what_each_command_may_get_in_each_state():
                   1.0)
     model.response({"response-to": s.com_uuid, "response": "running", "task-uuid": t}, 1.1)
     assert model.running() == [t] and model.executing() == {t}
+    assert model.states() == {t: State.RUNNING}
     pause = model.expect(_cmd(command="signal-task", signal="$pause", **{"task-uuid": t}))
     assert pause.outcome("ok").implies == {t: {"paused"}} and pause.responses == {"ok", "failed"}
     model.feedback({"task-uuid": t, "status": "paused"}, 2.0)
