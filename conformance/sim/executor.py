@@ -28,6 +28,17 @@ LATE_PONG_PERIODS = 3.0
 """Fault pong-late: a pong is held back 3 periods (1.5 s at the fault matrix's 2 Hz, past its
 1 s response timeout; 3 s at the workout's 1 Hz, past its 2 s), so it arrives before the
 suite's reboot kills the process that held it."""
+EXAMPLE_FIELDS = {  # variant strict: the fields of the spec's examples, per command
+    "ping": frozenset({"com-uuid", "command", "sender"}),  # 12.2.1
+    "signal-task": frozenset({"com-uuid", "command", "signal", "sender", "task-uuid"}),  # 12.2.2
+    "start-task": frozenset({"com-uuid", "command", "execution-unit", "sender", "task",
+                             "task-uuid"}),  # 10's examples (12.2.3)
+    # 12.1 names query-status without an example: signal-task's fields but the signal.
+    "query-status": frozenset({"com-uuid", "command", "sender", "task-uuid"}),
+}
+OPTIONAL_FIELDS = frozenset({"task-uuid"})
+"""12.1: 'task-uuid should be optionally sent in start-task'; every other field of an example
+is required by variant strict."""
 _COM_UUID = re.compile(rb'"com-uuid"\s*:\s*"([^"\\\x00-\x1f]{1,128})"')
 
 
@@ -37,6 +48,7 @@ class CommandExecutor:
     def __init__(self, unit: UnitCore) -> None:
         self.unit = unit
         self.faults = unit.faults
+        self.variants = unit.variants
         self.runner = unit.runner
         self.history: Resends[dict[str, Any] | None] = Resends()
         """com-uuid -> the response sent (None: deliberately not answered), for resends."""
@@ -70,6 +82,13 @@ class CommandExecutor:
                 self._send_response(dict(cached))
             return
         command = msg.get("command")
+        if "strict" in self.variants and command in EXAMPLE_FIELDS:
+            reason = _unlike_examples(command, msg, self.unit.address.name)
+            if reason is not None:
+                sent = msg.get("task-uuid")
+                self._answer(com, "failed", fail_reason=reason, task_uuid=sent if isinstance(
+                    sent, str) and 0 < len(sent) <= 128 else None)
+                return
         if command == "ping":
             self._answer(com, "pong", kind="ping")
         elif command == "start-task":
@@ -97,6 +116,11 @@ class CommandExecutor:
         """Send a response (12.3) and remember it for a resend."""
         body: dict[str, Any] = {"agent-uuid": self.unit.agent_uuid, "response": response,
                                 "response-to": com}
+        if "terse" in self.variants:  # 12.3: fail-reason when failed; task-uuid for start-task
+            fail_reason = fail_reason if response == "failed" else None
+            task_uuid = task_uuid if kind == "start" else None
+        elif "verbose" in self.variants and fail_reason is None:
+            fail_reason = ""  # on every response, as 12.3.3's example has it
         if task_uuid is not None:
             body["task-uuid"] = task_uuid
         if fail_reason is not None:
@@ -298,7 +322,8 @@ class CommandExecutor:
                 self._answer(com, "unknown", task_uuid=task_uuid, fail_reason="", kind="query")
             return
         status = task.status
-        if status == "finished" and "query-answers-success" in self.faults:
+        if status == "finished" and ("query-answers-success" in self.faults
+                                     or "success-vocabulary" in self.variants):
             status = "success"
         reason = task.fail_reason if status == "failed" else ""
         self._answer(com, status, task_uuid=task_uuid, fail_reason=reason, kind="query")
@@ -316,6 +341,27 @@ def _decode(payload: bytes) -> tuple[Any, str | None]:
     if not isinstance(com, str) or not com or len(com) > 128:
         return msg, "the command has no com-uuid string"
     return msg, None
+
+
+def _unlike_examples(command: str, msg: dict[str, Any], me: str) -> str | None:
+    """Variant strict: why ``msg`` is not shaped like the spec's examples of ``command``, or
+    None."""
+    allowed = EXAMPLE_FIELDS[command]
+    extra = sorted(set(msg) - allowed)
+    if extra:
+        return (f"field {str(extra[0])[:64]!r} is in no example of {command} (this unit reads "
+                f"only {', '.join(sorted(allowed))})")
+    optional = OPTIONAL_FIELDS if command == "start-task" else frozenset()
+    missing = sorted(allowed - optional - set(msg))
+    if missing:
+        return f"{command} without {', '.join(missing)} (the spec's examples have it)"
+    if command == "start-task":
+        unit, task = msg["execution-unit"], msg["task"]
+        if unit != me:
+            return f"execution-unit {str(unit)[:64]!r} is not this unit ({me})"
+        if not isinstance(task, dict) or set(task) != {"name", "params"}:
+            return "task is {'name': ..., 'params': {...}} in every example of section 10"
+    return None
 
 
 def _readable_com_uuid(payload: bytes, msg: Any) -> str | None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from conformance.sim.variants import EDGE
 from conformance.sim.vehicle import destination
 from conformance.topics import DIRECT_EXECUTION, SENSOR_LEVEL, TST_EXECUTION, UnitAddress
 
@@ -58,6 +59,7 @@ class Publisher:
     def __init__(self, unit: UnitCore) -> None:
         self.unit = unit
         self.faults = unit.faults
+        self.variants = unit.variants
         self.camera_sensor = camera_sensor(self.faults)
         self.levels = self._levels()
         self.streams: list[Stream] = []
@@ -68,9 +70,10 @@ class Publisher:
     def _levels(self) -> list[str]:
         if "undeclared-direct-execution" in self.faults:
             return [SENSOR_LEVEL]  # it answers commands and sends direct_execution_info all the same
-        # ERR-008: the fault writes 'direct_execution', as units found in practice do.
-        direct = DIRECT_EXECUTION.replace(" ", "_") if "level-underscore" in self.faults \
-            else DIRECT_EXECUTION
+        # ERR-008: the fault (and the variant level-spelling) writes 'direct_execution', as
+        # units found in practice do.
+        underscore = "level-underscore" in self.faults or "level-spelling" in self.variants
+        direct = DIRECT_EXECUTION.replace(" ", "_") if underscore else DIRECT_EXECUTION
         levels = [SENSOR_LEVEL, direct]
         if self.unit.tst is not None:
             levels.append(TST_EXECUTION)
@@ -84,13 +87,17 @@ class Publisher:
         period = self.unit.period
         slow = period * DRIFT
 
-        def stream(name: str, drift_fault: str) -> Stream:
-            return Stream(name, slow if drift_fault in self.faults else period, first)
+        # Variant sensor-rate-edge: sensor_info and the sensors at the slow edge of the rate
+        # tolerance (5.2's rate), not past it.
+        edge = period / (1.0 - EDGE) if "sensor-rate-edge" in self.variants else period
+
+        def stream(name: str, drift_fault: str, normal: float = period) -> Stream:
+            return Stream(name, slow if drift_fault in self.faults else normal, first)
 
         self.streams = [stream("heartbeat", "heartbeat-rate-drift"),
-                        stream("sensor_info", "sensor-info-rate-drift"),
+                        stream("sensor_info", "sensor-info-rate-drift", edge),
                         stream("direct_execution_info", "dei-rate-drift"),
-                        Stream("sensors", period, first)]
+                        Stream("sensors", edge, first)]
         if self.unit.tst is not None and "level-unbacked" not in self.faults:
             self.streams.append(stream("tst_execution_info", "tst-info-rate-drift"))
         if "retained-stale-heartbeat" in self.faults:
@@ -175,6 +182,8 @@ class Publisher:
         listed = ["position", "heading", "course", "speed"]
         if "mandatory-sensor-missing" in self.faults:
             listed.remove("course")
+        if "terse" in self.variants:  # the optional camera_url (6.2) is left out
+            return listed
         if "topic-empty-level" not in self.faults:
             listed.append(self.camera_sensor)
         if "sensor-listed-unpublished" in self.faults:
@@ -210,6 +219,8 @@ class Publisher:
             self.unit.tst.fill_info(msg)
         if "tst-info-incomplete" in self.faults:
             del msg["rate"]
+        if "terse" in self.variants:  # optional (TST-013: a unit without it is not judged)
+            msg.pop("nodes-executing", None)
         self.unit.send("tst_execution_info", msg)
 
     # --- sensors (6) ----------------------------------------------------------------------------
@@ -223,7 +234,7 @@ class Publisher:
             lat, lon = round(lat * 1e7), round(lon * 1e7)  # type: ignore[assignment]
         msg: dict[str, Any] = {"altitude": round(p.altitude, 2), "latitude": lat,
                                "longitude": lon, "rostype": "GeoPoint"}
-        if "geopoint-type-tag" in self.faults:
+        if "geopoint-type-tag" in self.faults or "geopoint-type" in self.variants:
             msg["type"] = msg.pop("rostype")
         elif "geopoint-untagged" in self.faults:
             del msg["rostype"]
@@ -249,7 +260,7 @@ class Publisher:
         unit.send("sensor/position", self.position_message(stream.count))
         if "sensor-unlisted" in self.faults:
             unit.send("sensor/battery_state", {"percentage": 0.87, "voltage": 16.2})
-        if stream.count % CAMERA_URL_EVERY == 0:
+        if stream.count % CAMERA_URL_EVERY == 0 and "terse" not in self.variants:
             self._publish_camera()
         if "topic-unknown-subtopic" in self.faults:
             unit.send("status", {"state": "ok"})
