@@ -119,8 +119,9 @@ class CommandExecutor:
         if "terse" in self.variants:  # 12.3: fail-reason when failed; task-uuid for start-task
             fail_reason = fail_reason if response == "failed" else None
             task_uuid = task_uuid if kind == "start" else None
-        elif "verbose" in self.variants and fail_reason is None:
-            fail_reason = ""  # on every response, as 12.3.3's example has it
+        elif "verbose" in self.variants:  # both on every response, as 12.3.3's example has
+            fail_reason = "" if fail_reason is None else fail_reason
+            task_uuid = "" if task_uuid is None else task_uuid  # '': it concerns no task
         if task_uuid is not None:
             body["task-uuid"] = task_uuid
         if fail_reason is not None:

@@ -42,8 +42,8 @@ _ALL = (
             "the four mandatory sensors (6.1), no camera_url."),
     Variant("verbose", "2, 12.3, 12.4",
             "Adds fields of its own to every message (a vendor 'x-software' object) and puts "
-            "fail-reason and task-uuid on every exec response (task-uuid of the task the "
-            "command concerns; the pong of a ping concerns none and carries none)."),
+            "fail-reason and task-uuid on every exec response (the task-uuid of the task the "
+            "command concerns; '' in a pong or an answer to a command that names no task)."),
     Variant("slow", "12.1; the profile's response_timeout and feedback_timeout",
             "Holds every response and feedback back for SLOW_PERIODS heartbeat periods (0.4 s "
             "at 2 Hz, inside the 1 s of the shortest self-test response_timeout; 5 s at 1 Hz "
