@@ -54,6 +54,9 @@ class CommandExecutor:
         """com-uuid -> the response sent (None: deliberately not answered), for resends."""
         self.delayed: list[tuple[float, dict[str, Any]]] = []
         """Fault pong-late: (when, response) of answers held back."""
+        self.deferred: list[tuple[dict[str, Any], str | None, float]] | None = None
+        """Variant feedback-first: the responses of the command being handled, sent after
+        the feedback it causes."""
 
     def command(self, payload: bytes, now: float, size: int) -> None:
         """Handle one command of ``size`` bytes (``payload`` may be only its head)."""
@@ -91,10 +94,18 @@ class CommandExecutor:
                 return
         if command == "ping":
             self._answer(com, "pong", kind="ping")
-        elif command == "start-task":
-            self._start_task(com, msg, now)
-        elif command == "signal-task":
-            self._signal_task(com, msg, now)
+        elif command in ("start-task", "signal-task"):
+            if "feedback-first" in self.variants:
+                self.deferred = []
+            try:
+                if command == "start-task":
+                    self._start_task(com, msg, now)
+                else:
+                    self._signal_task(com, msg, now)
+            finally:
+                deferred, self.deferred = self.deferred or [], None
+                for args in deferred:
+                    self._send_response(*args)
         elif command == "query-status":
             self._query_status(com, msg)
         elif not isinstance(command, str):
@@ -147,6 +158,9 @@ class CommandExecutor:
 
     def _send_response(self, body: dict[str, Any], command_com: str | None = None,
                        delay: float = 0.0) -> None:
+        if self.deferred is not None:
+            self.deferred.append((body, command_com, delay))
+            return
         unit = self.unit
         com = body.get("response-to", "") if command_com is None else command_com
         body["com-uuid"] = com if "response-reuses-com-uuid" in self.faults else unit.fresh_uuid()
@@ -242,6 +256,8 @@ class CommandExecutor:
             self._answer(com, response, task_uuid=shown, fail_reason="", kind="start")
         if "feedback-status-typo" in self.faults:
             self.runner.feedback(task, "Starting")
+        elif "starting-feedback" in self.variants:
+            self.runner.feedback(task, "starting")  # 12.4's word for a task getting ready
         self.runner.feedback(task, "running")
         self.runner.start(task, now)
 

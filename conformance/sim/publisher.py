@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from conformance.sim.variants import EDGE
+from conformance.sim.variants import EDGE, INFO_SLOWER
 from conformance.sim.vehicle import destination
 from conformance.topics import DIRECT_EXECUTION, SENSOR_LEVEL, TST_EXECUTION, UnitAddress
 
@@ -85,21 +85,23 @@ class Publisher:
     def start(self, first: float) -> None:
         """Schedule the periodic messages; the first ones go out at ``first``."""
         period = self.unit.period
-        slow = period * DRIFT
 
         # Variant sensor-rate-edge: sensor_info and the sensors at the slow edge of the rate
         # tolerance (5.2's rate), not past it.
         edge = period / (1.0 - EDGE) if "sensor-rate-edge" in self.variants else period
 
+        # Variant info-rates: the info messages at a lower rate of their own (5), declared.
+        info = period * INFO_SLOWER if "info-rates" in self.variants else period
+
         def stream(name: str, drift_fault: str, normal: float = period) -> Stream:
-            return Stream(name, slow if drift_fault in self.faults else normal, first)
+            return Stream(name, normal * DRIFT if drift_fault in self.faults else normal, first)
 
         self.streams = [stream("heartbeat", "heartbeat-rate-drift"),
-                        stream("sensor_info", "sensor-info-rate-drift", edge),
-                        stream("direct_execution_info", "dei-rate-drift"),
+                        stream("sensor_info", "sensor-info-rate-drift", max(edge, info)),
+                        stream("direct_execution_info", "dei-rate-drift", info),
                         Stream("sensors", edge, first)]
         if self.unit.tst is not None and "level-unbacked" not in self.faults:
-            self.streams.append(stream("tst_execution_info", "tst-info-rate-drift"))
+            self.streams.append(stream("tst_execution_info", "tst-info-rate-drift", info))
         if "retained-stale-heartbeat" in self.faults:
             birth = self.heartbeat_message()
             birth["stamp"] = self.stamp() - 5 * period
@@ -149,6 +151,12 @@ class Publisher:
             msg["agent-uuid"] = unit.agent_uuid
         return msg
 
+    @property
+    def info_rate(self) -> float:
+        """The rate the info messages declare (5.2, 5.3): the heartbeat's, unless variant
+        info-rates sends them slower."""
+        return self.unit.rate / INFO_SLOWER if "info-rates" in self.variants else self.unit.rate
+
     def heartbeat_message(self) -> dict[str, Any]:
         """The 5.1 heartbeat."""
         unit = self.unit
@@ -192,7 +200,7 @@ class Publisher:
 
     def _publish_sensor_info(self, stream: Stream, now: float) -> None:
         type_ = "SensorInformation" if "sensor-info-type" in self.faults else "SensorInfo"
-        msg = self._info(type_, self.unit.rate, **{"sensor-data-provided": self.sensors_listed()})
+        msg = self._info(type_, self.info_rate, **{"sensor-data-provided": self.sensors_listed()})
         self.unit.send("sensor.info" if "sensor-dot-info" in self.faults else "sensor_info", msg)
 
     def _publish_dei(self, stream: Stream, now: float) -> None:
@@ -206,7 +214,7 @@ class Publisher:
             executing = [t for t in tasks if t.spec is not None]
         else:
             executing = [t for t in tasks if not t.ended]
-        msg = self._info(type_, unit.rate, **{
+        msg = self._info(type_, self.info_rate, **{
             "tasks-available": available,
             "tasks-executing": [{"task-name": t.name, "task-uuid": t.uuid} for t in executing],
         })
@@ -214,7 +222,7 @@ class Publisher:
 
     def _publish_tei(self, stream: Stream, now: float) -> None:
         # tst_execution_info is named, not defined (ERR-011): name, rate, stamp, type.
-        msg = self._info("TstExecutionInfo", self.unit.rate)
+        msg = self._info("TstExecutionInfo", self.info_rate)
         if self.unit.tst is not None:
             self.unit.tst.fill_info(msg)
         if "tst-info-incomplete" in self.faults:

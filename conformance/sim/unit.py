@@ -175,10 +175,13 @@ class UnitCore:
                  base: str | None = None) -> None:
         if "verbose" in self.variants and isinstance(body, dict):
             body = {**body, "x-software": VENDOR}
+        if "integer-numbers" in self.variants:
+            body = _integers(body)
+        indent = orjson.OPT_INDENT_2 if "pretty-json" in self.variants else 0
         if "key-order" in self.variants:
-            payload = orjson.dumps(_reversed_keys(body))
+            payload = orjson.dumps(_reversed_keys(body), option=indent)
         else:
-            payload = orjson.dumps(body, option=orjson.OPT_SORT_KEYS)
+            payload = orjson.dumps(body, option=orjson.OPT_SORT_KEYS | indent)
         self.emit(sub, payload, retain, base)
 
     def send_held(self, now: float) -> float | None:
@@ -285,6 +288,17 @@ class UnitCore:
             return
         self.runner.step(now)
         self.tst.command(payload, now, topic)
+
+
+def _integers(value: Any) -> Any:
+    """``value`` with every whole float written as an integer (variant integer-numbers)."""
+    if isinstance(value, float) and value.is_integer() and abs(value) < 2 ** 53:
+        return int(value)
+    if isinstance(value, dict):
+        return {k: _integers(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_integers(v) for v in value]
+    return value
 
 
 def _reversed_keys(value: Any) -> Any:

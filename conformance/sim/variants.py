@@ -58,6 +58,21 @@ _ALL = (
             "Sends sensor_info and its sensors EDGE slower than the declared rate (12 %: "
             "inside the default 20 % rate tolerance, not past it); camera_url every second "
             "such period (still inside SI-003's window of three)."),
+    Variant("starting-feedback", "12.4",
+            "Reports a started task 'starting' (12.4's list) before 'running'."),
+    Variant("feedback-first", "12.3, 12.4 (no order between topics)",
+            "Publishes the feedback a command causes before the command's response: a "
+            "started task's 'running' before the start-task's answer, a signal's effect "
+            "('paused', 'aborted', ...) before the signal's 'ok'."),
+    Variant("info-rates", "5, 5.2, 5.3",
+            "Sends sensor_info, direct_execution_info and tst_execution_info at half the "
+            "heartbeat's rate, each declaring its own rate (5: 'info messages may come at a "
+            "lower rate than the heartbeat')."),
+    Variant("pretty-json", "RFC 8259 2 (insignificant whitespace)",
+            "Writes every message indented over several lines, as json.dumps(indent=2) does."),
+    Variant("integer-numbers", "RFC 8259 6; 5.1, 6.1",
+            "Writes whole numbers without a fraction (rate 2, heading 270, speed 0), as "
+            "JavaScript and many C++ JSON writers do."),
     Variant("level-spelling", "5.1",
             "Declares its level 'direct_execution' (5.1's prose spelling; ERR-008).",
             warns=("ERR-008",)),
@@ -68,6 +83,8 @@ _ALL = (
 
 VARIANTS: dict[str, Variant] = {v.name: v for v in _ALL}
 CONFLICTS = (frozenset({"terse", "verbose"}),)
+INFO_SLOWER = 2.0
+"""Variant info-rates: the info messages run at the heartbeat's rate divided by this."""
 """Variants that cannot be on together (one sends what the other leaves out)."""
 SLOW_PERIODS = 0.8
 """Variant slow: answers and feedback are held back this many periods."""

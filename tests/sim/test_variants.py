@@ -302,3 +302,52 @@ def test_strict_refuses_a_tree_whose_inner_node_lacks_common_params() -> None:
     refused = Run("strict", script=script, seconds=1.5).answer(com(91))
     assert refused["response"] == "failed"
     assert "children[0]" in refused["fail-reason"] and "common_params" in refused["fail-reason"]
+
+
+def test_starting_feedback_adds_one_starting_before_running(plain: Run) -> None:
+    run = Run("starting-feedback")
+    extra = [m for t, m in run.messages("/exec/feedback") if m["status"] == "starting"]
+    assert [m["task-uuid"] for m in extra] == [T1]
+    statuses = [m["status"] for t, m in run.messages("/exec/feedback") if m["task-uuid"] == T1]
+    assert statuses[:2] == ["starting", "running"]
+    rest = [(t, m) for t, m in run.messages() if m not in extra]
+    assert [(t, without(m, "com-uuid")) for t, m in rest] == [
+        (t, without(m, "com-uuid")) for t, m in plain.messages()]
+
+
+def test_feedback_first_sends_the_feedback_a_command_causes_before_its_answer(
+        plain: Run) -> None:
+    run = Run("feedback-first")
+    order = [(t, m.get("response-to") or m.get("status")) for t, m in run.messages(
+        "/exec/response", "/exec/feedback")]
+    assert order.index(("/exec/feedback", "running")) < order.index(("/exec/response", com(2)))
+    assert order.index(("/exec/feedback", "finished")) < order.index(("/exec/response", com(3)))
+    def same(r: Run) -> list[str]:  # com-uuids are drawn in the order messages go out
+        return sorted(repr((t, without(m, "com-uuid"))) for t, m in r.messages())
+
+    assert same(run) == same(plain)
+
+
+def test_info_rates_halves_the_info_messages_and_declares_it(plain: Run) -> None:
+    run = Run("info-rates", script=[], seconds=20.0)
+    base = Run(script=[], seconds=20.0)
+    for sub in ("/sensor_info", "/direct_execution_info", "/tst_execution_info"):
+        ours, theirs = run.messages(sub), base.messages(sub)
+        assert abs(len(ours) / len(theirs) - 0.5) < 0.05, sub
+        assert {m["rate"] for _, m in ours} == {RATE / 2}
+    for sub in ("/heartbeat", "/sensor/position"):
+        assert run.messages(sub) == base.messages(sub)
+
+
+def test_pretty_json_changes_only_the_layout(plain: Run) -> None:
+    run = Run("pretty-json")
+    assert [(t, orjson.loads(p)) for _, t, p in run.sent] == plain.messages()
+    assert all(b"\n  " in p for _, t, p in run.sent if t.endswith(("/heartbeat", "/exec/response")))
+
+
+def test_integer_numbers_writes_whole_numbers_without_a_fraction(plain: Run) -> None:
+    run = Run("integer-numbers")
+    assert [(t, orjson.loads(p)) for _, t, p in run.sent] == plain.messages()  # 2 == 2.0
+    heartbeat = next(p for _, t, p in run.sent if t == "/heartbeat")
+    assert b'"rate":2,' in heartbeat
+    assert next(p for _, t, p in run.sent if t == "/sensor/heading") == b"270"
