@@ -6,8 +6,9 @@ on the recording of that certification.
 
 To keep the matrix to a few runs, variants that change different things share a run (at 2 Hz,
 with variants.yaml's short windows and the default profile's errata severities). Kept apart:
-terse and verbose (opposites: CONFLICTS); strict on the TST level (AWAITING below), so that
-the other variants' TST evidence is judged in runs that can pass.
+terse and verbose (opposites: CONFLICTS); info-rates and sensor-rate-edge (both set sensor_info's
+rate). Variants falsely failed by the suite or lint as it stands run alone (AWAITING): each
+such run must fail exactly the rules named there, and fails itself once they pass.
 """
 
 from __future__ import annotations
@@ -28,16 +29,23 @@ pytestmark = pytest.mark.slow
 
 PROFILE = HERE / "profiles" / "variants.yaml"
 GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
-    (("strict", "terse", "sensor-rate-edge", "success-vocabulary"), False),
-    (("verbose", "slow", "level-spelling", "geopoint-type"), True),
-    (("terse", "key-order"), True),
+    (("strict", "terse", "sensor-rate-edge", "success-vocabulary", "pretty-json"), False),
+    (("slow", "feedback-first", "starting-feedback", "key-order", "level-spelling",
+      "geopoint-type"), True),
+    # info-rates apart from sensor-rate-edge: both set sensor_info's rate.
+    (("terse", "info-rates", "integer-numbers"), True),
 ]
-AWAITING: dict[tuple[str, ...], str] = {
+AWAITING: dict[tuple[str, ...], tuple[set[str], str]] = {  # variants -> (rules, why)
     # The suite sends TST trees with common_params on the root only; every example of section
     # 11 writes them on every node, so a strict unit refuses the trees (TST-004 fails, and
     # the TST rules behind it are not judged). The 'commander' work of issue 18 makes every
-    # node complete: then this XPASSes (strict) and the entry must go.
-    ("strict",): "the suite's TST nodes lack common_params below the root (issue 18, What 5/2)",
+    # node complete: then the test fails, saying the entry must go.
+    ("strict",): ({"TST-004"}, "the suite's TST nodes lack common_params below the root "
+                               "(issue 18, What 2)"),
+    # A pong with task-uuid '' warns ERR-014 (a malformed UUID) although it names no task:
+    # withdrawn by the 'judge' work of issue 18 (What 3).
+    ("verbose",): ({"ERR-014"}, "ERR-014 on task-uuid '' in an answer about no task "
+                                "(issue 18, What 3)"),
 }
 
 
@@ -48,7 +56,7 @@ def test_the_groups_cover_every_variant_and_keep_conflicts_apart() -> None:
         assert not any(pair <= set(group) for pair in CONFLICTS), group
     tst = {v for group, with_tst in GROUPS if with_tst for v in group}
     assert tst | {v for g in AWAITING for v in g} >= {"strict", "terse", "verbose", "slow",
-                                                     "key-order"}
+                                                     "key-order", "feedback-first"}
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -96,11 +104,15 @@ def first_violations(rules: dict[str, dict], ids: set[str]) -> dict[str, object]
     return {r: (rules[r].get("reason"), rules[r].get("violations", [])[:1]) for r in sorted(ids)}
 
 
+def accusations(rules: dict[str, dict], allowed: set[str]) -> set[str]:
+    """The rules that fail, and those that warn but are not the variants' own readings."""
+    judged = verdicts(rules)
+    return judged.get("fail", set()) | (judged.get("warn", set()) - allowed)
+
+
 @pytest.mark.parametrize("variants,tst", [
     pytest.param(g, t, id="+".join(g) + ("+tst" if t else "")) for g, t in GROUPS] + [
-    pytest.param(g, True, id="+".join(g) + "+tst", marks=pytest.mark.xfail(strict=True,
-                                                                            reason=why))
-    for g, why in AWAITING.items()])
+    pytest.param(g, True, id="+".join(g) + "+tst") for g in AWAITING])
 def test_variants_are_certified_and_lint_clean(pytester: pytest.Pytester, mosquitto: str,
                                                unit_address: UnitAddress, tmp_path: Path,
                                                variants: tuple[str, ...], tst: bool) -> None:
@@ -110,21 +122,22 @@ def test_variants_are_certified_and_lint_clean(pytester: pytest.Pytester, mosqui
     recording = tmp_path / "certification.jsonl"
     run = certify_and_record(pytester, mosquitto, unit_address, variants, tst, recording)
     rules = run.unit_rules()
-    judged = verdicts(rules)
-    failed, warned = judged.get("fail", set()), judged.get("warn", set())
-    assert not failed, f"{' + '.join(variants)}: {first_violations(rules, failed)}"
-    assert warned == allowed, f"{' + '.join(variants)}: {first_violations(rules, warned)}"
-    assert run.result.ret == 0, run.text
-    if tst:
-        assert {"TST-004", "TST-008", "TST-010"} & judged.get("pass", set()), \
-            "the TST level was judged"
-
     out = io.StringIO()
     lint_main(["--from", str(recording), f"--profile={PROFILE}", "--plain", "--format", "json",
                "--reports-dir", str(tmp_path / "lint")], stdout=out)
     report = json.loads(next((tmp_path / "lint").glob("*.json")).read_text())
     linted = report["units"][str(unit_address)]["rules"]
-    judged = verdicts(linted)
-    failed, warned = judged.get("fail", set()), judged.get("warn", set())
-    assert not failed, f"lint, {' + '.join(variants)}: {first_violations(linted, failed)}"
-    assert warned == allowed, f"lint, {' + '.join(variants)}: {first_violations(linted, warned)}"
+    suite, lint = accusations(rules, allowed), accusations(linted, allowed)
+    if variants in AWAITING and tst:
+        awaited, why = AWAITING[variants]
+        assert suite | lint, (f"{why}: fixed; move {' + '.join(variants)} (with the TST "
+                              f"level) from AWAITING into GROUPS")
+        assert suite | lint <= awaited, (first_violations(rules, suite),
+                                         first_violations(linted, lint))
+        pytest.xfail(why)
+    assert not suite, f"{' + '.join(variants)}: {first_violations(rules, suite)}"
+    assert run.result.ret == 0, run.text
+    if tst:
+        assert {"TST-004", "TST-008", "TST-010"} & verdicts(rules).get("pass", set()), \
+            "the TST level was judged"
+    assert not lint, f"lint, {' + '.join(variants)}: {first_violations(linted, lint)}"
