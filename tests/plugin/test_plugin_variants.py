@@ -19,7 +19,7 @@ import threading
 from pathlib import Path
 
 import pytest
-from certify_helpers import HERE, Certified, Rebooter, certify, warm_parameters
+from certify_helpers import HERE, UNIT, Certified, Rebooter, certify, warm_parameters
 
 from conformance.sim import SimUnit
 from conformance.sim.variants import CONFLICTS, VARIANTS
@@ -141,3 +141,14 @@ def test_variants_are_certified_and_lint_clean(pytester: pytest.Pytester, mosqui
         assert {"TST-004", "TST-008", "TST-010"} & verdicts(rules).get("pass", set()), \
             "the TST level was judged"
     assert not lint, f"lint, {' + '.join(variants)}: {first_violations(linted, lint)}"
+
+
+def test_the_embedded_reference_unit_takes_variants_and_the_rerun_line_keeps_them(
+        pytester: pytest.Pytester) -> None:
+    run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "3",
+                  "--sim-variant=key-order", "--sim-variant=pretty-json", "-k", "MSG-002")
+    assert run.result.ret == 0, run.text
+    assert run.outcomes == {"MSG-002": "passed"}
+    assert "(variants: key-order, pretty-json)" in run.text
+    repeat = next(line for line in run.text.splitlines() if line.startswith("repeat this run"))
+    assert "--sim-variant=key-order --sim-variant=pretty-json" in repeat, repeat
