@@ -271,6 +271,8 @@ def _unlike_examples(command: str, msg: dict[str, Any]) -> str | None:
     missing = sorted(allowed - {"receiver"} - set(msg))
     if missing:
         return f"{command} without {', '.join(missing)} (the spec's examples have it)"
+    if command == "signal-unit" and not str(msg["unit"]).startswith("/"):
+        return "unit is '/NAME' in 14.3.3's example"
     if command != "start-tst":
         return None
     stack: list[tuple[str, Any]] = [("tst", msg["tst"])]
@@ -284,6 +286,8 @@ def _unlike_examples(command: str, msg: dict[str, Any]) -> str | None:
         if not isinstance(common, dict) or set(common) != {"execunit", "node-uuid"}:
             return (f"{path}.common_params: every node of 11's examples has execunit and "
                     f"node-uuid")
+        if not str(common["execunit"]).startswith("/"):
+            return f"{path}.common_params.execunit: '/NAME' in every example of section 11"
         children = node["children"]
         if isinstance(children, list):
             stack.extend((f"{path}.children[{i}]", c) for i, c in enumerate(children))

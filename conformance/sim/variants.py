@@ -34,7 +34,8 @@ _ALL = (
             "show: a field none of 12.2/10/11/14.3's examples has; a start-task without "
             "execution-unit, sender or task {name, params} (10's examples; task-uuid may be "
             "left out, 12.1); a TST node without name, params, children and common_params "
-            "{execunit, node-uuid} (every node of 11's examples)."),
+            "{execunit, node-uuid} (every node of 11's examples); a unit named otherwise than "
+            "'/NAME' (11's execunit, 14.3.3's unit)."),
     Variant("terse", "5, 12.3, 12.4, 14.4, 14.5; schemas/messages",
             "Sends no optional field: fail-reason only when a response is 'failed', task-uuid "
             "only in start-task responses (12.3.3); TST feedback without fail-reason and "
@@ -52,7 +53,9 @@ _ALL = (
             "Writes every JSON object's keys in reverse alphabetical order (the spec's "
             "examples sort them)."),
     Variant("success-vocabulary", "12.1",
-            "Answers query-status of a finished task 'success' (12.1's own word).",
+            "Answers query-status in 12.1's own words only (running, failed, success, "
+            "unknown): a finished task 'success', a paused one 'running', an aborted one "
+            "'failed'.",
             warns=("ERR-006",)),
     Variant("sensor-rate-edge", "5.2, 6; the profile's rate_tolerance",
             "Sends sensor_info and its sensors EDGE slower than the declared rate (12 %: "

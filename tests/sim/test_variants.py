@@ -351,3 +351,35 @@ def test_integer_numbers_writes_whole_numbers_without_a_fraction(plain: Run) -> 
     heartbeat = next(p for _, t, p in run.sent if t == "/heartbeat")
     assert b'"rate":2,' in heartbeat
     assert next(p for _, t, p in run.sent if t == "/sensor/heading") == b"270"
+
+
+def test_success_vocabulary_answers_a_paused_task_running_and_an_aborted_one_failed() -> None:
+    script = [
+        (1.0, "exec", {"com-uuid": com(80), "command": "start-task", "execution-unit": "dji0",
+                       "sender": "commander", "task-uuid": T1,
+                       "task": {"name": "look-at-bearing", "params": {"bearing": 1.0}}}),
+        (1.5, "exec", {"com-uuid": com(81), "command": "signal-task", "sender": "commander",
+                       "signal": "$pause", "task-uuid": T1}),
+        (1.8, "exec", {"com-uuid": com(82), "command": "query-status", "sender": "commander",
+                       "task-uuid": T1}),
+        (2.0, "exec", {"com-uuid": com(83), "command": "signal-task", "sender": "commander",
+                       "signal": "$abort", "task-uuid": T1}),
+        (2.3, "exec", {"com-uuid": com(84), "command": "query-status", "sender": "commander",
+                       "task-uuid": T1}),
+    ]
+    plain, words = Run(script=script, seconds=3.0), Run("success-vocabulary", script=script,
+                                                        seconds=3.0)
+    assert [plain.answer(com(i))["response"] for i in (82, 84)] == ["paused", "aborted"]
+    assert [words.answer(com(i))["response"] for i in (82, 84)] == ["running", "failed"]
+
+
+def test_strict_refuses_a_unit_not_named_slash_name() -> None:
+    tree = tst_node("take-off", {}, ROOT)
+    tree["common_params"]["execunit"] = "dji0"
+    script = [(1.0, "tst", {"com-uuid": com(92), "command": "start-tst", "sender": "commander",
+                            "tst": tree}),
+              (1.1, "tst", {"com-uuid": com(93), "command": "signal-unit", "sender": "commander",
+                            "signal": "$abort", "unit": "dji0"})]
+    lenient, strict = Run(script=script, seconds=1.5), Run("strict", script=script, seconds=1.5)
+    assert [lenient.answer(com(i))["response"] for i in (92, 93)] == ["started", "ok"]
+    assert [strict.answer(com(i))["response"] for i in (92, 93)] == ["failed", "failed"]
