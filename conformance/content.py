@@ -17,7 +17,7 @@ from typing import Any, Protocol
 from conformance import schema, taskspec
 from conformance.topics import AGENT_TYPES, ParsedTopic, TopicKind
 from conformance.tst import read_tree
-from conformance.violation import Violation
+from conformance.violation import Violation, clock
 
 
 class Limits(Protocol):
@@ -71,6 +71,10 @@ def info_checks(limits: Limits, parsed: ParsedTopic, message: dict[str, Any], ra
                 detail="5.1 agent-type and 3.1 PREFIX3 name the same thing")]
     return found
 
+def _seconds(s: float) -> str:
+    return f"{s / 86400:g} days" if s >= 86400 else f"{s:g} s"
+
+
 def stamp_violations(limits: Limits, parsed: ParsedTopic, stamp: float, raw: bytes,
                       time: float) -> list[Violation]:
     tolerance = limits.clock_tolerance
@@ -87,7 +91,8 @@ def stamp_violations(limits: Limits, parsed: ParsedTopic, stamp: float, raw: byt
         detail = (f"{abs(off):.1f} s {'ahead of' if off > 0 else 'behind'} the arrival "
                   f"time: is the unit's clock set? ({detail})")
     return [Violation.of(
-        "MSG-005", expected=f"Unix seconds within {tolerance:g} s of arrival {time:.3f}",
+        "MSG-005", expected=f"Unix seconds within {_seconds(tolerance)} of its arrival at "
+                            f"{clock(time)} ({time:.3f})",
         observed=repr(stamp), topic=parsed.topic, path="$.stamp", time=time, payload=raw,
         unit=unit_of(parsed), detail=detail)]
 

@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import difflib
 import fnmatch
+import json
 from dataclasses import dataclass, field, fields
+from functools import cache
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -16,6 +18,9 @@ from typing import Any
 import yaml
 
 from conformance.rules import CATALOGUE, Severity
+
+DOCS = "schemas/generated/PROFILE.md"
+"""Where the profile format is documented (rendered from the schema)."""
 
 
 class ProfileError(ValueError):
@@ -82,6 +87,16 @@ _TUPLE_KEYS = {"levels", "sensors", "tasks", "motion_tasks", "task_specific_stat
 _FLOAT_KEYS = {"safe_radius", "rate_tolerance", "max_gap_periods", "clock_tolerance",
                "response_timeout", "feedback_timeout", "alive_timeout", "reboot_timeout",
                "info_wait"}
+SCHEMA_FILE = "profile.schema.json"
+"""The profile format as a JSON Schema (package ``conformance.profiles``): the one statement of
+every key, its type and its meaning; ``load`` checks files against it and the docs
+(``schemas/generated/PROFILE.md``) are rendered from it."""
+
+
+@cache
+def schema() -> dict[str, Any]:
+    """The JSON Schema of a profile file (keys in their canonical '-' spelling)."""
+    return json.loads((resources.files("conformance.profiles") / SCHEMA_FILE).read_text("utf-8"))
 
 
 def builtin_names() -> list[str]:
@@ -125,20 +140,59 @@ def from_dict(data: Any, source: str = "<dict>") -> Profile:
         base = {f: getattr(parent, f) for f in _FIELDS if f != "source"}
         base["severity"] = dict(parent.severity)
     kwargs: dict[str, Any] = dict(base)
+    properties = schema()["properties"]
     for key, value in data.items():
         if key == "extends":
             continue
-        attr = key.replace("-", "_")
-        if attr not in _FIELDS or attr == "source":
-            close = difflib.get_close_matches(attr, list(_FIELDS), n=1)
+        canonical = str(key).replace("_", "-")
+        if canonical not in properties:
+            close = difflib.get_close_matches(canonical, list(properties), n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
             raise ProfileError(f"{source}: unknown key {key!r}{hint}; valid keys: "
-                               f"{', '.join(k for k in _FIELDS if k != 'source')}, extends")
+                               f"{', '.join(properties)} (see {DOCS})")
+        _check(canonical, value, properties[canonical], source)
+        attr = canonical.replace("-", "_")
         kwargs[attr] = _coerce(attr, value, source)
     if "severity" in data:
         kwargs["severity"] = {**base.get("severity", {}), **kwargs["severity"]}
     kwargs["source"] = source
     return Profile(**kwargs)
+
+
+def _check(key: str, value: Any, prop: dict[str, Any], source: str) -> None:
+    """Raise ProfileError when ``value`` does not fit the schema of ``key``, saying what the
+    key takes (from the schema) and, for a word out of a closed set, the nearest one."""
+    from jsonschema import Draft202012Validator  # only when a profile is read (cheap plugin)
+
+    error = next(iter(Draft202012Validator(prop).iter_errors(value)), None)
+    if error is None:
+        return
+    if error.validator == "enum":
+        choices = [str(c) for c in error.validator_value]
+        close = difflib.get_close_matches(str(error.instance), choices, n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        where = "".join(f"[{p!r}]" if isinstance(p, int) else f".{p}" for p in error.absolute_path)
+        raise ProfileError(f"{source}: {key}{where}: {error.instance!r} is not one of "
+                           f"{', '.join(map(repr, choices))}{hint}")
+    raise ProfileError(f"{source}: {key} must be {describe(prop)}, got {value!r}")
+
+
+def describe(prop: dict[str, Any]) -> str:
+    """What a profile key takes, in words (its schema's type and bounds)."""
+    kind = prop.get("type")
+    if kind == "number":
+        return "a non-negative number" if prop.get("minimum") == 0 else "a number"
+    if kind == "integer":
+        low = prop.get("minimum")
+        return f"a whole number >= {low}" if low is not None else "a whole number"
+    if kind == "array":
+        items = prop.get("items", {})
+        if "enum" in items:
+            return "a list of " + ", ".join(map(repr, items["enum"]))
+        return "a list of strings"
+    if kind == "object":
+        return "a mapping of rule ids (or globs like ERR-*) to error|warning"
+    return "a string"
 
 
 def _coerce(attr: str, value: Any, source: str) -> Any:
@@ -171,3 +225,22 @@ def _coerce(attr: str, value: Any, source: str) -> Any:
     if not isinstance(value, str):
         raise ProfileError(f"{where} must be a string, got {value!r}")
     return value
+
+
+def markdown() -> str:
+    """The profile format as a page (``schemas/generated/PROFILE.md``), rendered from the
+    schema so that the documentation cannot drift from what ``load`` accepts."""
+    s = schema()
+    lines = ["# Profile files", "", "<!-- generated from profiles/profile.schema.json by "
+             "`waraps-conformance schemas generate`; do not edit -->", "", s["description"], "",
+             "Pass one with `pytest --unit ADDRESS --profile my-unit.yaml` (or `lint --profile`); "
+             "`waraps-conformance profile --unit ADDRESS -o my-unit.yaml` writes a starting one "
+             "from what the unit declares and publishes. Commented examples per kind of unit: "
+             "`docs/profiles/`. Built-in profiles: " + ", ".join(f"`{n}`" for n in builtin_names())
+             + ".", "", "| key | takes | default | meaning |", "|---|---|---|---|"]
+    for key, prop in s["properties"].items():
+        default = json.dumps(prop["default"]) if "default" in prop else "-"
+        meaning = prop["description"].replace("|", "\\|")
+        takes = describe(prop).replace("|", "\\|")
+        lines.append(f"| `{key}` | {takes} | `{default}` | {meaning} |")
+    return "\n".join(lines) + "\n"

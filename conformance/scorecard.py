@@ -59,10 +59,12 @@ class UnitRow:
     errors: int = 0
     warnings: int = 0
     violations: tuple[tuple[str, int], ...] = ()
+    live: tuple[str, ...] = ()
+    """Rules off right now that are judged over the whole run (rates: Monitor.live_findings)."""
 
     @property
     def status(self) -> str:
-        if self.errors:
+        if self.errors or self.live:
             return "FAIL"
         if self.warnings:
             return "warn"
@@ -138,6 +140,9 @@ class Scorecard:
         self._last_summary = time.monotonic()
         self._prev_counts: dict[str, tuple[int, float]] = {}
         self._gap_start: float | None = None
+        self._last_live = 0.0
+        self._live_shown: dict[tuple[str, str], Violation] = {}
+        """(unit, rule) -> the live finding last printed (plain mode)."""
 
     # --- data -----------------------------------------------------------------------------------
     def rows(self, linter: Linter, *, overall: bool = False) -> list[UnitRow]:
@@ -162,11 +167,13 @@ class Scorecard:
                     rate = (count - prev[0]) / (now - prev[1])
                 if now is not None and (prev is None or now - prev[1] >= 5.0):
                     self._prev_counts[key] = (count, now)
+            live = () if overall else tuple(
+                v.rule for v in monitor.live_findings(unit) if linter.is_error(v.rule))
             rows[key] = UnitRow(
                 key, agent_type=str(getattr(state, "agent_type", "") or ""),
                 role=str(getattr(address, "role", "") or ""),
                 levels=getattr(state, "levels", None), messages=count, rate=rate,
-                last_seen=last)
+                last_seen=last, live=live)
         for unit, counts in linter.by_unit.items():
             row = rows.get(unit) or rows.setdefault(unit, UnitRow(unit))
             row.violations = tuple(sorted(counts.items(),
@@ -212,7 +219,8 @@ class Scorecard:
             levels = "?" if r.levels is None else ",".join(LEVEL_SHORT.get(lv, lv) for lv in r.levels)
             rate = "" if r.rate is None else f"{r.rate:.1f}"
             seen = "" if r.last_seen is None else (_ago(r.last_seen, now) if now else _clock(r.last_seen))
-            viol = " ".join(f"{rule}x{n}" for rule, n in r.violations) or "-"
+            viol = " ".join([f"{rule}(live)" for rule in r.live]
+                            + [f"{rule}x{n}" for rule, n in r.violations]) or "-"
             unit = r.unit if len(r.unit) <= uw else "…" + r.unit[-(uw - 1):]
             line = (f"{unit:<{uw}} {r.agent_type[:10]:<10} {r.role[:10]:<10} {levels[:17]:<17} "
                     f"{rate:>7} {seen:>9} ")
@@ -262,6 +270,9 @@ class Scorecard:
             write(violation_line(v, linter.unit_of(v), self._verdict(linter, v.rule), when)
                   + "\n")
         now = time.monotonic()
+        if self.live and (force or now - self._last_live >= TTY_REFRESH_EVERY):
+            self._last_live = now
+            self._write_live(linter)
         if force or now - self._last_summary >= PLAIN_SUMMARY_EVERY:
             self._last_summary = now
             units = len(list(linter.monitor.units()))
@@ -272,6 +283,23 @@ class Scorecard:
                      + (f" and {len(failing) - 10} more" if len(failing) > 10 else "")
                      if failing else ", no unit fails so far") + "\n")
         self.out.flush()
+
+    def _write_live(self, linter: Linter) -> None:
+        """Plain mode: a line when a rate goes off over its latest intervals, and one when it
+        is back (the rule itself is judged over the whole run, at the end)."""
+        write = self.out.write
+        now_off: dict[tuple[str, str], Violation] = {}
+        for unit in linter.monitor.units():
+            for v in linter.monitor.live_findings(unit):
+                now_off[(str(unit), v.rule)] = v
+        for key, v in now_off.items():
+            if key not in self._live_shown:
+                write(violation_line(v, key[0], self._verdict(linter, v.rule)) + " (live)\n")
+        for key, v in self._live_shown.items():
+            if key not in now_off:
+                write(f"{_clock(linter.last_time)} ok   {key[0]} {key[1]} back within "
+                      f"{v.expected} over its latest intervals (live)\n")
+        self._live_shown = now_off
 
     def _redraw(self, linter: Linter, elapsed: float | None, connected: bool | None) -> None:
         display = self._terminal()

@@ -18,6 +18,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from conformance import profile
 from conformance.schema import BASE_URI, PACKAGE
 from conformance.taskspec import Parameter, TaskSpec, task_specs
 from conformance.tst import COMPOSITES
@@ -402,7 +403,8 @@ def generate_files() -> dict[str, str]:
     out = {"geopoint.json": dumps(geopoint_schema()),
            "start-task.json": dumps(start_task_schema(specs)),
            "start-tst.json": dumps(start_tst_schema(specs)),
-           "TASKS.md": tasks_markdown(specs)}
+           "TASKS.md": tasks_markdown(specs),
+           "PROFILE.md": profile.markdown()}
     for s in specs:
         out[f"params/{s.name}.json"] = dumps(params_schema(s))
     return dict(sorted(out.items()))

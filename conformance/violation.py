@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 
 
 class Verdict(str, enum.Enum):
@@ -33,6 +34,15 @@ _RANK = {Verdict.PASS: 0, Verdict.SKIP: 1, Verdict.COULD_NOT_TEST: 2, Verdict.WA
          Verdict.FAIL: 4}
 
 EXCERPT_CHARS = 200
+
+
+def clock(t: float) -> str:
+    """A Unix time as a person reads it in a finding: ``15:26:04.465 UTC`` (the finding's
+    own ``time`` carries the date); a time out of range stays a number."""
+    try:
+        return datetime.fromtimestamp(t, UTC).strftime("%H:%M:%S.%f")[:-3] + " UTC"
+    except (OverflowError, OSError, ValueError):
+        return repr(t)
 
 
 def excerpt(payload: bytes | str | None, limit: int = EXCERPT_CHARS) -> str:

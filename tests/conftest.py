@@ -39,7 +39,8 @@ def pytest_configure(config: pytest.Config) -> None:
         active, max_examples=max(2, active.max_examples // 15)))
 
 
-@pytest.hookimpl(tryfirst=True)
+# optionalhook: `-p no:xdist` (tests/README: --durations) has no such hook to validate.
+@pytest.hookimpl(tryfirst=True, optionalhook=True)
 def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object | None:
     """-n 2 (xdist's default, --dist load) schedules by work stealing: a worker that runs out
     takes half of the other's queue, so the slow tests (first, below) are shared out, not

@@ -36,7 +36,7 @@ class SentCommand:
     """One command sent to a unit, known by its com-uuid, and what came back."""
 
     __slots__ = ("com_uuid", "name", "time", "last_sent", "sends", "answers", "values",
-                 "digest", "excerpt", "life", "judged")
+                 "digest", "excerpt", "life", "judged", "missed")
 
     def __init__(self, com_uuid: str, name: str, t: float, digest: bytes, excerpt: bytes,
                  life: str | None) -> None:
@@ -54,6 +54,9 @@ class SentCommand:
         """The unit's agent-uuid when the command was sent."""
         self.judged = False
         """Not judged any further: its com-uuid was reused for another command (EXEC-008)."""
+        self.missed = False
+        """Already judged unanswered: a late answer after that is EXEC-010's, not again its
+        command's rule."""
 
 
 class CommandHistory:
@@ -66,6 +69,9 @@ class CommandHistory:
         self.unanswered: list[Any] = []
         """Commands that got no answer in time, judged when the unit next answers (or not)."""
         self.answered_any = False
+        self.last_answer: float | None = None
+        """When the unit last answered a command it was sent (any answer, even a late one):
+        only commands sent after it, left unanswered, say it stopped answering."""
         self.life: str | None = None
         self.lives: list[str] = []
         self.first_command: float | None = None
@@ -156,15 +162,37 @@ def response_timeout(ctx: CheckContext) -> float:
     return ctx.profile.response_timeout
 
 
-def dead_since(unit: UnitState, t: float, period: float, silence_periods: float
-               ) -> float | None:
-    """When a unit whose new life began at ``t`` went silent, if it was down for more than
-    ``silence_periods`` heartbeat periods of ``period`` seconds (``identity``'s measures):
-    what it left unanswered since then is the silence's (HB-010, HB-012), not each command's.
-    None when it was not down that long."""
+def dead_since(unit: UnitState, c: CommandHistory, t: float, period: float,
+               silence_periods: float) -> tuple[float, float] | None:
+    """(dying since, last heartbeat) of a unit whose new life began at ``t``, if it was down
+    for more than ``silence_periods`` heartbeat periods of ``period`` seconds (``identity``'s
+    measures): what it left unanswered since then is the silence's (HB-010, HB-012), not
+    each command's (see ``dying_from``). None when it was not down that long."""
     last = unit.last_heartbeat
-    return (last - period if last is not None and period
-            and t - last > silence_periods * period else None)
+    if last is None or not period or t - last <= silence_periods * period:
+        return None
+    return dying_from(c, last, period), last
+
+
+def died_on(c: CommandHistory, last: float, period: float) -> Any:
+    """The command a unit heard until its last heartbeat ``last`` may have died on: the last
+    one it left unanswered within a period before ``last`` (the last a live unit received),
+    else the first it left unanswered within a period after it; None when none came near."""
+    near = [cmd for cmd in c.commands.values()
+            if last - period <= cmd.last_sent <= last + period and cmd.answers == 0]
+    before = [cmd for cmd in near if cmd.last_sent <= last]
+    if before:
+        return max(before, key=lambda cmd: cmd.last_sent)
+    return min(near, key=lambda cmd: cmd.last_sent) if near else None
+
+
+def dying_from(c: CommandHistory, last: float, period: float) -> float:
+    """When a unit heard until its last heartbeat ``last`` began dying, as far as the commands
+    it left unanswered go: at the command it may have died on (``died_on``), else at ``last``.
+    Commands before that one were received by a live unit: each is its own finding
+    (FIELD-NOTES, precision: dying after a command)."""
+    named = died_on(c, last, period)
+    return min(named.last_sent, last) if named is not None else last
 
 
 def judged_on_a_copy(key: str, dropped: tuple[str, str]) -> Callable[[Judge], FinishCheck]:

@@ -10,10 +10,11 @@ judges a recording in ``lint`` and the suite's own commands in ``pytest --unit``
 TST conversations share is ``command_history``'s.
 
 Blame goes to the root cause, so that one fault fails one rule:
-- commands left unanswered are judged when the unit next answers a later command (each fails
-  its command's rule) or at the end: a unit that answers none of two or more later commands of
-  different kinds while it heartbeats went deaf (EXEC-ROBUST-001, naming the command before);
-  a unit that died (HB-012) answers nothing, and its death is the finding;
+- each command left unanswered fails its own rule, judged when the unit next answers or at the
+  end; a unit that also answers none of two or more commands of different kinds sent after
+  its last answer, while it heartbeats past their deadline, stopped answering (EXEC-ROBUST-001,
+  naming the command before them); the command a dying unit received last, and those after,
+  are its death's (HB-012); those before it were left unanswered by a live unit;
 - feedback after a final status that a resend caused is EXEC-RESEND-001's, not EXEC-FB-004's.
 
 Everything is bounded: histories are LRUs, open expectations are capped and expire, and what
@@ -29,6 +30,7 @@ from conformance.checks.command_history import (
     PENDING_KEPT,
     CommandHistory,
     SentCommand,
+    died_on,
     per_unit,
     str_of,
 )
@@ -139,20 +141,34 @@ class Conversations(CommandHistory):
         self.running.pop(task.task_uuid, None)
 
 
+def task_uuid_sent(m: Any) -> str | None:
+    """The task a response or feedback names: its task-uuid, else the ``uuid`` some agents
+    send instead (FIELD-NOTES, precision: other keys). The wrong key is EXEC-FB-001's (or
+    EXEC-START-002's) finding; the task is still tracked by what the unit sends."""
+    found = str_of(m, "task-uuid")
+    if found is None and isinstance(m, dict) and "task-uuid" not in m:
+        found = str_of(m, "uuid")
+    return found
+
+
 def conversations(unit: UnitState) -> Conversations:
     return per_unit(unit, "conversations", Conversations)  # type: ignore[no-any-return]
 
 
-def last_command_before(unit: UnitState, t: float) -> Command | None:
-    """The latest command sent to the unit at or before ``t`` (for HB-012's finding)."""
+def command_died_on(unit: UnitState, last: float, period: float) -> Command | None:
+    """The command a unit whose last heartbeat was at ``last`` may have died on
+    (``command_history.died_on``), else the last it received before it fell silent: HB-012's
+    finding names it."""
     c = unit.private.get("conversations")
     if c is None:
         return None
-    found = None
-    for cmd in c.commands.values():
-        if cmd.last_sent <= t and (found is None or cmd.last_sent >= found.last_sent):
-            found = cmd
-    return found
+    found = died_on(c, last, period)
+    if found is None:
+        for cmd in c.commands.values():
+            if cmd.last_sent <= last + period and (found is None
+                                                   or cmd.last_sent >= found.last_sent):
+                found = cmd
+    return found  # type: ignore[no-any-return]
 
 
 def dropped(unit: UnitState) -> int:

@@ -3,15 +3,22 @@
 Answers due (a resend left unanswered: EXEC-RESEND-002), feedback a signal's 'ok' implies
 (12.2.2), the final feedback of a task that left tasks-executing (EXEC-START-003). A new
 agent-uuid is a new life: what the old one left open is not judged (the reboot lost it).
-Commands still unanswered when a life or the observation ends are judged here: a unit that
-answers none of two or more commands of different kinds went deaf (EXEC-ROBUST-001); one that
-died is HB-012's finding.
+Commands still unanswered when a life or the observation ends are judged here, each by its
+own rule; a unit that answers none of two or more commands of different kinds sent after its
+last answer, while it still heartbeats past their deadline, also stopped answering
+(EXEC-ROBUST-001); the command a dying unit received last, and those after, are HB-012's.
 """
 
 from __future__ import annotations
 
 from conformance.checks.base import CheckContext, UnitState, check
-from conformance.checks.command_history import dead_since, judged_on_a_copy, late, response_timeout
+from conformance.checks.command_history import (
+    dead_since,
+    dying_from,
+    judged_on_a_copy,
+    late,
+    response_timeout,
+)
 from conformance.checks.conversation import (
     ANSWER_RULE,
     FEEDBACK_WITHOUT_TASK_UUID,
@@ -23,7 +30,7 @@ from conformance.checks.exec_response import judge_unanswered
 from conformance.message import Message
 from conformance.topics import TopicKind
 from conformance.validator import Validation
-from conformance.violation import Violation
+from conformance.violation import Violation, clock
 
 
 @check("EXEC-RESEND-002", "EXEC-START-003", "EXEC-SIG-002", on=(TopicKind.HEARTBEAT,))
@@ -57,7 +64,7 @@ def _new_life(ctx: CheckContext, unit: UnitState, c: Conversations, agent: str, 
         return None  # an earlier uuid again: two agents under one name (HB-011), no reboot
     from conformance.checks.identity import SILENCE_PERIODS, heartbeat_period
 
-    dead = dead_since(unit, t, heartbeat_period(unit), SILENCE_PERIODS)
+    dead = dead_since(unit, c, t, heartbeat_period(unit), SILENCE_PERIODS)
     found = _expire(ctx, unit, c, float("inf"), reboot=True, dead=dead)
     c.running.clear()  # what the old life ran is not judged (the reboot lost it)
     c.expects.clear()
@@ -65,9 +72,9 @@ def _new_life(ctx: CheckContext, unit: UnitState, c: Conversations, agent: str, 
 
 
 def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
-            reboot: bool = False, dead: float | None = None) -> list[Violation]:
-    """Judge what is overdue at ``now`` (at a reboot: everything; ``dead``: when the unit went
-    silent before it, see ``dead_since``)."""
+            reboot: bool = False, dead: tuple[float, float] | None = None) -> list[Violation]:
+    """Judge what is overdue at ``now`` (at a reboot: everything; ``dead``: when the unit
+    began dying and its last heartbeat before it, see ``dead_since``)."""
     found: list[Violation] = []
     timeout = response_timeout(ctx)
     for cmd in c.overdue(now, timeout, reboot):
@@ -101,37 +108,49 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
             found.append(late("EXEC-START-003", unit.address.topic("exec/command"),
                               task.command, f"a final feedback for task {task.task_uuid} "
                               f"(finished, failed or aborted)", f"it left tasks-executing at "
-                              f"{task.left_at:.3f} with none (latest status "
+                              f"{clock(task.left_at)} with none (latest status "
                               f"{task.last_status!r})", task.left_at,
                               "12.4: send feedback with the final status when a task ends"))
     return found
 
 
 def _judge_streak(ctx: CheckContext, unit: UnitState, c: Conversations, *, ended_by: str,
-                  dead: float | None = None) -> list[Violation]:
-    """The commands still unanswered when the life (or the observation) ends: deaf
-    (EXEC-ROBUST-001), or each unanswered; those sent since the unit died (``dead``) are its
-    death's (HB-012)."""
+                  dead: tuple[float, float] | None = None) -> list[Violation]:
+    """The commands still unanswered when the life (or the observation) ends: each fails its
+    own rule, and those sent after the unit's last answer, of two kinds or more, past their
+    deadline while it still heartbeated, show it stopped answering (EXEC-ROBUST-001). Those
+    from when it began dying (``dead``: since, last heartbeat) are its death's (HB-012)."""
     streak, c.unanswered = c.unanswered, []
+    alive_until = None
     if dead is not None:
-        died = [cmd for cmd in streak if cmd.last_sent >= dead]
+        since, alive_until = dead
+        died = [cmd for cmd in streak if cmd.last_sent >= since]
         if died:
             unit.note(ANSWER_RULE.get(died[0].name, "EXEC-ROBUST-002"),
                       f"{len(died)} command(s) sent while the unit was dying or dead (HB-012)")
-        streak = [cmd for cmd in streak if cmd.last_sent < dead]
-    kinds = {cmd.name for cmd in streak}
-    if len(streak) >= 2 and len(kinds) >= 2 and expects_answers(unit, c):
-        first = streak[0]
+        streak = [cmd for cmd in streak if cmd.last_sent < since]
+    found: list[Violation] = []
+    timeout = response_timeout(ctx)
+    # Answers in flight (FIELD-NOTES, precision): a command sent before the unit's last
+    # answer says nothing about whether it still answers, only about itself.
+    after = [cmd for cmd in streak
+             if (c.last_answer is None or cmd.last_sent > c.last_answer)
+             and (alive_until is None or cmd.last_sent + timeout <= alive_until)]
+    kinds = {cmd.name for cmd in after}
+    if len(after) >= 2 and len(kinds) >= 2 and expects_answers(unit, c):
+        first = after[0]
         before = [cmd for cmd in c.commands.values() if cmd.last_sent < first.last_sent]
         cause = max(before, key=lambda cmd: cmd.last_sent) if before else None
         named = first if first.name == MALFORMED or cause is None else cause
         unit.examine("EXEC-ROBUST-001")
-        return [late("EXEC-ROBUST-001", unit.address.topic("exec/command"), first,
-                     f"answers to commands after {named.describe()}", f"none of the next "
-                     f"{len(streak)} commands ({', '.join(sorted(kinds))}) answered until "
-                     f"{ended_by}", first.last_sent, f"the unit stopped answering after "
-                     f"{named.describe()}; it must survive any command (12.1)")]
-    return [v for cmd in streak for v in judge_unanswered(ctx, unit, c, cmd)]
+        found.append(late("EXEC-ROBUST-001", unit.address.topic("exec/command"), first,
+                          f"answers to commands after {named.describe()}", f"none of the "
+                          f"next {len(after)} commands ({', '.join(sorted(kinds))}) answered "
+                          f"until {ended_by}", first.last_sent, f"the unit stopped answering "
+                          f"after {named.describe()}; it must survive any command (12.1)"))
+    # Never instead of each command's own finding: each unanswered command fails its rule.
+    found.extend(v for cmd in streak for v in judge_unanswered(ctx, unit, c, cmd))
+    return found
 
 
 @check("EXEC-ROBUST-001", "EXEC-START-003", finish=True)
@@ -140,12 +159,13 @@ def conversations_at_end(ctx: CheckContext, unit: UnitState, c: Conversations,
                          now: float) -> list[Violation]:
     """At the end: answers still due are judged (a unit that died is HB-012's finding);
     tasks still running are not judged; what the bounds dropped is said."""
-    from conformance.checks.identity import death
+    from conformance.checks.identity import death, heartbeat_period
 
     found = _expire(ctx, unit, c, now)
     dead = death(ctx, unit, now)
     found += _judge_streak(ctx, unit, c, ended_by="the end of the observation",
-                           dead=dead[0] if dead else None)
+                           dead=(dying_from(c, dead[1], heartbeat_period(unit)), dead[1])
+                           if dead else None)
     running = [t for t in c.running.values() if t.left_at is None and t.life == c.life]
     if running:
         unit.note("EXEC-START-003", f"{len(running)} task(s) still running when the "

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.base import CheckContext, UnitState, check, reinterprets
 from conformance.checks.command_history import response_timeout, str_of, violation
 from conformance.checks.conversation import (
     FEEDBACK_WITHOUT_TASK_UUID,
     FINAL_STATUSES,
     Task,
     conversations,
+    task_uuid_sent,
 )
 from conformance.message import Message
 from conformance.status import meaning
@@ -33,11 +34,16 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
     nothing follows that (a repeated delivery of the final message, same com-uuid, is no new
     feedback)."""
     m = v.message
-    task_uuid, status = str_of(m, "task-uuid"), str_of(m, "status")
+    task_uuid, status = task_uuid_sent(m), str_of(m, "status")
     status = meaning(status) or status  # 'done' ends a task as 'finished' (EXEC-FB-002's word)
-    if task_uuid is None or status is None:
-        if status is not None:  # which task it ends cannot be told (EXEC-FB-001's finding)
+    if not task_uuid or status is None:
+        # Missing or empty ("" names no task): which task it concerns cannot be told. Its own
+        # finding per message (EXEC-FB-001), never one pseudo-task '' whose feedback follows
+        # its own final status (FIELD-NOTES, precision: empty task-uuid).
+        if status is not None:
             unit.private[FEEDBACK_WITHOUT_TASK_UUID] = True
+            unit.note("EXEC-FB-004", "feedback without a task-uuid: its tasks could not be "
+                                     "tracked")
         return
     c = conversations(unit)
     t = msg.time
@@ -121,3 +127,41 @@ def tasks_executing_follow_tasks(ctx: CheckContext, unit: UnitState, msg: Messag
         elif task.listed and task.left_at is None:
             task.left_at = msg.time
     return found
+
+
+@reinterprets("EXEC-FB-001", on=(TopicKind.EXEC_FEEDBACK,))
+def empty_task_uuid_names_no_task(ctx: CheckContext, unit: UnitState, msg: Message,
+                                  v: Validation, found: list[Violation]) -> list[Violation]:
+    """12.4: feedback names its task by task-uuid; an empty one names none. It is judged as
+    missing (EXEC-FB-001), once per message, rather than as an id that is not a UUID
+    (ERR-014, a warning) or as a task of its own."""
+    if str_of(v.message, "task-uuid") != "":
+        return found
+    unit.examine("EXEC-FB-001")
+    kept = [f for f in found if not (f.rule == "ERR-014" and f.path == "$.task-uuid")]
+    return [*kept, Violation.of(
+        "EXEC-FB-001", expected="task-uuid: the task this feedback is about (12.4)",
+        observed='task-uuid ""', topic=msg.topic, path="$.task-uuid", time=msg.time,
+        payload=msg.payload, detail="send the task-uuid of the task, as in its start-task "
+                                    "response")]
+
+
+@reinterprets("ERR-006", on=(TopicKind.EXEC_FEEDBACK,))
+def success_in_feedback(ctx: CheckContext, unit: UnitState, msg: Message, v: Validation,
+                        found: list[Violation]) -> list[Violation]:
+    """12.1 calls a completed task 'success' (query-status) where 12.4's feedback says
+    'finished': feedback 'success' follows 12.1's word in 12.4's place. Read as finished and
+    warned (ERR-006), not failed as an unknown status (EXEC-FB-002)."""
+    if not found or str_of(v.message, "status") != "success":
+        return found
+    out = []
+    for f in found:
+        if f.rule == "EXEC-FB-002" and f.path == "$.status":
+            unit.examine("ERR-006")
+            f = Violation.of("ERR-006", expected="'finished' (12.4) for a completed task",
+                             observed="status 'success' (12.1's query-status word)",
+                             topic=msg.topic, path="$.status", time=msg.time,
+                             payload=msg.payload, detail="12.4's feedback says 'finished'; "
+                             "'success' is what query-status answers (12.1)")
+        out.append(f)
+    return out

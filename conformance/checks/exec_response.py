@@ -23,6 +23,7 @@ from conformance.checks.conversation import (
     Task,
     conversations,
     expects_answers,
+    task_uuid_sent,
 )
 from conformance.message import Message
 from conformance.topics import TopicKind
@@ -38,8 +39,8 @@ QUERY_ANSWERS = {"running": ("running",), "paused": ("running", "paused"),
                  "finished": ("finished", "success"), "failed": ("failed",),
                  "aborted": ("failed", "aborted")}
 """12.1: what query-status may answer for a task whose latest feedback was this status
-('success' is ERR-006's reading, judged by the validator; 'paused' and 'aborted' are 12.4's
-words for what 12.1's list calls running and failed)."""
+('success' is 12.1's own word, ERR-006; 'paused' and 'aborted' are 12.4's words for what
+12.1's list calls running and failed)."""
 
 
 @check("EXEC-006", "EXEC-009", "EXEC-010", "EXEC-PING-001", "EXEC-PING-002", "EXEC-START-001",
@@ -61,9 +62,11 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
         return
     unit.examine("EXEC-006")
     c.answered_any = True
+    c.last_answer = t  # credited at any time, late or not (FIELD-NOTES: answers in flight)
     if cmd.judged:
         return
     value, task_uuid = str_of(m, "response"), str_of(m, "task-uuid")
+    tracked = task_uuid_sent(m)  # a task named under another key is still followed
     c.heard(cmd, value, task_uuid)
     if cmd.answers > cmd.sends:
         yield violation("EXEC-009", msg, expected=f"one answer to {cmd.describe()} per time it "
@@ -82,7 +85,7 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
                         f"profile's response_timeout)", observed=f"answered {waited:.2f} s "
                         f"after {cmd.describe()}", path="$.response-to",
                         detail="answer at once; a slow answer makes the commander resend")
-        if cmd.answers == 1:
+        if cmd.answers == 1 and not cmd.missed:
             rule = ANSWER_RULE.get(cmd.name, "EXEC-ROBUST-002")
             unit.examine(rule)
             yield violation(rule, msg, expected=f"an answer to {cmd.describe()} within "
@@ -91,12 +94,13 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
     if cmd.answers > 1:
         yield from _judge_resend_answer(unit, c, cmd, msg, value, task_uuid)
         return
-    # The unit answers: commands it left unanswered before this one were its own faults.
+    # The unit answers: commands it left unanswered before now were its own faults, not a
+    # sign that it stopped answering.
     if c.unanswered:
-        for earlier in c.unanswered_before(cmd.last_sent):
+        for earlier in c.unanswered_before(t):
             yield from judge_unanswered(ctx, unit, c, earlier)
     if in_time:
-        yield from _judge_first_answer(ctx, unit, c, cmd, msg, value, task_uuid)
+        yield from _judge_first_answer(ctx, unit, c, cmd, msg, value, task_uuid, tracked)
 
 
 def _answers_nothing(ctx: CheckContext, unit: UnitState, c: Conversations, msg: Message,
@@ -124,8 +128,8 @@ def _answers_nothing(ctx: CheckContext, unit: UnitState, c: Conversations, msg: 
 
 
 def _judge_first_answer(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: Command,
-                        msg: Message, value: str | None, task_uuid: str | None
-                        ) -> Iterator[Violation]:
+                        msg: Message, value: str | None, task_uuid: str | None,
+                        tracked: str | None = None) -> Iterator[Violation]:
     """The first answer fits its command (12.1, 12.3)."""
     rule = ANSWER_RULE.get(cmd.name, "EXEC-ROBUST-002")
     t = msg.time
@@ -147,7 +151,7 @@ def _judge_first_answer(ctx: CheckContext, unit: UnitState, c: Conversations, cm
         yield from _judge_task_uuid(unit, cmd, msg, value, task_uuid)
         if value == "running":
             yield from _judge_refusals(unit, cmd, msg)
-            started = task_uuid or cmd.task_uuid
+            started = task_uuid or cmd.task_uuid or tracked
             if started is not None:
                 task = c.tasks.get(started)
                 if task is None or task.command is not None:
@@ -298,6 +302,7 @@ def judge_unanswered(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: 
                        "copy the command's com-uuid into response-to, unchanged (12.3)")
             return
     unit.examine(rule)
+    cmd.missed = True
     yield late(rule, unit.address.topic("exec/command"), cmd, f"an answer to "
                f"{cmd.describe()} within {timeout:.1f} s", "no answer", cmd.last_sent,
                "12.1: answer every command, 'failed' with a reason when it cannot be executed")
@@ -322,3 +327,42 @@ def signal_task_response_form(ctx: CheckContext, unit: UnitState, msg: Message, 
                                   f"the suite expects a start-task response's form "
                                   f"({f.detail or 'agent-uuid, com-uuid, response-to, response'})")
             if f.rule == "EXEC-002" else f for f in found]
+
+
+@reinterprets("ERR-014", on=(TopicKind.EXEC_RESPONSE,))
+def no_task_named_no_task_uuid(ctx: CheckContext, unit: UnitState, msg: Message,
+                               v: Validation, found: list[Violation]) -> list[Violation]:
+    """12.1: a response names the task of the command it answers. ``task-uuid: ""`` answering
+    a command that named no task (a malformed one, a ping) is no malformed id (ERR-014): there
+    is no task to name (FIELD-NOTES, precision: spec words). A started task must name one
+    (EXEC-START-002's)."""
+    m = v.message
+    if not found or str_of(m, "task-uuid") != "":
+        return found
+    c = unit.private.get("conversations")
+    command = c.commands.get(str_of(m, "response-to") or "") if c is not None else None
+    if command is None or command.task_uuid is not None or str_of(m, "response") == "running":
+        return found
+    unit.examine("ERR-014")
+    return [f for f in found if not (f.rule == "ERR-014" and f.path == "$.task-uuid")]
+
+
+@reinterprets("ERR-006", on=(TopicKind.EXEC_RESPONSE,))
+def success_answers_query_status(ctx: CheckContext, unit: UnitState, msg: Message,
+                                 v: Validation, found: list[Violation]) -> list[Violation]:
+    """12.1 lists query-status's results as 'running, failed, success, unknown': 'success'
+    answering query-status is the spec's own word (ERR-006's decision), and so is no finding
+    there; answering another command it is out of place (the validator's warning stands). A
+    response to a command not seen cannot tell: not judged."""
+    if not found or str_of(v.message, "response") != "success":
+        return found
+    c = unit.private.get("conversations")
+    command = c.commands.get(str_of(v.message, "response-to") or "") if c is not None else None
+    if command is not None and command.name != "query-status":
+        unit.examine("ERR-006")
+        return found
+    if command is None:
+        unit.note("ERR-006", "'success' answering a command not seen: not judged")
+    else:
+        unit.examine("ERR-006")
+    return [f for f in found if f.rule != "ERR-006"]

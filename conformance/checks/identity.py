@@ -175,7 +175,7 @@ def unit_does_not_die(ctx: CheckContext, unit: UnitState, now: float,
                       findings: Any) -> Iterator[Violation]:
     """5.1: the heartbeat registers availability. One that stops for good is a death (error):
     the finding names the last command the unit received before it fell silent."""
-    from conformance.checks.conversation import last_command_before
+    from conformance.checks.conversation import command_died_on
 
     if unit.last_heartbeat is None or unit.period(HB) is None:
         return
@@ -183,7 +183,7 @@ def unit_does_not_die(ctx: CheckContext, unit: UnitState, now: float,
     period = heartbeat_period(unit)
     for last, end in deaths(ctx, unit, now):
         silence = min(end, now) - last
-        command = last_command_before(unit, last + period)
+        command = command_died_on(unit, last, period)
         gap = command.last_sent - last if command is not None else 0.0
         said = (f"; the last command it received: {command.describe()}, {abs(gap):.2f} s "
                 f"{'after' if gap >= 0 else 'before'} its last heartbeat"

@@ -30,6 +30,7 @@ from conformance.checks.base import (
     CheckContext,
     UnitState,
 )
+from conformance.checks.rates import live_findings as live_rate_findings
 from conformance.checks.rows import (
     UNATTRIBUTED,
     Findings,
@@ -65,6 +66,12 @@ _OVERFLOW = Row(UnitState(UnitAddress(UNATTRIBUTED, "", "", "overflow")))
 
 
 _COMMAND_KINDS = (TopicKind.EXEC_COMMAND, TopicKind.TST_COMMAND)
+
+
+def _is_command(m: Any) -> bool:
+    """A message that reads as a command (12.2: com-uuid and command) on any topic."""
+    return (type(m) is dict and isinstance(m.get("command"), str)
+            and isinstance(m.get("com-uuid"), str))
 
 
 class _Route:
@@ -178,6 +185,10 @@ class Monitor:
         examined = self._examined(route, v)  # counted by set, expanded at report time
         if route.command:
             return self._feed_command(route, entry, message, v, examined)
+        if route.topic_kind is TopicKind.UNKNOWN and _is_command(v.message):
+            # A command on a topic of its sender's making (an operator's '.../None/command',
+            # FIELD-NOTES, precision): what is wrong in it is the sender's, on its row.
+            entry = self._commander_entry(entry, v.message, message.payload)
         groups = entry.groups
         groups[examined] = groups.get(examined, 0) + 1
         ctx, state = self.ctx, entry.state
@@ -234,6 +245,14 @@ class Monitor:
             if gained and CATALOGUE[rule].side is not Side.UNIT:
                 commander.state.examine(rule, gained)
                 state.examined[rule] = n - gained
+        # The unit's own topic (its address: 3.1's TYPE, ROLE, UNIT) is the unit's finding,
+        # recorded once on its row, never on each commander that addresses it (DESIGN: blame).
+        own = [f for f in found if CATALOGUE[f.rule].level.value == "topic"]
+        if own:
+            found = [f for f in found if CATALOGUE[f.rule].level.value != "topic"]
+            for f in own:
+                if f.rule not in entry.records and entry.state.address.prefix != UNATTRIBUTED:
+                    entry.add(dataclasses.replace(f, unit=entry.unit))
         found = [dataclasses.replace(f, unit=commander.unit) for f in found]
         for f in found:
             commander.add(f)
@@ -365,6 +384,13 @@ class Monitor:
     def units(self) -> list[UnitAddress]:
         """Every unit seen (or recorded into), in address order."""
         return sorted(a for a in self._entries if a is not None)
+
+    def live_findings(self, unit: UnitAddress) -> list[Violation]:
+        """What is wrong with ``unit`` right now that the rules judge only over the whole
+        observation (its rates over their latest intervals: ``rates.live_findings``). A view
+        for lint's live scorecard; nothing here is recorded."""
+        entry = self._entries.get(unit)
+        return [] if entry is None else live_rate_findings(self.ctx, entry.state)
 
     def topics_cached(self) -> int:
         """Topics whose route ``feed`` keeps (at most ``MAX_TOPICS``: bounded memory)."""

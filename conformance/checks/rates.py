@@ -13,11 +13,18 @@ restart's silence is HB-006's and HB-010's to judge, not the rate's. Agent-uuids
 turns (two agents under one name, HB-011) are no reboot: their doubled rate stays HB-003's.
 
 Memory is bounded: running sums, min and max, and a series of at most 600 points.
+
+Live (``live_findings``, what lint's scorecard shows while it runs): the same judgement over
+the latest ``profile.min_intervals`` clean intervals of each rate (a gross mismatch after
+3), so an operator sees a unit turn red within seconds of a gross mismatch and within a
+minute of a fine one at 1 Hz. It is a view, not a verdict: the rules are judged over the
+whole observation, as before (a rate that recovered is judged on everything it did).
 """
 
 from __future__ import annotations
 
 from array import array
+from collections import deque
 from collections.abc import Iterator
 from operator import add
 
@@ -26,7 +33,7 @@ from conformance.message import Message
 from conformance.results import RateStat
 from conformance.topics import TopicKind
 from conformance.validator import Validation
-from conformance.violation import Verdict, Violation
+from conformance.violation import Verdict, Violation, clock
 
 RATE_RULES = {
     TopicKind.HEARTBEAT: "HB-003",
@@ -40,6 +47,8 @@ GROSS_MIN_INTERVALS = 3
 MAX_SERIES = 600
 MAX_CLOSED_SEGMENTS = 8
 MAX_AGENTS = 4
+MAX_RECENT = 64
+"""Clean intervals kept for the live window (min_intervals beyond this is judged over 64)."""
 
 
 class _Series:
@@ -83,7 +92,7 @@ class RateTracker:
 
     __slots__ = ("kind", "rule", "topic", "declared", "last", "start", "end", "n", "total",
                  "min", "max", "max_at", "silences", "all_n", "all_total", "all_max",
-                 "all_max_at", "excluded", "series", "agents")
+                 "all_max_at", "excluded", "series", "agents", "recent")
 
     def __init__(self, kind: TopicKind, topic: str, declared: float | None) -> None:
         self.kind = kind
@@ -107,6 +116,8 @@ class RateTracker:
         self.series = _Series()
         self.agents: tuple[object, ...] = ()
         """The agent-uuids seen on this topic, latest last (at most MAX_AGENTS)."""
+        self.recent: deque[tuple[float, float, bool]] = deque(maxlen=MAX_RECENT)
+        """(end time, interval, a silence?) of the latest intervals: the live window."""
 
     def _agent(self, agent: object) -> None:
         """The message being added carries ``agent``, not the latest seen here. One never seen
@@ -147,9 +158,11 @@ class RateTracker:
         self.series.add(t, dt)
         if self.declared and dt > SILENCE_PERIODS / self.declared:
             self.silences += 1
+            self.recent.append((t, dt, True))
             return
         self.n += 1
         self.total += dt
+        self.recent.append((t, dt, False))
         if dt < self.min:
             self.min = dt
         if dt > self.max:
@@ -218,6 +231,48 @@ class RateTracker:
         stat.reason = (f"{len(found)} violation{'s' if len(found) > 1 else ''}" if found
                        else f"min {lo:.3f} s, max {hi:.3f} s{silences}")
         return stat, found
+
+
+    def live(self, ctx: CheckContext, unit: str) -> Violation | None:
+        """The rate over the latest clean intervals, as a violation when it is off (gross
+        after 3 intervals, past the tolerance after ``min_intervals``); None while it holds
+        or too few intervals were seen. Pure: a view for the live scorecard, never recorded."""
+        declared = self.declared
+        if not declared or len(self.recent) < GROSS_MIN_INTERVALS:
+            return None
+        profile = ctx.profile
+        need = max(profile.min_intervals, GROSS_MIN_INTERVALS)
+        # As judge() does: silences left out while the clean intervals are enough to judge,
+        # counted in otherwise (a unit that is always "silent" publishes far too slowly).
+        clean = [(t, dt) for t, dt, silent in self.recent if not silent]
+        window = clean[-need:] if len(clean) >= need else [
+            (t, dt) for t, dt, _ in list(self.recent)[-need:]]
+        k = len(window)
+        mean = sum(dt for _, dt in window) / k
+        period = 1.0 / declared
+        gross = mean > GROSS_FACTOR * period or mean < period / GROSS_FACTOR
+        if not gross and (k < profile.min_intervals
+                          or abs(mean - period) <= profile.rate_tolerance * period):
+            return None
+        since = window[0][0] - window[0][1]
+        return Violation.of(
+            self.rule,
+            expected=f"{declared:.2f} Hz +-{profile.rate_tolerance:.0%} "
+                     f"(declared in {self.kind.value}.rate)",
+            observed=f"{1.0 / mean:.2f} Hz over the latest {k} intervals (since "
+                     f"{clock(since)}){', a gross mismatch' if gross else ''}",
+            topic=self.topic, time=window[-1][0], unit=unit,
+            detail="live: judged over the whole observation when the run ends")
+
+
+def live_findings(ctx: CheckContext, unit: UnitState) -> list[Violation]:
+    """Each rate of ``unit`` that is off over its latest intervals (``RateTracker.live``)."""
+    found = []
+    for tracker in _trackers(unit).values():
+        v = tracker.live(ctx, str(unit.address))
+        if v is not None:
+            found.append(v)
+    return found
 
 
 def _trackers(unit: UnitState) -> dict[TopicKind, RateTracker]:

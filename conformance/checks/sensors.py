@@ -21,6 +21,11 @@ heartbeat and sensor_info since the first sensor_info (sensors declare no rate o
 MIN_JUMP_INTERVAL = 0.5
 """SENS-005 compares positions at least 0.5 s apart: arrival-time jitter (FIELD-NOTES: up to
 tens of ms) over a shorter interval would turn metre-level noise into absurd speeds."""
+BURST_GAP = 0.002
+"""Positions arriving closer than this were queued and flushed together (a broker or link
+catching up; FIELD-NOTES timing jitter: +-0.7 ms idle, 1-7 ms loaded between messages sent a
+period apart): their arrival times are not when they were sent, so the latest of them is the
+new anchor and none is compared with one from before the burst."""
 EARTH_RADIUS = 6_371_000.0  # metres
 _RADIANS = math.pi / 180
 
@@ -189,10 +194,15 @@ def position_moves_plausibly(ctx: CheckContext, unit: UnitState, msg: Message,
     private = unit.private
     anchor = private.get("sens005_anchor")
     t = msg.time
-    if anchor is not None and t - anchor[1] < MIN_JUMP_INTERVAL:
+    last, private["sens005_last"] = private.get("sens005_last"), t
+    burst = last is not None and t - last < BURST_GAP
+    if anchor is not None and t - anchor[1] < MIN_JUMP_INTERVAL and not burst:
         return None  # too close to the last position compared to judge (a point is not read)
     point = geopoint(v.message)
     if point is None:
+        return None
+    if burst:  # arrival times of a flushed queue are not the unit's timing: start again here
+        private["sens005_anchor"] = (point, t)
         return None
     if anchor is None:
         private["sens005_anchor"] = (point, t)

@@ -12,7 +12,13 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 from conformance.checks.base import CheckContext, UnitState, check
-from conformance.checks.command_history import dead_since, judged_on_a_copy, late, response_timeout
+from conformance.checks.command_history import (
+    dead_since,
+    dying_from,
+    judged_on_a_copy,
+    late,
+    response_timeout,
+)
 from conformance.checks.tst_conversation import (
     ANSWER_RULE,
     TstCommand,
@@ -52,7 +58,8 @@ def _new_life(ctx: CheckContext, unit: UnitState, c: TstConversations, t: float
               ) -> list[Violation] | None:
     from conformance.checks.identity import SILENCE_PERIODS, heartbeat_period
 
-    dead = dead_since(unit, t, heartbeat_period(unit), SILENCE_PERIODS)
+    dying = dead_since(unit, c, t, heartbeat_period(unit), SILENCE_PERIODS)
+    dead = dying[0] if dying is not None else None
     found = _expire(ctx, unit, c, t, reboot=True)
     streak, c.unanswered = c.unanswered, []
     found.extend(_judge_left_unanswered(ctx, unit, c, streak, dead))
@@ -128,12 +135,12 @@ def tst_conversations_at_end(ctx: CheckContext, unit: UnitState, c: TstConversat
                              now: float) -> list[Violation]:
     """At the end: answers still due are judged, but not those a unit that died left (HB-012's
     finding); trees still running are not judged; what the bounds dropped is said."""
-    from conformance.checks.identity import death
+    from conformance.checks.identity import death, heartbeat_period
 
     found = _expire(ctx, unit, c, now)
     dead = death(ctx, unit, now)
-    found.extend(_judge_left_unanswered(ctx, unit, c, c.unanswered,
-                                        dead[0] if dead is not None else None))
+    found.extend(_judge_left_unanswered(ctx, unit, c, c.unanswered, dying_from(
+        c, dead[1], heartbeat_period(unit)) if dead is not None else None))
     running = sum(1 for t in c.trees.values() if t.state == "started" and t.life == c.life
                   and t.ended_at is None)
     if running:

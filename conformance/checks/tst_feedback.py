@@ -20,7 +20,7 @@ from conformance.message import Message
 from conformance.topics import TopicKind
 from conformance.tst import FINAL
 from conformance.validator import Validation
-from conformance.violation import Violation
+from conformance.violation import Violation, clock
 
 READ_AS = {"finished": "succeeded"}
 """A near miss of 14.5's vocabulary (TST-003, the validator's) is read as the status it means."""
@@ -95,7 +95,7 @@ def tst_feedback_follows_tree(ctx: CheckContext, unit: UnitState, msg: Message,
         unit.examine("TST-013")
         yield violation("TST-013", msg, expected=f"node {node_uuid} ('{node.name}') in "
                         f"nodes-executing while it runs", observed=f"left out at "
-                        f"{node.unlisted_at:.3f}, and it still ran ('{status}' "
+                        f"{clock(node.unlisted_at)}, and it still ran ('{status}' "
                         f"{t - node.unlisted_at:.2f} s later)", path="$.status",
                         detail="list every node that is not yet in a final status")
     node.unlisted_at = node.left_at = None

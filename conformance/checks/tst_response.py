@@ -51,6 +51,7 @@ def tst_response_answers_command(ctx: CheckContext, unit: UnitState, msg: Messag
     if cmd is None or cmd.judged:
         return  # a command before the observation, or another unit's on a shared topic
     c.answered_any = True
+    c.last_answer = msg.time
     value, root_uuid = str_of(m, "response"), str_of(m, "root-uuid")
     c.heard(cmd, value, root_uuid)
     if cmd.answers > 1:

@@ -16,6 +16,7 @@ COMMANDS: dict[str, str] = {
     "demo": "certify the bundled reference unit on the embedded broker",
     "lint": "lint live or recorded traffic of a whole fleet (never publishes)",
     "record": "record live traffic to a JSON Lines file",
+    "profile": "write a starting profile from what a unit declares and publishes",
     "sim": "run the reference unit (or a fleet of them), with faults",
     "broker": "run the embedded amqtt broker on loopback",
     "rules": "print the rule catalogue",

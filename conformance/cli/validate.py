@@ -15,6 +15,7 @@ Exit code: 0 when nothing fails under the profile (warnings allowed), 1 when a r
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import sys
 import time as time_module
@@ -25,6 +26,11 @@ from conformance.cli import options as opts
 from conformance.explanation import overall_verdict, render, to_dict, unplaceable, validate_tst
 from conformance.validator import Validator
 from conformance.violation import Verdict
+
+PLAUSIBLE_CLOCK = 365 * 86400.0
+"""Seconds a stamp may be from now when no arrival time is given (no --now, no --time): wide
+enough for any recorded message of the last year, narrow enough that a stamp in milliseconds
+or microseconds, or a clock that never synchronised, fails MSG-005."""
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -43,7 +49,9 @@ def main(argv: list[str] | None = None) -> int:
     when.add_argument("--time", type=float, default=None,
                       help="arrival time (Unix seconds) to judge the stamp against (MSG-005)")
     when.add_argument("--now", action="store_true",
-                      help="judge the stamp against the current time (a message just captured)")
+                      help="judge the stamp against the current time (a message just captured); "
+                           "with neither, a stamp is judged for plausibility only (seconds, "
+                           "within a year of now), and the output says so")
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
     args = parser.parse_args(argv)
     if args.tst:
@@ -64,15 +72,28 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 2
     arrival = time_module.time() if args.now else args.time
+    notes: list[str] = []
     if args.tst:
         validation = validate_tst(Validator(profile), payload)
     else:
-        validation = Validator(profile).validate(args.topic, payload, arrival)
+        judging = profile
+        if arrival is None:  # no arrival time: the stamp is judged for plausibility only
+            judging = dataclasses.replace(profile, clock_tolerance=PLAUSIBLE_CLOCK)
+            arrival = time_module.time()
+        validation = Validator(judging).validate(args.topic, payload, arrival)
         if validation.topic.unit is None:
             print(unplaceable(args.topic), file=sys.stderr)
             return 2
+        stamp = validation.message.get("stamp") if isinstance(validation.message, dict) else None
+        if judging is not profile and type(stamp) in (int, float):
+            notes.append(f"the stamp was judged for plausibility only (Unix seconds within "
+                         f"{PLAUSIBLE_CLOCK / 86400:.0f} days of now: not milliseconds, not a "
+                         f"clock left at 1970); pass --now for a message just captured, or "
+                         f"--time T, to judge it within {profile.clock_tolerance:g} s (MSG-005)")
     if args.json:
-        print(json.dumps(to_dict(validation, profile), indent=2))
+        print(json.dumps({**to_dict(validation, profile), "notes": notes}, indent=2))
     else:
         print(render(validation, profile))
+        for note in notes:
+            print(f"note      {note}")
     return 1 if overall_verdict(validation, profile) is Verdict.FAIL else 0

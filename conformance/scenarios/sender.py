@@ -66,6 +66,11 @@ class Sender:
         self.would_publish: list[tuple[str, bytes]] = []
         """Under --dry-run: what would have been published."""
 
+    def gaps(self) -> int:
+        """How many connection gaps the client has lived through: a wait across one saw
+        nothing of what the unit sent meanwhile (an outage of the observer, not the unit's)."""
+        return self._gaps()
+
     @staticmethod
     def compose(body: dict[str, Any], com_uuid: str | None = None
                 ) -> tuple[bytes, dict[str, Any]]:

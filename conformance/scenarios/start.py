@@ -18,6 +18,8 @@ from conformance.scenarios.traffic import Entry
 from conformance.violation import Verdict, Violation
 
 RULES = ("EXEC-START-001", "EXEC-START-002", "EXEC-START-003", "DEI-004")
+LINK_LOST = ("the broker connection was lost while waiting for tasks-executing (an outage of "
+             "the observer, not the unit's)")
 REFUSAL_RULES = ("EXEC-START-004", "EXEC-START-005")
 NO_SUCH_TASK = "waraps-conformance-no-such-task"
 # Tasks that end on their own (9.6, 9.7, 9.15, 9.13): the first one available is let run to
@@ -106,10 +108,13 @@ def run(ctx: Context) -> None:
             continue
         # 5.3: a running task is listed in tasks-executing (unless it ended before the next
         # direct_execution_info: then it cannot be judged here).
+        gaps = ctx.commander.gaps()
         seen = ctx.wait_listed(task_uuid, after=sent.mark)
         unlisted: Violation | None = None
         if seen is not None and seen.subtopic == "direct_execution_info":
             ctx.record("DEI-004", verdict=Verdict.PASS)
+        elif seen is None and ctx.commander.gaps() != gaps:
+            ctx.record("DEI-004", verdict=Verdict.COULD_NOT_TEST, reason=LINK_LOST)
         elif seen is None:  # judged once its end is known: it may have ended unannounced
             unlisted = ctx.violation(
                 "DEI-004", expected=f"task {task_uuid} ('{task}') in tasks-executing while "
@@ -170,6 +175,7 @@ def _check_left(ctx: Context, ended: list[tuple[str, int]]) -> None:
     if not ended:
         return
     last = max(mark for _, mark in ended)
+    gaps = ctx.commander.gaps()
     info = ctx.traffic.wait_for(lambda e: True, ctx.info_deadline(1.0), after=last,
                                 subtopic="direct_execution_info")
     if info is None:
@@ -180,7 +186,9 @@ def _check_left(ctx: Context, ended: list[tuple[str, int]]) -> None:
         info = ctx.traffic.wait_for(lambda e: True, ctx.info_deadline(1.0), after=info.seq,
                                     subtopic="direct_execution_info") or info
         still = [u for u, _ in ended if u in ctx.executing(info)]
-    if still:
+    if still and ctx.commander.gaps() != gaps:
+        ctx.record("DEI-004", verdict=Verdict.COULD_NOT_TEST, reason=LINK_LOST)
+    elif still:
         ctx.record("DEI-004", violation=ctx.violation(
             "DEI-004", expected="tasks that ended are no longer in tasks-executing",
             observed=f"{len(still)} ended task(s) still listed: {', '.join(still[:3])}",

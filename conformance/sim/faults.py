@@ -234,9 +234,9 @@ _ALL = (
        "Runs every task under a task-uuid it generates, ignoring the one start-task gives "
        "(and answers with its own)."),
     # --- robustness and reboot ----------------------------------------------------------------
-    _f("crash-on-malformed", "EXEC-ROBUST-001 EXEC-ROBUST-002",
+    _f("crash-on-malformed", "EXEC-ROBUST-001 EXEC-ROBUST-002 EXEC-PING-001",
        "Its command thread dies on the first command that is not a JSON object: no command is "
-       "answered after that (heartbeats go on)."),
+       "answered after that (heartbeats go on; the pings after it go unanswered)."),
     _f("malformed-unanswered", "EXEC-ROBUST-002",
        "Drops malformed commands silently, even when their com-uuid can be read."),
     _f("reboot-keeps-agent-uuid", "REBOOT-001 REBOOT-002",
@@ -246,8 +246,8 @@ _ALL = (
     # --- errata readings ----------------------------------------------------------------------
     _f("sensor-dot-info", "ERR-001",
        "Sends sensor_info on 'sensor.info' (5.2's spelling)."),
-    _f("query-answers-success", "ERR-006",
-       "Answers query-status of a finished task 'success' (12.1's word)."),
+    _f("feedback-says-success", "ERR-006",
+       "Reports a finished task as 'success' in feedback (12.1's query-status word)."),
     _f("level-underscore", "ERR-008",
        "Declares the level 'direct_execution'."),
     _f("geopoint-type-tag", "ERR-010",

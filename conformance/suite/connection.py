@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -25,6 +26,10 @@ from conformance.topics import UnitAddress
 
 if TYPE_CHECKING:
     from conformance.sim.reference import Reference
+
+Revive = tuple[str, float, Callable[[], "str | None"]]
+"""How a unit that is not alive is restarted before the run: (how, in the words of the option;
+seconds to wait for its heartbeat after; the restart, returning None or what went wrong)."""
 
 
 @dataclass(eq=False)
@@ -42,6 +47,8 @@ class Connection:
     """The bundled reference unit and its broker, under --broker embedded."""
     _alive: threading.Event = field(default_factory=threading.Event, init=False)
     _gap_start: float | None = field(default=None, init=False)
+    _linked: bool = field(default=False, init=False)
+    """Whether the broker ever accepted the connection (before that, nothing can be lost)."""
 
     def __post_init__(self) -> None:
         self.broker_url: BrokerURL = self.settings.broker
@@ -51,9 +58,10 @@ class Connection:
     def unit(self) -> UnitAddress:
         return self.settings.unit
 
-    def open(self, alive_timeout: float) -> None:
+    def open(self, alive_timeout: float, revive: Revive | None = None) -> None:
         """Connect, observe ``<unit>/#`` and wait up to ``alive_timeout`` seconds for the
-        unit's first live heartbeat.
+        unit's first live heartbeat. A unit that sends none is restarted once by ``revive``
+        (``--reboot-cmd``: an earlier run may have left it dead) before it is judged not alive.
 
         Raises ``BrokerError`` (broker unreachable or refusing) or ``NotAlive``."""
         s = self.settings
@@ -77,12 +85,30 @@ class Connection:
         probe.start()
         try:
             if not self._alive.wait(alive_timeout):
-                raise NotAlive(not_alive(
-                    self.unit, s.profile, self.broker_url, waited=alive_timeout,
-                    own_subtopics=self.traffic.subtopics(), seen=probe.topics(),
-                    timing_scale=s.timing_scale))
+                revived = self._revive(revive, alive_timeout) if revive else None
+                if revived is None or revived[1]:
+                    raise NotAlive(not_alive(
+                        self.unit, s.profile, self.broker_url, waited=alive_timeout,
+                        own_subtopics=self.traffic.subtopics(), seen=probe.topics(),
+                        timing_scale=s.timing_scale,
+                        revived=revived[1] if revived else None))
         finally:
             probe.close()
+
+    def _revive(self, revive: Revive, waited: float) -> tuple[str, str]:
+        """Restart a unit that is not alive, and wait for its heartbeat: (how, "") when it
+        came, else (how, what went wrong)."""
+        how, timeout, restart = revive
+        self.events.at(time.time(), f"no heartbeat within {waited:.1f} s: restarting the unit "
+                                    f"before judging it")
+        failure = restart()
+        if failure is not None:
+            return how, f"restarted with {how}, which failed: {failure}"
+        if not self._alive.wait(timeout):
+            return how, f"restarted with {how}; still no heartbeat {timeout:.0f} s later"
+        self.events.at(time.time(), f"the unit was not alive when the run began (an earlier "
+                                    f"run may have left it dead); restarted with {how}")
+        return how, ""
 
     def _on_message(self, message: Message) -> None:
         """Every message of ``<unit>/#``, on the MQTT network thread: keep it quick."""
@@ -96,6 +122,10 @@ class Connection:
     def _on_connection(self, connected: bool, reason: str) -> None:
         now = time.time()
         with self.monitor_lock:
+            if connected:
+                self._linked = True
+            elif not self._linked:
+                return  # refused at connect (the error says why): no link was lost
             if not connected:
                 self._gap_start = now
                 # Mark the gap at once: rates, silences and uuid changes across it are not

@@ -52,9 +52,11 @@ class Probe:
 
 
 def not_alive(unit: UnitAddress, profile: Profile, broker: BrokerURL, *, waited: float,
-              own_subtopics: set[str], seen: dict[str, bytes], timing_scale: float) -> str:
+              own_subtopics: set[str], seen: dict[str, bytes], timing_scale: float,
+              revived: str | None = None) -> str:
     """What to tell the person whose unit sent no live heartbeat within ``waited`` seconds:
-    what of it was seen, a unit at a close address, the naming rules its topics break."""
+    what of it was seen, a unit at a close address, the naming rules its topics break, and
+    how a restart went (``revived``; None: there was no way to restart it)."""
     topic = unit.topic("heartbeat")
     lines = [f"the unit {unit} is not alive: no heartbeat on {topic} within "
              f"{waited:.1f} s (broker {broker})."]
@@ -96,6 +98,11 @@ def not_alive(unit: UnitAddress, profile: Profile, broker: BrokerURL, *, waited:
     if not seen:
         lines.append(f"Nothing at all was published under {prefix}/ meanwhile: is the unit "
                      f"running and connected to this broker, under this prefix?")
+    if revived:
+        lines.append(f"It was {revived}.")
+    elif own_subtopics or not close:
+        lines.append("If an earlier run left it dead (HB-012), restart it, or pass "
+                     "--reboot-cmd 'COMMAND' and the suite restarts it before judging it.")
     if timing_scale == 1.0:
         lines.append("On a slow link, give it longer with --timing-scale 3.")
     return "\n".join(lines)

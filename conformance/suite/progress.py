@@ -15,6 +15,12 @@ import pytest
 
 from conformance.scenarios.traffic import Wait
 
+try:  # pytest's own relative-path helper, as its result lines use it
+    from _pytest.pathlib import bestrelpath
+except ImportError:  # pragma: no cover - a future pytest without it
+    def bestrelpath(directory: Any, dest: Any) -> str:
+        return str(dest)
+
 LINE_EVERY = 10.0
 """Seconds between two plain progress lines of one wait (not on a terminal)."""
 
@@ -26,6 +32,7 @@ class Progress:
         self.config = config
         self.verbosity = config.get_verbosity()
         self._drawn = False
+        self._fspath: Any = None
         self._shown: tuple[Wait | None, int] = (None, 0)
         """(the wait, how many LINE_EVERY periods of it were shown) off a terminal."""
 
@@ -54,8 +61,11 @@ class Progress:
             return
         text = f"waiting for {wait.what}: {wait.elapsed:.0f} s of {wait.timeout:.0f} s"
         if self._tty():
+            first = not self._drawn  # (was read inside draw, after it was set: never true)
+
             def draw(tr: Any) -> None:
-                if not self._drawn:
+                if first:  # keep pytest's line of result letters; draw on a line of our own
+                    self._fspath = tr.currentfspath
                     tr.ensure_newline()
                 tr.rewrite(text, erase=True)
             self._drawn = True
@@ -75,7 +85,13 @@ class Progress:
 
         def erase(tr: Any) -> None:
             tr.rewrite("", erase=True)
-            tr.currentfspath = None  # pytest starts its next progress line afresh
+            _back_to_column_0(tr)
+            if self._fspath is not None:
+                # pytest goes on writing result letters on this line: give it the test
+                # file's name first, as pytest does at the start of a line of results, so
+                # no letter stands alone at the right edge where the wait text ended.
+                tr.write(f"{bestrelpath(tr.startpath, self._fspath)} ")
+            tr.currentfspath = self._fspath
         self._write(erase)
 
     def step(self, text: str) -> None:
@@ -93,3 +109,13 @@ class Progress:
             tr.write_line(text)
             tr.currentfspath = None
         self._write(draw)
+
+
+def _back_to_column_0(tr: Any) -> None:
+    """After an erase the cursor stands at the line's end: put it at column 0, and tell
+    pytest's writer the line is empty (it measures the line to right-align its [ NN%]
+    progress; it has no public way to be told, so its line is reset where it exists)."""
+    tr.write("\r")
+    tw = getattr(tr, "_tw", None)
+    if tw is not None and hasattr(tw, "_current_line"):
+        tw._current_line = ""

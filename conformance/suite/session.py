@@ -130,7 +130,18 @@ class Certification:
 
         Raises ``BrokerError`` (broker unreachable or refusing) or ``NotAlive``."""
         self.traffic.waits.deadline = time.monotonic() + self.settings.max_duration
-        self.connection.open(self.alive_timeout())
+        if self.config.get_verbosity() >= 0:  # the first seconds: say what is awaited
+            where = ("the embedded broker and the bundled reference unit" if
+                     self.settings.embedded else f"{self.settings.broker}")
+            self._say(f"waraps-conformance: connecting to {where}, then waiting up to "
+                      f"{self.alive_timeout():.0f} s for a heartbeat of {self.unit}")
+        revive = None
+        if self.reboot.available() and not self.settings.embedded:
+            # Restarted once before the run, outside the observation (not a REBOOT-* stimulus).
+            restart = Reboot(self.config, self.connection, self.timing.reboot,
+                             lambda t: None, self.events)
+            revive = (restart.how(), self.timing.reboot, restart)
+        self.connection.open(self.alive_timeout(), revive)
 
     def alive_timeout(self) -> float:
         """Seconds to wait for the first heartbeat: the profile's alive_timeout, else 5 s

@@ -17,7 +17,7 @@ def verdict(m: Monitor, stream, rule: str, finish: bool = True):
     return m.report().units[str(stream.address)].rules[rule]
 
 
-STATEFUL = covered_rules()
+STATEFUL = covered_rules() - {"ERR-014"}  # the validator's; a stateful check only withdraws it
 C1, C2 = str(uuid.uuid4()), str(uuid.uuid4())
 
 
@@ -60,6 +60,46 @@ def test_rate_fails_on_a_single_long_gap(stream):
     r = verdict(m, stream, "HB-003")
     assert r.verdict is Verdict.FAIL
     assert any("2.200 s" in v.observed for v in r.violations)
+
+
+def test_a_rate_is_judged_live_over_its_latest_intervals_and_finally_over_the_whole(stream):
+    """Issue 20: the live view turns red once min_intervals (10) clean intervals are off, a
+    gross mismatch after 3, and clears when the rate recovers; the rule is judged over the
+    whole observation at the end (a rate that recovered may pass)."""
+    m = Monitor()
+    unit = stream.address
+    slow = [stream.heartbeat(i * 1.35) for i in range(10)]  # 9 intervals at 0.74 Hz
+    stream.feed(m, slow)
+    assert m.live_findings(unit) == []  # 9 intervals: not enough for a fine mismatch
+    stream.feed(m, [stream.heartbeat(10 * 1.35)])
+    (live,) = m.live_findings(unit)
+    assert live.rule == "HB-003" and "0.74 Hz over the latest 10 intervals" in live.observed
+    assert "live" in live.detail
+    t = 10 * 1.35
+    stream.feed(m, [stream.heartbeat(t + i + 1) for i in range(30)])  # back at 1 Hz
+    assert m.live_findings(unit) == []
+    assert verdict(m, stream, "HB-003").verdict is Verdict.PASS  # 40 intervals: 1.09 s mean
+
+
+@pytest.mark.parametrize("times", [
+    [i + (0.04 if i % 2 else -0.04) for i in range(60)],                # jitter
+    [t for t in range(80) if not 25 <= t % 30 < 29],                    # silences (HB-010)
+], ids=["jitter", "silences"])
+def test_a_conformant_rate_is_never_shown_off_live(stream, times):
+    m = Monitor()
+    for t in times:  # looked at after every message, as often as a scorecard could
+        stream.feed(m, [stream.heartbeat(t)])
+        assert m.live_findings(stream.address) == [], t
+
+
+def test_a_gross_rate_mismatch_shows_live_after_three_intervals(stream):
+    m = Monitor()
+    stream.feed(m, [stream.heartbeat(i * 5.0) for i in range(3)])
+    assert m.live_findings(stream.address) == []
+    stream.feed(m, [stream.heartbeat(15.0)])
+    (live,) = m.live_findings(stream.address)
+    assert "0.20 Hz over the latest 3 intervals" in live.observed and "gross" in live.observed
+    assert verdict(m, stream, "HB-003").verdict is Verdict.FAIL
 
 
 def test_rate_skips_with_too_few_intervals(stream):

@@ -197,7 +197,9 @@ def test_an_answer_too_many_fails_exec_009(stream):
     assert rules["EXEC-009"].verdict is Verdict.FAIL
 
 
-def test_a_unit_deaf_after_a_malformed_command_is_one_robustness_finding(stream):
+def test_a_unit_deaf_after_a_malformed_command_fails_robust_001_and_each_command(stream):
+    """It stopped answering after the malformed command (EXEC-ROBUST-001), and that never
+    hides each unanswered command's own finding."""
     ping0 = stream.command(2.1, "ping")
     bad = stream.msg("exec/command", b'{"com-uuid": "' + new().encode() + b'", signal: $abort}',
                      3.1)
@@ -206,8 +208,50 @@ def test_a_unit_deaf_after_a_malformed_command_is_one_robustness_finding(stream)
     rules = judge(stream, [ping0, stream.response(2.2, com_of(ping0)), bad, *later])
     r = rules["EXEC-ROBUST-001"]
     assert r.verdict is Verdict.FAIL and "a malformed command" in r.violations[0].detail
-    assert rules["EXEC-PING-001"].verdict is Verdict.PASS  # the deafness is the finding
-    assert rules["EXEC-QUERY-001"].verdict is not Verdict.FAIL
+    assert rules["EXEC-PING-001"].verdict is Verdict.FAIL
+    assert com_of(later[0]) in rules["EXEC-PING-001"].violations[0].expected
+    assert rules["EXEC-QUERY-001"].verdict is Verdict.FAIL
+    assert rules["EXEC-ROBUST-002"].verdict is Verdict.WARN  # the malformed one, unanswered
+
+
+def test_answers_in_flight_are_credited_not_taken_for_deafness(stream):
+    """FIELD-NOTES (precision): a unit that ignored a malformed command and then, inside that
+    command's timeout, answered another has not stopped answering; a query-status it ignores
+    later is one kind of command unanswered, its own finding only."""
+    bad = stream.msg("exec/command", b'{"com-uuid": "' + new().encode() + b'", signal: $abort}',
+                     3.0)
+    ping = stream.command(3.4, "ping")
+    query = stream.command(6.0, "query-status", **{"task-uuid": new()})
+    rules = judge(stream, [bad, ping, stream.response(3.5, com_of(ping)), query])
+    assert rules["EXEC-ROBUST-001"].verdict is not Verdict.FAIL
+    assert rules["EXEC-PING-001"].verdict is Verdict.PASS
+    assert rules["EXEC-ROBUST-002"].verdict is Verdict.WARN
+    assert rules["EXEC-QUERY-001"].verdict is Verdict.FAIL
+
+
+def test_one_kind_unanswered_never_implies_the_others_are(stream):
+    ping = stream.command(2.0, "ping")
+    queries = [stream.command(3.0 + i, "query-status", **{"task-uuid": new()})
+               for i in range(3)]
+    rules = judge(stream, [ping, stream.response(2.1, com_of(ping)), *queries])
+    assert rules["EXEC-ROBUST-001"].verdict is not Verdict.FAIL
+    assert rules["EXEC-PING-001"].verdict is Verdict.PASS
+    r = rules["EXEC-QUERY-001"]
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 3
+
+
+def test_a_late_answer_is_credited(stream):
+    """An answer after the deadline is late (EXEC-010), not a sign of deafness: commands sent
+    before it say nothing about whether the unit still answers."""
+    start1 = start(stream, 3.0, new())
+    ping = stream.command(3.2, "ping")
+    late_answer = stream.response(6.0, com_of(start1), "failed")
+    query = stream.command(8.0, "query-status", **{"task-uuid": new()})
+    rules = judge(stream, [start1, ping, late_answer, query])
+    assert rules["EXEC-ROBUST-001"].verdict is not Verdict.FAIL
+    assert rules["EXEC-010"].verdict is Verdict.WARN
+    assert rules["EXEC-PING-001"].verdict is Verdict.FAIL
+    assert rules["EXEC-QUERY-001"].verdict is Verdict.FAIL
 
 
 def test_a_unit_that_dies_on_a_command_is_one_death_naming_it(stream):
@@ -223,6 +267,24 @@ def test_a_unit_that_dies_on_a_command_is_one_death_naming_it(stream):
     assert rules["EXEC-START-001"].verdict is not Verdict.FAIL
     assert rules["EXEC-PING-001"].verdict is not Verdict.FAIL
     assert rules["HB-010"].verdict is not Verdict.WARN
+
+
+def test_dying_after_commands_excuses_only_the_last_one(stream):
+    """FIELD-NOTES (precision): commands a unit received before the one it died on were left
+    unanswered by a live unit: each fails its rule; HB-012 names the last one they received while alive."""
+    ping0 = stream.command(5.0, "ping")
+    ping = stream.command(9.2, "ping")
+    query = stream.command(9.4, "query-status", **{"task-uuid": new()})
+    cmd = start(stream, 9.6)  # no task-uuid: it dies on it
+    rules = judge(stream, [ping0, stream.response(5.1, com_of(ping0)), ping, query, cmd],
+                  alive=stream.alive(10.0) + [stream.sensor("speed", 1.0, 30.0)])
+    r = rules["HB-012"]
+    assert r.verdict is Verdict.FAIL and com_of(cmd) in r.violations[0].observed
+    assert rules["EXEC-PING-001"].verdict is Verdict.FAIL
+    assert com_of(ping) in rules["EXEC-PING-001"].violations[0].expected
+    assert rules["EXEC-QUERY-001"].verdict is Verdict.FAIL
+    assert rules["EXEC-START-001"].verdict is not Verdict.FAIL
+    assert rules["EXEC-ROBUST-001"].verdict is not Verdict.FAIL  # dead by their deadline
 
 
 def test_levels_acted_on_but_not_declared_fail_once(stream):
@@ -321,3 +383,69 @@ def test_a_task_the_unit_lists_is_no_unknown_task_of_the_commander(stream):
     commander = m.report().units["commander commander"].rules["TASK-002"]
     assert commander.verdict is Verdict.WARN and len(commander.violations) == 1
     assert "dance" in commander.violations[0].excerpt
+
+
+def test_an_empty_task_uuid_is_a_finding_per_message_not_a_pseudo_task(stream):
+    """FIELD-NOTES (precision): feedback with task-uuid "" is one fault per message, not one
+    task '' that received feedback after its final status."""
+    rules = judge(stream, [stream.feedback(2.0, "", "running"),
+                           stream.feedback(3.0, "", "finished"),
+                           stream.feedback(4.0, "", "running"),
+                           stream.feedback(5.0, "", "failed")])
+    assert rules["EXEC-FB-004"].verdict is not Verdict.FAIL
+    r = rules["EXEC-FB-001"]
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 4
+    assert rules["ERR-014"].verdict is not Verdict.WARN  # judged as missing, not as malformed
+    task = new()  # the fault with a real task-uuid is still found
+    again = judge(stream, [stream.feedback(2.0, task, "finished"),
+                           stream.feedback(3.0, task, "running")])
+    assert again["EXEC-FB-004"].verdict is Verdict.FAIL
+
+
+def test_an_empty_task_uuid_answering_a_command_that_named_no_task_is_no_fault(stream):
+    """FIELD-NOTES (precision: spec words): the 'failed' answer to a malformed command that
+    named no task has no task to name; ``task-uuid: ""`` there is not ERR-014's."""
+    bad = stream.command(2.0, "start-task")  # no task: malformed
+    ok = judge(stream, [bad, stream.response(2.1, com_of(bad), "failed", **{
+        "task-uuid": "", "fail-reason": "no task given"})])
+    assert ok["ERR-014"].verdict is not Verdict.WARN
+    assert ok["EXEC-ROBUST-002"].verdict is not Verdict.FAIL
+    task = new()  # a command that named a task: "" is no answer naming it
+    named = stream.command(2.0, "query-status", **{"task-uuid": task})
+    wrong = judge(stream, [named, stream.response(2.1, com_of(named), "unknown", **{
+        "task-uuid": ""})])
+    assert wrong["ERR-014"].verdict is Verdict.WARN
+
+
+def test_a_task_named_uuid_instead_of_task_uuid_is_still_tracked(stream):
+    """FIELD-NOTES (precision: other keys): some agents name the task 'uuid'. The wrong key is
+    each message's finding; the task is tracked by what the unit sends."""
+    import orjson
+
+    task = new()
+    cmd = start(stream, 2.1)  # no task-uuid: the unit generates one
+
+    def fb(t, status):
+        return stream.msg("exec/feedback", {"agent-uuid": stream.agent_uuid,
+                                            "com-uuid": new(), "status": status,
+                                            "uuid": task}, t)
+
+    answer = orjson.loads(stream.response(2.2, com_of(cmd), "running").payload)
+    answer["uuid"] = task
+    rules = judge(stream, [cmd, stream.msg("exec/response", answer, 2.2), fb(2.3, "running"),
+                           fb(4.0, "finished"), fb(5.0, "running")])
+    assert rules["EXEC-START-002"].verdict is Verdict.FAIL
+    assert len(rules["EXEC-FB-001"].violations) == 3
+    r = rules["EXEC-FB-004"]
+    assert r.verdict is Verdict.FAIL and task in r.violations[0].expected
+
+
+def test_a_command_judged_unanswered_and_answered_later_fails_its_rule_once(stream):
+    """Credited at any time: an answer after the command was judged unanswered (the unit
+    answered a later one first) is late (EXEC-010), not a second failure of its rule."""
+    ping = stream.command(2.0, "ping")
+    other = stream.command(4.0, "ping")
+    rules = judge(stream, [ping, other, stream.response(4.1, com_of(other)),
+                           stream.response(6.0, com_of(ping))])
+    assert len(rules["EXEC-PING-001"].violations) == 1
+    assert rules["EXEC-010"].verdict is Verdict.WARN

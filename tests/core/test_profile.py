@@ -32,11 +32,15 @@ def test_user_file_extends_a_builtin(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(("text", "message"), [
-    ("rate-tolerence: 0.1\n", "unknown key 'rate-tolerence' (did you mean 'rate_tolerance'?)"),
+    ("rate-tolerence: 0.1\n", "unknown key 'rate-tolerence' (did you mean 'rate-tolerance'?)"),
     ("safe-radius: -3\n", "safe-radius must be a non-negative number"),
     ("tasks: move-to\n", "tasks must be a list of strings"),
     ("severity: {HB003: error}\n", "'HB003' matches no rule id (did you mean HB-003?)"),
-    ("severity: {HB-003: fatal}\n", "'fatal' is not error or warning"),
+    ("severity: {HB-003: fatal}\n", "severity.HB-003: 'fatal' is not one of 'error', 'warning'"),
+    ("levels: [sensor, direct_execution]\n",
+     "levels[1]: 'direct_execution' is not one of 'sensor', 'direct execution', 'tst execution', "
+     "'delegation' (did you mean 'direct execution'?)"),
+    ("motion_tasks: [move-to, 3]\n", "motion-tasks must be a list of strings, got ['move-to', 3]"),
     ("min-intervals: 1\n", "min-intervals must be a whole number >= 2"),
     ("- a\n- b\n", "a profile is a mapping"),
     ("a: [\n", "not valid YAML"),
@@ -53,3 +57,40 @@ def test_bad_profile_names_file_key_and_fix(tmp_path: Path, text: str, message: 
 def test_unknown_profile_name_lists_the_builtins() -> None:
     with pytest.raises(ProfileError, match=r"neither a built-in profile \(.*strict.*\)"):
         profile.load("strickt")
+
+
+def test_the_schema_states_exactly_the_profile_keys() -> None:
+    """profiles/profile.schema.json is the one statement of the format: a key of Profile
+    without a schema entry (or the reverse) would be undocumented or unloadable."""
+    fields = {f.replace("_", "-") for f in profile.Profile.__dataclass_fields__} - {"source"}
+    assert set(profile.schema()["properties"]) == fields | {"extends"}
+    for key, prop in profile.schema()["properties"].items():
+        assert prop.get("description"), f"{key} has no description"
+
+
+def test_the_schema_defaults_are_the_profile_defaults() -> None:
+    defaults = profile.Profile()
+    for key, prop in profile.schema()["properties"].items():
+        if "default" in prop:
+            value = getattr(defaults, key.replace("-", "_"))
+            assert (list(value) if isinstance(value, tuple) else value) == prop["default"], key
+
+
+EXAMPLES = sorted((Path(__file__).parents[2] / "docs" / "profiles").glob("*.yaml"))
+
+
+def test_there_is_a_commented_example_per_kind_of_unit() -> None:
+    from conformance.topics import AGENT_TYPES
+
+    assert {p.stem for p in EXAMPLES} == set(AGENT_TYPES)
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.stem)
+def test_each_example_profile_loads_and_names_real_tasks(path: Path) -> None:
+    from conformance.taskspec import task_specs
+
+    p = profile.load(path)
+    known = {s.name for s in task_specs()}
+    assert set(p.tasks) <= known and set(p.motion_tasks) <= known
+    assert set(p.motion_tasks) <= set(p.tasks) or not p.tasks
+    assert path.read_text().count("#") >= 5, "an example explains itself in comments"

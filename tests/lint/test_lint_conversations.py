@@ -115,3 +115,94 @@ def test_a_commanders_faults_are_on_its_row_and_the_unit_has_none(mosquitto: str
     assert "FAIL: commander op0" in run.out
     gated = run_lint(["--from", str(recording), "--gate", "units"], tmp_path / "gated")
     assert gated.code == 0 and "PASS: no unit fails" in gated.out, gated.out
+
+
+def _converse(mosquitto: str, prefix: str, faults: tuple[str, ...], script) -> list[Message]:  # type: ignore[no-untyped-def]
+    """The reference unit with ``faults``, commanded by ``script(send, rec)``; everything
+    recorded, until four heartbeats after the script (the answers' deadlines pass) or, for a
+    unit that died, until the script returns."""
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    command_topic = f"{unit}/exec/command"
+    with SimUnit(unit, mosquitto, rate=2.0, seed=3, faults=faults):
+        rec = Recorder(mosquitto, f"{prefix}/#")
+        op = MqttClient(BrokerURL.parse(mosquitto), may_publish=lambda t: t == command_topic)
+        op.connect()
+        try:
+            rec.wait_for(lambda ms: sum(m.topic.endswith("/heartbeat") for m in ms) >= 2, 10,
+                         "two heartbeats")
+
+            def send(body: dict | bytes) -> str:
+                payload = body if isinstance(body, bytes) else orjson.dumps(body)
+                op.publish(command_topic, payload, qos=1)
+                return str(body.get("com-uuid", "")) if isinstance(body, dict) else ""
+
+            script(send, rec)
+        finally:
+            op.close()
+            rec.client.close()
+    return rec.messages
+
+
+def _cmd(command: str, **extra) -> dict:  # type: ignore[no-untyped-def]
+    return {"com-uuid": str(uuid.uuid4()), "command": command, "sender": "op0", **extra}
+
+
+def _beats(rec: Recorder, n: int) -> None:
+    have = sum(m.topic.endswith("/heartbeat") for m in rec.messages)
+    rec.wait_for(lambda ms: sum(m.topic.endswith("/heartbeat") for m in ms) >= have + n, 20,
+                 f"{n} more heartbeats")
+
+
+def test_answers_in_flight_are_no_unit_that_stopped_answering(mosquitto: str, tmp_path: Path,
+                                                             prefix: str) -> None:
+    """FIELD-NOTES (precision): a unit that ignores a malformed command and, inside its
+    timeout, answers a ping has not stopped answering; the query-status it ignores later is
+    that command's own finding. Recorded from the reference unit, linted."""
+    def script(send, rec) -> None:  # type: ignore[no-untyped-def]
+        send(b'{"com-uuid": "' + str(uuid.uuid4()).encode() + b'", signal: $abort}')
+        ping = _cmd("ping")
+        send(ping)
+        rec.wait_for(lambda ms: rec.answered(ping["com-uuid"]), 10, "the pong")
+        _beats(rec, 2)
+        send(_cmd("query-status", **{"task-uuid": str(uuid.uuid4())}))
+        _beats(rec, 14)  # 7 s: past every deadline (the profile's response timeout, 5 s)
+
+    messages = _converse(mosquitto, prefix, ("malformed-unanswered", "query-unanswered"), script)
+    run = run_lint(["--from", str(write_recording(tmp_path / "r.jsonl", messages))],
+                   tmp_path / "reports")
+    assert run.report is not None
+    me = run.report["units"][f"{prefix}/unit/air/simulation/dji0"]["rules"]
+    assert me["EXEC-ROBUST-001"]["verdict"] != "fail", run.out
+    assert me["EXEC-PING-001"]["verdict"] == "pass"
+    assert me["EXEC-ROBUST-002"]["verdict"] == "warn", me["EXEC-ROBUST-002"]
+    assert me["EXEC-QUERY-001"]["verdict"] == "fail"
+
+
+def test_a_unit_that_dies_after_answering_is_its_death_not_deafness(mosquitto: str,
+                                                                   tmp_path: Path,
+                                                                   prefix: str) -> None:
+    """It answers a ping, then dies on a start-task without task-uuid: HB-012 names that
+    command; no 'stopped answering', and the ping before stays answered."""
+    def script(send, rec) -> None:  # type: ignore[no-untyped-def]
+        ping = _cmd("ping")
+        send(ping)
+        rec.wait_for(lambda ms: rec.answered(ping["com-uuid"]), 10, "the pong")
+        send(_cmd("start-task", task={"name": "look-at-bearing", "params": {"bearing": 9.0}}))
+        rec.wait_for(lambda ms: sum(m.topic.endswith("/exec/command") for m in ms) >= 2, 10,
+                     "the commands' echoes")
+
+    messages = _converse(mosquitto, prefix, ("dies-on-missing-task-uuid",), script)
+    # Another unit heard 10 s later: the observation went on past the death (HB-012).
+    later = messages[-1].time + 10.0
+    other = Message(later, f"{prefix}/unit/air/simulation/other/heartbeat", orjson.dumps({
+        "agent-type": "air", "agent-uuid": str(uuid.uuid4()), "levels": ["sensor"],
+        "name": "other", "rate": 1.0, "stamp": later, "type": "HeartBeat"}))
+    run = run_lint(["--from", str(write_recording(tmp_path / "r.jsonl", [*messages, other]))],
+                   tmp_path / "reports")
+    assert run.report is not None
+    me = run.report["units"][f"{prefix}/unit/air/simulation/dji0"]["rules"]
+    assert me["HB-012"]["verdict"] == "fail", run.out
+    assert "start-task 'look-at-bearing'" in me["HB-012"]["violations"][0]["observed"]
+    assert me["EXEC-ROBUST-001"]["verdict"] != "fail", run.out
+    assert me["EXEC-PING-001"]["verdict"] == "pass"
+    assert me["EXEC-START-001"]["verdict"] != "fail"

@@ -205,3 +205,23 @@ def test_lint_over_tls_verifies_the_broker_certificate(tmp_path: Path, prefix: s
         wrong.wait_for("TLS handshake")
     finally:
         broker.stop()
+
+
+def test_a_rate_off_shows_while_lint_runs_not_only_at_the_end(mosquitto: str, prefix: str,
+                                                              tmp_path: Path) -> None:
+    """Issue 20: a unit sending its heartbeat at 1/1.35 of its declared rate is shown failing
+    on the live scorecard within its first ten intervals (here 5 Hz: about 3 s), long before
+    the end of a 60 s lint; the final judgement is still over the whole observation."""
+    from conformance.sim import SimUnit
+
+    unit = f"{prefix}/unit/air/simulation/drift0"
+    with SimUnit(unit, mosquitto, rate=5.0, faults=["heartbeat-rate-drift"]):
+        lint = Process(["lint", "--broker", mosquitto, "--unit", unit, "--duration", "60s",
+                        "--reports-dir", str(tmp_path)])
+        try:
+            started = time.monotonic()
+            line = lint.wait_for(f"{unit} HB-003", timeout=20)
+            assert line.endswith("(live)") and "over the latest 10 intervals" in line
+            assert time.monotonic() - started < 30  # during the run, not at its end
+        finally:
+            lint.kill()

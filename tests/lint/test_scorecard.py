@@ -129,3 +129,26 @@ def test_recorded_duration_limits_what_is_judged(tmp_path: Path, reports_dir: Pa
     unit = run.report["units"][f"{prefix}/unit/air/simulation/dji0"]
     assert unit["last_seen"] - unit["first_seen"] <= 10.0
     assert unit["message_count"] < 30 * 7
+
+
+def test_plain_view_says_when_a_rate_goes_off_and_when_it_is_back(prefix: str) -> None:
+    """Issue 20: a unit at 0.74 Hz declaring 1 Hz is shown failing while lint runs (within
+    10 intervals), not only on the final screen; the row shows it too."""
+    out = io.StringIO()
+    card = Scorecard(out, tty=False)
+    linter = Linter(Monitor(Profile(), kind="lint"), Profile())
+    slow = unit_traffic(prefix, "slow0", seconds=15, rate=1 / 1.35, agent_uuid=DJI0)
+    for m in slow:  # declares 0.74 Hz: re-declare 1 Hz while sending at 0.74
+        if m.topic.endswith("/heartbeat"):
+            hb = orjson.loads(m.payload)
+            hb["rate"] = 1.0
+            m = Message(m.time, m.topic, orjson.dumps(hb))
+        linter.feed([m])
+        card.update(linter, force=True)
+    unit = f"{prefix}/unit/air/simulation/slow0"
+    lines = [ln for ln in out.getvalue().splitlines() if ln.endswith("(live)")]
+    assert len(lines) == 1 and f"FAIL {unit} HB-003" in lines[0], out.getvalue()
+    assert "0.74 Hz over the latest 10 intervals" in lines[0]
+    (row,) = [r for r in card.rows(linter) if r.unit == unit]
+    assert row.status == "FAIL" and row.live == ("HB-003",)
+    assert "HB-003(live)" in card.table([row], None)[1]

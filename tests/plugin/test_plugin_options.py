@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
-from certify_helpers import FAST, UNIT, certify
+from certify_helpers import FAST, UNIT, PrivateMosquitto, certify
 
 from conformance.broker import free_port
 from conformance.plugin import NOT_CERTIFIED_EXIT
@@ -138,3 +140,18 @@ def test_the_arena_environment_variables_name_the_broker(pytester: pytest.Pytest
     run = certify(pytester, "--unit", UNIT)
     assert run.result.ret == NOT_CERTIFIED_EXIT
     assert f"cannot reach the broker at mqtt://127.0.0.1:{port}" in run.text
+
+
+def test_a_refused_login_says_why_once_and_no_link_was_lost(
+        pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.setenv("WARAPS_USERNAME", "alice")
+    monkeypatch.setenv("WARAPS_PASSWORD", "wrong-secret")
+    broker = PrivateMosquitto(tmp_path, users={"alice": "right"}).start()
+    try:
+        run = certify(pytester, "--unit", UNIT, "--broker", broker.url)
+    finally:
+        broker.stop()
+    assert run.result.ret == NOT_CERTIFIED_EXIT
+    assert run.text.count("did not accept the connection: Not authorized") == 1
+    assert "connection lost" not in run.text  # it was never connected
+    assert "wrong-secret" not in run.text

@@ -4,6 +4,7 @@ otherwise, nothing under -q; -v shows each step (suite/progress.py, without a br
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -18,13 +19,17 @@ class Reporter:
     def __init__(self, tty: bool) -> None:
         self.tty = tty
         self.calls: list[tuple[str, str]] = []
-        self.currentfspath: object = "x"
+        self.currentfspath: object = Path("/run/test_execution.py")
+        self.startpath = Path("/run")
 
     def isatty(self) -> bool:
         return self.tty
 
     def rewrite(self, line: str, **markup: Any) -> None:
         self.calls.append(("rewrite", line))
+
+    def write(self, text: str) -> None:
+        self.calls.append(("write", text))
 
     def write_line(self, line: str) -> None:
         self.calls.append(("line", line))
@@ -61,7 +66,9 @@ def test_on_a_terminal_a_wait_is_redrawn_and_erased(verbosity: int) -> None:
     assert tr.calls == [("rewrite", "waiting for the final feedback of move-to 3f2a1b0c: "
                                     "12 s of 30 s")] * 2
     progress.end(wait)
-    assert tr.calls[-1] == ("rewrite", "") and tr.currentfspath is None
+    # erased, back at column 0, and pytest's result letters go on after the file's name
+    assert tr.calls[2:] == [("rewrite", ""), ("write", "\r"), ("write", "test_execution.py ")]
+    assert tr.currentfspath == Path("/run/test_execution.py")
 
 
 def test_off_a_terminal_a_plain_line_every_ten_seconds() -> None:

@@ -6,10 +6,13 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import time
+from pathlib import Path
 
 import orjson
 import pytest
 
+from conformance.cli import main as cli_main
 from conformance.validator import validate
 
 TOPICS = ["waraps/unit/air/simulation/dji0/heartbeat",
@@ -106,3 +109,30 @@ def test_cli_refuses_a_topic_it_cannot_place_and_lists_the_forms(
     err = capsys.readouterr().err
     assert f"cannot place topic {topic!r}" in err
     assert "<prefix>/unit/<agent-type>/<role>/<name>/heartbeat" in err
+
+
+def _heartbeat(stamp: object) -> bytes:
+    return json.dumps({"name": "dji0", "rate": 1.0, "stamp": stamp, "type": "HeartBeat",
+                       "agent-type": "air", "levels": ["sensor"],
+                       "agent-uuid": "1b0c5c5e-58f3-4a43-9e77-47b2b8a0e6a1"}).encode()
+
+
+@pytest.mark.parametrize(("stamp", "code", "finding"), [
+    (time.time() * 1000, 1, "looks like milliseconds"),  # judged without --now
+    (time.time() * 1e6, 1, "looks like microseconds"),
+    (12.0, 1, "behind the arrival time"),                # a clock left at 1970
+    (time.time() - 3 * 86400, 0, None),                  # a recording from last week: plausible
+])
+def test_validate_without_an_arrival_time_judges_the_stamp_for_plausibility_and_says_so(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], stamp: float, code: int,
+        finding: str | None) -> None:
+    path = tmp_path / "hb.json"
+    path.write_bytes(_heartbeat(stamp))
+    assert cli_main(["validate", "waraps/unit/air/simulation/dji0/heartbeat", str(path)]) == code
+    out = capsys.readouterr().out
+    assert "the stamp was judged for plausibility only" in out and "pass --now" in out
+    assert (finding in out) if finding else "MSG-005" not in out.split("note")[0]
+    # with --now the stamp is judged within the profile's 30 s (none of these is), no note
+    assert cli_main(["validate", "--now", "waraps/unit/air/simulation/dji0/heartbeat",
+                     str(path)]) == 1
+    assert "plausibility" not in capsys.readouterr().out

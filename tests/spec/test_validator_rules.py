@@ -4,6 +4,7 @@ exact rule id (and JSON path)."""
 from __future__ import annotations
 
 import copy
+from datetime import UTC, datetime
 from typing import Any
 
 import orjson
@@ -306,6 +307,9 @@ def test_stamp_details_say_milliseconds() -> None:
     sub, message = mutated("heartbeat", _set("stamp", NOW * 1000))
     v = validate(f"{UNIT}/{sub}", orjson.dumps(message), NOW)
     assert "looks like milliseconds" in v.violations[0].detail
+    # the arrival time as a person reads it (and the number, to compare with the stamp)
+    clock = datetime.fromtimestamp(NOW, UTC).strftime("%H:%M:%S")
+    assert f"of its arrival at {clock}." in v.violations[0].expected
     sub, message = mutated("heartbeat", _set("stamp", NOW + 5))
     assert run(sub, message, profile=Profile(clock_tolerance=10)) == []
     assert run(sub, message, profile=Profile(clock_tolerance=1)) == [("MSG-005", "$.stamp")]

@@ -1,0 +1,75 @@
+"""``waraps-conformance profile --unit ADDRESS``: observe a unit (read-only) and write a
+starting profile from what it declares and publishes; the drafting is
+``conformance.profile_draft``, the format ``schemas/generated/PROFILE.md``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from conformance.cli import options as opts
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = opts.parser(
+        "profile",
+        "Observe a unit for a while (read-only: it never publishes) and write a starting "
+        "profile from what it declares and publishes: levels, sensors, tasks, rates. Edit it, "
+        "then certify with 'pytest --unit ADDRESS --profile FILE'. The format: "
+        "schemas/generated/PROFILE.md.")
+    opts.add_broker_options(p, broker_help=f"mqtt://host:port or mqtts://host:port (default: "
+                                           f"{opts.BROKER_ENV})")
+    p.add_argument("--unit", required=True, metavar="ADDRESS",
+                   help="the unit, e.g. waraps/unit/air/real/dji0")
+    p.add_argument("--observe", default="30s", metavar="TIME",
+                   help="how long to observe it: long enough for its info messages and ten "
+                        "intervals of its slowest rate (default 30s)")
+    p.add_argument("-o", "--output", default="-", metavar="FILE",
+                   help="where to write the profile (default: standard output); an existing "
+                        "file is not overwritten")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    from conformance.client import BrokerError, BrokerURL, MqttClient
+    from conformance.profile_draft import draft, observe
+    from conformance.topics import TopicError, UnitAddress
+
+    args = build_parser().parse_args(argv)
+    prog = "waraps-conformance profile"
+    try:
+        option = "--unit"
+        unit = UnitAddress.parse(args.unit)
+        option = "--observe"
+        seconds = opts.parse_duration(args.observe)
+        option = "--broker"
+        broker = BrokerURL.parse(args.broker) if args.broker else BrokerURL.from_env()
+    except (TopicError, ValueError) as e:
+        print(f"{prog}: {option}: {e}", file=sys.stderr)
+        return 2
+    if broker is None:
+        print(f"{prog}: no broker: pass --broker mqtt://host:port or set WARAPS_BROKER",
+              file=sys.stderr)
+        return 2
+    out = None if args.output == "-" else Path(args.output)
+    if out is not None and out.exists():
+        print(f"{prog}: {out} exists; name a new file (a profile you edited is never "
+              f"overwritten)", file=sys.stderr)
+        return 2
+    def say(text: str) -> None:
+        print(text, file=sys.stderr)
+
+    try:
+        with MqttClient(opts.with_tls(broker, args)).connect() as client:
+            seen = observe(lambda: client, unit, seconds, say=say)
+    except BrokerError as e:  # the message says what failed and how to fix it
+        print(f"{prog}: {e}", file=sys.stderr)
+        return 3
+    text = draft(seen)
+    if out is None:
+        sys.stdout.write(text)
+    else:
+        out.write_text(text, "utf-8")
+        print(f"wrote {out}", file=sys.stderr)
+    return 0 if seen.heartbeat is not None else 6
