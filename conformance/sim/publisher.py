@@ -152,6 +152,12 @@ class Publisher:
         return msg
 
     @property
+    def retain_info(self) -> bool:
+        """Variant retained-info: the info messages are retained (a late subscriber learns the
+        unit's sensors and tasks at once)."""
+        return "retained-info" in self.variants
+
+    @property
     def info_rate(self) -> float:
         """The rate the info messages declare (5.2, 5.3): the heartbeat's, unless variant
         info-rates sends them slower."""
@@ -201,7 +207,8 @@ class Publisher:
     def _publish_sensor_info(self, stream: Stream, now: float) -> None:
         type_ = "SensorInformation" if "sensor-info-type" in self.faults else "SensorInfo"
         msg = self._info(type_, self.info_rate, **{"sensor-data-provided": self.sensors_listed()})
-        self.unit.send("sensor.info" if "sensor-dot-info" in self.faults else "sensor_info", msg)
+        self.unit.send("sensor.info" if "sensor-dot-info" in self.faults else "sensor_info", msg,
+                       retain=self.retain_info)
 
     def _publish_dei(self, stream: Stream, now: float) -> None:
         unit = self.unit
@@ -218,7 +225,7 @@ class Publisher:
             "tasks-available": available,
             "tasks-executing": [{"task-name": t.name, "task-uuid": t.uuid} for t in executing],
         })
-        unit.send("direct_execution_info", msg)
+        unit.send("direct_execution_info", msg, retain=self.retain_info)
 
     def _publish_tei(self, stream: Stream, now: float) -> None:
         # tst_execution_info is named, not defined (ERR-011): name, rate, stamp, type.
@@ -229,7 +236,7 @@ class Publisher:
             del msg["rate"]
         if "terse" in self.variants:  # optional (TST-013: a unit without it is not judged)
             msg.pop("nodes-executing", None)
-        self.unit.send("tst_execution_info", msg)
+        self.unit.send("tst_execution_info", msg, retain=self.retain_info)
 
     # --- sensors (6) ----------------------------------------------------------------------------
     def position_message(self, count: int) -> Any:

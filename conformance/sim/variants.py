@@ -71,6 +71,9 @@ _ALL = (
             "Sends sensor_info, direct_execution_info and tst_execution_info at half the "
             "heartbeat's rate, each declaring its own rate (5: 'info messages may come at a "
             "lower rate than the heartbeat')."),
+    Variant("retained-info", "5, 5.2, 5.3 (MQTT retain is not ruled out)",
+            "Publishes sensor_info, direct_execution_info and tst_execution_info retained, so "
+            "a subscriber that joins late has them at once (the heartbeat is not retained)."),
     Variant("pretty-json", "RFC 8259 2 (insignificant whitespace)",
             "Writes every message indented over several lines, as json.dumps(indent=2) does."),
     Variant("integer-numbers", "RFC 8259 6; 5.1, 6.1",

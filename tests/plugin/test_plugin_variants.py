@@ -33,7 +33,7 @@ GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
     (("slow", "verbose", "feedback-first", "starting-feedback", "level-spelling",
       "geopoint-type"), True),
     # info-rates apart from sensor-rate-edge: both set sensor_info's rate.
-    (("terse", "info-rates", "integer-numbers", "key-order"), True),
+    (("terse", "info-rates", "retained-info", "integer-numbers", "key-order"), True),
 ]
 AWAITING: dict[tuple[str, ...], tuple[set[str], str]] = {  # variants -> (rules, why)
     # The suite sends TST trees with common_params on the root only; every example of section

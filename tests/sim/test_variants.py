@@ -73,6 +73,7 @@ class Run:
     def __init__(self, *variants: str, script: list = SCRIPT, seconds: float = 6.0) -> None:
         self.now = 0.0
         self.sent: list[tuple[float, str, bytes]] = []
+        self.retained: set[str] = set()
         self.unit = UnitCore(ADDRESS, self._emit, variants=variants, rate=RATE,
                              rng=random.Random(1), clock=lambda: 1.7e9 + self.now,
                              task_seconds=0.5, tst_execution=True)
@@ -94,6 +95,8 @@ class Run:
 
     def _emit(self, topic: str, payload: bytes, retain: bool) -> None:
         self.sent.append((self.now, topic.removeprefix(ADDRESS.base), payload))
+        if retain:
+            self.retained.add(topic.removeprefix(ADDRESS.base))
 
     def messages(self, *suffixes: str) -> list[tuple[str, Any]]:
         return [(t, orjson.loads(p)) for _, t, p in self.sent
@@ -383,3 +386,10 @@ def test_strict_refuses_a_unit_not_named_slash_name() -> None:
     lenient, strict = Run(script=script, seconds=1.5), Run("strict", script=script, seconds=1.5)
     assert [lenient.answer(com(i))["response"] for i in (92, 93)] == ["started", "ok"]
     assert [strict.answer(com(i))["response"] for i in (92, 93)] == ["failed", "failed"]
+
+
+def test_retained_info_retains_the_info_messages_only(plain: Run) -> None:
+    run = Run("retained-info")
+    assert plain.retained == set()
+    assert run.retained == {"/sensor_info", "/direct_execution_info", "/tst_execution_info"}
+    assert run.messages() == plain.messages()
