@@ -93,7 +93,10 @@ INFO_SLOWER = 2.0
 """Variant info-rates: the info messages run at the heartbeat's rate divided by this."""
 """Variants that cannot be on together (one sends what the other leaves out)."""
 SLOW_PERIODS = 0.8
-"""Variant slow: answers and feedback are held back this many periods."""
+"""Variant slow: answers and feedback are held back this many periods. The shortest
+response_timeout a profile of this project gives is 2 periods (tests' matrix.yaml: 1 s at 2 Hz;
+the default profile's is 5 s at 1 Hz): 0.8 periods stays under half of every one
+(tests/sim/test_variants.py checks each profile), leaving the rest to a loaded machine."""
 EDGE = 0.12
 """Variant sensor-rate-edge: sensor_info and sensors run this fraction slower than declared
 (the profiles' rate_tolerance is 0.2)."""

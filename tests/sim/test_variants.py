@@ -393,3 +393,21 @@ def test_retained_info_retains_the_info_messages_only(plain: Run) -> None:
     assert plain.retained == set()
     assert run.retained == {"/sensor_info", "/direct_execution_info", "/tst_execution_info"}
     assert run.messages() == plain.messages()
+
+
+@pytest.mark.parametrize("profile,rate", [
+    ("default", 1.0), ("reference", 1.0), ("strict", 1.0),
+    ("tests/plugin/profiles/fast.yaml", 3.0), ("tests/plugin/profiles/matrix.yaml", 2.0),
+    ("tests/plugin/profiles/stall.yaml", 2.0), ("tests/plugin/profiles/variants.yaml", 2.0)])
+def test_slow_stays_well_inside_every_profiles_deadlines(profile: str, rate: float) -> None:
+    """Variant slow is slow, not late: its delay at the rate each profile is used with is at
+    most half the profile's response_timeout (the margin is for a loaded machine's jitter),
+    and far inside its feedback_timeout."""
+    from pathlib import Path
+
+    from conformance.profile import load
+
+    root = Path(__file__).resolve().parents[2]
+    p = load(root / profile if profile.endswith(".yaml") else profile)
+    delay = SLOW_PERIODS / rate
+    assert delay <= 0.5 * p.response_timeout and delay <= 0.2 * p.feedback_timeout
