@@ -39,18 +39,14 @@ def build_parser() -> argparse.ArgumentParser:
     opts.add_broker_options(p, broker_help=f"mqtt://host:port, mqtts://host:port or "
                                            f"'embedded' (start one in this process); default: "
                                            f"{opts.BROKER_ENV}, else embedded")
-    faults = p.add_argument_group("the faults")
+    faults = p.add_argument_group("the faults and variants")
     faults.add_argument("--list-faults", action="store_true",
                         help="print the faults with the rule ids each one breaks, and exit")
     faults.add_argument("--json", action="store_true",
                         help="with --list-faults or --list-variants: as JSON")
-    variants = p.add_argument_group("the variants (conformant, but different)")
-    variants.add_argument("--variant", action="append", default=[], metavar="NAME",
-                          help="switch a variant on (repeatable): a conformant reading of the "
-                               "spec, for every unit (--list-variants lists them)")
-    variants.add_argument("--list-variants", action="store_true",
-                          help="print the variants with the spec sections that allow each, "
-                               "and exit")
+    faults.add_argument("--list-variants", action="store_true",
+                        help="print the conformant variants with the spec sections that allow "
+                             "each, and exit")
     return p
 
 
