@@ -57,6 +57,9 @@ class TstEngine:
         self.trees = Trees(unit, self._feedback)
         self.history: Resends[tuple[str, dict[str, Any]]] = Resends()
         """com-uuid -> (reply base, the response sent), for resends."""
+        self.deferred: list[tuple[str, dict[str, Any]]] | None = None
+        """Variant feedback-first: the responses of the command being handled, sent after
+        the node feedback it causes."""
 
     @property
     def topics(self) -> list[str]:
@@ -81,6 +84,9 @@ class TstEngine:
         self._send(reply, dict(body))
 
     def _send(self, reply: str, body: dict[str, Any]) -> None:
+        if self.deferred is not None:
+            self.deferred.append((reply, body))
+            return
         reuse = "tst-response-reuses-com-uuid" in self.faults
         body["com-uuid"] = body["response-to"] if reuse else self.unit.fresh_uuid()
         self.unit.send("tst/response", body, base=reply)
@@ -126,10 +132,18 @@ class TstEngine:
                 if not shared:  # on an operator's topic it may be another unit's
                     self._answer(com, reply, "failed", reason)
                 return
-        if command == "start-tst":
-            self._start_tst(com, msg, now, reply, shared)
-        elif command in ("signal-tst-node", "signal-tst-tree", "signal-unit"):
-            self._signal(com, msg, now, reply, shared, command)
+        if command in TST_COMMANDS:
+            if "feedback-first" in self.variants:
+                self.deferred = []
+            try:
+                if command == "start-tst":
+                    self._start_tst(com, msg, now, reply, shared)
+                else:
+                    self._signal(com, msg, now, reply, shared, command)
+            finally:
+                deferred, self.deferred = self.deferred or [], None
+                for args in deferred:
+                    self._send(*args)
         elif not shared:
             self._answer(com, reply, "failed", f"unknown TST command {str(command)[:64]!r}: "
                          f"this unit understands {', '.join(TST_COMMANDS)} (14.2, 14.3)")

@@ -325,6 +325,9 @@ def test_feedback_first_sends_the_feedback_a_command_causes_before_its_answer(
         "/exec/response", "/exec/feedback")]
     assert order.index(("/exec/feedback", "running")) < order.index(("/exec/response", com(2)))
     assert order.index(("/exec/feedback", "finished")) < order.index(("/exec/response", com(3)))
+    tst = [(t, m.get("response-to") or m.get("status")) for t, m in run.messages(
+        "/tst/response", "/tst/feedback")]
+    assert tst.index(("/tst/feedback", "active")) < tst.index(("/tst/response", com(7)))
     def same(r: Run) -> list[str]:  # com-uuids are drawn in the order messages go out
         return sorted(repr((t, without(m, "com-uuid"))) for t, m in r.messages())
 
