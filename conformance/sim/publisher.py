@@ -90,14 +90,18 @@ class Publisher:
         # tolerance (5.2's rate), not past it.
         edge = period / (1.0 - EDGE) if "sensor-rate-edge" in self.variants else period
 
+        # Variant rate-edge: the heartbeat and the execution info messages at the fast edge.
+        fast = period / (1.0 + EDGE) if "rate-edge" in self.variants else period
         # Variant info-rates: the info messages at a lower rate of their own (5), declared.
-        info = period * INFO_SLOWER if "info-rates" in self.variants else period
+        slower = period * INFO_SLOWER if "info-rates" in self.variants else None
+        info = slower or fast
 
         def stream(name: str, drift_fault: str, normal: float = period) -> Stream:
             return Stream(name, normal * DRIFT if drift_fault in self.faults else normal, first)
 
-        self.streams = [stream("heartbeat", "heartbeat-rate-drift"),
-                        stream("sensor_info", "sensor-info-rate-drift", max(edge, info)),
+        self.streams = [stream("heartbeat", "heartbeat-rate-drift", fast),
+                        stream("sensor_info", "sensor-info-rate-drift",
+                               edge if "sensor-rate-edge" in self.variants else slower or period),
                         stream("direct_execution_info", "dei-rate-drift", info),
                         Stream("sensors", edge, first)]
         if self.unit.tst is not None and "level-unbacked" not in self.faults:

@@ -79,6 +79,9 @@ _ALL = (
     Variant("integer-numbers", "RFC 8259 6; 5.1, 6.1",
             "Writes whole numbers without a fraction (rate 2, heading 270, speed 0), as "
             "JavaScript and many C++ JSON writers do."),
+    Variant("rate-edge", "5.1, 5.3; the profile's rate_tolerance",
+            "Sends its heartbeat, direct_execution_info and tst_execution_info EDGE faster "
+            "than their declared rate (12 %: inside the default 20 % tolerance)."),
     Variant("level-spelling", "5.1",
             "Declares its level 'direct_execution' (5.1's prose spelling; ERR-008).",
             warns=("ERR-008",)),

@@ -29,7 +29,8 @@ pytestmark = pytest.mark.slow
 
 PROFILE = HERE / "profiles" / "variants.yaml"
 GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
-    (("strict", "terse", "sensor-rate-edge", "success-vocabulary", "pretty-json"), False),
+    (("strict", "terse", "sensor-rate-edge", "rate-edge", "success-vocabulary", "pretty-json"),
+     False),
     (("slow", "verbose", "feedback-first", "starting-feedback", "level-spelling",
       "geopoint-type"), True),
     # info-rates apart from sensor-rate-edge: both set sensor_info's rate.

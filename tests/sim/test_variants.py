@@ -414,3 +414,17 @@ def test_slow_stays_well_inside_every_profiles_deadlines(profile: str, rate: flo
     p = load(root / profile if profile.endswith(".yaml") else profile)
     delay = SLOW_PERIODS / rate
     assert delay <= 0.5 * p.response_timeout and delay <= 0.2 * p.feedback_timeout
+
+
+def test_rate_edge_speeds_the_heartbeat_and_execution_info_inside_the_tolerance() -> None:
+    run = Run("rate-edge", script=[], seconds=30.0)
+    base = Run(script=[], seconds=30.0)
+
+    def count(r: Run, sub: str) -> int:
+        return sum(t == sub for _, t, _ in r.sent)
+
+    for sub in ("/heartbeat", "/direct_execution_info", "/tst_execution_info"):
+        ratio = count(run, sub) / count(base, sub)
+        assert abs(ratio - (1 + EDGE)) < 0.04, (sub, ratio)  # faster, not past 20 %
+    for sub in ("/sensor_info", "/sensor/position"):
+        assert count(run, sub) == count(base, sub)
