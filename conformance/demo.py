@@ -28,10 +28,11 @@ class _Collector:
 
 
 def certify(unit: str, *, rate: float = 1.0, faults: Sequence[str] = (),
-            profile: str | None = None, tst: bool = False, reports_dir: str = "reports",
+            variants: Sequence[str] = (), profile: str | None = None, tst: bool = False, reports_dir: str = "reports",
             seed: str | None = None, quiet: bool = False,
             pytest_args: Sequence[str] = ()) -> int:
-    """Certify the reference unit at ``unit`` (rate in Hz, with ``faults`` switched on) on the
+    """Certify the reference unit at ``unit`` (rate in Hz, with ``faults`` and ``variants``
+    switched on) on the
     embedded broker, in this process; print the command, where the reports went and the
     verdict. Returns pytest's exit status."""
     import pytest
@@ -43,6 +44,7 @@ def certify(unit: str, *, rate: float = 1.0, faults: Sequence[str] = (),
     if rate != 1.0:
         command += ["--sim-rate", str(rate)]
     command += [f"--sim-fault={f}" for f in faults]
+    command += [f"--sim-variant={v}" for v in variants]
     if tst:
         command.append("--sim-tst")
     if profile:

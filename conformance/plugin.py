@@ -79,6 +79,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group.addoption("--sim-fault", dest="waraps_sim_faults", action="append", default=None,
                     metavar="FAULT", help="with --broker embedded: switch on a fault of the "
                                           "bundled reference unit (repeatable)")
+    group.addoption("--sim-variant", dest="waraps_sim_variants", action="append", default=None,
+                    metavar="VARIANT", help="with --broker embedded: switch on a conformant "
+                    "variant of the bundled reference unit (repeatable; waraps-conformance sim "
+                    "--list-variants lists them)")
     group.addoption("--sim-rate", dest="waraps_sim_rate", type=float, default=None,
                     metavar="HZ", help="with --broker embedded: the reference unit's rate")
     group.addoption("--sim-tst", dest="waraps_sim_tst", action="store_true", default=False,

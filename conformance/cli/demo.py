@@ -33,6 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as e:
         print(f"waraps-conformance demo: --unit: {e}", file=sys.stderr)
         return 2
-    return certify(args.unit, rate=args.rate, faults=args.fault, profile=args.profile,
+    return certify(args.unit, rate=args.rate, faults=args.fault, variants=args.variant,
+                   profile=args.profile,
                    tst=args.tst, reports_dir=args.reports_dir, seed=args.seed,
                    quiet=args.quiet, pytest_args=args.pytest_args)

@@ -155,8 +155,8 @@ REFERENCE_UNIT = "waraps/unit/air/simulation/dji0"
 
 def add_reference_unit_options(parser: argparse.ArgumentParser, *,
                                fault_metavar: str = "NAME") -> None:
-    """The reference unit's ``--unit``, ``--rate``, ``--fault`` and ``--tst``, as ``sim`` and
-    ``demo`` (which runs it under the certification) both take them."""
+    """The reference unit's ``--unit``, ``--rate``, ``--fault``, ``--variant`` and ``--tst``, as
+    ``sim`` and ``demo`` (which runs it under the certification) both take them."""
     parser.add_argument("--unit", default=REFERENCE_UNIT, metavar="ADDRESS",
                         help=f"its address, PREFIX/unit/TYPE/ROLE/NAME (default {REFERENCE_UNIT})")
     parser.add_argument("--rate", type=float, default=1.0, metavar="HZ",
@@ -164,6 +164,9 @@ def add_reference_unit_options(parser: argparse.ArgumentParser, *,
     parser.add_argument("--fault", action="append", default=[], metavar=fault_metavar,
                         help="switch a fault on (repeatable; waraps-conformance sim "
                              "--list-faults lists them)")
+    parser.add_argument("--variant", action="append", default=[], metavar="NAME",
+                        help="switch a conformant variant on (repeatable; waraps-conformance "
+                             "sim --list-variants lists them)")
     parser.add_argument("--tst", action="store_true",
                         help="declare 'tst execution' and run TST trees (spec 14) sent to the "
                              "unit's own tst/command")

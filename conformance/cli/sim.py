@@ -3,6 +3,8 @@
     waraps-conformance sim --unit waraps/unit/air/simulation/dji0 --broker mqtt://127.0.0.1:1883
     waraps-conformance sim --broker embedded --count 500 --fault heartbeat-rate-drift@3
     waraps-conformance sim --list-faults
+    waraps-conformance sim --variant strict --variant key-order
+    waraps-conformance sim --list-variants
 
 What it prints and how it is controlled (signals, stdin): ``conformance.sim.process``.
 """
@@ -37,10 +39,14 @@ def build_parser() -> argparse.ArgumentParser:
     opts.add_broker_options(p, broker_help=f"mqtt://host:port, mqtts://host:port or "
                                            f"'embedded' (start one in this process); default: "
                                            f"{opts.BROKER_ENV}, else embedded")
-    faults = p.add_argument_group("the faults")
+    faults = p.add_argument_group("the faults and variants")
     faults.add_argument("--list-faults", action="store_true",
                         help="print the faults with the rule ids each one breaks, and exit")
-    faults.add_argument("--json", action="store_true", help="with --list-faults: as JSON")
+    faults.add_argument("--json", action="store_true",
+                        help="with --list-faults or --list-variants: as JSON")
+    faults.add_argument("--list-variants", action="store_true",
+                        help="print the conformant variants with the spec sections that allow "
+                             "each, and exit")
     return p
 
 
@@ -48,12 +54,16 @@ def main(argv: list[str]) -> int:
     from conformance.client import BrokerURL
     from conformance.sim.faults import FaultError
     from conformance.sim.process import list_faults, run
+    from conformance.sim.variants import VariantError, list_variants
     from conformance.topics import TopicError, UnitAddress
 
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.list_faults:
         print(list_faults(args.json))
+        return 0
+    if args.list_variants:
+        print(list_variants(args.json))
         return 0
     if args.count < 1:
         parser.error(f"--count {args.count}: at least 1")
@@ -78,7 +88,8 @@ def main(argv: list[str]) -> int:
             parser.error(str(e))
     try:
         return run(address, broker, count=args.count, rate=args.rate, faults=args.fault,
+                   variants=args.variant,
                    seed=args.seed, tst=args.tst, tst_operator=operator,
                    task_seconds=args.task_seconds)
-    except FaultError as e:
+    except (FaultError, VariantError) as e:
         parser.error(str(e))

@@ -28,6 +28,20 @@ LATE_PONG_PERIODS = 3.0
 """Fault pong-late: a pong is held back 3 periods (1.5 s at the fault matrix's 2 Hz, past its
 1 s response timeout; 3 s at the workout's 1 Hz, past its 2 s), so it arrives before the
 suite's reboot kills the process that held it."""
+EXAMPLE_FIELDS = {  # variant strict: the fields of the spec's examples, per command
+    "ping": frozenset({"com-uuid", "command", "sender"}),  # 12.2.1
+    "signal-task": frozenset({"com-uuid", "command", "signal", "sender", "task-uuid"}),  # 12.2.2
+    "start-task": frozenset({"com-uuid", "command", "execution-unit", "sender", "task",
+                             "task-uuid"}),  # 10's examples (12.2.3)
+    # 12.1 names query-status without an example: signal-task's fields but the signal.
+    "query-status": frozenset({"com-uuid", "command", "sender", "task-uuid"}),
+}
+QUERY_WORDS_12_1 = {"finished": "success", "paused": "running", "aborted": "failed"}
+"""Variant success-vocabulary: query-status answered in 12.1's words only (running, failed,
+success, unknown), 12.4's paused and aborted read as the nearest of them."""
+OPTIONAL_FIELDS = frozenset({"task-uuid"})
+"""12.1: 'task-uuid should be optionally sent in start-task'; every other field of an example
+is required by variant strict."""
 _COM_UUID = re.compile(rb'"com-uuid"\s*:\s*"([^"\\\x00-\x1f]{1,128})"')
 
 
@@ -37,11 +51,15 @@ class CommandExecutor:
     def __init__(self, unit: UnitCore) -> None:
         self.unit = unit
         self.faults = unit.faults
+        self.variants = unit.variants
         self.runner = unit.runner
         self.history: Resends[dict[str, Any] | None] = Resends()
         """com-uuid -> the response sent (None: deliberately not answered), for resends."""
         self.delayed: list[tuple[float, dict[str, Any]]] = []
         """Fault pong-late: (when, response) of answers held back."""
+        self.deferred: list[tuple[dict[str, Any], str | None, float]] | None = None
+        """Variant feedback-first: the responses of the command being handled, sent after
+        the feedback it causes."""
 
     def command(self, payload: bytes, now: float, size: int) -> None:
         """Handle one command of ``size`` bytes (``payload`` may be only its head)."""
@@ -71,12 +89,27 @@ class CommandExecutor:
                 self._send_response(dict(cached))
             return
         command = msg.get("command")
+        if "strict" in self.variants and command in EXAMPLE_FIELDS:
+            reason = _unlike_examples(command, msg, self.unit.address.name)
+            if reason is not None:
+                sent = msg.get("task-uuid")
+                self._answer(com, "failed", fail_reason=reason, task_uuid=sent if isinstance(
+                    sent, str) and 0 < len(sent) <= 128 else None)
+                return
         if command == "ping":
             self._answer(com, "pong", kind="ping")
-        elif command == "start-task":
-            self._start_task(com, msg, now)
-        elif command == "signal-task":
-            self._signal_task(com, msg, now)
+        elif command in ("start-task", "signal-task"):
+            if "feedback-first" in self.variants:
+                self.deferred = []
+            try:
+                if command == "start-task":
+                    self._start_task(com, msg, now)
+                else:
+                    self._signal_task(com, msg, now)
+            finally:
+                deferred, self.deferred = self.deferred or [], None
+                for args in deferred:
+                    self._send_response(*args)
         elif command == "query-status":
             self._query_status(com, msg)
         elif not isinstance(command, str):
@@ -98,6 +131,12 @@ class CommandExecutor:
         """Send a response (12.3) and remember it for a resend."""
         body: dict[str, Any] = {"agent-uuid": self.unit.agent_uuid, "response": response,
                                 "response-to": com}
+        if "terse" in self.variants:  # 12.3: fail-reason when failed; task-uuid for start-task
+            fail_reason = fail_reason if response == "failed" else None
+            task_uuid = task_uuid if kind == "start" else None
+        elif "verbose" in self.variants:  # both on every response, as 12.3.3's example has
+            fail_reason = "" if fail_reason is None else fail_reason
+            task_uuid = "" if task_uuid is None else task_uuid  # '': it concerns no task
         if task_uuid is not None:
             body["task-uuid"] = task_uuid
         if fail_reason is not None:
@@ -123,6 +162,9 @@ class CommandExecutor:
 
     def _send_response(self, body: dict[str, Any], command_com: str | None = None,
                        delay: float = 0.0) -> None:
+        if self.deferred is not None:
+            self.deferred.append((body, command_com, delay))
+            return
         unit = self.unit
         com = body.get("response-to", "") if command_com is None else command_com
         body["com-uuid"] = com if "response-reuses-com-uuid" in self.faults else unit.fresh_uuid()
@@ -231,6 +273,8 @@ class CommandExecutor:
             self._answer(com, response, task_uuid=shown, fail_reason="", kind="start")
         if "feedback-status-typo" in self.faults:
             self.runner.feedback(task, "Starting")
+        elif "starting-feedback" in self.variants:
+            self.runner.feedback(task, "starting")  # 12.4's word for a task getting ready
         self.runner.feedback(task, "running")
         self.runner.start(task, now)
 
@@ -323,6 +367,8 @@ class CommandExecutor:
                 self._answer(com, "unknown", task_uuid=task_uuid, fail_reason="", kind="query")
             return
         status = task.status
+        if "success-vocabulary" in self.variants:  # 12.1's list: running, failed, success
+            status = QUERY_WORDS_12_1.get(status, status)
         if status == "finished" and "query-answers-success" in self.faults:
             status = "success"
         reason = task.fail_reason if status == "failed" else ""
@@ -341,6 +387,27 @@ def _decode(payload: bytes) -> tuple[Any, str | None]:
     if not isinstance(com, str) or not com or len(com) > 128:
         return msg, "the command has no com-uuid string"
     return msg, None
+
+
+def _unlike_examples(command: str, msg: dict[str, Any], me: str) -> str | None:
+    """Variant strict: why ``msg`` is not shaped like the spec's examples of ``command``, or
+    None."""
+    allowed = EXAMPLE_FIELDS[command]
+    extra = sorted(set(msg) - allowed)
+    if extra:
+        return (f"field {str(extra[0])[:64]!r} is in no example of {command} (this unit reads "
+                f"only {', '.join(sorted(allowed))})")
+    optional = OPTIONAL_FIELDS if command == "start-task" else frozenset()
+    missing = sorted(allowed - optional - set(msg))
+    if missing:
+        return f"{command} without {', '.join(missing)} (the spec's examples have it)"
+    if command == "start-task":
+        unit, task = msg["execution-unit"], msg["task"]
+        if unit != me:
+            return f"execution-unit {str(unit)[:64]!r} is not this unit ({me})"
+        if not isinstance(task, dict) or set(task) != {"name", "params"}:
+            return "task is {'name': ..., 'params': {...}} in every example of section 10"
+    return None
 
 
 def _readable_com_uuid(payload: bytes, msg: Any) -> str | None:

@@ -17,6 +17,7 @@ from conformance.client import BrokerURL
 from conformance.sim.faults import check_names
 from conformance.sim.runtime import Runtime, spread
 from conformance.sim.unit import UnitCore
+from conformance.sim.variants import check_variants
 from conformance.sim.vehicle import LINKOPING, GeoPoint, destination
 from conformance.topics import UnitAddress
 
@@ -80,6 +81,7 @@ class SimUnit(_Running):
 
     ``broker`` is an ``mqtt://host:port`` URL; ``rate`` the declared rate in Hz of heartbeat,
     info messages and sensors; ``faults`` names from ``conformance.sim.faults.FAULTS``;
+    ``variants`` names from ``conformance.sim.variants.VARIANTS`` (conformant behaviours);
     ``seed`` makes agent-uuids and com-uuids repeatable; ``position`` defaults to Linköping;
     ``task_seconds`` is about how long a simulated task takes. ``tst_execution`` declares the
     level 'tst execution' and runs TST trees (spec 14, ``conformance.sim.tst``) sent to its own
@@ -88,15 +90,15 @@ class SimUnit(_Running):
     """
 
     def __init__(self, address: UnitAddress | str, broker: str | BrokerURL, *,
-                 faults: Iterable[str] = (), rate: float = 1.0, seed: int | None = None,
-                 position: GeoPoint | None = None, heading: float = 270.0,
+                 faults: Iterable[str] = (), variants: Iterable[str] = (), rate: float = 1.0,
+                 seed: int | None = None, position: GeoPoint | None = None, heading: float = 270.0,
                  task_seconds: float = 3.0, tst_execution: bool = False,
                  tst_operator: UnitAddress | str | None = None) -> None:
         self.address = _address(address)
         self.runtime = Runtime(broker, client_id=f"waraps-sim-{self.address.name}-"
                                f"{random.getrandbits(32):08x}")
         self.core = UnitCore(self.address, self.runtime.publish, faults=check_names(list(faults)),
-                             rate=rate, rng=_rng(seed, self.address.name), position=position,
+                             variants=check_variants(list(variants)), rate=rate, rng=_rng(seed, self.address.name), position=position,
                              heading=heading, task_seconds=task_seconds,
                              tst_execution=tst_execution,
                              tst_operator=_address(tst_operator) if tst_operator else None)
@@ -116,6 +118,10 @@ class SimUnit(_Running):
         return self.core.faults
 
     @property
+    def variants(self) -> frozenset[str]:
+        return self.core.variants
+
+    @property
     def base(self) -> str:
         """The topic base it publishes under (its address, unless a topic fault moves it)."""
         return self.core.base
@@ -126,20 +132,21 @@ class Fleet(_Running):
     connection, their publications spread evenly over one period.
 
     ``faults`` apply to every unit; ``faults_by_index`` adds faults to single units
-    (``{3: ["heartbeat-rate-drift"]}``); ``tst_execution`` and ``tst_operator`` as for
+    (``{3: ["heartbeat-rate-drift"]}``); ``variants`` apply to every unit; ``tst_execution`` and ``tst_operator`` as for
     ``SimUnit``, for every unit.
     """
 
     def __init__(self, address: UnitAddress | str, broker: str | BrokerURL, count: int, *,
                  faults: Iterable[str] = (),
                  faults_by_index: Mapping[int, Iterable[str]] | None = None,
-                 rate: float = 1.0, seed: int | None = None, task_seconds: float = 3.0,
+                 variants: Iterable[str] = (), rate: float = 1.0, seed: int | None = None, task_seconds: float = 3.0,
                  heading: float = 270.0, tst_execution: bool = False,
                  tst_operator: UnitAddress | str | None = None) -> None:
         if count < 1:
             raise ValueError(f"count {count}: a fleet has at least one unit")
         base = _address(address)
         common = check_names(list(faults))
+        variant_names = check_variants(list(variants))
         extra = {int(i): check_names(list(f)) for i, f in (faults_by_index or {}).items()}
         if bad := [i for i in extra if not 0 <= i < count]:
             raise ValueError(f"faults_by_index {bad}: indexes run from 0 to {count - 1}")
@@ -155,6 +162,7 @@ class Fleet(_Running):
             spot = destination(destination(home, 0.0, row * FLEET_SPACING), 90.0,
                                col * FLEET_SPACING)
             core = UnitCore(a, self.runtime.publish, faults=common | extra.get(i, frozenset()),
+                            variants=variant_names,
                             rate=rate, rng=_rng(seed, a.name), position=spot,
                             heading=heading, task_seconds=task_seconds, phase=phases[i],
                             tst_execution=tst_execution, tst_operator=operator)

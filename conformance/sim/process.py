@@ -4,6 +4,7 @@
     waraps-conformance sim --unit waraps/unit/air/simulation/dji0 --broker mqtt://127.0.0.1:1883
     waraps-conformance sim --broker embedded --count 500 --fault heartbeat-rate-drift@3
     waraps-conformance sim --list-faults
+    waraps-conformance sim --variant strict --variant slow      # conformant, but different
     waraps-conformance sim --tst --tst-operator waraps/unit/ground/real/op0 --count 3
 
 When ready it prints one line, ``ready pid=... broker=... unit=...`` (with ``--broker
@@ -64,13 +65,17 @@ def parse_faults(specs: Sequence[str], count: int) -> tuple[frozenset[str], dict
 
 
 def run(address: UnitAddress, broker: BrokerURL | None, *, count: int = 1, rate: float = 1.0,
-        faults: Sequence[str] = (), seed: int | None = None, tst: bool = False,
+        faults: Sequence[str] = (), variants: Sequence[str] = (), seed: int | None = None, tst: bool = False,
         tst_operator: UnitAddress | None = None, task_seconds: float = 3.0) -> int:
     """Run ``count`` reference units from ``address`` on ``broker`` (None: an embedded broker
     started here, its URL printed first) until SIGINT, SIGTERM or ``stop`` on stdin; print
-    the ready line once they are up. ``faults`` are ``NAME`` or ``NAME@I,J`` (FaultError).
+    the ready line once they are up. ``faults`` are ``NAME`` or ``NAME@I,J`` (FaultError);
+    ``variants`` apply to every unit (VariantError).
     Returns 0, or 1 when the units could not start."""
     common, by_index = parse_faults(faults, count)
+    from conformance.sim.variants import check_variants
+
+    variant_names = check_variants(list(variants))
     embedded = None
     if broker is None:
         from conformance.broker import EmbeddedBroker
@@ -84,12 +89,12 @@ def run(address: UnitAddress, broker: BrokerURL | None, *, count: int = 1, rate:
     runner: SimUnit | Fleet
     if count == 1:
         runner = SimUnit(address, broker, faults=common | by_index.get(0, set()),
-                         rate=rate, seed=seed, task_seconds=task_seconds,
+                         variants=variant_names, rate=rate, seed=seed, task_seconds=task_seconds,
                          tst_execution=tst, tst_operator=tst_operator)
         units = f"unit={runner.base} agent-uuid={runner.agent_uuid}"
     else:
         runner = Fleet(address, broker, count, faults=common, faults_by_index=by_index,
-                       rate=rate, seed=seed, task_seconds=task_seconds,
+                       variants=variant_names, rate=rate, seed=seed, task_seconds=task_seconds,
                        tst_execution=tst, tst_operator=tst_operator)
         units = (f"units={runner.addresses[0]}..{runner.addresses[-1].name} "
                  f"count={count}")
@@ -116,6 +121,8 @@ def run(address: UnitAddress, broker: BrokerURL | None, *, count: int = 1, rate:
     threading.Thread(target=_read_control, args=(reboot, stop), daemon=True,
                      name="sim-stdin").start()
     shown = ",".join(faults) or "none"
+    if variants:
+        shown += f" variants={','.join(sorted(variant_names))}"
     tst_shown = f" tst=on{f' operator={tst_operator}' if tst_operator else ''}" if tst else ""
     print(f"ready pid={os.getpid()} broker={broker} {units} rate={rate:g} "
           f"faults={shown}{tst_shown}", flush=True)

@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from conformance.sim.variants import EDGE, INFO_SLOWER
 from conformance.sim.vehicle import destination
 from conformance.topics import DIRECT_EXECUTION, SENSOR_LEVEL, TST_EXECUTION, UnitAddress
 
@@ -58,6 +59,7 @@ class Publisher:
     def __init__(self, unit: UnitCore) -> None:
         self.unit = unit
         self.faults = unit.faults
+        self.variants = unit.variants
         self.camera_sensor = camera_sensor(self.faults)
         self.levels = self._levels()
         self.streams: list[Stream] = []
@@ -68,9 +70,10 @@ class Publisher:
     def _levels(self) -> list[str]:
         if "undeclared-direct-execution" in self.faults:
             return [SENSOR_LEVEL]  # it answers commands and sends direct_execution_info all the same
-        # ERR-008: the fault writes 'direct_execution', as units found in practice do.
-        direct = DIRECT_EXECUTION.replace(" ", "_") if "level-underscore" in self.faults \
-            else DIRECT_EXECUTION
+        # ERR-008: the fault (and the variant level-spelling) writes 'direct_execution', as
+        # units found in practice do.
+        underscore = "level-underscore" in self.faults or "level-spelling" in self.variants
+        direct = DIRECT_EXECUTION.replace(" ", "_") if underscore else DIRECT_EXECUTION
         levels = [SENSOR_LEVEL, direct]
         if self.unit.tst is not None:
             levels.append(TST_EXECUTION)
@@ -82,17 +85,27 @@ class Publisher:
     def start(self, first: float) -> None:
         """Schedule the periodic messages; the first ones go out at ``first``."""
         period = self.unit.period
-        slow = period * DRIFT
 
-        def stream(name: str, drift_fault: str) -> Stream:
-            return Stream(name, slow if drift_fault in self.faults else period, first)
+        # Variant sensor-rate-edge: sensor_info and the sensors at the slow edge of the rate
+        # tolerance (5.2's rate), not past it.
+        edge = period / (1.0 - EDGE) if "sensor-rate-edge" in self.variants else period
 
-        self.streams = [stream("heartbeat", "heartbeat-rate-drift"),
-                        stream("sensor_info", "sensor-info-rate-drift"),
-                        stream("direct_execution_info", "dei-rate-drift"),
-                        Stream("sensors", period, first)]
+        # Variant rate-edge: the heartbeat and the execution info messages at the fast edge.
+        fast = period / (1.0 + EDGE) if "rate-edge" in self.variants else period
+        # Variant info-rates: the info messages at a lower rate of their own (5), declared.
+        slower = period * INFO_SLOWER if "info-rates" in self.variants else None
+        info = slower or fast
+
+        def stream(name: str, drift_fault: str, normal: float = period) -> Stream:
+            return Stream(name, normal * DRIFT if drift_fault in self.faults else normal, first)
+
+        self.streams = [stream("heartbeat", "heartbeat-rate-drift", fast),
+                        stream("sensor_info", "sensor-info-rate-drift",
+                               edge if "sensor-rate-edge" in self.variants else slower or period),
+                        stream("direct_execution_info", "dei-rate-drift", info),
+                        Stream("sensors", edge, first)]
         if self.unit.tst is not None and "level-unbacked" not in self.faults:
-            self.streams.append(stream("tst_execution_info", "tst-info-rate-drift"))
+            self.streams.append(stream("tst_execution_info", "tst-info-rate-drift", info))
         if "retained-stale-heartbeat" in self.faults:
             birth = self.heartbeat_message()
             birth["stamp"] = self.stamp() - 5 * period
@@ -142,6 +155,18 @@ class Publisher:
             msg["agent-uuid"] = unit.agent_uuid
         return msg
 
+    @property
+    def retain_info(self) -> bool:
+        """Variant retained-info: the info messages are retained (a late subscriber learns the
+        unit's sensors and tasks at once)."""
+        return "retained-info" in self.variants
+
+    @property
+    def info_rate(self) -> float:
+        """The rate the info messages declare (5.2, 5.3): the heartbeat's, unless variant
+        info-rates sends them slower."""
+        return self.unit.rate / INFO_SLOWER if "info-rates" in self.variants else self.unit.rate
+
     def heartbeat_message(self) -> dict[str, Any]:
         """The 5.1 heartbeat."""
         unit = self.unit
@@ -175,6 +200,8 @@ class Publisher:
         listed = ["position", "heading", "course", "speed"]
         if "mandatory-sensor-missing" in self.faults:
             listed.remove("course")
+        if "terse" in self.variants:  # the optional camera_url (6.2) is left out
+            return listed
         if "topic-empty-level" not in self.faults:
             listed.append(self.camera_sensor)
         if "sensor-listed-unpublished" in self.faults:
@@ -183,8 +210,9 @@ class Publisher:
 
     def _publish_sensor_info(self, stream: Stream, now: float) -> None:
         type_ = "SensorInformation" if "sensor-info-type" in self.faults else "SensorInfo"
-        msg = self._info(type_, self.unit.rate, **{"sensor-data-provided": self.sensors_listed()})
-        self.unit.send("sensor.info" if "sensor-dot-info" in self.faults else "sensor_info", msg)
+        msg = self._info(type_, self.info_rate, **{"sensor-data-provided": self.sensors_listed()})
+        self.unit.send("sensor.info" if "sensor-dot-info" in self.faults else "sensor_info", msg,
+                       retain=self.retain_info)
 
     def _publish_dei(self, stream: Stream, now: float) -> None:
         unit = self.unit
@@ -197,20 +225,22 @@ class Publisher:
             executing = [t for t in tasks if t.spec is not None]
         else:
             executing = [t for t in tasks if not t.ended]
-        msg = self._info(type_, unit.rate, **{
+        msg = self._info(type_, self.info_rate, **{
             "tasks-available": available,
             "tasks-executing": [{"task-name": t.name, "task-uuid": t.uuid} for t in executing],
         })
-        unit.send("direct_execution_info", msg)
+        unit.send("direct_execution_info", msg, retain=self.retain_info)
 
     def _publish_tei(self, stream: Stream, now: float) -> None:
         # tst_execution_info is named, not defined (ERR-011): name, rate, stamp, type.
-        msg = self._info("TstExecutionInfo", self.unit.rate)
+        msg = self._info("TstExecutionInfo", self.info_rate)
         if self.unit.tst is not None:
             self.unit.tst.fill_info(msg)
         if "tst-info-incomplete" in self.faults:
             del msg["rate"]
-        self.unit.send("tst_execution_info", msg)
+        if "terse" in self.variants:  # optional (TST-013: a unit without it is not judged)
+            msg.pop("nodes-executing", None)
+        self.unit.send("tst_execution_info", msg, retain=self.retain_info)
 
     # --- sensors (6) ----------------------------------------------------------------------------
     def position_message(self, count: int) -> Any:
@@ -223,7 +253,7 @@ class Publisher:
             lat, lon = round(lat * 1e7), round(lon * 1e7)  # type: ignore[assignment]
         msg: dict[str, Any] = {"altitude": round(p.altitude, 2), "latitude": lat,
                                "longitude": lon, "rostype": "GeoPoint"}
-        if "geopoint-type-tag" in self.faults:
+        if "geopoint-type-tag" in self.faults or "geopoint-type" in self.variants:
             msg["type"] = msg.pop("rostype")
         elif "geopoint-untagged" in self.faults:
             del msg["rostype"]
@@ -249,7 +279,7 @@ class Publisher:
         unit.send("sensor/position", self.position_message(stream.count))
         if "sensor-unlisted" in self.faults:
             unit.send("sensor/battery_state", {"percentage": 0.87, "voltage": 16.2})
-        if stream.count % CAMERA_URL_EVERY == 0:
+        if stream.count % CAMERA_URL_EVERY == 0 and "terse" not in self.variants:
             self._publish_camera()
         if "topic-unknown-subtopic" in self.faults:
             unit.send("status", {"state": "ok"})

@@ -12,7 +12,7 @@ from conformance.topics import UnitAddress
 @dataclass(eq=False)
 class Reference:
     """The embedded broker on a free loopback port with the reference unit at ``unit`` on it,
-    ``faults`` switched on, heartbeating at ``rate`` Hz.
+    ``faults`` and ``variants`` switched on, heartbeating at ``rate`` Hz.
 
     >>> with Reference(UnitAddress.parse("waraps/unit/air/simulation/dji0")) as ref:
     ...     ref.url               # 'mqtt://127.0.0.1:PORT'
@@ -20,6 +20,7 @@ class Reference:
 
     unit: UnitAddress
     faults: tuple[str, ...] = ()
+    variants: tuple[str, ...] = ()
     rate: float = 1.0
     seed: int | None = None
     tst: bool = False
@@ -36,7 +37,8 @@ class Reference:
 
         self.broker = EmbeddedBroker().start()
         try:
-            self.sim = SimUnit(self.unit, self.broker.url, faults=self.faults, rate=self.rate,
+            self.sim = SimUnit(self.unit, self.broker.url, faults=self.faults,
+                               variants=self.variants, rate=self.rate,
                                seed=self.seed, tst_execution=self.tst,
                                tst_operator=self.tst_operator).start()
         except BaseException:

@@ -27,6 +27,15 @@ if TYPE_CHECKING:
 
 TST_COMMANDS = ("start-tst", "signal-tst-node", "signal-tst-tree", "signal-unit")  # 14.2, 14.3
 SIGNALS = ("$abort", "$pause", "$continue", "$enough")  # 14: abort/pause/continue/enough
+EXAMPLE_FIELDS = {  # variant strict: the fields of the spec's examples, per command
+    "start-tst": frozenset({"com-uuid", "command", "receiver", "sender", "tst"}),  # 11
+    "signal-tst-node": frozenset({"com-uuid", "command", "node-uuid", "sender", "signal"}),
+    "signal-tst-tree": frozenset({"com-uuid", "command", "node-uuid", "sender", "signal"}),
+    "signal-unit": frozenset({"com-uuid", "command", "sender", "signal", "unit"}),  # 14.3
+}
+NODE_FIELDS = frozenset({"children", "common_params", "name", "params"})
+"""Variant strict: every node of 11's examples has these, and common_params has both
+execunit and node-uuid."""
 
 
 def misdirected(command: str) -> str:
@@ -43,10 +52,14 @@ class TstEngine:
     def __init__(self, unit: UnitCore, operator: str | None = None) -> None:
         self.unit = unit
         self.faults = unit.faults
+        self.variants = unit.variants
         self.operator = operator
         self.trees = Trees(unit, self._feedback)
         self.history: Resends[tuple[str, dict[str, Any]]] = Resends()
         """com-uuid -> (reply base, the response sent), for resends."""
+        self.deferred: list[tuple[str, dict[str, Any]]] | None = None
+        """Variant feedback-first: the responses of the command being handled, sent after
+        the node feedback it causes."""
 
     @property
     def topics(self) -> list[str]:
@@ -65,10 +78,15 @@ class TstEngine:
         """A response (14.4), remembered for a resend."""
         body: dict[str, Any] = {"fail-reason": fail_reason, "response": response,
                                 "response-to": com, **extra}
+        if "terse" in self.variants and response != "failed":
+            del body["fail-reason"]  # 14.4.1's examples have none
         self.history.remember(com, (reply, body))
         self._send(reply, dict(body))
 
     def _send(self, reply: str, body: dict[str, Any]) -> None:
+        if self.deferred is not None:
+            self.deferred.append((reply, body))
+            return
         reuse = "tst-response-reuses-com-uuid" in self.faults
         body["com-uuid"] = body["response-to"] if reuse else self.unit.fresh_uuid()
         self.unit.send("tst/response", body, base=reply)
@@ -80,9 +98,13 @@ class TstEngine:
         shown = "finished" if status == "succeeded" and "tst-feedback-finished" in self.faults \
             else status
         root = node is node.tree.root or "tst-root-flag-everywhere" in self.faults
-        self.unit.send("tst/feedback", {
-            "com-uuid": self.unit.fresh_uuid(), "fail-reason": reason, "node-uuid": node.uuid,
-            "root-flag": root, "status": shown}, base=node.tree.reply)
+        body = {"com-uuid": self.unit.fresh_uuid(), "fail-reason": reason,
+                "node-uuid": node.uuid, "root-flag": root, "status": shown}
+        if "terse" in self.variants:  # the schema's required fields only (14.5)
+            del body["root-flag"]
+            if not reason:
+                del body["fail-reason"]
+        self.unit.send("tst/feedback", body, base=node.tree.reply)
 
     # --- commands -----------------------------------------------------------------------------
     def command(self, payload: bytes, now: float, topic: str) -> None:
@@ -104,10 +126,24 @@ class TstEngine:
                 self._send(where, dict(cached))
             return
         command = msg.get("command")
-        if command == "start-tst":
-            self._start_tst(com, msg, now, reply, shared)
-        elif command in ("signal-tst-node", "signal-tst-tree", "signal-unit"):
-            self._signal(com, msg, now, reply, shared, command)
+        if "strict" in self.variants and command in EXAMPLE_FIELDS:
+            reason = _unlike_examples(command, msg)
+            if reason is not None:
+                if not shared:  # on an operator's topic it may be another unit's
+                    self._answer(com, reply, "failed", reason)
+                return
+        if command in TST_COMMANDS:
+            if "feedback-first" in self.variants:
+                self.deferred = []
+            try:
+                if command == "start-tst":
+                    self._start_tst(com, msg, now, reply, shared)
+                else:
+                    self._signal(com, msg, now, reply, shared, command)
+            finally:
+                deferred, self.deferred = self.deferred or [], None
+                for args in deferred:
+                    self._send(*args)
         elif not shared:
             self._answer(com, reply, "failed", f"unknown TST command {str(command)[:64]!r}: "
                          f"this unit understands {', '.join(TST_COMMANDS)} (14.2, 14.3)")
@@ -236,3 +272,37 @@ def _without(tst: Any, key: str) -> Any:
             if isinstance(children, list):
                 stack.extend(children)
     return tree
+
+
+def _unlike_examples(command: str, msg: dict[str, Any]) -> str | None:
+    """Variant strict: why ``msg`` is not shaped like the spec's examples of ``command`` (11,
+    14.3), or None. receiver (11's examples) may be left out: 14.1 sends to the unit's own
+    topic too."""
+    allowed = EXAMPLE_FIELDS[command]
+    extra = sorted(set(msg) - allowed)
+    if extra:
+        return f"field {str(extra[0])[:64]!r} is in no example of {command}"
+    missing = sorted(allowed - {"receiver"} - set(msg))
+    if missing:
+        return f"{command} without {', '.join(missing)} (the spec's examples have it)"
+    if command == "signal-unit" and not str(msg["unit"]).startswith("/"):
+        return "unit is '/NAME' in 14.3.3's example"
+    if command != "start-tst":
+        return None
+    stack: list[tuple[str, Any]] = [("tst", msg["tst"])]
+    while stack:
+        path, node = stack.pop()
+        if not isinstance(node, dict) or set(node) != NODE_FIELDS:
+            shown = sorted(node) if isinstance(node, dict) else type(node).__name__
+            return (f"{path}: every node of 11's examples has exactly "
+                    f"{', '.join(sorted(NODE_FIELDS))} ({str(shown)[:120]})")
+        common = node["common_params"]
+        if not isinstance(common, dict) or set(common) != {"execunit", "node-uuid"}:
+            return (f"{path}.common_params: every node of 11's examples has execunit and "
+                    f"node-uuid")
+        if not str(common["execunit"]).startswith("/"):
+            return f"{path}.common_params.execunit: '/NAME' in every example of section 11"
+        children = node["children"]
+        if isinstance(children, list):
+            stack.extend((f"{path}.children[{i}]", c) for i, c in enumerate(children))
+    return None

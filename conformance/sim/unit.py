@@ -33,12 +33,18 @@ from conformance.sim.publisher import CAMERA_URL_EVERY, Publisher, topic_base
 from conformance.sim.runner import STEP, TaskRunner
 from conformance.sim.tasks import Task, TaskSpec, tasks_for
 from conformance.sim.tst import TstEngine
+from conformance.sim.variants import SLOW_PERIODS, check_variants
 from conformance.sim.vehicle import LINKOPING, GeoPoint, Vehicle
 from conformance.topics import UnitAddress
 
 __all__ = ["CAMERA_URL_EVERY", "Emit", "UnitCore"]  # CAMERA_URL_EVERY: bench/bench_sim.py
 
 Emit = Callable[[str, bytes, bool], None]
+HELD = frozenset({"exec/response", "exec/feedback", "tst/response", "tst/feedback"})
+"""What variant slow holds back: every answer and every feedback (12.3, 12.4, 14.4, 14.5)."""
+VENDOR = {"name": "waraps-conformance reference unit", "variant": "verbose"}
+"""Variant verbose: the field of its own it adds to every message (2: more fields are not
+forbidden; a reader ignores what it does not know)."""
 REBOOT_SILENCE = 2.5
 """A reboot is silent for this many heartbeat periods, counted from the last heartbeat: more
 than HB-006's two (so the new agent-uuid reads as a reboot), less than HB-010's three."""
@@ -51,10 +57,12 @@ class UnitCore:
     ``task_seconds`` how long a simulated task takes (time compression, see
     ``conformance.sim.tasks``); ``phase`` delays the first publication by that many seconds
     (a fleet spreads its units over one period). ``tst_execution`` adds the TST level (14),
-    listening also to ``tst_operator``'s tst/command (14.1).
+    listening also to ``tst_operator``'s tst/command (14.1). ``variants`` are conformant
+    behaviours (``conformance.sim.variants``), switched on beside the faults.
     """
 
     def __init__(self, address: UnitAddress, emit: Emit, *, faults: Iterable[str] = (),
+                 variants: Iterable[str] = (),
                  rate: float = 1.0, rng: random.Random | None = None,
                  position: GeoPoint | None = None, heading: float = 270.0,
                  task_seconds: float = 3.0, phase: float = 0.0,
@@ -64,6 +72,7 @@ class UnitCore:
             raise ValueError(f"rate {rate!r}: a rate is a positive number of Hz")
         self.address = address
         self.faults = check_names(list(faults))
+        self.variants = check_variants(list(variants))
         self.rate = float(rate)
         self.period = 1.0 / self.rate
         self.rng = rng or random.Random()
@@ -96,6 +105,8 @@ class UnitCore:
         self.commands = 0
         self.published = 0
         self.retained_topics: set[str] = set()
+        self.held: list[tuple[float, str, Any, str | None]] = []
+        """Variant slow: (when, subtopic, body, base) of answers and feedback held back."""
         self._phase = phase
         self.due = 0.0
 
@@ -151,8 +162,35 @@ class UnitCore:
         self._emit(topic, payload, retain)
 
     def send(self, sub: str, body: Any, *, retain: bool = False, base: str | None = None) -> None:
-        """Publish ``body`` as JSON; sorted keys, like the spec's examples."""
-        self.emit(sub, orjson.dumps(body, option=orjson.OPT_SORT_KEYS), retain, base)
+        """Publish ``body`` as JSON; sorted keys, like the spec's examples (variant key-order:
+        reversed). Variant slow holds answers and feedback back (``send_held``)."""
+        if "slow" in self.variants and sub in HELD:
+            when = self.runner.now + SLOW_PERIODS * self.period
+            self.held.append((when, sub, body, base))
+            self.due = min(self.due, when)
+            return
+        self._publish(sub, body, retain, base)
+
+    def _publish(self, sub: str, body: Any, retain: bool = False,
+                 base: str | None = None) -> None:
+        if "verbose" in self.variants and isinstance(body, dict):
+            body = {**body, "x-software": VENDOR}
+        if "integer-numbers" in self.variants:
+            body = _integers(body)
+        indent = orjson.OPT_INDENT_2 if "pretty-json" in self.variants else 0
+        if "key-order" in self.variants:
+            payload = orjson.dumps(_reversed_keys(body), option=indent)
+        else:
+            payload = orjson.dumps(body, option=orjson.OPT_SORT_KEYS | indent)
+        self.emit(sub, payload, retain, base)
+
+    def send_held(self, now: float) -> float | None:
+        """Variant slow: send what is due of what was held back, in the order it was made;
+        when the next one is due (None: nothing held)."""
+        while self.held and self.held[0][0] <= now:
+            _, sub, body, base = self.held.pop(0)
+            self._publish(sub, body, base=base)
+        return self.held[0][0] if self.held else None
 
     def clear_retained(self) -> None:
         """Remove what this unit left retained on the broker (an empty retained message)."""
@@ -184,9 +222,11 @@ class UnitCore:
             return
         self.runner.step(now)
         held = self.executor.send_delayed(now)
+        slow = self.send_held(now)
         due = self.publisher.publish_due(now)
-        if held is not None:
-            due = min(due, held)
+        for when in (held, slow):
+            if when is not None:
+                due = min(due, when)
         if self.runner.busy():
             due = min(due, now + STEP)
         self.due = due
@@ -204,6 +244,7 @@ class UnitCore:
         self.reboot_requested = False
         self.up = False
         self.executor.delayed.clear()  # what the old process held back dies with it
+        self.held.clear()
         last = self.publisher.last_heartbeat
         last = now if last is None else last
         self.back_at = max(now + 0.1 * self.period, last + REBOOT_SILENCE * self.period)
@@ -247,3 +288,23 @@ class UnitCore:
             return
         self.runner.step(now)
         self.tst.command(payload, now, topic)
+
+
+def _integers(value: Any) -> Any:
+    """``value`` with every whole float written as an integer (variant integer-numbers)."""
+    if isinstance(value, float) and value.is_integer() and abs(value) < 2 ** 53:
+        return int(value)
+    if isinstance(value, dict):
+        return {k: _integers(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_integers(v) for v in value]
+    return value
+
+
+def _reversed_keys(value: Any) -> Any:
+    """``value`` with every object's keys in reverse alphabetical order (variant key-order)."""
+    if isinstance(value, dict):
+        return {k: _reversed_keys(value[k]) for k in sorted(value, reverse=True)}
+    if isinstance(value, list):
+        return [_reversed_keys(v) for v in value]
+    return value

@@ -69,7 +69,8 @@ class Connection:
             # Imported here: the broker and the simulator load only for --broker embedded.
             from conformance.sim.reference import Reference
 
-            self.reference = Reference(self.unit, faults=s.sim_faults, rate=s.sim_rate,
+            self.reference = Reference(self.unit, faults=s.sim_faults,
+                                       variants=s.sim_variants, rate=s.sim_rate,
                                        seed=s.seed, tst=s.sim_tst,
                                        tst_operator=s.tst_operator).start()
             self.broker_url = BrokerURL.parse(self.reference.url)

@@ -59,6 +59,8 @@ class Settings:
     seed: int = 0
     sim_faults: tuple[str, ...] = ()
     """--broker embedded runs the bundled reference unit; these are its fault switches."""
+    sim_variants: tuple[str, ...] = ()
+    """--broker embedded: the reference unit's conformant variants (--sim-variant)."""
     sim_rate: float = 1.0
     sim_tst: bool = False
     """--broker embedded: the reference unit declares 'tst execution' and runs trees (14)."""
@@ -99,6 +101,7 @@ class Settings:
         parts = ["pytest", "--unit", str(self.unit), "--broker", str(b)]
         parts += b.tls_arguments()
         parts += [f"--sim-fault={f}" for f in self.sim_faults]
+        parts += [f"--sim-variant={v}" for v in self.sim_variants]
         if self.embedded and self.sim_rate != 1.0:
             parts += ["--sim-rate", f"{self.sim_rate:g}"]
         if self.sim_tst:
@@ -204,6 +207,17 @@ def read(config: pytest.Config) -> Settings:
                 raise pytest.UsageError(
                     f"--sim-fault {name!r} is not a fault of the reference unit"
                     f"{_did_you_mean(name, list(FAULTS))}; valid: {', '.join(sorted(FAULTS))}")
+    variants = tuple(config.getoption("waraps_sim_variants", None) or ())
+    if variants and not broker.scheme == "embedded":
+        raise pytest.UsageError("--sim-variant switches a variant of the bundled reference "
+                                "unit, which runs only with --broker embedded")
+    if variants:
+        from conformance.sim.variants import VariantError, check_variants
+
+        try:
+            check_variants(variants)
+        except VariantError as e:
+            raise pytest.UsageError(f"--sim-variant: {e}") from None
     sim_rate = config.getoption("waraps_sim_rate", None) or 1.0
     if not sim_rate > 0:
         raise pytest.UsageError(f"--sim-rate {sim_rate!r}: a positive rate in Hz is needed")
@@ -219,7 +233,7 @@ def read(config: pytest.Config) -> Settings:
                     reboot_cmd=str(reboot) if reboot else None,
                     allow_motion=_flag(config, "waraps_allow_motion"),
                     dry_run=_flag(config, "waraps_dry_run"), reports_dir=reports, seed=seed,
-                    sim_faults=faults, sim_rate=float(sim_rate), sim_tst=sim_tst,
+                    sim_faults=faults, sim_variants=variants, sim_rate=float(sim_rate), sim_tst=sim_tst,
                     tst_command_topic=tst_topic)
 
 

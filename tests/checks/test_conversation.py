@@ -316,6 +316,28 @@ def test_a_signal_answered_ok_implies_its_feedback(stream):
     assert wrong["EXEC-SIG-004"].verdict is Verdict.FAIL
 
 
+def test_a_signal_whose_feedback_comes_before_its_ok_is_credited(stream):
+    """12 orders nothing between exec/feedback and exec/response: 'paused' published before
+    the $pause's 'ok' (the reference unit's variant feedback-first) proves EXEC-SIG-003; it
+    was failed when the task later ended ('finished' instead of 'paused')."""
+    task = new()
+    cmd = start(stream, 2.1, task)
+    run = [cmd, stream.response(2.2, com_of(cmd), "running", **{"task-uuid": task}),
+           stream.feedback(2.3, task, "running")]
+    pause = stream.command(3.1, "signal-task", **{"task-uuid": task, "signal": "$pause"})
+    resume = stream.command(4.1, "signal-task", **{"task-uuid": task, "signal": "$continue"})
+    first = judge(stream, [*run, pause, stream.feedback(3.2, task, "paused"),
+                           stream.response(3.3, com_of(pause), "ok", **{"task-uuid": task}),
+                           resume, stream.feedback(4.2, task, "running"),
+                           stream.response(4.3, com_of(resume), "ok", **{"task-uuid": task}),
+                           stream.feedback(5.0, task, "finished")])
+    assert verdicts(first, "EXEC-SIG-003") == {"EXEC-SIG-003": "pass"}
+    stale = judge(stream, [*run, stream.feedback(3.0, task, "paused"), pause,
+                           stream.response(3.3, com_of(pause), "ok", **{"task-uuid": task}),
+                           stream.feedback(5.0, task, "finished")])
+    assert stale["EXEC-SIG-003"].verdict is Verdict.FAIL  # 'paused' before the signal
+
+
 def test_commands_to_a_unit_that_claims_no_execution_are_not_judged(stream):
     stream.levels = ["sensor"]
     ping = stream.command(2.1, "ping")

@@ -1,0 +1,151 @@
+"""Variant switches of the reference unit: conformant-but-different behaviours, the mirror of
+its faults (``conformance.sim.faults``).
+
+A fault breaks the rules it names; a variant breaks none. Each one is a reading of the spec
+that a real unit may take (section cited), and the suite must certify it: with a variant on,
+a certification fails no rule, and warns only on ``warns``, the errata the catalogue accepts
+with a warning (``rules --errata``). Where a variant is failed anyway, the check or the
+scenario that fails it makes a false accusation. Variants combine freely, but for ``terse``
+and ``verbose`` (``CONFLICTS``).
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass
+
+from conformance.rules import CATALOGUE, Severity
+
+
+@dataclass(frozen=True)
+class Variant:
+    """A variant switch: its name, the spec sections that allow it, what it does, and the
+    rules it makes warn (errata readings the catalogue accepts with a warning)."""
+
+    name: str
+    section: str
+    description: str
+    warns: tuple[str, ...] = ()
+
+
+_ALL = (
+    Variant("strict", "10, 11, 12.2, 14.3",
+            "Refuses ('failed', with a fail-reason) any command the spec's examples do not "
+            "show: a field none of 12.2/10/11/14.3's examples has; a start-task without "
+            "execution-unit, sender or task {name, params} (10's examples; task-uuid may be "
+            "left out, 12.1); a TST node without name, params, children and common_params "
+            "{execunit, node-uuid} (every node of 11's examples); a unit named otherwise than "
+            "'/NAME' (11's execunit, 14.3.3's unit)."),
+    Variant("terse", "5, 12.3, 12.4, 14.4, 14.5; schemas/messages",
+            "Sends no optional field: fail-reason only when a response is 'failed', task-uuid "
+            "only in start-task responses (12.3.3); TST feedback without fail-reason and "
+            "root-flag, tst_execution_info without nodes-executing; lists and publishes only "
+            "the four mandatory sensors (6.1), no camera_url."),
+    Variant("verbose", "2, 12.3, 12.4",
+            "Adds fields of its own to every message (a vendor 'x-software' object) and puts "
+            "fail-reason and task-uuid on every exec response (the task-uuid of the task the "
+            "command concerns; '' in a pong or an answer to a command that names no task)."),
+    Variant("slow", "12.1; the profile's response_timeout and feedback_timeout",
+            "Holds every response and feedback back for SLOW_PERIODS heartbeat periods (0.4 s "
+            "at 2 Hz, inside the 1 s of the shortest self-test response_timeout; 5 s at 1 Hz "
+            "is the default profile's), in the order they were made."),
+    Variant("key-order", "RFC 8259 4 (an object is unordered); 2",
+            "Writes every JSON object's keys in reverse alphabetical order (the spec's "
+            "examples sort them)."),
+    Variant("success-vocabulary", "12.1",
+            "Answers query-status in 12.1's own words only (running, failed, success, "
+            "unknown): a finished task 'success', a paused one 'running', an aborted one "
+            "'failed'.",
+            warns=("ERR-006",)),
+    Variant("sensor-rate-edge", "5.2, 6; the profile's rate_tolerance",
+            "Sends sensor_info and its sensors EDGE slower than the declared rate (12 %: "
+            "inside the default 20 % rate tolerance, not past it); camera_url every second "
+            "such period (still inside SI-003's window of three)."),
+    Variant("starting-feedback", "12.4",
+            "Reports a started task 'starting' (12.4's list) before 'running'."),
+    Variant("feedback-first", "12.3, 12.4 (no order between topics)",
+            "Publishes the feedback a command causes before the command's response: a "
+            "started task's 'running' before the start-task's answer, a signal's effect "
+            "('paused', 'aborted', ...) before the signal's 'ok'."),
+    Variant("info-rates", "5, 5.2, 5.3",
+            "Sends sensor_info, direct_execution_info and tst_execution_info at half the "
+            "heartbeat's rate, each declaring its own rate (5: 'info messages may come at a "
+            "lower rate than the heartbeat')."),
+    Variant("retained-info", "5, 5.2, 5.3 (MQTT retain is not ruled out)",
+            "Publishes sensor_info, direct_execution_info and tst_execution_info retained, so "
+            "a subscriber that joins late has them at once (the heartbeat is not retained)."),
+    Variant("pretty-json", "RFC 8259 2 (insignificant whitespace)",
+            "Writes every message indented over several lines, as json.dumps(indent=2) does."),
+    Variant("integer-numbers", "RFC 8259 6; 5.1, 6.1",
+            "Writes whole numbers without a fraction (rate 2, heading 270, speed 0), as "
+            "JavaScript and many C++ JSON writers do."),
+    Variant("rate-edge", "5.1, 5.3; the profile's rate_tolerance",
+            "Sends its heartbeat, direct_execution_info and tst_execution_info EDGE faster "
+            "than their declared rate (12 %: inside the default 20 % tolerance)."),
+    Variant("level-spelling", "5.1",
+            "Declares its level 'direct_execution' (5.1's prose spelling; ERR-008).",
+            warns=("ERR-008",)),
+    Variant("geopoint-type", "6.1, 10, 11",
+            "Tags its position \"type\": \"GeoPoint\" instead of rostype (ERR-010).",
+            warns=("ERR-010",)),
+)
+
+VARIANTS: dict[str, Variant] = {v.name: v for v in _ALL}
+CONFLICTS = (frozenset({"terse", "verbose"}),)
+INFO_SLOWER = 2.0
+"""Variant info-rates: the info messages run at the heartbeat's rate divided by this."""
+"""Variants that cannot be on together (one sends what the other leaves out)."""
+SLOW_PERIODS = 0.8
+"""Variant slow: answers and feedback are held back this many periods. The shortest
+response_timeout a profile of this project gives is 2 periods (tests' matrix.yaml: 1 s at 2 Hz;
+the default profile's is 5 s at 1 Hz): 0.8 periods stays under half of every one
+(tests/sim/test_variants.py checks each profile), leaving the rest to a loaded machine."""
+EDGE = 0.12
+"""Variant sensor-rate-edge: sensor_info and sensors run this fraction slower than declared
+(the profiles' rate_tolerance is 0.2)."""
+
+for _variant in _ALL:
+    for _rule in _variant.warns:
+        assert _rule in CATALOGUE, f"variant {_variant.name}: unknown rule {_rule}"
+        assert CATALOGUE[_rule].severity is Severity.WARNING, \
+            f"variant {_variant.name}: {_rule} is not accepted with a warning"
+
+
+class VariantError(ValueError):
+    """An unknown variant name, or variants that cannot be combined."""
+
+
+def check_variants(names: object) -> frozenset[str]:
+    """The variant names as a set; raise ``VariantError`` for an unknown one or a conflict."""
+    if isinstance(names, str):
+        names = (names,)
+    out = set()
+    for name in names:  # type: ignore[union-attr]
+        if name not in VARIANTS:
+            close = difflib.get_close_matches(str(name), VARIANTS, n=3)
+            hint = f"; did you mean {', '.join(close)}?" if close else ""
+            raise VariantError(f"unknown variant {name!r}{hint} (waraps-conformance sim "
+                               f"--list-variants lists them)")
+        out.add(str(name))
+    for pair in CONFLICTS:
+        if pair <= out:
+            raise VariantError(f"variants {' and '.join(sorted(pair))} cannot be combined")
+    return frozenset(out)
+
+
+def list_variants(as_json: bool) -> str:
+    """What ``sim --list-variants`` prints."""
+    if as_json:
+        import json
+
+        return json.dumps({"variants": [
+            {"name": v.name, "section": v.section, "warns": list(v.warns),
+             "description": v.description} for v in _ALL]}, indent=2)
+    width = max(map(len, VARIANTS))
+    lines = [f"{'variant':<{width}}  spec sections / what it does (conformant: fails no rule)",
+             ""]
+    for v in _ALL:
+        warns = f"  [warns: {' '.join(v.warns)}]" if v.warns else ""
+        lines.append(f"{v.name:<{width}}  {v.section}{warns}")
+        lines.append(f"{'':<{width}}    {v.description}")
+    return "\n".join(lines)

@@ -1,0 +1,430 @@
+"""Every variant switch changes exactly what it names, and nothing else.
+
+Each test drives two reference units' cores in simulated time through one scripted conversation
+(the same commands at the same moments, the same random numbers and clock): one plain, one with
+the variant. Undoing what the variant names must give back the plain unit's traffic, message
+for message. That a variant is conformant (certified, linted clean) is shown over a real broker
+by tests/plugin/test_plugin_variants.py.
+"""
+
+from __future__ import annotations
+
+import json
+import random
+import subprocess
+import sys
+from typing import Any
+
+import orjson
+import pytest
+
+from conformance.rules import CATALOGUE, Severity
+from conformance.sim.unit import UnitCore
+from conformance.sim.variants import (
+    EDGE,
+    SLOW_PERIODS,
+    VARIANTS,
+    VariantError,
+    check_variants,
+)
+from conformance.topics import UnitAddress
+
+ADDRESS = UnitAddress("h", "air", "simulation", "dji0")
+RATE = 2.0
+STEP = 0.05
+T1, T2 = "5c0ed702-2f6a-46b4-a1a4-ea2e86e04282", "49fb88b8-4d4a-4268-a69a-35e620a1a5f4"
+ROOT, LEAF = "fe1fbcee-1cae-4a69-b9f7-83914454a7a7", "ff200942-73a2-401f-83e2-8397d28facf8"
+HELD = ("/exec/response", "/exec/feedback", "/tst/response", "/tst/feedback")
+
+
+def com(i: int) -> str:
+    return f"7300d049-176f-4dcb-b0bf-{i:012d}"
+
+
+def tst_node(name: str, params: dict[str, Any], node_uuid: str,
+             children: list[dict[str, Any]] = ()) -> dict[str, Any]:  # type: ignore[assignment]
+    """A node as every example of section 11 writes it."""
+    return {"name": name, "params": params, "children": list(children),
+            "common_params": {"execunit": "/dji0", "node-uuid": node_uuid}}
+
+
+# The script: (time, topic, command), each command as the spec's examples write it.
+SCRIPT: list[tuple[float, str, dict[str, Any] | bytes]] = [
+    (1.0, "exec", {"com-uuid": com(1), "command": "ping", "sender": "commander"}),
+    (1.2, "exec", {"com-uuid": com(2), "command": "start-task", "execution-unit": "dji0",
+                   "sender": "commander", "task": {"name": "look-at-bearing",
+                                                   "params": {"bearing": 45.0}},
+                   "task-uuid": T1}),
+    (2.0, "exec", {"com-uuid": com(3), "command": "signal-task", "sender": "commander",
+                   "signal": "$enough", "task-uuid": T1}),
+    (2.6, "exec", {"com-uuid": com(4), "command": "query-status", "sender": "commander",
+                   "task-uuid": T1}),
+    (2.8, "exec", {"com-uuid": com(5), "command": "query-status", "sender": "commander",
+                   "task-uuid": T2}),
+    (3.0, "exec", b'{"com-uuid": "' + com(6).encode() + b'", "command": "start-ta'),
+    (3.2, "tst", {"com-uuid": com(7), "command": "start-tst", "sender": "commander",
+                  "tst": tst_node("seq", {}, ROOT, [tst_node("take-off", {}, LEAF)])}),
+]
+
+
+class Run:
+    """A unit's core driven in simulated time; ``sent`` is (time, subtopic, payload bytes)."""
+
+    def __init__(self, *variants: str, script: list = SCRIPT, seconds: float = 6.0) -> None:
+        self.now = 0.0
+        self.sent: list[tuple[float, str, bytes]] = []
+        self.retained: set[str] = set()
+        self.unit = UnitCore(ADDRESS, self._emit, variants=variants, rate=RATE,
+                             rng=random.Random(1), clock=lambda: 1.7e9 + self.now,
+                             task_seconds=0.5, tst_execution=True)
+        self.unit.start(0.0)
+        todo = sorted(script, key=lambda s: s[0])
+        while self.now < seconds:
+            self.now = round(self.now + STEP, 6)
+            while todo and todo[0][0] <= self.now:
+                _, where, body = todo.pop(0)
+                payload = body if isinstance(body, bytes) else orjson.dumps(body)
+                if where == "exec":
+                    self.unit.command(payload, self.now)
+                else:
+                    self.unit.tst_command(payload, self.now, f"{ADDRESS.base}/tst/command")
+                if self.unit.busy():  # as the runtime reschedules a unit after a command
+                    self.unit.due = min(self.unit.due, self.now)
+            if self.now >= self.unit.due:
+                self.unit.run(self.now)
+
+    def _emit(self, topic: str, payload: bytes, retain: bool) -> None:
+        self.sent.append((self.now, topic.removeprefix(ADDRESS.base), payload))
+        if retain:
+            self.retained.add(topic.removeprefix(ADDRESS.base))
+
+    def messages(self, *suffixes: str) -> list[tuple[str, Any]]:
+        return [(t, orjson.loads(p)) for _, t, p in self.sent
+                if not suffixes or t.endswith(suffixes)]
+
+    def answer(self, com_uuid: str) -> dict[str, Any]:
+        return next(m for t, m in self.messages("/exec/response", "/tst/response")
+                    if m.get("response-to") == com_uuid)
+
+
+@pytest.fixture(scope="module")
+def plain() -> Run:
+    return Run()
+
+
+def without(msg: Any, *keys: str) -> Any:
+    return {k: v for k, v in msg.items() if k not in keys} if isinstance(msg, dict) else msg
+
+
+# --- the catalogue of variants ------------------------------------------------------------------
+
+def test_every_variant_cites_the_spec_and_warns_only_on_errata_accepted_with_a_warning() -> None:
+    for v in VARIANTS.values():
+        assert v.section and v.description, v.name
+        for rule in v.warns:
+            assert rule.startswith("ERR-") and CATALOGUE[rule].severity is Severity.WARNING
+
+
+def test_unknown_or_conflicting_variants_are_refused_naming_close_ones() -> None:
+    with pytest.raises(VariantError, match="did you mean strict"):
+        check_variants(["strikt"])
+    with pytest.raises(VariantError, match="terse and verbose"):
+        check_variants(["terse", "verbose"])
+    assert check_variants("slow") == {"slow"}
+
+
+def test_list_variants_prints_every_variant() -> None:
+    out = subprocess.run([sys.executable, "-m", "conformance.cli", "sim", "--list-variants",
+                          "--json"], capture_output=True, text=True, check=True).stdout
+    assert {v["name"]: v["warns"] for v in json.loads(out)["variants"]} == {
+        v.name: list(v.warns) for v in VARIANTS.values()}
+    text = subprocess.run([sys.executable, "-m", "conformance.cli", "sim", "--list-variants"],
+                          capture_output=True, text=True, check=True).stdout
+    assert all(name in text for name in VARIANTS)
+
+
+def test_the_plain_script_is_answered_as_the_spec_describes(plain: Run) -> None:
+    assert plain.answer(com(1))["response"] == "pong"
+    assert plain.answer(com(2))["response"] == "running"
+    assert plain.answer(com(4))["response"] == "finished"
+    assert plain.answer(com(5))["response"] == "unknown"
+    assert plain.answer(com(6))["response"] == "failed"
+    assert plain.answer(com(7))["response"] == "started"
+    assert [m["status"] for _, m in plain.messages("/tst/feedback")
+            if m["node-uuid"] == ROOT][-1] == "succeeded"
+
+
+# --- one test per variant: what it changes, and only that ----------------------------------------
+
+def test_key_order_reverses_every_object_and_changes_nothing_else(plain: Run) -> None:
+    run = Run("key-order")
+    assert [(t, orjson.loads(p)) for _, t, p in run.sent] == plain.messages()
+    for _, _, payload in run.sent:
+        body = orjson.loads(payload)
+        if isinstance(body, dict):
+            assert list(body) == sorted(body, reverse=True), payload
+            assert payload != orjson.dumps(body, option=orjson.OPT_SORT_KEYS)
+
+
+def test_success_vocabulary_changes_only_the_query_of_a_finished_task(plain: Run) -> None:
+    run = Run("success-vocabulary")
+    assert run.answer(com(4))["response"] == "success"
+    changed = [(a, b) for a, b in zip(plain.messages(), run.messages(), strict=True) if a != b]
+    assert [b["response-to"] for _, (_, b) in changed] == [com(4)]
+
+
+def test_level_spelling_changes_only_the_levels_of_the_heartbeat(plain: Run) -> None:
+    run = Run("level-spelling")
+    for (t, a), (_, b) in zip(plain.messages(), run.messages(), strict=True):
+        if t == "/heartbeat":
+            assert b["levels"] == ["sensor", "direct_execution", "tst execution"]
+            assert without(a, "levels") == without(b, "levels")
+        else:
+            assert a == b, t
+
+
+def test_geopoint_type_changes_only_the_tag_of_the_position(plain: Run) -> None:
+    run = Run("geopoint-type")
+    for (t, a), (_, b) in zip(plain.messages(), run.messages(), strict=True):
+        if t == "/sensor/position":
+            assert b.pop("type") == a.pop("rostype") == "GeoPoint"
+        assert a == b, t
+
+
+def test_verbose_adds_its_field_and_fail_reason_to_every_response(plain: Run) -> None:
+    run = Run("verbose")
+    for (t, a), (_, b) in zip(plain.messages(), run.messages(), strict=True):
+        if isinstance(b, dict):
+            assert b.pop("x-software")["variant"] == "verbose"
+            if t == "/exec/response":
+                assert "fail-reason" in b and "task-uuid" in b
+                for key in ("fail-reason", "task-uuid"):
+                    if key not in a:
+                        assert b.pop(key) == "", key
+                assert b["response-to"] not in (com(1), com(6)) or "task-uuid" not in a
+        assert a == b, t
+
+
+def test_terse_leaves_out_optional_fields_and_the_optional_sensor(plain: Run) -> None:
+    run = Run("terse")
+    assert not [t for _, t, _ in run.sent if "camera_url" in t]
+    ours = [(t, m) for t, m in plain.messages() if "camera_url" not in t]
+    for (t, a), (_, b) in zip(ours, run.messages(), strict=True):
+        if t == "/sensor_info":
+            assert b["sensor-data-provided"] == ["position", "heading", "course", "speed"]
+            a = without(a, "sensor-data-provided")
+            b = without(b, "sensor-data-provided")
+        elif t == "/exec/response":
+            dropped = set(a) - set(b)
+            assert dropped <= {"fail-reason", "task-uuid"}, t
+            assert "fail-reason" in b or b["response"] != "failed"
+            assert "task-uuid" in b or b["response-to"] != com(2)  # start-task keeps it
+            a = without(a, *dropped)
+        elif t == "/tst/response":
+            assert "fail-reason" not in b
+            a = without(a, "fail-reason")
+        elif t == "/tst/feedback":
+            a = without(a, "root-flag", "fail-reason")
+        elif t == "/tst_execution_info":
+            a = without(a, "nodes-executing")
+        assert a == b, t
+    assert len(run.sent) == len(ours)
+
+
+def test_slow_holds_back_exactly_the_answers_and_feedback_and_keeps_their_order(
+        plain: Run) -> None:
+    run = Run("slow", seconds=8.0)
+    delay = SLOW_PERIODS / RATE
+    held = [(w, t, orjson.loads(p)) for w, t, p in run.sent if t.endswith(HELD)]
+    before = [(w, t, orjson.loads(p)) for w, t, p in plain.sent if t.endswith(HELD)]
+    assert [(t, m) for _, t, m in held] == [(t, m) for _, t, m in before]
+    for (late, _, _), (early, t, _) in zip(held, before, strict=True):
+        assert delay - 1e-6 <= late - early <= delay + STEP + 1e-6, t
+    rest = [(t, orjson.loads(p)) for w, t, p in run.sent if not t.endswith(HELD) and w <= 6]
+    assert rest == [(t, m) for t, m in plain.messages() if not t.endswith(HELD)]
+
+
+def test_sensor_rate_edge_slows_sensor_info_and_sensors_inside_the_tolerance(
+        plain: Run) -> None:
+    run = Run("sensor-rate-edge", script=[], seconds=30.0)
+    base = Run(script=[], seconds=30.0)
+
+    def count(r: Run, sub: str) -> int:
+        return sum(t == sub for _, t, _ in r.sent)
+
+    for sub in ("/heartbeat", "/direct_execution_info", "/tst_execution_info"):
+        assert count(run, sub) == count(base, sub)
+    for sub in ("/sensor_info", "/sensor/position", "/sensor/speed"):
+        ratio = count(run, sub) / count(base, sub)
+        assert abs(ratio - (1 - EDGE)) < 0.04, (sub, ratio)  # slower, not past 20 %
+    assert run.messages("/sensor_info") and all(
+        without(a, "stamp") == without(b, "stamp")
+        for (_, a), (_, b) in zip(run.messages("/sensor_info"), base.messages("/sensor_info"),
+                                  strict=False))
+
+
+STRICT_REFUSED: dict[str, dict[str, Any]] = {
+    "an unknown field": {"command": "ping", "sender": "commander", "priority": 1},
+    "no sender": {"command": "ping"},
+    "no execution-unit": {"command": "start-task", "sender": "commander", "task-uuid": T2,
+                          "task": {"name": "look-at-bearing", "params": {"bearing": 1.0}}},
+    "another execution-unit": {"command": "start-task", "sender": "commander",
+                               "execution-unit": "dji9", "task-uuid": T2,
+                               "task": {"name": "look-at-bearing",
+                                        "params": {"bearing": 1.0}}},
+    "task without params": {"command": "start-task", "sender": "commander",
+                            "execution-unit": "dji0", "task-uuid": T2,
+                            "task": {"name": "take-off"}},
+    "query-status without sender": {"command": "query-status", "task-uuid": T1},
+}
+
+
+def test_strict_answers_the_examples_as_the_plain_unit_does(plain: Run) -> None:
+    run = Run("strict")
+    assert run.messages() == plain.messages()
+
+
+@pytest.mark.parametrize("what", sorted(STRICT_REFUSED))
+def test_strict_refuses_a_command_unlike_the_examples(what: str) -> None:
+    body = {"com-uuid": com(90), **STRICT_REFUSED[what]}
+    script = [(1.0, "exec", body)]
+    lenient, strict = Run(script=script, seconds=1.5), Run("strict", script=script, seconds=1.5)
+    assert lenient.answer(com(90))["response"] != "failed"
+    refused = strict.answer(com(90))
+    assert refused["response"] == "failed" and refused["fail-reason"], refused
+    assert refused.get("task-uuid") == body.get("task-uuid")  # EXEC-START-002: as sent
+
+
+def test_strict_refuses_a_tree_whose_inner_node_lacks_common_params() -> None:
+    """Section 11's examples write common_params (execunit, node-uuid) on every node; a tree
+    with them on the root only is refused (the suite must send every node complete)."""
+    tree = tst_node("seq", {}, ROOT, [{"name": "take-off", "params": {}, "children": []}])
+    script = [(1.0, "tst", {"com-uuid": com(91), "command": "start-tst",
+                            "sender": "commander", "tst": tree})]
+    assert Run(script=script, seconds=1.5).answer(com(91))["response"] == "started"
+    refused = Run("strict", script=script, seconds=1.5).answer(com(91))
+    assert refused["response"] == "failed"
+    assert "children[0]" in refused["fail-reason"] and "common_params" in refused["fail-reason"]
+
+
+def test_starting_feedback_adds_one_starting_before_running(plain: Run) -> None:
+    run = Run("starting-feedback")
+    extra = [m for t, m in run.messages("/exec/feedback") if m["status"] == "starting"]
+    assert [m["task-uuid"] for m in extra] == [T1]
+    statuses = [m["status"] for t, m in run.messages("/exec/feedback") if m["task-uuid"] == T1]
+    assert statuses[:2] == ["starting", "running"]
+    rest = [(t, m) for t, m in run.messages() if m not in extra]
+    assert [(t, without(m, "com-uuid")) for t, m in rest] == [
+        (t, without(m, "com-uuid")) for t, m in plain.messages()]
+
+
+def test_feedback_first_sends_the_feedback_a_command_causes_before_its_answer(
+        plain: Run) -> None:
+    run = Run("feedback-first")
+    order = [(t, m.get("response-to") or m.get("status")) for t, m in run.messages(
+        "/exec/response", "/exec/feedback")]
+    assert order.index(("/exec/feedback", "running")) < order.index(("/exec/response", com(2)))
+    assert order.index(("/exec/feedback", "finished")) < order.index(("/exec/response", com(3)))
+    tst = [(t, m.get("response-to") or m.get("status")) for t, m in run.messages(
+        "/tst/response", "/tst/feedback")]
+    assert tst.index(("/tst/feedback", "active")) < tst.index(("/tst/response", com(7)))
+    def same(r: Run) -> list[str]:  # com-uuids are drawn in the order messages go out
+        return sorted(repr((t, without(m, "com-uuid"))) for t, m in r.messages())
+
+    assert same(run) == same(plain)
+
+
+def test_info_rates_halves_the_info_messages_and_declares_it(plain: Run) -> None:
+    run = Run("info-rates", script=[], seconds=20.0)
+    base = Run(script=[], seconds=20.0)
+    for sub in ("/sensor_info", "/direct_execution_info", "/tst_execution_info"):
+        ours, theirs = run.messages(sub), base.messages(sub)
+        assert abs(len(ours) / len(theirs) - 0.5) < 0.05, sub
+        assert {m["rate"] for _, m in ours} == {RATE / 2}
+    for sub in ("/heartbeat", "/sensor/position"):
+        assert run.messages(sub) == base.messages(sub)
+
+
+def test_pretty_json_changes_only_the_layout(plain: Run) -> None:
+    run = Run("pretty-json")
+    assert [(t, orjson.loads(p)) for _, t, p in run.sent] == plain.messages()
+    assert all(b"\n  " in p for _, t, p in run.sent if t.endswith(("/heartbeat", "/exec/response")))
+
+
+def test_integer_numbers_writes_whole_numbers_without_a_fraction(plain: Run) -> None:
+    run = Run("integer-numbers")
+    assert [(t, orjson.loads(p)) for _, t, p in run.sent] == plain.messages()  # 2 == 2.0
+    heartbeat = next(p for _, t, p in run.sent if t == "/heartbeat")
+    assert b'"rate":2,' in heartbeat
+    assert next(p for _, t, p in run.sent if t == "/sensor/heading") == b"270"
+
+
+def test_success_vocabulary_answers_a_paused_task_running_and_an_aborted_one_failed() -> None:
+    script = [
+        (1.0, "exec", {"com-uuid": com(80), "command": "start-task", "execution-unit": "dji0",
+                       "sender": "commander", "task-uuid": T1,
+                       "task": {"name": "look-at-bearing", "params": {"bearing": 1.0}}}),
+        (1.5, "exec", {"com-uuid": com(81), "command": "signal-task", "sender": "commander",
+                       "signal": "$pause", "task-uuid": T1}),
+        (1.8, "exec", {"com-uuid": com(82), "command": "query-status", "sender": "commander",
+                       "task-uuid": T1}),
+        (2.0, "exec", {"com-uuid": com(83), "command": "signal-task", "sender": "commander",
+                       "signal": "$abort", "task-uuid": T1}),
+        (2.3, "exec", {"com-uuid": com(84), "command": "query-status", "sender": "commander",
+                       "task-uuid": T1}),
+    ]
+    plain, words = Run(script=script, seconds=3.0), Run("success-vocabulary", script=script,
+                                                        seconds=3.0)
+    assert [plain.answer(com(i))["response"] for i in (82, 84)] == ["paused", "aborted"]
+    assert [words.answer(com(i))["response"] for i in (82, 84)] == ["running", "failed"]
+
+
+def test_strict_refuses_a_unit_not_named_slash_name() -> None:
+    tree = tst_node("take-off", {}, ROOT)
+    tree["common_params"]["execunit"] = "dji0"
+    script = [(1.0, "tst", {"com-uuid": com(92), "command": "start-tst", "sender": "commander",
+                            "tst": tree}),
+              (1.1, "tst", {"com-uuid": com(93), "command": "signal-unit", "sender": "commander",
+                            "signal": "$abort", "unit": "dji0"})]
+    lenient, strict = Run(script=script, seconds=1.5), Run("strict", script=script, seconds=1.5)
+    assert [lenient.answer(com(i))["response"] for i in (92, 93)] == ["started", "ok"]
+    assert [strict.answer(com(i))["response"] for i in (92, 93)] == ["failed", "failed"]
+
+
+def test_retained_info_retains_the_info_messages_only(plain: Run) -> None:
+    run = Run("retained-info")
+    assert plain.retained == set()
+    assert run.retained == {"/sensor_info", "/direct_execution_info", "/tst_execution_info"}
+    assert run.messages() == plain.messages()
+
+
+@pytest.mark.parametrize("profile,rate", [
+    ("default", 1.0), ("reference", 1.0), ("strict", 1.0),
+    ("tests/plugin/profiles/fast.yaml", 3.0), ("tests/plugin/profiles/matrix.yaml", 2.0),
+    ("tests/plugin/profiles/stall.yaml", 2.0), ("tests/plugin/profiles/variants.yaml", 2.0)])
+def test_slow_stays_well_inside_every_profiles_deadlines(profile: str, rate: float) -> None:
+    """Variant slow is slow, not late: its delay at the rate each profile is used with is at
+    most half the profile's response_timeout (the margin is for a loaded machine's jitter),
+    and far inside its feedback_timeout."""
+    from pathlib import Path
+
+    from conformance.profile import load
+
+    root = Path(__file__).resolve().parents[2]
+    p = load(root / profile if profile.endswith(".yaml") else profile)
+    delay = SLOW_PERIODS / rate
+    assert delay <= 0.5 * p.response_timeout and delay <= 0.2 * p.feedback_timeout
+
+
+def test_rate_edge_speeds_the_heartbeat_and_execution_info_inside_the_tolerance() -> None:
+    run = Run("rate-edge", script=[], seconds=30.0)
+    base = Run(script=[], seconds=30.0)
+
+    def count(r: Run, sub: str) -> int:
+        return sum(t == sub for _, t, _ in r.sent)
+
+    for sub in ("/heartbeat", "/direct_execution_info", "/tst_execution_info"):
+        ratio = count(run, sub) / count(base, sub)
+        assert abs(ratio - (1 + EDGE)) < 0.04, (sub, ratio)  # faster, not past 20 %
+    for sub in ("/sensor_info", "/sensor/position"):
+        assert count(run, sub) == count(base, sub)
