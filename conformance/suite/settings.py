@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import difflib
 import os
-import re
 import secrets
 import shlex
 from dataclasses import dataclass, field
@@ -18,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from conformance.cli.options import parse_duration
-from conformance.client import BrokerURL
+from conformance.client import BrokerURL, mask_password
 from conformance.profile import Profile, ProfileError, builtin_names, load
 from conformance.topics import TopicError, UnitAddress
 
@@ -283,7 +282,7 @@ def _broker(config: pytest.Config) -> BrokerURL:
             broker = found
     except ValueError as e:
         # Never echo a password, even the one a user wrongly put into the URL.
-        raise pytest.UsageError(f"--broker: {redact_broker_text(str(e))}") from None
+        raise pytest.UsageError(f"--broker: {mask_password(str(e))}") from None
     files = {k: _value(config, f"waraps_{k}") for k in ("ca_file", "cert_file", "key_file")}
     for key, path in files.items():
         if path and not os.path.isfile(str(path)):
@@ -296,11 +295,6 @@ def _broker(config: pytest.Config) -> BrokerURL:
         broker = broker.with_tls_files(*(str(v) if v else None for v in files.values()),
                                        insecure=insecure)
     return broker
-
-
-def redact_broker_text(text: str) -> str:
-    """``text`` with any ``scheme://user:password@`` shown as ``scheme://user:***@``."""
-    return re.sub(r"([a-z][a-z0-9+.-]*://[^:@/\s]*):[^@/\s]*@", r"\1:***@", text, flags=re.I)
 
 
 def profile_names() -> list[str]:
