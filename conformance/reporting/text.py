@@ -39,7 +39,7 @@ def rerun_command(report: Any, unit: str, rule_id: str, topic: str = "") -> str:
     commander's row ('commander alice') is no unit: its finding is repeated by linting the
     unit whose command ``topic`` it was found on (or every unit, when the topic names none)."""
     if getattr(report, "kind", "certification") != "lint":
-        return f"pytest --unit {unit} -k {rule_id}"
+        return f"pytest --unit {shlex.quote(unit)} -k {shlex.quote(rule_id)}"
     try:
         unit = UnitAddress.parse(unit).base
     except TopicError:
@@ -54,7 +54,7 @@ def rerun_command(report: Any, unit: str, rule_id: str, topic: str = "") -> str:
         return (f"waraps-conformance lint --broker {shlex.quote(broker)}"
                 + (f" {tls}" if tls else "") + only)
     if not source or source in ("-", "<stdin>") or source.startswith("live "):
-        source = "<recording>"
+        source = shlex.quote("<recording>")  # a placeholder, but never a redirection
     else:
         source = shlex.quote(source)
     return f"waraps-conformance lint --from {source}{only}"

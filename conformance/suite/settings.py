@@ -95,24 +95,25 @@ class Settings:
         comes only from WARAPS_PASSWORD)."""
         b = self.broker
         # '=' for paths: a path in its own argument could be taken for a test path by pytest.
-        parts = ["pytest", "--unit", str(self.unit), "--broker", str(b)]
+        q = shlex.quote  # every value shell-quoted: a unit name may be `x;rm -rf ~` (issue 19 §5)
+        parts = ["pytest", "--unit", q(str(self.unit)), "--broker", q(str(b))]
         parts += b.tls_arguments()
-        parts += [f"--sim-fault={f}" for f in self.sim_faults]
+        parts += [q(f"--sim-fault={f}") for f in self.sim_faults]
         if self.embedded and self.sim_rate != 1.0:
             parts += ["--sim-rate", f"{self.sim_rate:g}"]
         if self.sim_tst:
             parts.append("--sim-tst")
         if self.tst_command_topic:
-            parts += ["--tst-command-topic", self.tst_command_topic]
+            parts += ["--tst-command-topic", q(self.tst_command_topic)]
         if self.profile.source.startswith("<built-in"):
             if self.profile.name != "default":
-                parts += ["--profile", self.profile.name]
+                parts += ["--profile", q(self.profile.name)]
         else:
-            parts += [f"--profile={shlex.quote(self.profile.source)}"]
+            parts += [f"--profile={q(self.profile.source)}"]
         if self.timing_scale != 1.0:
             parts += ["--timing-scale", f"{self.timing_scale:g}"]
         if self.reboot_cmd:
-            parts += ["--reboot-cmd", shlex.quote(self.reboot_cmd)]
+            parts += ["--reboot-cmd", q(self.reboot_cmd)]
         if self.allow_motion:
             parts.append("--allow-motion")
         if self.dry_run:
@@ -123,9 +124,9 @@ class Settings:
         if observe or self.observe:
             parts += ["--observe", f"{max(int(observe), int(self.observe))}"]
         if rule:
-            parts += ["-k", rule]
+            parts += ["-k", q(rule)]
         else:
-            parts += [f"--rule={r}" for r in self.rules]
+            parts += [q(f"--rule={r}") for r in self.rules]
         return " ".join(parts)
 
 
