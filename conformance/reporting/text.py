@@ -2,23 +2,16 @@
 
 from __future__ import annotations
 
-import re
 import shlex
 from datetime import UTC, datetime
 from typing import Any
 
+from conformance.display import printable
 from conformance.rules import CATALOGUE, Rule, Severity
 from conformance.topics import TopicError, UnitAddress, parse_topic
 from conformance.violation import Verdict, Violation
 
-_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u2028\u2029\ud800-\udfff\ufffe\uffff]")
 TITLE_WIDTH = 64
-
-
-def printable(text: object) -> str:
-    """``text`` with control characters shown as ``\\xNN`` (wire data may hold anything)."""
-    return _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}" if ord(m.group()) < 0x100
-                        else f"\\u{ord(m.group()):04x}", str(text))
 
 
 def iso_time(t: float | None) -> str:

@@ -24,6 +24,7 @@ import pytest
 from conformance import __version__
 from conformance.checks import Monitor
 from conformance.client import MqttClient
+from conformance.display import printable
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
 from conformance.scenarios import (
@@ -154,9 +155,9 @@ class Certification:
         capman = self.config.pluginmanager.getplugin("capturemanager")
         if capman is not None:
             with capman.global_and_fixture_disabled():
-                tw.line(text)
+                tw.line(printable(text))
         else:
-            tw.line(text)
+            tw.line(printable(text))
 
     def _adapted(self, deviation: Deviation) -> None:
         """A systematic deviation, seen for the first time: say so once (summary and -v)."""
