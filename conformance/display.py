@@ -27,13 +27,18 @@ def printable(text: object) -> str:
     return _CONTROL.sub(_escaped, s)
 
 
-def printable_lines(text: object) -> str:
-    """Text of several lines (ours, joined with '\\n') with each line made ``printable``."""
-    return "\n".join(printable(line) for line in str(text).split("\n"))
-
-
 SHORT_CHARS = 1000
 """The longest string a report shows in full (an excerpt of it beyond)."""
+LINE_CHARS = 4000
+"""The longest line written to a terminal (an excerpt of it beyond)."""
+NAME_CHARS = 200
+"""The longest name (a unit's, from its topic) shown whole in a terminal line."""
+
+
+def printable_lines(text: object, limit: int = LINE_CHARS) -> str:
+    """Text of several lines (ours, joined with '\\n') with each line made ``printable``
+    and excerpted past ``limit`` characters."""
+    return "\n".join(printable(shorten(line, limit)) for line in str(text).split("\n"))
 
 
 def shorten(text: object, limit: int = SHORT_CHARS) -> str:

@@ -23,7 +23,7 @@ import time
 from dataclasses import dataclass
 from typing import IO, TYPE_CHECKING, Any
 
-from conformance.display import printable
+from conformance.display import LINE_CHARS, NAME_CHARS, printable, shorten
 from conformance.lint.linter import NOT_A_UNIT, OTHER_UNITS, Linter
 from conformance.recording import Event
 from conformance.rules import CATALOGUE
@@ -99,10 +99,13 @@ def violation_line(v: Violation, unit: str, verdict: str, when: float | None = N
     expected and observed."""
     rule = CATALOGUE.get(v.rule)
     title = rule.title if rule else ""
-    what = f"expected {v.expected}, observed {v.observed}" if v.expected or v.observed else ""
-    where = f" [{v.topic}]" if v.topic and not v.topic.startswith(unit + "/") else ""
+    what = (f"expected {shorten(v.expected)}, observed {shorten(v.observed)}"
+            if v.expected or v.observed else "")
+    where = (f" [{shorten(v.topic, NAME_CHARS)}]" if v.topic and not v.topic.startswith(unit + "/")
+             else "")
     t = v.time if v.time is not None else when
-    return f"{_clock(t)} {verdict:<4} {unit} {v.rule} {title}: {what}{where}".rstrip(": ")
+    return (f"{_clock(t)} {verdict:<4} {shorten(unit, NAME_CHARS)} {v.rule} {title}: "
+            f"{what}{where}").rstrip(": ")
 
 
 def event_line(e: Event, gap_start: float | None = None) -> str:
@@ -263,7 +266,7 @@ class Scorecard:
                 self._redraw(linter, elapsed, connected)
             return
         def write(line: str) -> None:  # one line each; what came from the wire, escaped
-            self.out.write(printable(line.removesuffix("\n")) + "\n")
+            self.out.write(printable(shorten(line.removesuffix("\n"), LINE_CHARS)) + "\n")
 
         for e in linter.take_events():
             write(event_line(e, self._gap_start) + "\n")
@@ -349,7 +352,7 @@ class Scorecard:
         if found:
             lines += ["", "findings (each unit or commander and rule once: count, first and "
                           "last time):"] + ["  " + ln for ln in found]
-        self.out.write("\n".join(map(printable, lines)) + "\n")
+        self.out.write("\n".join(printable(shorten(ln, LINE_CHARS)) for ln in lines) + "\n")
         self.out.flush()
 
 
@@ -418,8 +421,10 @@ def findings_from_report(report: Any, limit: int = MAX_FINDINGS_SHOWN) -> list[s
             title = CATALOGUE[rule].title if rule in CATALOGUE else ""
             verdict = "FAIL" if res.verdict.value == "fail" else "warn"
             found.append(((res.verdict.value != "fail", first or 0.0, unit, rule),
-                          f"{verdict:<4} {unit} {rule} {title}: {n}x {when}".rstrip()
-                          if n else f"{verdict:<4} {unit} {rule} {title}: {res.reason}"))
+                          f"{verdict:<4} {shorten(unit, NAME_CHARS)} {rule} {title}: {n}x "
+                          f"{when}".rstrip() if n else
+                          f"{verdict:<4} {shorten(unit, NAME_CHARS)} {rule} {title}: "
+                          f"{shorten(res.reason)}"))
     found.sort()
     lines = [line for _, line in found[:limit]]
     if len(found) > limit:

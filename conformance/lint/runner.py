@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 from typing import IO, Any
 
-from conformance.display import printable, printable_lines
+from conformance.display import NAME_CHARS, printable, printable_lines, shorten
 from conformance.lint import EXIT_FAIL, EXIT_NOT_RUN, EXIT_PASS
 
 GATES = ("all", "units")
@@ -134,7 +134,7 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
     failing = sorted(u for u, rep in report.units.items() if rep.worst().value == "fail"
                      and (gate == "all" or rep.party == "unit"))
     gated = "no unit or commander" if gate == "all" else "no unit"
-    print(("FAIL: " + printable(", ".join(failing))) if failing else f"PASS: {gated} fails a rule of "
+    print(("FAIL: " + printable(", ".join(shorten(u, NAME_CHARS) for u in failing))) if failing else f"PASS: {gated} fails a rule of "
           "severity error", file=out)
     out.flush()
     return EXIT_FAIL if code else EXIT_PASS

@@ -6,7 +6,7 @@ import shlex
 from datetime import UTC, datetime
 from typing import Any
 
-from conformance.display import printable
+from conformance.display import printable, shorten
 from conformance.rules import CATALOGUE, Rule, Severity
 from conformance.topics import TopicError, UnitAddress, parse_topic
 from conformance.violation import Verdict, Violation
@@ -71,7 +71,7 @@ def render_violation(rule: str | Rule, violation: Violation, unit: str = "",
 
     def line(label: str, value: object) -> None:
         if value not in ("", None):
-            lines.append(f"  {label:<9} {printable(value)}")
+            lines.append(f"  {label:<9} {printable(shorten(value))}")
 
     line("expected", violation.expected)
     line("observed", violation.observed)
@@ -97,13 +97,13 @@ def render_summary(report: object) -> str:
            + ", ".join(f"{n} {v}" for v, n in counts.items() if n)]
     for name, unit in report.units.items():
         c = unit.verdict_counts()
-        out.append(f"  {printable(name)}  [{unit.worst().value}]  "
+        out.append(f"  {printable(shorten(name))}  [{unit.worst().value}]  "
                    + ", ".join(f"{n} {v}" for v, n in c.items() if n))
         for r in unit.rules.values():
             if r.verdict in (Verdict.FAIL, Verdict.WARN):
                 rule = CATALOGUE.get(r.rule)
                 out.append(f"    {r.rule:<16} {r.verdict.value:<5} "
-                           f"{printable(rule.title if rule else '')} ({r.reason})")
+                           f"{printable(rule.title if rule else '')} ({printable(shorten(r.reason))})")
     if report.unexamined:
         out.append(f"  {report.unexamined} messages could not be examined")
     return "\n".join(out)
