@@ -49,11 +49,18 @@ def _publisher(topic: str, stop: threading.Event, sent: list[int]) -> None:
     client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=f"bench-{uuid.uuid4()}")
     client.connect("127.0.0.1", 1883)
     client.loop_start()
+    deadline = time.monotonic() + 10
+    while not client.is_connected() and time.monotonic() < deadline:
+        stop.wait(0.05)  # the connection is being made: bounded by the deadline
     image = "A" * (PAYLOAD_MIB << 20)
     try:
         while not stop.is_set():
             payload = json.dumps({"image": image, "stamp": time.time()})
-            client.publish(topic, payload, qos=0).wait_for_publish(10)
+            try:
+                client.publish(topic, payload, qos=0).wait_for_publish(10)
+            except (RuntimeError, ValueError):
+                stop.wait(1.0)  # not connected for a moment: paho reconnects
+                continue
             sent[0] += 1
             stop.wait(1.0)
     finally:

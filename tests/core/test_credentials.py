@@ -132,3 +132,32 @@ def test_the_certification_never_prints_a_password(pytester, monkeypatch):
     out = result.stdout.str() + result.stderr.str()
     assert result.ret != 0 and SECRET not in out
     assert SECRET not in _reports(pytester.path)
+
+
+@pytest.mark.slow
+def test_a_lint_that_logs_in_prints_and_writes_no_password(tmp_path):
+    """The working path: a broker that wants the password, the reference unit and lint both
+    logged in with it (from the environment); nothing written or printed holds it."""
+    broker = PrivateMosquitto(tmp_path / "mosquitto", users={"user": SECRET}).start()
+    env = {**os.environ, "WARAPS_USERNAME": "user", "WARAPS_PASSWORD": SECRET}
+    sim = subprocess.Popen([sys.executable, "-m", "conformance.cli", "sim", "--broker",
+                            broker.url, "--unit", "pw/unit/air/simulation/dji0"],
+                           cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT, text=True)
+    try:
+        assert sim.stdout is not None
+        ready = sim.stdout.readline()
+        assert ready.startswith("ready"), ready
+        done = subprocess.run([sys.executable, "-m", "conformance.cli", "lint", "--broker",
+                               f"mqtt://user@127.0.0.1:{broker.port}", "--topic", "pw/#",
+                               "--duration", "3s", "--plain", "--reports-dir", "reports"],
+                              cwd=tmp_path, env=env, capture_output=True, text=True,
+                              timeout=120)
+    finally:
+        sim.terminate()
+        out_sim = sim.communicate(timeout=20)[0]
+        broker.stop()
+    out = done.stdout + done.stderr + ready + out_sim
+    assert "report:" in done.stdout, out  # it linted and wrote its reports
+    assert "mqtt://user@127.0.0.1" in out  # the user is shown, the password never
+    assert SECRET not in out and SECRET not in _reports(tmp_path / "reports")
