@@ -92,9 +92,11 @@ def certification(python: str, seconds: float, cwd: Path) -> dict[str, object]:
         proc = psutil.Process(run.pid)
         while run.poll() is None:
             try:
-                curve.append((time.monotonic() - t0, proc.memory_info().rss / 2**20))
+                rss = proc.memory_info().rss
             except psutil.NoSuchProcess:
                 break
+            if rss:  # 0: the process is exiting
+                curve.append((time.monotonic() - t0, rss / 2**20))
             time.sleep(1.0)  # sampling once a second: a benchmark, not a test
         out = run.communicate()[0]
         wall = time.monotonic() - t0
