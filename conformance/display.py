@@ -27,7 +27,7 @@ def printable(text: object) -> str:
     return _CONTROL.sub(_escaped, s)
 
 
-SHORT_CHARS = 1000
+SHORT_CHARS = 4096
 """The longest string a report shows in full (an excerpt of it beyond)."""
 LINE_CHARS = 4000
 """The longest line written to a terminal (an excerpt of it beyond)."""

@@ -13,6 +13,7 @@ import orjson
 import pytest
 
 from conformance.checks import Monitor
+from conformance.display import SHORT_CHARS
 from conformance.message import Message
 from conformance.reporting import bounds, write_all
 from conformance.reporting.bounds import TRUNCATED
@@ -48,7 +49,7 @@ def test_a_1_mib_unit_name_is_excerpted_in_every_report(tmp_path, prefix):
     for kind, data in files.items():
         assert len(data) < 2 * MIB, (kind, len(data))  # was 48 MB HTML, 168 MB JUnit
         assert f"… ({full} chars)".encode() in data, kind  # visible ellipsis, full length
-        assert b"X" * 2000 not in data and b"Y" * 2000 not in data, kind
+        assert b"X" * (SHORT_CHARS + 1) not in data and b"Y" * (SHORT_CHARS + 1) not in data, kind
 
 
 @pytest.fixture
