@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import queue
+import re
 import ssl
 import threading
 import time
@@ -33,6 +34,26 @@ class BrokerError(RuntimeError):
 
 class PublishRefused(PermissionError):
     """A publish the safety rules forbid (DESIGN: safety). Never caught to carry on."""
+
+
+_NETLOC = re.compile(r"([a-z][a-z0-9+.-]*://)([^/\s?#]*)", re.I)
+
+
+def mask_password(text: str) -> str:
+    """``text`` with the password of every ``scheme://user:password@host`` in it shown as
+    ``***`` (a password may hold '@': the host follows the last one). The one place a URL is
+    made fit to print; a bare ``user:password@host`` is read as a URL when it is all of
+    ``text`` (what ``--broker`` accepts)."""
+    if "://" not in text and "@" in text.split("/", 1)[0]:
+        return mask_password("x://" + text)[4:]
+
+    def masked(m: re.Match[str]) -> str:
+        userinfo, at, hostport = m.group(2).rpartition("@")
+        if not at or ":" not in userinfo:
+            return m.group(0)
+        return f"{m.group(1)}{userinfo.partition(':')[0]}:***@{hostport}"
+
+    return _NETLOC.sub(masked, text)
 
 
 @dataclass(frozen=True)
@@ -62,21 +83,22 @@ class BrokerURL:
         if text == "embedded":
             return cls("embedded")
         parts = urlsplit(text if "://" in text else f"mqtt://{text}")
+        shown = mask_password(text)  # what an error may say: never a password it wrongly has
         if parts.scheme not in ("mqtt", "mqtts"):
             raise ValueError(
-                f"broker URL {text!r}: scheme {parts.scheme!r} is not one of mqtt, mqtts, "
+                f"broker URL {shown!r}: scheme {parts.scheme!r} is not one of mqtt, mqtts, "
                 f"embedded (for example mqtt://127.0.0.1:1883)")
         if parts.password:
             raise ValueError(
-                f"broker URL {text!r} carries a password: put it in WARAPS_PASSWORD instead, "
+                f"broker URL {shown!r} carries a password: put it in WARAPS_PASSWORD instead, "
                 f"so it never appears on a command line or in a report")
         try:
             port = parts.port or (8883 if parts.scheme == "mqtts" else 1883)
         except ValueError:
             raise ValueError(
-                f"broker URL {text!r}: the port is not a number from 1 to 65535") from None
+                f"broker URL {shown!r}: the port is not a number from 1 to 65535") from None
         if not parts.hostname:
-            raise ValueError(f"broker URL {text!r} has no host (for example mqtt://127.0.0.1:1883)")
+            raise ValueError(f"broker URL {shown!r} has no host (for example mqtt://127.0.0.1:1883)")
         return cls(parts.scheme, parts.hostname, port,
                    username=parts.username or env.get("WARAPS_USERNAME") or None,
                    password=env.get("WARAPS_PASSWORD") or None)

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from conformance.cli.options import BROKER_ENV, CREDENTIALS, TLS_FILES, TLS_INSECURE
+from conformance.display import printable
 
 if TYPE_CHECKING:
     from conformance.suite.session import Certification
@@ -258,9 +259,9 @@ class _CertificationPlugin:
         tr = terminalreporter
         tr.section("waraps-conformance")
         if c.error:
-            tr.line(f"not certified: {c.error}", red=True)
+            tr.line(printable(f"not certified: {c.error}"), red=True)
         for event in c.events:
-            tr.line(event)
+            tr.line(printable(event))
         report = c.report()
         counts = ", ".join(f"{n} {v}" for v, n in c.counts(report).items() if n)
         tr.line(f"{c.unit}: {c.verdict(report)} ({counts})")

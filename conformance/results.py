@@ -14,6 +14,7 @@ A rule passes only when it was actually examined: a skip never becomes a pass.
 from __future__ import annotations
 
 import re
+import shlex
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
@@ -71,10 +72,10 @@ def skip_reason(rule: Rule, *, kind: str, unit: str, levels: tuple[str, ...] | N
     if rule.id.startswith("ROS-") and not note:
         return "judged from ROS bags that hold the topics it is about (lint --from run.bag)"
     if rule.mode is Mode.ACTIVE and kind == "lint":
-        return f"needs a stimulus: run pytest --unit {unit}"
+        return f"needs a stimulus: run pytest --unit {shlex.quote(unit)}"
     if rule.mode is Mode.CONVERSATION and kind == "lint" and not note:
         return (f"no command to this unit that the rule applies to was seen (pytest --unit "
-                f"{unit} sends them)")
+                f"{shlex.quote(unit)} sends them)")
     level = rule.spec_level
     if level is not None and note == "":
         if levels is None:

@@ -10,8 +10,8 @@ count and its first and last time.
 On a terminal, rich draws it (``rich.live.Live``), refreshed by ``update()`` at most once a
 second, never per message: with 200 units a redraw takes 3.1 ms of CPU (0.3 % of the linter's
 core; rich's own Table would take 18 ms, so the columns are laid out here). Control characters
-in wire text (unit names come from topics) are drawn as U+FFFD: a topic cannot drive the
-terminal. The plain output does not use rich and stays as it was (tests/lint compare it).
+in wire text (unit names come from topics) are shown escaped (``display.printable``: ``\x1b``),
+on a terminal and in the plain output alike: a topic cannot drive the terminal. The plain output does not use rich and stays as it was (tests/lint compare it).
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ import time
 from dataclasses import dataclass
 from typing import IO, TYPE_CHECKING, Any
 
+from conformance.display import LINE_CHARS, NAME_CHARS, printable, shorten
 from conformance.lint.linter import NOT_A_UNIT, OTHER_UNITS, Linter
 from conformance.recording import Event
 from conformance.rules import CATALOGUE
@@ -40,9 +41,6 @@ PLAIN_SUMMARY_EVERY = 10.0
 TTY_REFRESH_EVERY = 1.0
 """Seconds between two redraws on a terminal."""
 STATUS_STYLES = {"FAIL": "bold red", "warn": "yellow", "ok": "green"}
-CONTROL_SHOWN = {c: "\ufffd" for c in [*range(0x20), *range(0x7f, 0xa0)]}
-"""Control characters as the terminal draws them: one replacement character each, so the
-columns stay where they are."""
 
 
 @dataclass
@@ -101,10 +99,13 @@ def violation_line(v: Violation, unit: str, verdict: str, when: float | None = N
     expected and observed."""
     rule = CATALOGUE.get(v.rule)
     title = rule.title if rule else ""
-    what = f"expected {v.expected}, observed {v.observed}" if v.expected or v.observed else ""
-    where = f" [{v.topic}]" if v.topic and not v.topic.startswith(unit + "/") else ""
+    what = (f"expected {shorten(v.expected)}, observed {shorten(v.observed)}"
+            if v.expected or v.observed else "")
+    where = (f" [{shorten(v.topic, NAME_CHARS)}]" if v.topic and not v.topic.startswith(unit + "/")
+             else "")
     t = v.time if v.time is not None else when
-    return f"{_clock(t)} {verdict:<4} {unit} {v.rule} {title}: {what}{where}".rstrip(": ")
+    return (f"{_clock(t)} {verdict:<4} {shorten(unit, NAME_CHARS)} {v.rule} {title}: "
+            f"{what}{where}").rstrip(": ")
 
 
 def event_line(e: Event, gap_start: float | None = None) -> str:
@@ -209,20 +210,25 @@ class Scorecard:
         """``table()``, and where each shown unit's status is: (line, column, status), for each
         status that fits in the width (the terminal colours it)."""
         statuses = []
-        uw = max([4] + [len(r.unit) for r in rows])
+        # Wire text (names, types, roles, levels) escaped before it is measured (issue 19 §5).
+        names = {id(r): printable(r.unit) for r in rows}
+        uw = max([4] + [len(n) for n in names.values()])
         uw = min(uw, max(20, width // 3))
         head = (f"{'UNIT':<{uw}} {'TYPE':<10} {'ROLE':<10} {'LEVELS':<17} {'MSG/S':>7} "
                 f"{'LAST SEEN':>9} {'STATUS':<6} VIOLATIONS BY RULE")
         lines = [head[:width]]
         shown = rows if max_rows is None else rows[:max_rows]
         for r in shown:
-            levels = "?" if r.levels is None else ",".join(LEVEL_SHORT.get(lv, lv) for lv in r.levels)
+            levels = "?" if r.levels is None else printable(
+                ",".join(LEVEL_SHORT.get(lv, lv) for lv in r.levels))
             rate = "" if r.rate is None else f"{r.rate:.1f}"
             seen = "" if r.last_seen is None else (_ago(r.last_seen, now) if now else _clock(r.last_seen))
             viol = " ".join([f"{rule}(live)" for rule in r.live]
                             + [f"{rule}x{n}" for rule, n in r.violations]) or "-"
-            unit = r.unit if len(r.unit) <= uw else "…" + r.unit[-(uw - 1):]
-            line = (f"{unit:<{uw}} {r.agent_type[:10]:<10} {r.role[:10]:<10} {levels[:17]:<17} "
+            name = names[id(r)]
+            unit = name if len(name) <= uw else "…" + name[-(uw - 1):]
+            line = (f"{unit:<{uw}} {printable(r.agent_type)[:10]:<10} "
+                    f"{printable(r.role)[:10]:<10} {levels[:17]:<17} "
                     f"{rate:>7} {seen:>9} ")
             if len(line) + len(r.status) < width:
                 statuses.append((len(lines), len(line), r.status))
@@ -259,7 +265,9 @@ class Scorecard:
                 self._last_draw = now
                 self._redraw(linter, elapsed, connected)
             return
-        write = self.out.write
+        def write(line: str) -> None:  # one line each; what came from the wire, escaped
+            self.out.write(printable(shorten(line.removesuffix("\n"), LINE_CHARS)) + "\n")
+
         for e in linter.take_events():
             write(event_line(e, self._gap_start) + "\n")
             if e.kind == "disconnected":
@@ -344,7 +352,7 @@ class Scorecard:
         if found:
             lines += ["", "findings (each unit or commander and rule once: count, first and "
                           "last time):"] + ["  " + ln for ln in found]
-        self.out.write("\n".join(lines) + "\n")
+        self.out.write("\n".join(printable(shorten(ln, LINE_CHARS)) for ln in lines) + "\n")
         self.out.flush()
 
 
@@ -352,12 +360,13 @@ def styled(header: str, table: list[str], statuses: list[tuple[int, int, str]],
            fleet: list[str]) -> Any:
     """The drawing for rich: the header bold, each unit's status (at its column) in its
     colour. Wire text is never read as rich markup (``Text``, not a markup string), and its
-    control characters are drawn as U+FFFD."""
+    control characters are shown escaped (``table_with_status`` escapes them before it
+    measures the columns)."""
     from rich.console import Group
     from rich.text import Text
 
     def text(line: str) -> Text:
-        return Text(line.translate(CONTROL_SHOWN), no_wrap=True, overflow="crop")
+        return Text(printable(line), no_wrap=True, overflow="crop")
 
     head = text(header)
     head.stylize("bold")
@@ -412,8 +421,10 @@ def findings_from_report(report: Any, limit: int = MAX_FINDINGS_SHOWN) -> list[s
             title = CATALOGUE[rule].title if rule in CATALOGUE else ""
             verdict = "FAIL" if res.verdict.value == "fail" else "warn"
             found.append(((res.verdict.value != "fail", first or 0.0, unit, rule),
-                          f"{verdict:<4} {unit} {rule} {title}: {n}x {when}".rstrip()
-                          if n else f"{verdict:<4} {unit} {rule} {title}: {res.reason}"))
+                          f"{verdict:<4} {shorten(unit, NAME_CHARS)} {rule} {title}: {n}x "
+                          f"{when}".rstrip() if n else
+                          f"{verdict:<4} {shorten(unit, NAME_CHARS)} {rule} {title}: "
+                          f"{shorten(res.reason)}"))
     found.sort()
     lines = [line for _, line in found[:limit]]
     if len(found) > limit:

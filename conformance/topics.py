@@ -137,11 +137,17 @@ class ParsedTopic:
     subtopic: str = ""
 
 
-# A fleet reuses a few thousand topics millions of times: parse each once (bounded cache;
-# ParsedTopic and UnitAddress are frozen, so sharing them is safe). bench/bench_lint.py.
-@functools.lru_cache(maxsize=8192)
+LONG_TOPIC = 1024
+"""A topic longer than this (MQTT allows 64 KiB) is parsed each time, never cached: 8192
+cached 64 KiB topics would hold 2 GiB (issue 19 §3)."""
+
+
 def parse_topic(topic: str) -> ParsedTopic:
     """Classify a topic. Never raises: what cannot be placed is ``TopicKind.UNKNOWN``."""
+    return _parse_cached(topic) if len(topic) <= LONG_TOPIC else _parse(topic)
+
+
+def _parse(topic: str) -> ParsedTopic:
     parts = topic.split("/")
     if parts and parts[0] == "":  # TOPIC-001: leading '/'; classify the rest anyway
         parts = parts[1:]
@@ -156,6 +162,11 @@ def parse_topic(topic: str) -> ParsedTopic:
     if parts[5] == "sensor" and len(parts) == 7 and parts[6]:
         return ParsedTopic(topic, TopicKind.SENSOR, unit, sensor=parts[6], subtopic=sub)
     return ParsedTopic(topic, TopicKind.UNKNOWN, unit, subtopic=sub)
+
+
+# A fleet reuses a few thousand topics millions of times: parse each once (bounded cache;
+# ParsedTopic and UnitAddress are frozen, so sharing them is safe). bench/bench_lint.py.
+_parse_cached = functools.lru_cache(maxsize=8192)(_parse)
 
 
 GENERAL_NAMING_RULES = ("TOPIC-001", "TOPIC-002", "TOPIC-008")
@@ -182,10 +193,10 @@ def naming_violations(topic: str) -> list[Violation]:
     'aiics-testing'. The levels this spec names (unit, type, role, subtopics, sensors) and the
     unit name follow 3.2.
     """
-    return list(_naming_violations(topic))  # a fresh list: callers append to it
+    # A fresh list: callers append to it. A long topic is not cached (LONG_TOPIC).
+    return list(_naming_cached(topic) if len(topic) <= LONG_TOPIC else _naming_violations(topic))
 
 
-@functools.lru_cache(maxsize=8192)
 def _naming_violations(topic: str) -> tuple[Violation, ...]:
     found: list[Violation] = []
 
@@ -225,3 +236,6 @@ def _naming_violations(topic: str) -> tuple[Violation, ...]:
         bad("TOPIC-007", "heartbeat, sensor_info, direct_execution_info, tst_execution_info, "
             "sensor/<name>, exec/*, tst/*", sub)
     return tuple(found)
+_naming_cached = functools.lru_cache(maxsize=8192)(_naming_violations)
+
+

@@ -218,7 +218,8 @@ class Validator:
         plan = self._plans.get(topic)
         if plan is None:
             plan = _TopicPlan(topic)
-            if len(self._plans) < MAX_TOPIC_PLANS:
+            # A long topic (MQTT allows 64 KiB) is planned each time: the plans stay small.
+            if len(self._plans) < MAX_TOPIC_PLANS and len(topic) <= 1024:
                 self._plans[topic] = plan
         return plan
 

@@ -6,6 +6,8 @@ import enum
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 
+from conformance.display import shorten
+
 
 class Verdict(str, enum.Enum):
     """The outcome of one rule for one unit (DESIGN: shared semantics), worst last."""
@@ -82,8 +84,10 @@ class Violation:
     def of(cls, rule: str, *, expected: str, observed: str, topic: str = "", path: str = "",
            time: float | None = None, payload: bytes | str | None = None, detail: str = "",
            unit: str = "") -> Violation:
-        return cls(rule=rule, expected=expected, observed=observed, topic=topic, path=path,
-                   time=time, excerpt=excerpt(payload), detail=detail, unit=unit)
+        # Kept per unit and rule (evidence): what came from the wire is bounded (issue 19 §3).
+        return cls(rule=rule, expected=shorten(expected), observed=shorten(observed),
+                   topic=topic, path=path, time=time, excerpt=excerpt(payload),
+                   detail=shorten(detail), unit=unit)
 
     def to_dict(self) -> dict[str, object]:
         return {k: v for k, v in self.__dict__.items() if v not in ("", None)}

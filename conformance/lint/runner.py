@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 from typing import IO, Any
 
+from conformance.display import NAME_CHARS, printable, printable_lines, shorten
 from conformance.lint import EXIT_FAIL, EXIT_NOT_RUN, EXIT_PASS
 
 GATES = ("all", "units")
@@ -44,7 +45,7 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
         try:
             end = run_bag(linter, scorecard, reader_of_bag, options)
         except BagError as e:
-            print(f"waraps-conformance lint: {e}", file=err)
+            print(printable(f"waraps-conformance lint: {e}"), file=err)
             return EXIT_NOT_RUN
         meta = {"source": reader_of_bag.name, "recording_formats": reader_of_bag.format,
                 "bag_messages_read": str(reader_of_bag.read)}
@@ -55,7 +56,7 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
         try:
             stream, name = open_recording(source, stdin)
         except RecordingError as e:
-            print(f"waraps-conformance lint: {e}", file=err)
+            print(printable(f"waraps-conformance lint: {e}"), file=err)
             return EXIT_NOT_RUN
         scorecard = Scorecard(out, tty=False if plain else None, title=name, live=False)
         with stream if stream is not (stdin or sys.stdin.buffer) else _noop():
@@ -80,7 +81,7 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
         try:
             capture.start()
         except BrokerError as e:
-            print(f"waraps-conformance lint: {e}", file=err)
+            print(printable(f"waraps-conformance lint: {e}"), file=err)
             return EXIT_NOT_RUN
         scorecard = Scorecard(out, tty=False if plain else None,
                               title=f"{options.broker} {' '.join(options.topics)}", live=True)
@@ -102,7 +103,7 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
     if linter.messages == 0:
         scorecard.update(linter, force=True)
         for problem in problems:
-            print(f"malformed {problem}", file=out)
+            print(printable(f"malformed {problem}"), file=out)
         print("waraps-conformance lint: no messages were read, so nothing was judged"
               + (f" ({problem_count} malformed lines; the formats read are JSON Lines as "
                  f"'waraps-conformance record' writes, mosquitto_sub -F %j, -F %J and -v "
@@ -119,14 +120,14 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
         not_judged_untimed(report)
     scorecard.final(linter, report)
     for problem in problems:
-        print(f"malformed {problem}", file=out)
+        print(printable(f"malformed {problem}"), file=out)
     if problem_count > len(problems):
         print(f"... {problem_count - len(problems)} more malformed lines", file=out)
     for note in notes:
-        print(f"note: {note}", file=out)
+        print(printable(f"note: {note}"), file=out)
     for gap in linter.gaps:
         print(f"connection gap: {time.strftime('%H:%M:%S', time.localtime(gap.start))} for "
-              f"{gap.duration:.1f} s ({gap.reason or 'connection lost'}); rates over it not "
+              f"{gap.duration:.1f} s ({printable(gap.reason or 'connection lost')}); rates over it not "
               f"judged", file=out)
     if report.unexamined:
         print(f"not examined: {report.unexamined} messages (rates in those windows not judged)",
@@ -137,16 +138,16 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
             print(f"report: {path}", file=out)
     evidence = failures(report)
     if evidence:
-        print(f"\n{evidence}\n", file=out)
+        print(f"\n{printable_lines(evidence)}\n", file=out)
     code = int(report.exit_code(gate))
     failing = sorted(u for u, rep in report.units.items() if rep.worst().value == "fail"
                      and (gate == "all" or rep.party == "unit"))
     gated = "no unit or commander" if gate == "all" else "no unit"
     if failing or not over:
-        print(("FAIL: " + ", ".join(failing)) if failing else f"PASS: {gated} fails a rule of "
-              "severity error", file=out)
+        print(("FAIL: " + printable(", ".join(shorten(u, NAME_CHARS) for u in failing)))
+              if failing else f"PASS: {gated} fails a rule of severity error", file=out)
     if over:  # past the bound: never a pass (issue 19)
-        print(f"FAIL: {meta['not_judged']}", file=out)
+        print(f"FAIL: {printable(meta['not_judged'])}", file=out)
     out.flush()
     return EXIT_FAIL if code or over else EXIT_PASS
 

@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from conformance.display import shorten
+from conformance.reporting.bounds import bounded
 from conformance.reporting.files import atomic_write
 from conformance.reporting.text import iso_time, printable
 from conformance.results import RateStat, RunReport, UnitReport
@@ -48,13 +50,14 @@ SERIES_COLOURS = ["#0969da", "#bf3989", "#1a7f37", "#bc4c00", "#8250df", "#6e778
 
 
 def _finalize(value: Any) -> Any:
-    """What a template prints: None as nothing, control characters made visible (wire data may
-    hold anything); markup a template made itself passes as it is (autoescape does the rest)."""
+    """What a template prints: None as nothing, long strings excerpted and control characters
+    made visible (wire data may hold anything); markup a template made itself passes as it is
+    (autoescape does the rest)."""
     from markupsafe import Markup
 
     if isinstance(value, Markup):
         return value
-    return "" if value is None else printable(value)
+    return "" if value is None else printable(shorten(value))  # issue 19 §4, §5
 
 
 @functools.cache
@@ -248,4 +251,4 @@ def write_html(report: RunReport, path: str | os.PathLike[str],
                files: list[str] | None = None) -> Path:
     """Write the report as one self-contained HTML file (atomically); the path written.
     ``files``: the names of the other files written with it."""
-    return atomic_write(path, render_html(report, files))
+    return atomic_write(path, bounded(lambda r: render_html(r, files), report))

@@ -4,16 +4,43 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import orjson
 
+from conformance.display import SHORT_CHARS, shorten
+from conformance.reporting.bounds import bounded
 from conformance.reporting.files import atomic_write
 from conformance.results import RunReport
 
 
 def dumps(report: RunReport) -> bytes:
-    # Non-finite floats become null in orjson; wire strings are stored as they are (JSON-escaped).
-    data = report.to_dict()
+    """The report as JSON, at most ``bounds.MAX_REPORT_BYTES`` (``bounds.bounded``)."""
+    return bounded(_dumps, report)
+
+
+def _shortened(value: Any) -> Any:
+    """``value`` with every string in it (keys too) excerpted by ``display.shorten``."""
+    if isinstance(value, str):
+        return value if len(value) <= SHORT_CHARS else shorten(value)
+    if isinstance(value, dict):
+        out: dict[Any, Any] = {}
+        for k, v in value.items():
+            if isinstance(k, str) and len(k) > SHORT_CHARS:
+                k = shorten(k)
+                while k in out:  # two long keys alike in their first characters
+                    k += "'"
+            out[k] = _shortened(v)
+        return out
+    if isinstance(value, (list, tuple)):
+        return [_shortened(v) for v in value]
+    return value
+
+
+def _dumps(report: RunReport) -> bytes:
+    # Non-finite floats become null in orjson; wire strings are excerpted (display.shorten),
+    # control characters JSON-escaped.
+    data = _shortened(report.to_dict())
     # The run's verdict: 'not certified' / 'interrupted' for a run that did not complete
     # (meta, from the certification), else the worst rule verdict.
     data["verdict"] = report.meta.get("verdict") or data["worst"]

@@ -8,51 +8,97 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from xml.sax.saxutils import escape, quoteattr
 
-from junit_xml import TestCase, TestSuite, to_xml_report_string
-
+from conformance.display import printable, shorten
+from conformance.reporting.bounds import bounded
 from conformance.reporting.files import atomic_write
-from conformance.reporting.text import iso_time, printable, render_violation
+from conformance.reporting.text import iso_time, render_violation
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE
 from conformance.violation import Verdict
 
 
+def _attr(value: object) -> str:
+    """An attribute value as XML: excerpted, control characters escaped (XML 1.0 allows
+    none of them), quoted."""
+    return quoteattr(printable(shorten(value)))
+
+
+def _text(value: str) -> str:
+    """Element text as XML (several lines: each line's control characters escaped)."""
+    return escape("\n".join(printable(line) for line in value.split("\n")))
+
+
 def to_junit(report: RunReport) -> str:
-    suites = []
+    """The JUnit XML, at most ``bounds.MAX_REPORT_BYTES`` (``bounds.bounded``)."""
+    return bounded(_to_junit, report)
+
+
+def _to_junit(report: RunReport) -> str:
+    # Written directly, one string per element (linear): junit_xml's pretty printer parsed
+    # the whole document again with minidom, 5 s and 3 GB for 4096 units (issue 19 §4).
+    suites: list[str] = []
+    tests = failures_total = 0
+    truncated = report.meta.get("report_truncated")
     for name, unit in report.units.items():
-        cases = []
+        stamp = iso_time(unit.first_seen)
+        at = f" timestamp={_attr(stamp)}" if stamp else ""
+        classname = _attr(name)
+        cases: list[str] = []
+        failures = skipped = 0
         for rid, result in unit.rules.items():
             rule = CATALOGUE.get(rid)
             title = rule.title if rule else rid
-            case = TestCase(f"{rid} {printable(title)}", classname=printable(name),
-                            status=result.verdict.value,
-                            timestamp=iso_time(unit.first_seen) or None)
+            head = (f"\t\t<testcase name={_attr(f'{rid} {title}')}{at} "
+                    f"classname={classname} status={_attr(result.verdict.value)}")
             text = "\n\n".join(render_violation(rid, v, name, verdict=result.verdict,
                                                 report=report)
                                for v in result.violations)
             if result.verdict is Verdict.FAIL:
+                failures += 1
                 first = result.violations[0] if result.violations else None
                 message = (f"expected {first.expected}; observed {first.observed}"
                            if first else result.reason)
-                case.add_failure_info(message=printable(message), output=text or result.reason)
+                body = (f"\t\t\t<failure type=\"failure\" message={_attr(message)}>"
+                        f"{_text(text or result.reason)}</failure>\n")
             elif result.verdict in (Verdict.SKIP, Verdict.COULD_NOT_TEST):
-                case.add_skipped_info(message=printable(f"{result.verdict.value}: {result.reason}"))
+                skipped += 1
+                body = (f"\t\t\t<skipped type=\"skipped\" "
+                        f"message={_attr(f'{result.verdict.value}: {result.reason}')}/>\n")
             elif result.verdict is Verdict.WARN:
-                case.stdout = f"warn: {printable(result.reason)}\n\n{text}"
-            cases.append(case)
+                body = (f"\t\t\t<system-out>"
+                        f"{_text(f'warn: {shorten(result.reason)}' + chr(10) * 2 + text)}"
+                        f"</system-out>\n")
+            else:
+                body = ""
+            cases.append(f"{head}>\n{body}\t\t</testcase>\n" if body else f"{head}/>\n")
         properties = {
-            "unit": printable(name),
-            "agent-uuid": printable(", ".join(unit.agent_uuids)),
+            "unit": name,
+            "agent-uuid": ", ".join(unit.agent_uuids),
             "profile": report.profile,
             "suite-version": report.suite_version,
             "schemas-hash": report.schemas_hash,
             "kind": report.kind,
-            "broker": printable(report.broker),
+            "broker": report.broker,
         }
-        suites.append(TestSuite(printable(name), cases, properties=properties,
-                                timestamp=iso_time(report.started) or None))
-    return to_xml_report_string(suites, prettyprint=True, encoding="utf-8")
+        if truncated:
+            properties["report-truncated"] = truncated
+        started = iso_time(report.started)
+        suites.append(
+            f"\t<testsuite disabled=\"0\" errors=\"0\" failures=\"{failures}\" "
+            f"name={classname} skipped=\"{skipped}\" tests=\"{len(cases)}\" time=\"0\""
+            + (f" timestamp={_attr(started)}" if started else "") + ">\n\t\t<properties>\n"
+            + "".join(f"\t\t\t<property name={_attr(k)} value={_attr(v)}/>\n"
+                      for k, v in properties.items())
+            + "\t\t</properties>\n" + "".join(cases) + "\t</testsuite>\n")
+        tests += len(cases)
+        failures_total += failures
+    note = (f"\t<!-- {escape(printable(truncated)).replace('--', '- -')} -->\n"
+            if truncated else "")
+    return (f'<?xml version="1.0" encoding="utf-8"?>\n<testsuites disabled="0" errors="0" '
+            f'failures="{failures_total}" tests="{tests}" time="0.0">\n{note}'
+            + "".join(suites) + "</testsuites>\n")
 
 
 def write_junit(report: RunReport, path: str | os.PathLike[str]) -> Path:

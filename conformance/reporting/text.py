@@ -2,23 +2,16 @@
 
 from __future__ import annotations
 
-import re
 import shlex
 from datetime import UTC, datetime
 from typing import Any
 
+from conformance.display import printable, shorten
 from conformance.rules import CATALOGUE, Rule, Severity
 from conformance.topics import TopicError, UnitAddress, parse_topic
 from conformance.violation import Verdict, Violation
 
-_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u2028\u2029\ud800-\udfff\ufffe\uffff]")
 TITLE_WIDTH = 64
-
-
-def printable(text: object) -> str:
-    """``text`` with control characters shown as ``\\xNN`` (wire data may hold anything)."""
-    return _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}" if ord(m.group()) < 0x100
-                        else f"\\u{ord(m.group()):04x}", str(text))
 
 
 def iso_time(t: float | None) -> str:
@@ -39,7 +32,7 @@ def rerun_command(report: Any, unit: str, rule_id: str, topic: str = "") -> str:
     commander's row ('commander alice') is no unit: its finding is repeated by linting the
     unit whose command ``topic`` it was found on (or every unit, when the topic names none)."""
     if getattr(report, "kind", "certification") != "lint":
-        return f"pytest --unit {unit} -k {rule_id}"
+        return f"pytest --unit {shlex.quote(unit)} -k {shlex.quote(rule_id)}"
     try:
         unit = UnitAddress.parse(unit).base
     except TopicError:
@@ -54,7 +47,7 @@ def rerun_command(report: Any, unit: str, rule_id: str, topic: str = "") -> str:
         return (f"waraps-conformance lint --broker {shlex.quote(broker)}"
                 + (f" {tls}" if tls else "") + only)
     if not source or source in ("-", "<stdin>") or source.startswith("live "):
-        source = "<recording>"
+        source = shlex.quote("<recording>")  # a placeholder, but never a redirection
     else:
         source = shlex.quote(source)
     return f"waraps-conformance lint --from {source}{only}"
@@ -78,7 +71,7 @@ def render_violation(rule: str | Rule, violation: Violation, unit: str = "",
 
     def line(label: str, value: object) -> None:
         if value not in ("", None):
-            lines.append(f"  {label:<9} {printable(value)}")
+            lines.append(f"  {label:<9} {printable(shorten(value))}")
 
     line("expected", violation.expected)
     line("observed", violation.observed)
@@ -104,13 +97,13 @@ def render_summary(report: object) -> str:
            + ", ".join(f"{n} {v}" for v, n in counts.items() if n)]
     for name, unit in report.units.items():
         c = unit.verdict_counts()
-        out.append(f"  {printable(name)}  [{unit.worst().value}]  "
+        out.append(f"  {printable(shorten(name))}  [{unit.worst().value}]  "
                    + ", ".join(f"{n} {v}" for v, n in c.items() if n))
         for r in unit.rules.values():
             if r.verdict in (Verdict.FAIL, Verdict.WARN):
                 rule = CATALOGUE.get(r.rule)
                 out.append(f"    {r.rule:<16} {r.verdict.value:<5} "
-                           f"{printable(rule.title if rule else '')} ({r.reason})")
+                           f"{printable(rule.title if rule else '')} ({printable(shorten(r.reason))})")
     if report.unexamined:
         out.append(f"  {report.unexamined} messages could not be examined")
     return "\n".join(out)

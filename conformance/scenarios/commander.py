@@ -234,7 +234,7 @@ class Commander(Sender):
         if found is not None and blind and found is blind[-1]:
             self.deviations.note(
                 Kind.FEEDBACK_WITHOUT_TASK_UUID,
-                f"the unit sends feedback without a task-uuid ({found.raw[:120]!r})",
+                f"the unit sends feedback without a task-uuid ({found.excerpt[:120]!r})",
                 "feedback cannot be told apart by task: what it would show is could-not-test")
             return None
         return found

@@ -164,7 +164,7 @@ class Context:
         return Violation.of(rule, expected=expected, observed=observed,
                             topic=self.unit.topic(subtopic),
                             time=entry.time if entry else None,
-                            payload=entry.raw if entry else None, detail=detail,
+                            payload=entry.excerpt if entry else None, detail=detail,
                             unit=str(self.unit))
 
     def startable(self, prefer: tuple[str, ...] = RUNS_UNTIL_ENOUGH) -> list[str]:
@@ -243,4 +243,4 @@ def describe(entry: Entry | None) -> str:
     """A short text for a person: the body of a message, or that none came."""
     if entry is None:
         return "no message"
-    return entry.raw[:160].decode("utf-8", "backslashreplace")
+    return entry.excerpt[:160].decode("utf-8", "backslashreplace")

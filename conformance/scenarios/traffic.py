@@ -1,13 +1,19 @@
 """What the unit under test publishes, decoded and kept for a while, so scenarios can wait for it.
 
 The MQTT network thread calls ``add``; scenarios call ``wait_for`` with a predicate and a
-deadline (never a fixed sleep). Memory is bounded: the newest ``capacity`` messages are kept.
+deadline (never a fixed sleep). Memory is bounded in count and in bytes, whatever the unit
+sends (issue 19): the newest ``capacity`` messages are kept; each keeps a digest and an
+excerpt of its payload, never the payload; its decoded body is kept whole only while it is
+small and recent (``BODY_BYTES``, ``FULL_BODIES_BYTES``), else only the top-level fields an
+answer is read by (``answer_fields``).
 Every wait says what it waits for: ``Waits`` lets the suite show it while it lasts (progress)
 and end it when the whole run is out of time (``--max-duration``).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import threading
 import time
 from collections import deque
@@ -21,22 +27,54 @@ import orjson
 from conformance.message import Message
 from conformance.topics import UnitAddress
 
+EXCERPT_BYTES = 256
+"""Of each payload, the first bytes are kept (evidence, ``describe``)."""
+BODY_BYTES = 64 << 10
+"""A payload larger than this keeps only its top-level answer fields, never its whole body."""
+FULL_BODIES_BYTES = 4 << 20
+"""Payload bytes whose decoded bodies are kept whole at once; past it the oldest are reduced
+to their answer fields (a 64 KiB payload can decode to about 1.4 MB of objects)."""
+ANSWER_FIELDS = 32
+ANSWER_CHARS = 256
+
 
 @dataclass(frozen=True)
 class Entry:
     """One message of the unit: ``subtopic`` relative to the unit (``heartbeat``,
     ``exec/response``, ``sensor/position``), ``body`` the decoded JSON (None if it was not
-    JSON), ``time`` the arrival time in Unix seconds, ``seq`` its arrival order."""
+    JSON; only its answer fields when ``whole`` is False), ``time`` the arrival time in Unix
+    seconds, ``seq`` its arrival order; of the payload only ``size`` (bytes), ``digest``
+    (BLAKE2b, 16 bytes) and ``excerpt`` (its first ``EXCERPT_BYTES``) are kept."""
 
     seq: int
     time: float
     subtopic: str
     body: Any
-    raw: bytes
+    excerpt: bytes
+    size: int = 0
+    digest: bytes = b""
+    whole: bool = True
 
     def get(self, key: str, default: Any = None) -> Any:
         """A field of an object body, or ``default`` (the body may be anything)."""
         return self.body.get(key, default) if isinstance(self.body, dict) else default
+
+
+def answer_fields(body: Any) -> Any:
+    """What is kept of a large or old body: its top-level scalars (at most ``ANSWER_FIELDS``,
+    strings cut to ``ANSWER_CHARS``), which is what answers are read by (12.1, 12.4:
+    response, response-to, status, task-uuid, ...). A body that is not an object keeps None."""
+    if not isinstance(body, dict):
+        return None
+    kept: dict[str, Any] = {}
+    for key, value in body.items():
+        if len(kept) >= ANSWER_FIELDS:
+            break
+        if isinstance(value, str):
+            kept[key[:ANSWER_CHARS]] = value[:ANSWER_CHARS]
+        elif value is None or isinstance(value, (bool, int, float)):
+            kept[key[:ANSWER_CHARS]] = value
+    return kept
 
 
 Predicate = Callable[[Entry], bool]
@@ -93,6 +131,9 @@ class Traffic:
         answers (14.1): kept under the same subtopics as the unit's own."""
         self._entries: deque[Entry] = deque(maxlen=capacity)
         self._latest: dict[str, Entry] = {}
+        self._whole: deque[Entry] = deque()
+        """Entries whose body is kept whole, oldest first, and their payload bytes in total."""
+        self._whole_bytes = 0
         self._seq = 0
         self._cond = threading.Condition()
         self.waits = Waits()
@@ -105,17 +146,43 @@ class Traffic:
             subtopic = message.topic[len(self._operator) - 4:]  # tst/...
         else:
             return None
+        payload = message.payload
         try:
-            body = orjson.loads(message.payload)
+            body = orjson.loads(payload)
         except (orjson.JSONDecodeError, TypeError, ValueError):
             body = None
+        size = len(payload)
+        whole = size <= BODY_BYTES
+        if not whole:
+            body = answer_fields(body)
+        view = memoryview(payload) if isinstance(payload, bytes) else memoryview(b"")
+        digest = hashlib.blake2b(view, digest_size=16).digest()
         with self._cond:
             self._seq += 1
-            entry = Entry(self._seq, message.time, subtopic, body, message.payload)
+            entry = Entry(self._seq, message.time, subtopic, body,
+                          bytes(view[:EXCERPT_BYTES]), size, digest, whole)
             self._entries.append(entry)
             self._latest[subtopic] = entry
+            if whole:
+                self._whole.append(entry)
+                self._whole_bytes += size
+                self._reduce_oldest()
             self._cond.notify_all()
         return entry
+
+    def _reduce_oldest(self) -> None:
+        """Past ``FULL_BODIES_BYTES`` of whole bodies, the oldest keep only their answer
+        fields (in the store and as the latest of their subtopic); under the lock."""
+        while self._whole_bytes > FULL_BODIES_BYTES and len(self._whole) > 1:
+            old = self._whole.popleft()
+            self._whole_bytes -= old.size
+            first = self._entries[0].seq
+            if old.seq < first:
+                continue  # already out of the store
+            reduced = dataclasses.replace(old, body=answer_fields(old.body), whole=False)
+            self._entries[old.seq - first] = reduced
+            if self._latest.get(old.subtopic) is old:
+                self._latest[old.subtopic] = reduced
 
     def mark(self) -> int:
         """The sequence number of the newest message: wait for what comes after it."""

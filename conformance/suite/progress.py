@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 
+from conformance.display import printable
 from conformance.scenarios.traffic import Wait
 
 try:  # pytest's own relative-path helper, as its result lines use it
@@ -67,7 +68,7 @@ class Progress:
                 if first:  # keep pytest's line of result letters; draw on a line of our own
                     self._fspath = tr.currentfspath
                     tr.ensure_newline()
-                tr.rewrite(text, erase=True)
+                tr.rewrite(printable(text), erase=True)
             self._drawn = True
             self._write(draw)
             return
@@ -106,7 +107,7 @@ class Progress:
                 tr.rewrite("", erase=True)
                 self._drawn = False
             tr.ensure_newline()
-            tr.write_line(text)
+            tr.write_line(printable(text))
             tr.currentfspath = None
         self._write(draw)
 

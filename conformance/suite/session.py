@@ -24,6 +24,7 @@ import pytest
 from conformance import __version__
 from conformance.checks import Monitor
 from conformance.client import MqttClient
+from conformance.display import LINE_CHARS, printable, shorten
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
 from conformance.scenarios import (
@@ -154,9 +155,9 @@ class Certification:
         capman = self.config.pluginmanager.getplugin("capturemanager")
         if capman is not None:
             with capman.global_and_fixture_disabled():
-                tw.line(text)
+                tw.line(printable(text))
         else:
-            tw.line(text)
+            tw.line(printable(text))
 
     def _adapted(self, deviation: Deviation) -> None:
         """A systematic deviation, seen for the first time: say so once (summary and -v)."""
@@ -393,12 +394,13 @@ class Certification:
         self.connection.close()
 
     def header(self) -> list[str]:
-        """The lines pytest shows before the tests (``header_lines``)."""
-        return header_lines(
+        """The lines pytest shows before the tests (``header_lines``); the unit's own words
+        in them (agent-uuid, agent-type, levels) escaped and excerpted (issue 19 §5)."""
+        return [printable(shorten(line, LINE_CHARS)) for line in header_lines(
             self.settings, broker=self.connection.broker_url, heartbeat=self.context.heartbeat(),
             levels=self.context.levels(),
             reboot=self.reboot.how() if self.context.reboot else None,
-            reports=self.settings.reports_dir / self.stem, rerun=self.rerun_command())
+            reports=self.settings.reports_dir / self.stem, rerun=self.rerun_command())]
 
 
 __all__ = ["CERTIFICATION", "COMMANDER_RULES", "INTERRUPTED", "NOT_CERTIFIED", "Certification",

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import difflib
 import os
-import re
 import secrets
 import shlex
 from dataclasses import dataclass, field
@@ -18,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from conformance.cli.options import parse_duration
-from conformance.client import BrokerURL
+from conformance.client import BrokerURL, mask_password
 from conformance.profile import Profile, ProfileError, builtin_names, load
 from conformance.topics import TopicError, UnitAddress
 
@@ -98,25 +97,26 @@ class Settings:
         comes only from WARAPS_PASSWORD)."""
         b = self.broker
         # '=' for paths: a path in its own argument could be taken for a test path by pytest.
-        parts = ["pytest", "--unit", str(self.unit), "--broker", str(b)]
+        q = shlex.quote  # every value shell-quoted: a unit name may be `x;rm -rf ~` (issue 19 §5)
+        parts = ["pytest", "--unit", q(str(self.unit)), "--broker", q(str(b))]
         parts += b.tls_arguments()
-        parts += [f"--sim-fault={f}" for f in self.sim_faults]
-        parts += [f"--sim-variant={v}" for v in self.sim_variants]
+        parts += [q(f"--sim-fault={f}") for f in self.sim_faults]
+        parts += [q(f"--sim-variant={v}") for v in self.sim_variants]
         if self.embedded and self.sim_rate != 1.0:
             parts += ["--sim-rate", f"{self.sim_rate:g}"]
         if self.sim_tst:
             parts.append("--sim-tst")
         if self.tst_command_topic:
-            parts += ["--tst-command-topic", self.tst_command_topic]
+            parts += ["--tst-command-topic", q(self.tst_command_topic)]
         if self.profile.source.startswith("<built-in"):
             if self.profile.name != "default":
-                parts += ["--profile", self.profile.name]
+                parts += ["--profile", q(self.profile.name)]
         else:
-            parts += [f"--profile={shlex.quote(self.profile.source)}"]
+            parts += [f"--profile={q(self.profile.source)}"]
         if self.timing_scale != 1.0:
             parts += ["--timing-scale", f"{self.timing_scale:g}"]
         if self.reboot_cmd:
-            parts += ["--reboot-cmd", shlex.quote(self.reboot_cmd)]
+            parts += ["--reboot-cmd", q(self.reboot_cmd)]
         if self.allow_motion:
             parts.append("--allow-motion")
         if self.dry_run:
@@ -127,9 +127,9 @@ class Settings:
         if observe or self.observe:
             parts += ["--observe", f"{max(int(observe), int(self.observe))}"]
         if rule:
-            parts += ["-k", rule]
+            parts += ["-k", q(rule)]
         else:
-            parts += [f"--rule={r}" for r in self.rules]
+            parts += [q(f"--rule={r}") for r in self.rules]
         return " ".join(parts)
 
 
@@ -297,7 +297,7 @@ def _broker(config: pytest.Config) -> BrokerURL:
             broker = found
     except ValueError as e:
         # Never echo a password, even the one a user wrongly put into the URL.
-        raise pytest.UsageError(f"--broker: {redact_broker_text(str(e))}") from None
+        raise pytest.UsageError(f"--broker: {mask_password(str(e))}") from None
     files = {k: _value(config, f"waraps_{k}") for k in ("ca_file", "cert_file", "key_file")}
     for key, path in files.items():
         if path and not os.path.isfile(str(path)):
@@ -310,11 +310,6 @@ def _broker(config: pytest.Config) -> BrokerURL:
         broker = broker.with_tls_files(*(str(v) if v else None for v in files.values()),
                                        insecure=insecure)
     return broker
-
-
-def redact_broker_text(text: str) -> str:
-    """``text`` with any ``scheme://user:password@`` shown as ``scheme://user:***@``."""
-    return re.sub(r"([a-z][a-z0-9+.-]*://[^:@/\s]*):[^@/\s]*@", r"\1:***@", text, flags=re.I)
 
 
 def profile_names() -> list[str]:

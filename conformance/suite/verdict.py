@@ -11,6 +11,7 @@ import warnings
 
 import pytest
 
+from conformance.display import printable
 from conformance.reporting import render_violation
 from conformance.rules import CATALOGUE
 from conformance.suite.session import Certification
@@ -30,7 +31,7 @@ def explain(certification: Certification, result: RuleResult) -> str:
     texts = [render_violation(rule, v, str(certification.unit), rerun_hint=rerun,
                               verdict=result.verdict) for v in result.violations[:SHOWN]]
     if not texts:
-        texts = [f"{rule.id} {rule.title}  [{result.verdict.value}]\n  {result.reason}\n"
+        texts = [f"{rule.id} {rule.title}  [{result.verdict.value}]\n  {printable(result.reason)}\n"
                  f"  spec      {rule.section}\n  rerun     {rerun}"]
     total = certification.violation_total(result.rule) or len(result.violations)
     shown = min(SHOWN, len(result.violations))
@@ -65,6 +66,6 @@ def enact(certification: Certification, rule: str, node: pytest.Item) -> None:
         warnings.warn_explicit(ConformanceWarning(explain(certification, result)),
                                ConformanceWarning, filename=rule, lineno=0, registry=None)
     elif result.verdict is Verdict.SKIP:
-        pytest.skip(result.reason or "not examined")
+        pytest.skip(printable(result.reason or "not examined"))
     elif result.verdict is Verdict.COULD_NOT_TEST:
-        pytest.skip(f"could not test: {result.reason}")
+        pytest.skip(printable(f"could not test: {result.reason}"))

@@ -126,7 +126,7 @@ def test_rerun_line_says_how_to_repeat_a_lint_or_a_certification():
     assert rerun(recorded) == f"waraps-conformance lint --from 'rec/fleet day.jsonl' --unit {unit}"
     piped = RunReport(kind="lint", started=0.0, finished=1.0,
                       meta={"source": "<stdin>", "recording_lines": "10"})
-    assert rerun(piped) == f"waraps-conformance lint --from <recording> --unit {unit}"
+    assert rerun(piped) == f"waraps-conformance lint --from '<recording>' --unit {unit}"
     live = RunReport(kind="lint", started=0.0, finished=1.0,
                      broker="mqtts://alice:s3cret@broker.example:8883",
                      meta={"source": "live waraps/#"})

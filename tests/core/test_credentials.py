@@ -1,0 +1,163 @@
+"""A password never reaches stdout, stderr or a report, whatever the command or the error
+(issue 19 §5): one masking (``client.mask_password``), used by every error that shows a URL."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+from private_mosquitto import PrivateMosquitto
+
+from conformance.client import BrokerURL, mask_password
+
+SECRET = "s3cretPW-x9"
+
+
+@pytest.mark.parametrize(("text", "shown"), [
+    ("mqtt://u:pw@h:1", "mqtt://u:***@h:1"),
+    ("u:pw@h", "u:***@h"),
+    ("mqtt://u:p@ss@h/x", "mqtt://u:***@h/x"),           # a password holding '@'
+    ("see http://a:b@c and mqtts://x:y@z", "see http://a:***@c and mqtts://x:***@z"),
+    ("mqtt://h:1883", "mqtt://h:1883"),
+    ("mqtt://u@h", "mqtt://u@h"),
+    ("at 12:30@x", "at 12:30@x"),
+])
+def test_mask_password(text, shown):
+    assert mask_password(text) == shown
+
+
+@pytest.mark.parametrize("url", [
+    f"mqtt://user:{SECRET}@127.0.0.1:1",
+    f"http://user:{SECRET}@127.0.0.1:1",       # a bad scheme: the error shows the URL
+    f"user:{SECRET}@127.0.0.1:99999",          # no scheme, a bad port
+    f"mqtt://user:{SECRET}@/",                 # no host
+    f"mqtt://user:a@{SECRET}@127.0.0.1:1",     # a password holding '@'
+])
+def test_broker_url_errors_never_show_the_password(url):
+    with pytest.raises(ValueError) as e:
+        BrokerURL.parse(url, {})
+    assert SECRET not in str(e.value) and "user" in str(e.value)
+
+
+def _run(args: list[str], cwd: Path, env: dict[str, str] | None = None) -> str:
+    done = subprocess.run([sys.executable, "-m", "conformance.cli", *args], cwd=cwd,
+                          env={**os.environ, **(env or {})}, capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode != 0, done.stdout + done.stderr  # an error path, every time
+    return done.stdout + done.stderr
+
+
+def _reports(cwd: Path) -> str:
+    return "".join(p.read_text(errors="replace") for p in cwd.rglob("*") if p.is_file())
+
+
+class _Silent:
+    """A TCP port that accepts and never answers: a broker that does not speak MQTT."""
+
+    def __init__(self) -> None:
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen(8)
+        self.port = self.sock.getsockname()[1]
+        self.held: list[socket.socket] = []
+        self.thread = threading.Thread(target=self._accept, daemon=True)
+        self.thread.start()
+
+    def _accept(self) -> None:
+        try:
+            while True:
+                self.held.append(self.sock.accept()[0])
+        except OSError:
+            pass
+
+    def close(self) -> None:
+        self.sock.close()
+        for s in self.held:
+            s.close()
+
+
+COMMANDS = {
+    "lint": ["lint", "--duration", "1s", "--reports-dir", "reports"],
+    "record": ["record", "--duration", "1s", "-o", "out.jsonl"],
+    "sim": ["sim"],
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_no_subcommand_prints_a_password(command, tmp_path):
+    args = COMMANDS[command]
+    seen = []
+    # The password in the URL: refused with the URL masked.
+    for url in (f"mqtt://user:{SECRET}@127.0.0.1:1", f"http://user:{SECRET}@127.0.0.1:1"):
+        seen.append(_run([*args, "--broker", url], tmp_path))
+    # The password in the environment (where it belongs): refused, unreachable, not authorised.
+    env = {"WARAPS_USERNAME": "user", "WARAPS_PASSWORD": SECRET}
+    seen.append(_run([*args, "--broker", "mqtt://127.0.0.1:1"], tmp_path, env))
+    seen.append(_run([*args], tmp_path, {**env, "WARAPS_BROKER": f"user:{SECRET}@127.0.0.1",
+                                         "WARAPS_PORT": "1"}))
+    silent = _Silent()
+    try:
+        seen.append(_run([*args, "--broker", f"mqtt://127.0.0.1:{silent.port}"], tmp_path, env))
+    finally:
+        silent.close()
+    broker = PrivateMosquitto(tmp_path / "mosquitto", users={"user": "other"}).start()
+    try:
+        seen.append(_run([*args, "--broker", broker.url], tmp_path, env))
+    finally:
+        broker.stop()
+    for out in seen:
+        assert out.strip(), "an error says what went wrong"
+        assert SECRET not in out, out
+    assert SECRET not in _reports(tmp_path)
+
+
+@pytest.mark.slow
+def test_the_certification_never_prints_a_password(pytester, monkeypatch):
+    pytester.makeini("[pytest]\naddopts = -p no:cacheprovider\n")
+    for url in (f"mqtt://user:{SECRET}@127.0.0.1:1", f"http://user:{SECRET}@127.0.0.1:1"):
+        result = pytester.runpytest_subprocess("--unit", "waraps/unit/air/simulation/dji0",
+                                               "--broker", url)
+        out = result.stdout.str() + result.stderr.str()
+        assert result.ret != 0 and "***" in out and SECRET not in out
+    monkeypatch.setenv("WARAPS_PASSWORD", SECRET)
+    result = pytester.runpytest_subprocess("--unit", "waraps/unit/air/simulation/dji0",
+                                           "--broker", "mqtt://user@127.0.0.1:1",
+                                           "--reports-dir", "reports")
+    out = result.stdout.str() + result.stderr.str()
+    assert result.ret != 0 and SECRET not in out
+    assert SECRET not in _reports(pytester.path)
+
+
+@pytest.mark.slow
+def test_a_lint_that_logs_in_prints_and_writes_no_password(tmp_path):
+    """The working path: a broker that wants the password, the reference unit and lint both
+    logged in with it (from the environment); nothing written or printed holds it."""
+    broker = PrivateMosquitto(tmp_path / "mosquitto", users={"user": SECRET}).start()
+    env = {**os.environ, "WARAPS_USERNAME": "user", "WARAPS_PASSWORD": SECRET}
+    sim = subprocess.Popen([sys.executable, "-m", "conformance.cli", "sim", "--broker",
+                            broker.url, "--unit", "pw/unit/air/simulation/dji0"],
+                           cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT, text=True)
+    try:
+        assert sim.stdout is not None
+        ready = sim.stdout.readline()
+        assert ready.startswith("ready"), ready
+        done = subprocess.run([sys.executable, "-m", "conformance.cli", "lint", "--broker",
+                               f"mqtt://user@127.0.0.1:{broker.port}", "--topic", "pw/#",
+                               "--duration", "3s", "--plain", "--reports-dir", "reports"],
+                              cwd=tmp_path, env=env, capture_output=True, text=True,
+                              timeout=120)
+    finally:
+        sim.terminate()
+        out_sim = sim.communicate(timeout=20)[0]
+        broker.stop()
+    out = done.stdout + done.stderr + ready + out_sim
+    assert "report:" in done.stdout, out  # it linted and wrote its reports
+    assert "mqtt://user@127.0.0.1" in out  # the user is shown, the password never
+    assert SECRET not in out and SECRET not in _reports(tmp_path / "reports")
