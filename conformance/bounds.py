@@ -8,6 +8,9 @@ not judged (units past the fleet cap), never a pass.
 
 from __future__ import annotations
 
+import hashlib
+from typing import Any
+
 MAX_LINE_BYTES = 64 << 20
 """A recording line longer than this is skipped as a problem of that line (a message is at
 most 1 MiB examined, MSG-004; a base64 or escaped 10 MB payload still fits)."""
@@ -51,3 +54,32 @@ def bounds_help(*, validate: bool = False) -> str:
             f"--topic); {MAX_COMMANDERS} commanders have rows of their own; any number of topics "
             f"(the first {MAX_TOPICS_CACHED} cached); a ROS bag is read whole or refused "
             f"(exit 3).")
+
+ID_CHARS = 1024
+"""An identifier longer than this (a com-uuid, task-uuid, agent-uuid, ...) is kept as a
+stand-in: its head, length and digest (``bound_ids``)."""
+ID_KEYS = frozenset({"com-uuid", "task-uuid", "response-to", "agent-uuid", "node-uuid",
+                     "root-uuid", "sender", "uuid"})
+"""The fields the checks keep as keys of their histories (commands, tasks, trees, lives)."""
+
+
+def bound_ids(m: Any, depth: int = 0) -> None:
+    """Replace in ``m`` (a decoded message, in place) every identifier longer than ``ID_CHARS``
+    by a stand-in of bounded size that still tells identifiers apart: the checks keep
+    identifiers as keys (1024 commands per unit), and a 1 MiB com-uuid would be kept whole.
+    The same identifier always gets the same stand-in, so answers still match commands."""
+    if depth > 64:  # the validator refuses deeper payloads (MSG-004)
+        return
+    if isinstance(m, dict):
+        for key, value in m.items():
+            if isinstance(value, str):
+                if len(value) > ID_CHARS and key in ID_KEYS:
+                    digest = hashlib.blake2b(value.encode("utf-8", "surrogatepass"),
+                                             digest_size=12).hexdigest()
+                    m[key] = f"{value[:64]}… ({len(value)} chars, blake2b {digest})"
+            elif isinstance(value, (dict, list)):
+                bound_ids(value, depth + 1)
+    elif isinstance(m, list):
+        for value in m:
+            if isinstance(value, (dict, list)):
+                bound_ids(value, depth + 1)

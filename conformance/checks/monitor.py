@@ -14,7 +14,6 @@ per-rule counts only when a report is made.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import re
 import sys
 import time as _time
@@ -65,36 +64,6 @@ MAX_COMMANDERS = bounds.MAX_COMMANDERS
 """Commanders with a row of their own; the commands of further ones share one row."""
 MAX_SENDER = 64
 _SENDER = re.compile(rb'"sender"\s*:\s*"([^"\\]{1,64})"')
-
-ID_CHARS = 1024
-"""An identifier longer than this (a com-uuid, task-uuid, agent-uuid, ...) is kept as a
-stand-in: its head, length and digest (``bound_ids``)."""
-ID_KEYS = frozenset({"com-uuid", "task-uuid", "response-to", "agent-uuid", "node-uuid",
-                     "root-uuid", "sender", "uuid"})
-"""The fields the checks keep as keys of their histories (commands, tasks, trees, lives)."""
-
-
-def bound_ids(m: Any, depth: int = 0) -> None:
-    """Replace in ``m`` (a decoded message, in place) every identifier longer than ``ID_CHARS``
-    by a stand-in of bounded size that still tells identifiers apart: the checks keep
-    identifiers as keys (1024 commands per unit), and a 1 MiB com-uuid would be kept whole.
-    The same identifier always gets the same stand-in, so answers still match commands."""
-    if depth > 64:  # the validator refuses deeper payloads (MSG-004)
-        return
-    if isinstance(m, dict):
-        for key, value in m.items():
-            if isinstance(value, str):
-                if len(value) > ID_CHARS and key in ID_KEYS:
-                    digest = hashlib.blake2b(value.encode("utf-8", "surrogatepass"),
-                                             digest_size=12).hexdigest()
-                    m[key] = f"{value[:64]}… ({len(value)} chars, blake2b {digest})"
-            elif isinstance(value, (dict, list)):
-                bound_ids(value, depth + 1)
-    elif isinstance(m, list):
-        for value in m:
-            if isinstance(value, (dict, list)):
-                bound_ids(value, depth + 1)
-
 
 _IGNORED = Row(UnitState(UnitAddress(UNATTRIBUTED, "", "", "ignored")))
 _UNRESOLVED = Row(UnitState(UnitAddress(UNATTRIBUTED, "", "", "unresolved")))
@@ -219,8 +188,8 @@ class Monitor:
             return []
         t = message.time
         v = self._validate(topic, message.payload, t)
-        if v.message is not None and len(message.payload) > ID_CHARS:
-            bound_ids(v.message)  # what the checks keep of a message is bounded (issue 19 §3)
+        if v.message is not None and len(message.payload) > bounds.ID_CHARS:
+            bounds.bound_ids(v.message)  # what the checks keep of a message is bounded (issue 19 §3)
         if t > self._latest:
             self._latest = t
             if self.ctx.started is None:
@@ -336,8 +305,8 @@ class Monitor:
             m = orjson.loads(message.payload)
         except (orjson.JSONDecodeError, TypeError, ValueError):
             m = None
-        if m is not None and len(message.payload) > ID_CHARS:
-            bound_ids(m)  # as the checks see it: routes are kept by these ids
+        if m is not None and len(message.payload) > bounds.ID_CHARS:
+            bounds.bound_ids(m)  # as the checks see it: routes are kept by these ids
         own = route.address
         entry = self._entries.get(own) if own is not None else None
         # An operator that runs or delegates trees itself answers for them: its own.

@@ -1,11 +1,11 @@
 """What the checks keep of a message is bounded in bytes (issue 19 §3): identifiers they keep
-as keys (com-uuid, task-uuid, response-to, ...) longer than ``monitor.ID_CHARS`` are kept as
+as keys (com-uuid, task-uuid, response-to, ...) longer than ``bounds.ID_CHARS`` are kept as
 stand-ins of bounded size, the same for the same identifier, so answers still match."""
 
 from __future__ import annotations
 
+from conformance.bounds import ID_CHARS, bound_ids
 from conformance.checks import Monitor
-from conformance.checks.monitor import ID_CHARS, bound_ids
 
 
 def test_long_identifiers_get_distinct_bounded_stand_ins():
