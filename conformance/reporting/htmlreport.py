@@ -53,9 +53,10 @@ def _finalize(value: Any) -> Any:
     """What a template prints: None as nothing, long strings excerpted and control characters
     made visible (wire data may hold anything); markup a template made itself passes as it is
     (autoescape does the rest)."""
-    from markupsafe import Markup
-
-    if isinstance(value, Markup):
+    # The __html__ protocol, not isinstance(Markup): an in-process pytester run can drop
+    # markupsafe from sys.modules, and a re-imported Markup class is another class than the
+    # one the cached environment's templates make (their markup was escaped twice).
+    if hasattr(value, "__html__"):
         return value
     return "" if value is None else printable(shorten(value))  # issue 19 §4, §5
 
