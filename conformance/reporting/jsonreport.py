@@ -7,6 +7,7 @@ from pathlib import Path
 
 import orjson
 
+from conformance.conclusion import conclude
 from conformance.reporting.files import atomic_write
 from conformance.results import RunReport
 
@@ -14,9 +15,12 @@ from conformance.results import RunReport
 def dumps(report: RunReport) -> bytes:
     # Non-finite floats become null in orjson; wire strings are stored as they are (JSON-escaped).
     data = report.to_dict()
-    # The run's verdict: 'not certified' / 'interrupted' for a run that did not complete
-    # (meta, from the certification), else the worst rule verdict.
-    data["verdict"] = report.meta.get("verdict") or data["worst"]
+    # The one verdict model (conformance.conclusion): the run's verdict, whether it is
+    # partial and why, each unit's status and levels, the counts every output shows.
+    conclusion = conclude(report)
+    data["verdict"] = conclusion.verdict
+    data["partial"] = conclusion.partial
+    data["conclusion"] = conclusion.to_dict()
     return orjson.dumps(data, option=orjson.OPT_INDENT_2 | orjson.OPT_SORT_KEYS
                         | orjson.OPT_NON_STR_KEYS) + b"\n"
 

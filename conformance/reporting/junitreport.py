@@ -11,6 +11,7 @@ from pathlib import Path
 
 from junit_xml import TestCase, TestSuite, to_xml_report_string
 
+from conformance.conclusion import conclude
 from conformance.reporting.files import atomic_write
 from conformance.reporting.text import iso_time, printable, render_violation
 from conformance.results import RunReport
@@ -20,7 +21,9 @@ from conformance.violation import Verdict
 
 def to_junit(report: RunReport) -> str:
     suites = []
+    conclusion = conclude(report)
     for name, unit in report.units.items():
+        status = conclusion.units.get(name)
         cases = []
         for rid, result in unit.rules.items():
             rule = CATALOGUE.get(rid)
@@ -49,6 +52,12 @@ def to_junit(report: RunReport) -> str:
             "schemas-hash": report.schemas_hash,
             "kind": report.kind,
             "broker": printable(report.broker),
+            # The verdict model's words (conformance.conclusion), as every output says them.
+            "verdict": conclusion.verdict,
+            "partial": str(conclusion.partial).lower(),
+            "why": printable("; ".join(conclusion.why)),
+            "status": printable(status.summary if status else ""),
+            "levels": printable("; ".join(map(str, status.levels)) if status else ""),
         }
         suites.append(TestSuite(printable(name), cases, properties=properties,
                                 timestamp=iso_time(report.started) or None))
