@@ -26,8 +26,8 @@ from datetime import UTC, datetime
 from typing import Any
 
 from conformance.results import RunReport, UnitReport
-from conformance.rules import CATALOGUE
-from conformance.violation import Verdict
+from conformance.rules import CATALOGUE, Mode
+from conformance.violation import RuleResult, Verdict
 
 CERTIFIED = "certified"
 NOT_CERTIFIED = "not certified"
@@ -267,6 +267,35 @@ def _lint_unit(name: str, unit: UnitReport) -> UnitStatus:
                    for lv in dict.fromkeys(x.replace("_", " ") for x in unit.levels))
     verdict = worst.value if worst in (Verdict.FAIL, Verdict.WARN) else CLEAN
     return UnitStatus(name, unit.party, verdict, summary, levels, died)
+
+
+# --- triage: the most severe findings first (issue 18, 6) ---------------------------------------
+TRIAGE = ("death", "deafness", "commands", "messages", "warnings")
+"""The severity classes, most severe first: a unit that died (HB-012), a unit that stopped
+answering (EXEC-ROBUST-001), commands answered wrongly or not at all (conversation and active
+rules), then what a message looks like (the passive rules), then warnings."""
+
+
+def triage_rank(rule: str, verdict: Verdict) -> int:
+    """The index in ``TRIAGE`` of a failed or warned rule."""
+    if verdict is not Verdict.FAIL:
+        return TRIAGE.index("warnings")
+    if rule == "HB-012":
+        return TRIAGE.index("death")
+    if rule == "EXEC-ROBUST-001":
+        return TRIAGE.index("deafness")
+    found = CATALOGUE.get(rule)
+    if found is not None and found.mode in (Mode.CONVERSATION, Mode.ACTIVE):
+        return TRIAGE.index("commands")
+    return TRIAGE.index("messages")
+
+
+def ranked_findings(report: RunReport) -> list[tuple[int, str, RuleResult]]:
+    """(triage rank, unit, result) of every failed or warned rule, most severe first: a cap
+    on what is shown cuts the least severe."""
+    found = [(triage_rank(r.rule, r.verdict), name, r) for name, u in report.units.items()
+             for r in u.rules.values() if r.verdict in (Verdict.FAIL, Verdict.WARN)]
+    return sorted(found, key=lambda f: (f[0], f[1], f[2].rule))
 
 
 def duration(seconds: float) -> str:

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from conformance.conclusion import NOT_RUN, Conclusion, conclude
+from conformance.conclusion import NOT_RUN, Conclusion, conclude, ranked_findings
 from conformance.reporting.files import atomic_write
 from conformance.reporting.text import iso_time, printable
 from conformance.results import RateStat, RunReport, UnitReport
@@ -100,7 +100,7 @@ def render_html(report: RunReport, files: list[str] | None = None) -> str:
     return environment().get_template("report.html.j2").render(
         report=report, title=f"WARA-PS conformance {report.kind} report",
         verdict=conclusion.verdict, conclusion=conclusion,
-        failing=[(u, r) for u, r in report.failures() if r.verdict is Verdict.FAIL],
+        failing=[(u, r) for _, u, r in ranked_findings(report) if r.verdict is Verdict.FAIL],
         head=_head_facts(report, conclusion), units=[_unit(name, unit) for name, unit in
                                          report.units.items()],
         written=", ".join(files or [])) + "\n"
