@@ -96,15 +96,18 @@ def render_violation(rule: str | Rule, violation: Violation, unit: str = "",
 
 def render_summary(report: object) -> str:
     """A few lines per unit: verdict counts and the failing and warning rules."""
+    from conformance.conclusion import conclude
     from conformance.results import RunReport
 
     assert isinstance(report, RunReport)
-    counts = report.verdict_counts()
+    conclusion = conclude(report)  # the one verdict model: its words and counts
     out = [f"{report.kind} report, profile {report.profile}, broker {report.broker or '-'}: "
-           + ", ".join(f"{n} {v}" for v, n in counts.items() if n)]
+           f"{printable(conclusion.headline())}; "
+           + ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)]
     for name, unit in report.units.items():
         c = unit.verdict_counts()
-        out.append(f"  {printable(name)}  [{unit.worst().value}]  "
+        status = conclusion.units[name]
+        out.append(f"  {printable(name)}  [{status.verdict}]  {printable(status.summary)}; "
                    + ", ".join(f"{n} {v}" for v, n in c.items() if n))
         for r in unit.rules.values():
             if r.verdict in (Verdict.FAIL, Verdict.WARN):
