@@ -249,7 +249,7 @@ class Certification:
             return f"not run: {self.error.splitlines()[0]}"
         if self.broker_lost is not None:
             return f"not run: the broker was lost at {clock(self.broker_lost)}"
-        return f"not run: {self.out_of_time or 'the run was interrupted'}"
+        return f"not run: {self.out_of_time or 'interrupted (Ctrl-C)'}"
 
     def conclusion(self, report: RunReport) -> Conclusion:
         """What the run concludes (``conformance.conclusion.conclude``: the one verdict
