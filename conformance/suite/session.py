@@ -362,7 +362,8 @@ class Certification:
                             reason=f"{self.outage(lost)} ({e})")
         finally:
             self._done[name] = True
-            if not self.settings.dry_run:
+            # Into a lost link an $abort would be lost too: the teardown sends it (finish).
+            if not self.settings.dry_run and self.connection.is_connected:
                 aborted = self.commander.abort_all(self.timing.response)
                 aborted += self.tst.abort_all(self.timing.response)
                 if aborted and self.out_of_time:
