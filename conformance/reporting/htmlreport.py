@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from conformance.conclusion import NOT_RUN, Conclusion, conclude, ranked_findings
+from conformance.conclusion import NOT_RUN, Conclusion, UnitStatus, conclude, ranked_findings
 from conformance.reporting.files import atomic_write
 from conformance.reporting.text import iso_time, printable
 from conformance.results import RateStat, RunReport, UnitReport
@@ -101,8 +101,8 @@ def render_html(report: RunReport, files: list[str] | None = None) -> str:
         report=report, title=f"WARA-PS conformance {report.kind} report",
         verdict=conclusion.verdict, conclusion=conclusion,
         failing=[(u, r) for _, u, r in ranked_findings(report) if r.verdict is Verdict.FAIL],
-        head=_head_facts(report, conclusion), units=[_unit(name, unit) for name, unit in
-                                         report.units.items()],
+        head=_head_facts(report, conclusion),
+        units=[_unit(name, unit, conclusion.units[name]) for name, unit in report.units.items()],
         written=", ".join(files or [])) + "\n"
 
 
@@ -150,11 +150,16 @@ class UnitView:
     skipped: list[RuleResult]
     bad: list[RuleResult]
     plots: list[Plot] = field(default_factory=list)
+    verdict: str = ""
+    """The row's verdict in the verdict model's words (lint: clean, warn, fail)."""
+    status: str = ""
+    """What the verdict model says of it (``UnitStatus.summary``)."""
 
 
-def _unit(name: str, unit: UnitReport) -> UnitView:
+def _unit(name: str, unit: UnitReport, status: UnitStatus) -> UnitView:
     ranked = sorted(unit.rules.values(), key=lambda r: ORDER.index(r.verdict))
-    words = dict(identity=f"{unit.agent_type} / {unit.role} / {unit.name}",
+    words = dict(verdict=status.verdict, status=status.summary,
+                 identity=f"{unit.agent_type} / {unit.role} / {unit.name}",
                  agent_uuids=", ".join(unit.agent_uuids) or "-",
                  levels=", ".join(unit.levels) or "-",
                  sensors=", ".join(map(str, unit.facts.get("sensors_listed") or ())))

@@ -164,8 +164,11 @@ def test_a_short_passive_lint_certifies_nothing(mosquitto: str, prefix: str,
     assert "never commanded" in status["summary"] and status["summary"] in run.out
     assert status["levels"] and not any(lv["certified"] for lv in status["levels"])
     (html,) = reports_dir.glob("*.html")
-    head = html.read_text().split('<table class="head">')[0]
+    page = html.read_text()
+    head = page.split('<table class="head">')[0]
     assert "— certified" not in head and ">pass<" not in head and "never commanded" in head
+    headings = re.findall(r"<h2 .*</h2>", page)  # each unit's own badge: observed, not passed
+    assert headings and not any(">pass<" in h for h in headings), headings
     (xml,) = reports_dir.glob("*.xml")
     junit = xml.read_text()
     assert f'name="verdict" value="{run.report["verdict"]}"' in junit
