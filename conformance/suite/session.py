@@ -136,6 +136,10 @@ class Certification:
         Raises ``BrokerError`` (broker unreachable or refusing) or ``NotAlive``."""
         self.traffic.waits.deadline = time.monotonic() + self.settings.max_duration
         self.connection.open(self.alive_timeout())
+        if self.connection.client is not None:
+            # A lost broker is waited for within broker_budget(): retry often enough to see
+            # it come back inside that budget (paho's backoff would otherwise reach 30 s).
+            self.connection.client.reconnect_backoff(2.0)
 
     def alive_timeout(self) -> float:
         """Seconds to wait for the first heartbeat: the profile's alive_timeout, else 5 s

@@ -6,13 +6,17 @@ terminal, the JSON and HTML reports, pytest's JUnit file."""
 from __future__ import annotations
 
 import shlex
+import threading
 import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from typing import Any
 
+import orjson
 import pytest
 from certify_helpers import FAST, UNIT, Certified, PrivateMosquitto, Rebooter, certify
 
+from conformance.client import BrokerURL, MqttClient
 from conformance.plugin import NOT_CERTIFIED_EXIT
 from conformance.sim import SimUnit
 
@@ -124,3 +128,63 @@ def test_a_broker_lost_for_good_ends_not_certified(pytester: pytest.Pytester,
     assert not [r for r, v in rules.items() if v["verdict"] == "fail"]
     assert rules["HB-012"]["verdict"] == "could-not-test"
     assert rules["EXEC-START-001"]["verdict"] == "could-not-test"
+
+
+class LoseBrokerWithATaskRunning:
+    """Stops the private broker once the suite has started a task, and starts it again only
+    when the run has given the broker up (the teardown then aborts the task it started)."""
+
+    def __init__(self, broker: PrivateMosquitto, unit: str) -> None:
+        self.broker = broker
+        self.unit = unit
+        self.stopped = threading.Event()
+        self.open_tasks: set[str] = set()
+        self.watcher: MqttClient | None = None
+
+    def pytest_runtest_setup(self, item: pytest.Item) -> None:
+        if self.stopped.is_set() or not item.name.startswith("test_start_task"):
+            return
+        from conformance.suite.session import CERTIFICATION
+
+        certification = item.config.stash[CERTIFICATION]
+        threading.Thread(target=self._run, args=(certification,), daemon=True).start()
+
+    def _run(self, certification: Any) -> None:
+        deadline = time.monotonic() + 30
+        while not certification.commander.open_tasks and time.monotonic() < deadline:
+            time.sleep(0.01)  # polling the suite's own state, bounded by the deadline
+        self.open_tasks = set(certification.commander.open_tasks)
+        self.broker.stop()
+        self.stopped.set()
+        while not any("has not come back" in e for e in certification.events) \
+                and time.monotonic() < deadline + 60:
+            time.sleep(0.05)
+        self.broker.start()
+        self.watcher = MqttClient(BrokerURL.parse(self.broker.url)).connect()
+        self.watcher.subscribe(self.unit + "/exec/command")
+
+
+def test_tasks_started_before_the_broker_was_lost_are_aborted_when_it_returns(
+        pytester: pytest.Pytester, tmp_path: Path) -> None:
+    broker = PrivateMosquitto(tmp_path / "broker").start()
+    unit = "waraps/unit/air/simulation/dji0"
+    try:
+        with SimUnit(unit, broker.url, rate=3.0, seed=2) as sim:
+            lose = LoseBrokerWithATaskRunning(broker, unit)
+            run = certify(pytester, "--unit", unit, "--broker", broker.url,
+                          f"--profile={FAST}", plugins=(Rebooter(sim), lose))
+            assert lose.watcher is not None, run.text
+            aborts = [orjson.loads(m.payload) for m in lose.watcher.messages(timeout=0.5)]
+            lose.watcher.close()
+    finally:
+        broker.stop()
+    assert run.result.ret == NOT_CERTIFIED_EXIT, run.text
+    assert "Traceback" not in run.text and "BrokerError" not in run.text, run.text
+    assert "broker connection back after" in run.text, run.text
+    # The teardown sent $abort for the task it had started, once the broker was back (the unit's
+    # own client may come back later: its answer is not waited for past the budget).
+    assert lose.open_tasks, "no task was open when the broker was stopped"
+    aborted = {a.get("task-uuid") for a in aborts
+               if a.get("command") == "signal-task" and a.get("signal") == "$abort"}
+    assert lose.open_tasks <= aborted, (lose.open_tasks, aborts)
+    assert not [r for r, v in run.unit_rules().items() if v["verdict"] == "fail"]
