@@ -213,7 +213,6 @@ class _CertificationPlugin:
         if set(c.selected) != set(CATALOGUE):  # -k, -m, --rule or test ids: a partial run
             c.selection = c.settings.selection_words() or "not every rule's test was selected"
 
-
     @pytest.hookimpl(tryfirst=True)
     def pytest_runtestloop(self, session: pytest.Session) -> bool | None:
         """No broker or no unit: no test runs (the summary says why, once)."""

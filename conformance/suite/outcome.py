@@ -65,7 +65,7 @@ def excuse_outage(report: RunReport, unit: UnitAddress, lost: float) -> None:
         if result.verdict is not Verdict.FAIL:
             continue
         times = [v.time for v in result.violations if v.time is not None]
-        if not times or min(times) >= lost:
+        if times and min(times) >= lost:  # an explicit failure was recorded while up
             found.rules[rule] = RuleResult(rule, Verdict.COULD_NOT_TEST, why)
 
 
