@@ -51,14 +51,16 @@ META_SHOWN_ELSEWHERE = {"unit", "broker", "started", "finished", "suite_version"
 SERIES_COLOURS = ["#0969da", "#bf3989", "#1a7f37", "#bc4c00", "#8250df", "#6e7781"]
 
 
-def _finalize(value: Any) -> Any:
+def _finalizer(markup: type) -> Any:
     """What a template prints: None as nothing, control characters made visible (wire data may
-    hold anything); markup a template made itself passes as it is (autoescape does the rest)."""
-    from markupsafe import Markup
+    hold anything); markup a template made itself (``markup``: the Markup class of the jinja2
+    that renders it) passes as it is (autoescape does the rest)."""
+    def finalize(value: Any) -> Any:
+        if isinstance(value, markup):
+            return value
+        return "" if value is None else printable(value)
 
-    if isinstance(value, Markup):
-        return value
-    return "" if value is None else printable(value)
+    return finalize
 
 
 @functools.cache
@@ -66,9 +68,13 @@ def environment() -> Environment:
     """The templates' environment, made once (jinja2 is imported only when a report is
     rendered: importing the package stays cheap)."""
     from jinja2 import Environment, PackageLoader, StrictUndefined
+    from markupsafe import Markup
 
+    # Markup bound now, with jinja2's own: imported again later (a test runner that restores
+    # sys.modules), a second markupsafe's Markup would not be recognised and a macro's markup
+    # would be escaped twice.
     env = Environment(loader=PackageLoader("conformance.reporting", "templates"),
-                      autoescape=True, finalize=_finalize, undefined=StrictUndefined,
+                      autoescape=True, finalize=_finalizer(Markup), undefined=StrictUndefined,
                       trim_blocks=True, lstrip_blocks=True)
     env.globals.update(colours=COLOURS, order=ORDER, run_colours=RUN_VERDICT_COLOURS,
                        catalogue=CATALOGUE, anchor=anchor, iso_time=iso_time,
