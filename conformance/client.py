@@ -254,6 +254,11 @@ class MqttClient:
         c.on_message = self._handle_message
         self._paho = c
 
+    def reconnect_backoff(self, max_delay: float) -> None:
+        """Retry a dropped connection at least every ``max_delay`` seconds (default 30): a
+        client that waits on the broker within a budget must not sleep past it."""
+        self._paho.reconnect_delay_set(min_delay=1, max_delay=max(1, int(max_delay)))
+
     # --- connection -------------------------------------------------------------------------
     def connect(self, timeout: float = 5.0) -> MqttClient:
         """Connect and start the network thread; raise ``BrokerError`` saying what failed."""

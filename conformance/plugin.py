@@ -22,16 +22,20 @@ if TYPE_CHECKING:
 SUITE_PACKAGE = "conformance.suite"
 PLUGIN_NAME = "waraps-conformance-certification"
 # Exit statuses: pytest's own (ExitCode 0-5) keep their meaning; one is added.
+# The verdict model (conformance.conclusion) decides which; README 'Exit status' lists them.
 CERTIFIED_EXIT = pytest.ExitCode.OK
-"""0: every rule judged passed, warned, or was skipped with its reason (certified)."""
+"""0: no rule failed (a complete run: its levels certified as the report says; a partial run of
+selected rules: verdict 'partial', no level certified)."""
 FAILED_EXIT = pytest.ExitCode.TESTS_FAILED
 """1: a rule failed."""
 INTERRUPTED_EXIT = pytest.ExitCode.INTERRUPTED
 """2: interrupted (Ctrl-C, or --max-duration reached): not every rule ran."""
 NOT_CERTIFIED_EXIT = 6
-"""6: not certified: the broker or the unit could not be reached (no rule ran)."""
-EXIT_HELP = ("exit status: 0 certified, 1 a rule failed, 2 interrupted (Ctrl-C or "
-             "--max-duration), 4 usage error, 6 not certified (broker or unit unreachable)")
+"""6: not certified: the broker or the unit could not be reached, or the broker was lost for
+good during the run."""
+EXIT_HELP = ("exit status: 0 no rule failed, 1 a rule failed, 2 interrupted (Ctrl-C or "
+             "--max-duration), 4 usage error, 6 not certified (broker or unit unreachable, "
+             "or the broker lost for good)")
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -185,6 +189,7 @@ class _CertificationPlugin:
         """``--rule``: only those rules. Active scenarios first, in the order of
         ``SCENARIOS`` (reboot last: it wipes the unit's history); the passive rules at the
         end, over the whole observation."""
+        from conformance.rules import CATALOGUE
         from conformance.scenarios import RULE_SCENARIO, SCENARIOS
 
         def rule_of(item: pytest.Item) -> str | None:
@@ -208,7 +213,10 @@ class _CertificationPlugin:
             return (2, 0)
 
         items.sort(key=key)  # stable: the file order within each group stays
-        self.certification.selected = [r for r in map(rule_of, items) if r]
+        c = self.certification
+        c.selected = [r for r in map(rule_of, items) if r]
+        if set(c.selected) != set(CATALOGUE):  # -k, -m, --rule or test ids: a partial run
+            c.selection = c.settings.selection_words() or "not every rule's test was selected"
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_runtestloop(self, session: pytest.Session) -> bool | None:
@@ -233,6 +241,8 @@ class _CertificationPlugin:
             c.ran.add(rule)
         if c.out_of_time and self.session is not None:
             self.session.shouldstop = c.out_of_time
+        if c.broker_lost is not None and self.session is not None:
+            self.session.shouldstop = c.not_run_reason()
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_sessionfinish(self, session: pytest.Session, exitstatus: int) -> None:
@@ -240,12 +250,10 @@ class _CertificationPlugin:
         final reports, and say in the exit status whether the unit could be certified."""
         self.finished = True
         c = self.certification
-        interrupted = exitstatus == pytest.ExitCode.INTERRUPTED or bool(c.out_of_time)
-        if c.error:
-            session.exitstatus = NOT_CERTIFIED_EXIT
-        elif interrupted:
-            session.exitstatus = INTERRUPTED_EXIT
-        c.finish(interrupted=interrupted, exitstatus=int(session.exitstatus))
+        # The run stopped for a lost broker is not a Ctrl-C (its verdict says why).
+        interrupted = (exitstatus == pytest.ExitCode.INTERRUPTED and c.broker_lost is None
+                       ) or bool(c.out_of_time)
+        session.exitstatus = c.finish(interrupted=interrupted, exitstatus=int(exitstatus))
 
     def pytest_unconfigure(self, config: pytest.Config) -> None:
         if not self.finished:  # a usage error or an internal error before the session
@@ -263,8 +271,13 @@ class _CertificationPlugin:
         for event in c.events:
             tr.line(printable(event))
         report = c.report()
-        counts = ", ".join(f"{n} {v}" for v, n in c.counts(report).items() if n)
-        tr.line(f"{c.unit}: {c.verdict(report)} ({counts})")
+        conclusion = c.conclusion(report)
+        counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
+        tr.line(f"{c.unit}: {conclusion.headline()} ({counts})",
+                red=conclusion.verdict not in ("pass", "warn"))
+        unit = conclusion.units.get(str(c.unit))
+        for level in unit.levels if unit is not None else ():
+            tr.line(f"  {level}")
         for kind, path in sorted(c.report_paths.items()):
             tr.line(f"{kind} report: {path}")
         if not c.report_paths:

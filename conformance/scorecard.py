@@ -23,6 +23,7 @@ import time
 from dataclasses import dataclass
 from typing import IO, TYPE_CHECKING, Any
 
+from conformance.conclusion import triage_rank
 from conformance.display import LINE_CHARS, NAME_CHARS, printable, shorten
 from conformance.lint.linter import NOT_A_UNIT, OTHER_UNITS, Linter
 from conformance.recording import Event
@@ -269,14 +270,16 @@ class Scorecard:
             self.out.write(printable(shorten(line.removesuffix("\n"), LINE_CHARS)) + "\n")
 
         for e in linter.take_events():
-            write(event_line(e, self._gap_start) + "\n")
+            if self.live:  # a recording's gaps are listed after its verdicts
+                write(event_line(e, self._gap_start) + "\n")
             if e.kind == "disconnected":
                 self._gap_start = e.time
             elif e.kind == "connected":
                 self._gap_start = None
         for v, when in linter.take_fresh():
-            write(violation_line(v, linter.unit_of(v), self._verdict(linter, v.rule), when)
-                  + "\n")
+            if self.live:  # a recording's stream is not replayed: its verdicts come first
+                write(violation_line(v, linter.unit_of(v), self._verdict(linter, v.rule), when)
+                      + "\n")
         now = time.monotonic()
         if self.live and (force or now - self._last_live >= TTY_REFRESH_EVERY):
             self._last_live = now
@@ -339,14 +342,17 @@ class Scorecard:
             self._display = None
             atexit.unregister(self.close)
 
-    def final(self, linter: Linter, report: Any) -> None:
+    def final(self, linter: Linter, report: Any, opening: str = "") -> None:
         """The final scorecard from the run report (finish-time judgements included), plain
-        text whatever the output; rates over the whole run."""
+        text whatever the output; rates over the whole run. ``opening``: what comes first
+        (each unit's verdict and its most severe findings)."""
         if self.tty:
             self.close()
         else:
             self.update(linter)  # pending violations and events first
         lines = [self.header(linter, None, None), ""]
+        if opening:
+            lines += [opening, ""]
         lines += self.table(rows_from_report(report), None, width=400)
         found = findings_from_report(report)
         if found:
@@ -408,7 +414,8 @@ MAX_FINDINGS_SHOWN = 40
 
 def findings_from_report(report: Any, limit: int = MAX_FINDINGS_SHOWN) -> list[str]:
     """One line per (unit or commander, rule) that failed or warned: its verdict, the rule, how
-    many violations, and the first and latest time; failures first, then by first time."""
+    many violations, and the first and latest time; the most severe first (death, deafness,
+    commands, messages, warnings: ``conclusion.TRIAGE``), then by first time."""
     found = []
     for unit, u in report.units.items():
         for rule, res in u.rules.items():
@@ -420,7 +427,7 @@ def findings_from_report(report: Any, limit: int = MAX_FINDINGS_SHOWN) -> list[s
                     else f"first {_clock(first)}, last {_clock(last)}") if first else ""
             title = CATALOGUE[rule].title if rule in CATALOGUE else ""
             verdict = "FAIL" if res.verdict.value == "fail" else "warn"
-            found.append(((res.verdict.value != "fail", first or 0.0, unit, rule),
+            found.append(((triage_rank(rule, res.verdict), first or 0.0, unit, rule),
                           f"{verdict:<4} {shorten(unit, NAME_CHARS)} {rule} {title}: {n}x "
                           f"{when}".rstrip() if n else
                           f"{verdict:<4} {shorten(unit, NAME_CHARS)} {rule} {title}: "

@@ -118,7 +118,12 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
                      finished=end)
     if untimed(linter):
         not_judged_untimed(report)
-    scorecard.final(linter, report)
+    from conformance.conclusion import conclude
+    from conformance.reporting.text import render_verdicts
+
+    conclusion = conclude(report, gate)
+    # Each unit's verdict and its most severe findings first (issue 18, 6), then the table.
+    scorecard.final(linter, report, opening=render_verdicts(report))
     for problem in problems:
         print(printable(f"malformed {problem}"), file=out)
     if problem_count > len(problems):
@@ -139,17 +144,18 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
     evidence = failures(report)
     if evidence:
         print(f"\n{printable_lines(evidence)}\n", file=out)
-    code = int(report.exit_code(gate))
     failing = sorted(u for u, rep in report.units.items() if rep.worst().value == "fail"
                      and (gate == "all" or rep.party == "unit"))
     gated = "no unit or commander" if gate == "all" else "no unit"
+    # What was observed, never a certificate (DESIGN 'Semantics'): 'clean', not 'pass'.
     if failing or not over:
         print(("FAIL: " + printable(", ".join(shorten(u, NAME_CHARS) for u in failing)))
-              if failing else f"PASS: {gated} fails a rule of severity error", file=out)
+              if failing else f"{conclusion.verdict.upper()}: {gated} fails a rule of severity "
+              "error (observed, not certified)", file=out)
     if over:  # past the bound: never a pass (issue 19)
         print(f"FAIL: {printable(meta['not_judged'])}", file=out)
     out.flush()
-    return EXIT_FAIL if code or over else EXIT_PASS
+    return EXIT_FAIL if conclusion.exit_code or over else EXIT_PASS
 
 
 def _not_judged(over: int, units: list[str]) -> str:
@@ -187,23 +193,25 @@ MAX_FAILURES_SHOWN = 10
 def failures(report: Any, limit: int = MAX_FAILURES_SHOWN) -> str:
     """The first violation of each failed (unit, rule), at most ``limit`` of them, in the form
     the certification prints (STYLE.md): what a person reads before opening the HTML."""
+    from conformance.conclusion import ranked_findings
     from conformance.reporting.text import render_violation
     from conformance.violation import Verdict
 
     shown: list[str] = []
     more = 0
-    for unit, rep in sorted(report.units.items()):
-        for rule, result in sorted(rep.rules.items()):
-            if result.verdict is not Verdict.FAIL or not result.violations:
-                continue
-            if len(shown) >= limit:
-                more += 1
-                continue
-            text = render_violation(rule, result.violations[0], unit, report=report,
-                                    verdict=Verdict.FAIL)
-            extra = rep.violation_counts.get(rule, len(result.violations)) - 1  # a total
-            shown.append(f"{unit}\n{text}" + (f"\n  (and {extra} more violations of {rule})"
-                                                if extra else ""))
+    # Most severe first (death, deafness, commands, messages): the cap cuts the least severe.
+    for _, unit, result in ranked_findings(report):
+        rule, rep = result.rule, report.units[unit]
+        if result.verdict is not Verdict.FAIL or not result.violations:
+            continue
+        if len(shown) >= limit:
+            more += 1
+            continue
+        text = render_violation(rule, result.violations[0], unit, report=report,
+                                verdict=Verdict.FAIL)
+        extra = rep.violation_counts.get(rule, len(result.violations)) - 1  # a total
+        shown.append(f"{unit}\n{text}" + (f"\n  (and {extra} more violations of {rule})"
+                                            if extra else ""))
     if not shown:
         return ""
     if more:

@@ -1,8 +1,9 @@
 """The HTML report: one self-contained file (inline CSS and SVG, no script, no network).
 
-It opens with what a person came for: the run's verdict (``not certified`` or
-``interrupted`` when the run did not complete, never a pass), the levels certified and the
-failing rules. Then the header facts, each once and in words (kind, units, broker, profile,
+It opens with what a person came for: the run's verdict and why (``conformance.conclusion``:
+``not certified``, ``interrupted`` or ``partial`` when the run did not complete or selected
+rules, never a pass), each unit's status and levels (lint: what it observed, never a
+certificate) and the failing rules. Then the header facts, each once and in words (kind, units, broker, profile,
 agent-uuids, times, suite version, schemas hash, verdict counts), then per unit a scorecard
 (verdict per rule with title, spec section and reason), a plot of every measured rate over time
 against the declared rate, and the evidence of every failure and warning.
@@ -21,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from conformance.conclusion import NOT_RUN, Conclusion, UnitStatus, conclude, ranked_findings
 from conformance.display import shorten
 from conformance.reporting.bounds import bounded
 from conformance.reporting.files import atomic_write
@@ -37,15 +39,17 @@ COLOURS = {
     Verdict.SKIP: "#6e7781", Verdict.COULD_NOT_TEST: "#8250df",
 }
 ORDER = [Verdict.FAIL, Verdict.WARN, Verdict.COULD_NOT_TEST, Verdict.PASS, Verdict.SKIP]
-RUN_VERDICT_COLOURS = {"not certified": "#cf222e", "interrupted": "#bc4c00"}
+RUN_VERDICT_COLOURS = {"not certified": "#cf222e", "interrupted": "#bc4c00",
+                       "partial": "#bc4c00", "clean": "#1a7f37"}
 # Run facts (RunReport.meta) in words, in this order; keys shown elsewhere are left out.
-META_WORDS = (("error", "why not certified"), ("not_run", "rules not run"),
+META_WORDS = (("not_run", "rules not run"),
               ("profile_source", "profile file"), ("timing_scale", "timing scale"),
               ("seed", "seed"), ("dry_run", "dry run"), ("allow_motion", "motion allowed"),
               ("reboot", "reboot"), ("commands_sent", "commands sent"),
               ("rerun", "repeat this run"))
 META_SHOWN_ELSEWHERE = {"unit", "broker", "started", "finished", "suite_version", "agent_uuid",
-                        "verdict", "interrupted", "exit_status"}
+                        "verdict", "interrupted", "exit_status", "error", "broker_lost",
+                        "cut_short", "selection"}
 SERIES_COLOURS = ["#0969da", "#bf3989", "#1a7f37", "#bc4c00", "#8250df", "#6e7781"]
 
 
@@ -89,38 +93,21 @@ def as_verdict(text: str) -> Verdict | None:
 
 
 def run_verdict(report: RunReport) -> str:
-    """The run's verdict: the certification's own (``meta['verdict']``), else the worst."""
-    return report.meta.get("verdict") or report.worst().value
+    """The run's verdict (``conformance.conclusion``: the one verdict model)."""
+    return conclude(report).verdict
 
 
 def render_html(report: RunReport, files: list[str] | None = None) -> str:
     """The whole report as one HTML document; ``files`` are the names of the files written
     with it (the footer says which)."""
+    conclusion = conclude(report)
     return environment().get_template("report.html.j2").render(
         report=report, title=f"WARA-PS conformance {report.kind} report",
-        verdict=run_verdict(report), levels=_levels(report),
-        failing=[(u, r) for u, r in report.failures() if r.verdict is Verdict.FAIL],
-        head=_head_facts(report), units=[_unit(name, unit) for name, unit in
-                                         report.units.items()],
+        verdict=conclusion.verdict, conclusion=conclusion,
+        failing=[(u, r) for _, u, r in ranked_findings(report) if r.verdict is Verdict.FAIL],
+        head=_head_facts(report, conclusion),
+        units=[_unit(name, unit, conclusion.units[name]) for name, unit in report.units.items()],
         written=", ".join(files or [])) + "\n"
-
-
-def _levels(report: RunReport) -> list[tuple[str, list[tuple[str, str]]]]:
-    """Per unit, each level it declares and whether it is certified."""
-    complete = run_verdict(report) not in RUN_VERDICT_COLOURS
-    out = []
-    for name, unit in report.units.items():
-        levels = []
-        for level in unit.levels:
-            failing = [r for r in unit.rules.values() if r.verdict is Verdict.FAIL
-                       and CATALOGUE.get(r.rule) is not None
-                       and CATALOGUE[r.rule].spec_level == level]
-            state = ("not certified: the run did not complete" if not complete else
-                     f"not certified: {len(failing)} failing rule(s)" if failing else
-                     "certified")
-            levels.append((level, state))
-        out.append((name, levels))
-    return out
 
 
 @dataclass
@@ -135,18 +122,17 @@ class HeadFacts:
     meta: list[tuple[str, str]]
 
 
-def _head_facts(report: RunReport) -> HeadFacts:
-    counts = report.verdict_counts()
-    # Rules that never ran are recorded could-not-test ('not run: ...'); counted apart.
-    not_run = len(report.meta.get("not_run", "").split())
-    counts[Verdict.COULD_NOT_TEST.value] -= not_run
+def _head_facts(report: RunReport, conclusion: Conclusion) -> HeadFacts:
+    # The counts every output shows: the rules that never ran apart ('not run').
+    counts = dict(conclusion.counts)
+    not_run = counts.pop(NOT_RUN, 0)
     words = dict(META_WORDS)
     meta = []
     for key in dict.fromkeys([k for k, _ in META_WORDS] + sorted(report.meta)):
         value = report.meta.get(key)
         if value and key not in META_SHOWN_ELSEWHERE:
             meta.append((words.get(key, key.replace("_", " ")), value))
-    return HeadFacts(counts, not_run, report.meta.get("exit_status", report.exit_code()),
+    return HeadFacts(counts, not_run, report.meta.get("exit_status", conclusion.exit_code),
                      [(n, ", ".join(u.agent_uuids) or "-") for n, u in report.units.items()
                       if n != "(unattributed)"], meta)
 
@@ -168,11 +154,16 @@ class UnitView:
     skipped: list[RuleResult]
     bad: list[RuleResult]
     plots: list[Plot] = field(default_factory=list)
+    verdict: str = ""
+    """The row's verdict in the verdict model's words (lint: clean, warn, fail)."""
+    status: str = ""
+    """What the verdict model says of it (``UnitStatus.summary``)."""
 
 
-def _unit(name: str, unit: UnitReport) -> UnitView:
+def _unit(name: str, unit: UnitReport, status: UnitStatus) -> UnitView:
     ranked = sorted(unit.rules.values(), key=lambda r: ORDER.index(r.verdict))
-    words = dict(identity=f"{unit.agent_type} / {unit.role} / {unit.name}",
+    words = dict(verdict=status.verdict, status=status.summary,
+                 identity=f"{unit.agent_type} / {unit.role} / {unit.name}",
                  agent_uuids=", ".join(unit.agent_uuids) or "-",
                  levels=", ".join(unit.levels) or "-",
                  sensors=", ".join(map(str, unit.facts.get("sensors_listed") or ())))

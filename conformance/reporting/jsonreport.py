@@ -8,6 +8,7 @@ from typing import Any
 
 import orjson
 
+from conformance.conclusion import conclude
 from conformance.display import SHORT_CHARS, shorten
 from conformance.reporting.bounds import bounded
 from conformance.reporting.files import atomic_write
@@ -41,9 +42,12 @@ def _dumps(report: RunReport) -> bytes:
     # Non-finite floats become null in orjson; wire strings are excerpted (display.shorten),
     # control characters JSON-escaped.
     data = _shortened(report.to_dict())
-    # The run's verdict: 'not certified' / 'interrupted' for a run that did not complete
-    # (meta, from the certification), else the worst rule verdict.
-    data["verdict"] = report.meta.get("verdict") or data["worst"]
+    # The one verdict model (conformance.conclusion): the run's verdict, whether it is
+    # partial and why, each unit's status and levels, the counts every output shows.
+    conclusion = conclude(report)
+    data["verdict"] = conclusion.verdict
+    data["partial"] = conclusion.partial
+    data["conclusion"] = _shortened(conclusion.to_dict())
     return orjson.dumps(data, option=orjson.OPT_INDENT_2 | orjson.OPT_SORT_KEYS
                         | orjson.OPT_NON_STR_KEYS) + b"\n"
 

@@ -10,6 +10,7 @@ import os
 from pathlib import Path
 from xml.sax.saxutils import escape, quoteattr
 
+from conformance.conclusion import conclude
 from conformance.display import printable, shorten
 from conformance.reporting.bounds import bounded
 from conformance.reporting.files import atomic_write
@@ -40,8 +41,10 @@ def _to_junit(report: RunReport) -> str:
     # the whole document again with minidom, 5 s and 3 GB for 4096 units (issue 19 §4).
     suites: list[str] = []
     tests = failures_total = 0
+    conclusion = conclude(report)
     truncated = report.meta.get("report_truncated")
     for name, unit in report.units.items():
+        status = conclusion.units.get(name)
         stamp = iso_time(unit.first_seen)
         at = f" timestamp={_attr(stamp)}" if stamp else ""
         classname = _attr(name)
@@ -81,6 +84,12 @@ def _to_junit(report: RunReport) -> str:
             "schemas-hash": report.schemas_hash,
             "kind": report.kind,
             "broker": report.broker,
+            # The verdict model's words (conformance.conclusion), as every output says them.
+            "verdict": conclusion.verdict,
+            "partial": str(conclusion.partial).lower(),
+            "why": "; ".join(conclusion.why),
+            "status": status.summary if status else "",
+            "levels": "; ".join(map(str, status.levels)) if status else "",
         }
         if truncated:
             properties["report-truncated"] = truncated

@@ -89,15 +89,18 @@ def render_violation(rule: str | Rule, violation: Violation, unit: str = "",
 
 def render_summary(report: object) -> str:
     """A few lines per unit: verdict counts and the failing and warning rules."""
+    from conformance.conclusion import conclude
     from conformance.results import RunReport
 
     assert isinstance(report, RunReport)
-    counts = report.verdict_counts()
+    conclusion = conclude(report)  # the one verdict model: its words and counts
     out = [f"{report.kind} report, profile {report.profile}, broker {report.broker or '-'}: "
-           + ", ".join(f"{n} {v}" for v, n in counts.items() if n)]
+           f"{printable(conclusion.headline())}; "
+           + ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)]
     for name, unit in report.units.items():
         c = unit.verdict_counts()
-        out.append(f"  {printable(shorten(name))}  [{unit.worst().value}]  "
+        status = conclusion.units[name]
+        out.append(f"  {printable(shorten(name))}  [{status.verdict}]  {printable(status.summary)}; "
                    + ", ".join(f"{n} {v}" for v, n in c.items() if n))
         for r in unit.rules.values():
             if r.verdict in (Verdict.FAIL, Verdict.WARN):
@@ -106,4 +109,42 @@ def render_summary(report: object) -> str:
                            f"{printable(rule.title if rule else '')} ({printable(shorten(r.reason))})")
     if report.unexamined:
         out.append(f"  {report.unexamined} messages could not be examined")
+    return "\n".join(out)
+
+
+FINDINGS_PER_UNIT = 5
+"""Findings shown per unit in the verdicts that open lint's text output (the reports hold all)."""
+
+
+def render_verdicts(report: Any, per_unit: int = FINDINGS_PER_UNIT) -> str:
+    """What lint's text output opens with (issue 18, 6): the run's verdict and counts (the same
+    counts as the JSON and HTML reports), then each unit's verdict and its most severe findings
+    first (``conformance.conclusion.TRIAGE``), units with the most severe findings first. A
+    cap cuts only the least severe."""
+    from conformance.conclusion import LINT_NEVER_CERTIFIES, TRIAGE, conclude, ranked_findings
+
+    conclusion = conclude(report)
+    counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
+    out = [f"verdict: {conclusion.verdict} ({counts})"
+           + (f"; {LINT_NEVER_CERTIFIES}" if report.kind == "lint" else "")]
+    by_unit: dict[str, list[tuple[int, Any]]] = {}
+    for rank, unit, result in ranked_findings(report):
+        by_unit.setdefault(unit, []).append((rank, result))
+    order = sorted(conclusion.units, key=lambda u: (
+        by_unit[u][0][0] if u in by_unit else len(TRIAGE), u))
+    for name in order:
+        status = conclusion.units[name]
+        rep = report.units[name]
+        out.append(f"  {status.verdict.upper() if status.verdict == 'fail' else status.verdict:<5} "
+                   f"{printable(name)}: {printable(status.summary)}")
+        found = by_unit.get(name, [])
+        for rank, result in found[:per_unit]:
+            rule = CATALOGUE.get(result.rule)
+            n = rep.violation_counts.get(result.rule, len(result.violations))
+            what = f"{n} violation{'s' * (n != 1)}" if n else printable(result.reason)
+            out.append(f"        {TRIAGE[rank]:<9} {result.rule} "
+                       f"{printable(rule.title if rule else '')}: {what}")
+        if len(found) > per_unit:
+            out.append(f"        ... and {len(found) - per_unit} less severe: every finding is "
+                       f"in the reports")
     return "\n".join(out)

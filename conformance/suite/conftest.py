@@ -58,3 +58,9 @@ def certification_properties(certification: Certification,
     record_testsuite_property("schemas-hash", report.schemas_hash)
     record_testsuite_property("broker", report.broker)
     record_testsuite_property("seed", str(certification.settings.seed))
+    # The verdict model's words (conformance.conclusion): the same in every output.
+    conclusion = certification.conclusion(report)
+    record_testsuite_property("verdict", conclusion.verdict)
+    record_testsuite_property("partial", str(conclusion.partial).lower())
+    status = conclusion.units.get(str(certification.unit))
+    record_testsuite_property("levels", "; ".join(map(str, status.levels)) if status else "")

@@ -150,6 +150,10 @@ class Connection:
         # for, and paho resends an unacknowledged command after a reconnect.
         self.client.publish(topic, payload, qos=1, timeout=0)
 
+    def lost_since(self) -> float | None:
+        """When the link to the broker was lost, None while it is up."""
+        return self._gap_start
+
     @property
     def is_connected(self) -> bool:
         return self.client is not None and self.client.is_connected

@@ -1,19 +1,19 @@
-"""What a certification concludes from the Monitor's report: the unit's rules only (the suite
-is the commander), the rules that never ran, the run's verdict and its counts
-(ARCHITECTURE 'A certification's verdict and exit status')."""
+"""What a certification makes of the Monitor's report before the verdict model reads it: the
+unit's rules only (the suite is the commander), the rules that never ran, an outage not charged
+to the unit. The verdict itself is ``conformance.conclusion`` (ARCHITECTURE 'A
+certification's verdict and exit status')."""
 
 from __future__ import annotations
 
 from collections.abc import Collection, Iterable
 
+from conformance.conclusion import INTERRUPTED, NOT_CERTIFIED, NOT_RUN  # noqa: F401
+from conformance.conclusion import counts as conclusion_counts
 from conformance.results import COMMANDER_REASON, RunReport, UnitReport
 from conformance.rules import CATALOGUE, Side
+from conformance.suite.events import clock
 from conformance.topics import UnitAddress
 from conformance.violation import RuleResult, Verdict
-
-NOT_CERTIFIED = "not certified"
-INTERRUPTED = "interrupted"
-NOT_RUN = "not run"
 
 # Rules about what a commander sends (the catalogue's side). In a certification the suite
 # itself is the commander, so they say nothing about the unit: `waraps-conformance lint` judges
@@ -33,9 +33,10 @@ def set_commander_rules_aside(report: RunReport, unit: UnitAddress) -> None:
 
 
 def mark_not_run(report: RunReport, unit: UnitAddress, selected: Iterable[str],
-                 ran: Collection[str], why: str) -> None:
+                 ran: Collection[str], why: str, *, keep_failures: bool = True) -> None:
     """A run that did not complete: every selected rule whose test did not run is listed
-    as not run (could-not-test, ``why``; never a pass); a failure already seen stays one."""
+    as not run (could-not-test, ``why``; never a pass); a failure already seen stays one
+    unless ``keep_failures`` is off (rules left out of a selection judge nothing)."""
     name = str(unit)
     found = report.units.get(name)
     if found is None:
@@ -45,28 +46,30 @@ def mark_not_run(report: RunReport, unit: UnitAddress, selected: Iterable[str],
         if rule in ran:
             continue
         result = found.rules.get(rule)
-        if result is not None and result.verdict is Verdict.FAIL:
+        if keep_failures and result is not None and result.verdict is Verdict.FAIL:
             continue
         found.rules[rule] = RuleResult(rule, Verdict.COULD_NOT_TEST, why)
         not_run.append(rule)
-    report.meta["not_run"] = " ".join(not_run)
+    listed = report.meta.get("not_run", "").split()
+    report.meta["not_run"] = " ".join(dict.fromkeys(listed + not_run))
 
 
-def verdict(report: RunReport, *, error: str | None, interrupted: bool) -> str:
-    """The run's verdict: 'not certified' when the broker or the unit could not be
-    reached, 'interrupted' when it did not complete, else the worst rule verdict."""
-    if error:
-        return NOT_CERTIFIED
-    if interrupted:
-        return INTERRUPTED
-    return report.worst().value
+def excuse_outage(report: RunReport, unit: UnitAddress, lost: float) -> None:
+    """The broker was lost for good at ``lost``: an outage is never the unit's fault. What
+    was found missing from then on (no answer, no heartbeat) could not be tested."""
+    found = report.units.get(str(unit))
+    if found is None:
+        return
+    why = f"the broker was lost at {clock(lost)}: nothing could be observed after that"
+    for rule, result in list(found.rules.items()):
+        if result.verdict is not Verdict.FAIL:
+            continue
+        times = [v.time for v in result.violations if v.time is not None]
+        if times and min(times) >= lost:  # an explicit failure was recorded while up
+            found.rules[rule] = RuleResult(rule, Verdict.COULD_NOT_TEST, why)
 
 
 def counts(report: RunReport) -> dict[str, int]:
-    """Verdict counts, with the rules that never ran counted as 'not run'."""
-    found = dict(report.verdict_counts())
-    not_run = len(report.meta.get("not_run", "").split())
-    if not_run:
-        found[Verdict.COULD_NOT_TEST.value] -= not_run
-        found[NOT_RUN] = not_run
-    return found
+    """Verdict counts, with the rules that never ran counted as 'not run'
+    (``conclusion.counts``)."""
+    return conclusion_counts(report)

@@ -23,7 +23,8 @@ import pytest
 
 from conformance import __version__
 from conformance.checks import Monitor
-from conformance.client import MqttClient
+from conformance.client import BrokerError, MqttClient
+from conformance.conclusion import Conclusion, conclude
 from conformance.display import LINE_CHARS, printable, shorten
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
@@ -42,7 +43,7 @@ from conformance.scenarios.params import task_moves
 from conformance.scenarios.traffic import OutOfTime
 from conformance.suite import outcome
 from conformance.suite.connection import Connection
-from conformance.suite.events import Events
+from conformance.suite.events import Events, clock
 from conformance.suite.header import header_lines
 from conformance.suite.observation import Observation
 from conformance.suite.outcome import COMMANDER_RULES, INTERRUPTED, NOT_CERTIFIED
@@ -95,6 +96,10 @@ class Certification:
         self.out_of_time: str | None = None
         """--max-duration passed: what the run was waiting for then."""
         self.interrupted = False
+        self.selection = ""
+        """How the rules were selected (``-k 'HB-003'``, ``--rule=HB-003``): a partial run."""
+        self.broker_lost: float | None = None
+        """When the broker was lost for good (it did not come back within the budget)."""
         from conformance.suite.progress import Progress
 
         self.progress = Progress(config)
@@ -143,6 +148,10 @@ class Certification:
                              lambda t: None, self.events)
             revive = (restart.how(), self.timing.reboot, restart)
         self.connection.open(self.alive_timeout(), revive)
+        if self.connection.client is not None:
+            # A lost broker is waited for within broker_budget(): retry often enough to see
+            # it come back inside that budget (paho's backoff would otherwise reach 30 s).
+            self.connection.client.reconnect_backoff(2.0)
 
     def alive_timeout(self) -> float:
         """Seconds to wait for the first heartbeat: the profile's alive_timeout, else 5 s
@@ -174,35 +183,98 @@ class Certification:
         scenario found missing from a unit that has died is not a fault of its own: the death
         is the finding (HB-012), so the rule could not be tested."""
         if violation is not None and CATALOGUE[rule].mode is not Mode.PASSIVE:
-            died = self.unit_died(settle=True)
+            lost = self.connection.lost_since()
+            died = self.outage(lost) if lost is not None else self.unit_died(settle=True)
             if died:
                 violation, verdict, reason = None, Verdict.COULD_NOT_TEST, died
         with self._lock:
             self.monitor.record(self.unit, rule, violation=violation, verdict=verdict,
                                 reason=reason)
 
+    @staticmethod
+    def outage(lost: float) -> str:
+        """Why nothing the unit should have sent since ``lost`` is its fault."""
+        return f"the broker link was lost at {clock(lost)}: no answer could arrive"
+
+    def broker_budget(self) -> float:
+        """Seconds a lost broker is waited for before the run stops (and, at teardown, before
+        the suite gives up aborting its tasks): 10 s, or 3 response timeouts if longer."""
+        return max(10.0 * self.settings.timing_scale, 3 * self.timing.response)
+
+    def check_broker(self, rules: tuple[str, ...] = ()) -> None:
+        """Before a test judges anything: the broker is there, or comes back within the budget.
+        Lost for good, the run stops (not certified, exit 6) with no traceback: ``rules``
+        could not be tested, the test is skipped and the plugin stops the session."""
+        if self.broker_lost is None:
+            lost = self.connection.lost_since()
+            if lost is None or self.connection.wait_connected(self.broker_budget()):
+                return
+            self.broker_lost = lost
+            self.events.at(time.time(), f"the broker has not come back within "
+                                        f"{self.broker_budget():g} s: the run stops here, "
+                                        f"not certified")
+        why = self.not_run_reason()[len("not run: "):]
+        for rule in rules:
+            self.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=why)
+        self.write_reports(force=True)
+        pytest.skip(f"could not test: {why}")
+
     def unit_died(self, *, settle: bool = False) -> str:
         """Why the unit counts as dead, or "" while it lives (``Observation.unit_died``)."""
         return self.observation.unit_died(settle=settle)
 
-    def report(self, **extra: Any) -> RunReport:
+    def _judged(self, **extra: Any) -> RunReport:
+        """The Monitor's report of the unit's own rules, an outage not charged to it: what
+        each rule's test enacts."""
         with self._lock:
             report = self.monitor.report(**self.meta(), **extra)
         outcome.set_commander_rules_aside(report, self.unit)
-        if self.error or self.interrupted:
+        if self.broker_lost is not None:
+            outcome.excuse_outage(report, self.unit, self.broker_lost)
+        return report
+
+    def report(self, **extra: Any) -> RunReport:
+        """The run's report: ``_judged``, with the rules a partial run did not run listed as
+        not run, and the verdict model's verdict in ``meta['verdict']``."""
+        report = self._judged(**extra)
+        if self.selection:
+            chosen = set(self.selected)
+            outcome.mark_not_run(report, self.unit, [r for r in CATALOGUE if r not in chosen],
+                                 (), f"not run: not selected ({self.selection})",
+                                 keep_failures=False)
+        if self.error or self.interrupted or self.out_of_time or self.broker_lost is not None:
             outcome.mark_not_run(report, self.unit, self.selected or list(CATALOGUE), self.ran,
                                  self.not_run_reason())
-        report.meta["verdict"] = self.verdict(report)
+        report.meta["verdict"] = self.conclusion(report).verdict
         return report
+
+    def run_facts(self) -> dict[str, str]:
+        """What the verdict model needs to know of this run (``conformance.conclusion``)."""
+        facts = {}
+        if self.broker_lost is not None:
+            facts["broker_lost"] = repr(self.broker_lost)
+        facts["interrupted"] = str(bool(self.interrupted or self.out_of_time)).lower()
+        if self.interrupted or self.out_of_time:
+            facts["cut_short"] = self.out_of_time or "interrupted (Ctrl-C)"
+        if self.selection:
+            facts["selection"] = self.selection
+        return facts
 
     def not_run_reason(self) -> str:
         if self.error:
             return f"not run: {self.error.splitlines()[0]}"
-        return f"not run: {self.out_of_time or 'the run was interrupted'}"
+        if self.broker_lost is not None:
+            return f"not run: the broker was lost at {clock(self.broker_lost)}"
+        return f"not run: {self.out_of_time or 'interrupted (Ctrl-C)'}"
+
+    def conclusion(self, report: RunReport) -> Conclusion:
+        """What the run concludes (``conformance.conclusion.conclude``: the one verdict
+        model every output shows)."""
+        return conclude(report)
 
     def verdict(self, report: RunReport) -> str:
-        """The run's verdict (``outcome.verdict``)."""
-        return outcome.verdict(report, error=self.error, interrupted=self.interrupted)
+        """The run's verdict (``conclusion``)."""
+        return self.conclusion(report).verdict
 
     def counts(self, report: RunReport) -> dict[str, int]:
         """Verdict counts, with the rules that never ran counted as 'not run'."""
@@ -223,6 +295,7 @@ class Certification:
             "commands_sent": str(self.commander.sent_count + self.tst.sent_count),
             "tst_command_topic": s.tst_topic,
             "rerun": self.rerun_command(),
+            **self.run_facts(),
         }
 
     def rerun_command(self, rule: str | None = None) -> str:
@@ -240,11 +313,11 @@ class Certification:
 
     def violation_total(self, rule: str) -> int:
         """How many violations of ``rule`` the unit committed in all (not only those kept)."""
-        unit = self.report().units.get(str(self.unit))
+        unit = self._judged().units.get(str(self.unit))
         return unit.violation_counts.get(rule, 0) if unit is not None else 0
 
     def result(self, rule: str) -> RuleResult:
-        report = self.report()
+        report = self._judged()
         unit = report.units.get(str(self.unit))
         if unit is None or rule not in unit.rules:
             return RuleResult(rule, Verdict.SKIP, "not examined")
@@ -263,6 +336,7 @@ class Certification:
         if name in self._done:
             return
         scenario = SCENARIOS[name]
+        self.check_broker(scenario.rules)
         for needed in scenario.needs:
             self.run_scenario(needed)
         silent = self.unit_died() if name != "reboot" else ""
@@ -296,9 +370,16 @@ class Certification:
                 self.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=str(e))
         except OutOfTime as e:
             self._out_of_time(e)
+        except BrokerError as e:
+            # The link went down under a publish: the broker's fault, never the unit's.
+            lost = self.connection.lost_since() or time.time()
+            for rule in scenario.rules:
+                self.record(rule, verdict=Verdict.COULD_NOT_TEST,
+                            reason=f"{self.outage(lost)} ({e})")
         finally:
             self._done[name] = True
-            if not self.settings.dry_run:
+            # Into a lost link an $abort would be lost too: the teardown sends it (finish).
+            if not self.settings.dry_run and self.connection.is_connected:
                 aborted = self.commander.abort_all(self.timing.response)
                 aborted += self.tst.abort_all(self.timing.response)
                 if aborted and self.out_of_time:
@@ -334,11 +415,13 @@ class Certification:
         end-of-run checks."""
         if self._passive_ready:
             return
+        self.check_broker()
         try:
             self.observation.wait_passive_window()
         except OutOfTime as e:
             self._out_of_time(e)
         self._fail_if_out_of_time()
+        self.check_broker()
         with self._lock:
             self.monitor.finish(time.time())
         self._passive_ready = True
@@ -364,31 +447,48 @@ class Certification:
                                f"{self.settings.reports_dir}: {e}")
         return self.report_paths
 
-    def finish(self, *, interrupted: bool, exitstatus: int) -> None:
+    def finish(self, *, interrupted: bool, exitstatus: int) -> int:
         """End the run: abort every task the suite started (also after a failure or Ctrl-C),
-        judge the end of the observation, write the final reports, disconnect."""
+        judge the end of the observation, write the final reports, disconnect. Returns the
+        run's exit status (``exit_status``)."""
         if self.collect_only:
-            return
+            return exitstatus
+        status = exitstatus
         self.interrupted = self.interrupted or interrupted
         self.traffic.waits.deadline = None  # the teardown's waits have deadlines of their own
         aborted: list[str] = []
+        lost = self.connection.lost_since()
+        if lost is not None and self.connection.client is not None and self.broker_lost is None:
+            # Lost during the last test: the run is over, the broker gets the budget to return.
+            if not self.connection.wait_connected(self.broker_budget()):
+                self.broker_lost = lost
+        started = bool(self.commander.open_tasks or self.tst.open_trees)
         try:
-            if self.connection.is_connected and not self.settings.dry_run:
+            if self.settings.dry_run:
+                pass
+            elif self.connection.is_connected or (started and self.connection.wait_connected(
+                    self.broker_budget())):
                 aborted = self.commander.abort_all(self.timing.response)
                 aborted += self.tst.abort_all(self.timing.response)
+            elif started:
+                self.events.append("the broker did not come back: the tasks the suite started "
+                                   "could not be aborted")
         except Exception as e:  # the reports must still be written
             self.events.append(f"aborting the suite's tasks failed: {e}")
         if aborted:
             self._say_aborted(aborted)
         try:
             with self._lock:
-                self.monitor.finish(time.time())
+                # Lost for good: the observation ended then (an outage is no death).
+                self.monitor.finish(self.broker_lost or time.time())
             extra = {"error": self.error} if self.error else {}
-            self.write_reports(force=True, finished=time.time(),
-                               interrupted=str(interrupted).lower(),
-                               exit_status=str(int(exitstatus)), **extra)
+            finished = time.time()
+            status = exit_status(self.conclusion(self.report(finished=finished, **extra)),
+                                 exitstatus)
+            self.write_reports(force=True, finished=finished, exit_status=str(status), **extra)
         finally:
             self.close()
+        return status
 
     def close(self) -> None:
         self.connection.close()
@@ -402,6 +502,19 @@ class Certification:
             reboot=self.reboot.how() if self.context.reboot else None,
             reports=self.settings.reports_dir / self.stem, rerun=self.rerun_command())]
 
+
+
+def exit_status(conclusion: Conclusion, pytest_status: int) -> int:
+    """The run's exit status: the verdict model's (README 'Exit status'), except pytest's own
+    internal and usage errors, no test selected, and a test that failed without a rule
+    failing (the suite's own error: never hidden behind a 0)."""
+    if pytest_status in (pytest.ExitCode.INTERNAL_ERROR, pytest.ExitCode.USAGE_ERROR):
+        return int(pytest_status)
+    if conclusion.exit_code:
+        return conclusion.exit_code
+    if pytest_status in (pytest.ExitCode.NO_TESTS_COLLECTED, pytest.ExitCode.TESTS_FAILED):
+        return int(pytest_status)
+    return 0
 
 __all__ = ["CERTIFICATION", "COMMANDER_RULES", "INTERRUPTED", "NOT_CERTIFIED", "Certification",
            "NotAlive"]

@@ -72,6 +72,10 @@ class Settings:
     """--observe: seconds to observe the unit at least before the passive rules are judged."""
     rules: tuple[str, ...] = ()
     """--rule: only these rules are judged (and the scenarios that produce their evidence)."""
+    keyword: str = ""
+    """pytest's -k expression: a selection too (a partial run, its rerun line keeps it)."""
+    markexpr: str = ""
+    """pytest's -m expression."""
     extra: dict[str, str] = field(default_factory=dict)
 
     @property
@@ -129,7 +133,17 @@ class Settings:
         if rule:
             parts += ["-k", q(rule)]
         else:
-            parts += [q(f"--rule={r}") for r in self.rules]
+            parts += [w for w in [self.selection_words()] if w]
+        return " ".join(parts)
+
+    def selection_words(self) -> str:
+        """How this run selects rules, as options of its command line (shell-quoted): ``-k
+        'HB-003 or HB-012'``, ``--rule=HB-003``; '' when it selects none."""
+        parts = [shlex.quote(f"--rule={r}") for r in self.rules]
+        if self.keyword:
+            parts.append(f"-k {shlex.quote(self.keyword)}")
+        if self.markexpr:
+            parts.append(f"-m {shlex.quote(self.markexpr)}")
         return " ".join(parts)
 
 
@@ -229,6 +243,8 @@ def read(config: pytest.Config) -> Settings:
     return Settings(unit=unit, broker=broker, profile=profile, timing_scale=scale,
                     max_duration=_duration(_value(config, "waraps_max_duration")),
                     rules=_rules(config.getoption("waraps_rules", None) or ()),
+                    keyword=str(config.getoption("keyword", "") or ""),
+                    markexpr=str(config.getoption("markexpr", "") or ""),
                     observe=_duration(config.getoption("waraps_observe", None), 0.0, "--observe"),
                     reboot_cmd=str(reboot) if reboot else None,
                     allow_motion=_flag(config, "waraps_allow_motion"),

@@ -27,7 +27,7 @@ def test_conformant_fleet_passes_and_every_report_is_written(tmp_path: Path, rep
                           fleet_traffic(prefix, ["dji0", "dji1", "piraya0"], seconds=30))
     run = run_lint(["--from", str(rec)], reports_dir)
     assert run.code == 0, run.out
-    assert "PASS: no unit or commander fails" in run.out
+    assert "CLEAN: no unit or commander fails" in run.out and "\nverdict: clean (" in run.out
     assert run.report is not None and run.report["kind"] == "lint"
     units = run.report["units"]
     assert set(units) == {f"{prefix}/unit/air/simulation/{n}" for n in ("dji0", "dji1", "piraya0")}

@@ -152,3 +152,98 @@ def test_plain_view_says_when_a_rate_goes_off_and_when_it_is_back(prefix: str) -
     (row,) = [r for r in card.rows(linter) if r.unit == unit]
     assert row.status == "FAIL" and row.live == ("HB-003",)
     assert "HB-003(live)" in card.table([row], None)[1]
+# --- the verdict model in lint's outputs (conformance.conclusion; issue 18, 1 and 6) -----------
+def html_counts(page: str) -> dict[str, int]:
+    """The verdict counts of the HTML report's header ('84 pass' badges, '3 not run')."""
+    row = page[page.index("<th>verdicts</th>"):]
+    row = row[:row.index("</tr>")]
+    return {v: int(n) for n, v in re.findall(r">(\d+) ([a-z -]+)</span>", row)}
+
+
+def text_counts(out: str) -> dict[str, int]:
+    """The counts on the line lint's text output opens with (``verdict: fail (84 pass, ...)``)."""
+    line = next(ln for ln in out.splitlines() if ln.startswith("verdict: "))
+    inside = line[line.index("(") + 1:line.index(")")]
+    return {v: int(n) for n, v in (part.split(" ", 1) for part in inside.split(", "))}
+
+
+def test_a_short_passive_lint_certifies_nothing(mosquitto: str, prefix: str,
+                                                reports_dir: Path) -> None:
+    """Lint of live traffic for a few seconds: each unit as observed ('never commanded'),
+    never 'certified' and never 'pass', in the text, the JSON, the HTML and the JUnit file."""
+    from conformance.sim import SimUnit
+
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    with SimUnit(unit, mosquitto, rate=5.0, seed=1):
+        run = run_lint(["--broker", mosquitto, "--topic", f"{prefix}/#", "--duration", "3s"],
+                       reports_dir)
+    assert run.report is not None and unit in run.report["units"], run.out
+    without = run.out.replace("not certified", "").replace("pytest --unit run certifies", "")
+    assert "certified" not in without and "PASS" not in run.out, run.out
+    assert run.report["verdict"] != "pass" and run.report["verdict"] in ("clean", "warn", "fail")
+    status = run.report["conclusion"]["units"][unit]
+    assert "never commanded" in status["summary"] and status["summary"] in run.out
+    assert status["levels"] and not any(lv["certified"] for lv in status["levels"])
+    (html,) = reports_dir.glob("*.html")
+    page = html.read_text()
+    head = page.split('<table class="head">')[0]
+    assert "— certified" not in head and ">pass<" not in head and "never commanded" in head
+    headings = re.findall(r"<h2 .*</h2>", page)  # each unit's own badge: observed, not passed
+    assert headings and not any(">pass<" in h for h in headings), headings
+    (xml,) = reports_dir.glob("*.xml")
+    junit = xml.read_text()
+    assert f'name="verdict" value="{run.report["verdict"]}"' in junit
+    assert 'value="pass"' not in junit.split("<testcase")[0]
+    assert "— certified" not in junit and "never commanded" in junit
+
+
+def test_recorded_lint_opens_with_verdicts_most_severe_first_and_counts_agree(
+        tmp_path: Path, reports_dir: Path, prefix: str) -> None:
+    """A recording: each unit's verdict and its most severe findings come first (a death before
+    a rate), not the replayed stream; the counts are the same in the text, JSON and HTML."""
+    from conformance.recording import Event
+
+    traffic = (unit_traffic(prefix, "aaa0", seconds=30, heartbeat_every=2)  # HB-003 only
+               + unit_traffic(prefix, "zzz0", seconds=12))  # dies at 12 s: HB-012
+    rec = write_recording(tmp_path / "r.jsonl", [Event(T0 - 0.5, "start", "subscribed"),
+                                                 *traffic, Event(T0 + 30, "end", "stopped")])
+    run = run_lint(["--from", str(rec)], reports_dir)
+    assert run.code == 1 and run.report is not None
+    lines = run.out.splitlines()
+    first_finding = next(i for i, ln in enumerate(lines) if " HB-0" in ln)
+    # The verdicts come before the table and the evidence; the dead unit (a later name) first.
+    assert lines[first_finding].split()[:2] == ["death", "HB-012"], run.out
+    assert first_finding < next(i for i, ln in enumerate(lines) if ln.startswith("UNIT "))
+    dead = next(i for i, ln in enumerate(lines) if ln.startswith("  FAIL") and "zzz0" in ln)
+    slow = next(i for i, ln in enumerate(lines) if ln.startswith("  FAIL") and "aaa0" in ln)
+    assert dead < slow and "it died at" in lines[dead]
+    assert not any(ln.startswith(("00:", "01:", "02:")) and " HB-0" in ln for ln in lines), \
+        "the replayed stream is not printed line by line"
+    # One set of counts in every output.
+    (html,) = reports_dir.glob("*.html")
+    counts = {v: n for v, n in run.report["conclusion"]["counts"].items() if n}
+    assert text_counts(run.out) == counts
+    assert {v: n for v, n in html_counts(html.read_text()).items() if n} == counts
+    assert sum(counts.values()) == sum(run.report["verdict_counts"].values())
+
+
+def test_the_evidence_cap_never_cuts_a_death_for_a_rate(prefix: str) -> None:
+    """Units named before the dead one fail a rate: capped at 2, the death is still shown."""
+    from conformance.lint.runner import failures
+    from conformance.reporting.text import render_verdicts
+
+    m = Monitor(Profile(), kind="lint")
+    msgs = [*unit_traffic(prefix, "zzz0", seconds=10)]
+    for name in ("aaa0", "aaa1", "aaa2"):
+        msgs += unit_traffic(prefix, name, seconds=30, heartbeat_every=2)
+    for msg in sorted(msgs, key=lambda x: x.time):
+        m.feed(msg)
+    m.finish(T0 + 30)
+    report = m.report()
+    capped = failures(report, limit=2)
+    assert capped.index("HB-012") < capped.index("HB-003")
+    assert capped.count("HB-003 heartbeat rate") == 1
+    assert capped.endswith("... and 2 more failed rules: every violation is in the reports")
+    opening = render_verdicts(report, per_unit=1)
+    assert opening.splitlines()[1].startswith("  FAIL ") and "zzz0" in opening.splitlines()[1]
+    assert opening.splitlines()[2].split()[:2] == ["death", "HB-012"]

@@ -69,8 +69,8 @@ def test_warn_is_a_pass_with_a_warning_and_strict_makes_it_a_failure(
     assert run.result.ret == 0, run.text
     assert run.outcomes == {"ERR-001": "passed"}
     assert "ConformanceWarning: ERR-001 sensor_info published on 'sensor.info'" in run.text
-    verdicts = [p.get("value") for p in ET.parse(junit).iter("property")
-                if p.get("name") == "verdict"]
+    verdicts = [p.get("value") for case in ET.parse(junit).iter("testcase")
+                for p in case.iter("property") if p.get("name") == "verdict"]
     assert verdicts == ["warn"]
     strict = certify(pytester, *args, "--profile", "strict")
     assert strict.result.ret == pytest.ExitCode.TESTS_FAILED

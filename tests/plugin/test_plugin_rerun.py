@@ -85,3 +85,17 @@ def test_durations_read_as_the_subcommands_read_them(pytester: pytest.Pytester) 
                     "--max-duration", "1h30m", "--observe", "10min")
     assert (s.max_duration, s.observe) == (5400.0, 600.0)
     assert "--max-duration 5400 --seed 3 --observe 600" in s.rerun_command()
+
+
+def test_a_selection_is_kept_shell_quoted(pytester: pytest.Pytester) -> None:
+    """A run of selected rules is partial; its repeat line selects the same rules (issue 18):
+    -k and -m as typed, quoted for a shell; a rule's own rerun line names only the rule."""
+    s = settings_of(pytester, "--unit", UNIT, "--broker", "embedded", "--seed", "3",
+                    "-k", "HB-003 or EXEC-PING-001", "-m", "not slow", "--rule", "HB-012")
+    line = s.rerun_command()
+    assert line.endswith("--seed 3 --rule=HB-012 -k 'HB-003 or EXEC-PING-001' -m 'not slow'")
+    words = shlex.split(line)
+    again = settings_of(pytester, *words[1:])
+    assert (again.keyword, again.markexpr, again.rules) == (s.keyword, s.markexpr, s.rules)
+    assert again.rerun_command() == line
+    assert s.rerun_command("HB-003").endswith("--seed 3 -k HB-003")

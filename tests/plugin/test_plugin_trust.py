@@ -96,8 +96,13 @@ def test_an_interrupted_run_is_never_a_pass(pytester: pytest.Pytester) -> None:
     report = run.report
     assert report is not None and report["meta"]["verdict"] == "interrupted"
     assert report["verdict"] == "interrupted" and report["worst"] != "pass"
-    assert set(report["meta"]["not_run"].split()) == {
-        "EXEC-SIG-001", "EXEC-SIG-002", "EXEC-SIG-003", "EXEC-SIG-004", "EXEC-SIG-005"}
+    signal = {"EXEC-SIG-001", "EXEC-SIG-002", "EXEC-SIG-003", "EXEC-SIG-004", "EXEC-SIG-005"}
+    rules = run.unit_rules()
+    # Selected and never run: interrupted; the rest was not selected (a partial run).
+    assert set(report["meta"]["not_run"].split()) == set(rules) - set(run.outcomes)
+    for rule in signal:
+        assert rules[rule]["reason"] == "not run: interrupted (Ctrl-C)", rules[rule]
+    assert rules["HB-003"]["reason"].startswith("not run: not selected (-k ")
     assert "dji0: interrupted (" in run.text
 
 
@@ -123,6 +128,6 @@ def test_rule_option_names_a_close_rule(pytester: pytest.Pytester) -> None:
 def test_help_documents_the_exit_statuses_and_the_guard(pytester: pytest.Pytester) -> None:
     result = pytester.runpytest_inprocess("--help")
     text = result.stdout.str()
-    assert "0 certified, 1 a rule failed, 2 interrupted" in " ".join(text.split())
+    assert "0 no rule failed, 1 a rule failed, 2 interrupted" in " ".join(text.split())
     assert "6 not certified" in " ".join(text.split())
     assert "--max-duration" in text and "--rule" in text

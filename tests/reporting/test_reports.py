@@ -15,6 +15,7 @@ from conformance.reporting import (
     render_html,
     render_summary,
     render_violation,
+    to_junit,
     write_all,
 )
 from conformance.results import RunReport
@@ -173,8 +174,12 @@ def test_html_opens_with_verdict_levels_and_failing_rules(run_report: RunReport)
     summary = page.index('<table class="summary">')
     assert summary < page.index('<table class="head">')  # before the header facts
     head = page[summary:page.index('<table class="head">')]
-    assert "fail</span>" in head and "levels" in head and "failing rules" in head
+    assert "fail</span>" in head and "failing rules" in head
     assert "HB-003" in head  # the failing rule, linked to its evidence
+    # Each unit as lint observed it, never a certificate (conformance.conclusion).
+    assert "3 rule(s) failed in 24 s observed, never commanded" in head
+    assert "never commanded; it died at" in head  # dji0 stops at 14 s (HB-012)
+    assert "certified" not in head.replace("not certified", "")
     slow = next(n for n in run_report.units if n.endswith("piraya0"))
     assert f'id="u-{slow.replace("/", "-")}-HB-003"' in page
 
@@ -200,13 +205,23 @@ def test_html_footer_names_the_files_written_with_it(run_report: RunReport, tmp_
     assert "written on its own" in render_html(run_report)
 
 
-@pytest.mark.parametrize("verdict", ["not certified", "interrupted"])
-def test_a_run_that_did_not_complete_never_reads_as_a_pass(run_report: RunReport, verdict: str,
-                                                          tmp_path):
-    run_report.meta["verdict"] = verdict
+@pytest.mark.parametrize(("facts", "verdict"), [
+    ({"error": "cannot reach the broker at mqtt://127.0.0.1:1"}, "not certified"),
+    ({"broker_lost": "1700000006.0"}, "not certified"),
+    ({"interrupted": "true", "cut_short": "--max-duration 60 s reached"}, "interrupted"),
+    ({"selection": "-k 'HB-003 or HB-012'"}, "fail")])
+def test_a_run_that_did_not_complete_never_reads_as_a_pass(run_report: RunReport, facts: dict,
+                                                          verdict: str, tmp_path):
+    """The verdict comes from the run's facts (conformance.conclusion), in every output."""
+    run_report.kind = "certification"
+    run_report.meta.update(facts)
     page = render_html(run_report)
     title = page[page.index("<h1>"):page.index("</h1>")]
     assert verdict in title and "pass" not in title
-    assert "certified</td>" not in page  # no level reads certified
+    assert "— certified" not in page  # no level reads certified
     data = orjson.loads(write_all(run_report, tmp_path, "run")["json"].read_bytes())
-    assert data["verdict"] == verdict
+    assert data["verdict"] == verdict and data["partial"] is True
+    assert data["conclusion"]["why"]
+    props = to_junit(run_report)
+    assert f'name="verdict" value="{verdict}"' in props
+    assert 'name="partial" value="true"' in props

@@ -1,0 +1,323 @@
+"""What a run concludes: the one verdict model (DESIGN 'Semantics').
+
+Every output (the suite's terminal summary and JUnit properties, the JSON, HTML and JUnit
+reports, lint's text) shows ``conclude(report)``; none decides on its own. It reads the
+``RunReport`` and the run's facts, which the run writes into ``report.meta``:
+
+- ``error``: the broker or the unit could not be reached, no rule ran;
+- ``broker_lost``: Unix time the broker was lost for good (it did not come back in time);
+- ``interrupted`` (``true``) and ``cut_short``: Ctrl-C or ``--max-duration``, and why;
+- ``selection``: the rules were selected (``-k 'HB-003'``, ``--rule=HB-003``);
+- ``not_run``: the rules whose tests never ran.
+
+A level is **certified** only when the run is a complete certification (none of the facts
+above) and every rule of that level (the catalogue's ``level``) was judged on evidence: none
+failed, none could not be tested; a rule that holds for every level (no ``level``: topics,
+heartbeat, death) failing denies every level. Skips (not claimed, not applicable) do not count
+against a level. A run that selected rules or was cut short is **partial**: its verdict is never
+``pass``. Lint observes traffic it never caused: it says what it saw ("clean for 10 min,
+never commanded"), never "certified".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from typing import Any
+
+from conformance.results import RunReport, UnitReport
+from conformance.rules import CATALOGUE, Mode
+from conformance.violation import RuleResult, Verdict
+
+CERTIFIED = "certified"
+NOT_CERTIFIED = "not certified"
+INTERRUPTED = "interrupted"
+PARTIAL = "partial"
+NOT_RUN = "not run"
+CLEAN = "clean"
+"""Lint's verdict when nothing failed or warned: what was observed, not a certificate."""
+
+# Exit statuses of a certification (README 'Exit status'); pytest's own keep their meaning.
+EXIT_CERTIFIED, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_NOT_CERTIFIED = 0, 1, 2, 6
+
+LINT_NEVER_CERTIFIES = "lint observes; only a complete pytest --unit run certifies"
+
+
+@dataclass(frozen=True)
+class LevelStatus:
+    """One level a unit declares: certified, or not and why."""
+
+    level: str
+    certified: bool
+    why: str = ""
+
+    def __str__(self) -> str:
+        return (f"{self.level} — {CERTIFIED}" if self.certified
+                else f"{self.level} — {NOT_CERTIFIED}: {self.why}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"level": self.level, "certified": self.certified, "why": self.why}
+
+
+@dataclass(frozen=True)
+class UnitStatus:
+    """One row of the report: its worst rule verdict, a sentence for people, its levels."""
+
+    unit: str
+    party: str
+    verdict: str
+    summary: str
+    """``certified: sensor, direct execution``; ``not certified: 1 failed, 2 could not be
+    tested; the unit died at ...``; lint: ``clean for 10 min, never commanded``."""
+    levels: tuple[LevelStatus, ...] = ()
+    died_at: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"verdict": self.verdict, "summary": self.summary, "died_at": self.died_at,
+                "levels": [lv.to_dict() for lv in self.levels]}
+
+
+@dataclass(frozen=True)
+class Conclusion:
+    """A run's conclusion: its verdict, whether it is partial and why, its exit status."""
+
+    kind: str
+    verdict: str
+    partial: bool
+    why: tuple[str, ...]
+    """Why the run is partial or not certified (empty for a complete run)."""
+    exit_code: int
+    units: dict[str, UnitStatus] = field(default_factory=dict)
+    counts: dict[str, int] = field(default_factory=dict)
+    """(unit, rule) results per verdict, the rules that never ran apart as ``not run``: the
+    counts every output shows."""
+
+    def certified_levels(self, unit: str) -> list[str]:
+        found = self.units.get(unit)
+        return [lv.level for lv in found.levels if lv.certified] if found else []
+
+    def headline(self) -> str:
+        """The verdict and, when the run is partial or not certified, why (one line)."""
+        return self.verdict + (f" ({'; '.join(self.why)})" if self.why else "")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"verdict": self.verdict, "partial": self.partial, "why": list(self.why),
+                "exit_code": self.exit_code, "counts": dict(self.counts),
+                "units": {name: u.to_dict() for name, u in self.units.items()}}
+
+
+def conclude(report: RunReport, gate: str = "all") -> Conclusion:
+    """The conclusion of ``report`` (module docstring). ``gate`` (lint): ``all`` rows or only
+    ``units`` decide the exit status."""
+    if report.kind == "lint":
+        return _conclude_lint(report, gate)
+    meta = report.meta
+    why = run_facts(report)
+    lost = _time(meta.get("broker_lost"))
+    worst = report.worst()
+    if meta.get("error") or lost is not None:
+        verdict, code = NOT_CERTIFIED, EXIT_NOT_CERTIFIED
+    elif _interrupted(meta):
+        verdict, code = INTERRUPTED, EXIT_INTERRUPTED
+    elif worst is Verdict.FAIL:
+        verdict, code = Verdict.FAIL.value, EXIT_FAILED
+    elif why:
+        verdict, code = PARTIAL, EXIT_CERTIFIED  # no selected rule failed; not a certificate
+    else:
+        verdict, code = worst.value, EXIT_CERTIFIED
+    not_run = set(meta.get("not_run", "").split())
+    units = {name: _certification_unit(name, u, why, not_run)
+             for name, u in report.units.items()}
+    return Conclusion(report.kind, verdict, bool(why), tuple(why), code, units, counts(report))
+
+
+def counts(report: RunReport) -> dict[str, int]:
+    """Verdict counts, with the rules that never ran counted as ``not run`` (they are
+    recorded could-not-test, reason 'not run: ...')."""
+    found = dict(report.verdict_counts())
+    not_run = len(report.meta.get("not_run", "").split())
+    if not_run:
+        found[Verdict.COULD_NOT_TEST.value] -= not_run
+        found[NOT_RUN] = not_run
+    return found
+
+
+def run_facts(report: RunReport) -> list[str]:
+    """Why a certification is partial or not certified, from its facts, in words."""
+    meta = report.meta
+    why = []
+    if meta.get("error"):
+        why.append(meta["error"].splitlines()[0])
+    lost = _time(meta.get("broker_lost"))
+    if lost is not None:
+        why.append(f"the broker was lost at {_clock(lost)} and did not come back")
+    if _interrupted(meta):
+        why.append(meta.get("cut_short") or "the run was interrupted")
+    if meta.get("selection"):
+        why.append(f"only the selected rules ran ({meta['selection']})")
+    return why
+
+
+def _interrupted(meta: dict[str, str]) -> bool:
+    return meta.get("interrupted") == "true" or bool(meta.get("cut_short"))
+
+
+def died_at(unit: UnitReport) -> float | None:
+    """When the unit died (its last heartbeat before HB-012's silence), None if it did not."""
+    result = unit.rules.get("HB-012")
+    if result is None or result.verdict is not Verdict.FAIL:
+        return None
+    times = [v.time for v in result.violations if v.time is not None]
+    if times:
+        return min(times)
+    first = unit.violation_times.get("HB-012")
+    return first[0] if first else None
+
+
+def _certification_unit(name: str, unit: UnitReport, run_why: list[str],
+                        not_run: set[str]) -> UnitStatus:
+    worst = unit.worst().value
+    if unit.party != "unit":
+        return UnitStatus(name, unit.party, worst, worst)
+    died = died_at(unit)
+    general = [r for r in unit.rules.values() if r.verdict is Verdict.FAIL
+               and _level_of(r.rule) is None]
+    levels = []
+    for level in dict.fromkeys(lv.replace("_", " ") for lv in unit.levels):  # ERR-008
+        own = [r for r in unit.rules.values() if _level_of(r.rule) == level]
+        failed = len(general) + sum(r.verdict is Verdict.FAIL for r in own)
+        untested = sum(r.verdict is Verdict.COULD_NOT_TEST and r.rule not in not_run
+                       for r in own)
+        unrun = sum(r.rule in not_run and r.verdict is not Verdict.FAIL for r in own)
+        why = _counted(failed=failed, untested=untested, unrun=unrun)
+        if died is not None:
+            why.append(f"the unit died at {_clock(died)}")
+        why += run_why
+        levels.append(LevelStatus(level, not why, "; ".join(why)))
+    certified = [lv.level for lv in levels if lv.certified]
+    if levels and len(certified) == len(levels):
+        summary = f"{CERTIFIED}: {', '.join(certified)}"
+    elif not levels:
+        summary = f"{NOT_CERTIFIED}: it declares no level"
+    else:
+        failed = sum(r.verdict is Verdict.FAIL for r in unit.rules.values())
+        untested = sum(r.verdict is Verdict.COULD_NOT_TEST and r.rule not in not_run
+                       for r in unit.rules.values())
+        unrun = sum(r.rule in not_run and r.verdict is not Verdict.FAIL
+                    for r in unit.rules.values())
+        why = _counted(failed=failed, untested=untested, unrun=unrun)
+        if died is not None:
+            why.append(f"the unit died at {_clock(died)}")
+        summary = f"{NOT_CERTIFIED}: " + "; ".join(why + run_why or ["see the levels"])
+        if certified:
+            summary += f" (certified: {', '.join(certified)})"
+    return UnitStatus(name, unit.party, worst, summary, tuple(levels), died)
+
+
+def _counted(*, failed: int, untested: int, unrun: int) -> list[str]:
+    counts = ", ".join(text for n, text in ((failed, f"{failed} failed"),
+                                             (untested, f"{untested} could not be tested"),
+                                             (unrun, f"{unrun} not run")) if n)
+    return [counts] if counts else []
+
+
+def _level_of(rule: str) -> str | None:
+    found = CATALOGUE.get(rule)
+    return found.spec_level if found is not None else None
+
+
+# --- lint: what was observed -----------------------------------------------------------------
+def _conclude_lint(report: RunReport, gate: str) -> Conclusion:
+    rows = [u for u in report.units.values() if gate == "all" or u.party == "unit"]
+    worst = Verdict.worst([u.worst() for u in rows])
+    verdict = (Verdict.FAIL.value if worst is Verdict.FAIL else
+               Verdict.WARN.value if worst is Verdict.WARN else CLEAN)
+    units = {name: _lint_unit(name, u) for name, u in report.units.items()}
+    return Conclusion(report.kind, verdict, False, (), 1 if worst is Verdict.FAIL else 0,
+                      units, counts(report))
+
+
+def commands_seen(unit: UnitReport) -> int:
+    """How many commands to the unit the observer saw (exec and TST)."""
+    counts = unit.facts.get("message_counts") or {}
+    return sum(n for kind, n in counts.items()
+               if kind in ("exec/command", "tst/command") or kind.startswith(
+                   ("exec/command/", "tst/command/")))
+
+
+def _lint_unit(name: str, unit: UnitReport) -> UnitStatus:
+    worst = unit.worst()
+    failed = sum(r.verdict is Verdict.FAIL for r in unit.rules.values())
+    warned = sum(r.verdict is Verdict.WARN for r in unit.rules.values())
+    span = ((unit.last_seen or 0.0) - (unit.first_seen or 0.0)) if unit.first_seen else 0.0
+    if unit.party != "unit":
+        said = (f"{failed} rule(s) failed" if failed else
+                f"{warned} rule(s) warned" if warned else CLEAN)
+        return UnitStatus(name, unit.party, worst.value, f"{said}: what it sent, observed")
+    n = commands_seen(unit)
+    commanded = "never commanded" if not n else f"{n} command{'s' * (n != 1)} seen"
+    died = died_at(unit)
+    found = ", ".join(t for c, t in ((failed, f"{failed} rule(s) failed"),
+                                     (warned, f"{warned} rule(s) warned")) if c)
+    summary = (f"{found} in {duration(span)} observed" if found
+               else f"{CLEAN} for {duration(span)}") + f", {commanded}"
+    if died is not None:
+        summary += f"; it died at {_clock(died)}"
+    levels = tuple(LevelStatus(lv, False, LINT_NEVER_CERTIFIES)
+                   for lv in dict.fromkeys(x.replace("_", " ") for x in unit.levels))
+    verdict = worst.value if worst in (Verdict.FAIL, Verdict.WARN) else CLEAN
+    return UnitStatus(name, unit.party, verdict, summary, levels, died)
+
+
+# --- triage: the most severe findings first (issue 18, 6) ---------------------------------------
+TRIAGE = ("death", "deafness", "commands", "messages", "warnings")
+"""The severity classes, most severe first: a unit that died (HB-012), a unit that stopped
+answering (EXEC-ROBUST-001), commands answered wrongly or not at all (conversation and active
+rules), then what a message looks like (the passive rules), then warnings."""
+
+
+def triage_rank(rule: str, verdict: Verdict) -> int:
+    """The index in ``TRIAGE`` of a failed or warned rule."""
+    if verdict is not Verdict.FAIL:
+        return TRIAGE.index("warnings")
+    if rule == "HB-012":
+        return TRIAGE.index("death")
+    if rule == "EXEC-ROBUST-001":
+        return TRIAGE.index("deafness")
+    found = CATALOGUE.get(rule)
+    if found is not None and found.mode in (Mode.CONVERSATION, Mode.ACTIVE):
+        return TRIAGE.index("commands")
+    return TRIAGE.index("messages")
+
+
+def ranked_findings(report: RunReport) -> list[tuple[int, str, RuleResult]]:
+    """(triage rank, unit, result) of every failed or warned rule, most severe first: a cap
+    on what is shown cuts the least severe."""
+    found = [(triage_rank(r.rule, r.verdict), name, r) for name, u in report.units.items()
+             for r in u.rules.values() if r.verdict in (Verdict.FAIL, Verdict.WARN)]
+    return sorted(found, key=lambda f: (f[0], f[1], f[2].rule))
+
+
+def duration(seconds: float) -> str:
+    """``42 s``, ``1 min 5 s``, ``2 h 3 min`` for people."""
+    s = max(0, int(round(seconds)))
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min" + (f" {s % 60} s" if s % 60 else "")
+    return f"{s // 3600} h" + (f" {s % 3600 // 60} min" if s % 3600 // 60 else "")
+
+
+def _time(text: str | None) -> float | None:
+    try:
+        return float(text) if text else None
+    except ValueError:
+        return None
+
+
+def _clock(t: float) -> str:
+    """ISO 8601 UTC to the millisecond, as every report writes times."""
+    try:
+        return datetime.fromtimestamp(t, UTC).isoformat(timespec="milliseconds")
+    except (OverflowError, OSError, ValueError):
+        return repr(t)
