@@ -351,8 +351,8 @@ class Scorecard:
         else:
             self.update(linter)  # pending violations and events first
         lines = [self.header(linter, None, None), ""]
-        if opening:
-            lines += [opening, ""]
+        if opening:  # our own lines (wire text in them is escaped line by line below)
+            lines += [*opening.split("\n"), ""]
         lines += self.table(rows_from_report(report), None, width=400)
         found = findings_from_report(report)
         if found:
