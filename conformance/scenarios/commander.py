@@ -112,6 +112,15 @@ class Commander(Sender):
     def _remember(self, sent: Sent) -> None:
         self._track(sent, None)
 
+    def _forget(self, sent: Sent) -> None:
+        with self._lock:
+            self._start_commands.pop(sent.com_uuid, None)
+            for task_uuid, task in list(self.open_tasks.items()):
+                if sent.com_uuid in task.com_uuids:
+                    task.com_uuids.remove(sent.com_uuid)
+                    if not task.com_uuids:
+                        del self.open_tasks[task_uuid]
+
     # --- waiting for answers ---------------------------------------------------------------
     def response(self, sent: Sent, timeout: float, *, after: int | None = None) -> Entry | None:
         """The unit's response whose ``response-to`` is the command's com-uuid (12.3)."""

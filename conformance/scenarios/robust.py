@@ -11,6 +11,8 @@ from conformance.scenarios.sender import SENDER, Sent, new_uuid
 from conformance.violation import Verdict
 
 RULES = ("EXEC-ROBUST-001", "EXEC-ROBUST-002")
+NO_SUCH_TASK = "waraps-conformance-no-such-task"
+"""The task the malformed start-task names: no unit offers it, so none can run it."""
 ALIVE_WAITS = 3
 """Response deadlines the last ping may take: a late pong still shows the unit lives."""
 
@@ -27,7 +29,9 @@ UNREADABLE: tuple[tuple[str, bytes], ...] = (
 
 def _readable(com_uuid: str) -> list[tuple[str, bytes]]:
     """Malformed commands whose com-uuid can be read: each should be answered 'failed'
-    (the answer's fail-reason is EXEC-007's business)."""
+    (the answer's fail-reason is EXEC-007's business). None names a real task: a lenient
+    parser on a real unit could run it (DESIGN 'Safety'; the publish policy would refuse a
+    motion task anyway)."""
     def body(**fields: object) -> bytes:
         return orjson.dumps({"com-uuid": com_uuid, "sender": SENDER, **fields})
 
@@ -36,7 +40,7 @@ def _readable(com_uuid: str) -> list[tuple[str, bytes]]:
         ("an unknown command", body(command="waraps-conformance-no-such-command")),
         ("a command without 'command'", body()),
         ("start-task without task", body(command="start-task")),
-        ("start-task whose task is a string", body(command="start-task", task="move-to")),
+        ("start-task whose task is a string", body(command="start-task", task=NO_SUCH_TASK)),
         ("JSON cut off after the com-uuid", prefix + b'"command": "start-ta'),
         ("NaN in a command (not JSON)", prefix + b'"command": "ping", "x": NaN}'),
     ]
