@@ -6,13 +6,12 @@ from __future__ import annotations
 
 import orjson
 
+from conformance.scenarios.commander import NO_SUCH_TASK
 from conformance.scenarios.context import Context, describe
 from conformance.scenarios.sender import SENDER, Sent, new_uuid
 from conformance.violation import Verdict
 
 RULES = ("EXEC-ROBUST-001", "EXEC-ROBUST-002")
-NO_SUCH_TASK = "waraps-conformance-no-such-task"
-"""The task the malformed start-task names: no unit offers it, so none can run it."""
 ALIVE_WAITS = 3
 """Response deadlines the last ping may take: a late pong still shows the unit lives."""
 

@@ -280,10 +280,12 @@ class TstCommander(Sender):
         return any(self.over(root, tree.mark) for root in tree.roots)
 
     # --- safety -------------------------------------------------------------------------
-    def abort_all(self, timeout: float) -> list[str]:
+    def abort_all(self, timeout: float, *, stuck: bool = True) -> list[str]:
         """``signal-tst-tree $abort`` to every tree this commander started whose root has not
         ended (DESIGN 'Safety'); wait up to ``timeout`` seconds in all for the answers.
-        Returns the root node-uuids aborted."""
+        Returns the root node-uuids aborted. ``stuck=False`` (between scenarios) leaves out
+        the trees whose $abort went unanswered or was refused while they ran (i20 6); the
+        run's last teardown tries them once more."""
         if self.dry_run:
             return []
         for e in self.traffic.since(0, "tst/response"):  # answers that came after a Ctrl-C
@@ -298,6 +300,8 @@ class TstCommander(Sender):
                 with self._lock:
                     self.open_trees.pop(com, None)
                 continue
+            if tree.stuck and not stuck:
+                continue
             for root in sorted(tree.roots):
                 try:
                     sent.append((com, root, self.send({"command": "signal-tst-tree",
@@ -311,9 +315,12 @@ class TstCommander(Sender):
                 aborted.append(root)
                 with self._lock:
                     self.open_trees.pop(com, None)
-            elif answer is not None:  # refused: ended meanwhile, or not this name of it
+            else:  # refused (ended meanwhile, or not this name of it), or unanswered
                 with self._lock:
                     tree = self.open_trees.get(com)
-                    if tree is not None and self.ended(tree):
+                if tree is not None and answer is not None and self.ended(tree):
+                    with self._lock:
                         self.open_trees.pop(com, None)
+                elif tree is not None:
+                    tree.stuck = True
         return aborted

@@ -269,11 +269,10 @@ class Certification:
             # asks exactly whether the unit still pings.
             if name not in ("ping", "robust") and scenario.level == DIRECT_EXECUTION:
                 self.run_scenario("ping")
-                if not self._answers_commands():
+                deaf = self._answers_none()
+                if deaf:
                     for rule in scenario.rules:
-                        self.record(rule, verdict=Verdict.COULD_NOT_TEST,
-                                    reason="the unit answers no command: ping got no response "
-                                    f"within {self.timing.response:.1f} s (EXEC-PING-001)")
+                        self.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=deaf)
                     self._done[name] = False
                     return
             self.observation.wait_execution_info()
@@ -287,8 +286,9 @@ class Certification:
         finally:
             self._done[name] = True
             if not self.settings.dry_run:
-                aborted = self.commander.abort_all(self.timing.response)
-                aborted += self.tst.abort_all(self.timing.response)
+                # What ignored an $abort before is left to the last teardown (i20 6).
+                aborted = self.commander.abort_all(self.timing.response, stuck=False)
+                aborted += self.tst.abort_all(self.timing.response, stuck=False)
                 if aborted and self.out_of_time:
                     self._say_aborted(aborted)
             self.write_reports()
@@ -311,11 +311,15 @@ class Certification:
         # ERR-008: a level written with an underscore is the same claim
         return level in (lv.replace("_", " ") for lv in self.context.levels())
 
-    def _answers_commands(self) -> bool:
+    def _answers_none(self) -> str:
+        """Why the unit answers no command at all, or "": ping unanswered, then each other
+        kind probed on its own (``Commander.answers_none``)."""
         if self.settings.dry_run:
-            return True  # nothing was sent: let every scenario say what it would send
-        return self.result("EXEC-PING-001").verdict is not Verdict.FAIL or bool(
-            self.traffic.since(0, "exec/response"))
+            return ""  # nothing was sent: let every scenario say what it would send
+        if self.result("EXEC-PING-001").verdict is not Verdict.FAIL or \
+                self.traffic.since(0, "exec/response"):
+            return ""
+        return self.commander.answers_none(self.timing.response)
 
     def wait_passive_window(self) -> None:
         """Wait for the passive window (``Observation.wait_passive_window``), then judge the
