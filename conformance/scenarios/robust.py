@@ -26,7 +26,7 @@ UNREADABLE: tuple[tuple[str, bytes], ...] = (
 )
 
 
-def _readable(com_uuid: str) -> list[tuple[str, bytes]]:
+def malformed(com_uuid: str) -> list[tuple[str, bytes]]:
     """Malformed commands whose com-uuid can be read: each should be answered 'failed'
     (the answer's fail-reason is EXEC-007's business). None names a real task: a lenient
     parser on a real unit could run it (DESIGN 'Safety'; the publish policy would refuse a
@@ -49,9 +49,9 @@ def run(ctx: Context) -> None:
     for _what, payload in UNREADABLE:
         ctx.commander.send_raw(payload)
     pending: list[tuple[str, Sent]] = []
-    for index in range(len(_readable(""))):
+    for index in range(len(malformed(""))):
         com_uuid = new_uuid()  # a fresh one for each: they are different commands
-        what, payload = _readable(com_uuid)[index]
+        what, payload = malformed(com_uuid)[index]
         pending.append((what, ctx.commander.send_raw(payload, com_uuid=com_uuid)))
     unanswered = 0
     for what, sent in pending:  # one deadline for all: they were sent together
