@@ -222,3 +222,33 @@ def test_every_started_task_is_ended_by_the_suite(pytester: pytest.Pytester, mos
         info = [m for m in wire.messages if m.topic == f"{unit}/direct_execution_info"][-1]
     assert run.result.ret == 0, run.text
     assert orjson.loads(info.payload)["tasks-executing"] == []
+
+
+def test_a_task_whose_abort_went_unanswered_is_not_aborted_in_every_scenario() -> None:
+    """i20 6: teardown between scenarios (abort_all(stuck=False)) leaves out a task whose
+    $abort went unanswered (8 aborts of 5 s each in one run before); the run's last teardown
+    tries it once more; a unit that answered no signal-task gets a fifth of the deadline."""
+    from conformance.scenarios.commander import Commander
+    from conformance.scenarios.traffic import Traffic
+
+    unit = UnitAddress.parse("waraps/unit/air/real/dji0")
+    traffic = Traffic(unit)
+    published: list[dict] = []
+
+    def publish(topic: str, payload: bytes) -> None:
+        body = orjson.loads(payload)
+        published.append(body)
+        if body["command"] == "start-task":  # runs; signals go unanswered
+            traffic.add(Message(1000.0 + len(published), unit.topic("exec/response"),
+                                orjson.dumps({"response": "running", "com-uuid": "x",
+                                              "response-to": body["com-uuid"],
+                                              "task-uuid": body["task-uuid"]}), 0, False))
+
+    def aborts() -> int:
+        return sum(b["command"] == "signal-task" for b in published)
+
+    commander = Commander(unit, traffic, publish, say=lambda text: None)
+    commander.start_task("look-at-bearing", {}, 1.0)
+    assert commander.abort_all(0.2, stuck=False) == [] and aborts() == 1
+    assert commander.abort_all(0.2, stuck=False) == [] and aborts() == 1  # not again
+    assert commander.abort_all(0.2) == [] and aborts() == 2  # the last teardown: once more

@@ -199,3 +199,32 @@ def test_a_stalling_tst_fault_ends_within_the_deadline(pytester: pytest.Pytester
     assert run.failed == set(FAULTS[fault].rules), run.text[-3000:]
     if adapted:
         assert run.text.count(f"adapted to {adapted}:") == 1, run.text[-3000:]
+
+
+def test_a_stuck_tree_is_aborted_again_only_by_the_last_teardown() -> None:
+    """i20 6: a tree whose $abort went unanswered is not aborted again between scenarios
+    (abort_all(stuck=False)); the run's last teardown (stuck=True) tries it once more."""
+    from conformance.client import Message
+
+    unit = UnitAddress.parse(UNIT)
+    traffic = Traffic(unit)
+    published: list[dict] = []
+
+    def publish(topic: str, payload: bytes) -> None:
+        body = orjson.loads(payload)
+        published.append(body)
+        if body["command"] == "start-tst":  # started; every signal then goes unanswered
+            traffic.add(Message(1000.0 + len(published), unit.topic("tst/response"),
+                                orjson.dumps({"response": "started", "com-uuid": "x",
+                                              "response-to": body["com-uuid"],
+                                              "root-uuid": "stuck", "fail-reason": ""}), 0,
+                                False))
+
+    def aborts() -> int:
+        return sum(b["command"] == "signal-tst-tree" for b in published)
+
+    tc = TstCommander(unit, unit.topic("tst/command"), traffic, publish)
+    tc.start(node("look-at-bearing", {}, "stuck", execunit="/dji0"), 1.0)
+    assert tc.abort_all(0.2, stuck=False) == [] and aborts() == 1
+    assert tc.abort_all(0.2, stuck=False) == [] and aborts() == 1  # not again
+    assert tc.abort_all(0.2) == [] and aborts() == 2  # the last teardown: once more
