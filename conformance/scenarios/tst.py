@@ -104,8 +104,9 @@ class _Drive:
                                       ctx.timing.response)
         if not self.started(task, answer):
             return
-        self.misread |= root != given
-        if tc.feedback(root, LIVE, ctx.timing.response, after=sent.mark) is None:
+        root, live = tc.follow(given, root, LIVE, ctx.timing.response, after=sent.mark)
+        self.misread |= root != given  # its own node-uuids: it did not read common_params
+        if live is None:
             return
         self.end(root, *ending)
 
@@ -118,6 +119,8 @@ class _Drive:
             node(a, self.params(a), nc, execunit=me)], execunit=me), ctx.timing.response)
         if not self.started(f"seq [{a}, {b}, {a}]", answer):
             return
+        if root != s:
+            root, _ = tc.follow(s, root, None, ctx.timing.response, after=sent.mark)
         if root == s and tc.feedback(na, ("running",), ctx.timing.response,
                                      after=sent.mark) is not None:
             self.signal("signal-tst-node", na, "$pause", na, ("paused",))
@@ -140,6 +143,8 @@ class _Drive:
             execunit=me), ctx.timing.response)
         if not self.started(f"conc [{a}, {b}]", answer):
             return
+        if root != c:
+            root, _ = tc.follow(c, root, None, ctx.timing.response, after=sent.mark)
         if root == c and all(tc.feedback(n, ("running",), ctx.timing.response, after=sent.mark)
                              for n in (na, nb)):
             self.signal("signal-unit", tc.me, "$pause", c, ("paused",))
@@ -191,15 +196,16 @@ class _Drive:
     def resend(self, task: str) -> None:
         """12.1 for start-tst: answered again (TST-007), started once (TST-006)."""
         ctx, tc = self.ctx, self.tc
-        sent, answer, root = tc.start(node(task, self.params(task), new_uuid(),
-                                           execunit=tc.me), ctx.timing.response)
+        given = new_uuid()
+        sent, answer, root = tc.start(node(task, self.params(task), given, execunit=tc.me),
+                                      ctx.timing.response)
         if answer is None:
             return
         again = tc.resend(sent)
         tc.response(sent, ctx.timing.response, after=again.mark)
         self.nothing_ran()  # the refusals' messages are in by now
         if answer.get("response") != "failed":
-            tc.feedback(root, LIVE, ctx.timing.response, after=sent.mark)
+            root, _ = tc.follow(given, root, LIVE, ctx.timing.response, after=sent.mark)
             self.end(root, "signal-tst-node", "$abort")
 
     def wait_info(self, after_time: float | None = None) -> None:

@@ -204,6 +204,29 @@ class TstCommander(Sender):
                                      + ("any status" if statuses is None else
                                         " or ".join(sorted(statuses))))
 
+    def follow(self, given: str, root: str, statuses: Collection[str] | None, timeout: float,
+               *, after: int) -> tuple[str, Entry | None]:
+        """The first feedback of a tree just started (one of ``statuses``; any when None), and
+        the node-uuid to address the tree by. 14.4.4: the root-uuid answered is the root's
+        node-uuid sent; a unit that answers another one (TST-004's finding) but reports the
+        tree under the node-uuid sent is followed under that one (noted once), so that its
+        signals reach the tree and no wait runs out for feedback that comes under a name
+        the suite is not watching."""
+        ids = {given, root}
+
+        def match(e: Entry) -> bool:
+            return e.get("node-uuid") in ids and (
+                statuses is None or self._read(e.get("status")) in statuses)
+        found = self.traffic.wait_for(match, timeout, after=after, subtopic="tst/feedback",
+                                      what=f"the first feedback of tree {given[:8]}")
+        if found is not None and found.get("node-uuid") == given != root:
+            self.deviations.note(
+                Kind.TST_ROOT_UUID, f"start-tst with root node-uuid {given} was answered "
+                f"root-uuid {root}, and the tree's feedback names {given}",
+                "the suite addresses each tree by the node-uuid it sent")
+            return given, found
+        return root, found
+
     def effect(self, signal: str, watch: str, wanted: Collection[str], *, after: int,
                timeout: float, short: float) -> Entry | None:
         """The feedback a signal answered 'ok' implies: ``watch`` reporting one of ``wanted``
