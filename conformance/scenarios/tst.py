@@ -87,7 +87,7 @@ class _Drive:
             return False
         # The full feedback deadline until the unit showed it does not do this (deviation.py).
         return tc.effect(signal, watch, wanted, after=mark, timeout=ctx.timing.feedback,
-                         short=SHORT * ctx.timing.response) is not None
+                         short=SHORT * ctx.timing.response, target=target) is not None
 
     def end(self, root: str, command: str, signal: str) -> None:
         """End a tree with a signal at ``command``'s level; if it goes on, with the tree's

@@ -228,7 +228,7 @@ class TstCommander(Sender):
         return root, found
 
     def effect(self, signal: str, watch: str, wanted: Collection[str], *, after: int,
-               timeout: float, short: float) -> Entry | None:
+               timeout: float, short: float, target: str | None = None) -> Entry | None:
         """The feedback a signal answered 'ok' implies: ``watch`` reporting one of ``wanted``
         after ``after``, within ``timeout`` seconds; ``short`` once the unit has answered this
         signal 'ok' and not done it (TST-012, noted once: deviation.py).
@@ -245,6 +245,11 @@ class TstCommander(Sender):
             found = self.feedback(watch, wanted, short if known else timeout, after=after)
         if found is not None or known or self.over(watch):
             return found
+        # The signalled node did what it was told, but ``watch`` (its tree) went on: that is
+        # the tree's finding (TST-010), not a signal ignored.
+        node = target if target is not None and not target.startswith("/") else watch
+        if node != watch and any(s in wanted for s in self.statuses(node, after)):
+            return None
         with self._lock:
             self._ignored.add(signal)
         self.deviations.note(
