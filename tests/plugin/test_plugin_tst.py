@@ -186,6 +186,7 @@ deadline (30 s), where waiting that deadline again for each tree takes 150 s or 
 @pytest.mark.parametrize(("fault", "adapted"), [
     ("tst-abort-ignored", "TST-012"),  # $abort answered 'ok', not done: noted once
     ("tst-no-final-feedback", None),  # seq and conc: awaited until their task nodes ended
+    ("tst-root-uuid-wrong", "TST-004"),  # trees followed under the node-uuid feedback uses
 ])
 def test_a_stalling_tst_fault_ends_within_the_deadline(pytester: pytest.Pytester,
                                                        mosquitto: str, prefix: str, fault: str,
