@@ -151,6 +151,11 @@ def publish_nowhere(topic: str) -> bool:
     return False
 
 
+PayloadPolicy = Callable[[str, bytes], "str | None"]
+"""Why a payload may not be published to a topic the ``PublishPolicy`` allows, or None
+(DESIGN: 'the publish policy is the one gate': the suite's refuses motion on a real unit)."""
+
+
 READ_CHUNK = 65536
 """Bytes read from the socket at once (see _ChunkedPaho)."""
 
@@ -211,6 +216,7 @@ class MqttClient:
     def __init__(self, broker: BrokerURL, *, client_id: str | None = None,
                  on_message: Callable[[Message], None] | None = None,
                  may_publish: PublishPolicy = publish_nowhere,
+                 refuse_payload: PayloadPolicy | None = None,
                  on_connection_change: Callable[[bool, str], None] | None = None,
                  keepalive: int = 30) -> None:
         if broker.scheme == "embedded":
@@ -219,6 +225,7 @@ class MqttClient:
         self.broker = broker
         self.client_id = client_id or f"waraps-conformance-{uuid.uuid4().hex[:12]}"
         self.may_publish = may_publish
+        self.refuse_payload = refuse_payload
         self._on_message = on_message
         self._on_connection_change = on_connection_change
         self._queue: queue.Queue[Message] = queue.Queue()
@@ -384,6 +391,11 @@ class MqttClient:
         if not self.may_publish(topic):
             raise PublishRefused(f"refusing to publish to {topic!r}: not a command topic of "
                                  f"the unit under test (DESIGN: safety)")
+        if self.refuse_payload is not None:
+            why = self.refuse_payload(topic, payload.encode() if isinstance(payload, str)
+                                      else bytes(payload))
+            if why:
+                raise PublishRefused(f"refusing to publish to {topic!r}: {why}")
         info = self._paho.publish(topic, payload, qos=qos, retain=retain)
         if info.rc != paho.MQTT_ERR_SUCCESS and info.rc != paho.MQTT_ERR_NO_CONN:
             raise BrokerError(f"publish to {topic!r} failed: {paho.error_string(info.rc)}")

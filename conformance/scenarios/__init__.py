@@ -16,7 +16,7 @@ from conformance.scenarios import ping, query, reboot, resend, robust, signal, s
 from conformance.scenarios.commander import Commander
 from conformance.scenarios.context import Context, Timing
 from conformance.scenarios.safety import Position, Safety
-from conformance.scenarios.sender import DryRun
+from conformance.scenarios.sender import DryRun, NotSent, Refused
 from conformance.scenarios.traffic import Entry, Traffic
 from conformance.scenarios.tst_commander import TstCommander
 from conformance.topics import DIRECT_EXECUTION, TST_EXECUTION
@@ -81,5 +81,5 @@ def scenarios_for(rule: str) -> tuple[str, ...]:
 
 
 __all__ = ["SCENARIOS", "RULE_SCENARIO", "EVIDENCE", "scenarios_for", "Scenario", "Context",
-           "Timing", "Commander", "DryRun", "Safety", "Position", "Traffic", "Entry",
+           "Timing", "Commander", "DryRun", "NotSent", "Refused", "Safety", "Position", "Traffic", "Entry",
            "TstCommander"]

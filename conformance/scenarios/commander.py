@@ -9,6 +9,7 @@ raises ``DryRun``.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from typing import Any
@@ -25,6 +26,9 @@ from conformance.scenarios.sender import Sender, Sent, new_uuid
 from conformance.scenarios.traffic import Entry, Traffic
 from conformance.topics import UnitAddress
 
+NO_SUCH_TASK = "waraps-conformance-no-such-task"
+"""A task name no unit offers: a start-task of it is refused and can move nothing."""
+
 
 @dataclass
 class OpenTask:
@@ -33,6 +37,9 @@ class OpenTask:
     mark: int
     """Traffic mark from when the task was started: its feedback arrives after this."""
     com_uuids: list[str] = field(default_factory=list)
+    stuck: bool = False
+    """Its $abort went unanswered: teardown between scenarios does not abort it again
+    (i20 6: the same stuck tasks were aborted in every scenario); the run's last does."""
 
 
 def _describe(body: dict[str, Any]) -> str:
@@ -79,6 +86,8 @@ class Commander(Sender):
         """task-uuid sent -> the task-uuid the unit runs the task under, when it differs."""
         self._answered_kinds: set[str] = set()
         """Commands (start-task, ...) the unit has answered at least once."""
+        self._none_answered: str | None = None
+        """Why the unit answers no command ("" when it answers some), once probed."""
         self.deliberately_invalid: set[bytes] = set()
         """Payloads sent broken on purpose (robustness, invalid parameters): not the unit's
         fault, so the passive checks are not fed these."""
@@ -111,6 +120,15 @@ class Commander(Sender):
 
     def _remember(self, sent: Sent) -> None:
         self._track(sent, None)
+
+    def _forget(self, sent: Sent) -> None:
+        with self._lock:
+            self._start_commands.pop(sent.com_uuid, None)
+            for task_uuid, task in list(self.open_tasks.items()):
+                if sent.com_uuid in task.com_uuids:
+                    task.com_uuids.remove(sent.com_uuid)
+                    if not task.com_uuids:
+                        del self.open_tasks[task_uuid]
 
     # --- waiting for answers ---------------------------------------------------------------
     def response(self, sent: Sent, timeout: float, *, after: int | None = None) -> Entry | None:
@@ -260,6 +278,47 @@ class Commander(Sender):
         mark = task.mark if task else 0
         return any(meaning(s) in FINAL_STATUSES for s in self.statuses(task_uuid, mark))
 
+    # --- whether the unit answers commands at all ------------------------------------------
+    def answers_none(self, timeout: float) -> str:
+        """Why the unit counts as answering no command at all, or "" when it answers some.
+
+        One kind of command unanswered never implies the others are (a unit may ignore ping
+        and run tasks): after an unanswered ping, one harmless command of each other kind
+        (start-task of a task no unit offers, signal-task and query-status for a task-uuid
+        it never saw; 12.1 asks each to be answered) is sent at once and awaited
+        ``timeout`` seconds. The answer is kept: asked again, it is not probed again."""
+        if self._none_answered is not None:
+            return self._none_answered
+        ghost = new_uuid()
+        probes = [self.send({"command": "start-task", "execution-unit": self.unit.name,
+                             "task": {"name": NO_SUCH_TASK, "params": {}},
+                             "task-uuid": ghost}),
+                  self.send({"command": "signal-task", "signal": "$abort",
+                             "task-uuid": new_uuid()}),
+                  self.send({"command": "query-status", "task-uuid": new_uuid()})]
+        end = time.monotonic() + timeout
+        answered = False
+        for sent in probes:
+            answer = self.response(sent, max(0.0, end - time.monotonic()))
+            command = str(sent.body.get("command"))
+            if sent.body.get("command") == "start-task":
+                with self._lock:  # no unit offers it: nothing to abort, answered or not
+                    self._closed.add(ghost)
+                    self.open_tasks.pop(ghost, None)
+            if answer is not None:
+                answered = True
+                with self._lock:
+                    self._answered_kinds.add(command)
+            else:
+                self.deviations.note(
+                    UNANSWERED[command], f"the unit answered no {command} within "
+                    f"{timeout:.1f} s", f"later ones get {SHORT * 100:.0f} % of the response "
+                    "deadline")
+        self._none_answered = "" if answered else (
+            f"the unit answers no command: ping, start-task, signal-task and query-status got "
+            f"no response within {timeout:.1f} s (EXEC-PING-001)")
+        return self._none_answered
+
     # --- the four commands of 12.1 ---------------------------------------------------------
     def ping(self, timeout: float) -> tuple[Sent, Entry | None]:
         return self.request({"command": "ping"}, timeout)
@@ -283,10 +342,14 @@ class Commander(Sender):
                              "task-uuid": self.unit_task_uuid(task_uuid)}, timeout)
 
     # --- safety ----------------------------------------------------------------------------
-    def abort_all(self, timeout: float) -> list[str]:
+    def abort_all(self, timeout: float, *, stuck: bool = True) -> list[str]:
         """Send ``$abort`` to every task this commander started that has not ended (DESIGN
-        'Safety'); wait up to ``timeout`` seconds in all for the answers. Returns the
-        task-uuids aborted."""
+        'Safety'); wait up to ``timeout`` seconds in all for the answers (a fifth of it when
+        the unit has answered no signal-task so far). Returns the task-uuids aborted.
+
+        ``stuck=False`` (between scenarios) leaves out the tasks whose $abort went unanswered
+        before: sending it again in every scenario proves nothing and costs a deadline each
+        time; the run's last teardown (``stuck=True``) tries them once more."""
         if self.dry_run:
             return []
         # Tasks whose uuid the unit generated and whose answer came after the scenario stopped
@@ -299,12 +362,15 @@ class Commander(Sender):
                 self._track(sent, e)
         with self._lock:
             tasks = list(self.open_tasks.values())
-        pending = [t for t in tasks if not self.is_final(t.task_uuid)]
+        ended = [t for t in tasks if self.is_final(t.task_uuid)]
+        pending = [t for t in tasks if t not in ended and (stuck or not t.stuck)]
         with self._lock:
-            for task in tasks:
-                if task not in pending:
-                    self._closed.add(task.task_uuid)
-                    self.open_tasks.pop(task.task_uuid, None)
+            for task in ended:
+                self._closed.add(task.task_uuid)
+                self.open_tasks.pop(task.task_uuid, None)
+        if pending and self.deviations.get(Kind.SIGNAL_UNANSWERED) is not None \
+                and not self._answered("signal-task"):
+            timeout *= SHORT
         sent: list[tuple[OpenTask, Sent]] = []
         for task in pending:
             try:
@@ -321,4 +387,6 @@ class Commander(Sender):
                 with self._lock:
                     self._closed.add(task.task_uuid)
                     self.open_tasks.pop(task.task_uuid, None)
+            else:
+                task.stuck = True
         return aborted

@@ -14,6 +14,14 @@ with its rule), and the scenarios adapt:
 - no final feedback for a task that ends on its own: later waits for one are could-not-test;
 - a command of one kind (start-task, signal-task, query-status) never answered: later ones of
   that kind get a short deadline (a fifth of the response deadline) for their answer.
+
+TST (14) the same way (``tst_commander``): a node status outside 14.5's list that plainly means
+one in it (``finished``) is read as what it means (TST-003's to judge); a signal answered 'ok'
+and not done (TST-012) is waited for the full feedback deadline once, then later ones of it a
+fifth of the response deadline; a tree answered with a root-uuid other than the root's
+node-uuid, but reported under that node-uuid (TST-004), is followed under the one its
+feedback uses. A seq or conc is waited for only until its task nodes ended
+(nothing of it runs then): whether it reports its own end is the Monitor's (TST-009).
 """
 
 from __future__ import annotations
@@ -37,6 +45,9 @@ class Kind(Enum):
     START_UNANSWERED = "EXEC-START-001"
     SIGNAL_UNANSWERED = "EXEC-SIG-001"
     QUERY_UNANSWERED = "EXEC-QUERY-001"
+    TST_STATUS_VOCABULARY = "TST-003"
+    TST_ROOT_UUID = "TST-004"
+    TST_SIGNAL_IGNORED = "TST-012"
 
     @property
     def rule(self) -> str:

@@ -8,6 +8,7 @@ from __future__ import annotations
 from conformance.scenarios.context import Context, describe
 from conformance.scenarios.query import status_answer
 from conformance.scenarios.sender import new_uuid
+from conformance.scenarios.traffic import Entry
 from conformance.violation import Verdict
 
 RULES = ("REBOOT-001", "REBOOT-002")
@@ -64,8 +65,16 @@ def run(ctx: Context) -> None:
         ctx.record("REBOOT-002", verdict=Verdict.COULD_NOT_TEST,
                    reason="no task ended before the reboot to ask about")
         return
-    # Ready for commands again: answer a ping (deadline: the reboot's).
-    ctx.commander.ping(ctx.timing.reboot)
+    # Ready for commands again: answer a ping (deadline: the reboot's). A unit that never
+    # answered ping (EXEC-PING-001's, judged already) would only let that deadline run out:
+    # it is asked the query-status of a task it never saw instead (needed below anyway).
+    ghost: Entry | None = None
+    if any(e.get("response") == "pong" for e in ctx.traffic.since(0, "exec/response")):
+        ctx.commander.ping(ctx.timing.reboot)
+        asked = False
+    else:
+        _, ghost = ctx.commander.query(new_uuid(), ctx.timing.reboot)
+        asked = True
     task_uuid, name, status = ended[0]
     sent, answer = ctx.commander.query(task_uuid, ctx.timing.response)
     if answer is None:
@@ -78,7 +87,8 @@ def run(ctx: Context) -> None:
     got = status_answer(answer)
     # Compared with the unit's own answer for a task it never saw, so that a wrong word for
     # 'unknown' stays EXEC-QUERY-002's finding and is not counted here again.
-    _, ghost = ctx.commander.query(new_uuid(), ctx.timing.response)
+    if not asked:
+        _, ghost = ctx.commander.query(new_uuid(), ctx.timing.response)
     unknown = status_answer(ghost) if ghost is not None else "unknown"
     if new_agent != old_agent:
         ok = got == unknown

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import orjson
 
+from conformance.scenarios.commander import NO_SUCH_TASK
 from conformance.scenarios.context import Context, describe
 from conformance.scenarios.sender import SENDER, Sent, new_uuid
 from conformance.violation import Verdict
@@ -25,9 +26,11 @@ UNREADABLE: tuple[tuple[str, bytes], ...] = (
 )
 
 
-def _readable(com_uuid: str) -> list[tuple[str, bytes]]:
+def malformed(com_uuid: str) -> list[tuple[str, bytes]]:
     """Malformed commands whose com-uuid can be read: each should be answered 'failed'
-    (the answer's fail-reason is EXEC-007's business)."""
+    (the answer's fail-reason is EXEC-007's business). None names a real task: a lenient
+    parser on a real unit could run it (DESIGN 'Safety'; the publish policy would refuse a
+    motion task anyway)."""
     def body(**fields: object) -> bytes:
         return orjson.dumps({"com-uuid": com_uuid, "sender": SENDER, **fields})
 
@@ -36,7 +39,7 @@ def _readable(com_uuid: str) -> list[tuple[str, bytes]]:
         ("an unknown command", body(command="waraps-conformance-no-such-command")),
         ("a command without 'command'", body()),
         ("start-task without task", body(command="start-task")),
-        ("start-task whose task is a string", body(command="start-task", task="move-to")),
+        ("start-task whose task is a string", body(command="start-task", task=NO_SUCH_TASK)),
         ("JSON cut off after the com-uuid", prefix + b'"command": "start-ta'),
         ("NaN in a command (not JSON)", prefix + b'"command": "ping", "x": NaN}'),
     ]
@@ -46,9 +49,9 @@ def run(ctx: Context) -> None:
     for _what, payload in UNREADABLE:
         ctx.commander.send_raw(payload)
     pending: list[tuple[str, Sent]] = []
-    for index in range(len(_readable(""))):
+    for index in range(len(malformed(""))):
         com_uuid = new_uuid()  # a fresh one for each: they are different commands
-        what, payload = _readable(com_uuid)[index]
+        what, payload = malformed(com_uuid)[index]
         pending.append((what, ctx.commander.send_raw(payload, com_uuid=com_uuid)))
     unanswered = 0
     for what, sent in pending:  # one deadline for all: they were sent together

@@ -4,14 +4,23 @@ A unit whose topic says ``real`` is sent no task that moves it unless ``--allow-
 given AND the profile lists that task in ``motion_tasks``. Positions for any task are computed
 near the unit's own reported position, within the profile's ``safe_radius`` (metres), never
 the spec's example coordinates.
+
+``MotionGate`` is the same decision made on the bytes about to be published (DESIGN: 'the
+publish policy is the one gate'): the suite's connection asks it about every payload, so no
+payload naming a motion task reaches a ``real`` unit without the flag, whatever the scenario
+meant to send and however malformed the payload is.
 """
 
 from __future__ import annotations
 
 import math
 import random
-from collections.abc import Callable
+import re
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
+from typing import Any
+
+import orjson
 
 from conformance.profile import Profile
 from conformance.topics import UnitAddress
@@ -103,3 +112,89 @@ class Safety:
 
     def within(self, origin: Position, point: Position) -> bool:
         return origin.distance(point) <= self.profile.safe_radius
+
+
+def motion_tasks_of_the_spec() -> frozenset[str]:
+    """The tasks of section 9 that move the unit (tag 'vehicle', or ``MOVES_WITHOUT_TAG``)."""
+    from conformance import taskspec
+
+    return frozenset(s.name for s in taskspec.task_specs()
+                     if s.moves_unit or s.name in MOVES_WITHOUT_TAG) | MOVES_WITHOUT_TAG
+
+
+_NAME_CHARS = "a-z0-9-"
+
+
+def _strings(value: Any) -> Iterator[str]:
+    """Every string of a decoded JSON value: values and keys, at any depth."""
+    stack = [value]
+    while stack:
+        v = stack.pop()
+        if isinstance(v, str):
+            yield v
+        elif isinstance(v, dict):
+            for k, x in v.items():
+                yield str(k)
+                stack.append(x)
+        elif isinstance(v, list):
+            stack.extend(v)
+
+
+def named_tasks(payload: bytes, names: Iterable[str]) -> list[str]:
+    """Which of ``names`` the payload names, read leniently, as the most lenient unit might
+    read it: in its raw text and in every string of it once decoded (escapes such as
+    ``move\\u002dto`` resolved), case-insensitively, with ``_`` read as ``-``, wherever a
+    name stands as a word of its own (``"move-to"``, ``task: MOVE_TO``; not ``island``)."""
+    wanted = sorted({n.lower().replace("_", "-") for n in names if n}, key=len, reverse=True)
+    if not wanted:
+        return []
+    pattern = re.compile(rf"(?<![{_NAME_CHARS}])(?:{'|'.join(map(re.escape, wanted))})"
+                         rf"(?![{_NAME_CHARS}])")
+    texts = [payload.decode("utf-8", "replace")]
+    try:
+        texts += list(_strings(orjson.loads(payload)))
+    except (orjson.JSONDecodeError, TypeError, ValueError):
+        pass  # malformed: its raw text is what a lenient parser would read
+    found: set[str] = set()
+    for text in texts:
+        found.update(pattern.findall(text.lower().replace("_", "-")))
+    return sorted(found)
+
+
+class MotionGate:
+    """The payload half of the suite's publish policy (DESIGN 'Safety').
+
+    On a ``real`` unit, a payload that names a motion task is refused unless
+    ``--allow-motion`` is given and the profile lists that task in ``motion_tasks``. Motion
+    tasks: section 9's moving tasks, the profile's ``motion_tasks``, and the tasks the unit
+    lists (``listed()``) that this suite does not know (assumed to move, as ``Safety.moves``)."""
+
+    def __init__(self, unit: UnitAddress, profile: Profile, *, allow_motion: bool,
+                 listed: Callable[[], Iterable[str]] = tuple,
+                 task_moves: Callable[[str], bool | None] | None = None) -> None:
+        self.unit = unit
+        self.profile = profile
+        self.allow_motion = allow_motion
+        self._listed = listed
+        self._task_moves = task_moves
+        self._spec = motion_tasks_of_the_spec() | frozenset(profile.motion_tasks)
+
+    def motion_tasks(self) -> set[str]:
+        """The task names that count as motion for this unit now."""
+        unknown = {t for t in self._listed()
+                   if isinstance(t, str) and self._task_moves is not None
+                   and self._task_moves(t) is None}
+        return set(self._spec) | unknown
+
+    def refusal(self, payload: bytes) -> str | None:
+        """Why ``payload`` may not be published to the unit, or None when it may."""
+        if not self.unit.is_real:
+            return None
+        allowed = set(self.profile.motion_tasks) if self.allow_motion else set()
+        named = named_tasks(payload, self.motion_tasks() - allowed)
+        if not named:
+            return None
+        how = ("list it in the profile's motion-tasks" if self.allow_motion else
+               "pass --allow-motion and list it in the profile's motion-tasks")
+        return (f"not sent: the payload names the motion task(s) {', '.join(named)} and "
+                f"{self.unit} is a real unit ({how}; DESIGN 'Safety')")

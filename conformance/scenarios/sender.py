@@ -19,8 +19,18 @@ SENDER = "waraps-conformance"
 """The ``sender`` of every command the suite publishes."""
 
 
-class DryRun(Exception):
+class NotSent(Exception):
+    """A command was not published; the message says why. What the scenario would have
+    judged with it is could-not-test, with that reason."""
+
+
+class DryRun(NotSent):
     """Raised instead of publishing under ``--dry-run``; the message says what would be sent."""
+
+
+class Refused(NotSent):
+    """The publish policy refused the payload (DESIGN 'Safety': e.g. a motion task named to a
+    real unit without --allow-motion); the message says why."""
 
 
 @dataclass
@@ -96,13 +106,21 @@ class Sender:
         # Remembered before it goes out: a Ctrl-C between publish and answer must not leave
         # a task or tree running that abort_all does not know about.
         self._remember(sent)
-        self._publish(self.topic, payload)
+        try:
+            self._publish(self.topic, payload)
+        except PermissionError as e:  # the client's PublishRefused: nothing went out
+            self._forget(sent)
+            self._say(str(e))
+            raise Refused(str(e)) from None
         with self._lock:
             self.sent_count += 1
         return sent
 
     def _remember(self, sent: Sent) -> None:
         """What a command about to be published may start (to abort it at the end)."""
+
+    def _forget(self, sent: Sent) -> None:
+        """A command ``_remember``ed was not published after all: it started nothing."""
 
     def await_response(self, sent: Sent, timeout: float, *, after: int | None = None,
                        what: str = "") -> Entry | None:

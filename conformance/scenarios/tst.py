@@ -8,13 +8,13 @@ it alone knows: which trees the unit can run (TST-004 for a refused tree of a ta
 lists, TST-005 for the trees it must refuse).
 
 The stimuli, with tasks the safety policy lets it start (DESIGN 'Safety'; positions near the
-unit):
-- a one-leaf tree per task, each ended by a signal: tree $abort and $enough, unit $enough
-  and $abort;
+unit), every node written as 11's examples write them (``tst_commander.node``):
 - seq [a, b, c]: node $pause, $continue and $enough of a (then b runs), tree $pause and
   $continue, node $abort of b (the seq then revokes c and ends aborted);
 - conc [a, b] of two tasks of different kinds: unit $pause and $continue, node $abort of b
   (the conc then aborts a and ends aborted);
+- a one-leaf tree per task, each ended by a signal: tree $abort and $enough, unit $enough
+  and $abort;
 - trees it must refuse (TST-005): a node name no unit offers, and a seq with a node for
   another execunit; then (own topic only: on an operator's, a unit stays silent about nodes
   it does not know) a signal for a node no tree has;
@@ -27,6 +27,7 @@ from __future__ import annotations
 from itertools import cycle
 
 from conformance.scenarios.context import Context, describe
+from conformance.scenarios.deviation import SHORT
 from conformance.scenarios.params import valid_params
 from conformance.scenarios.safety import Position
 from conformance.scenarios.sender import new_uuid
@@ -79,18 +80,20 @@ class _Drive:
         (unless it has ended already). Whether it did."""
         ctx, tc = self.ctx, self.tc
         mark = ctx.traffic.mark()
-        if tc.final(watch, 0):
+        if tc.over(watch):
             return False
         _, answer = tc.signal(command, target, signal, ctx.timing.response)
         if answer is None or answer.get("response") != "ok":
             return False
-        return tc.feedback(watch, wanted, ctx.timing.feedback, after=mark) is not None
+        # The full feedback deadline until the unit showed it does not do this (deviation.py).
+        return tc.effect(signal, watch, wanted, after=mark, timeout=ctx.timing.feedback,
+                         short=SHORT * ctx.timing.response, target=target) is not None
 
     def end(self, root: str, command: str, signal: str) -> None:
         """End a tree with a signal at ``command``'s level; if it goes on, with the tree's
         $enough (teardown aborts what is left)."""
         target = self.tc.me if command == "signal-unit" else root
-        if not self.signal(command, target, signal, root, FINAL) and not self.tc.final(root, 0):
+        if not self.signal(command, target, signal, root, FINAL) and not self.tc.over(root):
             self.signal("signal-tst-tree", root, "$enough", root, FINAL)
 
     # --- the trees ----------------------------------------------------------------------
@@ -101,19 +104,23 @@ class _Drive:
                                       ctx.timing.response)
         if not self.started(task, answer):
             return
-        self.misread |= root != given
-        if tc.feedback(root, LIVE, ctx.timing.response, after=sent.mark) is None:
+        root, live = tc.follow(given, root, LIVE, ctx.timing.response, after=sent.mark)
+        self.misread |= root != given  # its own node-uuids: it did not read common_params
+        if live is None:
             return
         self.end(root, *ending)
 
     def seq(self, a: str, b: str) -> None:
         ctx, tc = self.ctx, self.tc
         s, na, nb, nc = new_uuid(), new_uuid(), new_uuid(), new_uuid()
+        me = tc.me
         sent, answer, root = tc.start(node("seq", {}, s, [
-            node(a, self.params(a), na), node(b, self.params(b), nb),
-            node(a, self.params(a), nc)], execunit=tc.me), ctx.timing.response)
+            node(a, self.params(a), na, execunit=me), node(b, self.params(b), nb, execunit=me),
+            node(a, self.params(a), nc, execunit=me)], execunit=me), ctx.timing.response)
         if not self.started(f"seq [{a}, {b}, {a}]", answer):
             return
+        if root != s:
+            root, _ = tc.follow(s, root, None, ctx.timing.response, after=sent.mark)
         if root == s and tc.feedback(na, ("running",), ctx.timing.response,
                                      after=sent.mark) is not None:
             self.signal("signal-tst-node", na, "$pause", na, ("paused",))
@@ -124,23 +131,26 @@ class _Drive:
             self.signal("signal-tst-tree", s, "$pause", s, ("paused",))
             self.signal("signal-tst-tree", s, "$continue", s, ("running",))
             self.signal("signal-tst-node", nb, "$abort", s, FINAL)
-        if not tc.final(root, sent.mark):
+        if not tc.over(root, sent.mark):
             self.end(root, "signal-tst-tree", "$enough")
 
     def conc(self, a: str, b: str) -> None:
         ctx, tc = self.ctx, self.tc
         c, na, nb = new_uuid(), new_uuid(), new_uuid()
+        me = tc.me
         sent, answer, root = tc.start(node("conc", {}, c, [
-            node(a, self.params(a), na), node(b, self.params(b), nb)], execunit=tc.me),
-            ctx.timing.response)
+            node(a, self.params(a), na, execunit=me), node(b, self.params(b), nb, execunit=me)],
+            execunit=me), ctx.timing.response)
         if not self.started(f"conc [{a}, {b}]", answer):
             return
+        if root != c:
+            root, _ = tc.follow(c, root, None, ctx.timing.response, after=sent.mark)
         if root == c and all(tc.feedback(n, ("running",), ctx.timing.response, after=sent.mark)
                              for n in (na, nb)):
             self.signal("signal-unit", tc.me, "$pause", c, ("paused",))
             self.signal("signal-unit", tc.me, "$continue", c, ("running",))
             self.signal("signal-tst-node", nb, "$abort", c, FINAL)
-        if not tc.final(root, sent.mark):
+        if not tc.over(root, sent.mark):
             self.end(root, "signal-tst-tree", "$enough")
 
     def refusals(self, task: str) -> None:
@@ -186,15 +196,16 @@ class _Drive:
     def resend(self, task: str) -> None:
         """12.1 for start-tst: answered again (TST-007), started once (TST-006)."""
         ctx, tc = self.ctx, self.tc
-        sent, answer, root = tc.start(node(task, self.params(task), new_uuid(),
-                                           execunit=tc.me), ctx.timing.response)
+        given = new_uuid()
+        sent, answer, root = tc.start(node(task, self.params(task), given, execunit=tc.me),
+                                      ctx.timing.response)
         if answer is None:
             return
         again = tc.resend(sent)
         tc.response(sent, ctx.timing.response, after=again.mark)
         self.nothing_ran()  # the refusals' messages are in by now
         if answer.get("response") != "failed":
-            tc.feedback(root, LIVE, ctx.timing.response, after=sent.mark)
+            root, _ = tc.follow(given, root, LIVE, ctx.timing.response, after=sent.mark)
             self.end(root, "signal-tst-node", "$abort")
 
     def wait_info(self, after_time: float | None = None) -> None:
@@ -237,17 +248,19 @@ def run(ctx: Context) -> None:
             ctx.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=reason)
         return
     drive = _Drive(ctx, tc, origin)
+    safe = [t for t in tasks if not ctx.safety.moves(t)] or tasks
+    a = safe[0]
+    b = next((t for t in safe if _kind(t) != _kind(a)), next(
+        (t for t in tasks if _kind(t) != _kind(a)), a))
+    # The composite trees first: the deadline a seq or conc's final status has in the
+    # Monitor (TST-009) then runs out while the leaf trees run, not in the settle at the end.
+    drive.seq(a, safe[1] if len(safe) > 1 else a)
+    drive.conc(a, b)
     leaves = list(tasks)
     while len(leaves) < len(LEAF_ENDINGS):  # each ending at least once
         leaves.append(tasks[len(leaves) % len(tasks)])
     for task, ending in zip(leaves, cycle(LEAF_ENDINGS)):
         drive.leaf(task, ending)
-    safe = [t for t in tasks if not ctx.safety.moves(t)] or tasks
-    a = safe[0]
-    b = next((t for t in safe if _kind(t) != _kind(a)), next(
-        (t for t in tasks if _kind(t) != _kind(a)), a))
-    drive.seq(a, safe[1] if len(safe) > 1 else a)
-    drive.conc(a, b)
     drive.refusals(a)
     drive.resend(a)
     drive.info_after_the_ends()

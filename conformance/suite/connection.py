@@ -19,6 +19,8 @@ from conformance.checks import Monitor
 from conformance.client import BrokerURL, MqttClient
 from conformance.message import Message
 from conformance.scenarios import Traffic
+from conformance.scenarios.params import task_moves
+from conformance.scenarios.safety import MotionGate
 from conformance.suite.events import Events
 from conformance.suite.probe import NotAlive, Probe, not_alive
 from conformance.suite.settings import Settings
@@ -53,6 +55,10 @@ class Connection:
     def __post_init__(self) -> None:
         self.broker_url: BrokerURL = self.settings.broker
         """The broker connected to (under --broker embedded: the embedded one's address)."""
+        self.motion = MotionGate(self.unit, self.settings.profile,
+                                 allow_motion=self.settings.allow_motion,
+                                 listed=self._tasks_listed, task_moves=task_moves)
+        """What may not be said to a real unit (DESIGN 'Safety'), asked about every payload."""
 
     @property
     def unit(self) -> UnitAddress:
@@ -77,6 +83,7 @@ class Connection:
         probe = Probe(self.broker_url, self.unit)
         self.client = MqttClient(self.broker_url, on_message=self._on_message,
                                  may_publish=self.may_publish,
+                                 refuse_payload=self.refuse_payload,
                                  on_connection_change=self._on_connection)
         self.client.connect(timeout=5.0 * s.timing_scale)
         self.client.subscribe(self.unit.base + "/#")
@@ -143,6 +150,17 @@ class Connection:
         # DESIGN 'Safety': only the command topic of the unit under test, and the one TST
         # command topic the run was told (14.1: the unit's own, or an operator's).
         return topic == self.unit.topic("exec/command") or topic == self.settings.tst_topic
+
+    def refuse_payload(self, topic: str, payload: bytes) -> str | None:
+        # DESIGN 'Safety': the policy, not each scenario, decides; malformed probes included.
+        return self.motion.refusal(payload)
+
+    def _tasks_listed(self) -> list[str]:
+        """The task names the unit lists in tasks-available (5.3), as last seen."""
+        info = self.traffic.latest("direct_execution_info")
+        tasks = info.get("tasks-available") if info is not None else None
+        return [t.get("name") for t in tasks if isinstance(t, dict)] \
+            if isinstance(tasks, list) else []
 
     def publish(self, topic: str, payload: bytes) -> None:
         assert self.client is not None

@@ -32,7 +32,7 @@ from conformance.scenarios import (
     SCENARIOS,
     Commander,
     Context,
-    DryRun,
+    NotSent,
     Safety,
     Timing,
     Traffic,
@@ -114,7 +114,7 @@ class Certification:
         self.tst = TstCommander(
             self.unit, settings.tst_topic, self.traffic, self.connection.publish,
             dry_run=settings.dry_run, say=self._say,
-            wait_connected=self.connection.wait_connected)
+            wait_connected=self.connection.wait_connected, deviations=self.deviations)
         self.safety = Safety(self.unit, self.profile, allow_motion=settings.allow_motion,
                              task_moves=task_moves)
         self.context = Context(self.unit, self.profile, self.traffic, self.commander,
@@ -355,17 +355,16 @@ class Certification:
             # asks exactly whether the unit still pings.
             if name not in ("ping", "robust") and scenario.level == DIRECT_EXECUTION:
                 self.run_scenario("ping")
-                if not self._answers_commands():
+                deaf = self._answers_none()
+                if deaf:
                     for rule in scenario.rules:
-                        self.record(rule, verdict=Verdict.COULD_NOT_TEST,
-                                    reason="the unit answers no command: ping got no response "
-                                    f"within {self.timing.response:.1f} s (EXEC-PING-001)")
+                        self.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=deaf)
                     self._done[name] = False
                     return
             self.observation.wait_execution_info()
         try:
             scenario.run(self.context)
-        except DryRun as e:
+        except NotSent as e:  # --dry-run, or the publish policy refused it (DESIGN 'Safety')
             for rule in scenario.rules:
                 self.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=str(e))
         except OutOfTime as e:
@@ -379,9 +378,10 @@ class Certification:
         finally:
             self._done[name] = True
             # Into a lost link an $abort would be lost too: the teardown sends it (finish).
+            # What ignored an $abort before is left to the last teardown (i20 6).
             if not self.settings.dry_run and self.connection.is_connected:
-                aborted = self.commander.abort_all(self.timing.response)
-                aborted += self.tst.abort_all(self.timing.response)
+                aborted = self.commander.abort_all(self.timing.response, stuck=False)
+                aborted += self.tst.abort_all(self.timing.response, stuck=False)
                 if aborted and self.out_of_time:
                     self._say_aborted(aborted)
             self.write_reports()
@@ -404,11 +404,15 @@ class Certification:
         # ERR-008: a level written with an underscore is the same claim
         return level in (lv.replace("_", " ") for lv in self.context.levels())
 
-    def _answers_commands(self) -> bool:
+    def _answers_none(self) -> str:
+        """Why the unit answers no command at all, or "": ping unanswered, then each other
+        kind probed on its own (``Commander.answers_none``)."""
         if self.settings.dry_run:
-            return True  # nothing was sent: let every scenario say what it would send
-        return self.result("EXEC-PING-001").verdict is not Verdict.FAIL or bool(
-            self.traffic.since(0, "exec/response"))
+            return ""  # nothing was sent: let every scenario say what it would send
+        if self.result("EXEC-PING-001").verdict is not Verdict.FAIL or \
+                self.traffic.since(0, "exec/response"):
+            return ""
+        return self.commander.answers_none(self.timing.response)
 
     def wait_passive_window(self) -> None:
         """Wait for the passive window (``Observation.wait_passive_window``), then judge the

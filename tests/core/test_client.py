@@ -53,6 +53,24 @@ def test_round_trip_and_publish_policy(broker_url: str, prefix: str) -> None:
         assert c.get(timeout=0.2) is None  # nothing went out
 
 
+def test_the_payload_policy_refuses_before_anything_goes_out(embedded_broker, prefix: str
+                                                             ) -> None:
+    """``refuse_payload`` (the suite's motion gate): a topic the policy allows, a payload it
+    refuses: PublishRefused with its reason, and nothing reaches the broker."""
+    topic = f"{prefix}/unit/air/real/dji0/exec/command"
+    url = BrokerURL.parse(embedded_broker.url)
+    with MqttClient(url, may_publish=lambda t: t == topic,
+                    refuse_payload=lambda t, p: "names move-to" if b"move-to" in p else None
+                    ) as c:
+        c.subscribe(f"{prefix}/#")
+        with pytest.raises(PublishRefused, match="names move-to"):
+            c.publish(topic, '{"task": "move-to"}')  # str payloads are judged as bytes too
+        assert c.get(timeout=0.3) is None  # nothing went out
+        c.publish(topic, b'{"command": "ping"}')
+        m = c.get(timeout=5)
+        assert m is not None and m.payload == b'{"command": "ping"}'
+
+
 def test_a_burst_read_in_chunks_arrives_whole_and_in_order(broker_url: str, prefix: str) -> None:
     # Many small packets share a chunk; a big one spans several; packet boundaries fall
     # anywhere in a chunk. Each must arrive once, intact, in order.

@@ -1,21 +1,29 @@
 """Safety (DESIGN): commands only to the unit under test; no motion on a real unit unless
---allow-motion AND the profile's motion-tasks say so; positions near the unit, inside the
-profile's safe radius."""
+--allow-motion AND the profile's motion-tasks say so, decided by the publish policy on every
+payload (malformed ones too), proven from the broker's traffic; positions near the unit,
+inside the profile's safe radius."""
 
 from __future__ import annotations
 
+import json
+import re
 from pathlib import Path
 
 import orjson
 import pytest
-from certify_helpers import FAST, Rebooter, certify
+from certify_helpers import FAST, MATRIX, Rebooter, certify
 
 from conformance import taskspec
 from conformance.client import BrokerURL, Message, MqttClient
-from conformance.scenarios.safety import MOVES_WITHOUT_TAG, Position
+from conformance.profile import Profile
+from conformance.scenarios import robust
+from conformance.scenarios.safety import MOVES_WITHOUT_TAG, MotionGate, Position, named_tasks
 from conformance.sim import SimUnit
+from conformance.topics import UnitAddress
 
 pytestmark = pytest.mark.slow
+
+MOTION = {s.name for s in taskspec.task_specs() if s.moves_unit} | MOVES_WITHOUT_TAG
 
 
 def moves(task: str) -> bool:
@@ -23,6 +31,19 @@ def moves(task: str) -> bool:
         return taskspec.task_spec(task).moves_unit or task in MOVES_WITHOUT_TAG
     except KeyError:
         return True
+
+
+def motion_named(payload: bytes) -> set[str]:
+    """The motion tasks a payload names, as this test reads it (on its own, not with the
+    suite's gate): any of them as a word of its own in the raw text or in the decoded JSON,
+    in any case, '_' taken for '-'."""
+    texts = [payload.decode("utf-8", "replace")]
+    try:
+        texts.append(json.dumps(json.loads(payload), ensure_ascii=False))
+    except ValueError:
+        pass
+    text = " ".join(texts).lower().replace("_", "-")
+    return {n for n in MOTION if re.search(rf"(?<![a-z0-9-]){re.escape(n)}(?![a-z0-9-])", text)}
 
 
 def geopoints(value: object) -> list[dict]:
@@ -78,17 +99,92 @@ def started(wire: Wire) -> list[tuple[Message, dict]]:
 
 def test_a_real_unit_is_not_moved_without_allow_motion(pytester: pytest.Pytester,
                                                        mosquitto: str, prefix: str) -> None:
+    """Every scenario, TST included, on a real unit whose profile lists motion tasks: no
+    payload that reached the unit's command topics names one (the broker's traffic, read by
+    an observer of its own)."""
     unit, other = f"{prefix}/unit/air/real/dji0", f"{prefix}/unit/air/real/dji1"
-    with SimUnit(other, mosquitto, rate=3.0), SimUnit(unit, mosquitto, rate=3.0) as sim, \
+    with SimUnit(other, mosquitto, rate=3.0), \
+            SimUnit(unit, mosquitto, rate=3.0, tst_execution=True) as sim, \
             Wire(mosquitto, prefix) as wire:
-        run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={FAST}",
+        # The matrix profile lets the suite start move-to and navigate: only the flag may.
+        run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={MATRIX}",
                       "--seed", "3", plugins=(Rebooter(sim),))
     assert run.result.ret == 0, run.text
     assert "no task that moves the unit (no --allow-motion)" in run.text
     names = {b["task"].get("name") for _, b in started(wire)}
     assert names and not any(moves(n) for n in names if n != "waraps-conformance-no-such-task")
+    commands = [m for m, _ in wire.commands()]
+    assert any(m.topic.endswith("/tst/command") for m in commands)  # trees were sent too
+    # and the robustness probes (its start-task whose task is a string names no real task)
+    assert any(b'"task":"waraps-conformance-no-such-task"' in m.payload for m in commands)
+    assert [(m.topic, m.payload) for m in commands if motion_named(m.payload)] == []
+    # The probes were sent and judged, not refused: none names a motion task.
+    assert run.outcomes["EXEC-ROBUST-002"] == "passed", run.unit_rules()["EXEC-ROBUST-002"]
     # Commands went to the unit under test only: never to its neighbour, never elsewhere.
-    assert {m.topic for m, _ in wire.commands()} == {f"{unit}/exec/command"}
+    assert {m.topic for m in commands} == {f"{unit}/exec/command", f"{unit}/tst/command"}
+
+
+def test_the_publish_policy_refuses_a_motion_task_whatever_the_scenario_sends(
+        pytester: pytest.Pytester, mosquitto: str, prefix: str,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """DESIGN 'Safety': the policy, not the scenario, decides. A robustness probe made to
+    name move-to (cut off, upper case, '_': as a lenient parser may still read it) is not
+    published to a real unit without --allow-motion; the scenario's rules are could-not-test
+    saying why, and the run goes on (no crash)."""
+    probe = b'{"command": "start-task", "task": "MOVE_TO", "com-uuid": '
+    monkeypatch.setattr(robust, "UNREADABLE", (*robust.UNREADABLE, ("a motion probe", probe)))
+    unit = f"{prefix}/unit/air/real/dji0"
+    with SimUnit(unit, mosquitto, rate=3.0) as sim, Wire(mosquitto, prefix) as wire:
+        run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={FAST}",
+                      "--seed", "3", "-k", "EXEC-ROBUST", plugins=(Rebooter(sim),))
+    assert run.result.ret == 0, run.text
+    assert "Traceback" not in run.text and "INTERNALERROR" not in run.text
+    rules = run.unit_rules()
+    for rule in ("EXEC-ROBUST-001", "EXEC-ROBUST-002"):
+        assert rules[rule]["verdict"] == "could-not-test", rules[rule]
+        assert "names the motion task(s) move-to" in rules[rule]["reason"]
+        assert "--allow-motion" in rules[rule]["reason"]
+    payloads = [m.payload for m, _ in wire.commands()]
+    assert payloads and probe not in payloads  # the probes before it went out; it did not
+    assert [p for p in payloads if motion_named(p)] == []
+
+
+@pytest.mark.parametrize(("payload", "named"), [
+    (b'{"command": "start-task", "task": "move-to"}', ["move-to"]),  # the old robust probe
+    (b'{"task": {"name": "take-off", "params": {}}}', ["take-off"]),
+    (b'{"task": "move\\u002dto"}', ["move-to"]),  # an escape, decoded
+    (b'{"command": "start-task", "task": "LAND"', ["land"]),  # malformed, upper case
+    (b"\xff\xfe navigate", ["navigate"]),  # not UTF-8
+    (b'{"tst": {"name": "seq", "children": [{"name": "search_area"}]}}', ["search-area"]),
+    (b'{"task": {"name": "look-at-bearing"}, "sender": "island"}', []),  # not a word of its own
+    (b'{"task": "waraps-conformance-no-such-task"}', []),
+])
+def test_a_payload_is_read_leniently_for_motion_tasks(payload: bytes, named: list[str]) -> None:
+    assert named_tasks(payload, MOTION) == named
+    assert sorted(motion_named(payload)) == named  # the test's own reading agrees
+
+
+def test_the_motion_gate_decides_by_unit_role_flag_and_profile() -> None:
+    move = b'{"command": "start-task", "task": {"name": "move-to", "params": {}}}'
+    look = b'{"command": "start-task", "task": {"name": "look-at-bearing", "params": {}}}'
+    fly = b'{"command": "start-task", "task": {"name": "fly-circle", "params": {}}}'
+    real = UnitAddress.parse("waraps/unit/air/real/dji0")
+    sim = UnitAddress.parse("waraps/unit/air/simulation/dji0")
+    drone = Profile(name="drone", motion_tasks=("move-to",))
+
+    def gate(unit: UnitAddress, profile: Profile, allow: bool) -> MotionGate:
+        from conformance.scenarios.params import task_moves
+
+        return MotionGate(unit, profile, allow_motion=allow,
+                          listed=lambda: ["look-at-bearing", "fly-circle"], task_moves=task_moves)
+    assert gate(sim, Profile(), False).refusal(move) is None  # a simulation may move
+    assert "move-to" in (gate(real, Profile(), False).refusal(move) or "")
+    assert "move-to" in (gate(real, drone, False).refusal(move) or "")  # the flag too
+    assert "move-to" in (gate(real, Profile(), True).refusal(move) or "")  # the profile too
+    assert gate(real, drone, True).refusal(move) is None
+    assert gate(real, drone, True).refusal(look) is None
+    # A task the unit lists that this suite does not know is taken to move (Safety.moves).
+    assert "fly-circle" in (gate(real, drone, True).refusal(fly) or "")
 
 
 def test_allow_motion_starts_only_the_profile_motion_tasks_near_the_unit(
@@ -105,6 +201,9 @@ def test_allow_motion_starts_only_the_profile_motion_tasks_near_the_unit(
     # (the name EXEC-START-005 sends is certainly not a task: the unit must refuse it)
     moving = {b["task"]["name"] for _, b in started(wire) if moves(b["task"]["name"])}
     assert moving - {"waraps-conformance-no-such-task"} == {"move-to"}
+    # From the broker's traffic: the motion task the flag and profile allow reached the unit,
+    # and no other.
+    assert set().union(*(motion_named(m.payload) for m, _ in wire.commands())) == {"move-to"}
     for m, body in started(wire):
         origin = wire.position_before(unit, m.time)
         assert origin is not None
@@ -123,3 +222,33 @@ def test_every_started_task_is_ended_by_the_suite(pytester: pytest.Pytester, mos
         info = [m for m in wire.messages if m.topic == f"{unit}/direct_execution_info"][-1]
     assert run.result.ret == 0, run.text
     assert orjson.loads(info.payload)["tasks-executing"] == []
+
+
+def test_a_task_whose_abort_went_unanswered_is_not_aborted_in_every_scenario() -> None:
+    """i20 6: teardown between scenarios (abort_all(stuck=False)) leaves out a task whose
+    $abort went unanswered (8 aborts of 5 s each in one run before); the run's last teardown
+    tries it once more; a unit that answered no signal-task gets a fifth of the deadline."""
+    from conformance.scenarios.commander import Commander
+    from conformance.scenarios.traffic import Traffic
+
+    unit = UnitAddress.parse("waraps/unit/air/real/dji0")
+    traffic = Traffic(unit)
+    published: list[dict] = []
+
+    def publish(topic: str, payload: bytes) -> None:
+        body = orjson.loads(payload)
+        published.append(body)
+        if body["command"] == "start-task":  # runs; signals go unanswered
+            traffic.add(Message(1000.0 + len(published), unit.topic("exec/response"),
+                                orjson.dumps({"response": "running", "com-uuid": "x",
+                                              "response-to": body["com-uuid"],
+                                              "task-uuid": body["task-uuid"]}), 0, False))
+
+    def aborts() -> int:
+        return sum(b["command"] == "signal-task" for b in published)
+
+    commander = Commander(unit, traffic, publish, say=lambda text: None)
+    commander.start_task("look-at-bearing", {}, 1.0)
+    assert commander.abort_all(0.2, stuck=False) == [] and aborts() == 1
+    assert commander.abort_all(0.2, stuck=False) == [] and aborts() == 1  # not again
+    assert commander.abort_all(0.2) == [] and aborts() == 2  # the last teardown: once more

@@ -4,19 +4,78 @@ go to the one tst/command topic chosen (the unit's own or an operator's, 14.1) a
 
 from __future__ import annotations
 
+import time
+
 import orjson
 import pytest
-from certify_helpers import FAST, MATRIX, UNIT, Rebooter, certify
+from certify_helpers import FAST, HERE, MATRIX, UNIT, Rebooter, certify, certify_sim
 from test_plugin_safety import Wire
 
 from conformance.rules import CATALOGUE, Side
+from conformance.scenarios import robust
 from conformance.scenarios.traffic import Traffic
 from conformance.scenarios.tst_commander import TstCommander, node
-from conformance.sim import SimUnit
+from conformance.sim import FAULTS, SimUnit
 from conformance.topics import UnitAddress
 
 TST_RULES = sorted(r for r, rule in CATALOGUE.items()
                    if r.startswith("TST-") and rule.side is Side.UNIT)
+
+# The fields of each command as the spec's examples write it (10, 11, 12.2, 14.3); query-status
+# has no example: its schema's fields, with 'sender' as every other example has it.
+FORMS: dict[str, set[str]] = {
+    "ping": {"com-uuid", "command", "sender"},  # 12.2.1
+    "signal-task": {"com-uuid", "command", "signal", "sender", "task-uuid"},  # 12.2.2
+    "start-task": {"com-uuid", "command", "execution-unit", "sender", "task", "task-uuid"},  # 10
+    "query-status": {"com-uuid", "command", "sender", "task-uuid"},  # 12.1
+    "start-tst": {"com-uuid", "command", "receiver", "sender", "tst"},  # 11
+    "signal-tst-node": {"com-uuid", "command", "node-uuid", "sender", "signal"},  # 14.3.1
+    "signal-tst-tree": {"com-uuid", "command", "node-uuid", "sender", "signal"},  # 14.3.2
+    "signal-unit": {"com-uuid", "command", "unit", "sender", "signal"},  # 14.3.3
+}
+NODE = {"children", "common_params", "name", "params"}  # every node of 11's examples
+COMMON = {"execunit", "node-uuid"}
+
+
+def deliberately_broken(payload: bytes) -> bool:
+    """A robustness probe (12.1: malformed on purpose), whatever its com-uuid."""
+    try:
+        body = orjson.loads(payload)
+    except orjson.JSONDecodeError:
+        return True  # not JSON at all
+    if not isinstance(body, dict):
+        return True
+    readable = []
+    for _, probe in robust.malformed("X"):
+        try:
+            readable.append(orjson.loads(probe))
+        except orjson.JSONDecodeError:
+            continue
+    return {**body, "com-uuid": "X"} in readable
+
+
+def form_problems(body: dict) -> list[str]:
+    """How a command differs from its example form (empty: exactly that form)."""
+    command = body.get("command")
+    wanted = FORMS.get(command)
+    if wanted is None:
+        return [f"a command the spec has no example of: {command!r}"]
+    fields = set(body)
+    # 12.1: task-uuid may be left out of start-task (the unit generates one).
+    if fields != wanted and not (command == "start-task" and fields == wanted - {"task-uuid"}):
+        return [f"{command}: fields {sorted(fields)}, the example's {sorted(wanted)}"]
+    problems = []
+    if command == "start-task" and set(body["task"]) != {"name", "params"}:
+        problems.append(f"start-task's task {sorted(body['task'])}")
+    if command == "start-tst":
+        stack = [("$.tst", body["tst"])]
+        while stack:
+            path, node = stack.pop()
+            if set(node) != NODE or set(node["common_params"]) != COMMON:
+                problems.append(f"{path}: {sorted(node)} "
+                                f"{sorted(node.get('common_params') or {})}")
+            stack += [(f"{path}.children[{i}]", c) for i, c in enumerate(node.get("children", []))]
+    return problems
 
 
 @pytest.mark.slow
@@ -44,6 +103,16 @@ def test_tst_commands_go_to_the_chosen_topic_only_and_the_unit_passes(
     starts = [b for m, b in wire.commands() if b.get("command") == "start-tst"]
     assert starts and all(b["tst"]["common_params"]["execunit"] == "/dji0" for b in starts
                           if b["tst"]["name"] != "waraps-conformance-no-such-task")
+    # 11: 'receiver' names where the command goes: the operator, or the unit itself.
+    assert {b["receiver"] for b in starts} == {"op0" if where == "operator" else "dji0"}
+    # Every command the suite sent has exactly the fields of the spec's example form, every
+    # TST node its common_params with execunit and node-uuid (a strict unit refuses less).
+    sent_forms = [(m.payload, form_problems(b)) for m, b in wire.commands()
+                  if not deliberately_broken(m.payload)]
+    assert {b.get("command") for m, b in wire.commands()} >= set(FORMS)  # every kind sent
+    assert [(p, problems) for p, problems in sent_forms if problems] == []
+    children = [c for b in starts for c in b["tst"]["children"]]
+    assert children and all(set(c["common_params"]) == COMMON for c in children)
     # nothing the suite started still runs
     assert orjson.loads(info.payload)["nodes-executing"] == []
 
@@ -105,3 +174,58 @@ def test_teardown_aborts_every_tree_that_has_not_ended() -> None:
     aborts = [b for b in published if b["command"] == "signal-tst-tree"]
     assert [(b["node-uuid"], b["signal"]) for b in aborts] == [("runs", "$abort")]
     assert tc.abort_all(1.0) == [] and tc.open_trees == {}
+
+
+STALL = HERE / "profiles" / "stall.yaml"
+DEADLINE = 90.0
+"""Seconds (i18 4): the bound for a 1 Hz unit; these run at 2 Hz with the default feedback
+deadline (30 s), where waiting that deadline again for each tree takes 150 s or more."""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("fault", "adapted"), [
+    ("tst-abort-ignored", "TST-012"),  # $abort answered 'ok', not done: noted once
+    ("tst-no-final-feedback", None),  # seq and conc: awaited until their task nodes ended
+    ("tst-root-uuid-wrong", "TST-004"),  # trees followed under the node-uuid feedback uses
+])
+def test_a_stalling_tst_fault_ends_within_the_deadline(pytester: pytest.Pytester,
+                                                       mosquitto: str, prefix: str, fault: str,
+                                                       adapted: str | None) -> None:
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    started = time.monotonic()
+    run = certify_sim(pytester, mosquitto, unit, f"--profile={STALL}", "--seed", "1", "-q",
+                      faults=(fault,))
+    took = time.monotonic() - started
+    assert took < DEADLINE, f"{fault}: {took:.0f} s"
+    assert run.failed == set(FAULTS[fault].rules), run.text[-3000:]
+    if adapted:
+        assert run.text.count(f"adapted to {adapted}:") == 1, run.text[-3000:]
+
+
+def test_a_stuck_tree_is_aborted_again_only_by_the_last_teardown() -> None:
+    """i20 6: a tree whose $abort went unanswered is not aborted again between scenarios
+    (abort_all(stuck=False)); the run's last teardown (stuck=True) tries it once more."""
+    from conformance.client import Message
+
+    unit = UnitAddress.parse(UNIT)
+    traffic = Traffic(unit)
+    published: list[dict] = []
+
+    def publish(topic: str, payload: bytes) -> None:
+        body = orjson.loads(payload)
+        published.append(body)
+        if body["command"] == "start-tst":  # started; every signal then goes unanswered
+            traffic.add(Message(1000.0 + len(published), unit.topic("tst/response"),
+                                orjson.dumps({"response": "started", "com-uuid": "x",
+                                              "response-to": body["com-uuid"],
+                                              "root-uuid": "stuck", "fail-reason": ""}), 0,
+                                False))
+
+    def aborts() -> int:
+        return sum(b["command"] == "signal-tst-tree" for b in published)
+
+    tc = TstCommander(unit, unit.topic("tst/command"), traffic, publish)
+    tc.start(node("look-at-bearing", {}, "stuck", execunit="/dji0"), 1.0)
+    assert tc.abort_all(0.2, stuck=False) == [] and aborts() == 1
+    assert tc.abort_all(0.2, stuck=False) == [] and aborts() == 1  # not again
+    assert tc.abort_all(0.2) == [] and aborts() == 2  # the last teardown: once more
