@@ -278,6 +278,17 @@ class _CertificationPlugin:
         unit = conclusion.units.get(str(c.unit))
         for level in unit.levels if unit is not None else ():
             tr.line(f"  {level}")
+        later = report.meta.get("judged_after_test")
+        if later:  # their tests passed before the traffic that fails them came
+            tr.line(f"failed after their tests ran (later traffic is evidence too; the "
+                    f"reports hold it): {later}", red=True)
+            from conformance.reporting import render_violation
+
+            rules = report.units[str(c.unit)].rules
+            for rule in later.split(", "):
+                # The evidence came from a later scenario: the whole run reproduces it.
+                for v in rules[rule].violations[:1]:
+                    tr.line(render_violation(rule, v, str(c.unit), rerun_hint=c.rerun_command()))
         for kind, path in sorted(c.report_paths.items()):
             tr.line(f"{kind} report: {path}")
         if not c.report_paths:

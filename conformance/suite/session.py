@@ -92,6 +92,8 @@ class Certification:
         self.selected: list[str] = []
         """The rules whose tests were selected to run (after -k, -m, --rule)."""
         self.ran: set[str] = set()
+        self.enacted: dict[str, Verdict] = {}
+        """The verdict each rule's test showed when it ran (``suite.verdict.enact``)."""
         """The rules whose tests ran (a test that never ran judged nothing)."""
         self.out_of_time: str | None = None
         """--max-duration passed: what the run was waiting for then."""
@@ -245,8 +247,23 @@ class Certification:
         if self.error or self.interrupted or self.out_of_time or self.broker_lost is not None:
             outcome.mark_not_run(report, self.unit, self.selected or list(CATALOGUE), self.ran,
                                  self.not_run_reason())
+        later = self.judged_after_test(report)
+        if later:
+            report.meta["judged_after_test"] = ", ".join(later)
         report.meta["verdict"] = self.conclusion(report).verdict
         return report
+
+    def judged_after_test(self, report: RunReport) -> list[str]:
+        """Rules that fail on the whole run although their test passed when it ran: traffic
+        after it (a later scenario's command left unanswered, 12.1) is evidence too. The
+        report and the exit status say fail; the terminal names them (pytest's own count
+        cannot change an outcome already shown)."""
+        unit = report.units.get(str(self.unit))
+        if unit is None:
+            return []
+        return sorted(r for r, shown in self.enacted.items()
+                      if shown is not Verdict.FAIL and r in unit.rules
+                      and unit.rules[r].verdict is Verdict.FAIL)
 
     def run_facts(self) -> dict[str, str]:
         """What the verdict model needs to know of this run (``conformance.conclusion``)."""

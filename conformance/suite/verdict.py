@@ -56,6 +56,7 @@ def locate_skip(item: pytest.Item, report: pytest.TestReport) -> None:
 def enact(certification: Certification, rule: str, node: pytest.Item) -> None:
     """Turn the verdict of ``rule`` for the unit under test into this test's outcome."""
     result = certification.result(rule)
+    certification.enacted[rule] = result.verdict
     node.user_properties.append(("verdict", result.verdict.value))
     if result.reason:
         node.user_properties.append(("reason", result.reason))

@@ -36,7 +36,14 @@ class Certified:
 
     @property
     def failed(self) -> set[str]:
-        return {r for r, o in self.outcomes.items() if o == "failed"}
+        """Rules whose test failed, and those that failed after their test ran (later
+        traffic: the report's ``judged_after_test``, named in the terminal summary)."""
+        later = (self.report or {}).get("meta", {}).get("judged_after_test", "")
+        if later:
+            assert f"failed after their tests ran (later traffic is evidence too; the reports " \
+                   f"hold it): {later}" in self.text
+        return {r for r, o in self.outcomes.items() if o == "failed"} | {
+            r for r in later.split(", ") if r}
 
     @property
     def text(self) -> str:

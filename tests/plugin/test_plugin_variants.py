@@ -29,20 +29,15 @@ pytestmark = pytest.mark.slow
 
 PROFILE = HERE / "profiles" / "variants.yaml"
 GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
-    (("strict", "terse", "sensor-rate-edge", "rate-edge", "success-vocabulary", "pretty-json"),
-     False),
-    (("slow", "verbose", "feedback-first", "starting-feedback", "level-spelling",
+    (("terse", "sensor-rate-edge", "rate-edge", "success-vocabulary", "pretty-json"), False),
+    (("strict", "slow", "verbose", "feedback-first", "starting-feedback", "level-spelling",
       "geopoint-type"), True),
     # info-rates apart from sensor-rate-edge: both set sensor_info's rate.
     (("terse", "info-rates", "retained-info", "integer-numbers", "key-order"), True),
 ]
 AWAITING: dict[tuple[str, ...], tuple[set[str], str]] = {  # variants -> (rules, why)
-    # The suite sends TST trees with common_params on the root only; every example of section
-    # 11 writes them on every node, so a strict unit refuses the trees (TST-004 fails, and
-    # the TST rules behind it are not judged). The 'commander' work of issue 18 makes every
-    # node complete: then the test fails, saying the entry must go.
-    ("strict",): ({"TST-004"}, "the suite's TST nodes lack common_params below the root "
-                               "(issue 18, What 2)"),
+    # Empty: 'strict' on the TST level waited here for the suite to send common_params on
+    # every TST node (as every example of section 11 does); it does now.
 }
 
 
