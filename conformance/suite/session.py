@@ -94,6 +94,8 @@ class Certification:
         self.out_of_time: str | None = None
         """--max-duration passed: what the run was waiting for then."""
         self.interrupted = False
+        self.explored = ""
+        """What the exploration did (``suite/exploration.py``), for the report's meta."""
         from conformance.suite.progress import Progress
 
         self.progress = Progress(config)
@@ -210,6 +212,7 @@ class Certification:
             "agent_uuid": str(hb.get("agent-uuid")) if hb else "",
             "commands_sent": str(self.commander.sent_count + self.tst.sent_count),
             "tst_command_topic": s.tst_topic,
+            "explore": self.explored or ("off" if s.explore == 0 else "not run"),
             "rerun": self.rerun_command(),
         }
 

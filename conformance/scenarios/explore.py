@@ -1,0 +1,222 @@
+"""Exploration: a hypothesis state machine sends spec-12 commands in orders no script has,
+and the Monitor judges every answer (issue 17; DESIGN 'One model of the protocol's states').
+
+Its rules are the commands: start-task (with or without task-uuid, of the tasks the unit lists
+and the suite may start, parameters drawn from the task's schema inside the safe radius),
+every built-in signal to any task (running, paused, ended, or never seen), query-status of any
+task, a resend of any earlier command, ping, and waiting. ``Explorer`` (explore_steps.py) runs
+each step and judges it; a disagreement is told as a ``Story`` (story.py).
+
+Against a slow, real system (FIELD-NOTES 'hypothesis against a slow, real system'): no
+per-step deadline, a bounded step count, health checks off, and the wall-clock budget is ours:
+past it no example starts and no step runs (``OutOfBudget`` is not an ``Exception``, so
+hypothesis lets it through), and the shortest failing story seen so far is the one reported,
+printed the moment the first is found, shrunk or not.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from conformance.scenarios.context import BUILTIN_SIGNALS
+from conformance.scenarios.explore_steps import Disagreement, Explorer, Step
+from conformance.scenarios.story import Story
+
+STEPS = 10
+"""Steps per example at most (hypothesis' stateful_step_count)."""
+EXAMPLES = 10_000
+"""Examples at most: the budget ends the exploration long before."""
+# Shrinking goes towards the first of each list: the plainest signal first.
+SIGNALS = ("$abort", "$pause", "$continue", "$enough")
+
+
+class OutOfBudget(BaseException):
+    """The exploration's time is up (a BaseException: hypothesis must not take it for a
+    failure of the unit and shrink it)."""
+
+
+class Stopped(BaseException):
+    """Something that is not the unit's disagreement ended a step (the run's --max-duration,
+    --dry-run, a broken connection): it ends the exploration, carried out of hypothesis."""
+
+    def __init__(self, cause: BaseException) -> None:
+        super().__init__(str(cause))
+        self.cause = cause
+
+
+@dataclass
+class Outcome:
+    """What an exploration did and found."""
+
+    examples: int = 0
+    steps: int = 0
+    elapsed: float = 0.0
+    story: Story | None = None
+    ended: str = ""
+    """Why it ended: 'budget', 'shrunk', 'exhausted' (hypothesis had nothing more to try)."""
+
+
+class Search:
+    """One exploration: the budget, the counters, and the shortest story found so far."""
+
+    def __init__(self, explorer: Explorer, budget: float, seed: int,
+                 on_story: Callable[[Story], None] = lambda story: None) -> None:
+        self.explorer = explorer
+        self.budget = budget
+        self.seed = seed
+        self.on_story = on_story
+        self.started = time.monotonic()
+        self.outcome = Outcome()
+
+    def left(self) -> float:
+        return self.budget - (time.monotonic() - self.started)
+
+    def check(self) -> None:
+        if self.left() <= 0:
+            raise OutOfBudget()
+
+    def run_step(self, action: dict[str, Any]) -> None:
+        self.check()
+        try:
+            self.explorer.do(action)
+        except Disagreement as d:
+            self.found(d)
+            raise
+        except Exception as e:  # not the unit's disagreement: end the exploration with it
+            raise Stopped(e) from e
+        finally:
+            self.outcome.steps = self.explorer.total_steps
+
+    def end_example(self) -> None:
+        try:
+            self.explorer.end()
+        except Disagreement as d:
+            self.found(d)
+            raise
+        except Exception as e:
+            raise Stopped(e) from e
+        finally:
+            self.outcome.steps = self.explorer.total_steps
+
+    def found(self, d: Disagreement) -> None:
+        """Keep the story if it is the first or shorter than the one kept; tell the first."""
+        story = Story(list(d.steps), d.step, self.seed)
+        best = self.outcome.story
+        if best is None:
+            story.found_after = time.monotonic() - self.started
+            story.found_steps = self.explorer.total_steps
+            story.first_length = story.length
+            self.outcome.story = story
+            self.on_story(story)
+        elif (story.length, story.failing) < (best.length, best.failing):
+            story.found_after, story.found_steps = best.found_after, best.found_steps
+            story.first_length = best.first_length
+            self.outcome.story = story
+
+    def run(self) -> Outcome:
+        """Explore until the budget is spent or a story is shrunk (or hypothesis gives up)."""
+        from hypothesis import HealthCheck, Phase, Verbosity, settings
+        from hypothesis import seed as hseed
+        from hypothesis.stateful import run_state_machine_as_test
+
+        machine = hseed(self.seed)(machine_for(self))
+        how = settings(max_examples=EXAMPLES, stateful_step_count=STEPS, deadline=None,
+                       database=None, derandomize=False, phases=[Phase.generate, Phase.shrink],
+                       suppress_health_check=list(HealthCheck), verbosity=Verbosity.quiet,
+                       report_multiple_bugs=False, print_blob=False)
+        try:
+            run_state_machine_as_test(machine, settings=how)
+            self.outcome.ended = "exhausted"
+        except OutOfBudget:
+            self.outcome.ended = "budget"
+        except Stopped:
+            raise
+        except Exception:  # hypothesis re-raised the (shrunk) failure: the story is kept
+            self.outcome.ended = "shrunk" if self.outcome.story is not None else "error"
+            if self.outcome.story is None:
+                raise
+        self.outcome.elapsed = time.monotonic() - self.started
+        if self.outcome.story is not None:
+            self.outcome.story.shrunk = self.outcome.ended == "shrunk"
+        return self.outcome
+
+
+def machine_for(search: Search) -> type:
+    """The state machine of one exploration: its rules are the commands of 12.1."""
+    from hypothesis import strategies as st
+    from hypothesis.stateful import RuleBasedStateMachine, precondition, rule
+
+    explorer = search.explorer
+    tasks = explorer.tasks or ["-"]
+
+    def slot_choice(data: Any, signal: str | None) -> int | None:
+        """A task by the model's view of it: those the command acts on first (a paused one
+        for $continue, a running one for the other signals), then the rest, then a task the
+        unit never saw (shrinking goes to the first)."""
+        states = explorer.states()
+        live = {"$continue": ("paused",)}.get(signal or "", ("running", "paused"))
+        order = sorted(range(len(states)), key=lambda i: (states[i] not in live, i))
+        return data.draw(st.sampled_from([*order, None]), label="task")
+
+    class Exploration(RuleBasedStateMachine):
+        def __init__(self) -> None:
+            super().__init__()
+            search.check()
+            search.outcome.examples += 1
+            explorer.begin()
+
+        @precondition(lambda self: bool(explorer.tasks))
+        @rule(task=st.sampled_from(tasks), task_uuid=st.booleans().map(lambda b: not b),
+              params=st.integers(0, 3))
+        def start_task(self, task: str, task_uuid: bool, params: int) -> None:
+            search.run_step({"do": "start", "task": task, "task_uuid": task_uuid,
+                             "params": params, "slot": len(explorer.slots)})
+
+        @rule(data=st.data(), signal=st.sampled_from(SIGNALS))
+        def signal_task(self, data: Any, signal: str) -> None:
+            search.run_step({"do": "signal", "signal": signal,
+                             "slot": slot_choice(data, signal)})
+
+        @rule(data=st.data())
+        def query_status(self, data: Any) -> None:
+            search.run_step({"do": "query", "slot": slot_choice(data, None)})
+
+        @precondition(lambda self: bool(explorer.commands))
+        @rule(data=st.data())
+        def resend(self, data: Any) -> None:
+            step = data.draw(st.sampled_from(sorted(explorer.commands)), label="command")
+            search.run_step({"do": "resend", "step": step})
+
+        @rule()
+        def ping(self) -> None:
+            search.run_step({"do": "ping"})
+
+        @rule(periods=st.integers(1, 3))
+        def wait(self, periods: int) -> None:
+            search.run_step({"do": "wait", "periods": periods})
+
+        def teardown(self) -> None:
+            search.end_example()
+
+    assert set(SIGNALS) == set(BUILTIN_SIGNALS)
+    return Exploration
+
+
+def replay(explorer: Explorer, actions: list[dict[str, Any]], seed: int = 0) -> Story | None:
+    """Run a stored story's steps once, in order (its teardown as well): the story of the
+    disagreement it shows again, or None when the unit now answers as the model says."""
+    explorer.begin()
+    try:
+        for action in actions:
+            explorer.do(action)
+        explorer.end()
+    except Disagreement as d:
+        return Story(list(d.steps), d.step, seed, shrunk=True)
+    return None
+
+
+__all__ = ["Disagreement", "Explorer", "OutOfBudget", "Outcome", "Search", "Step", "Stopped",
+           "Story", "replay"]
