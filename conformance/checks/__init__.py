@@ -22,6 +22,7 @@ from conformance.checks import (  # noqa: F401  (registers)
     exec_command,
     exec_response,
     exec_feedback,
+    exec_sequence,
     levels,
     exec_deadline,
     execution,

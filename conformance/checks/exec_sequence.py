@@ -1,0 +1,87 @@
+"""What the model of direct execution judges across steps (12.2.2; ``conformance.protocol``).
+
+Every exec message of a unit is fed to its ``Model``; the findings it returns are the sequence
+rules' (EXEC-SEQ-001: a task stops once $abort or $enough is answered 'ok'; EXEC-SEQ-002: a
+signal changes only the task it names). The same code runs in ``lint`` and in ``pytest
+--unit`` (and the exploration asks the same model what to expect), so lint of a recording and
+the suite cannot disagree about a sequence. What the conversation checks already judge (answers,
+final statuses, resends, query-status) stays theirs: the model adds only what needs the order
+of commands across tasks.
+"""
+
+from __future__ import annotations
+
+from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.command_history import violation
+from conformance.message import Message
+from conformance.protocol import BUILTIN_SIGNALS, STOP_SIGNALS, Command, Model
+from conformance.topics import TopicKind
+from conformance.validator import Validation
+from conformance.violation import Violation
+
+KEY = "protocol"
+"""UnitState.private key of the unit's ``Model``."""
+DETAIL = {
+    "EXEC-SEQ-001": "12.2.2: once $abort or $enough is acknowledged the task ends; do not "
+                    "resume or keep running it (a paused task too)",
+    "EXEC-SEQ-002": "12.2.2: apply a signal to the task-uuid it names, not to every task "
+                    "(or to the vehicle)",
+}
+
+
+def model_of(ctx: CheckContext, unit: UnitState) -> Model:
+    """The unit's model of direct execution, made on first use (public: the explorer's view
+    of what the Monitor holds)."""
+    model = unit.private.get(KEY)
+    if model is None:
+        model = unit.private[KEY] = Model(response_timeout=ctx.profile.response_timeout,
+                                          feedback_timeout=ctx.profile.feedback_timeout)
+    return model  # type: ignore[no-any-return]
+
+
+@check("EXEC-SEQ-001", "EXEC-SEQ-002", on=(TopicKind.EXEC_COMMAND, TopicKind.EXEC_RESPONSE,
+                                           TopicKind.EXEC_FEEDBACK,
+                                           TopicKind.DIRECT_EXECUTION_INFO))
+def sequence_follows_model(ctx: CheckContext, unit: UnitState, msg: Message,
+                           v: Validation) -> list[Violation] | None:
+    """Feed the model; report what it finds. (Runs on every direct_execution_info too: a list
+    or None, and nothing made before the unit's first command.)"""
+    kind = v.topic.kind
+    if KEY not in unit.private and kind is not TopicKind.EXEC_COMMAND:
+        return None  # no command seen: nothing to judge a sequence against
+    model = model_of(ctx, unit)
+    if unit.agent_uuid is not None and unit.agent_uuid != model.life:
+        model.heartbeat({"agent-uuid": unit.agent_uuid}, msg.time)  # 12.1: a new life
+    m, t = v.message, msg.time
+    if kind is TopicKind.EXEC_COMMAND:
+        cmd = Command.read(m) if isinstance(m, dict) else None
+        if cmd is not None:
+            model.command(cmd, t)
+        return None
+    if kind is TopicKind.EXEC_RESPONSE:
+        model.response(m, t)
+        _examine_signal(unit, model, m)
+        return None
+    if kind is TopicKind.DIRECT_EXECUTION_INFO:
+        model.executing_shown(m, t)
+        return None
+    found = model.feedback(m, t)
+    if not found:
+        return None
+    return [violation(f.rule, msg, expected=f.expected, observed=f.observed, path="$.status",
+                      detail=DETAIL.get(f.rule, "")) for f in found]
+
+
+def _examine_signal(unit: UnitState, model: Model, m: object) -> None:
+    """A builtin signal answered 'ok' for a task the model knows is judged from here on:
+    EXEC-SEQ-001 for $abort and $enough, EXEC-SEQ-002 for every one."""
+    to = m.get("response-to") if isinstance(m, dict) else None
+    cmd = model.commands.get(to) if isinstance(to, str) else None
+    if cmd is None or cmd.name != "signal-task" or cmd.signal not in BUILTIN_SIGNALS:
+        return
+    task = model.tasks.get(cmd.task_uuid) if cmd.task_uuid else None
+    if task is None or not task.acked or task.acked[-1][2] != to:
+        return
+    unit.examine("EXEC-SEQ-002")
+    if cmd.signal in STOP_SIGNALS:
+        unit.examine("EXEC-SEQ-001")

@@ -1,0 +1,511 @@
+"""The model of direct execution (spec 12), as data the suite owns: per task its state, per
+command in every state which answers and which feedback are allowed, what follows, and what
+tasks-executing (5.3) and query-status (12.1) must then show over the whole history.
+
+One model for both users (DESIGN 'One model of the protocol's states'): the exploration
+(``conformance.scenarios.explore``) asks it which tasks are running, paused or ended and what a
+command may get back; the Monitor's sequence checks (``conformance.checks.exec_sequence``) feed
+it every exec message and report what it finds, so lint of a recording and the suite judge a
+sequence with the same code. Pure: no MQTT, no paho, no clock of its own (times are the
+messages'). Where the spec is silent the model follows the decisions in
+``conformance/rules.toml`` (EXEC-SEQ-*) and ``docs/MODEL.md``.
+
+Public API (stable):
+
+- ``State``: ``UNKNOWN`` (never seen), ``RUNNING``, ``PAUSED``, ``FINISHED``, ``ABORTED``,
+  ``FAILED``; ``.live``, ``.ended``.
+- ``Command``: one command (``com_uuid``, ``name``, ``task_uuid``, ``signal``, ``task_name``,
+  ``content``); ``Command.read(payload)`` from JSON bytes or a dict (None if no com-uuid).
+- ``Model(whole_life=False, response_timeout=5.0, feedback_timeout=10.0)``:
+  ``whole_life`` says the observer saw every command of the unit's current life (the suite,
+  which commands it; lint of a recording cannot know that).
+  - ``expect(command) -> Expectation``: pure, changes nothing.
+  - ``observe(message) -> list[Finding]``: feed any ``conformance.message.Message`` (commands,
+    responses, feedback, direct_execution_info, heartbeats; other topics are ignored); the
+    findings are the sequence rules' (EXEC-SEQ-*). Or per kind: ``command``, ``response``,
+    ``feedback``, ``executing``, ``heartbeat`` (a payload dict and a time).
+  - ``tasks``: task-uuid -> ``TaskRecord`` (``state``, ``name``, ``statuses``, ...), in start
+    order; ``running()``, ``paused()``, ``live()``, ``ended()``: task-uuids;
+    ``answered``: com-uuid -> (response, task-uuid) of the first answer;
+    ``executing()``: the task-uuids tasks-executing must list (the live ones);
+    ``query_answers(task_uuid)``: what query-status may answer for it now.
+- ``Expectation``: ``command``, ``resend`` (an earlier command with the same com-uuid and
+  content), ``responses`` (the allowed response words), ``outcome(response) -> Outcome``,
+  ``may_end`` (live tasks this command may end, with a final status), ``untouched`` (tasks it
+  must leave as they are), ``rule`` (the rule an answer outside ``responses`` breaks).
+- ``Outcome``: ``response``, ``states`` (task-uuid -> State after it; ``NEW_TASK`` for the
+  task a start-task without task-uuid begins, whose uuid the response names), ``implies``
+  (task-uuid -> the feedback statuses of which one must follow within ``feedback_timeout``).
+- ``Finding``: ``rule``, ``task_uuid``, ``com_uuid``, ``expected``, ``observed``, ``time``.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections import OrderedDict
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import orjson
+
+from conformance.message import Message
+from conformance.status import meaning
+
+BUILTIN_SIGNALS = ("$abort", "$continue", "$enough", "$pause")
+"""12.2.2: 'The buildtin signals are $enough, $pause, $continue and $abort.'"""
+COMMANDS = ("ping", "start-task", "signal-task", "query-status")  # 12.1
+NEW_TASK = ""
+"""The key, in ``Outcome.states``, of the task a start-task without task-uuid begins."""
+TASKS_KEPT = 1024
+COMMANDS_KEPT = 1024
+STATUSES_KEPT = 16
+
+
+class State(str, enum.Enum):
+    """A task's state (12.4's statuses; 12.1's query-status words)."""
+
+    UNKNOWN = "unknown"
+    RUNNING = "running"
+    PAUSED = "paused"
+    FINISHED = "finished"
+    ABORTED = "aborted"
+    FAILED = "failed"
+
+    @property
+    def live(self) -> bool:
+        return self in (State.RUNNING, State.PAUSED)
+
+    @property
+    def ended(self) -> bool:
+        return self in (State.FINISHED, State.ABORTED, State.FAILED)
+
+
+FINAL = {"finished": State.FINISHED, "aborted": State.ABORTED, "failed": State.FAILED}
+SIGNAL_EFFECT: dict[str, tuple[str, State]] = {
+    "$abort": ("aborted", State.ABORTED), "$enough": ("finished", State.FINISHED),
+    "$pause": ("paused", State.PAUSED), "$continue": ("running", State.RUNNING)}
+"""12.2.2: the feedback a signal answered 'ok' implies, and the state it leads to."""
+STOP_SIGNALS = ("$abort", "$enough")
+QUERY_ANSWERS: dict[State, frozenset[str]] = {
+    State.RUNNING: frozenset({"running"}),
+    State.PAUSED: frozenset({"running", "paused"}),
+    State.FINISHED: frozenset({"finished", "success"}),
+    State.FAILED: frozenset({"failed"}),
+    State.ABORTED: frozenset({"failed", "aborted"}),
+    State.UNKNOWN: frozenset({"unknown"}),
+}
+"""12.1: query-status answers 'running, failed, success, unknown'; 'paused' and 'aborted' are
+12.4's words for what that list calls running and failed, 'success' is ERR-006's reading of
+finished (the same table as ``checks.exec_response.QUERY_ANSWERS``)."""
+REFUSED_QUERY = frozenset({"failed", "unknown"})
+"""A task-uuid whose start-task was refused: 'failed' (it failed to start) or 'unknown' (it
+never ran); the spec does not say which (docs/MODEL.md)."""
+
+
+@dataclass(frozen=True)
+class Command:
+    """One command on exec/command. ``content``: its canonical JSON (a resend is the same
+    content under the same com-uuid, 12.1)."""
+
+    com_uuid: str
+    name: str
+    task_uuid: str | None = None
+    signal: str | None = None
+    task_name: str | None = None
+    content: bytes = b""
+
+    @classmethod
+    def read(cls, payload: bytes | Mapping[str, Any]) -> Command | None:
+        """The command in a payload (JSON bytes or a dict); None without a com-uuid string."""
+        m: Any = payload
+        if isinstance(payload, bytes | bytearray | memoryview):
+            try:
+                m = orjson.loads(bytes(payload))
+            except orjson.JSONDecodeError:
+                return None
+        if not isinstance(m, Mapping):
+            return None
+        com = _str(m, "com-uuid")
+        if not com:
+            return None
+        name = _str(m, "command") or "(malformed)"
+        task = m.get("task")
+        return cls(com, name, _str(m, "task-uuid"), _str(m, "signal"),
+                   _str(task, "name"), orjson.dumps(dict(m), option=orjson.OPT_SORT_KEYS))
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What follows when the unit answers a command with ``response``."""
+
+    response: str
+    states: Mapping[str, State] = field(default_factory=dict)
+    """task-uuid -> its state after this answer (only the tasks it changes)."""
+    implies: Mapping[str, frozenset[str]] = field(default_factory=dict)
+    """task-uuid -> feedback statuses of which one must follow (12.2.2)."""
+
+
+@dataclass(frozen=True)
+class Expectation:
+    """What a command may get back in the model's current state."""
+
+    command: Command
+    resend: bool
+    outcomes: tuple[Outcome, ...]
+    rule: str
+    """The rule an answer outside ``responses`` breaks."""
+    may_end: frozenset[str] = frozenset()
+    """Live tasks this command may end (each with a final status, never silently)."""
+    untouched: frozenset[str] = frozenset()
+    """Tasks whose state this command must not change."""
+    why: str = ""
+
+    @property
+    def responses(self) -> frozenset[str]:
+        return frozenset(o.response for o in self.outcomes)
+
+    def outcome(self, response: str | None) -> Outcome | None:
+        return next((o for o in self.outcomes if o.response == response), None)
+
+
+@dataclass
+class TaskRecord:
+    """One task as the model knows it."""
+
+    task_uuid: str
+    name: str | None = None
+    state: State = State.RUNNING
+    started_by: str | None = None
+    """The com-uuid of the start-task that began it (None: seen only in feedback)."""
+    refused: bool = False
+    """Its start-task was answered 'failed': it never ran."""
+    statuses: list[tuple[float, str]] = field(default_factory=list)
+    """(time, status) of its latest feedback, at most ``STATUSES_KEPT``."""
+    ended_at: float | None = None
+    acked: list[tuple[float, str, str]] = field(default_factory=list)
+    """(time, signal, com-uuid) of the signals to it answered 'ok', at most 8."""
+    listed: bool = False
+    left_at: float | None = None
+    """When it left tasks-executing while the model held it live (no final status yet)."""
+
+    @property
+    def last_status(self) -> str | None:
+        return self.statuses[-1][1] if self.statuses else None
+
+    def acked_since(self, t: float, signals: tuple[str, ...]) -> tuple[float, str, str] | None:
+        return next((a for a in reversed(self.acked) if a[0] >= t and a[1] in signals), None)
+
+
+@dataclass(frozen=True)
+class Finding:
+    """The unit disagrees with the model: ``rule`` is broken."""
+
+    rule: str
+    task_uuid: str | None
+    com_uuid: str | None
+    expected: str
+    observed: str
+    time: float
+
+
+class Model:
+    """Direct execution of one unit (one life at a time), from the traffic."""
+
+    def __init__(self, *, whole_life: bool = False, response_timeout: float = 5.0,
+                 feedback_timeout: float = 10.0) -> None:
+        self.whole_life = whole_life
+        self.response_timeout = response_timeout
+        self.feedback_timeout = feedback_timeout
+        self.tasks: OrderedDict[str, TaskRecord] = OrderedDict()
+        self.commands: OrderedDict[str, Command] = OrderedDict()
+        self.answered: OrderedDict[str, tuple[str | None, str | None]] = OrderedDict()
+        self.started_at: OrderedDict[str, float] = OrderedDict()
+        """com-uuid -> when a start-task was answered 'running' (pre-emption, EXEC-SEQ-002)."""
+        self.life: str | None = None
+
+    # --- what the explorer asks ---------------------------------------------------------------
+    def running(self) -> list[str]:
+        return [u for u, t in self.tasks.items() if t.state is State.RUNNING]
+
+    def paused(self) -> list[str]:
+        return [u for u, t in self.tasks.items() if t.state is State.PAUSED]
+
+    def live(self) -> list[str]:
+        return [u for u, t in self.tasks.items() if t.state.live]
+
+    def ended(self) -> list[str]:
+        return [u for u, t in self.tasks.items() if t.state.ended]
+
+    def executing(self) -> frozenset[str]:
+        """5.3: tasks-executing lists the tasks that run (paused ones too: they have not
+        ended)."""
+        return frozenset(self.live())
+
+    def state(self, task_uuid: str | None) -> State:
+        task = self.tasks.get(task_uuid) if task_uuid else None
+        return task.state if task is not None else State.UNKNOWN
+
+    def query_answers(self, task_uuid: str | None) -> frozenset[str]:
+        """What query-status of ``task_uuid`` may answer now (12.1, over the whole history).
+        A task the model never saw: 'unknown' when it saw the whole life, else anything."""
+        task = self.tasks.get(task_uuid) if task_uuid else None
+        if task is None:
+            return QUERY_ANSWERS[State.UNKNOWN] if self.whole_life else frozenset(
+                {"unknown", "running", "paused", "finished", "success", "failed", "aborted"})
+        if task.refused:
+            return REFUSED_QUERY
+        return QUERY_ANSWERS[task.state]
+
+    def expect(self, command: Command) -> Expectation:
+        """Which answers ``command`` may get now, and what each leads to (pure)."""
+        before = self.commands.get(command.com_uuid)
+        everyone = frozenset(self.tasks)
+        if before is not None and before.content == command.content \
+                and command.com_uuid in self.answered:
+            # 12.1: a resend is answered again, as before, and not executed again.
+            response, _ = self.answered[command.com_uuid]
+            return Expectation(command, True, (Outcome(response or ""),),
+                               "EXEC-RESEND-001", untouched=everyone,
+                               why="a resend: the first answer again, nothing executed")
+        resend = before is not None and before.content == command.content
+        name = command.name
+        if name == "ping":
+            return Expectation(command, resend, (Outcome("pong"),), "EXEC-PING-001",
+                               untouched=everyone)
+        if name == "query-status":
+            answers = self.query_answers(command.task_uuid)
+            rule = "EXEC-QUERY-001" if command.task_uuid in self.tasks else "EXEC-QUERY-002"
+            return Expectation(command, resend, tuple(Outcome(a) for a in sorted(answers)),
+                               rule, untouched=everyone)
+        if name == "start-task":
+            return self._expect_start(command, resend)
+        if name == "signal-task":
+            return self._expect_signal(command, resend)
+        return Expectation(command, resend, (Outcome("failed"),), "EXEC-ROBUST-002",
+                           untouched=everyone, why="not one of 12.1's commands: refused")
+
+    def _expect_start(self, command: Command, resend: bool) -> Expectation:
+        live = frozenset(self.live())
+        uuid = command.task_uuid
+        known = self.tasks.get(uuid) if uuid else None
+        if known is not None and known.state.live:
+            # A task-uuid names one task: a start-task naming a live one starts nothing new.
+            return Expectation(command, resend, (Outcome("failed"), Outcome("running")),
+                               "EXEC-START-001", untouched=frozenset(self.tasks),
+                               why="task-uuid of a live task: refused, or the same task")
+        key = uuid if uuid else NEW_TASK
+        running = Outcome("running", {key: State.RUNNING})
+        failed = Outcome("failed", {uuid: State.FAILED} if uuid and known is None else {})
+        # Spec silent on a second task: the unit may run both or end the first, but only
+        # with a final status (EXEC-START-003), never silently (docs/MODEL.md).
+        return Expectation(command, resend, (running, failed), "EXEC-START-001",
+                           may_end=live, untouched=frozenset(self.tasks) - live,
+                           why="a new task; live tasks may end, each with a final status")
+
+    def _expect_signal(self, command: Command, resend: bool) -> Expectation:
+        uuid, signal = command.task_uuid, command.signal or ""
+        others = frozenset(u for u in self.tasks if u != uuid)
+        task = self.tasks.get(uuid) if uuid else None
+        if task is None or task.refused:
+            answers = ("failed",) if self.whole_life else ("failed", "ok")
+            return Expectation(command, resend, tuple(Outcome(a) for a in answers),
+                               "EXEC-SIG-005", untouched=frozenset(self.tasks),
+                               why="a task the unit does not know: refused (12.2.2)")
+        if task.state.ended:
+            return Expectation(command, resend, (Outcome("failed"), Outcome("ok")),
+                               "EXEC-SIG-001", untouched=frozenset(self.tasks),
+                               why="an ended task: nothing follows its final status")
+        effect = SIGNAL_EFFECT.get(signal)
+        failed = Outcome("failed")
+        if effect is None:  # a task-specific signal: its effect is the task's own
+            return Expectation(command, resend, (Outcome("ok"), failed), "EXEC-SIG-001",
+                               untouched=others)
+        status, after = effect
+        noop = (signal == "$pause" and task.state is State.PAUSED
+                or signal == "$continue" and task.state is State.RUNNING)
+        ok = Outcome("ok") if noop else Outcome("ok", {task.task_uuid: after},
+                                                {task.task_uuid: frozenset({status})})
+        return Expectation(command, resend, (ok, failed), "EXEC-SIG-001",
+                           may_end=frozenset({task.task_uuid}) if signal in STOP_SIGNALS
+                           else frozenset(), untouched=others,
+                           why=f"{signal} to a {task.state.value} task")
+
+    # --- what the traffic shows ---------------------------------------------------------------
+    def observe(self, message: Message) -> list[Finding]:
+        """Feed one message; the sequence rules it breaks (EXEC-SEQ-*)."""
+        topic = message.topic
+        if topic.endswith("/heartbeat"):
+            self.heartbeat(_load(message.payload), message.time)
+            return []
+        if topic.endswith("/exec/command"):
+            m = _load(message.payload)
+            cmd = Command.read(m) if m is not None else None
+            if cmd is not None:
+                self.command(cmd, message.time)
+            return []
+        if topic.endswith("/exec/response"):
+            self.response(_load(message.payload), message.time)
+            return []
+        if topic.endswith("/exec/feedback"):
+            return self.feedback(_load(message.payload), message.time)
+        if topic.endswith("/direct_execution_info"):
+            self.executing_shown(_load(message.payload), message.time)
+        return []
+
+    def heartbeat(self, m: Any, t: float) -> None:
+        """12.1: a new agent-uuid is a new life, which lost the history of commands."""
+        agent = _str(m, "agent-uuid")
+        if agent is None or agent == self.life:
+            return
+        if self.life is not None:
+            self.tasks.clear()
+            self.commands.clear()
+            self.answered.clear()
+            self.started_at.clear()
+        self.life = agent
+
+    def command(self, cmd: Command, t: float) -> None:
+        before = self.commands.get(cmd.com_uuid)
+        if before is not None and before.content != cmd.content:
+            self.answered.pop(cmd.com_uuid, None)  # another command (EXEC-008, commander's)
+        _put(self.commands, cmd.com_uuid, cmd, COMMANDS_KEPT)
+
+    def response(self, m: Any, t: float) -> None:
+        to = _str(m, "response-to")
+        cmd = self.commands.get(to) if to else None
+        if cmd is None or to is None:
+            return
+        value, named = _str(m, "response"), _str(m, "task-uuid")
+        if to in self.answered:
+            return  # a resend's answer, or an answer too many: EXEC-RESEND-*, EXEC-009's
+        _put(self.answered, to, (value, named), COMMANDS_KEPT)
+        if cmd.name == "start-task":
+            uuid = named or cmd.task_uuid
+            if not uuid:
+                return
+            task = self.tasks.get(uuid)
+            if value == "running":
+                if task is None or task.state.ended or task.refused:
+                    self._remember(TaskRecord(uuid, cmd.task_name, State.RUNNING, to))
+                else:  # its feedback came first
+                    task.name, task.started_by = task.name or cmd.task_name, to
+                _put(self.started_at, to, t, COMMANDS_KEPT)
+            elif value == "failed" and task is None:
+                self._remember(TaskRecord(uuid, cmd.task_name, State.FAILED, to, refused=True,
+                                          ended_at=t))
+        elif cmd.name == "signal-task" and value == "ok" and cmd.task_uuid:
+            task = self.tasks.get(cmd.task_uuid)
+            if task is not None and cmd.signal:
+                task.acked.append((t, cmd.signal, to))
+                del task.acked[:-8]
+
+    def feedback(self, m: Any, t: float) -> list[Finding]:
+        uuid, raw = _str(m, "task-uuid"), _str(m, "status")
+        status = meaning(raw) or raw
+        if not uuid or status is None:
+            return []
+        task = self.tasks.get(uuid)
+        if task is None:
+            task = TaskRecord(uuid, None, State.RUNNING)
+            self._remember(task)
+        previous = task.last_status
+        found: list[Finding] = []
+        if task.state.live:
+            found += self._keeps_running(task, status, previous, t)
+            found += self._touched_by_another(task, status, previous, t)
+        task.statuses.append((t, status))
+        del task.statuses[:-STATUSES_KEPT]
+        if task.state.ended:
+            return found  # after the final status: EXEC-FB-004 / EXEC-RESEND-001's to judge
+        if status in FINAL:
+            task.state, task.ended_at = FINAL[status], t
+        elif status == "running":
+            task.state = State.RUNNING
+        elif status == "paused":
+            task.state = State.PAUSED
+        return found
+
+    def executing_shown(self, m: Any, t: float) -> None:
+        """5.3 tasks-executing: which live tasks it lists, and when one left it."""
+        executing = m.get("tasks-executing") if isinstance(m, dict) else None
+        if not isinstance(executing, list):
+            return
+        listed = {e.get("task-uuid") for e in executing if isinstance(e, dict)}
+        for uuid, task in self.tasks.items():
+            if uuid in listed:
+                task.listed, task.left_at = True, None
+            elif task.state.live and task.listed and task.left_at is None:
+                task.left_at = t
+
+    # --- the sequence rules -------------------------------------------------------------------
+    def _keeps_running(self, task: TaskRecord, status: str, previous: str | None,
+                       t: float) -> list[Finding]:
+        """EXEC-SEQ-001 (12.2.2): once $abort or $enough is answered 'ok' the task stops. It
+        says 'running' again (from 'paused', or still, a response timeout after the answer):
+        it went on. One in-flight 'running' right after the answer is no evidence."""
+        stop = task.acked_since(float("-inf"), STOP_SIGNALS)
+        if stop is None or status != "running":
+            return []
+        when, signal, com = stop
+        if previous == "running" and t - when <= self.response_timeout:
+            return []
+        how = "resumed from 'paused'" if previous == "paused" else \
+            f"still 'running' {t - when:.2f} s later"
+        return [Finding("EXEC-SEQ-001", task.task_uuid, com,
+                        f"task {task.task_uuid} stops after {signal} was answered 'ok'",
+                        f"feedback 'running' after the 'ok' ({how})", t)]
+
+    def _touched_by_another(self, task: TaskRecord, status: str, previous: str | None,
+                            t: float) -> list[Finding]:
+        """EXEC-SEQ-002 (12.2.2): a signal names one task-uuid and changes only that task.
+        A task says what another task's signal asked for ('paused' for $pause, 'running' again
+        after 'paused' for $continue, 'aborted' for $abort), within the feedback timeout of
+        that signal's 'ok', with no such signal of its own (and, for 'aborted', no start-task
+        in between that may have pre-empted it)."""
+        wanted = {"paused": "$pause", "aborted": "$abort"}.get(status)
+        if status == "running" and previous == "paused":
+            wanted = "$continue"
+        if wanted is None:
+            return []
+        since = t - self.feedback_timeout
+        if task.acked_since(since, (wanted,)) is not None:
+            return []
+        if wanted == "$abort" and any(s >= since for s in self.started_at.values()):
+            return []
+        for other in self.tasks.values():
+            if other is task:
+                continue
+            acked = other.acked_since(since, (wanted,))
+            if acked is not None:
+                return [Finding("EXEC-SEQ-002", task.task_uuid, acked[2],
+                                f"only task {other.task_uuid} changed by {wanted} (its "
+                                f"task-uuid)", f"task {task.task_uuid} says '{status}' "
+                                f"{t - acked[0]:.2f} s after that 'ok'", t)]
+        return []
+
+    def _remember(self, task: TaskRecord) -> None:
+        self.tasks[task.task_uuid] = task
+        if len(self.tasks) > TASKS_KEPT:
+            oldest = next((u for u, x in self.tasks.items() if x.state.ended),
+                          next(iter(self.tasks)))
+            del self.tasks[oldest]
+
+
+def _str(m: Any, key: str) -> str | None:
+    x = m.get(key) if isinstance(m, Mapping) else None
+    return x if isinstance(x, str) else None
+
+
+def _load(payload: bytes) -> Any:
+    try:
+        return orjson.loads(payload)
+    except (orjson.JSONDecodeError, TypeError):
+        return None
+
+
+def _put(d: OrderedDict[str, Any], key: str, value: Any, limit: int) -> None:
+    d[key] = value
+    d.move_to_end(key)
+    if len(d) > limit:
+        d.popitem(last=False)

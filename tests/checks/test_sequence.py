@@ -1,0 +1,158 @@
+"""The model of direct execution (conformance/protocol.py) and the sequence rules the Monitor
+judges with it (checks/exec_sequence.py): each rule passing on conformant traffic and failing
+on the faulty one, with no other rule of direct execution failing."""
+
+from __future__ import annotations
+
+import uuid
+
+import orjson
+
+from conformance.checks import Monitor
+from conformance.profile import Profile
+from conformance.protocol import NEW_TASK, Command, Model, State
+from conformance.violation import Verdict
+
+TIMEOUTS = Profile(response_timeout=1.0, feedback_timeout=3.0)
+SEQ = ("EXEC-SEQ-001", "EXEC-SEQ-002")
+
+
+def new() -> str:
+    return str(uuid.uuid4())
+
+
+def judge(stream, extra, seconds: float = 20.0):
+    m = Monitor(TIMEOUTS)
+    stream.feed(m, stream.alive(seconds) + extra)
+    m.finish()
+    return m.report().units[str(stream.address)].rules
+
+
+def failing(rules) -> set[str]:
+    return {r for r, x in rules.items() if x.verdict is Verdict.FAIL}
+
+
+WAYPOINT = {"latitude": 58.4, "longitude": 15.6, "altitude": 10.0, "rostype": "GeoPoint"}
+
+
+def start(stream, t: float, task: str) -> list:
+    """A move-to (the one task the stream's unit offers) answered 'running'."""
+    cmd = stream.command(t, "start-task", **{"task-uuid": task, "task": {
+        "name": "move-to", "params": {"waypoint": WAYPOINT, "speed": "slow"}}})
+    com = orjson.loads(cmd.payload)["com-uuid"]
+    return [cmd, stream.response(t + 0.1, com, "running", **{"task-uuid": task,
+                                                             "fail-reason": ""}),
+            stream.feedback(t + 0.2, task, "running")]
+
+
+def signal(stream, t: float, task: str, sig: str, *then: tuple[float, str, str]) -> list:
+    """A signal answered 'ok' at t + 0.1, then feedback (time, task, status)."""
+    cmd = stream.command(t, "signal-task", signal=sig, **{"task-uuid": task})
+    com = orjson.loads(cmd.payload)["com-uuid"]
+    out = [cmd, stream.response(t + 0.1, com, "ok", **{"task-uuid": task, "fail-reason": ""})]
+    return out + [stream.feedback(tt, task_uuid, status) for tt, task_uuid, status in then]
+
+
+# --- EXEC-SEQ-001: a task stops once $abort or $enough is answered 'ok' -----------------------
+
+def test_a_paused_task_aborted_passes_and_one_that_resumes_on_abort_fails(stream):
+    a = new()
+    before = start(stream, 2.0, a) + signal(stream, 3.0, a, "$pause", (3.2, a, "paused"))
+    ok = judge(stream, before + signal(stream, 5.0, a, "$abort", (5.2, a, "aborted")))
+    assert ok["EXEC-SEQ-001"].verdict is Verdict.PASS
+    assert not failing(ok)
+    bad = judge(stream, before + signal(stream, 5.0, a, "$abort", (5.2, a, "running"),
+                                        (5.9, a, "aborted")))
+    assert failing(bad) == {"EXEC-SEQ-001"}
+    v = bad["EXEC-SEQ-001"].violations[0]
+    assert "resumed from 'paused'" in v.observed and a in v.expected
+
+
+def test_running_long_after_enough_fails_but_one_running_in_flight_does_not(stream):
+    a = new()
+    before = start(stream, 2.0, a)
+    in_flight = judge(stream, before + signal(stream, 5.0, a, "$enough", (5.15, a, "running"),
+                                              (5.5, a, "finished")))
+    assert in_flight["EXEC-SEQ-001"].verdict is Verdict.PASS and not failing(in_flight)
+    on = judge(stream, before + signal(stream, 5.0, a, "$enough", (6.5, a, "running"),
+                                       (7.0, a, "finished")))
+    assert failing(on) == {"EXEC-SEQ-001"}
+    assert "still 'running'" in on["EXEC-SEQ-001"].violations[0].observed
+
+
+# --- EXEC-SEQ-002: a signal changes only the task it names -----------------------------------
+
+def test_pause_of_one_task_passes_and_a_pause_that_pauses_another_fails(stream):
+    a, b = new(), new()
+    both = start(stream, 2.0, a) + start(stream, 3.0, b)
+    ok = judge(stream, both + signal(stream, 5.0, b, "$pause", (5.2, b, "paused")))
+    assert ok["EXEC-SEQ-002"].verdict is Verdict.PASS and not failing(ok)
+    bad = judge(stream, both + signal(stream, 5.0, b, "$pause", (5.2, b, "paused"),
+                                      (5.25, a, "paused")))
+    assert failing(bad) == {"EXEC-SEQ-002"}
+    v = bad["EXEC-SEQ-002"].violations[0]
+    assert a in v.observed and b in v.expected
+
+
+def test_a_task_pre_empted_by_a_new_start_is_no_other_tasks_abort(stream):
+    a, b, c = new(), new(), new()
+    traffic = (start(stream, 2.0, a) + start(stream, 3.0, b)
+               + signal(stream, 5.0, b, "$abort", (5.2, b, "aborted"))
+               + start(stream, 5.5, c) + [stream.feedback(5.8, a, "aborted")])
+    rules = judge(stream, traffic)
+    assert rules["EXEC-SEQ-002"].verdict is Verdict.PASS and not failing(rules)
+
+
+# --- the model itself ---------------------------------------------------------------------------
+
+def _cmd(**m) -> Command:
+    c = Command.read({"com-uuid": new(), **m})
+    assert c is not None
+    return c
+
+
+def test_the_model_says_what_each_command_may_get_in_each_state():
+    model = Model(whole_life=True)
+    start_new = _cmd(command="start-task", task={"name": "move-to"})
+    e = model.expect(start_new)
+    assert e.responses == {"running", "failed"} and e.outcome("running").states == {
+        NEW_TASK: State.RUNNING}
+    assert model.expect(_cmd(command="ping")).responses == {"pong"}
+    ghost = _cmd(command="signal-task", signal="$abort", **{"task-uuid": new()})
+    assert model.expect(ghost).responses == {"failed"} and model.expect(ghost).rule == \
+        "EXEC-SIG-005"
+    assert model.expect(_cmd(command="query-status", **{"task-uuid": new()})).responses == {
+        "unknown"}
+    assert model.expect(_cmd(command="take-off")).responses == {"failed"}
+    # a running task, paused, then ended
+    t = new()
+    model.command(s := _cmd(command="start-task", task={"name": "move-to"}, **{"task-uuid": t}),
+                  1.0)
+    model.response({"response-to": s.com_uuid, "response": "running", "task-uuid": t}, 1.1)
+    assert model.running() == [t] and model.executing() == {t}
+    pause = model.expect(_cmd(command="signal-task", signal="$pause", **{"task-uuid": t}))
+    assert pause.outcome("ok").implies == {t: {"paused"}} and pause.responses == {"ok", "failed"}
+    model.feedback({"task-uuid": t, "status": "paused"}, 2.0)
+    assert model.paused() == [t] and model.query_answers(t) == {"running", "paused"}
+    again = model.expect(_cmd(command="signal-task", signal="$pause", **{"task-uuid": t}))
+    assert again.outcome("ok").states == {}  # a paused task stays paused
+    abort = model.expect(_cmd(command="signal-task", signal="$abort", **{"task-uuid": t}))
+    assert abort.outcome("ok").states == {t: State.ABORTED} and abort.may_end == {t}
+    other = model.expect(_cmd(command="start-task", task={"name": "move-to"}))
+    assert other.may_end == {t}  # a second task may end the first (with a final status)
+    model.feedback({"task-uuid": t, "status": "aborted"}, 3.0)
+    assert model.ended() == [t] and model.query_answers(t) == {"failed", "aborted"}
+    late = model.expect(_cmd(command="signal-task", signal="$continue", **{"task-uuid": t}))
+    assert late.responses == {"failed", "ok"} and late.outcome("ok").states == {}
+    # a resend is answered as before and executes nothing
+    resend = model.expect(s)
+    assert resend.resend and resend.responses == {"running"} and resend.untouched == {t}
+
+
+def test_a_new_life_forgets_the_tasks():
+    model = Model(whole_life=True)
+    model.heartbeat({"agent-uuid": "one"}, 0.0)
+    model.feedback({"task-uuid": "t1", "status": "running"}, 1.0)
+    assert model.live() == ["t1"]
+    model.heartbeat({"agent-uuid": "two"}, 2.0)
+    assert model.tasks == {} and model.query_answers("t1") == {"unknown"}
