@@ -20,14 +20,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from conformance.rules import CATALOGUE, Mode
+from conformance.rules import CATALOGUE, Mode, Severity
 from conformance.scenarios.context import Context
 from conformance.scenarios.deviation import FINAL_STATUSES, meaning
 from conformance.scenarios.params import valid_params
 from conformance.scenarios.sender import Sent, new_uuid
 from conformance.scenarios.signal import IMPLIED
 from conformance.scenarios.traffic import Entry
-from conformance.violation import Verdict, Violation
+from conformance.violation import Violation
 
 SHOWN = 300
 """Characters of a message shown in a story (the stored story keeps the same)."""
@@ -35,14 +35,14 @@ MAX_STEPS = 200
 """Steps kept per example (a story longer than the step count never happens)."""
 
 
-def judged(rule: str, severity_of: Callable[[str], Verdict]) -> bool:
+def judged(rule: str, severity_of: Callable[[str], Severity]) -> bool:
     """Whether a violation of ``rule`` is a disagreement: a rule about commands and their
     answers (conversation mode, or 12's own: EXEC-*), that the profile makes an error."""
     r = CATALOGUE.get(rule)
     if r is None:
         return False
     about_commands = r.mode is Mode.CONVERSATION or rule.startswith("EXEC-")
-    return about_commands and severity_of(rule) is Verdict.FAIL
+    return about_commands and severity_of(rule) is Severity.ERROR
 
 
 @dataclass
@@ -73,11 +73,25 @@ class Step:
                           for v in self.found]}
 
 
+def blame(steps: list[Step], found: list[Violation]) -> int:
+    """The step whose command the violations name (by com-uuid; a deadline passes steps
+    later), else the last step."""
+    for i, step in enumerate(steps):
+        for v in found:
+            text = " ".join((v.expected, v.observed, v.excerpt or "", v.detail or ""))
+            if any(com in text for com in step.coms):
+                return i
+    return len(steps) - 1
+
+
 class Disagreement(AssertionError):
     """The unit's answers broke a rule of the model at ``step`` (an index into ``steps``)."""
 
-    def __init__(self, steps: list[Step], step: int) -> None:
-        rules = sorted({v.rule for v in steps[step].found})
+    def __init__(self, steps: list[Step], found: list[Violation]) -> None:
+        step = blame(steps, found)
+        if not steps[step].found:
+            steps[step].found = list(found)
+        rules = sorted({v.rule for v in found})
         super().__init__(f"step {step + 1}: {', '.join(rules)}")
         self.steps = steps
         self.step = step
@@ -160,8 +174,7 @@ class Explorer:
                                       "exploration's commands")
         found = self.collector.since(mark)
         if found and self.steps:
-            self.steps[-1].found.extend(found)
-            raise Disagreement(self.steps, len(self.steps) - 1)
+            raise Disagreement(self.steps, found)
 
     # --- one step -----------------------------------------------------------------------------
     def do(self, action: dict[str, Any]) -> Step:
@@ -175,9 +188,9 @@ class Explorer:
         kind = action["do"]
         getattr(self, "_" + kind)(step, action)
         step.came += [f"{e.subtopic}: {_text(e.raw)}" for e in self._answers(after, step)]
-        step.found = self.collector.since(mark)
-        if step.found:
-            raise Disagreement(self.steps, len(self.steps) - 1)
+        found = self.collector.since(mark)
+        if found:
+            raise Disagreement(self.steps, found)
         return step
 
     def _answers(self, after: int, step: Step) -> list[Entry]:
@@ -268,12 +281,15 @@ class Explorer:
         if answer is None or answer.get("response") == "failed" or signal not in IMPLIED:
             return
         # 12.2.2: the signal's effect, awaited; a unit that owes it is judged at its deadline.
+        # Awaited for the response deadline at most (a story's step never takes longer); what
+        # is still owed then is judged when its deadline has passed, at the example's end.
         wanted = {IMPLIED[signal]} | set(FINAL_STATUSES)
         t = self.ctx.timing
-        if self.ctx.commander.feedback(task_uuid, wanted, t.feedback, after=after,
-                                       what=f"the feedback of {signal} (explore)") is None:
-            self._owe(0.0)
-            self._wait_heartbeat()
+        started = time.time()
+        if self.ctx.commander.feedback(task_uuid, wanted, min(t.response, t.feedback),
+                                       after=after, what=f"the feedback of {signal} "
+                                       "(explore)") is None:
+            self._owe(t.feedback - (time.time() - started))
 
     def _query(self, step: Step, action: dict[str, Any]) -> None:
         self._send(step, {"command": "query-status", "task-uuid": self._uuid(action.get("slot"))})
