@@ -59,11 +59,12 @@ class CommandExecutor:
             return
         assert isinstance(msg, dict)
         com = msg["com-uuid"]
-        if (com in self.history and "resend-answered-failed" in self.faults
+        known = com in self.history and not self._forgets_ended(com)
+        if (known and "resend-answered-failed" in self.faults
                 and msg.get("command") == "start-task"):
             self._refuse_resend(com, msg)
             return
-        if com in self.history and "resend-executes-twice" not in self.faults:
+        if known and "resend-executes-twice" not in self.faults:
             # 12.1: a resent command reuses its com-uuid; answer it again, do not run it twice.
             cached = self.history.resent(com)
             if cached is not None and "resend-unanswered" not in self.faults:
@@ -153,6 +154,19 @@ class CommandExecutor:
         self._send_response(body, command_com=com)
         if task is not None and not task.ended:
             self.runner.feedback(task, "failed")
+
+    def _forgets_ended(self, com: str) -> bool:
+        """Fault resend-after-end-runs-again: a start-task whose task has ended is forgotten,
+        task and com-uuid, so its resend runs it again."""
+        if "resend-after-end-runs-again" not in self.faults:
+            return False
+        cached = self.history.get(com)
+        task_uuid = cached.get("task-uuid") if cached else None
+        task = self.runner.tasks.get(task_uuid) if isinstance(task_uuid, str) else None
+        if task is None or not task.ended or task.com_uuid != com:
+            return False
+        del self.runner.tasks[task.uuid]
+        return True
 
     # --- start-task -----------------------------------------------------------------------------
     def _start_task(self, com: str, msg: dict[str, Any], now: float) -> None:
@@ -257,15 +271,24 @@ class CommandExecutor:
             return
         self._answer(com, "ok", task_uuid=task_uuid, fail_reason="", kind="signal")
         runner.step(now)
+        paused = task.status == "paused"
+        if paused and signal in ("$abort", "$enough") and "abort-paused-resumes" in self.faults:
+            runner.resume(task, now)  # continue() before cancel(): it runs again, then ends
         if signal == "$abort":
             if "abort-ignored" not in self.faults:
                 runner.end(task, "aborted", "aborted by $abort")
+                if paused and "feedback-after-abort-paused" in self.faults:
+                    runner.feedback(task, "paused")  # its pause timer fires after the end
         elif signal == "$enough":
             runner.end(task, "aborted" if "enough-aborts" in self.faults else "finished",
                        "ended by $enough")
         elif signal == "$pause":
             if "pause-ignored" not in self.faults:
                 runner.pause(task, now)
+            if "pause-pauses-all" in self.faults:  # the controller all tasks share pauses
+                for other in list(runner.tasks.values()):
+                    if other is not task and other.node is None:
+                        runner.pause(other, now)
         elif signal == "$continue":
             runner.resume(task, now)
         elif signal == SKIP_WAYPOINT:
@@ -290,6 +313,8 @@ class CommandExecutor:
         task = self.runner.tasks.get(task_uuid)
         if task is not None and task.ended and "query-forgets-finished" in self.faults:
             task = None
+        if task is not None and task.status == "paused" and "query-paused-unknown" in self.faults:
+            task = None  # it looks among running and ended tasks only
         if task is None:
             if "query-unknown-failed" in self.faults:
                 self._answer(com, "failed", task_uuid=task_uuid, fail_reason="no such task",

@@ -33,6 +33,10 @@ class Fault:
     stimulus: bool = False
     """It shows only in answers to commands (responses, feedback), although its rules are
     judged passively once that traffic exists."""
+    sequence: bool = False
+    """It shows only in an order of commands the scripted scenarios do not send (a pause before
+    an abort, a second task while one is paused, a resend after the end): exploration finds it
+    (``conformance.protocol``), the scripted certification and workouts do not."""
 
     @property
     def active(self) -> bool:
@@ -263,6 +267,38 @@ _ALL = (
        "Makes com-uuids of its responses and feedback, and the task-uuids it generates, from "
        "a counter ('msg-17')."),
 )
+
+# --- 12 across steps: field bugs that only an order of commands shows (the model's rules and the
+# conversation rules it extends; conformance.protocol). No scripted scenario sends that order.
+
+
+def _seq(name: str, rules: str, description: str) -> Fault:
+    return Fault(name, tuple(rules.split()), description, "unit", True, True)
+
+
+_SEQUENCE = (
+    _seq("abort-paused-resumes", "EXEC-SEQ-001",
+         "Answers $abort or $enough of a paused task 'ok' and resumes it first (the handler "
+         "calls continue() before cancel()): 'running' again, the vehicle moves, then the "
+         "final status."),
+    _seq("pause-pauses-all", "EXEC-SEQ-002",
+         "Pauses every running task on $pause, not only the one it names (the pause goes to "
+         "the controller all tasks share); $continue resumes only the named one."),
+    _seq("resend-after-end-runs-again", "EXEC-RESEND-001",
+         "Forgets a start-task's com-uuid once its task has ended: the same start-task resent "
+         "after the end runs the task again."),
+    _seq("preempt-paused-silently", "EXEC-START-003",
+         "A new task of the same kind drops a paused one from its task table: the paused task "
+         "leaves tasks-executing with no final status."),
+    _seq("query-paused-unknown", "EXEC-QUERY-001",
+         "Answers query-status of a paused task 'unknown' (it looks among running and ended "
+         "tasks only)."),
+    _seq("feedback-after-abort-paused", "EXEC-FB-004",
+         "A task aborted while paused says 'paused' once more after its 'aborted' (its pause "
+         "timer fires after the abort)."),
+)
+SEQUENCE_FAULTS = frozenset(f.name for f in _SEQUENCE)
+_ALL = _ALL + _SEQUENCE
 
 # --- 14 TST execution (issue 10; conformance.sim.tst) ------------------------------------------
 # Each switches the TST level on by itself (the unit then declares 'tst execution'). All but

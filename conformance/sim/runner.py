@@ -131,6 +131,9 @@ class TaskRunner:
         group is aborted."""
         for other in list(self.tasks.values()):
             if other is not task and not other.ended and other.group == task.group:
+                if other.status == "paused" and "preempt-paused-silently" in self.faults:
+                    del self.tasks[other.uuid]  # dropped: no final status, not listed
+                    continue
                 self.end(other, "aborted", reason)
 
     def pause(self, task: Task, now: float) -> None:

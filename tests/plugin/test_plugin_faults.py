@@ -81,8 +81,8 @@ def groups() -> list[list[str]]:
     out: list[list[str]] = []
     combinable: list[tuple[str, set[str]]] = []
     for name, fault in sorted(FAULTS.items()):
-        if fault.scope != "unit" or name in AWAITING_SCENARIOS:
-            continue
+        if fault.scope != "unit" or name in AWAITING_SCENARIOS or fault.sequence:
+            continue  # a sequence fault: no scripted scenario sends its order (exploration)
         mine = {a for r in fault.rules for a in areas(r)}
         if (mine & ALONE and name not in JOIN) or name in ALONE_FAULTS:
             out.append([name])
