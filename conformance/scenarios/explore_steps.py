@@ -32,6 +32,9 @@ from conformance.violation import Violation
 SHOWN = 300
 """Characters of a message shown in a story (the stored story keeps the same)."""
 MAX_STEPS = 200
+UNCHANGED = {("$pause", "paused"), ("$continue", "running")}
+"""Signals that change nothing in that state: no feedback is owed (the model's decision,
+EXEC-SEQ-001 in the catalogue, docs/MODEL.md)."""
 """Steps kept per example (a story longer than the step count never happens)."""
 
 
@@ -274,22 +277,26 @@ class Explorer:
 
     def _signal(self, step: Step, action: dict[str, Any]) -> None:
         signal = str(action["signal"])
-        task_uuid = self._uuid(action.get("slot"))
+        slot = action.get("slot")
+        task_uuid = self._uuid(slot)
+        state = self.states()[slot] if isinstance(slot, int) and slot < len(self.slots) else ""
         after = self.ctx.traffic.mark()
         _, answer = self._send(step, {"command": "signal-task", "signal": signal,
                                       "task-uuid": task_uuid})
-        if answer is None or answer.get("response") == "failed" or signal not in IMPLIED:
+        if answer is None or answer.get("response") == "failed" or signal not in IMPLIED \
+                or (signal, state) in UNCHANGED:
             return
         # 12.2.2: the signal's effect, awaited; a unit that owes it is judged at its deadline.
-        # Awaited for the response deadline at most (a story's step never takes longer); what
-        # is still owed then is judged when its deadline has passed, at the example's end.
+        # Awaited for the response deadline at most (a story's step never takes longer). What
+        # is still owed then shows later: the example's end aborts the task, and a final
+        # status before the effect is the Monitor's finding at once (exec_feedback).
         wanted = {IMPLIED[signal]} | set(FINAL_STATUSES)
         t = self.ctx.timing
-        started = time.time()
-        if self.ctx.commander.feedback(task_uuid, wanted, min(t.response, t.feedback),
-                                       after=after, what=f"the feedback of {signal} "
-                                       "(explore)") is None:
-            self._owe(t.feedback - (time.time() - started))
+        final = self.ctx.commander.feedback(
+            task_uuid, wanted if not action.get("teardown") else set(FINAL_STATUSES),
+            min(t.response, t.feedback), after=after, what=f"the feedback of {signal} (explore)")
+        if final is None and action.get("teardown"):
+            self._owe(t.feedback - t.response)  # the final status of an abort: its deadline
 
     def _query(self, step: Step, action: dict[str, Any]) -> None:
         self._send(step, {"command": "query-status", "task-uuid": self._uuid(action.get("slot"))})

@@ -95,7 +95,9 @@ class Story:
 
     def to_json(self, unit: str) -> dict[str, Any]:
         return {"format": FORMAT, "unit": unit, "seed": self.seed, "shrunk": self.shrunk,
-                "failing_step": self.failing + 1, "rules": self.rules,
+                "failing_step": self.failing + 1, "rules": self.rules, "length": self.length,
+                "found_after_s": round(self.found_after, 1), "found_steps": self.found_steps,
+                "first_length": self.first_length,
                 "steps": [s.to_json() for s in self.steps]}
 
     def save(self, path: Path, unit: str) -> Path:

@@ -123,6 +123,8 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item) -> None:
     _say(c, f"exploring command orders for {seconds:.0f} s (hypothesis, seed {c.settings.seed})")
     outcome = Search(explorer, seconds, c.settings.seed, tell).run()
     summary = _summary(outcome)
+    if outcome.last_error and c.progress.verbosity > 0:
+        _say(c, f"exploration ended with {printable(outcome.last_error)}")
     node.user_properties.append(("explore", summary))
     c.explored = summary
     story = outcome.story
