@@ -17,16 +17,19 @@ printed the moment the first is found, shrunk or not.
 from __future__ import annotations
 
 import time
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from conformance.scenarios.context import BUILTIN_SIGNALS, RUNS_UNTIL_ENOUGH
-from conformance.scenarios.explore_steps import Disagreement, Explorer, Step
+from conformance.scenarios.explore_steps import UNCHANGED, Disagreement, Explorer, Step
 from conformance.scenarios.story import Story
 
 STEPS = 10
 """Steps per example at most (hypothesis' stateful_step_count)."""
+PICK = 63
+"""Range of every draw that picks among what the unit's state offers."""
 TASKS = 3
 """Start-tasks per example at most."""
 EXAMPLES = 10_000
@@ -161,23 +164,14 @@ def machine_for(search: Search) -> type:
 
     explorer = search.explorer
     tasks = explorer.tasks or ["-"]
-    # Half the starts are of tasks that run until they are ended (9: look-at-*, detection):
-    # the states where signals and queries matter last; the other half of any task.
     lasting = [t for t in tasks if t in RUNS_UNTIL_ENOUGH] or tasks
-    task_choice = st.one_of(st.sampled_from(lasting), st.sampled_from(tasks))
 
-    def slot_choice(data: Any, signal: str | None) -> int | None:
-        """A task by the model's view of it: those the command acts on first (a paused one
-        for $continue, a running one for the other signals), then the rest, then a task the
-        unit never saw (shrinking goes to the first). Drawn as a number of fixed range and
-        mapped onto the tasks there are, so that the draw does not depend on the unit
-        (hypothesis replays a choice only where its range is the same)."""
-        states = explorer.states()
-        live = {"$continue": ("paused",)}.get(signal or "", ("running", "paused"))
-        order: list[int | None] = sorted(range(len(states)),
-                                         key=lambda i: (states[i] not in live, i))
-        order.append(None)
-        return order[data.draw(st.integers(0, STEPS), label="task") % len(order)]
+    def pick(data: Any, label: str, options: list[Any]) -> Any:
+        """One of ``options``, ordered by the model's view of the tasks (the most telling
+        first: early examples and shrinking favour it). Drawn as a number of fixed range
+        and mapped onto the options there are, so that the draw does not depend on the
+        unit (hypothesis replays a choice only where its range is the same)."""
+        return options[data.draw(st.integers(0, PICK), label=label) % len(options)]
 
     # Hypothesis draws rules by their place in a list sorted by number of arguments (all have
     # one), then name, and early examples favour the first places: the names put the
@@ -189,32 +183,29 @@ def machine_for(search: Search) -> type:
             search.outcome.examples += 1
             explorer.begin()
 
-        # At most TASKS starts an example: the steps go to what is done with them (and the
-        # unit's preemption rules are reached with two or three).
-        @precondition(lambda self: bool(explorer.tasks) and len(explorer.slots) < TASKS)
-        @rule(how=st.tuples(task_choice, st.booleans().map(lambda b: not b),
-                            st.integers(0, 3)))
-        def a_start_task(self, how: tuple[str, bool, int]) -> None:
-            task, task_uuid, params = how
-            search.run_step({"do": "start", "task": task, "task_uuid": task_uuid,
-                             "params": params, "slot": len(explorer.slots)})
-
-        @precondition(lambda self: bool(explorer.slots))  # a task never seen: one choice of it
+        # Two starts an example (a third while a task is paused: ``task_commands``): the
+        # steps go to what is done with the tasks.
+        @precondition(lambda self: bool(explorer.tasks) and len(explorer.slots) < TASKS - 1)
         @rule(data=st.data())
-        def b_signal_task(self, data: Any) -> None:
-            signal = data.draw(st.sampled_from(SIGNALS), label="signal")
-            search.run_step({"do": "signal", "signal": signal,
-                             "slot": slot_choice(data, signal)})
+        def a_start_task(self, data: Any) -> None:
+            task = pick(data, "task", start_order(explorer, tasks, lasting))
+            task_uuid = not data.draw(st.booleans(), label="without task-uuid")
+            search.run_step({"do": "start", "task": task, "task_uuid": task_uuid,
+                             "slot": len(explorer.slots)})
+
+        @precondition(lambda self: bool(explorer.slots))
+        @rule(data=st.data())
+        def b_task_command(self, data: Any) -> None:
+            search.run_step(pick(data, "command", task_commands(explorer)))
 
         @rule(data=st.data())
         def c_query_status(self, data: Any) -> None:
-            search.run_step({"do": "query", "slot": slot_choice(data, None)})
+            search.run_step({"do": "query", "slot": pick(data, "task", query_order(explorer))})
 
         @precondition(lambda self: bool(explorer.commands))
         @rule(data=st.data())
         def d_resend(self, data: Any) -> None:
-            steps = sorted(explorer.commands)
-            step = steps[data.draw(st.integers(0, STEPS), label="command") % len(steps)]
+            step = pick(data, "command", resend_order(explorer))
             search.run_step({"do": "resend", "step": step})
 
         @rule(data=st.data())
@@ -230,6 +221,74 @@ def machine_for(search: Search) -> type:
 
     assert set(SIGNALS) == set(BUILTIN_SIGNALS)
     return Exploration
+
+
+def start_order(explorer: Explorer, tasks: list[str], lasting: list[str]) -> list[str]:
+    """Tasks to start: while one is paused, the same task again (what a second task does to
+    a paused one); then tasks that run until ended and are not running yet, of a family not
+    started yet first (two that run side by side), then every task."""
+    states = explorer.states()
+    paused = [s.name for s, state in zip(explorer.slots, states, strict=True)
+              if state == "paused"]
+    started = {s.name for s in explorer.slots}
+    families = {name.split("-")[0] for name in started}
+    fresh = sorted((t for t in lasting if t not in started),
+                   key=lambda t: (t.split("-")[0] in families, lasting.index(t)))
+    return paused[:1] + fresh + tasks
+
+
+def task_commands(explorer: Explorer) -> list[dict[str, Any]]:
+    """Commands about the tasks started, the most telling in the model's view first: a
+    signal that changes a live task's state, a query of a paused or ended task, a resend of
+    a start-task whose task has ended; among those, the kind done least in this example
+    first. Then the rest; then signals to a task the unit never saw."""
+    states = explorer.states()
+    done = Counter((s.action.get("do"), s.action.get("signal")) for s in explorer.steps)
+    options: list[tuple[bool, int, int, float, dict[str, Any]]] = []
+    for i, state in enumerate(states):
+        live = state in ("running", "paused")
+        options.append((state not in ("paused", "ended"), done["query", None], i, 0,
+                        {"do": "query", "slot": i}))
+        for n, signal in enumerate(SIGNALS):
+            options.append((not live or (signal, state) in UNCHANGED, done["signal", signal],
+                            i, 1 + n, {"do": "signal", "signal": signal, "slot": i}))
+    paused = [i for i, state in enumerate(states) if state == "paused"]
+    if paused and len(explorer.slots) < TASKS:  # what a new task does to a paused one
+        options.append((False, 0, paused[0], 0.5, {
+            "do": "start", "task": explorer.slots[paused[0]].name, "task_uuid": True,
+            "slot": len(explorer.slots)}))
+    for step in resend_order(explorer)[:1]:
+        options.append((not _ended_start(explorer, states, step), done["resend", None], -1, 0,
+                        {"do": "resend", "step": step}))
+    options.sort(key=lambda o: o[:4])
+    return [o[4] for o in options] + [{"do": "signal", "signal": signal, "slot": None}
+                                      for signal in SIGNALS]
+
+
+QUERY_FIRST = {"paused": 0, "ended": 1, "running": 2}
+
+
+def query_order(explorer: Explorer) -> list[int | None]:
+    """Tasks to ask about: paused, then ended, then running ones, the rest; then a task
+    never seen (12.1: 'unknown')."""
+    states = explorer.states()
+    order: list[int | None] = sorted(range(len(states)),
+                                     key=lambda i: (QUERY_FIRST.get(states[i], 3), i))
+    return order + [None]
+
+
+def _ended_start(explorer: Explorer, states: list[str], i: int) -> bool:
+    a = explorer.steps[i].action if i < len(explorer.steps) else {}
+    slot = a.get("slot")
+    return a.get("do") == "start" and isinstance(slot, int) and slot < len(states) \
+        and states[slot] == "ended"
+
+
+def resend_order(explorer: Explorer) -> list[int]:
+    """Commands to resend: a start-task whose task has ended first (it must not run
+    again), then the others, the latest first."""
+    states = explorer.states()
+    return sorted(explorer.commands, key=lambda i: (not _ended_start(explorer, states, i), -i))
 
 
 def replay(explorer: Explorer, actions: list[dict[str, Any]], seed: int = 0) -> Story | None:

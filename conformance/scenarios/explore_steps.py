@@ -150,11 +150,14 @@ class Explorer:
         self.total_steps = 0
         self._pending_until = 0.0
         """Unix time until which an answer or feedback the unit owes is not yet late."""
+        self._refused_aborts: list[Slot] = []
+        """Tasks whose teardown $abort the unit answered 'failed' (it no longer knows them)."""
 
     # --- an example ---------------------------------------------------------------------------
     def begin(self) -> None:
         self.slots, self.commands, self.steps = [], {}, []
         self._pending_until = 0.0
+        self._refused_aborts: list[Slot] = []
 
     def end(self) -> None:
         """Abort what this example started, await each final status, then wait until what
@@ -167,6 +170,11 @@ class Explorer:
             if slot.task_uuid is not None and slot.state not in ("refused", "ended"):
                 # A step of the story too: a unit may break a rule on this very abort.
                 self.do({"do": "signal", "signal": "$abort", "slot": i, "teardown": True})
+        # A task the unit no longer knows (its abort answered 'failed') that never said its
+        # final status (12.4) is late once it has left tasks-executing for the response
+        # deadline: the Monitor judges it then.
+        if any(s.state not in ("refused", "ended") for s in self._refused_aborts):
+            self._owe(t.response)
         mark = self.collector.mark()
         self.ctx.commander.abort_all(t.response)
         if self._pending_until:
@@ -241,7 +249,18 @@ class Explorer:
         for e in self.ctx.traffic.since(slot.mark, "exec/feedback"):
             if e.get("task-uuid") == uuid_:
                 status = meaning(e.get("status"))
-                slot.state = "ended" if status in FINAL_STATUSES else str(status)
+                if status in FINAL_STATUSES:
+                    slot.state = "ended"
+                elif status in ("running", "paused"):  # a task's own words change nothing
+                    slot.state = status
+
+    def warm(self) -> None:
+        """Draw every task's parameters now (hypothesis-jsonschema, cached): not inside the
+        exploration, whose hypothesis run they would stall."""
+        from conformance.scenarios.params import drawn
+
+        for task in self.tasks:
+            drawn(task, self.ctx.seed)
 
     def states(self) -> list[str]:
         """Each slot's state as the unit last showed it."""
@@ -253,7 +272,9 @@ class Explorer:
     def _start(self, step: Step, action: dict[str, Any]) -> None:
         name = str(action["task"])
         origin = self.ctx.position()
-        params = valid_params(name, origin, self.ctx.safety, int(action.get("params", 0))) \
+        # Drawn from the task's schema with the run's seed, inside the safe radius (DESIGN
+        # 'Safety'); ``warm`` drew them before the exploration's clock started.
+        params = valid_params(name, origin, self.ctx.safety, self.ctx.seed) \
             if origin is not None else {}
         body: dict[str, Any] = {"command": "start-task", "execution-unit": self.ctx.unit.name,
                                 "task": {"name": name, "params": params}}
@@ -283,6 +304,9 @@ class Explorer:
         after = self.ctx.traffic.mark()
         _, answer = self._send(step, {"command": "signal-task", "signal": signal,
                                       "task-uuid": task_uuid})
+        if answer is not None and answer.get("response") == "failed" \
+                and action.get("teardown") and isinstance(slot, int):
+            self._refused_aborts.append(self.slots[slot])
         if answer is None or answer.get("response") == "failed" or signal not in IMPLIED \
                 or (signal, state) in UNCHANGED:
             return

@@ -82,6 +82,7 @@ def run(c: Certification, node: pytest.Item) -> None:
         c._fail_if_out_of_time()
     collector = Collector(str(c.unit), lambda rule: judged(rule, c.profile.severity_of))
     explorer = Explorer(c.context, collector)
+    explorer.warm()
     c.connection.listeners.append(collector)
     try:
         if actions is not None:
