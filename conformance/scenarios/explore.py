@@ -196,7 +196,8 @@ def machine_for(search: Search) -> type:
         @precondition(lambda self: bool(explorer.slots))
         @rule(data=st.data())
         def b_task_command(self, data: Any) -> None:
-            search.run_step(pick(data, "command", task_commands(explorer)))
+            search.run_step(pick(data, "command", task_commands(
+                explorer, alternate=search.outcome.examples % 2 == 0)))
 
         @rule(data=st.data())
         def c_query_status(self, data: Any) -> None:
@@ -237,7 +238,7 @@ def start_order(explorer: Explorer, tasks: list[str], lasting: list[str]) -> lis
     return paused[:1] + fresh + tasks
 
 
-def task_commands(explorer: Explorer) -> list[dict[str, Any]]:
+def task_commands(explorer: Explorer, alternate: bool = False) -> list[dict[str, Any]]:
     """Commands about the tasks started, the most telling in the model's view first: a
     signal that changes a live task's state, a query of a paused or ended task, a resend of
     a start-task whose task has ended; among those, the kind done least in this example
@@ -254,7 +255,9 @@ def task_commands(explorer: Explorer) -> list[dict[str, Any]]:
                             i, 1 + n, {"do": "signal", "signal": signal, "slot": i}))
     paused = [i for i, state in enumerate(states) if state == "paused"]
     if paused and len(explorer.slots) < TASKS:  # what a new task does to a paused one
-        options.append((False, 0, paused[0], 0.5, {
+        # before or after the signals, every other example: both orders get their turn
+        options.append((False, 0, paused[0], 0.5 if len(explorer.slots) % 2 or alternate
+                        else 9, {
             "do": "start", "task": explorer.slots[paused[0]].name, "task_uuid": True,
             "slot": len(explorer.slots)}))
     for step in resend_order(explorer)[:1]:
