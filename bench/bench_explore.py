@@ -5,7 +5,7 @@
 
 Every run is a real ``pytest --unit ... --broker embedded -k test_explore`` in a subprocess
 (only the exploration runs: it starts from the unit's own state, as after the scripted
-scenarios), with ``--explore`` the default budget at 1 Hz (60 s) unless ``--budget``:
+scenarios), with ``--explore`` the default budget at 1 Hz (50 s) unless ``--budget``:
 
 - conformant: steps per minute (the report's ``explore`` summary), and that nothing is found;
 - each sequence fault of ``conformance.sim.faults`` (``SEQUENCE_FAULTS``), over ``--seeds``
@@ -79,7 +79,7 @@ def main() -> int:
     ap.add_argument("--seeds", type=int, default=10, help="seeds per fault (issue: 10)")
     ap.add_argument("--first-seed", type=int, default=1)
     ap.add_argument("--faults", nargs="*", default=sorted(SEQUENCE_FAULTS))
-    ap.add_argument("--budget", default="60s", help="--explore of each run (default 60s)")
+    ap.add_argument("--budget", default="50s", help="--explore of each run (default 50s)")
     ap.add_argument("--rate", type=float, default=1.0)
     ap.add_argument("--jobs", type=int, default=4)
     ap.add_argument("--no-conformant", action="store_true")

@@ -75,8 +75,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                          "rules (a rerun line adds it when the evidence came late)")
     group.addoption("--explore", dest="waraps_explore", default=None, metavar="DURATION",
                     help="after the scripted scenarios, explore command orders this long "
-                         "(hypothesis; 90s, 2m; default: 60 heartbeat periods of the unit, "
-                         "at least 20 s and at most 60 s; 0: off)")
+                         "(hypothesis; 90s, 2m; default: 50 heartbeat periods of the unit, "
+                         "at least 20 s and at most 50 s; 0: off)")
     group.addoption("--explore-replay", dest="waraps_explore_replay", default=None,
                     metavar="FILE", help="replay the story a failing exploration stored "
                     "(reports/*-explore.json) instead of exploring")

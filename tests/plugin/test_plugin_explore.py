@@ -79,9 +79,10 @@ def test_explore_off_and_dry_run_say_why(pytester: pytest.Pytester) -> None:
 
 
 def test_replay_of_a_file_that_is_no_story(pytester: pytest.Pytester) -> None:
-    missing = certify(pytester, *EMBEDDED, "--explore-replay=nowhere.json")
-    assert missing.result.ret == pytest.ExitCode.USAGE_ERROR
-    assert "--explore-replay nowhere.json: no such file" in missing.text
+    missing = pytester.runpytest_inprocess("-p", "no:cacheprovider", "-o", "addopts=",
+                                           *EMBEDDED, "--explore-replay=nowhere.json")
+    assert missing.ret == pytest.ExitCode.USAGE_ERROR
+    assert "--explore-replay nowhere.json: no such file" in "\n".join(missing.errlines)
     bad = pytester.path / "bad.json"
     bad.write_text(json.dumps({"format": "something else", "steps": []}))
     run = certify(pytester, *EMBEDDED, f"--explore-replay={bad}", "-k", "test_explore")
