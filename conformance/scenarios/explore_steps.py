@@ -271,6 +271,11 @@ class Explorer:
     # --- the commands (12.1) ------------------------------------------------------------------
     def _start(self, step: Step, action: dict[str, Any]) -> None:
         name = str(action["task"])
+        allowed, why = self.ctx.safety.may_start(name)
+        if not allowed:  # a stored story replayed on a unit it may not move (DESIGN 'Safety')
+            self.slots.append(Slot(name, None, self.ctx.traffic.mark(), "refused"))
+            step.came.append(f"not sent: {why}")
+            return
         origin = self.ctx.position()
         # Drawn from the task's schema with the run's seed, inside the safe radius (DESIGN
         # 'Safety'); ``warm`` drew them before the exploration's clock started.

@@ -87,3 +87,16 @@ def test_replay_of_a_file_that_is_no_story(pytester: pytest.Pytester) -> None:
     bad.write_text(json.dumps({"format": "something else", "steps": []}))
     run = certify(pytester, *EMBEDDED, f"--explore-replay={bad}", "-k", "test_explore")
     assert run.result.ret == 1 and "not a story written by --explore" in run.text
+
+
+def test_replay_never_moves_a_real_unit_without_allow_motion(pytester: pytest.Pytester) -> None:
+    story = pytester.path / "story.json"
+    story.write_text(json.dumps({"format": "waraps-conformance explore story 1", "steps": [
+        {"action": {"do": "start", "task": "move-to", "task_uuid": True, "slot": 0}},
+        {"action": {"do": "query", "slot": 0}}]}))
+    run = certify(pytester, "--unit", "waraps/unit/air/real/dji0", "--broker", "embedded",
+                  "--sim-rate", "3", f"--profile={FAST}", f"--explore-replay={story}",
+                  "-k", "test_explore", "-v")
+    assert run.result.ret == 0, run.text
+    assert "sent start-task move-to" not in run.text
+    assert "sent query-status" in run.text and "no longer fails" in run.text
