@@ -15,7 +15,8 @@ Public API (stable):
 - ``State``: ``UNKNOWN`` (never seen), ``RUNNING``, ``PAUSED``, ``FINISHED``, ``ABORTED``,
   ``FAILED``; ``.live``, ``.ended``.
 - ``Command``: one command (``com_uuid``, ``name``, ``task_uuid``, ``signal``, ``task_name``,
-  ``content``); ``Command.read(payload)`` from JSON bytes or a dict (None if no com-uuid).
+  ``content``: a digest); ``Command.read(payload)`` from JSON bytes or a dict (None if no
+  com-uuid).
 - ``Model(whole_life=False, response_timeout=5.0, feedback_timeout=10.0)``:
   ``whole_life`` says the observer saw every command of the unit's current life (the suite,
   which commands it; lint of a recording cannot know that).
@@ -23,9 +24,10 @@ Public API (stable):
   - ``observe(message) -> list[Finding]``: feed any ``conformance.message.Message`` (commands,
     responses, feedback, direct_execution_info, heartbeats; other topics are ignored); the
     findings are the sequence rules' (EXEC-SEQ-*). Or per kind: ``command``, ``response``,
-    ``feedback``, ``executing``, ``heartbeat`` (a payload dict and a time).
+    ``feedback``, ``executing_shown``, ``heartbeat`` (a payload dict and a time).
   - ``tasks``: task-uuid -> ``TaskRecord`` (``state``, ``name``, ``statuses``, ...), in start
-    order; ``running()``, ``paused()``, ``live()``, ``ended()``: task-uuids;
+    order; ``states()``: task-uuid -> State; ``running()``, ``paused()``, ``live()``,
+    ``ended()``: task-uuids;
     ``answered``: com-uuid -> (response, task-uuid) of the first answer;
     ``executing()``: the task-uuids tasks-executing must list (the live ones);
     ``query_answers(task_uuid)``: what query-status may answer for it now.
@@ -42,6 +44,7 @@ Public API (stable):
 from __future__ import annotations
 
 import enum
+import hashlib
 from collections import OrderedDict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -50,7 +53,7 @@ from typing import Any
 import orjson
 
 from conformance.message import Message
-from conformance.status import meaning
+from conformance.status import FINAL_STATUSES, meaning
 
 BUILTIN_SIGNALS = ("$abort", "$continue", "$enough", "$pause")
 """12.2.2: 'The buildtin signals are $enough, $pause, $continue and $abort.'"""
@@ -81,12 +84,14 @@ class State(str, enum.Enum):
         return self in (State.FINISHED, State.ABORTED, State.FAILED)
 
 
-FINAL = {"finished": State.FINISHED, "aborted": State.ABORTED, "failed": State.FAILED}
+FINAL = {status: State(status) for status in FINAL_STATUSES}  # 12.4: finished, failed, aborted
 SIGNAL_EFFECT: dict[str, tuple[str, State]] = {
     "$abort": ("aborted", State.ABORTED), "$enough": ("finished", State.FINISHED),
     "$pause": ("paused", State.PAUSED), "$continue": ("running", State.RUNNING)}
 """12.2.2: the feedback a signal answered 'ok' implies, and the state it leads to."""
 STOP_SIGNALS = ("$abort", "$enough")
+"""The signals that end a task (12.2.2); after an 'ok' to $abort nothing may run it on
+(EXEC-SEQ-001), $enough lets it wind down its own way until 'finished' (EXEC-SIG-004)."""
 QUERY_ANSWERS: dict[State, frozenset[str]] = {
     State.RUNNING: frozenset({"running"}),
     State.PAUSED: frozenset({"running", "paused"}),
@@ -105,8 +110,9 @@ never ran); the spec does not say which (docs/MODEL.md)."""
 
 @dataclass(frozen=True)
 class Command:
-    """One command on exec/command. ``content``: its canonical JSON (a resend is the same
-    content under the same com-uuid, 12.1)."""
+    """One command on exec/command. ``content`` identifies its content: a 16-byte digest of
+    its canonical JSON (a resend is the same content under the same com-uuid, 12.1; a command
+    may be 1 MiB, and thousands are kept)."""
 
     com_uuid: str
     name: str
@@ -131,8 +137,10 @@ class Command:
             return None
         name = _str(m, "command") or "(malformed)"
         task = m.get("task")
-        return cls(com, name, _str(m, "task-uuid"), _str(m, "signal"),
-                   _str(task, "name"), orjson.dumps(dict(m), option=orjson.OPT_SORT_KEYS))
+        content = hashlib.blake2b(orjson.dumps(dict(m), option=orjson.OPT_SORT_KEYS),
+                                  digest_size=16).digest()
+        return cls(com, name, _str(m, "task-uuid"), _str(m, "signal"), _str(task, "name"),
+                   content)
 
 
 @dataclass(frozen=True)
@@ -220,9 +228,11 @@ class Model:
         self.tasks: OrderedDict[str, TaskRecord] = OrderedDict()
         self.commands: OrderedDict[str, Command] = OrderedDict()
         self.answered: OrderedDict[str, tuple[str | None, str | None]] = OrderedDict()
-        self.started_at: OrderedDict[str, float] = OrderedDict()
-        """com-uuid -> when a start-task was answered 'running' (pre-emption, EXEC-SEQ-002)."""
+        self.sent_at: OrderedDict[str, float] = OrderedDict()
+        """com-uuid -> when the command last arrived (what may explain a change, EXEC-SEQ-002)."""
         self.life: str | None = None
+        self._live: set[str] = set()
+        """The live tasks' uuids (what tasks-executing is compared with, per info message)."""
 
     # --- what the explorer asks ---------------------------------------------------------------
     def running(self) -> list[str]:
@@ -236,6 +246,10 @@ class Model:
 
     def ended(self) -> list[str]:
         return [u for u, t in self.tasks.items() if t.state.ended]
+
+    def states(self) -> dict[str, State]:
+        """task-uuid -> its state, in start order."""
+        return {u: t.state for u, t in self.tasks.items()}
 
     def executing(self) -> frozenset[str]:
         """5.3: tasks-executing lists the tasks that run (paused ones too: they have not
@@ -360,9 +374,10 @@ class Model:
             return
         if self.life is not None:
             self.tasks.clear()
+            self._live.clear()
             self.commands.clear()
             self.answered.clear()
-            self.started_at.clear()
+            self.sent_at.clear()
         self.life = agent
 
     def command(self, cmd: Command, t: float) -> None:
@@ -370,6 +385,7 @@ class Model:
         if before is not None and before.content != cmd.content:
             self.answered.pop(cmd.com_uuid, None)  # another command (EXEC-008, commander's)
         _put(self.commands, cmd.com_uuid, cmd, COMMANDS_KEPT)
+        _put(self.sent_at, cmd.com_uuid, t, COMMANDS_KEPT)
 
     def response(self, m: Any, t: float) -> None:
         to = _str(m, "response-to")
@@ -390,7 +406,6 @@ class Model:
                     self._remember(TaskRecord(uuid, cmd.task_name, State.RUNNING, to))
                 else:  # its feedback came first
                     task.name, task.started_by = task.name or cmd.task_name, to
-                _put(self.started_at, to, t, COMMANDS_KEPT)
             elif value == "failed" and task is None:
                 self._remember(TaskRecord(uuid, cmd.task_name, State.FAILED, to, refused=True,
                                           ended_at=t))
@@ -420,6 +435,7 @@ class Model:
             return found  # after the final status: EXEC-FB-004 / EXEC-RESEND-001's to judge
         if status in FINAL:
             task.state, task.ended_at = FINAL[status], t
+            self._live.discard(uuid)
         elif status == "running":
             task.state = State.RUNNING
         elif status == "paused":
@@ -432,19 +448,20 @@ class Model:
         if not isinstance(executing, list):
             return
         listed = {e.get("task-uuid") for e in executing if isinstance(e, dict)}
-        for uuid, task in self.tasks.items():
+        for uuid in self._live:
+            task = self.tasks[uuid]
             if uuid in listed:
                 task.listed, task.left_at = True, None
-            elif task.state.live and task.listed and task.left_at is None:
+            elif task.listed and task.left_at is None:
                 task.left_at = t
 
     # --- the sequence rules -------------------------------------------------------------------
     def _keeps_running(self, task: TaskRecord, status: str, previous: str | None,
                        t: float) -> list[Finding]:
-        """EXEC-SEQ-001 (12.2.2): once $abort or $enough is answered 'ok' the task stops. It
-        says 'running' again (from 'paused', or still, a response timeout after the answer):
-        it went on. One in-flight 'running' right after the answer is no evidence."""
-        stop = task.acked_since(float("-inf"), STOP_SIGNALS)
+        """EXEC-SEQ-001 (12.2.2): once $abort is answered 'ok' the task stops. It says
+        'running' again (from 'paused', or still, a response timeout after the answer): it
+        went on. One in-flight 'running' right after the answer is no evidence."""
+        stop = task.acked_since(float("-inf"), ("$abort",))
         if stop is None or status != "running":
             return []
         when, signal, com = stop
@@ -460,36 +477,50 @@ class Model:
                             t: float) -> list[Finding]:
         """EXEC-SEQ-002 (12.2.2): a signal names one task-uuid and changes only that task.
         A task says what another task's signal asked for ('paused' for $pause, 'running' again
-        after 'paused' for $continue, 'aborted' for $abort), within the feedback timeout of
-        that signal's 'ok', with no such signal of its own (and, for 'aborted', no start-task
-        in between that may have pre-empted it)."""
+        after 'paused' for $continue, 'aborted' for $abort), within the response timeout of
+        that signal (answered 'ok'), with no such signal sent to it in that time (answered or
+        not), and, for 'aborted', no start-task or $continue in that time (either may pre-empt
+        it)."""
         wanted = {"paused": "$pause", "aborted": "$abort"}.get(status)
         if status == "running" and previous == "paused":
             wanted = "$continue"
         if wanted is None:
             return []
-        since = t - self.feedback_timeout
-        if task.acked_since(since, (wanted,)) is not None:
-            return []
-        if wanted == "$abort" and any(s >= since for s in self.started_at.values()):
-            return []
-        for other in self.tasks.values():
-            if other is task:
+        since = t - self.response_timeout
+        culprit: tuple[float, Command] | None = None
+        for com, sent in reversed(self.sent_at.items()):  # the latest first
+            if sent < since:
+                break
+            cmd = self.commands.get(com)
+            if cmd is None:
                 continue
-            acked = other.acked_since(since, (wanted,))
-            if acked is not None:
-                return [Finding("EXEC-SEQ-002", task.task_uuid, acked[2],
-                                f"only task {other.task_uuid} changed by {wanted} (its "
-                                f"task-uuid)", f"task {task.task_uuid} says '{status}' "
-                                f"{t - acked[0]:.2f} s after that 'ok'", t)]
-        return []
+            if cmd.name == "signal-task" and cmd.signal == wanted:
+                if cmd.task_uuid == task.task_uuid:
+                    return []  # its own (perhaps answered after its feedback)
+                if culprit is None and self.answered.get(com, (None,))[0] == "ok":
+                    culprit = (sent, cmd)
+            elif wanted == "$abort" and (cmd.name == "start-task" or cmd.signal == "$continue"):
+                return []  # pre-empted: a second task may end the first (EXEC-START-003)
+        if culprit is None:
+            return []
+        sent, cmd = culprit
+        return [Finding("EXEC-SEQ-002", task.task_uuid, cmd.com_uuid,
+                        f"only task {cmd.task_uuid} changed by {wanted} (its task-uuid)",
+                        f"task {task.task_uuid} says '{status}' {t - sent:.2f} s after that "
+                        f"{wanted} was sent and answered 'ok'", t)]
 
     def _remember(self, task: TaskRecord) -> None:
+        self.tasks.pop(task.task_uuid, None)
         self.tasks[task.task_uuid] = task
+        if task.state.live:
+            self._live.add(task.task_uuid)
+        else:
+            self._live.discard(task.task_uuid)
         if len(self.tasks) > TASKS_KEPT:
             oldest = next((u for u, x in self.tasks.items() if x.state.ended),
                           next(iter(self.tasks)))
             del self.tasks[oldest]
+            self._live.discard(oldest)
 
 
 def _str(m: Any, key: str) -> str | None:

@@ -1,7 +1,7 @@
 """What the model of direct execution judges across steps (12.2.2; ``conformance.protocol``).
 
 Every exec message of a unit is fed to its ``Model``; the findings it returns are the sequence
-rules' (EXEC-SEQ-001: a task stops once $abort or $enough is answered 'ok'; EXEC-SEQ-002: a
+rules' (EXEC-SEQ-001: a task stops once $abort is answered 'ok'; EXEC-SEQ-002: a
 signal changes only the task it names). The same code runs in ``lint`` and in ``pytest
 --unit`` (and the exploration asks the same model what to expect), so lint of a recording and
 the suite cannot disagree about a sequence. What the conversation checks already judge (answers,
@@ -14,7 +14,7 @@ from __future__ import annotations
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.command_history import violation
 from conformance.message import Message
-from conformance.protocol import BUILTIN_SIGNALS, STOP_SIGNALS, Command, Model
+from conformance.protocol import BUILTIN_SIGNALS, Command, Model
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
@@ -22,8 +22,8 @@ from conformance.violation import Violation
 KEY = "protocol"
 """UnitState.private key of the unit's ``Model``."""
 DETAIL = {
-    "EXEC-SEQ-001": "12.2.2: once $abort or $enough is acknowledged the task ends; do not "
-                    "resume or keep running it (a paused task too)",
+    "EXEC-SEQ-001": "12.2.2: once $abort is acknowledged the task ends; do not resume or "
+                    "keep running it (a paused task too)",
     "EXEC-SEQ-002": "12.2.2: apply a signal to the task-uuid it names, not to every task "
                     "(or to the vehicle)",
 }
@@ -74,7 +74,7 @@ def sequence_follows_model(ctx: CheckContext, unit: UnitState, msg: Message,
 
 def _examine_signal(unit: UnitState, model: Model, m: object) -> None:
     """A builtin signal answered 'ok' for a task the model knows is judged from here on:
-    EXEC-SEQ-001 for $abort and $enough, EXEC-SEQ-002 for every one."""
+    EXEC-SEQ-001 for $abort, EXEC-SEQ-002 for every one."""
     to = m.get("response-to") if isinstance(m, dict) else None
     cmd = model.commands.get(to) if isinstance(to, str) else None
     if cmd is None or cmd.name != "signal-task" or cmd.signal not in BUILTIN_SIGNALS:
@@ -83,5 +83,5 @@ def _examine_signal(unit: UnitState, model: Model, m: object) -> None:
     if task is None or not task.acked or task.acked[-1][2] != to:
         return
     unit.examine("EXEC-SEQ-002")
-    if cmd.signal in STOP_SIGNALS:
+    if cmd.signal == "$abort":
         unit.examine("EXEC-SEQ-001")

@@ -272,7 +272,7 @@ class CommandExecutor:
         self._answer(com, "ok", task_uuid=task_uuid, fail_reason="", kind="signal")
         runner.step(now)
         paused = task.status == "paused"
-        if paused and signal in ("$abort", "$enough") and "abort-paused-resumes" in self.faults:
+        if paused and signal == "$abort" and "abort-paused-resumes" in self.faults:
             runner.resume(task, now)  # continue() before cancel(): it runs again, then ends
         if signal == "$abort":
             if "abort-ignored" not in self.faults:

@@ -278,9 +278,8 @@ def _seq(name: str, rules: str, description: str) -> Fault:
 
 _SEQUENCE = (
     _seq("abort-paused-resumes", "EXEC-SEQ-001",
-         "Answers $abort or $enough of a paused task 'ok' and resumes it first (the handler "
-         "calls continue() before cancel()): 'running' again, the vehicle moves, then the "
-         "final status."),
+         "Answers $abort of a paused task 'ok' and resumes it first (the handler calls "
+         "continue() before cancel()): 'running' again, the vehicle moves, then 'aborted'."),
     _seq("pause-pauses-all", "EXEC-SEQ-002",
          "Pauses every running task on $pause, not only the one it names (the pause goes to "
          "the controller all tasks share); $continue resumes only the named one."),

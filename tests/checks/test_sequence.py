@@ -68,16 +68,21 @@ def test_a_paused_task_aborted_passes_and_one_that_resumes_on_abort_fails(stream
     assert "resumed from 'paused'" in v.observed and a in v.expected
 
 
-def test_running_long_after_enough_fails_but_one_running_in_flight_does_not(stream):
+def test_running_long_after_abort_fails_but_in_flight_or_winding_down_on_enough_does_not(
+        stream):
     a = new()
     before = start(stream, 2.0, a)
-    in_flight = judge(stream, before + signal(stream, 5.0, a, "$enough", (5.15, a, "running"),
-                                              (5.5, a, "finished")))
+    in_flight = judge(stream, before + signal(stream, 5.0, a, "$abort", (5.15, a, "running"),
+                                              (5.5, a, "aborted")))
     assert in_flight["EXEC-SEQ-001"].verdict is Verdict.PASS and not failing(in_flight)
-    on = judge(stream, before + signal(stream, 5.0, a, "$enough", (6.5, a, "running"),
-                                       (7.0, a, "finished")))
+    on = judge(stream, before + signal(stream, 5.0, a, "$abort", (6.5, a, "running"),
+                                       (7.0, a, "aborted")))
     assert failing(on) == {"EXEC-SEQ-001"}
     assert "still 'running'" in on["EXEC-SEQ-001"].violations[0].observed
+    # 12.2.2's $enough: the task ends its own way, and may say 'running' until 'finished'
+    wind_down = judge(stream, before + signal(stream, 5.0, a, "$enough", (6.5, a, "running"),
+                                              (7.0, a, "finished")))
+    assert not failing(wind_down) and wind_down["EXEC-SIG-004"].verdict is Verdict.PASS
 
 
 # --- EXEC-SEQ-002: a signal changes only the task it names -----------------------------------
@@ -92,6 +97,18 @@ def test_pause_of_one_task_passes_and_a_pause_that_pauses_another_fails(stream):
     assert failing(bad) == {"EXEC-SEQ-002"}
     v = bad["EXEC-SEQ-002"].violations[0]
     assert a in v.observed and b in v.expected
+
+
+def test_a_task_paused_before_its_own_pause_is_answered_is_not_touched_by_another(stream):
+    a, b = new(), new()
+    both = start(stream, 2.0, a) + start(stream, 3.0, b)
+    pause_a = stream.command(5.5, "signal-task", signal="$pause", **{"task-uuid": a})
+    rules = judge(stream, both + signal(stream, 5.0, b, "$pause", (5.2, b, "paused")) + [
+        pause_a, stream.feedback(5.6, a, "paused"),  # its feedback before its answer
+        stream.response(5.7, orjson.loads(pause_a.payload)["com-uuid"], "ok",
+                        **{"task-uuid": a, "fail-reason": ""})])
+    # (EXEC-SIG-003's own judgement of feedback sent before the 'ok' is exec_feedback's.)
+    assert rules["EXEC-SEQ-002"].verdict is Verdict.PASS
 
 
 def test_a_task_pre_empted_by_a_new_start_is_no_other_tasks_abort(stream):
@@ -130,6 +147,7 @@ def test_the_model_says_what_each_command_may_get_in_each_state():
                   1.0)
     model.response({"response-to": s.com_uuid, "response": "running", "task-uuid": t}, 1.1)
     assert model.running() == [t] and model.executing() == {t}
+    assert model.states() == {t: State.RUNNING}
     pause = model.expect(_cmd(command="signal-task", signal="$pause", **{"task-uuid": t}))
     assert pause.outcome("ok").implies == {t: {"paused"}} and pause.responses == {"ok", "failed"}
     model.feedback({"task-uuid": t, "status": "paused"}, 2.0)
@@ -156,3 +174,15 @@ def test_a_new_life_forgets_the_tasks():
     assert model.live() == ["t1"]
     model.heartbeat({"agent-uuid": "two"}, 2.0)
     assert model.tasks == {} and model.query_answers("t1") == {"unknown"}
+
+
+def test_the_model_says_what_the_conversation_checks_say():
+    """One vocabulary: the model's tables agree with the conversation checks' (12.1, 12.2.2)."""
+    from conformance.checks.exec_response import QUERY_ANSWERS, SIGNAL_FEEDBACK
+    from conformance.protocol import QUERY_ANSWERS as MODEL_QUERY
+    from conformance.protocol import SIGNAL_EFFECT
+
+    for status, answers in QUERY_ANSWERS.items():
+        assert set(answers) <= MODEL_QUERY[State(status)], status
+    assert {s: {status} for s, (status, _) in SIGNAL_EFFECT.items()} == {
+        s: wanted for s, (wanted, _) in SIGNAL_FEEDBACK.items()}
