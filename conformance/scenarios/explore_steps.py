@@ -138,9 +138,13 @@ class Explorer:
     ``end`` frame one example: every task it started is aborted at its end, and its final
     status awaited, so the next example starts from a known state."""
 
-    def __init__(self, ctx: Context, collector: Collector) -> None:
+    def __init__(self, ctx: Context, collector: Collector,
+                 model_state: Callable[[str], str | None] = lambda task_uuid: None) -> None:
         self.ctx = ctx
         self.collector = collector
+        self.model_state = model_state
+        """The protocol model's state of a task-uuid (``conformance.protocol``: what the
+        Monitor's model holds from the traffic), None where it knows nothing."""
         self.tasks = ctx.startable()
         """Tasks the suite may start (tasks-available, the profile, DESIGN 'Safety')."""
         self.slots: list[Slot] = []
@@ -246,7 +250,14 @@ class Explorer:
         if slot.task_uuid is None or slot.state == "refused":
             return
         uuid_ = self.ctx.commander.unit_task_uuid(slot.task_uuid)
-        for e in self.ctx.traffic.since(slot.mark, "exec/feedback"):
+        held = self.model_state(uuid_)
+        if held in ("running", "paused"):
+            slot.state = held
+            return
+        if held in FINAL_STATUSES:
+            slot.state = "ended"
+            return
+        for e in self.ctx.traffic.since(slot.mark, "exec/feedback"):  # the model knows none
             if e.get("task-uuid") == uuid_:
                 status = meaning(e.get("status"))
                 if status in FINAL_STATUSES:

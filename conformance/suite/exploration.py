@@ -82,7 +82,7 @@ def run(c: Certification, node: pytest.Item) -> None:
         c._out_of_time(e)
         c._fail_if_out_of_time()
     collector = Collector(str(c.unit), lambda rule: judged(rule, c.profile.severity_of))
-    explorer = Explorer(c.context, collector)
+    explorer = Explorer(c.context, collector, lambda task_uuid: _model_state(c, task_uuid))
     explorer.warm()
     c.connection.listeners.append(collector)
     try:
@@ -102,6 +102,17 @@ def run(c: Certification, node: pytest.Item) -> None:
         if not s.dry_run:
             c.commander.abort_all(c.timing.response)
         c.write_reports()
+
+
+def _model_state(c: Certification, task_uuid: str) -> str | None:
+    """The protocol model's view of a task (the one the Monitor judges with: lint and the
+    suite cannot disagree about a sequence), None when it holds nothing of it."""
+    from conformance.checks.exec_sequence import model_of
+    from conformance.protocol import State
+
+    with c._lock:
+        state = model_of(c.monitor.ctx, c.monitor.state(c.unit)).state(task_uuid)
+    return None if state is State.UNKNOWN else state.value
 
 
 def _say(c: Certification, text: str) -> None:
