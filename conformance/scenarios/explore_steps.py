@@ -76,15 +76,25 @@ class Step:
                           for v in self.found]}
 
 
+def _text_of(v: Violation) -> str:
+    return " ".join((v.expected, v.observed, v.excerpt or "", v.detail or ""))
+
+
 def blame(steps: list[Step], found: list[Violation]) -> int:
     """The step whose command the violations name (by com-uuid; a deadline passes steps
     later), else the last step."""
     for i, step in enumerate(steps):
         for v in found:
-            text = " ".join((v.expected, v.observed, v.excerpt or "", v.detail or ""))
-            if any(com in text for com in step.coms):
+            if any(com in _text_of(v) for com in step.coms):
                 return i
     return len(steps) - 1
+
+
+def ours(found: list[Violation], uuids: set[str]) -> list[Violation]:
+    """The violations about this example's commands and tasks (by com-uuid or task-uuid):
+    one that names none of them is what an earlier example left behind (a task it made the
+    unit run again), not this story's."""
+    return [v for v in found if any(u in _text_of(v) for u in uuids)]
 
 
 class Disagreement(AssertionError):
@@ -187,7 +197,7 @@ class Explorer:
                                       until - time.time() + t.periods(2, self._rate()),
                                       subtopic="heartbeat", what="the deadlines of the "
                                       "exploration's commands")
-        found = self.collector.since(mark)
+        found = ours(self.collector.since(mark), self._uuids())
         if found and self.steps:
             raise Disagreement(self.steps, found)
 
@@ -203,10 +213,18 @@ class Explorer:
         kind = action["do"]
         getattr(self, "_" + kind)(step, action)
         step.came += [f"{e.subtopic}: {_text(e.raw)}" for e in self._answers(after, step)]
-        found = self.collector.since(mark)
+        found = ours(self.collector.since(mark), self._uuids())
         if found:
             raise Disagreement(self.steps, found)
         return step
+
+    def _uuids(self) -> set[str]:
+        """The com-uuids and task-uuids of this example."""
+        found = {com for step in self.steps for com in step.coms}
+        found.update(self.ctx.commander.unit_task_uuid(s.task_uuid) for s in self.slots
+                     if s.task_uuid)
+        found.update(s.task_uuid for s in self.slots if s.task_uuid)
+        return found
 
     def _answers(self, after: int, step: Step) -> list[Entry]:
         """What the unit said during the step: responses to its commands, and feedback."""
