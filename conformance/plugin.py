@@ -78,6 +78,13 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group.addoption("--observe", dest="waraps_observe", default=None, metavar="DURATION",
                     help="observe the unit at least this long before judging the passive "
                          "rules (a rerun line adds it when the evidence came late)")
+    group.addoption("--explore", dest="waraps_explore", default=None, metavar="DURATION",
+                    help="after the scripted scenarios, explore command orders this long "
+                         "(hypothesis; 90s, 2m; default: 50 heartbeat periods of the unit, "
+                         "at least 20 s and at most 50 s; 0: off)")
+    group.addoption("--explore-replay", dest="waraps_explore_replay", default=None,
+                    metavar="FILE", help="replay the story a failing exploration stored "
+                    "(reports/*-explore.json) instead of exploring")
     group.addoption("--rule", dest="waraps_rules", action="append", default=None,
                     metavar="ID", help="judge only this rule (repeatable), running the "
                     "scenarios that produce its evidence; like -k ID, but exact")
@@ -107,7 +114,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
             ("waraps_cert_file", "default for --cert-file"),
             ("waraps_key_file", "default for --key-file"),
             ("waraps_tst_command_topic", "default for --tst-command-topic"),
-            ("waraps_max_duration", "default for --max-duration (10m)")):
+            ("waraps_max_duration", "default for --max-duration (10m)"),
+            ("waraps_explore", "default for --explore (0: off)")):
         parser.addini(name, help_, default="")
     for name, help_ in (("waraps_allow_motion", "default for --allow-motion"),
                         ("waraps_dry_run", "default for --dry-run"),
@@ -150,6 +158,8 @@ def pytest_configure(config: pytest.Config) -> None:
     from conformance.suite.settings import read
 
     config.addinivalue_line("markers", "waraps_rule(rule_id): the rule this test judges")
+    config.addinivalue_line("markers", "waraps_explore: the exploration (runs after the "
+                                       "scripted scenarios)")
     certification = Certification(config, read(config))
     config.stash[CERTIFICATION] = certification
     config.pluginmanager.register(_CertificationPlugin(certification), PLUGIN_NAME)
@@ -206,6 +216,8 @@ class _CertificationPlugin:
 
         def key(item: pytest.Item) -> tuple[int, int]:
             rule = rule_of(item)
+            if item.get_closest_marker("waraps_explore") is not None:
+                return (1, len(order))  # after the scripted scenarios (issue 17)
             if rule is None:
                 return (0, 0)
             if rule in RULE_SCENARIO:

@@ -167,12 +167,16 @@ def _judge_first_answer(ctx: CheckContext, unit: UnitState, c: Conversations, cm
         unit.examine(rule)  # answered; its vocabulary is EXEC-003's (or ERR-013's)
         expected = SIGNAL_FEEDBACK.get(cmd.signal or "")
         task = c.tasks.get(cmd.task_uuid) if cmd.task_uuid else None
+        # The model's decision (EXEC-SEQ-001, docs/MODEL.md): $continue to a running task
+        # and $pause to a paused one change nothing, so no feedback is owed for them.
+        unchanged = task is not None and (cmd.signal, task.last_status) in (
+            ("$continue", "running"), ("$pause", "paused"))
         if (value == "ok" and expected and task is not None and task.life == c.life
                 and task.last_status in expected[0] and task.last_time is not None
                 and task.last_time >= cmd.time):
             unit.examine(expected[1])  # its feedback came first: no order between topics (12)
         elif value == "ok" and expected and task is not None and task.final is None \
-                and task.life == c.life:
+                and task.life == c.life and not unchanged:
             if len(c.expects) < EXPECTS_KEPT:
                 c.expects.append(Expect(task.task_uuid, expected[0], expected[1],
                                         t + ctx.profile.feedback_timeout, cmd))

@@ -25,6 +25,7 @@ from conformance.suite.events import Events
 from conformance.suite.probe import NotAlive, Probe, not_alive
 from conformance.suite.settings import Settings
 from conformance.topics import UnitAddress
+from conformance.violation import Violation
 
 if TYPE_CHECKING:
     from conformance.sim.reference import Reference
@@ -47,6 +48,9 @@ class Connection:
     client: MqttClient | None = field(default=None, init=False)
     reference: Reference | None = field(default=None, init=False)
     """The bundled reference unit and its broker, under --broker embedded."""
+    listeners: list[Callable[[list[Violation]], None]] = field(default_factory=list,
+                                                                init=False)
+    """Told the violations the Monitor finds in each message (the exploration's oracle)."""
     _alive: threading.Event = field(default_factory=threading.Event, init=False)
     _gap_start: float | None = field(default=None, init=False)
     _linked: bool = field(default=False, init=False)
@@ -120,7 +124,10 @@ class Connection:
     def _on_message(self, message: Message) -> None:
         """Every message of ``<unit>/#``, on the MQTT network thread: keep it quick."""
         with self.monitor_lock:
-            self.monitor.feed(message)
+            found = self.monitor.feed(message)
+        if found:
+            for listener in list(self.listeners):
+                listener(found)
         self.traffic.add(message)
         if not message.retain and message.topic.endswith("/heartbeat") \
                 and message.topic == self.unit.topic("heartbeat"):

@@ -102,6 +102,8 @@ class Certification:
         """How the rules were selected (``-k 'HB-003'``, ``--rule=HB-003``): a partial run."""
         self.broker_lost: float | None = None
         """When the broker was lost for good (it did not come back within the budget)."""
+        self.explored = ""
+        """What the exploration did (``suite/exploration.py``), for the report's meta."""
         from conformance.suite.progress import Progress
 
         self.progress = Progress(config)
@@ -311,6 +313,7 @@ class Certification:
             "agent_uuid": str(hb.get("agent-uuid")) if hb else "",
             "commands_sent": str(self.commander.sent_count + self.tst.sent_count),
             "tst_command_topic": s.tst_topic,
+            "explore": self.explored or ("off" if s.explore == 0 else "not run"),
             "rerun": self.rerun_command(),
             **self.run_facts(),
         }

@@ -36,6 +36,7 @@ INI = {
     "waraps_tls_insecure": "waraps_tls_insecure",
     "waraps_tst_command_topic": "waraps_tst_command_topic",
     "waraps_max_duration": "waraps_max_duration",
+    "waraps_explore": "waraps_explore",
 }
 MAX_DURATION = 600.0
 """Seconds a certification may last by default (--max-duration): then it stops cleanly."""
@@ -76,6 +77,11 @@ class Settings:
     """pytest's -k expression: a selection too (a partial run, its rerun line keeps it)."""
     markexpr: str = ""
     """pytest's -m expression."""
+    explore: float | None = None
+    """--explore: seconds of exploration after the scripted scenarios (issue 17); None: the
+    default (``suite.exploration.default_budget``), 0: off."""
+    explore_replay: Path | None = None
+    """--explore-replay: the stored story the exploration replays instead of exploring."""
     extra: dict[str, str] = field(default_factory=dict)
 
     @property
@@ -128,6 +134,10 @@ class Settings:
         if self.max_duration != MAX_DURATION:
             parts += ["--max-duration", f"{self.max_duration:g}"]
         parts += ["--seed", str(self.seed)]
+        if self.explore is not None:
+            parts += ["--explore", f"{self.explore:g}"]
+        if self.explore_replay is not None:
+            parts += [f"--explore-replay={shlex.quote(str(self.explore_replay))}"]
         if observe or self.observe:
             parts += ["--observe", f"{max(int(observe), int(self.observe))}"]
         if rule:
@@ -246,6 +256,8 @@ def read(config: pytest.Config) -> Settings:
                     keyword=str(config.getoption("keyword", "") or ""),
                     markexpr=str(config.getoption("markexpr", "") or ""),
                     observe=_duration(config.getoption("waraps_observe", None), 0.0, "--observe"),
+                    explore=_explore(_value(config, "waraps_explore")),
+                    explore_replay=_replay(config, reports),
                     reboot_cmd=str(reboot) if reboot else None,
                     allow_motion=_flag(config, "waraps_allow_motion"),
                     dry_run=_flag(config, "waraps_dry_run"), reports_dir=reports, seed=seed,
@@ -282,6 +294,29 @@ def _duration(value: object, default: float = MAX_DURATION,
     except ValueError:
         raise pytest.UsageError(f"{option} {value!r}: a positive duration is needed, "
                                 f"e.g. 600, 90s, 10m or 1h") from None
+
+
+def _explore(value: object) -> float | None:
+    """--explore: a duration (0 or off: no exploration); None: the default budget."""
+    if value in (None, ""):
+        return None
+    if str(value).strip().lower() in ("0", "0s", "off", "no"):
+        return 0.0
+    return _duration(value, option="--explore")
+
+
+def _replay(config: pytest.Config, reports: Path) -> Path | None:
+    """--explore-replay FILE: a story an earlier run stored (relative to the working folder)."""
+    value = config.getoption("waraps_explore_replay", None)
+    if not value:
+        return None
+    path = Path(str(value))
+    if not path.is_absolute():
+        path = Path(config.invocation_params.dir) / path
+    if not path.is_file():
+        raise pytest.UsageError(f"--explore-replay {value}: no such file (a failing "
+                                f"exploration stores its story under {reports})")
+    return path
 
 
 def _rules(values: object) -> tuple[str, ...]:

@@ -1,0 +1,311 @@
+"""Exploration: a hypothesis state machine sends spec-12 commands in orders no script has,
+and the Monitor judges every answer (issue 17; DESIGN 'One model of the protocol's states').
+
+Its rules are the commands: start-task (with or without task-uuid, of the tasks the unit lists
+and the suite may start, parameters drawn from the task's schema inside the safe radius),
+every built-in signal to any task (running, paused, ended, or never seen), query-status of any
+task, a resend of any earlier command, ping, and waiting. ``Explorer`` (explore_steps.py) runs
+each step and judges it; a disagreement is told as a ``Story`` (story.py).
+
+Against a slow, real system (FIELD-NOTES 'hypothesis against a slow, real system'): no
+per-step deadline, a bounded step count, health checks off, and the wall-clock budget is ours:
+past it no example starts and no step runs (``OutOfBudget`` is not an ``Exception``, so
+hypothesis lets it through), and the shortest failing story seen so far is the one reported,
+printed the moment the first is found, shrunk or not.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from conformance.scenarios.context import BUILTIN_SIGNALS, RUNS_UNTIL_ENOUGH
+from conformance.scenarios.explore_steps import UNCHANGED, Disagreement, Explorer, Step
+from conformance.scenarios.story import Story
+
+STEPS = 10
+"""Steps per example at most (hypothesis' stateful_step_count)."""
+PICK = 63
+"""Range of every draw that picks among what the unit's state offers."""
+TASKS = 3
+"""Start-tasks per example at most."""
+EXAMPLES = 10_000
+"""Examples at most: the budget ends the exploration long before."""
+# Generation favours, and shrinking goes towards, the first: the signal that changes most.
+SIGNALS = ("$pause", "$abort", "$continue", "$enough")
+
+
+class OutOfBudget(BaseException):
+    """The exploration's time is up (a BaseException: hypothesis must not take it for a
+    failure of the unit and shrink it)."""
+
+
+class Stopped(BaseException):
+    """Something that is not the unit's disagreement ended a step (the run's --max-duration,
+    --dry-run, a broken connection): it ends the exploration, carried out of hypothesis."""
+
+    def __init__(self, cause: BaseException) -> None:
+        super().__init__(str(cause))
+        self.cause = cause
+
+
+@dataclass
+class Outcome:
+    """What an exploration did and found."""
+
+    examples: int = 0
+    steps: int = 0
+    elapsed: float = 0.0
+    story: Story | None = None
+    ended: str = ""
+    """Why it ended: 'budget', 'shrunk', 'exhausted' (hypothesis had nothing more to try)."""
+    last_error: str = ""
+    """What hypothesis ended with (the failure it re-raised, or its own complaint)."""
+
+
+class Search:
+    """One exploration: the budget, the counters, and the shortest story found so far."""
+
+    def __init__(self, explorer: Explorer, budget: float, seed: int,
+                 on_story: Callable[[Story], None] = lambda story: None) -> None:
+        self.explorer = explorer
+        self.budget = budget
+        self.seed = seed
+        self.on_story = on_story
+        self.started = time.monotonic()
+        self.outcome = Outcome()
+        self.spent = False
+
+    def left(self) -> float:
+        return self.budget - (time.monotonic() - self.started)
+
+    def check(self) -> None:
+        if self.spent or self.left() <= 0:
+            self.spent = True
+            raise OutOfBudget()
+
+    def run_step(self, action: dict[str, Any]) -> None:
+        self.check()
+        try:
+            self.explorer.do(action)
+        except Disagreement as d:
+            self.found(d)
+            raise
+        except Exception as e:  # not the unit's disagreement: end the exploration with it
+            raise Stopped(e) from e
+        finally:
+            self.outcome.steps = self.explorer.total_steps
+
+    def end_example(self) -> None:
+        try:
+            self.explorer.end()
+        except Disagreement as d:
+            self.found(d)
+            raise
+        except Exception as e:
+            raise Stopped(e) from e
+        finally:
+            self.outcome.steps = self.explorer.total_steps
+
+    def found(self, d: Disagreement) -> None:
+        """Keep the story if it is the first or shorter than the one kept; tell the first."""
+        story = Story(list(d.steps), d.step, self.seed)
+        best = self.outcome.story
+        if best is None:
+            story.found_after = time.monotonic() - self.started
+            story.found_steps = self.explorer.total_steps
+            story.first_length = story.length
+            self.outcome.story = story
+            self.on_story(story)
+        elif (story.length, story.failing) < (best.length, best.failing):
+            story.found_after, story.found_steps = best.found_after, best.found_steps
+            story.first_length = best.first_length
+            self.outcome.story = story
+
+    def run(self) -> Outcome:
+        """Explore until the budget is spent or a story is shrunk (or hypothesis gives up)."""
+        from hypothesis import HealthCheck, Phase, Verbosity, settings
+        from hypothesis import seed as hseed
+        from hypothesis.stateful import run_state_machine_as_test
+
+        machine = hseed(self.seed)(machine_for(self))
+        how = settings(max_examples=EXAMPLES, stateful_step_count=STEPS, deadline=None,
+                       database=None, derandomize=False, phases=[Phase.generate, Phase.shrink],
+                       suppress_health_check=list(HealthCheck), verbosity=Verbosity.quiet,
+                       report_multiple_bugs=False, print_blob=False)
+        try:
+            run_state_machine_as_test(machine, settings=how)
+            self.outcome.ended = "exhausted"
+        except (Stopped, KeyboardInterrupt):
+            raise
+        except BaseException as e:
+            self.outcome.last_error = f"{type(e).__name__}: {str(e)[:200]}"
+            # Out of budget (hypothesis may complain on its way out that the example stopped
+            # early), or hypothesis re-raised the (shrunk) failure: the story is kept.
+            if self.spent:
+                self.outcome.ended = "budget"
+            elif self.outcome.story is not None:
+                self.outcome.ended = "shrunk"
+            else:
+                raise
+        self.outcome.elapsed = time.monotonic() - self.started
+        if self.outcome.story is not None:
+            self.outcome.story.shrunk = self.outcome.ended == "shrunk"
+        return self.outcome
+
+
+def machine_for(search: Search) -> type:
+    """The state machine of one exploration: its rules are the commands of 12.1."""
+    from hypothesis import strategies as st
+    from hypothesis.stateful import RuleBasedStateMachine, precondition, rule
+
+    explorer = search.explorer
+    tasks = explorer.tasks or ["-"]
+    lasting = [t for t in tasks if t in RUNS_UNTIL_ENOUGH] or tasks
+
+    def pick(data: Any, label: str, options: list[Any]) -> Any:
+        """One of ``options``, ordered by the model's view of the tasks (the most telling
+        first: early examples and shrinking favour it). Drawn as a number of fixed range
+        and mapped onto the options there are, so that the draw does not depend on the
+        unit (hypothesis replays a choice only where its range is the same)."""
+        return options[data.draw(st.integers(0, PICK), label=label) % len(options)]
+
+    # Hypothesis draws rules by their place in a list sorted by number of arguments (all have
+    # one), then name, and early examples favour the first places: the names put the
+    # commands that change a task's state first, ping and waiting last.
+    class Exploration(RuleBasedStateMachine):
+        def __init__(self) -> None:
+            super().__init__()
+            search.check()
+            search.outcome.examples += 1
+            explorer.begin()
+
+        # Two starts an example (a third while a task is paused: ``task_commands``): the
+        # steps go to what is done with the tasks.
+        @precondition(lambda self: bool(explorer.tasks) and len(explorer.slots) < TASKS - 1)
+        @rule(data=st.data())
+        def a_start_task(self, data: Any) -> None:
+            task = pick(data, "task", start_order(explorer, tasks, lasting))
+            task_uuid = not data.draw(st.booleans(), label="without task-uuid")
+            search.run_step({"do": "start", "task": task, "task_uuid": task_uuid,
+                             "slot": len(explorer.slots)})
+
+        @precondition(lambda self: bool(explorer.slots))
+        @rule(data=st.data())
+        def b_task_command(self, data: Any) -> None:
+            search.run_step(pick(data, "command", task_commands(
+                explorer, alternate=search.outcome.examples % 2 == 0)))
+
+        @rule(data=st.data())
+        def c_query_status(self, data: Any) -> None:
+            search.run_step({"do": "query", "slot": pick(data, "task", query_order(explorer))})
+
+        @precondition(lambda self: bool(explorer.commands))
+        @rule(data=st.data())
+        def d_resend(self, data: Any) -> None:
+            step = pick(data, "command", resend_order(explorer))
+            search.run_step({"do": "resend", "step": step})
+
+        @rule(data=st.data())
+        def e_ping(self, data: Any) -> None:
+            search.run_step({"do": "ping"})
+
+        @rule(periods=st.integers(1, 3))
+        def f_wait(self, periods: int) -> None:
+            search.run_step({"do": "wait", "periods": periods})
+
+        def teardown(self) -> None:
+            search.end_example()
+
+    assert set(SIGNALS) == set(BUILTIN_SIGNALS)
+    return Exploration
+
+
+def start_order(explorer: Explorer, tasks: list[str], lasting: list[str]) -> list[str]:
+    """Tasks to start: while one is paused, the same task again (what a second task does to
+    a paused one); then tasks that run until ended and are not running yet, of a family not
+    started yet first (two that run side by side), then every task."""
+    states = explorer.states()
+    paused = [s.name for s, state in zip(explorer.slots, states, strict=True)
+              if state == "paused"]
+    started = {s.name for s in explorer.slots}
+    families = {name.split("-")[0] for name in started}
+    fresh = sorted((t for t in lasting if t not in started),
+                   key=lambda t: (t.split("-")[0] in families, lasting.index(t)))
+    return paused[:1] + fresh + tasks
+
+
+def task_commands(explorer: Explorer, alternate: bool = False) -> list[dict[str, Any]]:
+    """Commands about the tasks started, the most telling in the model's view first: a
+    signal that changes a live task's state, a query of a paused or ended task, a resend of
+    a start-task whose task has ended; among those, the kind done least in this example
+    first. Then the rest; then signals to a task the unit never saw."""
+    states = explorer.states()
+    done = Counter((s.action.get("do"), s.action.get("signal")) for s in explorer.steps)
+    options: list[tuple[bool, int, int, float, dict[str, Any]]] = []
+    for i, state in enumerate(states):
+        live = state in ("running", "paused")
+        options.append((state not in ("paused", "ended"), done["query", None], i, 0,
+                        {"do": "query", "slot": i}))
+        for n, signal in enumerate(SIGNALS):
+            options.append((not live or (signal, state) in UNCHANGED, done["signal", signal],
+                            i, 1 + n, {"do": "signal", "signal": signal, "slot": i}))
+    paused = [i for i, state in enumerate(states) if state == "paused"]
+    if paused and len(explorer.slots) < TASKS:  # what a new task does to a paused one
+        # before or after the signals, every other example: both orders get their turn
+        options.append((False, 0, paused[0], 0.5 if len(explorer.slots) % 2 or alternate
+                        else 9, {
+            "do": "start", "task": explorer.slots[paused[0]].name, "task_uuid": True,
+            "slot": len(explorer.slots)}))
+    for step in resend_order(explorer)[:1]:
+        options.append((not _ended_start(explorer, states, step), done["resend", None], -1, 0,
+                        {"do": "resend", "step": step}))
+    options.sort(key=lambda o: o[:4])
+    return [o[4] for o in options] + [{"do": "signal", "signal": signal, "slot": None}
+                                      for signal in SIGNALS]
+
+
+QUERY_FIRST = {"paused": 0, "ended": 1, "running": 2}
+
+
+def query_order(explorer: Explorer) -> list[int | None]:
+    """Tasks to ask about: paused, then ended, then running ones, the rest; then a task
+    never seen (12.1: 'unknown')."""
+    states = explorer.states()
+    order: list[int | None] = sorted(range(len(states)),
+                                     key=lambda i: (QUERY_FIRST.get(states[i], 3), i))
+    return order + [None]
+
+
+def _ended_start(explorer: Explorer, states: list[str], i: int) -> bool:
+    a = explorer.steps[i].action if i < len(explorer.steps) else {}
+    slot = a.get("slot")
+    return a.get("do") == "start" and isinstance(slot, int) and slot < len(states) \
+        and states[slot] == "ended"
+
+
+def resend_order(explorer: Explorer) -> list[int]:
+    """Commands to resend: a start-task whose task has ended first (it must not run
+    again), then the others, the latest first."""
+    states = explorer.states()
+    return sorted(explorer.commands, key=lambda i: (not _ended_start(explorer, states, i), -i))
+
+
+def replay(explorer: Explorer, actions: list[dict[str, Any]], seed: int = 0) -> Story | None:
+    """Run a stored story's steps once, in order (its teardown as well): the story of the
+    disagreement it shows again, or None when the unit now answers as the model says."""
+    explorer.begin()
+    try:
+        for action in actions:
+            explorer.do(action)
+        explorer.end()
+    except Disagreement as d:
+        return Story(list(d.steps), d.step, seed, shrunk=True)
+    return None
+
+
+__all__ = ["Disagreement", "Explorer", "OutOfBudget", "Outcome", "Search", "Step", "Stopped",
+           "Story", "replay"]

@@ -1,0 +1,380 @@
+"""The steps of an exploration (spec 12): one command (or a wait) at a time, sent through the
+suite's commander, and after each the unit's answers judged by the Monitor.
+
+A step is data (``{"do": "start", "task": ..., "slot": 0}``): the exploration's state machine
+chooses it, a replay reads it from a stored story, and ``Explorer.do`` runs it the same way
+for both. Tasks are named by their slot (the n-th start-task of the example), commands by the
+step that first sent them (for a resend), so a stored story means the same thing when it is
+run again with fresh uuids.
+
+The oracle is the Monitor (DESIGN 'One model of the protocol's states'): every violation it
+finds in the unit's traffic while a step runs, of a conversation rule the profile makes an
+error, is a disagreement between the model and the unit at that step.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from conformance.rules import CATALOGUE, Mode, Severity
+from conformance.scenarios.context import Context
+from conformance.scenarios.deviation import FINAL_STATUSES, meaning
+from conformance.scenarios.params import valid_params
+from conformance.scenarios.sender import Sent, new_uuid
+from conformance.scenarios.signal import IMPLIED
+from conformance.scenarios.traffic import Entry
+from conformance.violation import Violation
+
+SHOWN = 300
+"""Characters of a message shown in a story (the stored story keeps the same)."""
+MAX_STEPS = 200
+UNCHANGED = {("$pause", "paused"), ("$continue", "running")}
+"""Signals that change nothing in that state: no feedback is owed (the model's decision,
+EXEC-SEQ-001 in the catalogue, docs/MODEL.md)."""
+"""Steps kept per example (a story longer than the step count never happens)."""
+
+
+def judged(rule: str, severity_of: Callable[[str], Severity]) -> bool:
+    """Whether a violation of ``rule`` is a disagreement: a rule about commands and their
+    answers (conversation mode, or 12's own: EXEC-*), that the profile makes an error."""
+    r = CATALOGUE.get(rule)
+    if r is None:
+        return False
+    about_commands = r.mode is Mode.CONVERSATION or rule.startswith("EXEC-")
+    return about_commands and severity_of(rule) is Severity.ERROR
+
+
+@dataclass
+class Slot:
+    """A task the exploration started (or tried to): its task-uuid once known and its state
+    as the unit showed it (``starting``, ``refused``, ``running``, ``paused``, ``ended``)."""
+
+    name: str
+    task_uuid: str | None
+    mark: int
+    state: str = "starting"
+
+
+@dataclass
+class Step:
+    """One step of a story: what was done, what was sent, what came back, what was wrong."""
+
+    action: dict[str, Any]
+    sent: list[str] = field(default_factory=list)
+    came: list[str] = field(default_factory=list)
+    found: list[Violation] = field(default_factory=list)
+    coms: list[str] = field(default_factory=list, repr=False)
+    """com-uuids this step sent (its answers are the responses to them)."""
+
+    def to_json(self) -> dict[str, Any]:
+        return {"action": self.action, "sent": self.sent, "came": self.came,
+                "found": [{"rule": v.rule, "expected": v.expected, "observed": v.observed}
+                          for v in self.found]}
+
+
+def _text_of(v: Violation) -> str:
+    return " ".join((v.expected, v.observed, v.excerpt or "", v.detail or ""))
+
+
+def blame(steps: list[Step], found: list[Violation]) -> int:
+    """The step whose command the violations name (by com-uuid; a deadline passes steps
+    later), else the last step."""
+    for i, step in enumerate(steps):
+        for v in found:
+            if any(com in _text_of(v) for com in step.coms):
+                return i
+    return len(steps) - 1
+
+
+def ours(found: list[Violation], uuids: set[str]) -> list[Violation]:
+    """The violations about this example's commands and tasks (by com-uuid or task-uuid):
+    one that names none of them is what an earlier example left behind (a task it made the
+    unit run again), not this story's."""
+    return [v for v in found if any(u in _text_of(v) for u in uuids)]
+
+
+class Disagreement(AssertionError):
+    """The unit's answers broke a rule of the model at ``step`` (an index into ``steps``)."""
+
+    def __init__(self, steps: list[Step], found: list[Violation]) -> None:
+        step = blame(steps, found)
+        if not steps[step].found:
+            steps[step].found = list(found)
+        rules = sorted({v.rule for v in found})
+        super().__init__(f"step {step + 1}: {', '.join(rules)}")
+        self.steps = steps
+        self.step = step
+
+
+class Collector:
+    """Violations the Monitor finds for the unit under test, in the order found (given each
+    message's violations by the connection, on the MQTT thread)."""
+
+    def __init__(self, unit: str, wanted: Callable[[str], bool]) -> None:
+        self._unit = unit
+        self._wanted = wanted
+        self._lock = threading.Lock()
+        self._found: list[Violation] = []
+        self._count = 0
+
+    def __call__(self, violations: list[Violation]) -> None:
+        kept = [v for v in violations if v.unit == self._unit and self._wanted(v.rule)]
+        if kept:
+            with self._lock:
+                self._count += len(kept)
+                self._found = (self._found + kept)[-100:]  # bounded: only the newest matter
+
+    def mark(self) -> int:
+        with self._lock:
+            return self._count
+
+    def since(self, mark: int) -> list[Violation]:
+        with self._lock:
+            new = self._count - mark
+            return list(self._found[-new:]) if new > 0 else []
+
+
+def _text(data: bytes | str) -> str:
+    text = data.decode("utf-8", "backslashreplace") if isinstance(data, bytes) else data
+    return text[:SHOWN] + ("..." if len(text) > SHOWN else "")
+
+
+class Explorer:
+    """Runs steps against the unit under test and judges each (``do``); ``begin`` and
+    ``end`` frame one example: every task it started is aborted at its end, and its final
+    status awaited, so the next example starts from a known state."""
+
+    def __init__(self, ctx: Context, collector: Collector,
+                 model_state: Callable[[str], str | None] = lambda task_uuid: None) -> None:
+        self.ctx = ctx
+        self.collector = collector
+        self.model_state = model_state
+        """The protocol model's state of a task-uuid (``conformance.protocol``: what the
+        Monitor's model holds from the traffic), None where it knows nothing."""
+        self.tasks = ctx.startable()
+        """Tasks the suite may start (tasks-available, the profile, DESIGN 'Safety')."""
+        self.slots: list[Slot] = []
+        self.commands: dict[int, Sent] = {}
+        """Step index -> the command it sent (what a resend resends)."""
+        self.steps: list[Step] = []
+        self.total_steps = 0
+        self._pending_until = 0.0
+        """Unix time until which an answer or feedback the unit owes is not yet late."""
+        self._refused_aborts: list[Slot] = []
+        """Tasks whose teardown $abort the unit answered 'failed' (it no longer knows them)."""
+
+    # --- an example ---------------------------------------------------------------------------
+    def begin(self) -> None:
+        self.slots, self.commands, self.steps = [], {}, []
+        self._pending_until = 0.0
+        self._refused_aborts: list[Slot] = []
+
+    def end(self) -> None:
+        """Abort what this example started, await each final status, then wait until what
+        the unit still owes is late (one heartbeat past its deadline), and judge that too."""
+        if self.ctx.commander.dry_run:
+            return
+        t = self.ctx.timing
+        for i, slot in enumerate(self.slots):
+            self._refresh(slot)
+            if slot.task_uuid is not None and slot.state not in ("refused", "ended"):
+                # A step of the story too: a unit may break a rule on this very abort.
+                self.do({"do": "signal", "signal": "$abort", "slot": i, "teardown": True})
+        # A task the unit no longer knows (its abort answered 'failed') that never said its
+        # final status (12.4) is late once it has left tasks-executing for the response
+        # deadline: the Monitor judges it then.
+        if any(s.state not in ("refused", "ended") for s in self._refused_aborts):
+            self._owe(t.response)
+        mark = self.collector.mark()
+        self.ctx.commander.abort_all(t.response)
+        if self._pending_until:
+            until = self._pending_until
+            self.ctx.traffic.wait_for(lambda e: e.time > until,
+                                      until - time.time() + t.periods(2, self._rate()),
+                                      subtopic="heartbeat", what="the deadlines of the "
+                                      "exploration's commands")
+        found = ours(self.collector.since(mark), self._uuids())
+        if found and self.steps:
+            raise Disagreement(self.steps, found)
+
+    # --- one step -----------------------------------------------------------------------------
+    def do(self, action: dict[str, Any]) -> Step:
+        """Run one step; raises ``Disagreement`` when the Monitor found a violation meanwhile."""
+        step = Step(dict(action))
+        if len(self.steps) < MAX_STEPS:
+            self.steps.append(step)
+        self.total_steps += 1
+        mark = self.collector.mark()
+        after = self.ctx.traffic.mark()
+        kind = action["do"]
+        getattr(self, "_" + kind)(step, action)
+        step.came += [f"{e.subtopic}: {_text(e.raw)}" for e in self._answers(after, step)]
+        found = ours(self.collector.since(mark), self._uuids())
+        if found:
+            raise Disagreement(self.steps, found)
+        return step
+
+    def _uuids(self) -> set[str]:
+        """The com-uuids and task-uuids of this example."""
+        found = {com for step in self.steps for com in step.coms}
+        found.update(self.ctx.commander.unit_task_uuid(s.task_uuid) for s in self.slots
+                     if s.task_uuid)
+        found.update(s.task_uuid for s in self.slots if s.task_uuid)
+        return found
+
+    def _answers(self, after: int, step: Step) -> list[Entry]:
+        """What the unit said during the step: responses to its commands, and feedback."""
+        coms = set(step.coms)
+        return [e for e in self.ctx.traffic.since(after)
+                if e.subtopic == "exec/feedback" or e.subtopic == "exec/response"
+                and e.get("response-to") in coms][:20]
+
+    def _rate(self) -> float | None:
+        return self.ctx.rate_of("heartbeat")
+
+    def _owe(self, seconds: float) -> None:
+        self._pending_until = max(self._pending_until, time.time() + seconds)
+
+    def _send(self, step: Step, body: dict[str, Any]) -> tuple[Sent, Entry | None]:
+        t = self.ctx.timing
+        sent, answer = self.ctx.commander.request(body, t.response)
+        self.commands[len(self.steps) - 1] = sent
+        step.coms.append(sent.com_uuid)
+        step.sent.append(_text(sent.payload))
+        if answer is None:
+            self._owe(0.0)  # its deadline has passed: the Monitor judges it on a heartbeat
+            self._wait_heartbeat()
+        return sent, answer
+
+    def _wait_heartbeat(self, count: int = 1) -> None:
+        for _ in range(count):
+            after = self.ctx.traffic.mark()
+            self.ctx.traffic.wait_for(lambda e: True, self.ctx.timing.periods(1, self._rate()),
+                                      after=after, subtopic="heartbeat",
+                                      what="a heartbeat (explore: wait)")
+
+    def _uuid(self, slot: int | None) -> str:
+        """The task-uuid of slot ``slot``; a task-uuid the unit never saw for None."""
+        if slot is None or slot >= len(self.slots) or self.slots[slot].task_uuid is None:
+            return new_uuid()
+        return self.ctx.commander.unit_task_uuid(str(self.slots[slot].task_uuid))
+
+    def _refresh(self, slot: Slot) -> None:
+        """The slot's state from the feedback the unit sent for it (12.4)."""
+        if slot.task_uuid is None or slot.state == "refused":
+            return
+        uuid_ = self.ctx.commander.unit_task_uuid(slot.task_uuid)
+        held = self.model_state(uuid_)
+        if held in ("running", "paused"):
+            slot.state = held
+            return
+        if held in FINAL_STATUSES:
+            slot.state = "ended"
+            return
+        for e in self.ctx.traffic.since(slot.mark, "exec/feedback"):  # the model knows none
+            if e.get("task-uuid") == uuid_:
+                status = meaning(e.get("status"))
+                if status in FINAL_STATUSES:
+                    slot.state = "ended"
+                elif status in ("running", "paused"):  # a task's own words change nothing
+                    slot.state = status
+
+    def warm(self) -> None:
+        """Draw every task's parameters now (hypothesis-jsonschema, cached): not inside the
+        exploration, whose hypothesis run they would stall."""
+        from conformance.scenarios.params import drawn
+
+        for task in self.tasks:
+            drawn(task, self.ctx.seed)
+
+    def states(self) -> list[str]:
+        """Each slot's state as the unit last showed it."""
+        for slot in self.slots:
+            self._refresh(slot)
+        return [s.state for s in self.slots]
+
+    # --- the commands (12.1) ------------------------------------------------------------------
+    def _start(self, step: Step, action: dict[str, Any]) -> None:
+        name = str(action["task"])
+        allowed, why = self.ctx.safety.may_start(name)
+        if not allowed:  # a stored story replayed on a unit it may not move (DESIGN 'Safety')
+            self.slots.append(Slot(name, None, self.ctx.traffic.mark(), "refused"))
+            step.came.append(f"not sent: {why}")
+            return
+        origin = self.ctx.position()
+        # Drawn from the task's schema with the run's seed, inside the safe radius (DESIGN
+        # 'Safety'); ``warm`` drew them before the exploration's clock started.
+        params = valid_params(name, origin, self.ctx.safety, self.ctx.seed) \
+            if origin is not None else {}
+        body: dict[str, Any] = {"command": "start-task", "execution-unit": self.ctx.unit.name,
+                                "task": {"name": name, "params": params}}
+        if action.get("task_uuid", True):
+            body["task-uuid"] = new_uuid()
+        slot = Slot(name, body.get("task-uuid"), self.ctx.traffic.mark())
+        self.slots.append(slot)
+        sent, answer = self._send(step, body)
+        if answer is None:
+            return
+        got = answer.get("task-uuid")
+        if slot.task_uuid is None and isinstance(got, str) and got:
+            slot.task_uuid = got
+        if answer.get("response") == "failed":
+            slot.state = "refused"
+            return
+        slot.state = "running"
+        if slot.task_uuid is not None:  # its first feedback (12.4), briefly
+            self.ctx.commander.feedback(slot.task_uuid, None, self.ctx.timing.response,
+                                        after=sent.mark)
+
+    def _signal(self, step: Step, action: dict[str, Any]) -> None:
+        signal = str(action["signal"])
+        slot = action.get("slot")
+        task_uuid = self._uuid(slot)
+        state = self.states()[slot] if isinstance(slot, int) and slot < len(self.slots) else ""
+        after = self.ctx.traffic.mark()
+        _, answer = self._send(step, {"command": "signal-task", "signal": signal,
+                                      "task-uuid": task_uuid})
+        if answer is not None and answer.get("response") == "failed" \
+                and action.get("teardown") and isinstance(slot, int):
+            self._refused_aborts.append(self.slots[slot])
+        if answer is None or answer.get("response") == "failed" or signal not in IMPLIED \
+                or (signal, state) in UNCHANGED:
+            return
+        # 12.2.2: the signal's effect, awaited; a unit that owes it is judged at its deadline.
+        # Awaited for the response deadline at most (a story's step never takes longer). What
+        # is still owed then shows later: the example's end aborts the task, and a final
+        # status before the effect is the Monitor's finding at once (exec_feedback).
+        wanted = {IMPLIED[signal]} | set(FINAL_STATUSES)
+        t = self.ctx.timing
+        final = self.ctx.commander.feedback(
+            task_uuid, wanted if not action.get("teardown") else set(FINAL_STATUSES),
+            min(t.response, t.feedback), after=after, what=f"the feedback of {signal} (explore)")
+        if final is None and action.get("teardown"):
+            self._owe(t.feedback - t.response)  # the final status of an abort: its deadline
+
+    def _query(self, step: Step, action: dict[str, Any]) -> None:
+        self._send(step, {"command": "query-status", "task-uuid": self._uuid(action.get("slot"))})
+
+    def _ping(self, step: Step, action: dict[str, Any]) -> None:
+        self._send(step, {"command": "ping"})
+
+    def _resend(self, step: Step, action: dict[str, Any]) -> None:
+        earlier = self.commands.get(int(action["step"]))
+        if earlier is None:  # the step it names sent nothing (a shrunk story): a no-op
+            return
+        c = self.ctx.commander
+        mark = self.ctx.traffic.mark()
+        c.resend(earlier)
+        self.commands[len(self.steps) - 1] = earlier
+        step.coms.append(earlier.com_uuid)
+        step.sent.append(_text(earlier.payload))
+        if c.response(earlier, self.ctx.timing.response, after=mark) is None:
+            self._owe(0.0)
+            self._wait_heartbeat()
+
+    def _wait(self, step: Step, action: dict[str, Any]) -> None:
+        self._wait_heartbeat(max(1, min(5, int(action.get("periods", 1)))))

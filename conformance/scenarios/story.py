@@ -1,0 +1,134 @@
+"""A failure found by exploration, told as a story: numbered steps, each command sent (its
+JSON), what came back, and the step where the model and the unit disagree, with the rule,
+its spec section and hint as every finding shows them (STYLE.md); stored as JSON so that
+``--explore-replay FILE`` runs exactly those steps again.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from conformance.reporting.text import printable, render_violation
+from conformance.rules import CATALOGUE
+from conformance.scenarios.explore_steps import Step
+
+FORMAT = "waraps-conformance explore story 1"
+MAX_FILE = 2_000_000
+"""Bytes of a stored story read at most (a story is a few kB)."""
+
+
+class StoryError(ValueError):
+    """A stored story that cannot be replayed (not one, unreadable, or from another unit)."""
+
+
+def describe(action: dict[str, Any]) -> str:
+    """A step in words: ``start-task look-at-bearing as T1``, ``signal-task $pause to T1``."""
+    def task(slot: Any) -> str:
+        return f"T{int(slot) + 1}" if isinstance(slot, int) else "a task-uuid never used"
+    do = action.get("do")
+    if do == "start":
+        how = "" if action.get("task_uuid", True) else ", no task-uuid (the unit makes one)"
+        return f"start-task {action.get('task')} as {task(action.get('slot'))}{how}"
+    if do == "signal":
+        why = " (teardown: every task started is aborted)" if action.get("teardown") else ""
+        return f"signal-task {action.get('signal')} to {task(action.get('slot'))}{why}"
+    if do == "query":
+        return f"query-status of {task(action.get('slot'))}"
+    if do == "resend":
+        return f"resend the command of step {int(action.get('step', 0)) + 1} (same com-uuid)"
+    if do == "wait":
+        return f"wait {action.get('periods', 1)} heartbeat(s)"
+    return str(do)
+
+
+@dataclass
+class Story:
+    """The steps of one failing example; ``failing`` indexes the step where they disagree."""
+
+    steps: list[Step]
+    failing: int
+    seed: int
+    shrunk: bool = False
+    """Whether hypothesis finished shrinking it (else: the budget ran out first)."""
+    found_after: float = 0.0
+    """Seconds of exploration until the first failing example was found."""
+    found_steps: int = 0
+    """Steps run until then (all examples)."""
+    first_length: int = 0
+    """Steps of the first failing example (before shrinking)."""
+    path: Path | None = field(default=None)
+
+    @property
+    def length(self) -> int:
+        """Steps the story has, the teardown's aborts not counted."""
+        return sum(1 for s in self.steps if not s.action.get("teardown"))
+
+    @property
+    def rules(self) -> list[str]:
+        return sorted({v.rule for v in self.steps[self.failing].found})
+
+    def actions(self) -> list[dict[str, Any]]:
+        """The steps to replay (the teardown is the explorer's own, run again anyway)."""
+        return [s.action for s in self.steps if not s.action.get("teardown")]
+
+    def render(self, unit: str, rerun: str, heading: str = "") -> str:
+        lines = [heading or f"exploration: the unit and the model disagree at step "
+                 f"{self.failing + 1} of {len(self.steps)} (seed {self.seed})"]
+        for i, step in enumerate(self.steps):
+            mark = "   <-- the model and the unit disagree here" if i == self.failing else ""
+            lines.append(f"  {i + 1:>2}. {printable(describe(step.action))}{mark}")
+            for text in step.sent:
+                lines.append(f"      sent  {printable(text)}")
+            for j, text in enumerate(step.came or ["(nothing)"]):
+                lines.append(f"      {'came' if j == 0 else '':<4}  {printable(text)}")
+        lines.append("")
+        shown = set()
+        for v in self.steps[self.failing].found:
+            if v.rule in shown or v.rule not in CATALOGUE:
+                continue
+            shown.add(v.rule)
+            lines.append(render_violation(v.rule, v, unit, rerun_hint=rerun))
+        return "\n".join(lines)
+
+    def to_json(self, unit: str) -> dict[str, Any]:
+        return {"format": FORMAT, "unit": unit, "seed": self.seed, "shrunk": self.shrunk,
+                "failing_step": self.failing + 1, "rules": self.rules, "length": self.length,
+                "found_after_s": round(self.found_after, 1), "found_steps": self.found_steps,
+                "first_length": self.first_length,
+                "steps": [s.to_json() for s in self.steps]}
+
+    def save(self, path: Path, unit: str) -> Path:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(json.dumps(self.to_json(unit), indent=1), encoding="utf-8")
+        tmp.replace(path)
+        self.path = path
+        return path
+
+
+def load(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """The actions of a stored story and the story itself; ``StoryError`` when it is none."""
+    try:
+        with path.open("rb") as f:
+            raw = f.read(MAX_FILE + 1)
+        if len(raw) > MAX_FILE:
+            raise ValueError(f"over {MAX_FILE} bytes")
+        data = json.loads(raw)
+    except (OSError, ValueError) as e:
+        raise StoryError(f"{path}: not a readable story ({e})") from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT \
+            or not isinstance(data.get("steps"), list):
+        raise StoryError(f"{path}: not a story written by --explore (format {FORMAT!r})")
+    actions = []
+    for step in data["steps"]:
+        action = step.get("action") if isinstance(step, dict) else None
+        if not isinstance(action, dict) or action.get("do") not in (
+                "start", "signal", "query", "resend", "ping", "wait"):
+            raise StoryError(f"{path}: a step that is not an exploration step: "
+                             f"{printable(str(action))[:200]}")
+        if not action.get("teardown"):
+            actions.append(action)
+    return actions, data

@@ -1,0 +1,177 @@
+"""The certification's exploration (issue 17): after the scripted scenarios, command orders
+drawn by hypothesis (``scenarios/explore.py``) within a budget, the Monitor judging every
+answer; a disagreement is printed as a story the moment it is found, stored under the reports
+folder, and its rerun line replays exactly that story (``--explore-replay``).
+"""
+
+from __future__ import annotations
+
+import shlex
+import time
+from pathlib import Path
+
+import pytest
+
+from conformance.reporting.text import printable
+from conformance.scenarios.explore import Outcome, Search, Stopped, replay
+from conformance.scenarios.explore_steps import Collector, Explorer, judged
+from conformance.scenarios.sender import DryRun
+from conformance.scenarios.story import Story, StoryError, load
+from conformance.scenarios.traffic import OutOfTime
+from conformance.suite.session import Certification
+from conformance.topics import DIRECT_EXECUTION
+
+PERIODS = 50
+"""The default budget in heartbeat periods of the unit: 50 s at 1 Hz (with the scripted
+scenarios, a 1 Hz unit is certified within 90 s) ..."""
+LEAST, MOST = 20.0, 50.0
+"""... and never less or more than these seconds."""
+RESERVE = 10.0
+"""Seconds of --max-duration left to the tests after the exploration (the passive rules)."""
+
+
+def default_budget(rate: float | None) -> float:
+    """Seconds of exploration when --explore is not given: ``PERIODS`` heartbeat periods."""
+    return min(MOST, max(LEAST, PERIODS / (rate if rate and rate > 0 else 1.0)))
+
+
+def budget(c: Certification) -> float:
+    """The exploration's budget: --explore (or the default), within what --max-duration has
+    left once the tests after it have their share."""
+    wanted = c.settings.explore
+    if wanted is None:
+        wanted = default_budget(c.context.rate_of("heartbeat"))
+    deadline = c.traffic.waits.deadline
+    if deadline is not None:
+        wanted = min(wanted, deadline - time.monotonic() - RESERVE)
+    return max(0.0, wanted)
+
+
+def story_path(c: Certification) -> Path:
+    return c.settings.reports_dir / f"{c.stem}-explore.json"
+
+
+def rerun(c: Certification, path: Path) -> str:
+    """The line that replays ``path``'s story (and nothing else) against the same unit."""
+    base = c.settings.rerun_command()
+    if c.settings.explore_replay is None:
+        base += f" --explore-replay={shlex.quote(str(path))}"
+    return base + " -k test_explore"
+
+
+def run(c: Certification, node: pytest.Item) -> None:
+    """Explore (or replay a stored story) and turn what was found into this test's outcome."""
+    s = c.settings
+    if s.explore == 0 and s.explore_replay is None:
+        pytest.skip("could not test: exploration is off (--explore 0): command orders beyond "
+                    "the scripted scenarios were not explored")
+    if not c._claims(DIRECT_EXECUTION):
+        pytest.skip(f"the unit does not declare '{DIRECT_EXECUTION}': nothing to explore")
+    dead = c.unit_died()
+    if dead:
+        pytest.skip(f"could not test: {dead}")
+    actions = None
+    if s.explore_replay is not None:
+        try:
+            actions, _ = load(s.explore_replay)
+        except StoryError as e:
+            pytest.fail(str(e), pytrace=False)
+    try:
+        c.observation.wait_execution_info()
+    except OutOfTime as e:
+        c._out_of_time(e)
+        c._fail_if_out_of_time()
+    collector = Collector(str(c.unit), lambda rule: judged(rule, c.profile.severity_of))
+    explorer = Explorer(c.context, collector, lambda task_uuid: _model_state(c, task_uuid))
+    explorer.warm()
+    c.connection.listeners.append(collector)
+    try:
+        if actions is not None:
+            _replay(c, explorer, actions, node)
+        else:
+            _explore(c, explorer, node)
+    except Stopped as e:
+        if isinstance(e.cause, DryRun):
+            pytest.skip(f"could not test: {e.cause}")
+        if isinstance(e.cause, OutOfTime):
+            c._out_of_time(e.cause)
+            c._fail_if_out_of_time()
+        raise e.cause from None
+    finally:
+        c.connection.listeners.remove(collector)
+        if not s.dry_run:
+            c.commander.abort_all(c.timing.response)
+        c.write_reports()
+
+
+def _model_state(c: Certification, task_uuid: str) -> str | None:
+    """The protocol model's view of a task (the one the Monitor judges with: lint and the
+    suite cannot disagree about a sequence), None when it holds nothing of it."""
+    from conformance.checks.exec_sequence import model_of
+    from conformance.protocol import State
+
+    with c._lock:
+        state = model_of(c.monitor.ctx, c.monitor.state(c.unit)).state(task_uuid)
+    return None if state is State.UNKNOWN else state.value
+
+
+def _say(c: Certification, text: str) -> None:
+    if c.progress.verbosity >= 0:
+        c.progress.line(text)
+
+
+def _explore(c: Certification, explorer: Explorer, node: pytest.Item) -> None:
+    seconds = budget(c)
+    if seconds <= 0:
+        pytest.skip("could not test: no time left for exploration within --max-duration "
+                    f"{c.settings.max_duration:g} s")
+    path = story_path(c)
+
+    def tell(story: Story) -> None:  # at once: shrinking may take the rest of the budget
+        story.save(path, str(c.unit))
+        _say(c, story.render(str(c.unit), rerun(c, path), heading=(
+            f"exploration found a disagreement after {story.found_after:.0f} s "
+            f"({story.found_steps} steps); shrinking it within the {seconds:.0f} s budget:")))
+
+    _say(c, f"exploring command orders for {seconds:.0f} s (hypothesis, seed {c.settings.seed})")
+    outcome = Search(explorer, seconds, c.settings.seed, tell).run()
+    summary = _summary(outcome)
+    if outcome.last_error and c.progress.verbosity > 0:
+        _say(c, f"exploration ended with {printable(outcome.last_error)}")
+    node.user_properties.append(("explore", summary))
+    c.explored = summary
+    story = outcome.story
+    if story is None:
+        _say(c, f"exploration: {summary}: the unit answered as the model says")
+        return
+    story.save(path, str(c.unit))
+    state = "shrunk" if story.shrunk else "not fully shrunk (the budget ran out)"
+    pytest.fail(story.render(str(c.unit), rerun(c, path), heading=(
+        f"exploration: the unit and the model disagree at step {story.failing + 1} of this "
+        f"story ({state}, {story.length} steps; first found after {story.found_after:.0f} s "
+        f"and {story.found_steps} steps, in {story.first_length} steps; {summary})"))
+        + f"\n\nstory stored: {printable(str(path))}", pytrace=False)
+
+
+def _replay(c: Certification, explorer: Explorer, actions: list[dict[str, object]],
+            node: pytest.Item) -> None:
+    path = c.settings.explore_replay
+    assert path is not None
+    _say(c, f"replaying the {len(actions)} steps of {printable(str(path))}")
+    story = replay(explorer, actions, c.settings.seed)
+    c.explored = f"replayed {len(actions)} steps of {path}"
+    if story is None:
+        node.user_properties.append(("explore", "replay: no disagreement"))
+        _say(c, f"replay of {printable(str(path))}: no longer fails: the unit answered every "
+                "step as the model says")
+        return
+    pytest.fail(story.render(str(c.unit), rerun(c, path), heading=(
+        f"replay of {printable(str(path))}: the unit and the model disagree again, at step "
+        f"{story.failing + 1}")), pytrace=False)
+
+
+def _summary(outcome: Outcome) -> str:
+    why = {"budget": "budget spent", "shrunk": "story shrunk", "exhausted": "nothing left to "
+           "try"}.get(outcome.ended, outcome.ended)
+    return (f"{outcome.examples} examples, {outcome.steps} steps in {outcome.elapsed:.0f} s "
+            f"({why})")

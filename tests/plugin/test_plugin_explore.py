@@ -1,0 +1,102 @@
+"""Exploration (issue 17): the conformant reference unit still certifies with it on (with and
+without TST); a sequence fault no scripted scenario reaches is found by it, told as a story
+whose rerun line replays it, and a replay against a unit without the fault says it no longer
+fails; ``--explore 0`` and ``--dry-run`` say why nothing was explored (never a pass)."""
+
+from __future__ import annotations
+
+import json
+import shlex
+
+import pytest
+from certify_helpers import FAST, UNIT, certify
+
+pytestmark = pytest.mark.slow
+
+EMBEDDED = ("--unit", UNIT, "--broker", "embedded", "--sim-rate", "3", f"--profile={FAST}")
+FAULT, RULE = "pause-pauses-all", "EXEC-SEQ-002"
+"""A sequence fault (two tasks, $pause to one) and the rule it breaks."""
+
+
+def explore_outcome(run) -> str:  # type: ignore[no-untyped-def]
+    reprec = run.result.reprec
+    (rep,) = [r for r in reprec.getreports("pytest_runtest_logreport")
+              if r.nodeid.endswith("test_explore") and r.when == "call"
+              or r.nodeid.endswith("test_explore") and r.skipped]
+    return str(rep.outcome)
+
+
+@pytest.mark.parametrize("tst", [False, True], ids=["direct", "tst"])
+def test_conformant_unit_certifies_with_exploration(pytester: pytest.Pytester,
+                                                    tst: bool) -> None:
+    run = certify(pytester, *EMBEDDED, "--explore=12s", "--seed", "3",
+                  *(["--sim-tst"] if tst else []))
+    assert run.result.ret == 0, run.text
+    assert explore_outcome(run) == "passed", run.text
+    assert run.report is not None
+    assert "examples" in run.report["meta"]["explore"], run.report["meta"]
+    # after the scripted scenarios, before the passive rules
+    names = [line for line in run.result.outlines if "::" in line or ".py " in line]
+    assert "--explore 12" in run.report["meta"]["rerun"]
+    assert not list(run.reports_dir.glob("*-explore.json")), names
+
+
+def test_sequence_fault_found_told_and_replayed(pytester: pytest.Pytester) -> None:
+    run = certify(pytester, *EMBEDDED, f"--sim-fault={FAULT}", "--explore=60s", "--seed", "1",
+                  "-k", "test_explore")
+    assert run.result.ret == 1, run.text
+    assert explore_outcome(run) == "failed", run.text
+    text = run.text
+    assert "exploration found a disagreement" in text  # told at once, before shrinking
+    assert "<-- the model and the unit disagree here" in text and RULE in text
+    assert "sent  {" in text and "came  exec/response:" in text
+    (stored,) = run.reports_dir.glob("*-explore.json")
+    story = json.loads(stored.read_text())
+    assert RULE in story["rules"] and 1 <= story["length"] <= 10
+    rerun = [line.split("rerun", 1)[1].strip() for line in run.result.outlines
+             if line.strip().startswith("rerun") and "--explore-replay=" in line][-1]
+    args = shlex.split(rerun)
+    assert args[0] == "pytest" and f"--explore-replay={stored}" in args
+    again = certify(pytester, *args[1:])
+    assert again.result.ret == 1, again.text
+    assert "disagree again" in again.text and RULE in again.text
+    # the same story against the unit without the fault: it says it no longer fails
+    fixed = [a for a in args[1:] if not a.startswith("--sim-fault")]
+    clean = certify(pytester, *fixed)
+    assert clean.result.ret == 0, clean.text
+    assert "no longer fails" in clean.text
+
+
+def test_explore_off_and_dry_run_say_why(pytester: pytest.Pytester) -> None:
+    off = certify(pytester, *EMBEDDED, "--explore=0", "-k", "test_explore", "-rs")
+    assert explore_outcome(off) == "skipped"
+    assert "exploration is off (--explore 0)" in off.text
+    assert off.report is not None and off.report["meta"]["explore"] == "off"
+    dry = certify(pytester, *EMBEDDED, "--explore=10s", "--dry-run", "-k", "test_explore",
+                  "-rs")
+    assert explore_outcome(dry) == "skipped"
+    assert "could not test: dry run: would publish" in dry.text
+
+
+def test_replay_of_a_file_that_is_no_story(pytester: pytest.Pytester) -> None:
+    missing = pytester.runpytest_inprocess("-p", "no:cacheprovider", "-o", "addopts=",
+                                           *EMBEDDED, "--explore-replay=nowhere.json")
+    assert missing.ret == pytest.ExitCode.USAGE_ERROR
+    assert "--explore-replay nowhere.json: no such file" in "\n".join(missing.errlines)
+    bad = pytester.path / "bad.json"
+    bad.write_text(json.dumps({"format": "something else", "steps": []}))
+    run = certify(pytester, *EMBEDDED, f"--explore-replay={bad}", "-k", "test_explore")
+    assert run.result.ret == 1 and "not a story written by --explore" in run.text
+
+
+def test_replay_never_moves_a_real_unit_without_allow_motion(pytester: pytest.Pytester) -> None:
+    story = pytester.path / "story.json"
+    story.write_text(json.dumps({"format": "waraps-conformance explore story 1", "steps": [
+        {"action": {"do": "start", "task": "move-to", "task_uuid": True, "slot": 0}},
+        {"action": {"do": "query", "slot": 0}}]}))
+    run = certify(pytester, "--unit", "waraps/unit/air/real/dji0", "--broker", "embedded",
+                  "--sim-rate", "3", f"--profile={FAST}", f"--explore-replay={story}",
+                  "-k", "test_explore", "-v")
+    assert run.result.ret == 0, run.text
+    assert "sent start-task move-to" not in run.text
+    assert "sent query-status" in run.text and "no longer fails" in run.text
