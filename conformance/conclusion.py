@@ -13,7 +13,8 @@ reports, lint's text) shows ``conclude(report)``; none decides on its own. It re
 A level is **certified** only when the run is a complete certification (none of the facts
 above) and every rule of that level (the catalogue's ``level``) was judged on evidence: none
 failed, none could not be tested; a rule that holds for every level (no ``level``: topics,
-heartbeat, death) failing denies every level. Skips (not claimed, not applicable) do not count
+heartbeat, death, reboot) failing or not tested denies every level (REBOOT-* without
+--reboot-cmd: no level is certified). Skips (not claimed, not applicable) do not count
 against a level. A run that selected rules or was cut short is **partial**: its verdict is never
 ``pass``. Lint observes traffic it never caused: it says what it saw ("clean for 10 min,
 never commanded"), never "certified".
@@ -180,14 +181,14 @@ def _certification_unit(name: str, unit: UnitReport, run_why: list[str],
     if unit.party != "unit":
         return UnitStatus(name, unit.party, worst, worst)
     died = died_at(unit)
-    general = [r for r in unit.rules.values() if r.verdict is Verdict.FAIL
-               and _level_of(r.rule) is None]
+    general = [r for r in unit.rules.values() if _level_of(r.rule) is None]
     levels = []
     for level in dict.fromkeys(lv.replace("_", " ") for lv in unit.levels):  # ERR-008
         own = [r for r in unit.rules.values() if _level_of(r.rule) == level]
-        failed = len(general) + sum(r.verdict is Verdict.FAIL for r in own)
+        # A rule of every level (topics, heartbeat, reboot) counts against each of them.
+        failed = sum(r.verdict is Verdict.FAIL for r in own + general)
         untested = sum(r.verdict is Verdict.COULD_NOT_TEST and r.rule not in not_run
-                       for r in own)
+                       for r in own + general)
         unrun = sum(r.rule in not_run and r.verdict is not Verdict.FAIL for r in own)
         why = _counted(failed=failed, untested=untested, unrun=unrun)
         if died is not None:

@@ -90,6 +90,12 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
             c.expects.remove(e)
             if reboot:
                 continue
+            if unit.private.get(FEEDBACK_WITHOUT_TASK_UUID):
+                # The awaited status may have come in feedback naming no task (EXEC-FB-001's
+                # finding): not judged, as a task's end is not (12.4; FIELD-NOTES precision).
+                unit.note(e.rule, "the unit sends feedback without a task-uuid: the status "
+                                  "a signal awaits could not be tracked")
+                continue
             unit.examine(e.rule)
             task = c.tasks.get(e.task_uuid)
             said = task.last_status if task is not None else None

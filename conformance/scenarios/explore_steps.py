@@ -212,7 +212,7 @@ class Explorer:
         after = self.ctx.traffic.mark()
         kind = action["do"]
         getattr(self, "_" + kind)(step, action)
-        step.came += [f"{e.subtopic}: {_text(e.raw)}" for e in self._answers(after, step)]
+        step.came += [f"{e.subtopic}: {_text(e.excerpt)}" for e in self._answers(after, step)]
         found = ours(self.collector.since(mark), self._uuids())
         if found:
             raise Disagreement(self.steps, found)

@@ -332,7 +332,10 @@ def test_a_signal_whose_feedback_comes_before_its_ok_is_credited(stream):
                            stream.response(4.3, com_of(resume), "ok", **{"task-uuid": task}),
                            stream.feedback(5.0, task, "finished")])
     assert verdicts(first, "EXEC-SIG-003") == {"EXEC-SIG-003": "pass"}
-    stale = judge(stream, [*run, stream.feedback(3.0, task, "paused"), pause,
+    # A 'paused' from before the signal is no evidence of it (the task was running again
+    # when the $pause came; a task already paused owes nothing: docs/MODEL.md, EXEC-SEQ-001).
+    stale = judge(stream, [*run, stream.feedback(3.0, task, "paused"),
+                           stream.feedback(3.05, task, "running"), pause,
                            stream.response(3.3, com_of(pause), "ok", **{"task-uuid": task}),
                            stream.feedback(5.0, task, "finished")])
     assert stale["EXEC-SIG-003"].verdict is Verdict.FAIL  # 'paused' before the signal
