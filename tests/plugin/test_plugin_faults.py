@@ -57,7 +57,10 @@ ALSO = {"EXEC-FB-001": ("EXEC-QUERY",), "SENS-004": ("TOPIC",)}
 # What the suite's own traffic adds to a fault's rules (the passive matrix of tests/sim sends
 # other commands): after crash-on-malformed's crash the suite probes start-task once (one kind
 # of command unanswered never implies another is), and that probe is unanswered too (12.1).
-SUITE_ALSO = {"crash-on-malformed": ("EXEC-START-001",)}
+# twin-agent: two agents under one name (HB-011) take turns with agent-uuids seen before, so
+# after the reboot scenario the query of a task from before it is judged against the life the
+# twin's uuid keeps open: the fault's own ambiguity, shown on its run.
+SUITE_ALSO = {"crash-on-malformed": ("EXEC-START-001",), "twin-agent": ("EXEC-QUERY-001",)}
 # Faults of ALONE areas that only change what their own rule alone judges, and nothing a
 # scenario reads: the heartbeat's type (HB-002), an unknown level besides the known ones
 # (HB-007), stamps (MSG-005; MSG-007 reads them on retained messages only, and its fault runs
