@@ -14,6 +14,7 @@ linter) sees them.
 from __future__ import annotations
 
 import difflib
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from conformance.rules import CATALOGUE, Mode
@@ -382,19 +383,26 @@ class FaultError(ValueError):
     """An unknown fault name; the message lists close matches."""
 
 
-def check_names(names: object) -> frozenset[str]:
-    """The fault names as a set; raise ``FaultError`` naming any unknown one."""
+def switches(names: object, known: Mapping[str, object], what: str,
+             error: type[ValueError]) -> frozenset[str]:
+    """``names`` (one name or several) as a set of switches of ``known`` (faults, variants);
+    ``error`` names any unknown one, with the close matches and where the list is."""
     if isinstance(names, str):
         names = (names,)
     out = set()
     for name in names:  # type: ignore[union-attr]
-        if name not in FAULTS:
-            close = difflib.get_close_matches(str(name), FAULTS, n=3)
+        if name not in known:
+            close = difflib.get_close_matches(str(name), known, n=3)
             hint = f"; did you mean {', '.join(close)}?" if close else ""
-            raise FaultError(f"unknown fault {name!r}{hint} (waraps-conformance sim "
-                             f"--list-faults lists them)")
+            raise error(f"unknown {what} {name!r}{hint} (waraps-conformance sim "
+                        f"--list-{what}s lists them)")
         out.add(str(name))
     return frozenset(out)
+
+
+def check_names(names: object) -> frozenset[str]:
+    """The fault names as a set; raise ``FaultError`` naming any unknown one."""
+    return switches(names, FAULTS, "fault", FaultError)
 
 
 def breaking(rule_id: str) -> list[Fault]:

@@ -11,10 +11,10 @@ and ``verbose`` (``CONFLICTS``).
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass
 
 from conformance.rules import CATALOGUE, Severity
+from conformance.sim.faults import switches
 
 
 @dataclass(frozen=True)
@@ -117,20 +117,11 @@ class VariantError(ValueError):
 
 def check_variants(names: object) -> frozenset[str]:
     """The variant names as a set; raise ``VariantError`` for an unknown one or a conflict."""
-    if isinstance(names, str):
-        names = (names,)
-    out = set()
-    for name in names:  # type: ignore[union-attr]
-        if name not in VARIANTS:
-            close = difflib.get_close_matches(str(name), VARIANTS, n=3)
-            hint = f"; did you mean {', '.join(close)}?" if close else ""
-            raise VariantError(f"unknown variant {name!r}{hint} (waraps-conformance sim "
-                               f"--list-variants lists them)")
-        out.add(str(name))
+    out = switches(names, VARIANTS, "variant", VariantError)
     for pair in CONFLICTS:
         if pair <= out:
             raise VariantError(f"variants {' and '.join(sorted(pair))} cannot be combined")
-    return frozenset(out)
+    return out
 
 
 def list_variants(as_json: bool) -> str:
