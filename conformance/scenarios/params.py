@@ -174,6 +174,8 @@ GEOPOINT_STUB: dict[str, Any] = {
     "properties": {"latitude": {"const": 0.0}, "longitude": {"const": 0.0},
                    "altitude": {"const": 0.0}, "rostype": {"const": "GeoPoint"}},
 }
+TAME_NUMBER = 360
+"""The magnitude of a generated number that its schema leaves unbounded."""
 WORD = "^[a-z][a-z0-9-]{0,11}$"
 """Free-text parameters get plain words: a real unit should not be sent control characters
 because a schema allows any string."""
@@ -191,6 +193,23 @@ def for_generation(node: Any) -> Any:
         return dict(GEOPOINT_STUB)
     out = {k: for_generation(v) for k, v in node.items()
            if k not in ("examples", "description", "$comment")}
+    if node.get("type") in ("number", "integer") and not {"enum", "const"} & set(node):
+        # Numbers a schema leaves unbounded get the magnitudes of the spec's examples (degrees,
+        # counts): conservative in what is sent, a strict unit would refuse 1e19 degrees.
+        # (int32 bounds of a typed parameter are no guide either: 9's float64 and int32.)
+        low = node.get("minimum", node.get("exclusiveMinimum"))
+        high = node.get("maximum", node.get("exclusiveMaximum"))
+        tame_low = -TAME_NUMBER if low is None else max(low, -TAME_NUMBER)
+        tame_high = TAME_NUMBER if high is None else min(high, TAME_NUMBER)
+        if tame_low >= tame_high:  # a range far from zero: its own start, and a little more
+            tame_low, tame_high = (low, low + TAME_NUMBER) if low is not None else (
+                high - TAME_NUMBER, high)
+        if low is None or tame_low != low:
+            out.pop("exclusiveMinimum", None)
+            out["minimum"] = tame_low if low is None or tame_low > low else low
+        if high is None or tame_high != high:
+            out.pop("exclusiveMaximum", None)
+            out["maximum"] = tame_high if high is None or tame_high < high else high
     if node.get("type") == "string" and not {"enum", "const", "pattern", "format"} & set(node):
         examples = [e for e in node.get("examples") or () if isinstance(e, str)]
         if examples:

@@ -11,7 +11,13 @@ from certify_helpers import FAST, Rebooter, certify
 
 from conformance import taskspec
 from conformance.profile import Profile
-from conformance.scenarios.params import draw, invalid_params, task_moves, valid_params
+from conformance.scenarios.params import (
+    TAME_NUMBER,
+    draw,
+    invalid_params,
+    task_moves,
+    valid_params,
+)
 from conformance.scenarios.safety import Position, Safety
 from conformance.topics import UnitAddress
 from conformance.validator import Validator
@@ -54,6 +60,17 @@ def test_generated_parameters_are_valid_seeded_and_near_the_unit(task: str) -> N
         assert p["rostype"] == "GeoPoint" and "type" not in p  # the canonical form (ERR-010)
     for key in ("loop-flag", "hold-flag", "continue-flag", "named-position"):
         assert params.get(key) in (None, False)
+    # Conservative in what is sent: numbers of the magnitudes the spec's examples show, never
+    # 1e19 degrees because a schema leaves a float64 unbounded.
+    assert all(abs(n) <= TAME_NUMBER for n in numbers(params)), params
+
+
+def numbers(value: object) -> list[float]:
+    if isinstance(value, dict):
+        return [n for v in value.values() for n in numbers(v)]
+    if isinstance(value, list):
+        return [n for v in value for n in numbers(v)]
+    return [value] if isinstance(value, (int, float)) and not isinstance(value, bool) else []
 
 
 def test_a_schema_hypothesis_jsonschema_cannot_draw_from_falls_back_with_a_warning() -> None:
