@@ -141,8 +141,10 @@ class Vehicle:
                                self._clamp_altitude(point.altitude))
         self.cruise = max(0.1, speed)
         self.climb = max(self.kin.vertical_speed, climb or 0.0)
-        # Time-compressed tasks go faster, and so accelerate harder.
-        self.accel = max(self.kin.acceleration, self.cruise / max(0.1, ramp))
+        # Time-compressed tasks go faster, and so accelerate harder; a vehicle still fast from
+        # the task before brakes as hard (a slow task after a fast one held the spot for its
+        # old speed / the new task's acceleration: 4.5 s, past a 5 s feedback deadline).
+        self.accel = max(self.kin.acceleration, max(self.cruise, self.speed) / max(0.1, ramp))
 
     def stop(self) -> None:
         """Brake to a halt where the vehicle is (pause, abort, $enough)."""

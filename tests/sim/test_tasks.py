@@ -71,6 +71,23 @@ def test_time_compression_is_capped_and_plans_start_near_the_unit() -> None:
     assert task.legs[0].point is not None and distance(here, task.legs[0].point) < 30
 
 
+def test_a_slow_task_after_a_fast_one_arrives_without_holding_the_spot() -> None:
+    """A compressed fast task (13.5 m/s) stopped by $enough, then move-to a point 2 m away at
+    3 m/s: the vehicle brakes as hard as it sped, and the task ends within a second or two
+    (it held the spot for 4.5 s, past the suite's 5 s feedback deadline: seed 27639769)."""
+    v = Vehicle("air", GeoPoint(58.39, 15.56, 0.0), heading=0.0)
+    v.goto(GeoPoint(58.391, 15.56, 0.0), 13.5, ramp=1.0)
+    for _ in range(10):
+        v.advance(0.1)
+    v.stop()  # $enough
+    v.goto(GeoPoint(v.position.latitude + 0.00002, v.position.longitude, 0.0), 3.0, ramp=1.0)
+    steps = 0
+    while not v.arrived and steps < 100:
+        v.advance(0.1)
+        steps += 1
+    assert v.arrived and steps * 0.1 <= 2.0, (steps, v.speed)
+
+
 def test_the_vehicle_accelerates_brakes_and_arrives() -> None:
     v = Vehicle("surface", GeoPoint(58.39, 15.56, 0.0), heading=0.0)
     target = GeoPoint(58.3905, 15.5605, 10.0)  # a boat stays on the surface
