@@ -40,7 +40,7 @@ def certify(unit: str, *, rate: float = 1.0, faults: Sequence[str] = (),
     # --opt=value for paths: pytest picks its rootdir before it knows plugin options, and a
     # path in its own argument would be taken for a test path there.
     command = ["--unit", unit, "--broker", "embedded", f"--reports-dir={reports_dir}",
-               "-p", "no:cacheprovider", "-o", "addopts=", "-rfEsw"]
+               "-p", "no:cacheprovider", "-o", "addopts=", "-rfEw"]  # skips: grouped in the summary
     if rate != 1.0:
         command += ["--sim-rate", str(rate)]
     command += [f"--sim-fault={f}" for f in faults]

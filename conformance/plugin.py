@@ -290,6 +290,8 @@ class _CertificationPlugin:
         unit = conclusion.units.get(str(c.unit))
         for level in unit.levels if unit is not None else ():
             tr.line(f"  {level}")
+        for line in skipped_by_reason(report.units.get(str(c.unit))):
+            tr.line(line)
         later = report.meta.get("judged_after_test")
         if later:  # their tests passed before the traffic that fails them came
             tr.line(f"failed after their tests ran (later traffic is evidence too; the "
@@ -306,3 +308,18 @@ class _CertificationPlugin:
         if not c.report_paths:
             tr.line("no report was written")
         tr.line(f"repeat this run: {c.rerun_command()}")
+
+
+def skipped_by_reason(unit: Any) -> list[str]:
+    """The rules skipped as not applicable, grouped by their reason (one line a reason, not
+    one a rule): ``skipped  17 not claimed: unit declares no 'tst execution' level``."""
+    from collections import Counter
+
+    from conformance.display import printable
+    from conformance.violation import Verdict
+
+    if unit is None:
+        return []
+    reasons = Counter(r.reason or "not examined" for r in unit.rules.values()
+                      if r.verdict is Verdict.SKIP)
+    return [f"  skipped {n:>3}  {printable(reason)}" for reason, n in reasons.most_common()]

@@ -46,6 +46,11 @@ def test_reference_unit_passes_on_the_embedded_broker(pytester: pytest.Pytester)
     assert len(props["agent-uuid"].split()) == 2  # before and after the reboot
     assert props["profile"].startswith("fast-selftest") and props["suite-version"]
     assert len(props["schemas-hash"]) >= 16
+    # What was not applicable is said once a reason, with how many rules it covers.
+    skipped = {reason: r["reason"] for reason, r in rules.items() if r["verdict"] == "skip"}
+    for reason in set(skipped.values()):
+        count = sum(1 for r in skipped.values() if r == reason)
+        assert f"  skipped {count:>3}  {reason}" in run.text, reason
     # The JSON and HTML reports were written.
     assert len(list(run.reports_dir.glob("dji0-*.json"))) == 1
     assert len(list(run.reports_dir.glob("dji0-*.html"))) == 1

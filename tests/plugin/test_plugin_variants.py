@@ -129,6 +129,10 @@ def test_variants_are_certified_and_lint_clean(pytester: pytest.Pytester, mosqui
         pytest.xfail(why)
     assert not suite, f"{' + '.join(variants)}: {first_violations(rules, suite)}"
     assert run.result.ret == 0, run.text
+    # ... and certified: every level it declares (the verdict model: every rule judged)
+    assert run.report is not None
+    levels = run.report["conclusion"]["units"][str(unit_address)]["levels"]
+    assert levels and all(lv["certified"] for lv in levels), levels
     if tst:
         assert {"TST-004", "TST-008", "TST-010"} & verdicts(rules).get("pass", set()), \
             "the TST level was judged"
