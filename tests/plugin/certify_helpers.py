@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import json
 import re
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -175,3 +178,26 @@ class SilentUnit:
         self._thread.join(5)
         self.client.close()
 
+
+@contextmanager
+def recorded(broker: str, prefix: str, path: Path) -> Iterator[None]:
+    """Record every message under ``prefix`` on ``broker`` into ``path`` (JSON Lines, as
+    `waraps-conformance record` writes it) while the block runs: its lint must agree."""
+    from conformance.client import BrokerURL, MqttClient
+    from conformance.recording import RecordingWriter
+
+    lock = threading.Lock()
+    with path.open("wb") as f:
+        writer = RecordingWriter(f)
+
+        def keep(m: Any) -> None:
+            with lock:
+                writer.write(m)
+
+        recorder = MqttClient(BrokerURL.parse(broker), on_message=keep)
+        recorder.connect()
+        recorder.subscribe(f"{prefix}/#", qos=1)
+        try:
+            yield
+        finally:
+            recorder.close()

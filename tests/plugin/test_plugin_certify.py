@@ -5,7 +5,7 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 
 import pytest
-from certify_helpers import FAST, UNIT, Rebooter, certify
+from certify_helpers import FAST, UNIT, Rebooter, certify, recorded
 
 from conformance.rules import CATALOGUE, Level, Mode
 from conformance.sim import SimUnit
@@ -91,33 +91,17 @@ def test_reference_unit_passes_on_mosquitto_and_its_recording_lints_clean(
     suite's deliberately broken commands are the commander's)."""
     import io
     import json
-    import threading
 
     import orjson
 
     from conformance.cli.lint import main as lint_main
-    from conformance.client import BrokerURL, MqttClient
-    from conformance.recording import RecordingWriter
 
     recording = tmp_path / "certification.jsonl"
-    lock = threading.Lock()
-    with recording.open("wb") as f:
-        writer = RecordingWriter(f)
-
-        def keep(m) -> None:  # type: ignore[no-untyped-def]
-            with lock:
-                writer.write(m)
-
-        recorder = MqttClient(BrokerURL.parse(mosquitto), on_message=keep)
-        recorder.connect()
-        recorder.subscribe(f"{unit_address.prefix}/#", qos=1)
-        try:
-            with SimUnit(unit_address, mosquitto, rate=3.0, seed=3) as sim:
-                rebooter = Rebooter(sim)
-                run = certify(pytester, "--unit", str(unit_address), "--broker", mosquitto,
-                              f"--profile={FAST}", "--seed", "7", plugins=(rebooter,))
-        finally:
-            recorder.close()
+    with recorded(mosquitto, unit_address.prefix, recording), \
+            SimUnit(unit_address, mosquitto, rate=3.0, seed=3) as sim:
+        rebooter = Rebooter(sim)
+        run = certify(pytester, "--unit", str(unit_address), "--broker", mosquitto,
+                      f"--profile={FAST}", "--seed", "7", plugins=(rebooter,))
     assert run.result.ret == 0, run.text
     assert not run.failed
     assert rebooter.calls == 1

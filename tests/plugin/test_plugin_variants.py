@@ -15,11 +15,18 @@ from __future__ import annotations
 
 import io
 import json
-import threading
 from pathlib import Path
 
 import pytest
-from certify_helpers import HERE, UNIT, Certified, Rebooter, certify, warm_parameters
+from certify_helpers import (
+    HERE,
+    UNIT,
+    Certified,
+    Rebooter,
+    certify,
+    recorded,
+    warm_parameters,
+)
 
 from conformance.sim import SimUnit
 from conformance.sim.variants import CONFLICTS, VARIANTS
@@ -61,28 +68,10 @@ def certify_and_record(pytester: pytest.Pytester, broker: str, unit: UnitAddress
     """Certify a reference unit with ``variants`` that this process runs on ``broker``, while
     a recorder keeps every message under the test's prefix (as `waraps-conformance record`
     would)."""
-    from conformance.client import BrokerURL, MqttClient
-    from conformance.recording import RecordingWriter
-
-    lock = threading.Lock()
-    with recording.open("wb") as f:
-        writer = RecordingWriter(f)
-
-        def keep(m) -> None:  # type: ignore[no-untyped-def]
-            with lock:
-                writer.write(m)
-
-        recorder = MqttClient(BrokerURL.parse(broker), on_message=keep)
-        recorder.connect()
-        recorder.subscribe(f"{unit.prefix}/#", qos=1)
-        try:
-            with SimUnit(unit, broker, variants=variants, rate=2.0, seed=1,
-                         tst_execution=tst) as sim:
-                return certify(pytester, "--unit", str(unit), "--broker", broker,
-                               f"--profile={PROFILE}", "--seed", "1",
-                               plugins=(Rebooter(sim),))
-        finally:
-            recorder.close()
+    with recorded(broker, unit.prefix, recording), \
+            SimUnit(unit, broker, variants=variants, rate=2.0, seed=1, tst_execution=tst) as sim:
+        return certify(pytester, "--unit", str(unit), "--broker", broker,
+                       f"--profile={PROFILE}", "--seed", "1", plugins=(Rebooter(sim),))
 
 
 def verdicts(rules: dict[str, dict]) -> dict[str, set[str]]:
