@@ -10,8 +10,9 @@ each step and judges it; a disagreement is told as a ``Story`` (story.py).
 Against a slow, real system (FIELD-NOTES 'hypothesis against a slow, real system'): no
 per-step deadline, a bounded step count, health checks off, and the wall-clock budget is ours:
 past it no example starts and no step runs (``OutOfBudget`` is not an ``Exception``, so
-hypothesis lets it through), and the shortest failing story seen so far is the one reported,
-printed the moment the first is found, shrunk or not.
+hypothesis lets it through). The first disagreement ends the generation (``Found``); it is
+printed at once, then shrunk by replaying it with steps left out (``shrink.py``) in what is
+left of the budget, and the shortest story so far is the one reported, shrunk or not.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from typing import Any
 
 from conformance.scenarios.context import BUILTIN_SIGNALS, RUNS_UNTIL_ENOUGH
 from conformance.scenarios.explore_steps import UNCHANGED, Disagreement, Explorer, Step
+from conformance.scenarios.shrink import shrink
 from conformance.scenarios.story import Story
 
 STEPS = 10
@@ -41,6 +43,12 @@ SIGNALS = ("$pause", "$abort", "$continue", "$enough")
 class OutOfBudget(BaseException):
     """The exploration's time is up (a BaseException: hypothesis must not take it for a
     failure of the unit and shrink it)."""
+
+
+class Found(BaseException):
+    """The unit disagreed with the model: hypothesis stops at once (it would shrink by its
+    own choices, and replay the example to report it); the story is shrunk by replay
+    (``shrink.py``)."""
 
 
 class Stopped(BaseException):
@@ -63,7 +71,9 @@ class Outcome:
     ended: str = ""
     """Why it ended: 'budget', 'shrunk', 'exhausted' (hypothesis had nothing more to try)."""
     last_error: str = ""
-    """What hypothesis ended with (the failure it re-raised, or its own complaint)."""
+    """What hypothesis ended with (its own complaint, if any)."""
+    replays: int = 0
+    """Replays of shorter stories while shrinking."""
 
 
 class Search:
@@ -78,6 +88,9 @@ class Search:
         self.started = time.monotonic()
         self.outcome = Outcome()
         self.spent = False
+        self.failed = False
+        """This example disagreed: its teardown ends the exploration (``Found``)."""
+        self.example_began = self.started
 
     def left(self) -> float:
         return self.budget - (time.monotonic() - self.started)
@@ -87,74 +100,93 @@ class Search:
             self.spent = True
             raise OutOfBudget()
 
+    def begin_example(self) -> None:
+        self.check()
+        self.outcome.examples += 1
+        self.example_began = time.monotonic()
+        self.explorer.begin()
+
     def run_step(self, action: dict[str, Any]) -> None:
         self.check()
         try:
             self.explorer.do(action)
-        except Disagreement as d:
-            self.found(d)
-            raise
+        except Disagreement:
+            self.failed = True
+            raise Found() from None
         except Exception as e:  # not the unit's disagreement: end the exploration with it
             raise Stopped(e) from e
         finally:
             self.outcome.steps = self.explorer.total_steps
 
     def end_example(self) -> None:
+        """The example's teardown (every task aborted, what the unit owes awaited): what it
+        finds belongs to the story too; a disagreement ends the exploration here."""
         try:
             self.explorer.end()
-        except Disagreement as d:
-            self.found(d)
-            raise
+        except Disagreement:
+            self.failed = True
         except Exception as e:
             raise Stopped(e) from e
         finally:
             self.outcome.steps = self.explorer.total_steps
-
-    def found(self, d: Disagreement) -> None:
-        """Keep the story if it is the first or shorter than the one kept; tell the first."""
-        story = Story(list(d.steps), d.step, self.seed)
-        best = self.outcome.story
-        if best is None:
-            story.found_after = time.monotonic() - self.started
-            story.found_steps = self.explorer.total_steps
-            story.first_length = story.length
-            self.outcome.story = story
-            self.on_story(story)
-        elif (story.length, story.failing) < (best.length, best.failing):
-            story.found_after, story.found_steps = best.found_after, best.found_steps
-            story.first_length = best.first_length
-            self.outcome.story = story
+        if self.failed:
+            raise Found()
 
     def run(self) -> Outcome:
-        """Explore until the budget is spent or a story is shrunk (or hypothesis gives up)."""
+        """Explore until a disagreement or the budget's end; shrink the story in what is
+        left of the budget."""
         from hypothesis import HealthCheck, Phase, Verbosity, settings
         from hypothesis import seed as hseed
         from hypothesis.stateful import run_state_machine_as_test
 
         machine = hseed(self.seed)(machine_for(self))
         how = settings(max_examples=EXAMPLES, stateful_step_count=STEPS, deadline=None,
-                       database=None, derandomize=False, phases=[Phase.generate, Phase.shrink],
+                       database=None, derandomize=False, phases=[Phase.generate],
                        suppress_health_check=list(HealthCheck), verbosity=Verbosity.quiet,
                        report_multiple_bugs=False, print_blob=False)
         try:
             run_state_machine_as_test(machine, settings=how)
             self.outcome.ended = "exhausted"
+        except Found:
+            self._shrink()
         except (Stopped, KeyboardInterrupt):
             raise
         except BaseException as e:
-            self.outcome.last_error = f"{type(e).__name__}: {str(e)[:200]}"
-            # Out of budget (hypothesis may complain on its way out that the example stopped
-            # early), or hypothesis re-raised the (shrunk) failure: the story is kept.
-            if self.spent:
-                self.outcome.ended = "budget"
-            elif self.outcome.story is not None:
-                self.outcome.ended = "shrunk"
-            else:
+            if not self.spent:
                 raise
+            # Out of budget (hypothesis may complain on its way out that the example
+            # stopped early).
+            self.outcome.ended = "budget"
+            if not isinstance(e, OutOfBudget):
+                self.outcome.last_error = f"{type(e).__name__}: {str(e)[:200]}"
         self.outcome.elapsed = time.monotonic() - self.started
-        if self.outcome.story is not None:
-            self.outcome.story.shrunk = self.outcome.ended == "shrunk"
         return self.outcome
+
+    def _shrink(self) -> None:
+        """Tell the story found at once, then leave out steps while the unit still
+        disagrees (``shrink.py``), within the budget."""
+        story = Story.of(self.explorer.steps, self.seed)
+        story.found_after = time.monotonic() - self.started
+        story.found_steps = self.explorer.total_steps
+        story.first_length = story.length
+        self.outcome.story = story
+        self.on_story(story)
+
+        def attempt(actions: list[dict[str, Any]]) -> tuple[int, set[int], Story] | None:
+            self.outcome.replays += 1
+            found = run_example(self.explorer, actions, self.seed)
+            self.outcome.steps = self.explorer.total_steps
+            return None if found is None else (found.failing, self.explorer.involved(), found)
+
+        _, shorter, done = shrink(story.actions(), story.failing, self.explorer.involved(),
+                                  attempt, self.left,
+                                  expected=time.monotonic() - self.example_began)
+        if shorter is not None:
+            shorter.found_after, shorter.found_steps = story.found_after, story.found_steps
+            shorter.first_length = story.first_length
+            self.outcome.story = story = shorter
+        story.shrunk = done
+        self.outcome.ended = "shrunk" if done else "budget"
 
 
 def machine_for(search: Search) -> type:
@@ -179,9 +211,7 @@ def machine_for(search: Search) -> type:
     class Exploration(RuleBasedStateMachine):
         def __init__(self) -> None:
             super().__init__()
-            search.check()
-            search.outcome.examples += 1
-            explorer.begin()
+            search.begin_example()
 
         # Two starts an example (a third while a task is paused: ``task_commands``): the
         # steps go to what is done with the tasks.
@@ -294,18 +324,34 @@ def resend_order(explorer: Explorer) -> list[int]:
     return sorted(explorer.commands, key=lambda i: (not _ended_start(explorer, states, i), -i))
 
 
-def replay(explorer: Explorer, actions: list[dict[str, Any]], seed: int = 0) -> Story | None:
-    """Run a stored story's steps once, in order (its teardown as well): the story of the
-    disagreement it shows again, or None when the unit now answers as the model says."""
+def run_example(explorer: Explorer, actions: list[dict[str, Any]],
+                seed: int = 0) -> Story | None:
+    """Run steps once, in order, and the teardown whatever happens (every task aborted):
+    the story of the disagreement they show, or None when the unit answers as the model
+    says."""
     explorer.begin()
+    failed = False
     try:
         for action in actions:
             explorer.do(action)
-        explorer.end()
-    except Disagreement as d:
-        return Story(list(d.steps), d.step, seed, shrunk=True)
-    return None
+    except Disagreement:
+        failed = True
+    finally:
+        try:
+            explorer.end()
+        except Disagreement:
+            failed = True
+    return Story.of(explorer.steps, seed) if failed else None
 
 
-__all__ = ["Disagreement", "Explorer", "OutOfBudget", "Outcome", "Search", "Step", "Stopped",
-           "Story", "replay"]
+def replay(explorer: Explorer, actions: list[dict[str, Any]], seed: int = 0) -> Story | None:
+    """Run a stored story's steps once (its teardown as well): the story of the
+    disagreement it shows again, or None when the unit now answers as the model says."""
+    story = run_example(explorer, actions, seed)
+    if story is not None:
+        story.shrunk = True
+    return story
+
+
+__all__ = ["Disagreement", "Explorer", "Found", "OutOfBudget", "Outcome", "Search", "Step",
+           "Stopped", "Story", "replay", "run_example"]

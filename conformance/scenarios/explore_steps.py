@@ -69,6 +69,8 @@ class Step:
     found: list[Violation] = field(default_factory=list)
     coms: list[str] = field(default_factory=list, repr=False)
     """com-uuids this step sent (its answers are the responses to them)."""
+    at: float = field(default_factory=time.time, repr=False)
+    """When the step began (Unix time, the clock of the messages' arrival times)."""
 
     def to_json(self) -> dict[str, Any]:
         return {"action": self.action, "sent": self.sent, "came": self.came,
@@ -80,13 +82,16 @@ def _text_of(v: Violation) -> str:
     return " ".join((v.expected, v.observed, v.excerpt or "", v.detail or ""))
 
 
-def blame(steps: list[Step], found: list[Violation]) -> int:
-    """The step whose command the violations name (by com-uuid; a deadline passes steps
-    later), else the last step."""
+def blame(steps: list[Step], v: Violation) -> int:
+    """The step ``v`` is about: the one under way when the traffic it judges came (a task
+    that left tasks-executing, an answer, a feedback); for a deadline, whose finding is
+    timed when the command was sent, that is the step that sent it. Without a time, the
+    step whose command it names (by com-uuid), else the last step."""
+    if v.time is not None and steps and steps[0].at <= v.time:
+        return max(i for i, step in enumerate(steps) if step.at <= v.time)
     for i, step in enumerate(steps):
-        for v in found:
-            if any(com in _text_of(v) for com in step.coms):
-                return i
+        if any(com in _text_of(v) for com in step.coms):
+            return i
     return len(steps) - 1
 
 
@@ -98,16 +103,24 @@ def ours(found: list[Violation], uuids: set[str]) -> list[Violation]:
 
 
 class Disagreement(AssertionError):
-    """The unit's answers broke a rule of the model at ``step`` (an index into ``steps``)."""
+    """The unit's answers broke a rule of the model: each violation is told at the step it
+    is about (``blame``); ``step`` is the first such step (an index into ``steps``)."""
 
     def __init__(self, steps: list[Step], found: list[Violation]) -> None:
-        step = blame(steps, found)
-        if not steps[step].found:
-            steps[step].found = list(found)
-        rules = sorted({v.rule for v in found})
-        super().__init__(f"step {step + 1}: {', '.join(rules)}")
+        for v in found:
+            at = steps[blame(steps, v)].found
+            if v not in at:
+                at.append(v)
+        step = first_disagreement(steps)
+        super().__init__(f"step {step + 1}: {', '.join(sorted({v.rule for v in found}))}")
         self.steps = steps
         self.step = step
+        self.found = found
+
+
+def first_disagreement(steps: list[Step]) -> int:
+    """The first step where the model and the unit disagree (the last step if none)."""
+    return next((i for i, step in enumerate(steps) if step.found), len(steps) - 1)
 
 
 class Collector:
@@ -179,11 +192,16 @@ class Explorer:
         if self.ctx.commander.dry_run:
             return
         t = self.ctx.timing
+        found: list[Violation] = []
         for i, slot in enumerate(self.slots):
             self._refresh(slot)
             if slot.task_uuid is not None and slot.state not in ("refused", "ended"):
-                # A step of the story too: a unit may break a rule on this very abort.
-                self.do({"do": "signal", "signal": "$abort", "slot": i, "teardown": True})
+                # A step of the story too: a unit may break a rule on this very abort, and
+                # every task is aborted all the same.
+                try:
+                    self.do({"do": "signal", "signal": "$abort", "slot": i, "teardown": True})
+                except Disagreement as d:
+                    found += d.found
         # A task the unit no longer knows (its abort answered 'failed') that never said its
         # final status (12.4) is late once it has left tasks-executing for the response
         # deadline: the Monitor judges it then.
@@ -197,7 +215,7 @@ class Explorer:
                                       until - time.time() + t.periods(2, self._rate()),
                                       subtopic="heartbeat", what="the deadlines of the "
                                       "exploration's commands")
-        found = ours(self.collector.since(mark), self._uuids())
+        found += ours(self.collector.since(mark), self._uuids())
         if found and self.steps:
             raise Disagreement(self.steps, found)
 
@@ -224,6 +242,16 @@ class Explorer:
         found.update(self.ctx.commander.unit_task_uuid(s.task_uuid) for s in self.slots
                      if s.task_uuid)
         found.update(s.task_uuid for s in self.slots if s.task_uuid)
+        return found
+
+    def involved(self) -> set[int]:
+        """The slots this example's disagreement is about: the tasks its findings name (by
+        task-uuid) and the task of each step where one was found."""
+        text = " ".join(_text_of(v) for step in self.steps for v in step.found)
+        found = {i for i, s in enumerate(self.slots) if s.task_uuid and (
+            s.task_uuid in text or self.ctx.commander.unit_task_uuid(s.task_uuid) in text)}
+        found.update(slot for step in self.steps if step.found
+                     for slot in [step.action.get("slot")] if isinstance(slot, int))
         return found
 
     def _answers(self, after: int, step: Step) -> list[Entry]:
@@ -329,6 +357,23 @@ class Explorer:
         if slot.task_uuid is not None:  # its first feedback (12.4), briefly
             self.ctx.commander.feedback(slot.task_uuid, None, self.ctx.timing.response,
                                         after=sent.mark)
+            self._listed(slot.task_uuid, sent.mark)
+
+    def _listed(self, task_uuid: str, after: int) -> None:
+        """Until tasks-executing (5.3) lists the task, one period of direct_execution_info at
+        most: a task seen listed that leaves it with no final status is EXEC-START-003's
+        evidence, whatever step comes next (a unit that never lists it is DEI-004's)."""
+        uuid_ = self.ctx.commander.unit_task_uuid(task_uuid)
+
+        def lists(e: Entry) -> bool:
+            executing = e.get("tasks-executing")
+            return isinstance(executing, list) and any(
+                isinstance(t, dict) and t.get("task-uuid") == uuid_ for t in executing)
+        self.ctx.traffic.wait_for(
+            lists, min(self.ctx.timing.response,
+                       self.ctx.timing.periods(1, self.ctx.rate_of("direct_execution_info"))),
+            after=after, subtopic="direct_execution_info",
+            what=f"task {uuid_} in tasks-executing (explore)")
 
     def _signal(self, step: Step, action: dict[str, Any]) -> None:
         signal = str(action["signal"])

@@ -13,7 +13,7 @@ from typing import Any
 
 from conformance.reporting.text import printable, render_violation
 from conformance.rules import CATALOGUE
-from conformance.scenarios.explore_steps import Step
+from conformance.scenarios.explore_steps import Step, first_disagreement
 
 FORMAT = "waraps-conformance explore story 1"
 MAX_FILE = 2_000_000
@@ -68,7 +68,14 @@ class Story:
 
     @property
     def rules(self) -> list[str]:
-        return sorted({v.rule for v in self.steps[self.failing].found})
+        """The rules broken, at any step (the teardown's too: a task that vanished shows
+        when the example ends)."""
+        return sorted({v.rule for step in self.steps for v in step.found})
+
+    @classmethod
+    def of(cls, steps: list[Step], seed: int) -> Story:
+        """The story of an example's steps, failing where they first disagree."""
+        return cls(list(steps), first_disagreement(steps), seed)
 
     def actions(self) -> list[dict[str, Any]]:
         """The steps to replay (the teardown is the explorer's own, run again anyway)."""
@@ -78,7 +85,7 @@ class Story:
         lines = [heading or f"exploration: the unit and the model disagree at step "
                  f"{self.failing + 1} of {len(self.steps)} (seed {self.seed})"]
         for i, step in enumerate(self.steps):
-            mark = "   <-- the model and the unit disagree here" if i == self.failing else ""
+            mark = "   <-- the model and the unit disagree here" if step.found else ""
             lines.append(f"  {i + 1:>2}. {printable(describe(step.action))}{mark}")
             for text in step.sent:
                 lines.append(f"      sent  {printable(text)}")
@@ -86,7 +93,7 @@ class Story:
                 lines.append(f"      {'came' if j == 0 else '':<4}  {printable(text)}")
         lines.append("")
         shown = set()
-        for v in self.steps[self.failing].found:
+        for v in (v for step in self.steps for v in step.found):
             if v.rule in shown or v.rule not in CATALOGUE:
                 continue
             shown.add(v.rule)

@@ -56,7 +56,9 @@ def rerun(c: Certification, path: Path) -> str:
     base = c.settings.rerun_command()
     if c.settings.explore_replay is None:
         base += f" --explore-replay={shlex.quote(str(path))}"
-    return base + " -k test_explore"
+    words = shlex.split(base)
+    selected = any(a == "-k" and b == "test_explore" for a, b in zip(words, words[1:], strict=False))
+    return base if selected else base + " -k test_explore"
 
 
 def run(c: Certification, node: pytest.Item) -> None:
