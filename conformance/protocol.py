@@ -14,6 +14,9 @@ Public API (stable):
 
 - ``State``: ``UNKNOWN`` (never seen), ``RUNNING``, ``PAUSED``, ``FINISHED``, ``ABORTED``,
   ``FAILED``; ``.live``, ``.ended``.
+- Tables, which the conversation checks and the scenarios read too (docs/MODEL.md):
+  ``BUILTIN_SIGNALS``, ``SIGNAL_EFFECT``, ``SIGNAL_RULE``, ``UNCHANGED``, ``STOP_SIGNALS``,
+  ``QUERY_ANSWERS``, ``REFUSED_QUERY``.
 - ``Command``: one command (``com_uuid``, ``name``, ``task_uuid``, ``signal``, ``task_name``,
   ``content``: a digest); ``Command.read(payload)`` from JSON bytes or a dict (None if no
   com-uuid).
@@ -89,20 +92,22 @@ SIGNAL_EFFECT: dict[str, tuple[str, State]] = {
     "$abort": ("aborted", State.ABORTED), "$enough": ("finished", State.FINISHED),
     "$pause": ("paused", State.PAUSED), "$continue": ("running", State.RUNNING)}
 """12.2.2: the feedback a signal answered 'ok' implies, and the state it leads to."""
+SIGNAL_RULE = {"$abort": "EXEC-SIG-002", "$enough": "EXEC-SIG-004", "$pause": "EXEC-SIG-003",
+               "$continue": "EXEC-SIG-003"}
+"""The rule that feedback proves (12.2.2)."""
+UNCHANGED = frozenset({("$pause", State.PAUSED), ("$continue", State.RUNNING)})
+"""(signal, state) pairs that change nothing: no feedback is owed (EXEC-SEQ-001's decision,
+docs/MODEL.md). A State is its str: ``("$pause", "paused")`` is in it too."""
 STOP_SIGNALS = ("$abort", "$enough")
 """The signals that end a task (12.2.2); after an 'ok' to $abort nothing may run it on
 (EXEC-SEQ-001), $enough lets it wind down its own way until 'finished' (EXEC-SIG-004)."""
-QUERY_ANSWERS: dict[State, frozenset[str]] = {
-    State.RUNNING: frozenset({"running"}),
-    State.PAUSED: frozenset({"running", "paused"}),
-    State.FINISHED: frozenset({"finished", "success"}),
-    State.FAILED: frozenset({"failed"}),
-    State.ABORTED: frozenset({"failed", "aborted"}),
-    State.UNKNOWN: frozenset({"unknown"}),
-}
+QUERY_ANSWERS: dict[State, tuple[str, ...]] = {
+    State.RUNNING: ("running",), State.PAUSED: ("running", "paused"),
+    State.FINISHED: ("finished", "success"), State.FAILED: ("failed",),
+    State.ABORTED: ("failed", "aborted"), State.UNKNOWN: ("unknown",)}
 """12.1: query-status answers 'running, failed, success, unknown'; 'paused' and 'aborted' are
 12.4's words for what that list calls running and failed, 'success' is ERR-006's reading of
-finished (the same table as ``checks.exec_response.QUERY_ANSWERS``)."""
+finished. In the order a finding lists them."""
 REFUSED_QUERY = frozenset({"failed", "unknown"})
 """A task-uuid whose start-task was refused: 'failed' (it failed to start) or 'unknown' (it
 never ran); the spec does not say which (docs/MODEL.md)."""
@@ -265,11 +270,11 @@ class Model:
         A task the model never saw: 'unknown' when it saw the whole life, else anything."""
         task = self.tasks.get(task_uuid) if task_uuid else None
         if task is None:
-            return QUERY_ANSWERS[State.UNKNOWN] if self.whole_life else frozenset(
+            return frozenset(QUERY_ANSWERS[State.UNKNOWN]) if self.whole_life else frozenset(
                 {"unknown", "running", "paused", "finished", "success", "failed", "aborted"})
         if task.refused:
             return REFUSED_QUERY
-        return QUERY_ANSWERS[task.state]
+        return frozenset(QUERY_ANSWERS[task.state])
 
     def expect(self, command: Command) -> Expectation:
         """Which answers ``command`` may get now, and what each leads to (pure)."""
@@ -336,10 +341,8 @@ class Model:
             return Expectation(command, resend, (Outcome("ok"), failed), "EXEC-SIG-001",
                                untouched=others)
         status, after = effect
-        noop = (signal == "$pause" and task.state is State.PAUSED
-                or signal == "$continue" and task.state is State.RUNNING)
-        ok = Outcome("ok") if noop else Outcome("ok", {task.task_uuid: after},
-                                                {task.task_uuid: frozenset({status})})
+        ok = Outcome("ok") if (signal, task.state) in UNCHANGED else Outcome(
+            "ok", {task.task_uuid: after}, {task.task_uuid: frozenset({status})})
         return Expectation(command, resend, (ok, failed), "EXEC-SIG-001",
                            may_end=frozenset({task.task_uuid}) if signal in STOP_SIGNALS
                            else frozenset(), untouched=others,

@@ -40,7 +40,6 @@ COMMANDS_KEPT = 1024
 """Commands remembered per unit (resends, late answers, EXEC-006): at one a minute, 17 hours;
 a few hundred bytes each, so a fleet of 200 units stays under about 100 MiB however long."""
 TASKS_KEPT = 1024
-FINAL_STATUSES = frozenset({"finished", "failed", "aborted"})  # 12.4
 FEEDBACK_WITHOUT_TASK_UUID = "feedback-without-task-uuid"
 """UnitState.private key: the unit sent feedback without a task-uuid."""
 

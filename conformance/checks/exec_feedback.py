@@ -14,13 +14,12 @@ from conformance.checks.base import CheckContext, UnitState, check, reinterprets
 from conformance.checks.command_history import response_timeout, str_of, violation
 from conformance.checks.conversation import (
     FEEDBACK_WITHOUT_TASK_UUID,
-    FINAL_STATUSES,
     Task,
     conversations,
     task_uuid_sent,
 )
 from conformance.message import Message
-from conformance.status import meaning
+from conformance.status import FINAL_STATUSES, meaning
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation

@@ -13,6 +13,7 @@ import dataclasses
 from collections.abc import Iterator
 from typing import Any
 
+from conformance import protocol
 from conformance.checks.base import CheckContext, UnitState, check, reinterprets
 from conformance.checks.command_history import late, response_timeout, str_of, violation
 from conformance.checks.conversation import (
@@ -32,15 +33,14 @@ from conformance.violation import Violation
 
 EXPECTS_KEPT = 64
 STRAY_PONGS_KEPT = 8
-SIGNAL_FEEDBACK = {"$abort": ({"aborted"}, "EXEC-SIG-002"), "$enough": ({"finished"}, "EXEC-SIG-004"),
-                   "$pause": ({"paused"}, "EXEC-SIG-003"), "$continue": ({"running"}, "EXEC-SIG-003")}
-"""12.2.2: the feedback a signal answered 'ok' implies, and the rule it proves."""
-QUERY_ANSWERS = {"running": ("running",), "paused": ("running", "paused"),
-                 "finished": ("finished", "success"), "failed": ("failed",),
-                 "aborted": ("failed", "aborted")}
-"""12.1: what query-status may answer for a task whose latest feedback was this status
-('success' is 12.1's own word, ERR-006; 'paused' and 'aborted' are 12.4's words for what
-12.1's list calls running and failed)."""
+SIGNAL_FEEDBACK = {s: ({status}, protocol.SIGNAL_RULE[s])
+                   for s, (status, _) in protocol.SIGNAL_EFFECT.items()}
+"""12.2.2 (the model's tables): the feedback a signal answered 'ok' implies, and the rule it
+proves."""
+QUERY_ANSWERS = {state.value: answers for state, answers in protocol.QUERY_ANSWERS.items()
+                 if state is not protocol.State.UNKNOWN}
+"""12.1 (the model's table): what query-status may answer for a task whose latest feedback
+was this status."""
 
 
 @check("EXEC-006", "EXEC-009", "EXEC-010", "EXEC-PING-001", "EXEC-PING-002", "EXEC-START-001",
@@ -169,8 +169,7 @@ def _judge_first_answer(ctx: CheckContext, unit: UnitState, c: Conversations, cm
         task = c.tasks.get(cmd.task_uuid) if cmd.task_uuid else None
         # The model's decision (EXEC-SEQ-001, docs/MODEL.md): $continue to a running task
         # and $pause to a paused one change nothing, so no feedback is owed for them.
-        unchanged = task is not None and (cmd.signal, task.last_status) in (
-            ("$continue", "running"), ("$pause", "paused"))
+        unchanged = task is not None and (cmd.signal, task.last_status) in protocol.UNCHANGED
         if (value == "ok" and expected and task is not None and task.life == c.life
                 and task.last_status in expected[0] and task.last_time is not None
                 and task.last_time >= cmd.time):

@@ -20,6 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from conformance.protocol import UNCHANGED
 from conformance.rules import CATALOGUE, Mode, Severity
 from conformance.scenarios.context import Context
 from conformance.scenarios.deviation import FINAL_STATUSES, meaning
@@ -32,9 +33,6 @@ from conformance.violation import Violation
 SHOWN = 300
 """Characters of a message shown in a story (the stored story keeps the same)."""
 MAX_STEPS = 200
-UNCHANGED = {("$pause", "paused"), ("$continue", "running")}
-"""Signals that change nothing in that state: no feedback is owed (the model's decision,
-EXEC-SEQ-001 in the catalogue, docs/MODEL.md)."""
 """Steps kept per example (a story longer than the step count never happens)."""
 
 

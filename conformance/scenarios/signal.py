@@ -9,6 +9,7 @@ answered 'failed' (EXEC-SIG-005).
 
 from __future__ import annotations
 
+from conformance.protocol import SIGNAL_EFFECT, SIGNAL_RULE
 from conformance.scenarios.context import Context, describe
 from conformance.scenarios.params import valid_params
 from conformance.scenarios.sender import new_uuid
@@ -16,11 +17,9 @@ from conformance.scenarios.traffic import Entry
 from conformance.violation import Verdict
 
 RULES = ("EXEC-SIG-001", "EXEC-SIG-002", "EXEC-SIG-003", "EXEC-SIG-004", "EXEC-SIG-005")
-# The feedback status each built-in signal implies (12.2.2, 12.4).
-IMPLIED = {"$pause": "paused", "$continue": "running", "$enough": "finished",
-           "$abort": "aborted"}
-RULE_OF = {"$pause": "EXEC-SIG-003", "$continue": "EXEC-SIG-003", "$enough": "EXEC-SIG-004",
-           "$abort": "EXEC-SIG-002"}
+# The feedback status each built-in signal implies and the rule it proves (12.2.2, the model's).
+IMPLIED = {signal: status for signal, (status, _) in SIGNAL_EFFECT.items()}
+RULE_OF = SIGNAL_RULE
 
 
 def _answered(ctx: Context, signal: str, task: str, answer: Entry | None) -> bool:

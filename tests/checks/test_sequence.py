@@ -10,7 +10,7 @@ import orjson
 
 from conformance.checks import Monitor
 from conformance.profile import Profile
-from conformance.protocol import NEW_TASK, Command, Model, State
+from conformance.protocol import BUILTIN_SIGNALS, NEW_TASK, SIGNAL_RULE, Command, Model, State
 from conformance.violation import Verdict
 
 TIMEOUTS = Profile(response_timeout=1.0, feedback_timeout=3.0)
@@ -176,13 +176,44 @@ def test_a_new_life_forgets_the_tasks():
     assert model.tasks == {} and model.query_answers("t1") == {"unknown"}
 
 
-def test_the_model_says_what_the_conversation_checks_say():
-    """One vocabulary: the model's tables agree with the conversation checks' (12.1, 12.2.2)."""
-    from conformance.checks.exec_response import QUERY_ANSWERS, SIGNAL_FEEDBACK
-    from conformance.protocol import QUERY_ANSWERS as MODEL_QUERY
-    from conformance.protocol import SIGNAL_EFFECT
+REACHED = {State.RUNNING: (), State.PAUSED: ("paused",), State.FINISHED: ("finished",),
+           State.FAILED: ("failed",), State.ABORTED: ("aborted",)}
+"""Feedback after a start's 'running' that brings a task to each state the traffic shows."""
 
-    for status, answers in QUERY_ANSWERS.items():
-        assert set(answers) <= MODEL_QUERY[State(status)], status
-    assert {s: {status} for s, (status, _) in SIGNAL_EFFECT.items()} == {
-        s: wanted for s, (wanted, _) in SIGNAL_FEEDBACK.items()}
+
+def _reached(stream, task: str, state: State) -> tuple[list, Model]:
+    """The traffic that brings ``task`` to ``state``, and the model that saw it."""
+    history = start(stream, 2.0, task) + [stream.feedback(2.5, task, s) for s in REACHED[state]]
+    model = Model(whole_life=True)
+    for m in history:
+        model.observe(m)
+    assert model.state(task) is state
+    return history, model
+
+
+def test_query_status_is_judged_by_the_models_answers(stream):
+    """12.1: EXEC-QUERY-001 (the conversation check) fails an answer exactly where the model
+    does not allow it, for a task in each state and every word query-status might say."""
+    for state in REACHED:
+        a = new()
+        history, model = _reached(stream, a, state)
+        for answer in ("running", "paused", "finished", "success", "failed", "aborted",
+                       "unknown"):
+            q = stream.command(4.0, "query-status", **{"task-uuid": a})
+            com = orjson.loads(q.payload)["com-uuid"]
+            rules = judge(stream, [*history, q, stream.response(4.1, com, answer)])
+            fails = rules["EXEC-QUERY-001"].verdict is Verdict.FAIL
+            assert fails == (answer not in model.query_answers(a)), (state, answer)
+
+
+def test_feedback_is_owed_after_a_signal_where_the_model_implies_it(stream):
+    """12.2.2: after an 'ok' to a built-in signal and no feedback, the conversation checks fail
+    the signal's rule exactly where the model's outcome implies feedback (UNCHANGED: none)."""
+    for state in (State.RUNNING, State.PAUSED):
+        for sig in BUILTIN_SIGNALS:
+            a = new()
+            history, model = _reached(stream, a, state)
+            sent = signal(stream, 3.0, a, sig)
+            implied = model.expect(Command.read(sent[0].payload)).outcome("ok").implies
+            owed = failing(judge(stream, history + sent)) & set(SIGNAL_RULE.values())
+            assert owed == ({SIGNAL_RULE[sig]} if implied else set()), (state, sig)
