@@ -2,6 +2,7 @@
 
     python bench/bench_explore.py                  # N=10 seeds, every sequence fault
     python bench/bench_explore.py --seeds 3 --jobs 6 --faults pause-pauses-all
+    python bench/bench_explore.py --order random    # without the model's guidance
 
 Every run is a real ``pytest --unit ... --broker embedded -k test_explore`` in a subprocess
 (only the exploration runs: it starts from the unit's own state, as after the scripted
@@ -9,11 +10,12 @@ scenarios), with ``--explore`` the default budget at 1 Hz (50 s) unless ``--budg
 
 - conformant: steps per minute (the report's ``explore`` summary), and that nothing is found;
 - each sequence fault of ``conformance.sim.faults`` (``SEQUENCE_FAULTS``), over ``--seeds``
-  seeds: how often it is found within the budget, the median time and number of steps until
-  the first failing example, and the median length of the story reported (shrunk or not).
+  seeds: how often it is found within the budget, how often by its own rule, the median time
+  and number of steps until the first failing example, the median length of the story
+  reported, and how many were shrunk to the end within the budget.
 
-Prints a table and writes bench/results/explore.json. Measures, asserts nothing (the machine
-is shared: figures drift). ``--jobs`` runs that many at once (they mostly wait on the unit).
+Prints a table and writes bench/results/explore-ORDER.json. Measures, asserts nothing (the
+machine is shared: figures drift). ``--jobs`` runs that many at once (they mostly wait on the unit).
 """
 
 from __future__ import annotations
@@ -35,14 +37,15 @@ UNIT = "waraps/unit/air/simulation/dji0"
 SUMMARY = re.compile(r"(\d+) examples, (\d+) steps in (\d+) s")
 
 
-def run(fault: str | None, seed: int, budget: str, rate: float) -> dict[str, object]:
+def run(fault: str | None, seed: int, budget: str, rate: float,
+        order: str = "model") -> dict[str, object]:
     """One exploration in a subprocess: its wall time, exit status, and what it found."""
     with tempfile.TemporaryDirectory() as tmp:
         reports = Path(tmp) / "reports"
         args = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist",
                 "-o", "addopts=", "-q", "--unit", UNIT, "--broker", "embedded",
                 f"--sim-rate={rate:g}", f"--seed={seed}", f"--explore={budget}",
-                f"--reports-dir={reports}", "-k", "test_explore"]
+                f"--reports-dir={reports}", f"--explore-order={order}", "-k", "test_explore"]
         if fault:
             args.append(f"--sim-fault={fault}")
         t0 = time.monotonic()
@@ -73,7 +76,7 @@ def median(values: list[float]) -> float | None:
 
 
 def main() -> int:
-    from conformance.sim.faults import SEQUENCE_FAULTS
+    from conformance.sim.faults import FAULTS, SEQUENCE_FAULTS
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10, help="seeds per fault (issue: 10)")
@@ -83,12 +86,15 @@ def main() -> int:
     ap.add_argument("--rate", type=float, default=1.0)
     ap.add_argument("--jobs", type=int, default=4)
     ap.add_argument("--no-conformant", action="store_true")
+    ap.add_argument("--order", choices=("model", "random"), default="model",
+                    help="--explore-order of each run: random measures the search without "
+                         "the model's guidance (most telling command first)")
     a = ap.parse_args()
     seeds = range(a.first_seed, a.first_seed + a.seeds)
     jobs = [(None, a.first_seed)] if not a.no_conformant else []
     jobs += [(f, s) for f in a.faults for s in seeds]
     with ThreadPoolExecutor(a.jobs) as pool:
-        runs = list(pool.map(lambda j: run(j[0], j[1], a.budget, a.rate), jobs))
+        runs = list(pool.map(lambda j: run(j[0], j[1], a.budget, a.rate, a.order), jobs))
     table: dict[str, dict[str, object]] = {}
     for r in runs:
         if r["fault"] is None:
@@ -96,41 +102,47 @@ def main() -> int:
             table["conformant"] = {"steps_per_minute": round(per_min), "found": r["found"],
                                    "examples": r.get("examples"), "wall_s": r["wall_s"]}
             continue
-        row = table.setdefault(str(r["fault"]), {"runs": 0, "found": 0, "after": [],
-                                                 "steps": [], "length": [], "rules": set()})
+        row = table.setdefault(str(r["fault"]), {"runs": 0, "found": 0, "own": 0, "shrunk": 0,
+                                                 "after": [], "steps": [], "length": [],
+                                                 "rules": set()})
         row["runs"] += 1  # type: ignore[operator]
         if r["found"]:
             row["found"] += 1  # type: ignore[operator]
+            own = set(FAULTS[str(r["fault"])].rules) & set(r["rules"])  # type: ignore[arg-type]
+            row["own"] += bool(own)  # type: ignore[operator]
+            row["shrunk"] += bool(r["shrunk"])  # type: ignore[operator]
             row["after"].append(r["found_after_s"])  # type: ignore[union-attr]
             row["steps"].append(r["found_steps"])  # type: ignore[union-attr]
             row["length"].append(r["length"])  # type: ignore[union-attr]
             row["rules"].update(r["rules"])  # type: ignore[union-attr]
     print(f"exploration at {a.rate:g} Hz, budget {a.budget}, seeds {seeds.start}.."
-          f"{seeds.stop - 1}")
+          f"{seeds.stop - 1}, order {a.order}")
     if "conformant" in table:
         c = table["conformant"]
         print(f"  conformant: {c['steps_per_minute']} steps/min ({c['examples']} examples), "
               f"found {'something (!)' if c['found'] else 'nothing'}")
-    print(f"  {'fault':<30} {'found':>7} {'median s':>9} {'med steps':>10} "
-          f"{'story':>6}  rules")
+    print(f"  {'fault':<30} {'found':>7} {'own rule':>8} {'median s':>9} {'med steps':>10} "
+          f"{'story':>6} {'shrunk':>7}  rules")
     summary: dict[str, object] = {"rate": a.rate, "budget": a.budget, "seeds": a.seeds,
+                                  "order": a.order,
                                   "conformant": table.get("conformant"), "faults": {}}
     for fault in a.faults:
         row = table.get(fault)
         if row is None:
             continue
         after, steps, length = (median(row[k]) for k in ("after", "steps", "length"))  # type: ignore
-        print(f"  {fault:<30} {row['found']}/{row['runs']:<5} "
+        print(f"  {fault:<30} {row['found']}/{row['runs']:<5} {row['own']:>8} "
               f"{'-' if after is None else f'{after:.0f}':>9} "
               f"{'-' if steps is None else f'{steps:.0f}':>10} "
-              f"{'-' if length is None else f'{length:.0f}':>6}  "
+              f"{'-' if length is None else f'{length:.0f}':>6} {row['shrunk']:>7}  "
               f"{' '.join(sorted(row['rules']))}")  # type: ignore[arg-type]
         summary["faults"][fault] = {  # type: ignore[index]
-            "found": row["found"], "runs": row["runs"], "median_found_after_s": after,
+            "found": row["found"], "runs": row["runs"], "own_rule": row["own"],
+            "shrunk": row["shrunk"], "median_found_after_s": after,
             "median_found_steps": steps, "median_story_length": length,
             "rules": sorted(row["rules"])}  # type: ignore[arg-type]
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "explore.json").write_text(json.dumps({"summary": summary, "runs": runs},
+    (RESULTS / f"explore-{a.order}.json").write_text(json.dumps({"summary": summary, "runs": runs},
                                                      indent=1, default=list))
     return 0
 

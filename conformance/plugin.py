@@ -82,6 +82,11 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     help="after the scripted scenarios, explore command orders this long "
                          "(hypothesis; 90s, 2m; default: 50 heartbeat periods of the unit, "
                          "at least 20 s and at most 50 s; 0: off)")
+    group.addoption("--explore-order", dest="waraps_explore_order", default="model",
+                    choices=("model", "random"), help="how exploration orders what it may "
+                    "send next: 'model' (default) the most telling first in the protocol "
+                    "model's view; 'random' a random order (to measure what the model's "
+                    "guidance adds: bench/bench_explore.py --order random)")
     group.addoption("--explore-replay", dest="waraps_explore_replay", default=None,
                     metavar="FILE", help="replay the story a failing exploration stored "
                     "(reports/*-explore.json) instead of exploring")

@@ -17,6 +17,7 @@ left of the budget, and the shortest story so far is the one reported, shrunk or
 
 from __future__ import annotations
 
+import random
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -80,8 +81,12 @@ class Search:
     """One exploration: the budget, the counters, and the shortest story found so far."""
 
     def __init__(self, explorer: Explorer, budget: float, seed: int,
-                 on_story: Callable[[Story], None] = lambda story: None) -> None:
+                 on_story: Callable[[Story], None] = lambda story: None,
+                 guided: bool = True) -> None:
         self.explorer = explorer
+        self.guided = guided
+        """Whether each choice offers the most telling options first (the model's view),
+        or in a random order (--explore-order random: what the guidance adds, measured)."""
         self.budget = budget
         self.seed = seed
         self.on_story = on_story
@@ -203,6 +208,10 @@ def machine_for(search: Search) -> type:
         first: early examples and shrinking favour it). Drawn as a number of fixed range
         and mapped onto the options there are, so that the draw does not depend on the
         unit (hypothesis replays a choice only where its range is the same)."""
+        if not search.guided:
+            options = list(options)
+            random.Random(data.draw(st.integers(0, 2**32 - 1), label=f"{label} order")
+                          ).shuffle(options)
         return options[data.draw(st.integers(0, PICK), label=label) % len(options)]
 
     # Hypothesis draws rules by their place in a list sorted by number of arguments (all have

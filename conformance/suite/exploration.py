@@ -135,8 +135,11 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item) -> None:
             f"exploration found a disagreement after {story.found_after:.0f} s "
             f"({story.found_steps} steps); shrinking it within the {seconds:.0f} s budget:")))
 
-    _say(c, f"exploring command orders for {seconds:.0f} s (hypothesis, seed {c.settings.seed})")
-    outcome = Search(explorer, seconds, c.settings.seed, tell).run()
+    order = "" if c.settings.explore_order == "model" else ", in random order"
+    _say(c, f"exploring command orders for {seconds:.0f} s (hypothesis, seed "
+            f"{c.settings.seed}{order})")
+    outcome = Search(explorer, seconds, c.settings.seed, tell,
+                     guided=c.settings.explore_order == "model").run()
     summary = _summary(outcome)
     if outcome.last_error and c.progress.verbosity > 0:
         _say(c, f"exploration ended with {printable(outcome.last_error)}")

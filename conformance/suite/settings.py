@@ -80,6 +80,8 @@ class Settings:
     explore: float | None = None
     """--explore: seconds of exploration after the scripted scenarios (issue 17); None: the
     default (``suite.exploration.default_budget``), 0: off."""
+    explore_order: str = "model"
+    """--explore-order: 'model' (the most telling command first) or 'random'."""
     explore_replay: Path | None = None
     """--explore-replay: the stored story the exploration replays instead of exploring."""
     extra: dict[str, str] = field(default_factory=dict)
@@ -136,6 +138,8 @@ class Settings:
         parts += ["--seed", str(self.seed)]
         if self.explore is not None:
             parts += ["--explore", f"{self.explore:g}"]
+        if self.explore_order != "model":
+            parts += ["--explore-order", self.explore_order]
         if self.explore_replay is not None:
             parts += [f"--explore-replay={shlex.quote(str(self.explore_replay))}"]
         if observe or self.observe:
@@ -257,6 +261,8 @@ def read(config: pytest.Config) -> Settings:
                     markexpr=str(config.getoption("markexpr", "") or ""),
                     observe=_duration(config.getoption("waraps_observe", None), 0.0, "--observe"),
                     explore=_explore(_value(config, "waraps_explore")),
+                    explore_order=str(config.getoption("waraps_explore_order", None)
+                                      or "model"),
                     explore_replay=_replay(config, reports),
                     reboot_cmd=str(reboot) if reboot else None,
                     allow_motion=_flag(config, "waraps_allow_motion"),
