@@ -78,8 +78,8 @@ class Command(SentCommand):
 class Task:
     """One task of a unit as the traffic showed it (12.4)."""
 
-    __slots__ = ("task_uuid", "name", "command", "life", "last_status", "last_time", "final",
-                 "resent", "resend_failed", "listed", "left_at", "running_feedback")
+    __slots__ = ("task_uuid", "name", "command", "life", "last_status", "last_time", "state",
+                 "final", "resent", "resend_failed", "listed", "left_at", "running_feedback")
 
     def __init__(self, task_uuid: str, name: str | None, command: Command | None,
                  life: str | None) -> None:
@@ -90,6 +90,9 @@ class Task:
         self.life = life
         self.last_status: str | None = None
         self.last_time: float | None = None
+        self.state: str | None = None
+        """Its latest status of 12.4's own (running, paused, a final one): the words of a
+        task's own (``in-view-center``) change nothing (docs/MODEL.md)."""
         self.final: tuple[str, str | None, float] | None = None
         """(status, com-uuid, time) of its final feedback."""
         self.resent: float | None = None

@@ -80,6 +80,8 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
                             "not executed again")
         task.running_feedback += 1
     task.last_status, task.last_time = status, t
+    if status in ("running", "paused") or status in FINAL_STATUSES:
+        task.state = status
     for e in [e for e in c.expects if e.task_uuid == task_uuid]:
         if status in e.wanted:
             unit.examine(e.rule)

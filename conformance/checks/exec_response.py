@@ -159,6 +159,7 @@ def _judge_first_answer(ctx: CheckContext, unit: UnitState, c: Conversations, cm
                 task.command, task.name = cmd, cmd.task_name  # its feedback may come first
                 if task.final is None:
                     c.started(task)
+                    task.state = task.state or "running"  # 12.1: 'running' began it
         elif value == "failed":
             for r in ("EXEC-START-004", "EXEC-START-005"):
                 if _refusal_due(unit, cmd, r):
@@ -168,8 +169,9 @@ def _judge_first_answer(ctx: CheckContext, unit: UnitState, c: Conversations, cm
         expected = SIGNAL_FEEDBACK.get(cmd.signal or "")
         task = c.tasks.get(cmd.task_uuid) if cmd.task_uuid else None
         # The model's decision (EXEC-SEQ-001, docs/MODEL.md): $continue to a running task
-        # and $pause to a paused one change nothing, so no feedback is owed for them.
-        unchanged = task is not None and (cmd.signal, task.last_status) in protocol.UNCHANGED
+        # and $pause to a paused one change nothing, so no feedback is owed for them (a
+        # running task that last spoke its own words is running all the same).
+        unchanged = task is not None and (cmd.signal, task.state) in protocol.UNCHANGED
         if (value == "ok" and expected and task is not None and task.life == c.life
                 and task.last_status in expected[0] and task.last_time is not None
                 and task.last_time >= cmd.time):

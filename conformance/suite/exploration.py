@@ -178,5 +178,6 @@ def _replay(c: Certification, explorer: Explorer, actions: list[dict[str, object
 def _summary(outcome: Outcome) -> str:
     why = {"budget": "budget spent", "shrunk": "story shrunk", "exhausted": "nothing left to "
            "try"}.get(outcome.ended, outcome.ended)
-    return (f"{outcome.examples} examples, {outcome.steps} steps in {outcome.elapsed:.0f} s "
-            f"({why})")
+    replays = f", {outcome.replays} replays to shrink it" if outcome.replays else ""
+    return (f"{outcome.examples} example{'s' * (outcome.examples != 1)}, {outcome.steps} steps "
+            f"in {outcome.elapsed:.0f} s ({why}{replays})")

@@ -28,3 +28,23 @@ def test_pause_to_a_running_task_still_owes_paused(stream):
     extra = (start(stream, 2.0, a) + signal(stream, 3.0, a, "$pause")
              + signal(stream, 4.0, a, "$abort", (4.2, a, "aborted")))
     assert "EXEC-SIG-003" in failing(judge(stream, extra))
+
+
+def test_continue_to_a_running_task_that_spoke_its_own_words_owes_no_feedback(stream):
+    """A task's own status ('in-view-center', 12.4 allows task-specific statuses) leaves it
+    running: $continue changes nothing (seen as a false EXEC-SIG-003 by exploration, seed 11:
+    look-at-positions said 'in-view-center', then $continue 'ok', then 'aborted')."""
+    a = new()
+    extra = (start(stream, 2.0, a) + [stream.feedback(2.5, a, "in-view-center")]
+             + signal(stream, 3.0, a, "$continue")
+             + signal(stream, 4.0, a, "$abort", (4.2, a, "aborted")))
+    assert "EXEC-SIG-003" not in failing(judge(stream, extra))
+
+
+def test_continue_to_a_paused_task_that_spoke_its_own_words_still_owes_running(stream):
+    a = new()
+    extra = (start(stream, 2.0, a) + signal(stream, 3.0, a, "$pause", (3.2, a, "paused"))
+             + [stream.feedback(3.5, a, "in-view-center")]
+             + signal(stream, 4.0, a, "$continue")
+             + signal(stream, 5.0, a, "$abort", (5.2, a, "aborted")))
+    assert "EXEC-SIG-003" in failing(judge(stream, extra))

@@ -67,6 +67,19 @@ def test_sequence_fault_found_told_and_replayed(pytester: pytest.Pytester) -> No
     assert "no longer fails" in clean.text
 
 
+def test_random_order_explores_without_the_models_guidance_and_its_rerun_keeps_it(
+        pytester: pytest.Pytester) -> None:
+    """--explore-order random (what bench_explore --order random measures): the conformant
+    unit still answers as the model says, the run says how it explored, and its rerun line
+    repeats the order (a story found so is replayed under the same settings)."""
+    run = certify(pytester, *EMBEDDED, "--explore=8s", "--explore-order=random", "--seed", "5",
+                  "-k", "test_explore", "-v")
+    assert explore_outcome(run) == "passed", run.text
+    assert "in random order" in run.text
+    assert run.report is not None and "--explore-order random" in run.report["meta"]["rerun"]
+    assert "examples" in run.report["meta"]["explore"]
+
+
 def test_explore_off_and_dry_run_say_why(pytester: pytest.Pytester) -> None:
     off = certify(pytester, *EMBEDDED, "--explore=0", "-k", "test_explore", "-rs")
     assert explore_outcome(off) == "skipped"
