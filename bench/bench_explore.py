@@ -37,8 +37,8 @@ UNIT = "waraps/unit/air/simulation/dji0"
 SUMMARY = re.compile(r"(\d+) examples?, (\d+) steps in (\d+) s")
 
 
-def run(fault: str | None, seed: int, budget: str, rate: float,
-        order: str = "model") -> dict[str, object]:
+def run(fault: str | None, seed: int, budget: str, rate: float, order: str = "model",
+        extra: tuple[str, ...] = ()) -> dict[str, object]:
     """One exploration in a subprocess: its wall time, exit status, and what it found."""
     with tempfile.TemporaryDirectory() as tmp:
         reports = Path(tmp) / "reports"
@@ -46,6 +46,7 @@ def run(fault: str | None, seed: int, budget: str, rate: float,
                 "-o", "addopts=", "-q", "--unit", UNIT, "--broker", "embedded",
                 f"--sim-rate={rate:g}", f"--seed={seed}", f"--explore={budget}",
                 f"--reports-dir={reports}", f"--explore-order={order}", "-k", "test_explore"]
+        args += extra
         if fault:
             args.append(f"--sim-fault={fault}")
         t0 = time.monotonic()
@@ -86,21 +87,36 @@ def main() -> int:
     ap.add_argument("--rate", type=float, default=1.0)
     ap.add_argument("--jobs", type=int, default=4)
     ap.add_argument("--no-conformant", action="store_true")
+    ap.add_argument("--conformant-seeds", type=int, default=1,
+                    help="seeds of the conformant unit (precision: nothing may be found)")
+    ap.add_argument("--variant", action="append", default=[],
+                    help="a conformant variant of the reference unit for every run "
+                         "(repeatable; sim --list-variants)")
+    ap.add_argument("--tst", action="store_true", help="with the TST level (--sim-tst)")
     ap.add_argument("--order", choices=("model", "random"), default="model",
                     help="--explore-order of each run: random measures the search without "
                          "the model's guidance (most telling command first)")
     a = ap.parse_args()
     seeds = range(a.first_seed, a.first_seed + a.seeds)
-    jobs = [(None, a.first_seed)] if not a.no_conformant else []
+    jobs: list[tuple[str | None, int]] = [] if a.no_conformant else [
+        (None, s) for s in range(a.first_seed, a.first_seed + a.conformant_seeds)]
     jobs += [(f, s) for f in a.faults for s in seeds]
+    extra = tuple(f"--sim-variant={v}" for v in a.variant) + (("--sim-tst",) if a.tst else ())
     with ThreadPoolExecutor(a.jobs) as pool:
-        runs = list(pool.map(lambda j: run(j[0], j[1], a.budget, a.rate, a.order), jobs))
+        runs = list(pool.map(lambda j: run(j[0], j[1], a.budget, a.rate, a.order, extra), jobs))
     table: dict[str, dict[str, object]] = {}
+    conformant = [r for r in runs if r["fault"] is None]
+    if conformant:
+        per_min = [60 * r.get("steps", 0) / max(1, r.get("explore_s", 1))  # type: ignore
+                   for r in conformant]
+        table["conformant"] = {
+            "steps_per_minute": round(median(per_min) or 0), "runs": len(conformant),
+            "found": sum(bool(r["found"]) for r in conformant),
+            "found_seeds": [r["seed"] for r in conformant if r["found"]],
+            "examples": median([r.get("examples", 0) for r in conformant]),  # type: ignore
+            "wall_s": median([r["wall_s"] for r in conformant])}  # type: ignore
     for r in runs:
         if r["fault"] is None:
-            per_min = 60 * r.get("steps", 0) / max(1, r.get("explore_s", 1))  # type: ignore
-            table["conformant"] = {"steps_per_minute": round(per_min), "found": r["found"],
-                                   "examples": r.get("examples"), "wall_s": r["wall_s"]}
             continue
         row = table.setdefault(str(r["fault"]), {"runs": 0, "found": 0, "own": 0, "shrunk": 0,
                                                  "after": [], "steps": [], "length": [],
@@ -116,15 +132,18 @@ def main() -> int:
             row["length"].append(r["length"])  # type: ignore[union-attr]
             row["rules"].update(r["rules"])  # type: ignore[union-attr]
     print(f"exploration at {a.rate:g} Hz, budget {a.budget}, seeds {seeds.start}.."
-          f"{seeds.stop - 1}, order {a.order}")
+          f"{seeds.stop - 1}, order {a.order}"
+          + "".join(f", variant {v}" for v in a.variant) + (", TST" if a.tst else ""))
     if "conformant" in table:
         c = table["conformant"]
-        print(f"  conformant: {c['steps_per_minute']} steps/min ({c['examples']} examples), "
-              f"found {'something (!)' if c['found'] else 'nothing'}")
+        print(f"  conformant: {c['steps_per_minute']} steps/min (median of {c['runs']} runs, "
+              f"{c['examples']} examples each), found something in {c['found']} of "
+              f"{c['runs']}" + (f" (seeds {c['found_seeds']}: false accusations)"
+                                if c["found"] else ""))
     print(f"  {'fault':<30} {'found':>7} {'own rule':>8} {'median s':>9} {'med steps':>10} "
           f"{'story':>6} {'shrunk':>7}  rules")
     summary: dict[str, object] = {"rate": a.rate, "budget": a.budget, "seeds": a.seeds,
-                                  "order": a.order,
+                                  "order": a.order, "variants": a.variant, "tst": a.tst,
                                   "conformant": table.get("conformant"), "faults": {}}
     for fault in a.faults:
         row = table.get(fault)

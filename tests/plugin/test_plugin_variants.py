@@ -35,6 +35,9 @@ from conformance.topics import UnitAddress
 pytestmark = pytest.mark.slow
 
 PROFILE = HERE / "profiles" / "variants.yaml"
+EXPLORE = "10s"
+"""Exploration is part of every certification: a variant it falsely fails is not certified
+(the orders it sends are judged as the scripted ones are)."""
 GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
     (("terse", "sensor-rate-edge", "rate-edge", "success-vocabulary", "pretty-json"), False),
     (("strict", "slow", "verbose", "feedback-first", "starting-feedback", "level-spelling",
@@ -71,7 +74,8 @@ def certify_and_record(pytester: pytest.Pytester, broker: str, unit: UnitAddress
     with recorded(broker, unit.prefix, recording), \
             SimUnit(unit, broker, variants=variants, rate=2.0, seed=1, tst_execution=tst) as sim:
         return certify(pytester, "--unit", str(unit), "--broker", broker,
-                       f"--profile={PROFILE}", "--seed", "1", plugins=(Rebooter(sim),))
+                       f"--profile={PROFILE}", "--seed", "1", f"--explore={EXPLORE}",
+                       plugins=(Rebooter(sim),))
 
 
 def verdicts(rules: dict[str, dict]) -> dict[str, set[str]]:
@@ -118,6 +122,7 @@ def test_variants_are_certified_and_lint_clean(pytester: pytest.Pytester, mosqui
         pytest.xfail(why)
     assert not suite, f"{' + '.join(variants)}: {first_violations(rules, suite)}"
     assert run.result.ret == 0, run.text
+    assert run.report is not None and "examples" in run.report["meta"]["explore"], run.text
     # ... and certified: every level it declares (the verdict model: every rule judged)
     assert run.report is not None
     levels = run.report["conclusion"]["units"][str(unit_address)]["levels"]
