@@ -52,7 +52,8 @@ def test_sequence_fault_found_told_and_replayed(pytester: pytest.Pytester) -> No
     assert "sent  {" in text and "came  exec/response:" in text
     (stored,) = run.reports_dir.glob("*-explore.json")
     story = json.loads(stored.read_text())
-    assert RULE in story["rules"] and 1 <= story["length"] <= 10
+    # shrunk to the end by replay: two tasks and the $pause (3 steps; 4 with a wait between)
+    assert RULE in story["rules"] and story["shrunk"] and story["length"] <= 4, story
     rerun = [line.split("rerun", 1)[1].strip() for line in run.result.outlines
              if line.strip().startswith("rerun") and "--explore-replay=" in line][-1]
     args = shlex.split(rerun)
@@ -65,6 +66,26 @@ def test_sequence_fault_found_told_and_replayed(pytester: pytest.Pytester) -> No
     clean = certify(pytester, *fixed)
     assert clean.result.ret == 0, clean.text
     assert "no longer fails" in clean.text
+
+
+def test_a_task_dropped_silently_is_shrunk_to_the_steps_that_drop_it(
+        pytester: pytest.Pytester) -> None:
+    """preempt-paused-silently: the first story shows it through a query (EXEC-QUERY-001:
+    'unknown' for the dropped task) or a longer order; shrinking by replay leaves out what is
+    not needed and ends at its own rule: start, $pause, start another of its kind, and the
+    task leaves tasks-executing with no final status (EXEC-START-003, seen at the teardown)."""
+    run = certify(pytester, *EMBEDDED, "--sim-fault=preempt-paused-silently", "--explore=60s",
+                  "--seed", "2", "-k", "test_explore")
+    assert run.result.ret == 1, run.text
+    (stored,) = run.reports_dir.glob("*-explore.json")
+    story = json.loads(stored.read_text())
+    assert story["rules"] == ["EXEC-START-003"] and story["shrunk"], story
+    actions = [s["action"] for s in story["steps"] if not s["action"].get("teardown")]
+    assert [(a["do"], a.get("signal")) for a in actions] == [
+        ("start", None), ("signal", "$pause"), ("start", None)], actions
+    assert actions[0]["task"] == actions[2]["task"]
+    assert story["failing_step"] == 3  # the start that dropped it, not the start of T1
+    assert "replays to shrink it" in run.report["meta"]["explore"]  # type: ignore[index]
 
 
 def test_random_order_explores_without_the_models_guidance_and_its_rerun_keeps_it(
