@@ -81,16 +81,24 @@ class Story:
         """The steps to replay (the teardown is the explorer's own, run again anyway)."""
         return [s.action for s in self.steps if not s.action.get("teardown")]
 
-    def render(self, unit: str, rerun: str, heading: str = "") -> str:
+    def render(self, unit: str, rerun: str, heading: str = "", brief: bool = False) -> str:
+        """The story as a person reads it; ``brief``: its steps and the rules broken only
+        (told while shrinking goes on: the whole story follows when it ends)."""
         lines = [heading or f"exploration: the unit and the model disagree at step "
                  f"{self.failing + 1} of {len(self.steps)} (seed {self.seed})"]
         for i, step in enumerate(self.steps):
             mark = "   <-- the model and the unit disagree here" if step.found else ""
+            if brief and step.found:
+                mark += f": {', '.join(sorted({v.rule for v in step.found}))}"
             lines.append(f"  {i + 1:>2}. {printable(describe(step.action))}{mark}")
+            if brief:
+                continue
             for text in step.sent:
                 lines.append(f"      sent  {printable(text)}")
             for j, text in enumerate(step.came or ["(nothing)"]):
                 lines.append(f"      {'came' if j == 0 else '':<4}  {printable(text)}")
+        if brief:
+            return "\n".join(lines)
         lines.append("")
         shown = set()
         for v in (v for step in self.steps for v in step.found):

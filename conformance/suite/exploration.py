@@ -118,8 +118,11 @@ def _model_state(c: Certification, task_uuid: str) -> str | None:
 
 
 def _say(c: Certification, text: str) -> None:
+    """Print ``text`` a line at a time (a story's wire text is escaped where it is rendered;
+    the progress line escapes whatever a line holds, its line breaks too)."""
     if c.progress.verbosity >= 0:
-        c.progress.line(text)
+        for line in text.splitlines():
+            c.progress.line(line)
 
 
 def _explore(c: Certification, explorer: Explorer, node: pytest.Item) -> None:
@@ -131,9 +134,10 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item) -> None:
 
     def tell(story: Story) -> None:  # at once: shrinking may take the rest of the budget
         story.save(path, str(c.unit))
-        _say(c, story.render(str(c.unit), rerun(c, path), heading=(
+        _say(c, story.render(str(c.unit), rerun(c, path), brief=True, heading=(
             f"exploration found a disagreement after {story.found_after:.0f} s "
-            f"({story.found_steps} steps); shrinking it within the {seconds:.0f} s budget:")))
+            f"({story.found_steps} steps); shrinking it within the {seconds:.0f} s budget "
+            f"(stored: {path}):")))
 
     order = "" if c.settings.explore_order == "model" else ", in random order"
     _say(c, f"exploring command orders for {seconds:.0f} s (hypothesis, seed "

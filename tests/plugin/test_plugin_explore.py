@@ -48,6 +48,10 @@ def test_sequence_fault_found_told_and_replayed(pytester: pytest.Pytester) -> No
     assert explore_outcome(run) == "failed", run.text
     text = run.text
     assert "exploration found a disagreement" in text  # told at once, before shrinking
+    told = text.split("exploration found a disagreement", 1)[1].split(
+        "exploration: the unit and the model disagree")[0]
+    assert "\\x0a" not in told and "\n   1. start-task" in told  # a line a step, as printed
+    assert f"disagree here: {RULE}" in told and "sent  {" not in told  # brief: the steps
     assert "<-- the model and the unit disagree here" in text and RULE in text
     assert "sent  {" in text and "came  exec/response:" in text
     (stored,) = run.reports_dir.glob("*-explore.json")
