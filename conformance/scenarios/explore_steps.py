@@ -121,6 +121,11 @@ def first_disagreement(steps: list[Step]) -> int:
     return next((i for i, step in enumerate(steps) if step.found), len(steps) - 1)
 
 
+class UnitDied(Exception):
+    """The unit stopped heartbeating during a step and did not come back (HB-012): no
+    answer can come, so the exploration ends with the steps that led there."""
+
+
 class Collector:
     """Violations the Monitor finds for the unit under test, in the order found (given each
     message's violations by the connection, on the MQTT thread)."""
@@ -160,9 +165,14 @@ class Explorer:
     status awaited, so the next example starts from a known state."""
 
     def __init__(self, ctx: Context, collector: Collector,
-                 model_state: Callable[[str], str | None] = lambda task_uuid: None) -> None:
+                 model_state: Callable[[str], str | None] = lambda task_uuid: None,
+                 dead: Callable[[], str] = lambda: "") -> None:
         self.ctx = ctx
         self.collector = collector
+        self.dead = dead
+        """Why the unit counts as dead, or "" while it lives (asked when an answer did not
+        come and neither did a heartbeat)."""
+        self.died = ""
         self.model_state = model_state
         """The protocol model's state of a task-uuid (``conformance.protocol``: what the
         Monitor's model holds from the traffic), None where it knows nothing."""
@@ -180,6 +190,7 @@ class Explorer:
 
     # --- an example ---------------------------------------------------------------------------
     def begin(self) -> None:
+        self.died = ""
         self.slots, self.commands, self.steps = [], {}, []
         self._pending_until = 0.0
         self._refused_aborts: list[Slot] = []
@@ -187,8 +198,8 @@ class Explorer:
     def end(self) -> None:
         """Abort what this example started, await each final status, then wait until what
         the unit still owes is late (one heartbeat past its deadline), and judge that too."""
-        if self.ctx.commander.dry_run:
-            return
+        if self.ctx.commander.dry_run or self.died:
+            return  # a dead unit answers nothing: the run's own teardown aborts its tasks
         t = self.ctx.timing
         found: list[Violation] = []
         for i, slot in enumerate(self.slots):
@@ -272,16 +283,28 @@ class Explorer:
         step.coms.append(sent.com_uuid)
         step.sent.append(_text(sent.payload))
         if answer is None:
-            self._owe(0.0)  # its deadline has passed: the Monitor judges it on a heartbeat
-            self._wait_heartbeat()
+            self._unanswered()
         return sent, answer
 
-    def _wait_heartbeat(self, count: int = 1) -> None:
+    def _unanswered(self) -> None:
+        """A command's deadline passed: the Monitor judges it on the next heartbeat; a unit
+        that sends none and does not come back has died on what this example sent."""
+        self._owe(0.0)
+        if not self._wait_heartbeat():
+            self.died = self.dead()
+            if self.died:
+                raise UnitDied(self.died)
+
+    def _wait_heartbeat(self, count: int = 1) -> bool:
+        """Wait for ``count`` heartbeats (each within a period and the response margin);
+        False when one did not come."""
         for _ in range(count):
             after = self.ctx.traffic.mark()
-            self.ctx.traffic.wait_for(lambda e: True, self.ctx.timing.periods(1, self._rate()),
-                                      after=after, subtopic="heartbeat",
-                                      what="a heartbeat (explore: wait)")
+            if self.ctx.traffic.wait_for(lambda e: True, self.ctx.timing.periods(1, self._rate()),
+                                         after=after, subtopic="heartbeat",
+                                         what="a heartbeat (explore: wait)") is None:
+                return False
+        return True
 
     def _uuid(self, slot: int | None) -> str:
         """The task-uuid of slot ``slot``; a task-uuid the unit never saw for None."""
@@ -416,8 +439,7 @@ class Explorer:
         step.coms.append(earlier.com_uuid)
         step.sent.append(_text(earlier.payload))
         if c.response(earlier, self.ctx.timing.response, after=mark) is None:
-            self._owe(0.0)
-            self._wait_heartbeat()
+            self._unanswered()
 
     def _wait(self, step: Step, action: dict[str, Any]) -> None:
         self._wait_heartbeat(max(1, min(5, int(action.get("periods", 1)))))

@@ -14,7 +14,7 @@ import pytest
 
 from conformance.reporting.text import printable
 from conformance.scenarios.explore import Outcome, Search, Stopped, replay
-from conformance.scenarios.explore_steps import Collector, Explorer, judged
+from conformance.scenarios.explore_steps import Collector, Explorer, UnitDied, judged
 from conformance.scenarios.sender import DryRun
 from conformance.scenarios.story import Story, StoryError, load
 from conformance.scenarios.traffic import OutOfTime
@@ -84,26 +84,49 @@ def run(c: Certification, node: pytest.Item) -> None:
         c._out_of_time(e)
         c._fail_if_out_of_time()
     collector = Collector(str(c.unit), lambda rule: judged(rule, c.profile.severity_of))
-    explorer = Explorer(c.context, collector, lambda task_uuid: _model_state(c, task_uuid))
+    explorer = Explorer(c.context, collector, lambda task_uuid: _model_state(c, task_uuid),
+                        dead=c.unit_died)
     explorer.warm()
     c.connection.listeners.append(collector)
+    died = ""
     try:
         if actions is not None:
             _replay(c, explorer, actions, node)
         else:
             _explore(c, explorer, node)
+    except UnitDied as e:  # in a replay (of a stored story, or while shrinking)
+        died = str(e)
     except Stopped as e:
-        if isinstance(e.cause, DryRun):
+        if isinstance(e.cause, UnitDied):
+            died = str(e.cause)
+        elif isinstance(e.cause, DryRun):
             pytest.skip(f"could not test: {e.cause}")
-        if isinstance(e.cause, OutOfTime):
+        elif isinstance(e.cause, OutOfTime):
             c._out_of_time(e.cause)
             c._fail_if_out_of_time()
-        raise e.cause from None
+        else:
+            raise e.cause from None
     finally:
         c.connection.listeners.remove(collector)
         if not s.dry_run:
             c.commander.abort_all(c.timing.response)
         c.write_reports()
+    if died:
+        _died(c, explorer, died, node)
+
+
+def _died(c: Certification, explorer: Explorer, why: str, node: pytest.Item) -> None:
+    """The unit died on what the exploration sent (HB-012 fails too, naming the command):
+    the steps that led there, stored and replayable; nothing more could be explored."""
+    story = Story.of(explorer.steps, c.settings.seed)
+    path = story.save(story_path(c), str(c.unit))
+    c.explored = f"the unit died at step {len(explorer.steps)} of an example"
+    node.user_properties.append(("explore", c.explored))
+    pytest.fail(story.render(str(c.unit), "", brief=True, heading=(
+        f"exploration: the unit died during step {len(explorer.steps)} of these (not shrunk: "
+        f"a dead unit answers no replay): {why}. It must survive any order of commands "
+        f"(12.1); HB-012 names the command it received last:")) + f"\n\nstory stored: {printable(str(path))}\n  rerun     "
+        f"{rerun(c, path)}", pytrace=False)
 
 
 def _model_state(c: Certification, task_uuid: str) -> str | None:

@@ -92,6 +92,25 @@ def test_a_task_dropped_silently_is_shrunk_to_the_steps_that_drop_it(
     assert "replays to shrink it" in run.report["meta"]["explore"]  # type: ignore[index]
 
 
+def test_a_unit_that_dies_on_an_order_of_commands_ends_the_exploration_with_its_steps(
+        pytester: pytest.Pytester) -> None:
+    """dies-on-missing-task-uuid: exploration sends a start-task without task-uuid and the
+    unit stops heartbeating. No answer can come: the exploration ends there (not 'answered as
+    the model says', not waiting out every step and teardown), telling the steps that led
+    there; HB-012 fails on its own, naming the command."""
+    run = certify(pytester, *EMBEDDED, "--sim-fault=dies-on-missing-task-uuid", "--explore=40s",
+                  "--seed", "3", "-k", "test_explore or HB-012")
+    assert run.result.ret == 1, run.text
+    assert explore_outcome(run) == "failed", run.text
+    assert "exploration: the unit died during step" in run.text, run.text
+    assert "no task-uuid (the unit makes one)" in run.text
+    assert "answered as the model says" not in run.text
+    assert "The above exception" not in run.text
+    assert run.outcomes.get("HB-012") == "failed"
+    (stored,) = run.reports_dir.glob("*-explore.json")
+    assert json.loads(stored.read_text())["steps"][-1]["action"]["task_uuid"] is False
+
+
 def test_random_order_explores_without_the_models_guidance_and_its_rerun_keeps_it(
         pytester: pytest.Pytester) -> None:
     """--explore-order random (what bench_explore --order random measures): the conformant
