@@ -34,7 +34,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
 UNIT = "waraps/unit/air/simulation/dji0"
-SUMMARY = re.compile(r"(\d+) examples?, (\d+) steps in (\d+) s")
+SUMMARY = re.compile(r"(\d+) examples?, (\d+) steps? in (\d+) s")
 
 
 def run(fault: str | None, seed: int, budget: str, rate: float, order: str = "model",

@@ -159,7 +159,7 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item) -> None:
         story.save(path, str(c.unit))
         _say(c, story.render(str(c.unit), rerun(c, path), brief=True, heading=(
             f"exploration found a disagreement after {story.found_after:.0f} s "
-            f"({story.found_steps} steps); shrinking it within the {seconds:.0f} s budget "
+            f"({steps(story.found_steps)}); shrinking it within the {seconds:.0f} s budget "
             f"(stored: {path}):")))
 
     order = "" if c.settings.explore_order == "model" else ", in random order"
@@ -180,8 +180,8 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item) -> None:
     state = "shrunk" if story.shrunk else "not fully shrunk (the budget ran out)"
     pytest.fail(story.render(str(c.unit), rerun(c, path), heading=(
         f"exploration: the unit and the model disagree at step {story.failing + 1} of this "
-        f"story ({state}, {story.length} steps; first found after {story.found_after:.0f} s "
-        f"and {story.found_steps} steps, in {story.first_length} steps; {summary})"))
+        f"story ({state}, {steps(story.length)}; first found after {story.found_after:.0f} s "
+        f"and {steps(story.found_steps)}, in {steps(story.first_length)}; {summary})"))
         + f"\n\nstory stored: {printable(str(path))}", pytrace=False)
 
 
@@ -189,9 +189,9 @@ def _replay(c: Certification, explorer: Explorer, actions: list[dict[str, object
             node: pytest.Item) -> None:
     path = c.settings.explore_replay
     assert path is not None
-    _say(c, f"replaying the {len(actions)} steps of {printable(str(path))}")
+    _say(c, f"replaying the {steps(len(actions))} of {printable(str(path))}")
     story = replay(explorer, actions, c.settings.seed)
-    c.explored = f"replayed {len(actions)} steps of {path}"
+    c.explored = f"replayed {steps(len(actions))} of {path}"
     if story is None:
         node.user_properties.append(("explore", "replay: no disagreement"))
         _say(c, f"replay of {printable(str(path))}: no longer fails: the unit answered every "
@@ -202,9 +202,13 @@ def _replay(c: Certification, explorer: Explorer, actions: list[dict[str, object
         f"{story.failing + 1}")), pytrace=False)
 
 
+def steps(count: int) -> str:
+    return f"{count} step{'s' * (count != 1)}"
+
+
 def _summary(outcome: Outcome) -> str:
     why = {"budget": "budget spent", "shrunk": "story shrunk", "exhausted": "nothing left to "
            "try"}.get(outcome.ended, outcome.ended)
     replays = f", {outcome.replays} replays to shrink it" if outcome.replays else ""
-    return (f"{outcome.examples} example{'s' * (outcome.examples != 1)}, {outcome.steps} steps "
+    return (f"{outcome.examples} example{'s' * (outcome.examples != 1)}, {steps(outcome.steps)} "
             f"in {outcome.elapsed:.0f} s ({why}{replays})")
