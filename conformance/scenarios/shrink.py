@@ -4,11 +4,12 @@ Hypothesis shrinks the choices it drew, and after a removed step the same choice
 command (the options depend on the unit's state): against a real unit that rarely gets a story
 shorter. A story's steps are data that mean the same thing when run again (tasks by slot,
 resends by step: ``explore_steps``), so a step can be left out and the rest replayed as it was:
-the greedy one-step-at-a-time pass of delta debugging (Zeller's ddmin), over the steps least
-likely to matter first. A shorter story is kept when the unit still disagrees with the model
-on it, about any rule: with a single bug that is the same bug, shown by its own rule once the
-steps that showed it through another are gone (a dropped task queried 'unknown' is
-EXEC-QUERY-001; without the query the task still vanishes, EXEC-START-003).
+greedy delta debugging (after Zeller's ddmin): what follows the disagreement at once, then each
+task it is not about, then one step at a time, the least likely to matter first (``trials``).
+A shorter story is kept when the unit still disagrees with the model on it, about any rule:
+with a single bug that is the same bug, shown by its own rule once the steps that showed it
+through another are gone (a dropped task queried 'unknown' is EXEC-QUERY-001; without the
+query the task still vanishes, EXEC-START-003).
 
 Every replay is a real example against the unit, with its teardown: one is begun only while
 the budget has room for it (as long as the longest replay so far), so shrinking never runs past
