@@ -95,6 +95,30 @@ def certify_sim(pytester: pytest.Pytester, broker: str, unit: str, *args: str,
                        plugins=(Rebooter(sim),))
 
 
+STALL = HERE / "profiles" / "stall.yaml"
+DEADLINE = 90.0
+"""Seconds: the issue's bound for a 1 Hz unit (i18 4); stalling faults run at 2 Hz with the
+default feedback deadline (30 s), where waiting it out again for a seen deviation (each task,
+each tree) takes 60-150 s or more."""
+
+
+def certify_stalling(pytester: pytest.Pytester, broker: str, prefix: str,
+                     fault: str) -> Certified:
+    """Certify a reference unit with a fault that stalls a scenario: the run ends within
+    ``DEADLINE`` and fails exactly the fault's rules."""
+    import time
+
+    from conformance.sim import FAULTS
+
+    started = time.monotonic()
+    run = certify_sim(pytester, broker, f"{prefix}/unit/air/simulation/dji0",
+                      f"--profile={STALL}", "--seed", "1", "-q", faults=(fault,))
+    took = time.monotonic() - started
+    assert took < DEADLINE, f"{fault}: {took:.0f} s"
+    assert run.failed == set(FAULTS[fault].rules), run.text[-3000:]
+    return run
+
+
 def warm_parameters(tasks: tuple[str, ...], seeds: range) -> None:
     """Generate (and cache) the task parameters a certification with these seeds will use, so
     hypothesis does not hold the GIL while an in-process reference unit should publish."""
