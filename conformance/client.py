@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import os
 import queue
-import re
 import ssl
 import threading
 import time
@@ -22,6 +21,7 @@ from urllib.parse import urlsplit
 
 import paho.mqtt.client as paho
 
+from conformance.masking import mask_password  # re-exported: a URL made fit to print
 from conformance.message import Gap, Message  # re-exported: ``from conformance.client import ...``
 
 SCHEMES = ("mqtt", "mqtts", "embedded")
@@ -34,26 +34,6 @@ class BrokerError(RuntimeError):
 
 class PublishRefused(PermissionError):
     """A publish the safety rules forbid (DESIGN: safety). Never caught to carry on."""
-
-
-_NETLOC = re.compile(r"([a-z][a-z0-9+.-]*://)([^/\s?#]*)", re.I)
-
-
-def mask_password(text: str) -> str:
-    """``text`` with the password of every ``scheme://user:password@host`` in it shown as
-    ``***`` (a password may hold '@': the host follows the last one). The one place a URL is
-    made fit to print; a bare ``user:password@host`` is read as a URL when it is all of
-    ``text`` (what ``--broker`` accepts)."""
-    if "://" not in text and "@" in text.split("/", 1)[0]:
-        return mask_password("x://" + text)[4:]
-
-    def masked(m: re.Match[str]) -> str:
-        userinfo, at, hostport = m.group(2).rpartition("@")
-        if not at or ":" not in userinfo:
-            return m.group(0)
-        return f"{m.group(1)}{userinfo.partition(':')[0]}:***@{hostport}"
-
-    return _NETLOC.sub(masked, text)
 
 
 @dataclass(frozen=True)
@@ -83,7 +63,7 @@ class BrokerURL:
         if text == "embedded":
             return cls("embedded")
         parts = urlsplit(text if "://" in text else f"mqtt://{text}")
-        shown = mask_password(text)  # what an error may say: never a password it wrongly has
+        shown = mask_password(text, url=True)  # what an error may say: never a password it wrongly has
         if parts.scheme not in ("mqtt", "mqtts"):
             raise ValueError(
                 f"broker URL {shown!r}: scheme {parts.scheme!r} is not one of mqtt, mqtts, "

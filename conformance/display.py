@@ -1,30 +1,49 @@
-"""Wire text made fit to show (issue 19 §4, §5): ``printable`` for a terminal (and any report),
-control characters shown escaped, and ``shorten`` for a report, a long string excerpted with a
-visible ellipsis and its full length. Every writer of a terminal line or a report uses these."""
+"""Wire text made fit to show (issue 19 §4, §5; issue 26 §3): ``printable`` for a terminal
+(and any report), every character a person cannot see or that moves the cursor shown escaped,
+and ``shorten`` for a report, a long string excerpted with a visible ellipsis and its full
+length. Every writer of a terminal line or a report uses these: the one escape."""
 
 from __future__ import annotations
 
 import re
 
-_CONTROL = re.compile(
-    "[\x00-\x1f\x7f-\x9f"                  # C0 (line breaks and tabs too), DEL, C1 (CSI, OSC)
-    "\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069"  # bidirectional controls (text that reorders)
-    "\u2028\u2029\ud800-\udfff\ufffe\uffff]")  # line separators, lone surrogates, non-characters
+_NOT_PLAIN = re.compile("[^\x20-\x7e]")
+"""A character that is not printable ASCII: the only ones worth a look (ASCII text is shown
+as it is)."""
+
+_INVISIBLE = frozenset(
+    [0x034F, 0x115F, 0x1160, 0x17B4, 0x17B5, 0x3164, 0xFFA0]  # grapheme joiner, fillers
+    + list(range(0x180B, 0x1810))      # Mongolian variation selectors and vowel separator
+    + list(range(0xFE00, 0xFE10))      # variation selectors
+    + list(range(0xE0100, 0xE01F0)))   # variation selectors supplement
+"""Characters Unicode counts as letters or marks that nevertheless show nothing: two names
+differing only by them would print alike."""
 
 
-def _escaped(m: re.Match[str]) -> str:
-    c = ord(m.group())
-    return f"\\x{c:02x}" if c < 0x100 else f"\\u{c:04x}"
+def _escape(c: str) -> str:
+    """``c`` as itself when a person sees it as it is, else as ``\\xNN``, ``\\uNNNN`` or
+    ``\\UNNNNNNNN`` (always that many digits, so that no escape reads as another).
+
+    Escaped: what ``str.isprintable`` refuses, that is Unicode's 'Other' (Cc: C0, DEL, C1
+    such as CSI and NEL; Cf: bidirectional controls, zero-width characters, U+FEFF, tag
+    characters; Cs, Co: surrogates, private use; Cn: unassigned) and 'Separator' (Zl, Zp:
+    U+2028, U+2029; Zs: spaces other than ' ', which look like it), and the invisible
+    letters and marks above."""
+    n = ord(c)
+    if c.isprintable() and n not in _INVISIBLE:
+        return c
+    return f"\\x{n:02x}" if n < 0x100 else f"\\u{n:04x}" if n < 0x10000 else f"\\U{n:08x}"
 
 
 def printable(text: object) -> str:
     """``text`` as one line safe for a terminal: every control character (escape sequences
     such as OSC 0 window titles, OSC 52 clipboard writes, CSI; line breaks; bidirectional
-    overrides) shown as ``\\xNN`` or ``\\uNNNN``. Wire data may hold anything."""
+    overrides) and every invisible one (zero-width, tag characters) shown as ``\\xNN``,
+    ``\\uNNNN`` or ``\\UNNNNNNNN``. Wire data may hold anything; ASCII text is unchanged."""
     s = text if isinstance(text, str) else str(text)
     if s.isascii() and s.isprintable():  # the usual case: nothing to do
         return s
-    return _CONTROL.sub(_escaped, s)
+    return _NOT_PLAIN.sub(lambda m: _escape(m.group()), s)
 
 
 SHORT_CHARS = 4096

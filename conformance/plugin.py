@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from conformance.cli.options import BROKER_ENV, CREDENTIALS, TLS_FILES, TLS_INSECURE
-from conformance.display import printable
+from conformance.display import printable, printable_lines
 
 if TYPE_CHECKING:
     from conformance.suite.session import Certification
@@ -282,37 +282,43 @@ class _CertificationPlugin:
         if c.collect_only:
             return
         tr = terminalreporter
+
+        def line(text: str, **markup: bool) -> None:
+            # Every line through the one escape (issue 26 §3): the unit's own words (its
+            # levels, names, reasons) never reach the terminal raw; our own line breaks stay.
+            tr.line(printable_lines(text), **markup)
+
         tr.section("waraps-conformance")
         if c.error:
-            tr.line(printable(f"not certified: {c.error}"), red=True)
+            line(f"not certified: {c.error}", red=True)
         for event in c.events:
-            tr.line(printable(event))
+            line(printable(event))
         report = c.report()
         conclusion = c.conclusion(report)
         counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
-        tr.line(f"{c.unit}: {conclusion.headline()} ({counts})",
-                red=conclusion.verdict not in ("pass", "warn"))
+        line(f"{printable(c.unit)}: {printable(conclusion.headline())} ({counts})",
+             red=conclusion.verdict not in ("pass", "warn"))
         unit = conclusion.units.get(str(c.unit))
         for level in unit.levels if unit is not None else ():
-            tr.line(f"  {level}")
-        for line in skipped_by_reason(report.units.get(str(c.unit))):
-            tr.line(line)
+            line(f"  {printable(level)}")
+        for text in skipped_by_reason(report.units.get(str(c.unit))):
+            line(text)
         later = report.meta.get("judged_after_test")
         if later:  # their tests passed before the traffic that fails them came
-            tr.line(f"failed after their tests ran (later traffic is evidence too; the "
-                    f"reports hold it): {later}", red=True)
+            line(f"failed after their tests ran (later traffic is evidence too; the "
+                 f"reports hold it): {printable(later)}", red=True)
             from conformance.reporting import render_violation
 
             rules = report.units[str(c.unit)].rules
             for rule in later.split(", "):
                 # The evidence came from a later scenario: the whole run reproduces it.
                 for v in rules[rule].violations[:1]:
-                    tr.line(render_violation(rule, v, str(c.unit), rerun_hint=c.rerun_command()))
+                    line(render_violation(rule, v, str(c.unit), rerun_hint=c.rerun_command()))
         for kind, path in sorted(c.report_paths.items()):
-            tr.line(f"{kind} report: {path}")
+            line(f"{kind} report: {printable(path)}")
         if not c.report_paths:
-            tr.line("no report was written")
-        tr.line(f"repeat this run: {c.rerun_command()}")
+            line("no report was written")
+        line(f"repeat this run: {printable(c.rerun_command())}")
 
 
 def skipped_by_reason(unit: Any) -> list[str]:

@@ -20,15 +20,42 @@ SECRET = "s3cretPW-x9"
 
 @pytest.mark.parametrize(("text", "shown"), [
     ("mqtt://u:pw@h:1", "mqtt://u:***@h:1"),
-    ("u:pw@h", "u:***@h"),
     ("mqtt://u:p@ss@h/x", "mqtt://u:***@h/x"),           # a password holding '@'
     ("see http://a:b@c and mqtts://x:y@z", "see http://a:***@c and mqtts://x:***@z"),
     ("mqtt://h:1883", "mqtt://h:1883"),
     ("mqtt://u@h", "mqtt://u@h"),
-    ("at 12:30@x", "at 12:30@x"),
+    ("at 12:30@x", "at 12:30@x"),                        # text, not a URL
+    ("--broker=mqtt://u:a b@h --seed 1", "--broker=mqtt://u:***@h --seed 1"),
+    ("pytest --broker mqtt://h:1 --reboot-cmd 'ssh root@h'",  # the next option is not a password
+     "pytest --broker mqtt://h:1 --reboot-cmd 'ssh root@h'"),
 ])
 def test_mask_password(text, shown):
     assert mask_password(text) == shown
+
+
+HOSTILE_PASSWORDS = ["pw", "p/w", "p#w", "p?w", "p w", "p@w", "p:w", "p@@w", "x://y@z",
+                     "a/b#c?d e@f:g", "@", "/", "p --seed", "p'w\"q"]
+"""Passwords holding what ends a URL's user-info in a careless reading (RFC 3986 3.2.1):
+masking stopped at '/', '#', '?' or ' ' (issue 26 §5)."""
+
+
+@pytest.mark.parametrize("password", HOSTILE_PASSWORDS)
+def test_one_masking_for_every_url_form(password):
+    from conformance.results import redact_broker
+
+    secret = f"SECRET{password}SECRET"
+    for url in (f"mqtt://user:{secret}@127.0.0.1:1883", f"user:{secret}@127.0.0.1",
+                f"mqtts://user:{secret}@broker.example:8883/x?y#z"):
+        shown = [mask_password(url, url=True), redact_broker(url)]
+        # In a message or a command line a URL begins with its scheme and ends at the next
+        # option at the latest (a password holding ' --' is masked whole only in a URL alone).
+        if not url.startswith("user:") and " --" not in password:
+            shown += [mask_password(f"broker URL {url!r}: no"),
+                      mask_password(f"pytest --unit a/unit/air/real/b --broker {url} --seed 1")]
+        for shown in shown:
+            assert "SECRET" not in shown and "user" in shown, shown
+    assert mask_password(f"pytest --broker 'mqtt://u:{secret}@h:1' --seed 1").endswith(
+        "@h:1' --seed 1")  # the rest of a command line is kept
 
 
 @pytest.mark.parametrize("url", [

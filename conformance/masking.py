@@ -1,0 +1,55 @@
+"""A URL or a command line made fit to print (issue 19 §5, issue 26 §5): ``mask_password``,
+the one masking every printer of a URL uses (the CLI's messages, the certification's header,
+summary and repeat lines, the reports' ``broker``). Paho-free: reports and lint load it."""
+
+from __future__ import annotations
+
+import re
+
+_URL_START = re.compile(r"""(?<![^\s"'(<\[=,])[a-z][a-z0-9+.-]*://""", re.I)
+"""Where a URL begins in text: a scheme at the start of a word (``--broker=mqtt://``,
+``'mqtt://``); a ``x://`` inside a password does not begin one."""
+_URL_END = re.compile(r"\n|\s--?[a-z]", re.I)
+"""Where a URL in text ends at the latest: a line break, the next option of a command line."""
+_HOST_AFTER = re.compile(r"@(?=[^\s@])")
+"""An '@' with a host after it: the user-info ends at the last one (RFC 3986 3.2.1)."""
+
+
+def mask_password(text: str, *, url: bool = False) -> str:
+    """``text`` with the password of every ``scheme://user:password@host`` in it shown as
+    ``***``: the one place a URL or a command line is made fit to print (issue 26 §5).
+
+    ``url``: ``text`` is one URL, or a bare ``user:password@host`` (what ``--broker`` and
+    ``WARAPS_BROKER`` accept), whatever it holds. Else ``text`` is a message or a command
+    line, and each URL in it runs to the next URL, line break or option (`` --x``).
+    A password may hold any character ('/', '#', '?', ' ', '@', ':'): the user-info runs to
+    the last '@' followed by a host, and everything after the user's first ':' is hidden.
+    Where text merely looks like one (``u:p@h``), it is masked too: hiding too much is the
+    safe mistake."""
+    if "@" not in text:
+        return text  # the usual case: nothing that could be a password
+    if url:
+        scheme = _URL_START.match(text)
+        cut = scheme.end() if scheme else 0
+        return text[:cut] + _masked_userinfo(text[cut:])
+    out, pos = [], 0
+    for start in _URL_START.finditer(text):
+        if start.start() < pos:
+            continue  # inside the URL just masked
+        end = _URL_END.search(text, start.end())
+        stop = len(text) if end is None else end.start()
+        following = _URL_START.search(text, start.end(), stop)
+        stop = following.start() if following else stop
+        out += [text[pos:start.end()], _masked_userinfo(text[start.end():stop])]
+        pos = stop
+    return "".join(out) + text[pos:]
+
+
+def _masked_userinfo(segment: str) -> str:
+    """``segment`` (what follows a scheme) with the password of its user-info hidden."""
+    ats = [m.start() for m in _HOST_AFTER.finditer(segment)] or [segment.rfind("@")]
+    if ats[-1] < 0:
+        return segment
+    userinfo, rest = segment[:ats[-1]], segment[ats[-1]:]
+    user, colon, _ = userinfo.partition(":")
+    return f"{user}:***{rest}" if colon else segment
