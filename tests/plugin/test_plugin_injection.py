@@ -1,0 +1,34 @@
+"""Nothing a unit publishes drives the certifier's terminal (issue 26 §3): a level name
+holding an OSC 52 clipboard write, a screen clear, a bidi override, a carriage return and a
+forged ``PASSED`` line is shown escaped in the header and the summary's per-level lines."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+from certify_helpers import FAST, SilentUnit, certify
+
+from conformance.topics import UnitAddress
+
+LEVEL = "\x1b]52;c;cHduZWQ=\x07\x1b[2J\u202e\r\nPASSED \x9b1m\u200b\ufeff\U000e0041"
+RAW = re.compile("[\x00-\x09\x0b-\x1f\x7f-\x9f\u202a-\u202e\u2066-\u2069\u200b\ufeff"
+                 "\U000e0000-\U000e007f]")
+"""What must never reach the terminal from the wire (our own line breaks aside)."""
+
+
+def test_a_hostile_level_name_is_escaped_in_the_header_and_summary(
+        pytester: pytest.Pytester, mosquitto: str, unit_address: UnitAddress) -> None:
+    with SilentUnit(str(unit_address), mosquitto, levels=("sensor", LEVEL)):
+        run = certify(pytester, "--unit", str(unit_address), "--broker", mosquitto,
+                      f"--profile={FAST}", "-k", "HB-001")
+    text = run.text
+    assert not RAW.search(text), repr(RAW.search(text))
+    escaped = "\\x1b]52;c;cHduZWQ=\\x07\\x1b[2J\\u202e\\x0d\\x0aPASSED \\x9b1m\\u200b\\ufeff" \
+              "\\U000e0041"
+    header = [line for line in run.result.outlines if "levels:" in line]
+    assert header and escaped in header[0], header
+    summary = text[text.index("waraps-conformance ==="):]
+    per_level = [line for line in summary.splitlines() if escaped in line]
+    assert per_level and per_level[0].startswith("  "), summary  # the level's own line
+    assert not any(line.startswith("PASSED") for line in text.splitlines())
