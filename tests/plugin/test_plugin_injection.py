@@ -15,13 +15,15 @@ LEVEL = "\x1b]52;c;cHduZWQ=\x07\x1b[2J\u202e\r\nPASSED \x9b1m\u200b\ufeff\U000e0
 RAW = re.compile("[\x00-\x09\x0b-\x1f\x7f-\x9f\u202a-\u202e\u2066-\u2069\u200b\ufeff"
                  "\U000e0000-\U000e007f]")
 """What must never reach the terminal from the wire (our own line breaks aside)."""
+REBOOT = "curl -X POST https://admin:p@ss w0rd#1@robot.local/reboot; echo \x1b[2J done"
+"""A reboot command holding a password (with '@', ' ', '#') and an escape sequence."""
 
 
 def test_a_hostile_level_name_is_escaped_in_the_header_and_summary(
         pytester: pytest.Pytester, mosquitto: str, unit_address: UnitAddress) -> None:
     with SilentUnit(str(unit_address), mosquitto, levels=("sensor", LEVEL)):
         run = certify(pytester, "--unit", str(unit_address), "--broker", mosquitto,
-                      f"--profile={FAST}", "-k", "HB-001")
+                      f"--profile={FAST}", "-k", "HB-001", f"--reboot-cmd={REBOOT}")
     text = run.text
     assert not RAW.search(text), repr(RAW.search(text))
     escaped = "\\x1b]52;c;cHduZWQ=\\x07\\x1b[2J\\u202e\\x0d\\x0aPASSED \\x9b1m\\u200b\\ufeff" \
@@ -32,3 +34,7 @@ def test_a_hostile_level_name_is_escaped_in_the_header_and_summary(
     per_level = [line for line in summary.splitlines() if escaped in line]
     assert per_level and per_level[0].startswith("  "), summary  # the level's own line
     assert not any(line.startswith("PASSED") for line in text.splitlines())
+    # The reboot command as the shell word it was given as, its password masked, escaped.
+    shown = "--reboot-cmd 'curl -X POST https://admin:***@robot.local/reboot; echo \\x1b[2J done'"
+    assert any(line.startswith("  reboot:") and shown in line for line in run.result.outlines)
+    assert "w0rd" not in text and "p@ss" not in text
