@@ -46,6 +46,14 @@ def printable(text: object) -> str:
     return _NOT_PLAIN.sub(lambda m: _escape(m.group()), s)
 
 
+def shown(text: object) -> str:
+    """``text`` (ours, holding user or wire text: a URL, a command line, an error) fit for a
+    terminal: one line, escaped (issue 26 §3), never a password (§5)."""
+    from conformance.masking import mask_password
+
+    return printable(mask_password(str(text)))
+
+
 SHORT_CHARS = 4096
 """The longest string a report shows in full (an excerpt of it beyond)."""
 LINE_CHARS = 4000

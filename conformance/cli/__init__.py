@@ -51,7 +51,10 @@ def main(argv: list[str] | None = None) -> int:
 
         close = difflib.get_close_matches(name, COMMANDS, n=1)
         hint = f" Did you mean {close[0]!r}?" if close else ""
-        print(f"waraps-conformance: unknown command {name!r}.{hint}\n\n{usage()}", file=sys.stderr)
+        from conformance.display import printable
+
+        print(f"waraps-conformance: unknown command {printable(repr(name))}.{hint}\n\n{usage()}",
+              file=sys.stderr)
         return 2
     module = importlib.import_module(f"{__name__}.{name}")
     try:

@@ -16,7 +16,6 @@ itself is ``conformance.lint.runner.lint``.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import IO
 
@@ -84,7 +83,7 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
     args = build_parser().parse_args(argv)
 
     def usage(message: str) -> int:
-        print(f"waraps-conformance lint: {message}", file=sys.stderr)
+        opts.say("lint", message)
         return EXIT_USAGE
 
     if args.source and args.broker:

@@ -12,7 +12,9 @@ from __future__ import annotations
 import argparse
 import re
 import sys
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any, NoReturn
+
+from conformance.display import shown
 
 if TYPE_CHECKING:
     from conformance.client import BrokerURL
@@ -55,11 +57,26 @@ def parse_duration(text: str) -> float:
     return total
 
 
+def say(command: str, message: object, file: IO[str] | None = None) -> None:
+    """``waraps-conformance COMMAND: message`` on one line of ``file`` (standard error)."""
+    print(shown(f"waraps-conformance {command}: {message}"),
+          file=sys.stderr if file is None else file, flush=True)
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser whose errors (which repeat what was typed: ``unrecognized
+    arguments: ...``) are shown escaped and masked, like every other error."""
+
+    def error(self, message: str) -> NoReturn:
+        self.print_usage(sys.stderr)
+        self.exit(2, f"{self.prog}: error: {shown(message)}\n")
+
+
 def parser(command: str, description: str, epilog: str | None = None
            ) -> argparse.ArgumentParser:
     """The argument parser of ``waraps-conformance COMMAND``."""
-    return argparse.ArgumentParser(prog=f"waraps-conformance {command}",
-                                   description=description, epilog=epilog)
+    return _Parser(prog=f"waraps-conformance {command}", description=description,
+                   epilog=epilog)
 
 
 class _DeprecatedFlag(argparse.Action):

@@ -30,13 +30,13 @@ def main(argv: list[str] | None = None) -> int:
     try:
         options = opts.capture_options(args)
     except CaptureOptionsError as e:
-        print(f"waraps-conformance record: {e}", file=sys.stderr)
+        opts.say("record", e)
         return 2
     out = sys.stdout.buffer if args.output == "-" else open(args.output, "wb")
     try:
         return record(options, out, name=args.output, log=sys.stderr)
     except BrokerError as e:  # the message says what failed and how to fix it
-        print(f"waraps-conformance record: {e}", file=sys.stderr)
+        opts.say("record", e)
         return 3
     finally:
         if out is not sys.stdout.buffer:

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 from typing import IO, Any
 
-from conformance.display import NAME_CHARS, printable, printable_lines, shorten
+from conformance.display import NAME_CHARS, printable, printable_lines, shorten, shown
 from conformance.lint import EXIT_FAIL, EXIT_NOT_RUN, EXIT_PASS
 
 GATES = ("all", "units")
@@ -45,7 +45,7 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
         try:
             end = run_bag(linter, scorecard, reader_of_bag, options)
         except BagError as e:
-            print(printable(f"waraps-conformance lint: {e}"), file=err)
+            print(shown(f"waraps-conformance lint: {e}"), file=err)
             return EXIT_NOT_RUN
         meta = {"source": reader_of_bag.name, "recording_formats": reader_of_bag.format,
                 "bag_messages_read": str(reader_of_bag.read)}
@@ -56,15 +56,15 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
         try:
             stream, name = open_recording(source, stdin)
         except RecordingError as e:
-            print(printable(f"waraps-conformance lint: {e}"), file=err)
+            print(shown(f"waraps-conformance lint: {e}"), file=err)
             return EXIT_NOT_RUN
         scorecard = Scorecard(out, tty=False if plain else None, title=name, live=False)
         with stream if stream is not (stdin or sys.stdin.buffer) else _noop():
             reader, end = run_recorded(linter, scorecard, stream, name, options)
         meta = {"source": name, "recording_lines": str(reader.lines),
                 "recording_formats": ", ".join(sorted(reader.formats))}
-        print(f"read {name} as {', '.join(sorted(reader.formats)) or 'no known format'}"
-              f" ({reader.messages} messages)", file=out)
+        print(shown(f"read {name} as {', '.join(sorted(reader.formats)) or 'no known format'}"
+                    f" ({reader.messages} messages)"), file=out)
         if reader.problem_count:
             meta["recording_problems"] = str(reader.problem_count)
             meta["recording_problem_lines"] = "; ".join(str(p) for p in reader.problems[:20])
@@ -81,14 +81,14 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
         try:
             capture.start()
         except BrokerError as e:
-            print(printable(f"waraps-conformance lint: {e}"), file=err)
+            print(shown(f"waraps-conformance lint: {e}"), file=err)
             return EXIT_NOT_RUN
         scorecard = Scorecard(out, tty=False if plain else None,
                               title=f"{options.broker} {' '.join(options.topics)}", live=True)
         if not scorecard.tty:
-            print(f"linting {', '.join(options.topics)} on {options.broker} (read-only)"
-                  + (f" for {options.duration:g} s" if options.duration else " until Ctrl-C"),
-                  file=out, flush=True)
+            print(shown(f"linting {', '.join(options.topics)} on {options.broker} (read-only)"
+                        + (f" for {options.duration:g} s" if options.duration
+                           else " until Ctrl-C")), file=out, flush=True)
         end = run_live(linter, scorecard, capture, options)
         meta = {"source": f"live {' '.join(options.topics)}"}
         if options.broker.tls_arguments():  # the rerun line repeats them (reporting/text.py)
@@ -140,7 +140,7 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
     if formats:
         paths = write_reports(report, Path(reports_dir), formats, report_stem(source))
         for path in paths:
-            print(f"report: {path}", file=out)
+            print(shown(f"report: {path}"), file=out)
     evidence = failures(report)
     if evidence:
         print(f"\n{printable_lines(evidence)}\n", file=out)
