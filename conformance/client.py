@@ -9,8 +9,10 @@ client may publish nowhere; the suite's only to the unit under test).
 
 from __future__ import annotations
 
+import ipaddress
 import os
 import queue
+import re
 import ssl
 import threading
 import time
@@ -34,6 +36,26 @@ class BrokerError(RuntimeError):
 
 class PublishRefused(PermissionError):
     """A publish the safety rules forbid (DESIGN: safety). Never caught to carry on."""
+
+
+_LABEL = re.compile(r"[a-z0-9_](?:[a-z0-9_-]{0,61}[a-z0-9_])?", re.I)
+"""One label of a host name (RFC 1123 2.1; '_' as resolvers accept it)."""
+
+
+def _is_host(host: str) -> bool:
+    """``host`` is an IP address or a host name a resolver can be asked about (labels of 1 to
+    63 characters, 253 in all, after IDNA): ``a..b`` is not (issue 26)."""
+    try:
+        ipaddress.ip_address(host)
+        return True
+    except ValueError:
+        pass
+    try:
+        name = host.encode("idna").decode("ascii")
+    except UnicodeError:
+        return False
+    labels = name.removesuffix(".").split(".")
+    return len(name) <= 253 and all(_LABEL.fullmatch(label) for label in labels)
 
 
 @dataclass(frozen=True)
@@ -79,6 +101,9 @@ class BrokerURL:
                 f"broker URL {shown!r}: the port is not a number from 1 to 65535") from None
         if not parts.hostname:
             raise ValueError(f"broker URL {shown!r} has no host (for example mqtt://127.0.0.1:1883)")
+        if not _is_host(parts.hostname):
+            raise ValueError(f"broker URL {shown!r}: {parts.hostname!r} is not a host name or "
+                             f"an IP address (for example mqtt://127.0.0.1:1883)")
         return cls(parts.scheme, parts.hostname, port,
                    username=parts.username or env.get("WARAPS_USERNAME") or None,
                    password=env.get("WARAPS_PASSWORD") or None)
@@ -256,7 +281,7 @@ class MqttClient:
             raise BrokerError(f"TLS handshake with {b} failed: {e.reason or e}. Check the CA "
                               f"file (--ca-file) and that the broker speaks TLS on this port"
                               ) from None
-        except OSError as e:
+        except (OSError, UnicodeError) as e:  # UnicodeError: a host name IDNA refuses
             raise BrokerError(f"cannot reach the broker at {b}: {e.strerror or e}. Is it "
                               f"running and listening there? (--broker, WARAPS_BROKER/"
                               f"WARAPS_PORT)") from None

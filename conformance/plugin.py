@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from conformance.cli.options import BROKER_ENV, CREDENTIALS, TLS_FILES, TLS_INSECURE
+from conformance.cli.options import BROKER_ENV, CREDENTIALS, TLS_FILES, TLS_INSECURE, parse_rate
 from conformance.display import printable, printable_lines
 
 if TYPE_CHECKING:
@@ -100,7 +100,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     metavar="VARIANT", help="with --broker embedded: switch on a conformant "
                     "variant of the bundled reference unit (repeatable; waraps-conformance sim "
                     "--list-variants lists them)")
-    group.addoption("--sim-rate", dest="waraps_sim_rate", type=float, default=None,
+    group.addoption("--sim-rate", dest="waraps_sim_rate", type=parse_rate, default=None,
                     metavar="HZ", help="with --broker embedded: the reference unit's rate")
     group.addoption("--sim-tst", dest="waraps_sim_tst", action="store_true", default=False,
                     help="with --broker embedded: the reference unit declares 'tst execution' "

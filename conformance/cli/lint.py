@@ -91,6 +91,9 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
     try:
         options = opts.capture_options(args, need_broker=not args.source)
         formats = parse_formats(args.format)
+        problem = opts.reports_dir_problem(args.reports_dir) if formats else None
+        if problem:
+            raise ValueError(problem)
         profile = load(args.profile)
     except (CaptureOptionsError, ProfileError, ValueError) as e:
         return usage(str(e))

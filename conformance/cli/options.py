@@ -10,8 +10,10 @@ must stay cheap); what an option means is decided by the part that does the work
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
+from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 from conformance.display import shown
@@ -70,6 +72,24 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         self.print_usage(sys.stderr)
         self.exit(2, f"{self.prog}: error: {shown(message)}\n")
+
+
+MAX_RATE = 1000.0
+"""The fastest the reference unit publishes, in Hz (a period of 1 ms: its loop keeps up)."""
+
+
+def parse_rate(text: str) -> float:
+    """A rate in Hz as ``--rate`` and ``--sim-rate`` take it: a number above 0, at most
+    ``MAX_RATE`` (``inf``, ``nan``, 0 and negative numbers are refused: issue 26). An
+    ``argparse.ArgumentTypeError`` (a usage error of the command, or of pytest) says so."""
+    try:
+        rate = float(text)
+    except ValueError:
+        rate = float("nan")
+    if not 0 < rate <= MAX_RATE:  # False for nan too
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a rate: a number of Hz above 0 and at most {MAX_RATE:g}")
+    return rate
 
 
 def parser(command: str, description: str, epilog: str | None = None
@@ -166,6 +186,19 @@ def add_reports_dir_option(parser: argparse.ArgumentParser | argparse._ArgumentG
                         help="where the reports go (default: reports/)")
 
 
+def reports_dir_problem(path: str | os.PathLike[str]) -> str | None:
+    """Why ``--reports-dir`` ``path`` cannot hold reports (it, or the nearest of its parents
+    that exists, is not a folder), or None; said before anything runs, not at the end."""
+    here = Path(path)
+    for folder in (here, *here.parents):
+        if folder.exists():
+            if folder.is_dir():
+                return None
+            return (f"--reports-dir {str(path)!r}: {str(folder)!r} is not a folder (the reports "
+                    f"go into a folder, created when missing)")
+    return None
+
+
 REFERENCE_UNIT = "waraps/unit/air/simulation/dji0"
 """Where the bundled reference unit runs unless told otherwise (``sim``, ``demo``)."""
 
@@ -176,7 +209,7 @@ def add_reference_unit_options(parser: argparse.ArgumentParser, *,
     ``sim`` and ``demo`` (which runs it under the certification) both take them."""
     parser.add_argument("--unit", default=REFERENCE_UNIT, metavar="ADDRESS",
                         help=f"its address, PREFIX/unit/TYPE/ROLE/NAME (default {REFERENCE_UNIT})")
-    parser.add_argument("--rate", type=float, default=1.0, metavar="HZ",
+    parser.add_argument("--rate", type=parse_rate, default=1.0, metavar="HZ",
                         help="declared rate of heartbeat, info messages and sensors (default 1)")
     parser.add_argument("--fault", action="append", default=[], metavar=fault_metavar,
                         help="switch a fault on (repeatable; waraps-conformance sim "

@@ -67,8 +67,6 @@ def main(argv: list[str]) -> int:
         return 0
     if args.count < 1:
         parser.error(f"--count {args.count}: at least 1")
-    if not args.rate > 0:
-        parser.error(f"--rate {args.rate}: a rate is a positive number of Hz")
     if args.tst_operator and not args.tst:
         parser.error("--tst-operator needs --tst")
     try:

@@ -13,6 +13,7 @@ from typing import IO, Any
 
 from conformance.display import NAME_CHARS, printable, printable_lines, shorten, shown
 from conformance.lint import EXIT_FAIL, EXIT_NOT_RUN, EXIT_PASS
+from conformance.reporting.bounds import file_stem
 
 GATES = ("all", "units")
 REPORT_FORMATS = ("json", "html", "junit")
@@ -372,9 +373,8 @@ def report_stem(source: str | None) -> str:
     ``lint-<local time>``."""
     if source and source != "-":
         name = Path(source).name.split(".")[0]
-        safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
-        if safe:
-            return f"lint-{safe}"
+        if name:  # bounded and sanitised (a 300-character name: issue 26)
+            return f"lint-{file_stem(name).replace('.', '_')}"
     return time.strftime("lint-%Y%m%d-%H%M%S")
 
 

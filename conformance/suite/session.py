@@ -26,6 +26,7 @@ from conformance.checks import Monitor
 from conformance.client import BrokerError, MqttClient
 from conformance.conclusion import Conclusion, conclude
 from conformance.display import LINE_CHARS, printable, shorten
+from conformance.reporting.bounds import file_stem
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
 from conformance.scenarios import (
@@ -80,7 +81,7 @@ class Certification:
                                      self.events)
         self.reboot = Reboot(config, self.connection, self.timing.reboot,
                              self._reboot_requested, self.events)
-        self.stem = f"{self.unit.name}-{time.strftime('%Y%m%dT%H%M%S', time.localtime())}"
+        self.stem = f"{file_stem(self.unit.name)}-{time.strftime('%Y%m%dT%H%M%S', time.localtime())}"
         self.report_paths: dict[str, Path] = {}
         self.collect_only = False
         """--collect-only: nothing is connected, run or written."""

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from conformance.cli.options import parse_duration
+from conformance.cli.options import parse_duration, reports_dir_problem
 from conformance.client import BrokerURL, mask_password
 from conformance.profile import Profile, ProfileError, builtin_names, load
 from conformance.topics import TopicError, UnitAddress
@@ -214,6 +214,9 @@ def read(config: pytest.Config) -> Settings:
     reports = Path(str(_value(config, "waraps_reports_dir") or "reports"))
     if not reports.is_absolute():
         reports = Path(config.invocation_params.dir) / reports
+    problem = reports_dir_problem(reports)
+    if problem:
+        raise pytest.UsageError(problem)
     seed_text = config.getoption("waraps_seed", None)
     if seed_text is None:
         seed = secrets.randbelow(10**9)
