@@ -10,7 +10,6 @@ must stay cheap); what an option means is decided by the part that does the work
 from __future__ import annotations
 
 import argparse
-import os
 import re
 import sys
 from pathlib import Path
@@ -186,7 +185,7 @@ def add_reports_dir_option(parser: argparse.ArgumentParser | argparse._ArgumentG
                         help="where the reports go (default: reports/)")
 
 
-def reports_dir_problem(path: str | os.PathLike[str]) -> str | None:
+def reports_dir_problem(path: str | Path) -> str | None:
     """Why ``--reports-dir`` ``path`` cannot hold reports (it, or the nearest of its parents
     that exists, is not a folder), or None; said before anything runs, not at the end."""
     here = Path(path)
