@@ -76,7 +76,10 @@ def main(argv: list[str]) -> int:
         parser.error(str(e))
     text = args.broker
     if text is None:
-        env = BrokerURL.from_env()
+        try:
+            env = BrokerURL.from_env()
+        except ValueError as e:  # WARAPS_BROKER, WARAPS_PORT: said masked, one line
+            parser.error(str(e))
         text = str(env) if env is not None else "embedded"
     broker = None  # embedded: run() starts one
     if text != "embedded":
