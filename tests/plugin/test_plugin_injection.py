@@ -38,3 +38,18 @@ def test_a_hostile_level_name_is_escaped_in_the_header_and_summary(
     shown = "--reboot-cmd 'curl -X POST https://admin:***@robot.local/reboot; echo \\x1b[2J done'"
     assert any(line.startswith("  reboot:") and shown in line for line in run.result.outlines)
     assert "w0rd" not in text and "p@ss" not in text
+
+
+def test_the_not_alive_message_keeps_its_lines_and_escapes_the_wire(
+        pytester: pytest.Pytester, mosquitto: str, prefix: str) -> None:
+    """Our own line breaks print as line breaks; the address a unit publishes at (the wire's
+    words) is escaped (it was the other way round: '...(broker ...).\\x0aA unit publishes')."""
+    close = f"{prefix}/unit/air/simulation/dji0\u202e\u200b"  # Mosquitto refuses C0 and C1
+    with SilentUnit(close, mosquitto):
+        run = certify(pytester, "--unit", f"{prefix}/unit/air/simulation/dji0", "--broker",
+                      mosquitto, f"--profile={FAST}")
+    lines = run.text.splitlines()
+    assert not RAW.search(run.text), repr(RAW.search(run.text))
+    shown = f"{prefix}/unit/air/simulation/dji0\\u202e\\u200b"
+    assert f"A unit publishes at {shown}: did you mean --unit {shown}?" in lines, run.text
+    assert "\\x0a" not in run.text
