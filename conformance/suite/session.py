@@ -25,7 +25,7 @@ from conformance import __version__
 from conformance.checks import Monitor
 from conformance.client import BrokerError, MqttClient
 from conformance.conclusion import Conclusion, conclude
-from conformance.display import LINE_CHARS, printable, shorten
+from conformance.display import LINE_CHARS, shorten, shown
 from conformance.reporting.bounds import file_stem
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
@@ -169,9 +169,9 @@ class Certification:
         capman = self.config.pluginmanager.getplugin("capturemanager")
         if capman is not None:
             with capman.global_and_fixture_disabled():
-                tw.line(printable(text))
+                tw.line(shown(text))
         else:
-            tw.line(printable(text))
+            tw.line(shown(text))
 
     def _adapted(self, deviation: Deviation) -> None:
         """A systematic deviation, seen for the first time: say so once (summary and -v)."""
@@ -520,8 +520,9 @@ class Certification:
 
     def header(self) -> list[str]:
         """The lines pytest shows before the tests (``header_lines``); the unit's own words
-        in them (agent-uuid, agent-type, levels) escaped and excerpted (issue 19 §5)."""
-        return [printable(shorten(line, LINE_CHARS)) for line in header_lines(
+        in them (agent-uuid, agent-type, levels) escaped and excerpted (issue 19 §5), never a
+        password (issue 26 §5)."""
+        return [shown(shorten(line, LINE_CHARS)) for line in header_lines(
             self.settings, broker=self.connection.broker_url, heartbeat=self.context.heartbeat(),
             levels=self.context.levels(),
             reboot=self.reboot.how() if self.context.reboot else None,
