@@ -136,3 +136,18 @@ def test_validate_without_an_arrival_time_judges_the_stamp_for_plausibility_and_
     assert cli_main(["validate", "--now", "waraps/unit/air/simulation/dji0/heartbeat",
                      str(path)]) == 1
     assert "plausibility" not in capsys.readouterr().out
+
+
+def test_cli_shows_what_the_message_holds_escaped(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A value, a key and the topic holding escape sequences, a bidi override and zero-width
+    characters are shown escaped in validate's text (issue 26 §3), on one line each."""
+    hostile = "\x1b]52;c;cHduZWQ=\x07\x1b[2J\u202e\u200b"
+    path = tmp_path / "hb.json"
+    path.write_bytes(orjson.dumps({"name": "dji0", "rate": hostile, "type": "HeartBeat",
+                                   hostile: 1}))
+    topic = "waraps/unit/air/simulation/dji0\u202e/heartbeat"
+    assert cli_main(["validate", topic, str(path)]) == 1
+    out = capsys.readouterr().out
+    assert "dji0\\u202e/heartbeat" in out and "observed  string" in out
+    assert not any(c in out for c in "\x1b\x07\u202e\u200b"), out
