@@ -37,7 +37,6 @@ def main(argv: list[str] | None = None) -> int:
     from conformance.topics import TopicError, UnitAddress
 
     args = build_parser().parse_args(argv)
-    prog = "waraps-conformance profile"
     try:
         option = "--unit"
         unit = UnitAddress.parse(args.unit)
@@ -49,13 +48,15 @@ def main(argv: list[str] | None = None) -> int:
         opts.say("profile", f"{option}: {e}")
         return 2
     if broker is None:
-        print(f"{prog}: no broker: pass --broker mqtt://host:port or set WARAPS_BROKER",
-              file=sys.stderr)
+        opts.say("profile", "no broker: pass --broker mqtt://host:port or set WARAPS_BROKER")
         return 2
     out = None if args.output == "-" else Path(args.output)
     if out is not None and out.exists():
         opts.say("profile", f"{out} exists; name a new file (a profile you edited is never "
                  f"overwritten)")
+        return 2
+    if out is not None and not out.absolute().parent.is_dir():  # said before observing
+        opts.say("profile", f"cannot write {out}: {out.parent} is not a folder")
         return 2
     def say(text: str) -> None:
         print(opts.shown(text), file=sys.stderr)
@@ -70,6 +71,10 @@ def main(argv: list[str] | None = None) -> int:
     if out is None:
         sys.stdout.write(text)
     else:
-        out.write_text(text, "utf-8")
+        try:
+            out.write_text(text, "utf-8")
+        except OSError as e:  # a full disk
+            opts.say("profile", f"cannot write {out}: {e.strerror or e}")
+            return 3
         print(opts.shown(f"wrote {out}"), file=sys.stderr)
     return 0 if seen.heartbeat is not None else 6

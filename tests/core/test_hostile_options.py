@@ -64,6 +64,9 @@ CASES = {
     "reports-dir under a file": (["lint", "--from", "x.jsonl", "--reports-dir", "a-file/r"], 2,
                                  "is not a folder"),
     "record -o nowhere": (["record", *LIVE, "-o", "no/such/dir/x.jsonl"], 2, "cannot write"),
+    "profile -o nowhere": (["profile", "--unit", "waraps/unit/air/real/dji0", "--broker",
+                            "mqtt://127.0.0.1:1", "-o", "no/such/dir/x.yaml"], 2,
+                           "cannot write"),
 }
 
 
