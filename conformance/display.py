@@ -11,11 +11,11 @@ _NOT_PLAIN = re.compile("[^\x20-\x7e]")
 """A character that is not printable ASCII: the only ones worth a look (ASCII text is shown
 as it is)."""
 
-_INVISIBLE = frozenset(
-    [0x034F, 0x115F, 0x1160, 0x17B4, 0x17B5, 0x3164, 0xFFA0]  # grapheme joiner, fillers
-    + list(range(0x180B, 0x1810))      # Mongolian variation selectors and vowel separator
-    + list(range(0xFE00, 0xFE10))      # variation selectors
-    + list(range(0xE0100, 0xE01F0)))   # variation selectors supplement
+_INVISIBLE_CLASS = ("[\u034f\u115f\u1160\u17b4\u17b5\u3164\uffa0"  # grapheme joiner, fillers
+                    "\u180b-\u180f"       # Mongolian variation selectors and vowel separator
+                    "\ufe00-\ufe0f"       # variation selectors
+                    "\U000e0100-\U000e01ef]")  # variation selectors supplement
+_INVISIBLE = re.compile(_INVISIBLE_CLASS)
 """Characters Unicode counts as letters or marks that nevertheless show nothing: two names
 differing only by them would print alike."""
 
@@ -30,7 +30,7 @@ def _escape(c: str) -> str:
     U+2028, U+2029; Zs: spaces other than ' ', which look like it), and the invisible
     letters and marks above."""
     n = ord(c)
-    if c.isprintable() and n not in _INVISIBLE:
+    if c.isprintable() and not _INVISIBLE.match(c):
         return c
     return f"\\x{n:02x}" if n < 0x100 else f"\\u{n:04x}" if n < 0x10000 else f"\\U{n:08x}"
 
@@ -41,7 +41,7 @@ def printable(text: object) -> str:
     overrides) and every invisible one (zero-width, tag characters) shown as ``\\xNN``,
     ``\\uNNNN`` or ``\\UNNNNNNNN``. Wire data may hold anything; ASCII text is unchanged."""
     s = text if isinstance(text, str) else str(text)
-    if s.isascii() and s.isprintable():  # the usual case: nothing to do
+    if s.isprintable() and (s.isascii() or not _INVISIBLE.search(s)):  # nothing to do
         return s
     return _NOT_PLAIN.sub(lambda m: _escape(m.group()), s)
 

@@ -33,14 +33,13 @@ def mask_password(text: str, *, url: bool = False) -> str:
         cut = scheme.end() if scheme else 0
         return text[:cut] + _masked_userinfo(text[cut:])
     out, pos = [], 0
-    for start in _URL_START.finditer(text):
-        if start.start() < pos:
-            continue  # inside the URL just masked
-        end = _URL_END.search(text, start.end())
-        stop = len(text) if end is None else end.start()
-        following = _URL_START.search(text, start.end(), stop)
-        stop = following.start() if following else stop
-        out += [text[pos:start.end()], _masked_userinfo(text[start.end():stop])]
+    urls = list(_URL_START.finditer(text))
+    if not urls:
+        return text
+    for url, following in zip(urls, [*(u.start() for u in urls[1:]), len(text)], strict=True):
+        end = _URL_END.search(text, url.end(), following)  # each part of text read once
+        stop = following if end is None else end.start()
+        out += [text[pos:url.end()], _masked_userinfo(text[url.end():stop])]
         pos = stop
     return "".join(out) + text[pos:]
 
