@@ -15,6 +15,7 @@ import pytest
 
 from conformance.cli.options import BROKER_ENV, CREDENTIALS, TLS_FILES, TLS_INSECURE, parse_rate
 from conformance.display import printable, printable_lines
+from conformance.masking import mask_password
 
 if TYPE_CHECKING:
     from conformance.suite.session import Certification
@@ -286,7 +287,8 @@ class _CertificationPlugin:
         def line(text: str, **markup: bool) -> None:
             # Every line through the one escape (issue 26 §3): the unit's own words (its
             # levels, names, reasons) never reach the terminal raw; our own line breaks stay.
-            tr.line(printable_lines(text), **markup)
+            # Never a password (§5): the repeat line, an error naming a URL.
+            tr.line(printable_lines(mask_password(text)), **markup)
 
         tr.section("waraps-conformance")
         if c.error:

@@ -35,6 +35,8 @@ TLS_INSECURE = ("--tls-insecure",
                 "do not verify the mqtts:// broker's certificate (test brokers only)")
 
 
+MAX_DURATION_SECONDS = 366 * 86400
+"""The longest duration an option takes (a year: '9' * 400 seconds is infinity as a float)."""
 _DURATION = re.compile(r"(\d+(?:\.\d*)?|\.\d+)(ms|min|h|m|s)?")
 _UNIT_SECONDS = {"h": 3600.0, "min": 60.0, "m": 60.0, "s": 1.0, "ms": 0.001, None: 1.0}
 
@@ -52,10 +54,15 @@ def parse_duration(text: str) -> float:
             break
         total += float(m.group(1)) * _UNIT_SECONDS[m.group(2)]
         pos = m.end()
-    if not s or pos != len(s) or total <= 0:
-        raise ValueError(f"duration {text!r} is not a positive time like 90s, 10m, 1h30m or a "
-                         f"number of seconds")
+    if not s or pos != len(s) or not 0 < total <= MAX_DURATION_SECONDS:  # inf: issue 26
+        raise ValueError(f"duration {_excerpt(text)} is not a positive time like 90s, 10m, "
+                         f"1h30m or a number of seconds, at most {MAX_DURATION_SECONDS // 86400} "
+                         f"days")
     return total
+
+
+def _excerpt(text: str) -> str:
+    return repr(text) if len(text) <= 80 else f"{text[:80]!r}... ({len(text)} chars)"
 
 
 def say(command: str, message: object, file: IO[str] | None = None) -> None:

@@ -58,6 +58,9 @@ CASES = {
     **{f"rate {rate}": (["sim", "--rate", rate], 2, "is not a rate")
        for rate in ("inf", "nan", "0", "-1", "1e9")},
     "demo rate": (["demo", "--rate", "inf"], 2, "is not a rate"),
+    # durations: 400 digits are infinity as a float
+    "duration inf": (["lint", "--broker", "mqtt://127.0.0.1:1", "--duration", "9" * 400], 2,
+                     "is not a positive time"),
     # where the output goes
     "reports-dir a file": (["lint", "--from", "x.jsonl", "--reports-dir", "a-file"], 2,
                            "is not a folder"),
@@ -93,6 +96,8 @@ PYTEST_CASES = {
                    "mqtt://a..b:1883"], "'a..b' is not a host name"),
     "reports-dir a file": (["--unit", "waraps/unit/air/simulation/dji0", "--broker", "embedded",
                             "--reports-dir=a-file"], "is not a folder"),
+    "observe inf": (["--unit", "waraps/unit/air/simulation/dji0", "--broker", "embedded",
+                     "--observe", "9" * 400], "a positive duration is needed"),
     "sim-rate inf": (["--unit", "waraps/unit/air/simulation/dji0", "--broker", "embedded",
                       "--sim-rate", "inf"], "is not a rate"),
 }
