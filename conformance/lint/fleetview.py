@@ -27,7 +27,11 @@ from conformance.rules import CATALOGUE
 from conformance.violation import Verdict, Violation
 
 SNAPSHOT_EVERY = 1.0
-"""Seconds (wall clock) between two snapshots while lint runs."""
+"""Seconds (wall clock) between two snapshots while lint runs, at least; a snapshot that took
+long spaces the next ones (``COST_SHARE``)."""
+COST_SHARE = 0.1
+"""At most this share of lint's time goes to snapshots (a fleet of thousands is shown less
+often, never slows the judging down more)."""
 SAMPLE_EVERY = 2.5
 """Seconds of traffic time between two samples of each unit's message counts (rate plots)."""
 PLOT_WINDOW = 4
@@ -142,6 +146,7 @@ class FleetView:
         self.live = live
         self._snapshot = Snapshot(0, time.time(), None, title, live, False, 0, 0, 0, None)
         self._last = float("-inf")
+        self._every = SNAPSHOT_EVERY
         self._samples: dict[tuple[str, str], deque[tuple[float, int]]] = {}
         self._plotted: set[str] = set()
         self._last_sample: float | None = None
@@ -166,10 +171,11 @@ class FleetView:
                 self._evidence[key] = v if v.time is not None or when is None else _at(v, when)
         self._sample(linter)  # on traffic time: a recording is read faster than real time
         now = time.monotonic()
-        if not force and now - self._last < SNAPSHOT_EVERY:
+        if not force and now - self._last < self._every:
             return
         self._last = now
         self._snapshot = self._make(linter, connected)
+        self._every = max(SNAPSHOT_EVERY, (time.monotonic() - now) / COST_SHARE)
         if self._report_wanted.is_set() and now - self._report_made >= REPORT_EVERY:
             self._report_wanted.clear()
             self._report_made = now
@@ -235,8 +241,9 @@ class FleetView:
                     samples = self._samples[(key, _kind(kind))] = deque(maxlen=keep)
                 samples.append((now, seen.get(kind, 0)))
 
-    def _rates(self, key: str, state: Any) -> tuple[RateView, ...]:
+    def _rates(self, key: str, state: Any, seen: dict[Any, int]) -> tuple[RateView, ...]:
         out = []
+        first = last = None
         for kind, declared in state.declared_rates.items():
             samples = list(self._samples.get((key, _kind(kind)), ()))
             history = tuple((t1, (n1 - n0) / (t1 - t0)) for (t0, n0), (t1, n1)
@@ -245,8 +252,10 @@ class FleetView:
                 (t0, n0), (t1, n1) = samples[0], samples[-1]
                 history = ((t1, (n1 - n0) / (t1 - t0)),) if t1 > t0 else ()
             measured = _recent_rate(samples)
-            if measured is None:
-                measured = _overall_rate(state, kind)
+            if measured is None:  # not plotted: over the whole observation
+                if first is None:
+                    first, last = state.first_by_kind, state.last_by_kind
+                measured = _overall_rate(first.get(kind), last.get(kind), seen.get(kind, 0))
             out.append(RateView(_kind(kind), float(declared), measured, history))
         return tuple(out)
 
@@ -257,11 +266,12 @@ class FleetView:
             state: Any = monitor.state(unit)
             key = str(getattr(state, "address", unit))
             live = tuple(v.rule for v in monitor.live_findings(unit) if linter.is_error(v.rule))
+            seen = state.kinds_seen
             rows[key] = Row(key, "unit", "", str(state.agent_type or ""),
                             str(getattr(state.address, "role", "") or ""), state.levels,
-                            state.message_count, state.last_seen, self._rates(key, state),
+                            sum(seen.values()), state.last_seen, self._rates(key, state, seen),
                             live=live, by_kind=tuple(sorted(
-                                (_kind(k), n) for k, n in state.kinds_seen.items())))
+                                (_kind(k), n) for k, n in seen.items())))
         for unit, counts in list(linter.by_unit.items()):
             row = rows.get(unit) or Row(unit, "commander" if unit not in (NOT_A_UNIT, OTHER_UNITS)
                                         else "unit", "")
@@ -281,7 +291,7 @@ class FleetView:
 
 def _kind(kind: Any) -> str:
     """A topic kind's protocol name (``heartbeat``, ``sensor_info``)."""
-    return str(getattr(kind, "value", kind))
+    return kind if type(kind) is str else str(getattr(kind, "value", kind))
 
 
 def _at(v: Violation, when: float) -> Violation:
@@ -320,9 +330,8 @@ def _recent_rate(samples: list[tuple[float, int]], span: float = 30.0) -> float 
     return (n1 - n0) / (t1 - t0) if t1 > t0 else None
 
 
-def _overall_rate(state: Any, kind: Any) -> float | None:
-    first, last = state.first_by_kind.get(kind), state.last_by_kind.get(kind)
-    n = state.kinds_seen.get(kind, 0)
+def _overall_rate(first: float | None, last: float | None, n: int) -> float | None:
+    """Messages per second between the first and the latest live one."""
     return (n - 1) / (last - first) if first is not None and last and last > first and n > 1 \
         else None
 

@@ -35,6 +35,10 @@ LIMITS = {"threads": 4, "connection_limit": 32, "max_request_header_size": 8192,
           "max_request_body_size": 0, "channel_timeout": 30, "cleanup_interval": 10,
           "ident": "waraps-conformance", "asyncore_loop_timeout": 1}
 """waitress's bounds (its adjustments): the page, its fragments and scrapes are small GETs."""
+MAX_ROWS_SHOWN = 500
+"""Rows on the fleet page, worst first (a page of 4096 units would be some 6 MB a second)."""
+MAX_CACHED = 16
+"""Answers kept per snapshot (pages of the units being looked at, /metrics)."""
 STATIC = {"fleet.css": "text/css; charset=utf-8", "fleet.js": "text/javascript; charset=utf-8"}
 HEADERS = [("X-Content-Type-Options", "nosniff"), ("Cache-Control", "no-store"),
            ("Referrer-Policy", "no-referrer"),
@@ -89,12 +93,12 @@ def environment() -> Any:
     env.filters.update(unit_url=_escape_unit, clock=_clock, hz=_hz, ago=_ago, short=_short)
     from conformance.lint.plots import sparkline
 
-    env.globals.update(sparkline=sparkline, rule_of=_rule_of)
+    env.globals.update(sparkline=sparkline, rule_of=_rule_of, max_rows=MAX_ROWS_SHOWN)
     return env
 
 
 def _finalize(value: Any) -> Any:
-    if hasattr(value, "__html__"):
+    if type(value) in (int, float) or hasattr(value, "__html__"):  # numbers: most of a page
         return value
     return "" if value is None else printable(shorten(value))
 
@@ -133,6 +137,8 @@ class App:
     def __init__(self, view: FleetView, header: Iterable[str] = ()) -> None:
         self.view = view
         self.header = tuple(header)
+        self._made: dict[tuple[int, str], tuple[str, bytes, str]] = {}
+        self._lock = threading.Lock()
 
     def __call__(self, environ: dict[str, Any], start: Callable[..., Any]) -> list[bytes]:
         method = environ.get("REQUEST_METHOD", "")
@@ -144,12 +150,29 @@ class App:
             return self._send(start, "414 URI Too Long", b"path too long\n")
         # WSGI hands the path as latin-1 text of its bytes: the unit names are UTF-8.
         path = raw.encode("latin-1", "replace").decode("utf-8", "replace")
-        status, body, ctype = self.route(path, environ.get("QUERY_STRING", ""))
+        status, body, ctype = self.route(path)
         return self._send(start, status, body, ctype, head=method == "HEAD")
 
-    def route(self, path: str, query: str) -> tuple[str, bytes, str]:
+    def route(self, path: str) -> tuple[str, bytes, str]:
+        """The answer to GET ``path``: made once per snapshot and path, whoever asks (each
+        viewer polls every second; a page of 200 units takes some 100 ms to make)."""
+        if path == "/report.json" or path.startswith("/static/"):
+            return self._route(path, self.view.snapshot)
+        with self._lock:
+            snap = self.view.snapshot
+            key = (snap.version, path)
+            made = self._made.get(key)
+            if made is None:
+                made = self._route(path, snap)
+                if len(self._made) >= MAX_CACHED:
+                    self._made = {k: v for k, v in self._made.items() if k[0] == snap.version}
+                    if len(self._made) >= MAX_CACHED:
+                        self._made.clear()
+                self._made[key] = made
+            return made
+
+    def _route(self, path: str, snap: Snapshot) -> tuple[str, bytes, str]:
         html = "text/html; charset=utf-8"
-        snap = self.view.snapshot
         if path == "/":
             return "200 OK", self._page("fleet.html.j2", snap), html
         if path == "/fragment/fleet":
@@ -166,7 +189,7 @@ class App:
 
             from conformance.lint.metrics import exposition
 
-            return "200 OK", exposition(lambda: self.view.snapshot), CONTENT_TYPE_LATEST
+            return "200 OK", exposition(lambda: snap), CONTENT_TYPE_LATEST
         if path == "/report.json":
             data = self.view.report_json()
             if data is None:
