@@ -156,6 +156,8 @@ class FleetView:
         self._report_wanted = threading.Event()
         self._report_ready = threading.Condition()
         self._report_meta: dict[str, Any] = {}
+        self._final_report: Any = None
+        self._report_final: bytes | None = None
 
     @property
     def snapshot(self) -> Snapshot:
@@ -188,13 +190,12 @@ class FleetView:
         rows = [_row_from_report(unit, u, rates.get(unit, ())) for unit, u in report.units.items()]
         fleet = _fleet_findings(report)
         old = self._snapshot
+        with self._report_ready:  # written on the first request (the report is final)
+            self._final_report = report
         self._snapshot = Snapshot(
             old.version + 1, time.time(), linter.last_time, self.title, self.live, True,
             linter.messages, report.unexamined, len(report.gaps), None, _sorted(rows), fleet,
             verdict=verdict, not_judged=not_judged)
-        from conformance.reporting.jsonreport import dumps
-
-        self._publish_report(dumps(report))
 
     def report_meta(self, **meta: Any) -> None:
         """What the provisional reports say about the run (broker, source)."""
@@ -204,9 +205,13 @@ class FleetView:
     def report_json(self, wait: float = 5.0) -> bytes | None:
         """The report as it stands: a fresh one made by lint's loop within ``wait`` seconds,
         else the latest made (None when none was made yet)."""
-        if self._snapshot.finished:
-            return self._report
         with self._report_ready:
+            if self._final_report is not None:
+                if self._report_final is None:  # nothing changes it any more: any thread
+                    from conformance.reporting.jsonreport import dumps
+
+                    self._report_final = dumps(self._final_report)
+                return self._report_final
             made = self._report_made
             self._report_wanted.set()
             self._report_ready.wait_for(lambda: self._report_made != made, timeout=wait)

@@ -78,6 +78,14 @@ def parse_address(text: str) -> Address:
     return Address(host, int(port))
 
 
+def warnings(address: Address) -> list[str]:
+    """What the header of every page (and the terminal) says about where it is served."""
+    if address.loopback:
+        return []
+    return [f"served on {address.host}: anyone who can reach this address can read this page "
+            f"(--serve PORT serves on loopback only)"]
+
+
 def _escape_unit(unit: str) -> str:
     return quote(unit, safe="/")
 
@@ -222,10 +230,7 @@ class Server:
         from waitress.server import create_server
 
         self.address = address
-        header = [] if address.loopback else [
-            f"served on {address.host}: anyone who can reach this address can read this page "
-            f"(--serve PORT serves on loopback only)"]
-        self.app = App(view, header)
+        self.app = App(view, warnings(address))
         try:
             self._server = create_server(self.app, host=address.host, port=address.port,
                                          **LIMITS)

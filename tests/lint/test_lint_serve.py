@@ -21,7 +21,8 @@ from pathlib import Path
 import pytest
 from lint_helpers import Process, fleet_traffic, unit_traffic, write_recording
 
-from conformance.lint.serve import ServeError, parse_address
+from conformance.lint.fleetview import FleetView
+from conformance.lint.serve import Server, ServeError, parse_address, warnings
 from conformance.sim.fleet import Fleet, SimUnit
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -79,6 +80,39 @@ def test_serve_takes_a_port_for_loopback_or_an_explicit_host():
     for bad in ("", "http", "8080x", "host:", "1:99999"):
         with pytest.raises(ServeError, match="--serve"):
             parse_address(bad)
+
+
+def test_only_a_host_named_on_purpose_is_warned_about():
+    assert warnings(parse_address("8080")) == []
+    assert warnings(parse_address("localhost:8080")) == []
+    (line,) = warnings(parse_address("0.0.0.0:8080"))
+    assert "anyone who can reach" in line and "--serve PORT" in line
+
+
+def test_the_server_answers_gets_only_within_its_bounds_and_stops():
+    """No lint run: an empty fleet view served on a free loopback port."""
+    server = Server(FleetView("nothing yet", live=True), parse_address("0")).start()
+    url = server.url
+    try:
+        status, headers, body = get(url)
+        assert status == 200 and "no unit seen yet" in body.decode()
+        assert "script-src 'self'" in headers["Content-Security-Policy"]
+        assert get(url, "HEAD")[0] == 200
+        assert get(f"{url}unit/waraps/unit/air/simulation/none")[0] == 404
+        assert get(f"{url}static/fleet.js")[0] == 200
+        assert get(f"{url}static/../serve.py")[0] == 404
+        for method in ("POST", "PUT", "PATCH", "DELETE", "OPTIONS"):
+            status, headers, _ = get(url, method)
+            assert status == 405 and headers["Allow"] == "GET, HEAD", method
+        huge = urllib.request.Request(url, headers={"X-Big": "x" * 20_000})
+        with pytest.raises(urllib.error.HTTPError) as refused:
+            urllib.request.urlopen(huge, timeout=10)
+        assert refused.value.code == 431  # past waitress's max_request_header_size
+        assert get(url + "x" * 3000)[0] == 414
+    finally:
+        server.stop()
+    with pytest.raises(OSError):
+        socket.create_connection(("127.0.0.1", server.port), timeout=2).close()
 
 
 @pytest.mark.slow
