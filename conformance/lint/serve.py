@@ -236,6 +236,8 @@ class Server:
                                          **LIMITS)
         except OSError as e:
             raise ServeError(f"--serve {address.host}:{address.port}: {e.strerror or e}") from e
+        except ValueError as e:  # waitress: a host that resolves to nothing
+            raise ServeError(f"--serve {address.host}:{address.port}: {e}") from e
         self.port = int(self._server.effective_port)  # type: ignore[union-attr]
         self._thread = threading.Thread(target=self._server.run, name="lint-serve", daemon=True)
 

@@ -19,10 +19,10 @@ import urllib.request
 from pathlib import Path
 
 import pytest
-from lint_helpers import Process, fleet_traffic, unit_traffic, write_recording
+from lint_helpers import Process, fleet_traffic, run_lint, unit_traffic, write_recording
 
 from conformance.lint.fleetview import FleetView
-from conformance.lint.serve import Server, ServeError, parse_address, warnings
+from conformance.lint.serve import ServeError, Server, parse_address, warnings
 from conformance.sim.fleet import Fleet, SimUnit
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -113,6 +113,34 @@ def test_the_server_answers_gets_only_within_its_bounds_and_stops():
         server.stop()
     with pytest.raises(OSError):
         socket.create_connection(("127.0.0.1", server.port), timeout=2).close()
+
+
+def test_the_server_stops_when_lint_ends_unless_asked_to_linger(prefix, tmp_path):
+    recording = write_recording(tmp_path / "fleet.jsonl",
+                                fleet_traffic(prefix, ["dji0", "dji1"], seconds=10))
+    run = run_lint(["--from", str(recording), "--serve", "0", "--serve-linger", "0"],
+                   tmp_path / "reports")
+    assert run.code == 0, run.out
+    url = re.search(r"serving (http://\S+/) \(the fleet page", run.out).group(1)
+    assert "serving the final fleet page" not in run.out
+    with pytest.raises(OSError):
+        socket.create_connection(("127.0.0.1", int(url.rsplit(":", 1)[1].strip("/"))),
+                                 timeout=2).close()
+
+
+def test_serve_usage_errors_and_a_port_in_use(prefix, tmp_path, capsys):
+    recording = write_recording(tmp_path / "fleet.jsonl", fleet_traffic(prefix, ["dji0"],
+                                                                        seconds=3))
+    assert run_lint(["--from", str(recording), "--serve-linger", "5"], tmp_path).code == 2
+    assert "--serve-linger applies with --serve only" in capsys.readouterr().err
+    assert run_lint(["--from", str(recording), "--serve", "80x"], tmp_path).code == 2
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        run = run_lint(["--from", str(recording), "--serve", str(taken.getsockname()[1])],
+                       tmp_path / "reports")
+    assert run.code == 3 and run.report is None  # nothing linted, no report written
+    assert "--serve 127.0.0.1:" in capsys.readouterr().err
 
 
 @pytest.mark.slow
