@@ -82,6 +82,27 @@ def test_serve_takes_a_port_for_loopback_or_an_explicit_host():
             parse_address(bad)
 
 
+def test_metrics_cap_the_series_of_invented_unit_names(monkeypatch):
+    """Past MAX_SERIES label sets a family sums the rest under '(other units)'."""
+    from prometheus_client.parser import text_string_to_metric_families
+
+    from conformance.lint import metrics
+    from conformance.lint.fleetview import Finding, Row, Snapshot
+
+    monkeypatch.setattr(metrics, "MAX_SERIES", 10)
+    rows = tuple(Row(f"p/unit/air/simulation/u{i}", "unit", "FAIL", messages=5,
+                     findings=(Finding("HB-002", "fail", 2),), by_kind=(("heartbeat", 5),))
+                 for i in range(30))
+    snap = Snapshot(1, 0.0, None, "", True, False, 150, 0, 0, True, rows)
+    families = {f.name: f for f in text_string_to_metric_families(
+        metrics.exposition(lambda: snap).decode())}
+    findings = families["waraps_lint_findings"].samples
+    assert len(findings) == 11
+    other = [s for s in findings if s.labels["unit"] == "(other units)"]
+    assert len(other) == 1 and other[0].value == 40.0  # 20 units beyond the cap, 2 each
+    assert len(families["waraps_lint_unit_failing"].samples) == 11
+
+
 def test_only_a_host_named_on_purpose_is_warned_about():
     assert warnings(parse_address("8080")) == []
     assert warnings(parse_address("localhost:8080")) == []
