@@ -114,6 +114,10 @@ def judge(report: RunReport, facts: RunFacts) -> RunReport:
         report.not_run = list(dict.fromkeys(not_run))
     if facts.untimed:
         _untimed(report)
+    for row in report.units.values():
+        for stat in row.rates:  # a rate shown as its rule was judged (a decided one warns)
+            if stat.verdict is Verdict.FAIL and stat.rule in row.rules:
+                stat.verdict = row.rules[stat.rule].verdict
     report.facts = facts
     report.conclusion = conclude(report)
     for row in report.units.values():

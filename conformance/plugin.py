@@ -67,6 +67,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                                         "'real' unit")
     group.addoption("--dry-run", dest="waraps_dry_run", action="store_true", default=False,
                     help="publish nothing; print what would be published")
+    group.addoption("--strict-rules", dest="waraps_strict_rules", action="store_true",
+                    default=False, help="adopt the suite's decisions as conventions: a rule "
+                                        "whose basis is 'decided' (the spec is silent) fails "
+                                        "instead of warning (as 'strict: true' in the profile)")
     group.addoption("--reports-dir", dest="waraps_reports_dir", default=None, metavar="DIR",
                     help="where the JSON and HTML certification reports go (default reports/)")
     group.addoption("--seed", dest="waraps_seed", default=None, metavar="N",
@@ -124,6 +128,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         parser.addini(name, help_, default="")
     for name, help_ in (("waraps_allow_motion", "default for --allow-motion"),
                         ("waraps_dry_run", "default for --dry-run"),
+                        ("waraps_strict_rules", "default for --strict-rules"),
                         ("waraps_tls_insecure", "default for --tls-insecure")):
         parser.addini(name, help_, type="bool", default=False)
 

@@ -157,8 +157,14 @@ class UnitReport:
 
 
 def _rule_result_to_dict(r: RuleResult) -> dict[str, Any]:
-    return {"rule": r.rule, "verdict": r.verdict.value, "reason": r.reason,
-            "violations": [v.to_dict() for v in r.violations]}
+    out = {"rule": r.rule, "verdict": r.verdict.value, "reason": r.reason,
+           "violations": [v.to_dict() for v in r.violations]}
+    rule = CATALOGUE.get(r.rule)
+    if rule is not None and r.verdict in (Verdict.FAIL, Verdict.WARN):
+        # A finding carries what its rule stands on (STYLE 'Judging once').
+        out["basis"] = {"basis": rule.basis.value, "quote": rule.quote,
+                        "because": rule.because, "decision": rule.decision}
+    return out
 
 
 def _rule_result_from_dict(d: dict[str, Any]) -> RuleResult:

@@ -141,6 +141,11 @@ def get(rule_id: str) -> Rule:
         raise KeyError(f"unknown rule id {rule_id!r}{hint}") from None
 
 
+def basis_counts() -> dict[str, int]:
+    """How many rules stand on each basis (``stated``, ``implied``, ``decided``)."""
+    return {b.value: sum(r.basis is b for r in _CATALOGUE) for b in Basis}
+
+
 def rules(*, level: Level | None = None, mode: Mode | None = None) -> list[Rule]:
     """The catalogue in id order, optionally filtered by level and mode."""
     return [

@@ -80,6 +80,7 @@ def render_violation(rule: str | Rule, violation: Violation, unit: str = "",
     line("at", iso_time(violation.time))
     line("payload", violation.excerpt)
     line("spec", r.section if r else "")
+    line("basis", r.basis_text() if r else "")
     line("hint", violation.detail)
     if rerun_hint is None and unit:
         rerun_hint = rerun_command(report, unit, rule_id, violation.topic or "")
