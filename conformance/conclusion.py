@@ -102,7 +102,9 @@ class Conclusion:
         return [lv.level for lv in found.levels if lv.certified] if found else []
 
     def headline(self) -> str:
-        """The verdict and, when the run is partial or not certified, why (one line)."""
+        """The verdict and, when the run is partial or not certified, why (one line, each
+        word once: ``interrupted (Ctrl-C)``, ``partial (only the selected rules ran: -k
+        HB-003)``)."""
         return self.verdict + (f" ({'; '.join(self.why)})" if self.why else "")
 
     def to_dict(self) -> dict[str, Any]:

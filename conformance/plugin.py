@@ -297,7 +297,7 @@ class _CertificationPlugin:
         conclusion = c.conclusion(report)
         counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
         head = conclusion.verdict if c.error else conclusion.headline()
-        tr.line(f"{c.unit}: {head} ({counts})",
+        tr.line(f"{c.unit}: {head}; {counts}",
                 red=conclusion.verdict not in ("pass", "warn"))
         unit = conclusion.units.get(str(c.unit))
         for level in unit.levels if unit is not None else ():

@@ -27,7 +27,7 @@ from conformance.client import BrokerError, MqttClient
 from conformance.conclusion import INTERRUPTED, NOT_CERTIFIED, Conclusion
 from conformance.conclusion import of as conclusion_of
 from conformance.display import LINE_CHARS, printable, shorten
-from conformance.facts import RunFacts
+from conformance.facts import CTRL_C, RunFacts
 from conformance.judge import judge, unexamined
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
@@ -230,7 +230,7 @@ class Certification:
 
     def facts(self, *, error: str = "") -> RunFacts:
         """What the judge must know of this run so far (``conformance.facts.RunFacts``)."""
-        cut = self.out_of_time or ("interrupted (Ctrl-C)" if self.interrupted else "")
+        cut = self.out_of_time or (CTRL_C if self.interrupted else "")
         return RunFacts(
             kind="certification", unit=str(self.unit), strict=self.profile.is_strict,
             error=error or self.error, broker_lost=self.broker_lost,
