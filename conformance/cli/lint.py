@@ -61,6 +61,10 @@ def build_parser() -> argparse.ArgumentParser:
                      help="what the exit status judges: all (units and commanders, the "
                           "default) or units (a fleet gate that commanders' faults do not "
                           "fail)")
+    out.add_argument("--strict", action="store_true",
+                     help="adopt the suite's decisions as conventions: a rule whose basis is "
+                          "'decided' (the spec is silent) fails instead of warning (as "
+                          "'strict: true' in the profile)")
     web = p.add_argument_group("serving the fleet page (read-only)")
     web.add_argument("--serve", metavar="[HOST:]PORT",
                      help="while linting, serve the live fleet page on http://127.0.0.1:PORT/ "
@@ -114,6 +118,10 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
         options = opts.capture_options(args, need_broker=not args.source)
         formats = parse_formats(args.format)
         profile = load(args.profile)
+        if args.strict:
+            import dataclasses
+
+            profile = dataclasses.replace(profile, strict=True)
         serve = parse_address(args.serve) if args.serve is not None else None
         linger = parse_linger(args.serve_linger, bool(args.source))
     except (CaptureOptionsError, ProfileError, ValueError) as e:

@@ -198,7 +198,8 @@ class FleetView:
             verdict=verdict, not_judged=not_judged)
 
     def report_meta(self, **meta: Any) -> None:
-        """What the provisional reports say about the run (broker, source)."""
+        """What the provisional reports say about the run (broker, source) and the facts
+        they are judged under (``facts``: a ``RunFacts``)."""
         self._report_meta = meta
 
     # --- any thread ---------------------------------------------------------------------------
@@ -266,11 +267,12 @@ class FleetView:
 
     def _make(self, linter: Any, connected: bool | None) -> Snapshot:
         monitor = linter.monitor
+        fails = _judged(linter.profile)
         rows: dict[str, Row] = {}
         for unit in list(monitor.units()):
             state: Any = monitor.state(unit)
             key = str(getattr(state, "address", unit))
-            live = tuple(v.rule for v in monitor.live_findings(unit) if linter.is_error(v.rule))
+            live = tuple(v.rule for v in monitor.live_findings(unit) if fails(v.rule))
             seen = state.kinds_seen
             rows[key] = Row(key, "unit", "", str(state.agent_type or ""),
                             str(getattr(state.address, "role", "") or ""), state.levels,
@@ -281,7 +283,7 @@ class FleetView:
             row = rows.get(unit) or Row(unit, "commander" if unit not in (NOT_A_UNIT, OTHER_UNITS)
                                         else "unit", "")
             found = tuple(sorted(
-                (Finding(rule, "fail" if linter.is_error(rule) else "warn", n,
+                (Finding(rule, "fail" if fails(rule) else "warn", n,
                          self._evidence.get((unit, rule))) for rule, n in counts.items()),
                 key=_severity))
             rows[unit] = _replace(row, findings=found)
@@ -292,6 +294,27 @@ class FleetView:
                         False, linter.messages, linter.unexamined,
                         len(linter.gaps) + (linter.open_gap is not None), connected,
                         _sorted(done), fleet)
+
+
+def _judged(profile: Any) -> Any:
+    """Whether a violation of a rule fails (else warns) as the judge will say at the end: an
+    error of a stated or implied rule, or of any rule in a strict run
+    (``judge.violation_verdict``)."""
+    from functools import cache
+
+    from conformance.judge import violation_verdict
+
+    strict = bool(getattr(profile, "is_strict", False))
+
+    @cache
+    def fails(rule_id: str) -> bool:
+        rule = CATALOGUE.get(rule_id)
+        severity = profile.severity_of(rule_id)
+        if rule is None:
+            return severity.value == "error"
+        return violation_verdict(rule, severity, strict=strict) is Verdict.FAIL
+
+    return fails
 
 
 def _kind(kind: Any) -> str:
@@ -365,9 +388,14 @@ def _fleet_findings(report: Any, limit: int = 50) -> tuple[tuple[str, Violation]
 
 
 def _provisional_report(linter: Any, meta: dict[str, Any]) -> bytes:
-    """The report as it stands (end-of-run checks judged at the latest time, not stored)."""
+    """The report as it stands, judged (end-of-run checks judged at the latest time, not
+    stored); ``meta``: ``facts`` (``RunFacts``) and what the report says of the run."""
+    from conformance.facts import RunFacts
+    from conformance.judge import judge
     from conformance.reporting.jsonreport import dumps
 
-    report = linter.monitor.report(finished=None, **meta)
-    report.meta["provisional"] = "the run goes on: this is the report as it stands"
-    return dumps(report)
+    meta = dict(meta)
+    facts = meta.pop("facts", None) or RunFacts(kind="lint")
+    report = linter.monitor.report(finished=None, provisional="the run goes on: this is the "
+                                   "report as it stands", **meta)
+    return dumps(judge(report, facts))

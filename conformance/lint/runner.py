@@ -54,6 +54,11 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
     bag = bool(source) and is_bag(source)
     monitor = _monitor(profile, options.units)
     linter = Linter(monitor, profile)
+    if serving:  # /report.json while lint runs: judged as the end will judge it
+        from conformance.facts import RunFacts
+
+        serving.view.report_meta(broker=str(options.broker or ""),
+                                 facts=RunFacts(kind="lint", gate=gate, strict=profile.is_strict))
     started = time.time()
     if bag:
         from conformance.rosbag import BagError, BagReader
@@ -108,7 +113,6 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
                               title=f"{options.broker} {' '.join(options.topics)}", live=True)
         if serving:
             scorecard = serving.watch(scorecard)
-            serving.view.report_meta(broker=str(options.broker))
         if not scorecard.tty:
             print(f"linting {', '.join(options.topics)} on {options.broker} (read-only)"
                   + (f" for {options.duration:g} s" if options.duration else " until Ctrl-C"),
@@ -137,15 +141,16 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
     over, over_units = monitor.not_judged()
     if over:
         meta["not_judged"] = _not_judged(over, over_units)
-    report = _report(monitor, linter, kind_meta=meta, broker=broker,
-                     started=started if not source else (linter.first_time or started),
-                     finished=end)
-    if untimed(linter):
-        not_judged_untimed(report)
-    from conformance.conclusion import conclude
+    from conformance.facts import RunFacts
+    from conformance.judge import judge
     from conformance.reporting.text import render_verdicts
 
-    conclusion = conclude(report, gate)
+    report = judge(_report(monitor, linter, kind_meta=meta, broker=broker,
+                           started=started if not source else (linter.first_time or started),
+                           finished=end),
+                   RunFacts(kind="lint", gate=gate, strict=profile.is_strict,
+                            untimed=untimed(linter), not_judged=meta.get("not_judged", "")))
+    conclusion = report.conclusion
     if serving:  # the fleet page's last snapshot: every verdict final
         serving.view.finish(linter, report, verdict=conclusion.verdict,
                             not_judged=meta.get("not_judged", ""))
@@ -182,7 +187,7 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
     if over:  # past the bound: never a pass (issue 19)
         print(f"FAIL: {printable(meta['not_judged'])}", file=out)
     out.flush()
-    return EXIT_FAIL if conclusion.exit_code or over else EXIT_PASS
+    return EXIT_FAIL if conclusion.exit_code else EXIT_PASS
 
 
 def _not_judged(over: int, units: list[str]) -> str:
@@ -196,22 +201,6 @@ def _not_judged(over: int, units: list[str]) -> str:
 def untimed(linter: Any) -> bool:
     """Whether the traffic had no recorded times (``recording.UNTIMED``)."""
     return bool(getattr(linter.monitor, "untimed", False))
-
-
-def not_judged_untimed(report: Any) -> None:
-    """The rules that need arrival times become could-not-test on every unit's row: a
-    capture without times (mosquitto_sub -v) neither passes nor fails them (issue 20)."""
-    from conformance.recording import UNTIMED_REASON, UNTIMED_RULES
-    from conformance.violation import RuleResult, Verdict
-
-    for rep in report.units.values():
-        for rule in UNTIMED_RULES:
-            if rule in rep.rules:
-                rep.rules[rule] = RuleResult(rule, Verdict.COULD_NOT_TEST, UNTIMED_REASON)
-                rep.violation_counts.pop(rule, None)
-                rep.violation_times.pop(rule, None)
-                rep.examined.pop(rule, None)
-        rep.rates = []
 
 
 MAX_FAILURES_SHOWN = 10
@@ -329,7 +318,7 @@ def feed_recorded(linter: Any, scorecard: Any, items: Any, options: Any) -> floa
 
 class _Untimed:
     """The Monitor of traffic without recorded times: what it finds on the rules that need
-    them is not shown while feeding (``not_judged_untimed`` turns them could-not-test)."""
+    them is not shown while feeding (the judge makes them could-not-test: ``conformance.judge``)."""
 
     untimed = True
 
