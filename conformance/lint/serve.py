@@ -10,8 +10,10 @@ loop), never the Monitor: nothing it does changes the run, and nothing publishes
 - ``/unit/<address>``: a unit's findings with their evidence and their basis;
 - ``/metrics``: Prometheus text (``lint.metrics``); ``/report.json``: the report as it stands.
 
-Loopback unless a host is named; every method but GET and HEAD is refused (405); requests are
-bounded by waitress's limits (headers 8 KiB, no body, 32 connections, idle ones closed).
+Loopback unless a host is named (and then only asked for by a loopback name: a page elsewhere
+cannot read it through DNS rebinding, 421); every method but GET and HEAD is refused (405);
+requests are bounded by waitress's limits (headers 8 KiB, no body, 32 connections, idle ones
+closed after 30 s).
 """
 
 from __future__ import annotations
@@ -86,6 +88,17 @@ def warnings(address: Address) -> list[str]:
             f"(--serve PORT serves on loopback only)"]
 
 
+LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
+
+
+def _host_name(host: str) -> str:
+    """The name in a Host header, without its port (``[::1]:8080`` -> ``::1``)."""
+    host = host.strip().lower()
+    if host.startswith("["):
+        return host[1:].partition("]")[0]
+    return host.rpartition(":")[0] if host.count(":") == 1 else host
+
+
 def _escape_unit(unit: str) -> str:
     return quote(unit, safe="/")
 
@@ -142,9 +155,13 @@ class App:
     """The WSGI application over ``view``'s snapshots. ``header``: lines for the top of
     every page (the address, a warning when it is not loopback)."""
 
-    def __init__(self, view: FleetView, header: Iterable[str] = ()) -> None:
+    def __init__(self, view: FleetView, header: Iterable[str] = (),
+                 hosts: frozenset[str] | None = None) -> None:
         self.view = view
         self.header = tuple(header)
+        self.hosts = hosts
+        """Host names a request may name (None: any); on loopback only loopback names, so
+        that a web page elsewhere cannot read the fleet through DNS rebinding."""
         self._made: dict[tuple[int, str], tuple[str, bytes, str]] = {}
         self._lock = threading.Lock()
 
@@ -153,6 +170,9 @@ class App:
         if method not in ("GET", "HEAD"):
             return self._send(start, "405 Method Not Allowed", b"read-only: GET only\n",
                               "text/plain; charset=utf-8", [("Allow", "GET, HEAD")])
+        if self.hosts is not None and _host_name(environ.get("HTTP_HOST", "")) not in self.hosts:
+            return self._send(start, "421 Misdirected Request",
+                              b"ask for this page by a loopback address\n")
         raw = environ.get("PATH_INFO", "") or "/"
         if len(raw) > MAX_PATH:
             return self._send(start, "414 URI Too Long", b"path too long\n")
@@ -230,7 +250,8 @@ class Server:
         from waitress.server import create_server
 
         self.address = address
-        self.app = App(view, warnings(address))
+        self.app = App(view, warnings(address),
+                       LOOPBACK_NAMES | {address.host.lower()} if address.loopback else None)
         try:
             self._server = create_server(self.app, host=address.host, port=address.port,
                                          **LIMITS)

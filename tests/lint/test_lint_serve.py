@@ -130,6 +130,11 @@ def test_the_server_answers_gets_only_within_its_bounds_and_stops():
             urllib.request.urlopen(huge, timeout=10)
         assert refused.value.code == 431  # past waitress's max_request_header_size
         assert get(url + "x" * 3000)[0] == 414
+        rebound = urllib.request.Request(url, headers={"Host": f"evil.example:{server.port}"})
+        with pytest.raises(urllib.error.HTTPError) as refused:  # DNS rebinding
+            urllib.request.urlopen(rebound, timeout=10)
+        assert refused.value.code == 421
+        assert get(f"http://localhost:{server.port}/")[0] == 200
     finally:
         server.stop()
     with pytest.raises(OSError):
