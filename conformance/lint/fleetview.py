@@ -279,9 +279,12 @@ class FleetView:
                             sum(seen.values()), state.last_seen, self._rates(key, state, seen),
                             live=live, by_kind=tuple(sorted(
                                 (_kind(k), n) for k, n in seen.items())))
+        for label in getattr(monitor, "commanders", list)():  # a row each, clean or not
+            rows[label] = Row(label, "commander", "", "commander")
         for unit, counts in list(linter.by_unit.items()):
-            row = rows.get(unit) or Row(unit, "commander" if unit not in (NOT_A_UNIT, OTHER_UNITS)
-                                        else "unit", "")
+            party = "unit" if unit in (NOT_A_UNIT, OTHER_UNITS) else "commander"
+            row = rows.get(unit) or Row(unit, party, "", "commander" if party == "commander"
+                                        else "")
             found = tuple(sorted(
                 (Finding(rule, "fail" if fails(rule) else "warn", n,
                          self._evidence.get((unit, rule))) for rule, n in counts.items()),

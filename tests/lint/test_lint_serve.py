@@ -16,11 +16,13 @@ import subprocess
 import time
 import urllib.error
 import urllib.request
+import uuid
 from pathlib import Path
 
 import pytest
 from lint_helpers import Process, fleet_traffic, run_lint, unit_traffic, write_recording
 
+from conformance.client import BrokerURL, MqttClient
 from conformance.lint.fleetview import FleetView
 from conformance.lint.serve import ServeError, Server, parse_address, warnings
 from conformance.sim.fleet import Fleet, SimUnit
@@ -173,7 +175,8 @@ def test_serve_usage_errors_and_a_port_in_use(prefix, tmp_path, capsys):
 @pytest.mark.mosquitto
 @needs_chromium
 def test_the_fleet_page_shows_every_unit_and_a_faulty_one_turns_red(mosquitto, prefix, tmp_path):
-    """Lint live over Mosquitto, three reference units: Chromium shows each in a row; a unit
+    """Lint live over Mosquitto, three reference units: Chromium shows each in a row, and a
+    row for a commander once it pings one (answered: clean); a unit
     sending 'Heartbeat' under dji1's name turns dji1's row red while the others stay clean;
     the page's script updates a page already loaded; /metrics parses and says dji1 fails;
     /report.json parses; a POST is refused; Ctrl-C stops the server."""
@@ -192,6 +195,15 @@ def test_the_fleet_page_shows_every_unit_and_a_faulty_one_turns_red(mosquitto, p
             dom = chromium(tmp_path, "--dump-dom", url)
             assert all(rows(dom).get(n) == "ok" for n in names), rows(dom)
             assert dom.count('<svg class="spark"') >= 3  # a rate plot per unit at least
+            # A commander has a row as soon as it commands, clean or not.
+            command_topic = f"{names[0]}/exec/command"
+            with MqttClient(BrokerURL.parse(mosquitto),
+                            may_publish=lambda t: t == command_topic) as op0:
+                op0.publish(command_topic, json.dumps({
+                    "com-uuid": str(uuid.uuid4()), "command": "ping", "sender": "op0"}).encode())
+                commander = wait_until("op0's row", lambda: rows(get(url)[2].decode()).get(
+                    "commander op0"), timeout=10)
+            assert commander == "ok"
             shot = tmp_path / "fleet-clean.png"
             chromium(tmp_path, "--window-size=1400,700", f"--screenshot={shot}", url)
             assert shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
