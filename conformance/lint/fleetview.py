@@ -122,10 +122,12 @@ class Snapshot:
                 return r
         return None
 
-    def counts(self) -> dict[str, int]:
+    def counts(self, party: str = "unit") -> dict[str, int]:
+        """Rows of ``party`` (unit or commander) by status."""
         out = {"FAIL": 0, "warn": 0, "ok": 0, "-": 0}
         for r in self.rows:
-            out[r.status] += 1
+            if r.party == party:
+                out[r.status] += 1
         return out
 
 
