@@ -247,8 +247,13 @@ class Server:
     """waitress serving ``App`` in a thread; ``stop()`` closes every connection."""
 
     def __init__(self, view: FleetView, address: Address) -> None:
+        import logging
+
         from waitress.server import create_server
 
+        # 'Task queue depth is N' (a few viewers at once) is no news for the person at the
+        # terminal, whose scorecard it would break into.
+        logging.getLogger("waitress.queue").setLevel(logging.ERROR)
         self.address = address
         self.app = App(view, warnings(address),
                        LOOPBACK_NAMES | {address.host.lower()} if address.loopback else None)
