@@ -107,6 +107,7 @@ def test_render_violation_reads_like_the_style_guide():
         "  observed  0.61 Hz over 12 intervals (min 1.58 s, max 1.71 s)",
         "  topic     waraps/unit/air/simulation/dji0/heartbeat",
         "  spec      5.1 General Heartbeat Message",
+        '  basis     stated: "Rate in Hz, expected rate the heartbeat is sent"',
         "  rerun     pytest --unit waraps/unit/air/simulation/dji0 -k HB-003",
     ]
     warn = render_violation("HB-010", Violation.of("HB-010", expected="a", observed="b\x07"),
