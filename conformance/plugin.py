@@ -15,6 +15,7 @@ import pytest
 
 from conformance.cli.options import BROKER_ENV, CREDENTIALS, TLS_FILES, TLS_INSECURE
 from conformance.display import printable
+from conformance.exits import EXIT_NOT_CERTIFIED
 
 if TYPE_CHECKING:
     from conformance.suite.session import Certification
@@ -30,7 +31,7 @@ FAILED_EXIT = pytest.ExitCode.TESTS_FAILED
 """1: a rule failed."""
 INTERRUPTED_EXIT = pytest.ExitCode.INTERRUPTED
 """2: interrupted (Ctrl-C, or --max-duration reached): not every rule ran."""
-NOT_CERTIFIED_EXIT = 6
+NOT_CERTIFIED_EXIT = EXIT_NOT_CERTIFIED  # README "Exit status"
 """6: not certified: the broker or the unit could not be reached, or the broker was lost for
 good during the run."""
 EXIT_HELP = ("exit status: 0 no rule failed, 1 a rule failed, 2 interrupted (Ctrl-C or "
@@ -288,14 +289,15 @@ class _CertificationPlugin:
             return
         tr = terminalreporter
         tr.section("waraps-conformance")
-        if c.error:
+        if c.error:  # what went wrong and how to fix it; the verdict line below says no more
             tr.line(printable(f"not certified: {c.error}"), red=True)
         for event in c.events:
             tr.line(printable(event))
         report = c.report()
         conclusion = c.conclusion(report)
         counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
-        tr.line(f"{c.unit}: {conclusion.headline()} ({counts})",
+        head = conclusion.verdict if c.error else conclusion.headline()
+        tr.line(f"{c.unit}: {head}; {counts}",
                 red=conclusion.verdict not in ("pass", "warn"))
         unit = conclusion.units.get(str(c.unit))
         for level in unit.levels if unit is not None else ():

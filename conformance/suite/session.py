@@ -27,7 +27,7 @@ from conformance.client import BrokerError, MqttClient
 from conformance.conclusion import INTERRUPTED, NOT_CERTIFIED, Conclusion
 from conformance.conclusion import of as conclusion_of
 from conformance.display import LINE_CHARS, printable, shorten
-from conformance.facts import RunFacts
+from conformance.facts import CTRL_C, RunFacts
 from conformance.judge import judge, unexamined
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
@@ -51,7 +51,7 @@ from conformance.suite.observation import Observation
 from conformance.suite.probe import NotAlive
 from conformance.suite.reboot import Reboot
 from conformance.suite.settings import Settings
-from conformance.topics import DIRECT_EXECUTION, UnitAddress
+from conformance.topics import DIRECT_EXECUTION, UnitAddress, level_name
 from conformance.violation import RuleResult, Verdict
 
 CERTIFICATION = pytest.StashKey["Certification"]()
@@ -94,6 +94,7 @@ class Certification:
         """The rules whose tests were selected to run (after -k, -m, --rule)."""
         self.ran: set[str] = set()
         self.enacted: dict[str, Verdict] = {}
+        self._judged_at: tuple[tuple[int, float | None], RunReport] | None = None
         """The verdict each rule's test showed when it ran (``suite.verdict.enact``)."""
         """The rules whose tests ran (a test that never ran judged nothing)."""
         self.out_of_time: str | None = None
@@ -229,7 +230,7 @@ class Certification:
 
     def facts(self, *, error: str = "") -> RunFacts:
         """What the judge must know of this run so far (``conformance.facts.RunFacts``)."""
-        cut = self.out_of_time or ("interrupted (Ctrl-C)" if self.interrupted else "")
+        cut = self.out_of_time or (CTRL_C if self.interrupted else "")
         return RunFacts(
             kind="certification", unit=str(self.unit), strict=self.profile.is_strict,
             error=error or self.error, broker_lost=self.broker_lost,
@@ -247,12 +248,18 @@ class Certification:
 
     def _judged(self) -> RunReport:
         """The report as each rule's test enacts it: judged under the facts known mid-run (a
-        selection and a cut short run mark rules not run only in ``report``)."""
+        selection and a cut short run mark rules not run only in ``report``). Made once per
+        change of what the Monitor knows: a hundred rule tests in a row read the same one."""
         with self._lock:
+            key = (self.monitor.version, self.broker_lost)
+            if self._judged_at is not None and self._judged_at[0] == key:
+                return self._judged_at[1]
             report = self.monitor.report(**self.meta())
         facts = self.facts()
-        return judge(report, RunFacts(kind=facts.kind, unit=facts.unit, strict=facts.strict,
-                                      broker_lost=facts.broker_lost))
+        judged = judge(report, RunFacts(kind=facts.kind, unit=facts.unit, strict=facts.strict,
+                                        broker_lost=facts.broker_lost))
+        self._judged_at = (key, judged)
+        return judged
 
     def conclusion(self, report: RunReport) -> Conclusion:
         """What the run concludes: the judge's conclusion stored in ``report``."""
@@ -388,7 +395,7 @@ class Certification:
 
     def _claims(self, level: str) -> bool:
         # ERR-008: a level written with an underscore is the same claim
-        return level in (lv.replace("_", " ") for lv in self.context.levels())
+        return level in map(level_name, self.context.levels())
 
     def _answers_none(self) -> str:
         """Why the unit answers no command at all, or "": ping unanswered, then each other
