@@ -172,7 +172,11 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "waraps_rule(rule_id): the rule this test judges")
     config.addinivalue_line("markers", "waraps_explore: the exploration (runs after the "
                                        "scripted scenarios)")
-    certification = Certification(config, read(config))
+    try:
+        settings = read(config)
+    except pytest.UsageError as e:  # it repeats what was typed: escaped, never a password
+        raise pytest.UsageError(printable(mask_password(str(e)))) from None
+    certification = Certification(config, settings)
     config.stash[CERTIFICATION] = certification
     config.pluginmanager.register(_CertificationPlugin(certification), PLUGIN_NAME)
 

@@ -98,6 +98,8 @@ PYTEST_CASES = {
                             "--reports-dir=a-file"], "is not a folder"),
     "observe inf": (["--unit", "waraps/unit/air/simulation/dji0", "--broker", "embedded",
                      "--observe", "9" * 400], "a positive duration is needed"),
+    "invisible fault name": (["--unit", "waraps/unit/air/simulation/dji0", "--broker", "embedded",
+                              "--sim-fault", "x\u3164"], "'x\\u3164' is not a fault"),
     "sim-rate inf": (["--unit", "waraps/unit/air/simulation/dji0", "--broker", "embedded",
                       "--sim-rate", "inf"], "is not a rate"),
 }
