@@ -23,6 +23,7 @@ from urllib.parse import urlsplit
 
 import paho.mqtt.client as paho
 
+from conformance.display import shorten
 from conformance.masking import mask_password  # re-exported: a URL made fit to print
 from conformance.message import Gap, Message  # re-exported: ``from conformance.client import ...``
 
@@ -85,7 +86,8 @@ class BrokerURL:
         if text == "embedded":
             return cls("embedded")
         parts = urlsplit(text if "://" in text else f"mqtt://{text}")
-        shown = mask_password(text, url=True)  # what an error may say: never a password it wrongly has
+        # What an error may say: never a password it wrongly has, a long URL excerpted.
+        shown = shorten(mask_password(text, url=True), 200)
         if parts.scheme not in ("mqtt", "mqtts"):
             raise ValueError(
                 f"broker URL {shown!r}: scheme {parts.scheme!r} is not one of mqtt, mqtts, "
@@ -102,8 +104,8 @@ class BrokerURL:
         if not parts.hostname:
             raise ValueError(f"broker URL {shown!r} has no host (for example mqtt://127.0.0.1:1883)")
         if not _is_host(parts.hostname):
-            raise ValueError(f"broker URL {shown!r}: {parts.hostname!r} is not a host name or "
-                             f"an IP address (for example mqtt://127.0.0.1:1883)")
+            raise ValueError(f"broker URL {shown!r}: {shorten(parts.hostname, 100)!r} is not a "
+                             f"host name or an IP address (for example mqtt://127.0.0.1:1883)")
         return cls(parts.scheme, parts.hostname, port,
                    username=parts.username or env.get("WARAPS_USERNAME") or None,
                    password=env.get("WARAPS_PASSWORD") or None)

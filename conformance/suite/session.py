@@ -82,7 +82,8 @@ class Certification:
                                      self.events)
         self.reboot = Reboot(config, self.connection, self.timing.reboot,
                              self._reboot_requested, self.events)
-        self.stem = f"{file_stem(self.unit.name)}-{time.strftime('%Y%m%dT%H%M%S', time.localtime())}"
+        when = time.strftime('%Y%m%dT%H%M%S', time.localtime())
+        self.stem = f"{file_stem(self.unit.name)}-{when}"  # a bounded file name (issue 26)
         self.report_paths: dict[str, Path] = {}
         self.collect_only = False
         """--collect-only: nothing is connected, run or written."""
