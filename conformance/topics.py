@@ -156,7 +156,8 @@ class UnitAddress:
         prefix, _, agent_type, role, name = parts
         if agent_type not in AGENT_TYPES:
             raise TopicError(
-                f"{_quoted(text)}: agent type {_quoted(agent_type)} is not one of {', '.join(AGENT_TYPES)} "
+                f"{_quoted(text)}: agent type {_quoted(agent_type)} is not one of "
+                f"{', '.join(AGENT_TYPES)} "
                 f"(spec 5.1)"
             )
         return cls(prefix, agent_type, role, name)
