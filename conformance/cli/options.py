@@ -192,16 +192,22 @@ def add_reports_dir_option(parser: argparse.ArgumentParser | argparse._ArgumentG
                         help="where the reports go (default: reports/)")
 
 
-def reports_dir_problem(path: str | Path) -> str | None:
+def reports_dir_problem(path: str | Path, *, create: bool = True) -> str | None:
     """Why ``--reports-dir`` ``path`` cannot hold reports (it, or the nearest of its parents
-    that exists, is not a folder), or None; said before anything runs, not at the end."""
+    that exists, is not a folder; with ``create``, it cannot be made), or None; said before
+    anything runs, not at the end."""
     here = Path(path)
     for folder in (here, *here.parents):
         if folder.exists():
-            if folder.is_dir():
-                return None
-            return (f"--reports-dir {str(path)!r}: {str(folder)!r} is not a folder (the reports "
-                    f"go into a folder, created when missing)")
+            if not folder.is_dir():
+                return (f"--reports-dir {str(path)!r}: {str(folder)!r} is not a folder (the "
+                        f"reports go into a folder, created when missing)")
+            break
+    if create:
+        try:
+            here.mkdir(parents=True, exist_ok=True)
+        except OSError as e:  # a read-only file system, no permission
+            return f"--reports-dir {str(path)!r}: cannot create it: {e.strerror or e}"
     return None
 
 

@@ -223,7 +223,8 @@ def read(config: pytest.Config) -> Settings:
     reports = Path(str(_value(config, "waraps_reports_dir") or "reports"))
     if not reports.is_absolute():
         reports = Path(config.invocation_params.dir) / reports
-    problem = reports_dir_problem(reports)
+    problem = reports_dir_problem(
+        reports, create=not config.getoption("collectonly", False))  # listing writes nothing
     if problem:
         raise pytest.UsageError(problem)
     seed_text = config.getoption("waraps_seed", None)

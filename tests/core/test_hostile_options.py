@@ -66,6 +66,8 @@ CASES = {
                            "is not a folder"),
     "reports-dir under a file": (["lint", "--from", "x.jsonl", "--reports-dir", "a-file/r"], 2,
                                  "is not a folder"),
+    "reports-dir not creatable": (["lint", "--from", "x.jsonl", "--reports-dir", "/proc/x"], 2,
+                                  "cannot create it"),  # /proc: not even root makes a folder
     "record -o nowhere": (["record", *LIVE, "-o", "no/such/dir/x.jsonl"], 2, "cannot write"),
     "profile -o nowhere": (["profile", "--unit", "waraps/unit/air/real/dji0", "--broker",
                             "mqtt://127.0.0.1:1", "-o", "no/such/dir/x.yaml"], 2,
@@ -98,6 +100,8 @@ PYTEST_CASES = {
                             "--reports-dir=a-file"], "is not a folder"),
     "observe inf": (["--unit", "waraps/unit/air/simulation/dji0", "--broker", "embedded",
                      "--observe", "9" * 400], "a positive duration is needed"),
+    "reports-dir not creatable": (["--unit", "waraps/unit/air/simulation/dji0", "--broker",
+                                   "embedded", "--reports-dir=/proc/x"], "cannot create it"),
     "invisible fault name": (["--unit", "waraps/unit/air/simulation/dji0", "--broker", "embedded",
                               "--sim-fault", "x\u3164"], "'x\\u3164' is not a fault"),
     "sim-rate inf": (["--unit", "waraps/unit/air/simulation/dji0", "--broker", "embedded",
