@@ -9,8 +9,9 @@ import re
 _URL_START = re.compile(r"""(?<![^\s"'(<\[=,])[a-z][a-z0-9+.-]*://""", re.I)
 """Where a URL begins in text: a scheme at the start of a word (``--broker=mqtt://``,
 ``'mqtt://``); a ``x://`` inside a password does not begin one."""
-_URL_END = re.compile(r"\n|\s--?[a-z]", re.I)
-"""Where a URL in text ends at the latest: a line break, the next option of a command line."""
+_URL_END = re.compile(r"\n|\s(?:--?[a-z]|[a-z_][\w.-]*=)", re.I)
+"""Where a URL in text ends at the latest: a line break, the next option of a command line
+(`` --seed``) or the next field of a line of fields (`` units=``, sim's ready line)."""
 _HOST_AFTER = re.compile(r"@(?=[^\s@])")
 """An '@' with a host after it: the user-info ends at the last one (RFC 3986 3.2.1)."""
 
@@ -22,7 +23,8 @@ def mask_password(text: str, *, url: bool = False, hidden: str | None = "***") -
 
     ``url``: ``text`` is one URL, or a bare ``user:password@host`` (what ``--broker`` and
     ``WARAPS_BROKER`` accept), whatever it holds. Else ``text`` is a message or a command
-    line, and each URL in it runs to the next URL, line break or option (`` --x``).
+    line, and each URL in it runs to the next URL, line break, option (`` --x``) or field
+    (`` x=``).
     A password may hold any character ('/', '#', '?', ' ', '@', ':'): the user-info runs to
     the last '@' followed by a host, and everything after the user's first ':' is hidden.
     With ``url``, what merely looks like one (``u:p@h``) is masked too: hiding too much is

@@ -94,7 +94,7 @@ def parse_rate(text: str) -> float:
         rate = float("nan")
     if not 0 < rate <= MAX_RATE:  # False for nan too
         raise argparse.ArgumentTypeError(
-            f"{text!r} is not a rate: a number of Hz above 0 and at most {MAX_RATE:g}")
+            f"{text!r} is not a rate: a positive number of Hz, at most {MAX_RATE:g}")
     return rate
 
 

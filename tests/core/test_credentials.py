@@ -28,6 +28,7 @@ SECRET = "s3cretPW-x9"
     ("--broker=mqtt://u:a b@h --seed 1", "--broker=mqtt://u:***@h --seed 1"),
     ("pytest --broker mqtt://h:1 --reboot-cmd 'ssh root@h'",  # the next option is not a password
      "pytest --broker mqtt://h:1 --reboot-cmd 'ssh root@h'"),
+    ("ready broker=mqtt://h:1 faults=x@1", "ready broker=mqtt://h:1 faults=x@1"),  # next field
 ])
 def test_mask_password(text, shown):
     assert mask_password(text) == shown
