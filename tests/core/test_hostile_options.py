@@ -25,6 +25,20 @@ def _run(args: list[str], cwd: Path, timeout: float = 60) -> subprocess.Complete
                           timeout=timeout, stdin=subprocess.DEVNULL)
 
 
+def _main(args: list[str], cwd: Path, monkeypatch: pytest.MonkeyPatch,
+          capsys: pytest.CaptureFixture[str]) -> subprocess.CompletedProcess[str]:
+    """The console script in process (a second each saved): an exception fails the test."""
+    from conformance.cli import main
+
+    monkeypatch.chdir(cwd)
+    try:
+        status = main(args)
+    except SystemExit as e:  # argparse's own errors
+        status = int(e.code or 0)
+    out = capsys.readouterr()
+    return subprocess.CompletedProcess(args, status, out.out, out.err)
+
+
 def _one_line_error(done: subprocess.CompletedProcess[str], status: int, says: str) -> None:
     out = done.stdout + done.stderr
     assert "Traceback" not in out and done.returncode == status, out
@@ -37,8 +51,10 @@ CASES = {
     # unit addresses holding a wildcard (or another character no topic holds)
     "unit #": (["lint", "--unit", "waraps/unit/air/real/a#b", *LIVE], 2, "wildcards"),
     "unit +": (["lint", "--unit", "waraps/unit/air/real/a+b", *LIVE], 2, "wildcards"),
-    "unit NUL": (["record", "--unit", "waraps/unit/air/real/a\udc80b", *LIVE, "-o", "x"], 2,
-                 "U+DC80"),
+    "unit NUL": (["record", "--unit", "waraps/unit/air/real/a\x00b", *LIVE, "-o", "x"], 2,
+                 "U+0000"),
+    "unit undecodable": (["lint", "--unit", "waraps/unit/air/real/a\udc80b", *LIVE], 2,
+                         "U+DC80"),
     "profile unit": (["profile", "--unit", "waraps/unit/air/real/+", "--broker",
                       "mqtt://127.0.0.1:1"], 2, "wildcards"),
     "sim unit": (["sim", "--unit", "waraps/unit/air/real/a#b"], 2, "wildcards"),
@@ -76,18 +92,22 @@ CASES = {
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
-def test_a_hostile_option_is_one_line_with_its_exit_status(case: str, tmp_path: Path) -> None:
+def test_a_hostile_option_is_one_line_with_its_exit_status(
+        case: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
     args, status, says = CASES[case]
     (tmp_path / "a-file").write_text("")
     (tmp_path / "x.jsonl").write_text("")
-    _one_line_error(_run(args, tmp_path), status, says)
+    _one_line_error(_main(args, tmp_path, monkeypatch, capsys), status, says)
 
 
-def test_a_full_disk_while_recording_is_one_line(tmp_path: Path, mosquitto: str) -> None:
+def test_a_full_disk_while_recording_is_one_line(
+        tmp_path: Path, mosquitto: str, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
     if not os.path.exists("/dev/full"):
         pytest.skip("no /dev/full here")
-    done = _run(["record", "--broker", mosquitto, "--duration", "1s", "-o", "/dev/full"],
-                tmp_path)
+    done = _main(["record", "--broker", mosquitto, "--duration", "1s", "-o", "/dev/full"],
+                 tmp_path, monkeypatch, capsys)
     _one_line_error(done, 3, "cannot write /dev/full: No space left on device")
 
 
@@ -114,7 +134,7 @@ def test_a_hostile_option_of_the_certification_is_a_usage_error(
         case: str, pytester: pytest.Pytester) -> None:
     args, says = PYTEST_CASES[case]
     pytester.makefile("", **{"a-file": ""})
-    result = pytester.runpytest_subprocess("-p", "no:cacheprovider", *args)
+    result = pytester.runpytest_inprocess("-p", "no:cacheprovider", *args)
     out = result.stdout.str() + result.stderr.str()
     assert result.ret == pytest.ExitCode.USAGE_ERROR and "Traceback" not in out, out
     assert says in out and "INTERNALERROR" not in out
