@@ -30,7 +30,7 @@ from conformance.checks.command_history import (
     PENDING_KEPT,
     CommandHistory,
     SentCommand,
-    died_on,
+    died_on_any,
     per_unit,
     str_of,
 )
@@ -157,20 +157,22 @@ def conversations(unit: UnitState) -> Conversations:
     return per_unit(unit, "conversations", Conversations)  # type: ignore[no-any-return]
 
 
-def command_died_on(unit: UnitState, last: float, period: float) -> Command | None:
-    """The command a unit whose last heartbeat was at ``last`` may have died on
-    (``command_history.died_on``), else the last it received before it fell silent: HB-012's
-    finding names it."""
+def commands_died_on(unit: UnitState, last: float, period: float) -> list[Command]:
+    """The commands a unit whose last heartbeat was at ``last`` may have died on, the last
+    first (``command_history.died_on_any``), else the last it received before it fell silent
+    if it answered none after it: HB-012's finding names them."""
     c = unit.private.get("conversations")
     if c is None:
-        return None
-    found = died_on(c, last, period)
-    if found is None:
-        for cmd in c.commands.values():
-            if cmd.last_sent <= last + period and (found is None
-                                                   or cmd.last_sent >= found.last_sent):
-                found = cmd
-    return found  # type: ignore[no-any-return]
+        return []
+    found = died_on_any(c, last, period)
+    if found:
+        return found
+    latest = None
+    for cmd in c.commands.values():
+        if cmd.last_sent <= last + period and (latest is None
+                                               or cmd.last_sent >= latest.last_sent):
+            latest = cmd
+    return [latest] if latest is not None else []
 
 
 def dropped(unit: UnitState) -> int:

@@ -138,9 +138,12 @@ def _judge_streak(ctx: CheckContext, unit: UnitState, c: Conversations, *, ended
     found: list[Violation] = []
     timeout = response_timeout(ctx)
     # Answers in flight (FIELD-NOTES, precision): a command sent before the unit's last
-    # answer says nothing about whether it still answers, only about itself.
+    # answer says nothing about whether it still answers, only about itself. Nor does a kind
+    # of command it never answered (FIELD-NOTES, real agents: kinds never answered): that
+    # fails its own rule from the first second; only the kinds it answered before can stop.
     after = [cmd for cmd in streak
              if (c.last_answer is None or cmd.last_sent > c.last_answer)
+             and cmd.name in c.answered_kinds
              and (alive_until is None or cmd.last_sent + timeout <= alive_until)]
     kinds = {cmd.name for cmd in after}
     if len(after) >= 2 and len(kinds) >= 2 and expects_answers(unit, c):
