@@ -84,6 +84,15 @@ def run(ctx: Context) -> None:
                                                 task_uuid=None if generate else "new")
         response = _check_answer(ctx, task, answer)
         if answer is None:
+            if generate:
+                # 12.1 'a generated task-uuid will be returned in the response message': no
+                # response returned none, so this is no pass (a unit that died on it: HB-012,
+                # and this becomes could-not-test).
+                ctx.record("EXEC-START-002", violation=ctx.violation(
+                    "EXEC-START-002", expected="a response with a generated task-uuid "
+                    "(start-task sent without one, 12.1)", observed=f"no response within "
+                    f"{ctx.timing.response:.1f} s", subtopic="exec/response",
+                    detail=f"task '{task}'"))
             continue
         task_uuid = answer.get("task-uuid")
         wanted = sent.body.get("task-uuid")
