@@ -104,6 +104,8 @@ class Certification:
         """When the broker was lost for good (it did not come back within the budget)."""
         self.explored = ""
         """What the exploration did (``suite/exploration.py``), for the report's meta."""
+        self.replays: dict[str, tuple[float, str]] = {}
+        """Rule -> (when exploration began, the replay line of the story that found it)."""
         from conformance.suite.progress import Progress
 
         self.progress = Progress(config)
@@ -319,7 +321,11 @@ class Certification:
         }
 
     def rerun_command(self, rule: str | None = None) -> str:
-        """The pytest command that repeats this run (of ``rule`` alone, when given)."""
+        """The pytest command that repeats this run (of ``rule`` alone, when given); a rule
+        only exploration found, by replaying its story (``-k RULE`` sends no such order)."""
+        since, replay = self.replays.get(rule or "", (0.0, ""))
+        if replay and all((v.time or since) >= since for v in self.result(rule).violations):
+            return replay
         return self.settings.rerun_command(rule, self._observe_for(rule) if rule else 0)
 
     def _observe_for(self, rule: str) -> int:
