@@ -85,9 +85,10 @@ _ALL = (
     Variant("level-spelling", "5.1",
             "Declares its level 'direct_execution' (5.1's prose spelling; ERR-008).",
             warns=("ERR-008",)),
-    Variant("geopoint-type", "6.1, 10, 11",
-            "Tags its position \"type\": \"GeoPoint\" instead of rostype (ERR-010).",
-            warns=("ERR-010",)),
+    Variant("geopoint-type", "6.1",
+            "Tags its position \"type\": \"GeoPoint\" instead of rostype: 6.1 says only "
+            "'GeoPoint' and has no example of sensor/position (ERR-010 is for task "
+            "parameters, whose examples tag rostype)."),
 )
 
 VARIANTS: dict[str, Variant] = {v.name: v for v in _ALL}
