@@ -11,10 +11,11 @@ TST conversations share is ``command_history``'s.
 
 Blame goes to the root cause, so that one fault fails one rule:
 - each command left unanswered fails its own rule, judged when the unit next answers or at the
-  end; a unit that also answers none of two or more commands of different kinds sent after
-  its last answer, while it heartbeats past their deadline, stopped answering (EXEC-ROBUST-001,
-  naming the command before them); the command a dying unit received last, and those after,
-  are its death's (HB-012); those before it were left unanswered by a live unit;
+  end; a unit that also answers none of two or more commands of different kinds, kinds it
+  answered before, sent after its last answer, while it heartbeats past their deadline,
+  stopped answering (EXEC-ROBUST-001, naming the command before them); the command a dying
+  unit received last, and those after, are its death's (HB-012, which names every command of
+  the period before its last heartbeat); those before it were left unanswered by a live unit;
 - feedback after a final status that a resend caused is EXEC-RESEND-001's, not EXEC-FB-004's.
 
 Everything is bounded: histories are LRUs, open expectations are capped and expire, and what

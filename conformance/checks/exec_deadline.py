@@ -4,8 +4,9 @@ Answers due (a resend left unanswered: EXEC-RESEND-002), feedback a signal's 'ok
 (12.2.2), the final feedback of a task that left tasks-executing (EXEC-START-003). A new
 agent-uuid is a new life: what the old one left open is not judged (the reboot lost it).
 Commands still unanswered when a life or the observation ends are judged here, each by its
-own rule; a unit that answers none of two or more commands of different kinds sent after its
-last answer, while it still heartbeats past their deadline, also stopped answering
+own rule; a unit that answers none of two or more commands of different kinds (kinds it
+answered before) sent after its last answer, while it still heartbeats past their deadline,
+also stopped answering
 (EXEC-ROBUST-001); the command a dying unit received last, and those after, are HB-012's.
 """
 
