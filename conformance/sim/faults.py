@@ -360,6 +360,8 @@ NOT_UNIT_BREAKABLE: dict[str, str] = {
     "ERR-017": "unit names in TST commands (the commander's); a unit understands both forms",
     "ERR-002": "about the spec's example text; a unit copying it breaks MSG-002 (course-nan)",
     "ERR-003": "a misspelled parameter in a start-task command (the commander's)",
+    "ERR-010": "a task's GeoPoint tag, in a start-task or start-tst command (the commander's); "
+               "sensor/position is not judged by it (6.1 has no example)",
     "ERR-004": "observe-position parameter forms in a start-task command (the commander's)",
     "ERR-005": "a TST node name in start-tst (the commander's)",
     "ERR-007": "the signal-executor command (sent by a commander)",
