@@ -42,7 +42,7 @@ from conformance.checks.rows import (
     suite_version,
 )
 from conformance.checks.shapes import Shapes
-from conformance.checks.suite_commands import sent_by_suite
+from conformance.checks.suite_commands import suite_row
 from conformance.checks.tst_routing import TstRouting
 from conformance.message import Message
 from conformance.profile import Profile
@@ -53,8 +53,7 @@ from conformance.validator import Examined, Validation, Validator
 from conformance.violation import Verdict, Violation
 
 MAX_UNITS = bounds.MAX_UNITS
-"""Units tracked at once; messages of further units are counted as unexamined, and lint fails
-on them (``not_judged``)."""
+"""Units tracked at once; further units' messages are unexamined: lint fails (``not_judged``)."""
 MAX_NAMED_OVER_CAP = 8
 """Units past MAX_UNITS named when the run says what it did not judge."""
 MAX_TOPICS = bounds.MAX_TOPICS_CACHED
@@ -239,15 +238,13 @@ class Monitor:
     def _feed_command(self, route: _Route, entry: Row, message: Message, v: Validation,
                       examined: Examined) -> list[Violation]:
         """A command: the unit's state learns of it (its conversations), but what is wrong in
-        it is the commander's (by ``sender``), never the unit's. Commands are rare: the
-        bookkeeping here may cost what the hot path may not."""
+        it is the commander's (by ``sender``; the suite's own: no one's, ``suite_commands``),
+        never the unit's. Commands are rare: the bookkeeping may cost what the hot path may not."""
+        commander = suite_row(entry.state, v.message, message.payload) or \
+            self._commander_entry(entry, v.message, message.payload)
+        commander.groups[examined] = commander.groups.get(examined, 0) + 1
+        commander.state.observe(message, v)
         state = entry.state
-        # The suite's own commands and probes are no commander's fault (``suite_commands``).
-        suite = sent_by_suite(v.message, message.payload, state)
-        commander = None if suite else self._commander_entry(entry, v.message, message.payload)
-        if commander is not None:
-            commander.groups[examined] = commander.groups.get(examined, 0) + 1
-            commander.state.observe(message, v)
         before = dict(state.examined)
         found = list(v.violations)
         if route.reinterpret and v.topic.kind is route.topic_kind:
@@ -263,8 +260,7 @@ class Monitor:
         for rule, n in list(state.examined.items()):
             gained = n - before.get(rule, 0)
             if gained and CATALOGUE[rule].side is not Side.UNIT:
-                if commander is not None:
-                    commander.state.examine(rule, gained)
+                commander.state.examine(rule, gained)
                 state.examined[rule] = n - gained
         # The unit's own topic (its address: 3.1's TYPE, ROLE, UNIT) is the unit's finding,
         # recorded once on its row, never on each commander that addresses it (DESIGN: blame).
@@ -274,8 +270,6 @@ class Monitor:
             for f in own:
                 if f.rule not in entry.records and entry.state.address.prefix != UNATTRIBUTED:
                     entry.add(dataclasses.replace(f, unit=entry.unit))
-        if commander is None:
-            return []
         found = [dataclasses.replace(f, unit=commander.unit) for f in found]
         for f in found:
             commander.add(f)

@@ -13,6 +13,8 @@ import re
 from typing import Any
 
 from conformance.checks.base import UnitState
+from conformance.checks.rows import UNATTRIBUTED, Row
+from conformance.topics import UnitAddress
 
 SENDER = "waraps-conformance"
 """The ``sender`` of every command the suite publishes (``scenarios/sender.py``)."""
@@ -32,6 +34,7 @@ _PROBES = frozenset(payload for _, payload in UNREADABLE)
 _SENDER = re.compile(rb'"sender"\s*:\s*"' + re.escape(SENDER.encode()) + rb'"')
 SEEN = "suite-commands"
 """UnitState.private key: the suite has commanded this unit (its sender was seen)."""
+LABEL = "the conformance suite (deliberate probes)"
 
 
 def sent_by_suite(m: Any, payload: Any, unit: UnitState) -> bool:
@@ -49,3 +52,16 @@ def sent_by_suite(m: Any, payload: Any, unit: UnitState) -> bool:
         return True
     return bool(unit.private.get(SEEN)) and isinstance(payload, (bytes, bytearray)) \
         and bytes(payload) in _PROBES
+
+
+def suite_row(unit: UnitState, m: Any, payload: Any) -> Row | None:
+    """The row the suite's command to ``unit`` is judged on (``sent_by_suite``), else None.
+    The row is the unit's own and never reported: the Monitor reports only the commanders it
+    keeps, so no commander is charged with the suite's probes."""
+    if not sent_by_suite(m, payload, unit):
+        return None
+    row = unit.private.get(LABEL)
+    if row is None:
+        row = unit.private[LABEL] = Row(UnitState(UnitAddress(UNATTRIBUTED, "", "", LABEL)),
+                                        "commander", LABEL)
+    return row  # type: ignore[no-any-return]
