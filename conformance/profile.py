@@ -84,6 +84,16 @@ class Profile:
     def is_strict(self) -> bool:
         return self.strict
 
+    def adopts(self, rule_id: str) -> bool:
+        """Whether a decided rule fails under this profile: a strict profile adopts every
+        decision, and ``severity: {RULE: error}`` adopts that rule's (the arena's own words)."""
+        if self.strict:
+            return True
+        for pattern, sev in self.severity.items():
+            if fnmatch.fnmatchcase(rule_id, pattern):
+                return sev == Severity.ERROR.value
+        return False
+
 
 _FIELDS = {f.name: f for f in fields(Profile)}
 _TUPLE_KEYS = {"levels", "sensors", "tasks", "motion_tasks", "task_specific_statuses"}

@@ -81,7 +81,7 @@ _ALL = (
        "Publishes position as a one-element list of GeoPoints (10.1.6's example form)."),
     _f("camera-data-url", "MSG-004",
        "Publishes camera_url as an inline 'data:image/jpeg;base64,...' frame of 1.5 MB."),
-    _f("stamp-milliseconds", "MSG-005",
+    _f("stamp-milliseconds", "MSG-008",
        "Stamps heartbeat and info messages in milliseconds (Date.now() style)."),
     _f("stamp-clock-skew", "MSG-005",
        "Stamps with a clock that runs 120 s behind (no NTP)."),

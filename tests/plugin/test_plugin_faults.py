@@ -43,11 +43,12 @@ AWAITING_SCENARIOS: dict[str, str] = {}
 # Signal faults too (the scenarios end their tasks with signals), and tst_execution_info ones
 # (they declare one more level).
 ALONE = {"HB", "EXEC-PING", "EXEC-ROBUST", "EXEC-START", "EXEC-SIG", "REBOOT", "TEI",
-         "MSG-005", "MSG-007", "ERR-008", "ERR-014"}
+         "MSG-005", "MSG-007", "MSG-008", "ERR-008", "ERR-014"}
 GROUP_SIZE = 5
 # Rules that judge the same messages as another area's: a fault of one and a fault of the
 # other would alter the same message (a sensor value, a query or signal answer).
-SAME_MESSAGES = {"MSG": "SENS", "ERR-010": "SENS", "ERR-006": "EXEC-QUERY",
+# MSG-008 (a stamp in ms) and MSG-005 (a clock far off) judge the same stamps.
+SAME_MESSAGES = {"MSG": "SENS", "ERR-010": "SENS", "ERR-006": "EXEC-QUERY", "MSG-008": "MSG-005",
                  "ERR-013": "EXEC-SIG", "ERR-001": "SI", "ERR-012": "SI"}
 # Rules whose faults also change what another area's scenario or check relies on: feedback
 # without task-uuid hides when a task ends, so the query scenario has no finished task to ask
@@ -63,7 +64,7 @@ ALSO = {"EXEC-FB-001": ("EXEC-QUERY",), "SENS-004": ("TOPIC",)}
 SUITE_ALSO = {"crash-on-malformed": ("EXEC-START-001",), "twin-agent": ("EXEC-QUERY-001",)}
 # Faults of ALONE areas that only change what their own rule alone judges, and nothing a
 # scenario reads: the heartbeat's type (HB-002), an unknown level besides the known ones
-# (HB-007), stamps (MSG-005; MSG-007 reads them on retained messages only, and its fault runs
+# (HB-007), stamps (MSG-005, MSG-008; MSG-007 reads them on retained messages only, and its fault runs
 # alone). They join combined groups, one of each area per group.
 JOIN = {"heartbeat-type-case", "level-unknown", "stamp-clock-skew", "stamp-milliseconds"}
 # Faults that leave the unit without a readable position: the scenarios that start tasks
