@@ -10,7 +10,6 @@ from conformance.checks import Monitor, covered_rules
 from conformance.profile import Profile
 from conformance.violation import Verdict
 
-
 STRICT = Profile(strict=True)
 """HB-008 and TEI-002 are decided rules (rules.toml): they fail only in a strict run."""
 
