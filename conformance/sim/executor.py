@@ -115,7 +115,7 @@ class CommandExecutor:
         elif not isinstance(command, str):
             self._answer(com, "failed", fail_reason="the command has no 'command' field (one of "
                          f"{', '.join(COMMANDS)})")
-        else:
+        elif "silent-unknown-command" not in self.variants:  # 12.1 asks nothing of others
             self._answer(com, "failed", fail_reason=f"unknown command {command[:64]!r}: this "
                          f"unit understands {', '.join(COMMANDS)} (12.1)" + misdirected(command))
 

@@ -33,8 +33,8 @@ from conformance.sim.publisher import CAMERA_URL_EVERY, Publisher, topic_base
 from conformance.sim.runner import STEP, TaskRunner
 from conformance.sim.tasks import Task, TaskSpec, tasks_for
 from conformance.sim.tst import TstEngine
-from conformance.sim.variants import SLOW_PERIODS, check_variants
-from conformance.sim.vehicle import LINKOPING, GeoPoint, Vehicle
+from conformance.sim.variants import RESPAWN_METRES, SLOW_PERIODS, check_variants
+from conformance.sim.vehicle import LINKOPING, GeoPoint, Vehicle, destination
 from conformance.topics import UnitAddress
 
 __all__ = ["CAMERA_URL_EVERY", "Emit", "UnitCore"]  # CAMERA_URL_EVERY: bench/bench_sim.py
@@ -265,6 +265,11 @@ class UnitCore:
                     t.status, t.fail_reason = "failed", "interrupted by a reboot"
         if self.tst is not None:
             self.tst.forget()
+        if "respawn" in self.variants:  # a new life starts where its simulator spawns it
+            # A bearing of its own per life (the golden angle), not drawn from rng: the
+            # identifiers of the new life stay those of a unit without the variant.
+            self.vehicle.position = destination(self.vehicle.position, self.boot * 137.5,
+                                                RESPAWN_METRES)
         self.crashed = False
         self.dead = False
         self.up = True
