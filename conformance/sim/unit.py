@@ -45,6 +45,9 @@ HELD = frozenset({"exec/response", "exec/feedback", "tst/response", "tst/feedbac
 VENDOR = {"name": "waraps-conformance reference unit", "variant": "verbose"}
 """Variant verbose: the field of its own it adds to every message (2: more fields are not
 forbidden; a reader ignores what it does not know)."""
+RENAMES = 3
+"""Fault reboot-renames: how many reboots bring a new name (later ones keep the last); the
+runtime listens and may publish under every one of them from the start."""
 REBOOT_SILENCE = 2.5
 """A reboot is silent for this many heartbeat periods, counted from the last heartbeat: more
 than HB-006's two (so the new agent-uuid reads as a reboot), less than HB-010's three."""
@@ -81,6 +84,10 @@ class UnitCore:
         self._emit = emit
         self.vehicle = Vehicle(address.agent_type, position or GeoPoint(*LINKOPING, 0.0), heading)
         self.specs: dict[str, TaskSpec] = {t.name: t for t in tasks_for(address.agent_type)}
+        self.lives = (address,) + tuple(
+            address.with_name(f"{address.name}_{(0x9E37 * n) & 0xFFFF:04x}")
+            for n in range(1, RENAMES + 1) if "reboot-renames" in self.faults)
+        """The addresses of its lives: its own, then the names it takes after each reboot."""
         self.base = topic_base(address, self.faults)
         self.command_topic = f"{self.base}/exec/command"
         # Identity of one life (12.1: history is lost with a reboot).
@@ -254,6 +261,10 @@ class UnitCore:
 
     def _come_back(self, now: float) -> None:
         self.boot += 1
+        if len(self.lives) > 1:  # fault reboot-renames: a new name for the new life
+            self.address = self.lives[min(self.boot, len(self.lives) - 1)]
+            self.base = topic_base(self.address, self.faults)
+            self.command_topic = f"{self.base}/exec/command"
         if "reboot-keeps-agent-uuid" not in self.faults:
             self.agent_uuid = self._new_agent_uuid()
         if "reboot-remembers-history" not in self.faults:

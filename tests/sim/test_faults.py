@@ -23,6 +23,7 @@ from conformance.profile import Profile
 from conformance.rules import CATALOGUE
 from conformance.sim import FAULTS, NOT_UNIT_BREAKABLE, Fleet
 from conformance.sim.faults import FaultError, breaking, check_names, unit_breakable_rules
+from conformance.sim.publisher import topic_base
 from conformance.sim.vehicle import LINKOPING, GeoPoint, destination
 from conformance.topics import UnitAddress
 from conformance.violation import Verdict
@@ -94,7 +95,8 @@ def _judged(monitor: Monitor, fleet: Fleet) -> dict[int, set[str]]:
     """Rules that fail or warn, per unit index (found by topic base: broker faults move it)."""
     monitor.finish()
     report = monitor.report()
-    by_base = {core.base.lstrip("/"): i for i, core in enumerate(fleet.cores)}
+    by_base = {topic_base(life, core.faults).lstrip("/"): i for i, core in enumerate(fleet.cores)
+               for life in core.lives}  # a renaming unit (reboot-renames) has several
     out: dict[int, set[str]] = {i: set() for i in range(len(fleet.cores))}
     for key, unit in report.units.items():
         if unit.party == "commander":  # the tests' own commands: their faults are the tests'
@@ -288,7 +290,8 @@ def _lint_the_recording(messages, fleet: Fleet, plan: dict[int, tuple[str, ...]]
     lint_main(["--from", str(recording), "--profile", str(profile), "--plain", "--format",
                "json", "--reports-dir", str(tmp_path / "reports")], stdout=out)
     report = json.loads(next((tmp_path / "reports").glob("*.json")).read_text())
-    by_base = {core.base.lstrip("/"): i for i, core in enumerate(fleet.cores)}
+    by_base = {topic_base(life, core.faults).lstrip("/"): i for i, core in enumerate(fleet.cores)
+               for life in core.lives}  # a renaming unit (reboot-renames) has several
     linted: dict[int, set[str]] = {i: set() for i in range(len(fleet.cores))}
     for key, unit in report["units"].items():
         if unit["party"] == "unit":
