@@ -315,3 +315,73 @@ def test_a_unit_with_a_topic_fault_still_answers_where_it_listens(mosquitto: str
         obs.count("/heartbeat", 1)
         r = obs.request({"command": "ping"})
         assert r["response"] == "pong" and r["agent-uuid"] == moved.agent_uuid
+
+
+def test_reboot_renames_comes_back_under_a_new_name_and_listens_there() -> None:
+    """Fault reboot-renames: after each reboot the unit publishes (name included) and listens
+    under '<name>_<4 hex digits>'; the runtime subscribes to every such name from the start."""
+    import random
+
+    from conformance.sim.runtime import Runtime
+    from conformance.sim.unit import UnitCore
+
+    address = UnitAddress("h", "air", "simulation", "dji0")
+
+    def heartbeats(faults: tuple[str, ...]) -> tuple[list[tuple[str, str]], UnitCore]:
+        sent: list[tuple[str, bytes]] = []
+        core = UnitCore(address, lambda t, p, r: sent.append((t, p)), faults=faults,
+                        rate=2.0, rng=random.Random(1))
+        core.start(0.0)
+        now = 0.0
+        while now < 4.0:
+            now = round(now + 0.05, 2)
+            if now == 1.0:
+                core.request_reboot()
+                core.due = now
+            if now >= core.due:
+                core.run(now)
+        return [(t.removesuffix("/heartbeat"), json.loads(p)["name"]) for t, p in sent
+                if t.endswith("/heartbeat")], core
+
+    plain, _ = heartbeats(())
+    renamed, core = heartbeats(("reboot-renames",))
+    assert {b for b, _ in plain} == {address.base}
+    lives = list(dict.fromkeys(renamed))
+    assert lives[0] == (address.base, "dji0")
+    assert len(lives) == 2 and lives[1][1].startswith("dji0_") and len(lives[1][1]) == 9
+    assert lives[1] == (address.with_name(lives[1][1]).base, lives[1][1])
+    assert core.command_topic == f"{lives[1][0]}/exec/command"
+    runtime = Runtime("mqtt://127.0.0.1:1")  # never connected: what it would subscribe to
+    runtime.add(core)
+
+    def heard(topic: str) -> bool:  # one of the filters matches it ('+': one level)
+        return any(len(f.split("/")) == len(topic.split("/")) and all(
+            a in ("+", b) for a, b in zip(f.split("/"), topic.split("/"), strict=True))
+            for f in runtime.subscriptions())
+
+    assert heard(f"{address.base}/exec/command") and heard(core.command_topic)
+    assert runtime.may_publish(f"{lives[1][0]}/heartbeat")
+
+
+def test_start_no_task_uuid_unanswered_drops_only_a_start_task_without_task_uuid() -> None:
+    import random
+
+    from conformance.sim.unit import UnitCore
+
+    def answers(faults: tuple[str, ...]) -> dict[str, str]:
+        sent: list[tuple[str, bytes]] = []
+        core = UnitCore(UnitAddress("h", "air", "simulation", "dji0"),
+                        lambda t, p, r: sent.append((t, p)), faults=faults, rate=2.0,
+                        rng=random.Random(1))
+        core.start(0.0)
+        task = {"name": "look-at-bearing", "params": {"bearing": 30.0}}
+        for com, extra in (("c1", {"task": task}), ("c2", {"task": task, "task-uuid": "t2"}),
+                           ("c3", {})):  # no task object: refused whatever the task-uuid
+            core.command(json.dumps({"com-uuid": com, "command": "start-task",
+                                     "sender": "commander", **extra}).encode(), 0.1)
+        core.run(0.2)
+        return {m["response-to"]: m["response"] for m in (
+            json.loads(p) for t, p in sent if t.endswith("/exec/response"))}
+
+    assert answers(()) == {"c1": "running", "c2": "running", "c3": "failed"}
+    assert answers(("start-no-task-uuid-unanswered",)) == {"c2": "running", "c3": "failed"}
