@@ -38,7 +38,17 @@ pytestmark = pytest.mark.slow
 
 # Where the suite and the reference unit's fault table disagree on the rules a fault breaks.
 # strict: once they agree, the XPASS fails this test and the entry must go.
-AWAITING_SCENARIOS: dict[str, str] = {}
+AWAITING_SCENARIOS: dict[str, str] = {
+    # Behaviours of the public agents (issue 24 part 3), misjudged as the checks stand:
+    "heartbeat-rate-gross": "HB-010 or HB-012 also fails: each interval of 5 declared "
+                            "periods reads as a silence ('then came back with the same "
+                            "agent-uuid', or a death that 'came back only when the suite "
+                            "rebooted it')",
+    "reboot-renames": "REBOOT-001 is could-not-test and HB-012 fails 'never came back': the "
+                      "unit came back from the requested reboot under another name",
+    "start-no-task-uuid-unanswered": "EXEC-START-002 passes although the start-task without "
+                                     "task-uuid was never answered",
+}
 # Areas whose faults change what every scenario sees (levels, identity, timing, answers).
 # Signal faults too (the scenarios end their tasks with signals), and tst_execution_info ones
 # (they declare one more level).
