@@ -45,8 +45,17 @@ class Profile:
     tasks: tuple[str, ...] = ()
     """Tasks the suite may start (empty: every task in tasks-available that does not move the
     unit; moving ones only with ``allow_motion``)."""
+    task_params: dict[str, dict[str, Any]] = field(default_factory=dict)
+    """Task name -> the parameters to start it with (the profile's ``tasks`` as a mapping)."""
+    task_scenarios: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    """Task name -> the scenarios that may start it (absent: every scenario)."""
     motion_tasks: tuple[str, ...] = ()
-    """Tasks allowed to move a ``real`` unit, and only with --allow-motion (DESIGN: safety)."""
+    """Tasks allowed to move a real unit, and only with --allow-motion (DESIGN: safety)."""
+    simulated_roles: tuple[str, ...] = ()
+    """Roles besides ``simulation`` that are simulations; every other role is real (DESIGN
+    'Safety': fail closed)."""
+    robustness: bool = False
+    """Hostile and malformed payloads may be sent to a real unit (as --allow-hostile)."""
     safe_radius: float = 50.0
     """Motion targets stay within this distance of the unit's own reported position."""
     rate_tolerance: float = 0.2
@@ -77,13 +86,19 @@ class Profile:
                 return Severity(sev)
         return CATALOGUE[rule_id].severity if rule_id in CATALOGUE else Severity.ERROR
 
+    def is_simulation(self, role: str) -> bool:
+        """Whether a unit of ``role`` (3.1) is a simulation: ``simulation`` or one of the
+        ``simulated_roles``; every other role, known or not, is real (DESIGN 'Safety')."""
+        return role == "simulation" or role in self.simulated_roles
+
     @property
     def is_strict(self) -> bool:
         return self.severity_of("ERR-001") is Severity.ERROR
 
 
 _FIELDS = {f.name: f for f in fields(Profile)}
-_TUPLE_KEYS = {"levels", "sensors", "tasks", "motion_tasks", "task_specific_statuses"}
+_TUPLE_KEYS = {"levels", "sensors", "motion_tasks", "task_specific_statuses",
+               "simulated_roles"}
 _FLOAT_KEYS = {"safe_radius", "rate_tolerance", "max_gap_periods", "clock_tolerance",
                "response_timeout", "feedback_timeout", "alive_timeout", "reboot_timeout",
                "info_wait"}
@@ -152,11 +167,29 @@ def from_dict(data: Any, source: str = "<dict>") -> Profile:
                                f"{', '.join(properties)} (see {DOCS})")
         _check(canonical, value, properties[canonical], source)
         attr = canonical.replace("-", "_")
+        if attr == "tasks":
+            kwargs.update(_tasks(value))
+            continue
         kwargs[attr] = _coerce(attr, value, source)
     if "severity" in data:
         kwargs["severity"] = {**base.get("severity", {}), **kwargs["severity"]}
     kwargs["source"] = source
     return Profile(**kwargs)
+
+
+def downgrades(profile: Profile) -> str:
+    """The profile's ``severity`` entries that turn rules the catalogue makes errors into
+    warnings, as ``'*': warning (95 rules)``; "" when there are none. A run header says it:
+    a downgrade (forged or not) is never silent."""
+    out = []
+    for pattern, sev in profile.severity.items():
+        if sev != "warning":
+            continue
+        hit = [r for r, rule in CATALOGUE.items() if fnmatch.fnmatchcase(r, pattern)
+               and rule.severity is Severity.ERROR]
+        if hit:
+            out.append(f"{pattern!r}: warning ({len(hit)} rule{'s' if len(hit) != 1 else ''})")
+    return ", ".join(out)
 
 
 def _check(key: str, value: Any, prop: dict[str, Any], source: str) -> None:
@@ -179,7 +212,11 @@ def _check(key: str, value: Any, prop: dict[str, Any], source: str) -> None:
 
 def describe(prop: dict[str, Any]) -> str:
     """What a profile key takes, in words (its schema's type and bounds)."""
+    if "x-takes" in prop:
+        return str(prop["x-takes"])
     kind = prop.get("type")
+    if kind == "boolean":
+        return "true or false"
     if kind == "number":
         return "a non-negative number" if prop.get("minimum") == 0 else "a number"
     if kind == "integer":
@@ -195,6 +232,18 @@ def describe(prop: dict[str, Any]) -> str:
     return "a string"
 
 
+def _tasks(value: Any) -> dict[str, Any]:
+    """``tasks`` (checked against the schema already): a list of names, or a mapping of names
+    to ``{params, scenarios}``, as the Profile's ``tasks``, ``task_params``, ``task_scenarios``."""
+    if isinstance(value, list):
+        return {"tasks": tuple(value), "task_params": {}, "task_scenarios": {}}
+    params = {str(k): v["params"] for k, v in value.items() if v and "params" in v}
+    scenarios = {str(k): tuple(v["scenarios"]) for k, v in value.items()
+                 if v and "scenarios" in v}
+    return {"tasks": tuple(str(k) for k in value), "task_params": params,
+            "task_scenarios": scenarios}
+
+
 def _coerce(attr: str, value: Any, source: str) -> Any:
     where = f"{source}: {attr.replace('_', '-')}"
     if attr in _TUPLE_KEYS:
@@ -205,6 +254,10 @@ def _coerce(attr: str, value: Any, source: str) -> Any:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0:
             raise ProfileError(f"{where} must be a non-negative number, got {value!r}")
         return float(value)
+    if attr == "robustness":
+        if not isinstance(value, bool):
+            raise ProfileError(f"{where} must be true or false, got {value!r}")
+        return value
     if attr == "min_intervals":
         if isinstance(value, bool) or not isinstance(value, int) or value < 2:
             raise ProfileError(f"{where} must be a whole number >= 2, got {value!r}")

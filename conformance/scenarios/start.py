@@ -14,6 +14,7 @@ from __future__ import annotations
 from conformance.scenarios.context import Context
 from conformance.scenarios.deviation import meaning
 from conformance.scenarios.params import invalid_params, valid_params
+from conformance.scenarios.sender import Refused
 from conformance.scenarios.traffic import Entry
 from conformance.violation import Verdict, Violation
 
@@ -214,9 +215,14 @@ def run_refusals(ctx: Context) -> None:
         ctx.record("EXEC-START-004", verdict=Verdict.COULD_NOT_TEST, reason=reason)
     else:
         task, params, what = chosen
-        sent, answer = ctx.commander.start_task(task, params, ctx.timing.response, invalid=True)
-        _expect_refusal(ctx, "EXEC-START-004", answer, f"start-task '{task}' whose {what}",
-                        with_reason=True)
+        try:
+            sent, answer = ctx.commander.start_task(task, params, ctx.timing.response,
+                                                    invalid=True)
+        except Refused as e:  # malformed on purpose: a real unit gets it only by opt-in
+            ctx.record("EXEC-START-004", verdict=Verdict.COULD_NOT_TEST, reason=str(e))
+        else:
+            _expect_refusal(ctx, "EXEC-START-004", answer, f"start-task '{task}' whose {what}",
+                            with_reason=True)
     # 005: a name that is certainly not in tasks-available; it cannot move anything.
     name = NO_SUCH_TASK if NO_SUCH_TASK not in available else NO_SUCH_TASK + "-2"
     sent, answer = ctx.commander.start_task(name, {}, ctx.timing.response, invalid=True)

@@ -28,6 +28,7 @@ INI = {
     "waraps_timing_scale": "waraps_timing_scale",
     "waraps_reboot_cmd": "waraps_reboot_cmd",
     "waraps_allow_motion": "waraps_allow_motion",
+    "waraps_allow_hostile": "waraps_allow_hostile",
     "waraps_dry_run": "waraps_dry_run",
     "waraps_reports_dir": "waraps_reports_dir",
     "waraps_ca_file": "waraps_ca_file",
@@ -54,6 +55,8 @@ class Settings:
     timing_scale: float = 1.0
     reboot_cmd: str | None = None
     allow_motion: bool = False
+    allow_hostile: bool = False
+    """--allow-hostile: hostile and malformed payloads may go to a real unit (DESIGN 'Safety')."""
     dry_run: bool = False
     reports_dir: Path = Path("reports")
     seed: int = 0
@@ -131,6 +134,8 @@ class Settings:
             parts += ["--reboot-cmd", q(self.reboot_cmd)]
         if self.allow_motion:
             parts.append("--allow-motion")
+        if self.allow_hostile:
+            parts.append("--allow-hostile")
         if self.dry_run:
             parts.append("--dry-run")
         if self.max_duration != MAX_DURATION:
@@ -266,6 +271,7 @@ def read(config: pytest.Config) -> Settings:
                     explore_replay=_replay(config, reports),
                     reboot_cmd=str(reboot) if reboot else None,
                     allow_motion=_flag(config, "waraps_allow_motion"),
+                    allow_hostile=_flag(config, "waraps_allow_hostile"),
                     dry_run=_flag(config, "waraps_dry_run"), reports_dir=reports, seed=seed,
                     sim_faults=faults, sim_variants=variants, sim_rate=float(sim_rate), sim_tst=sim_tst,
                     tst_command_topic=tst_topic)
