@@ -17,6 +17,8 @@ from typing import Any
 
 import yaml
 
+from conformance import profile_yaml
+from conformance.display import printable, shorten
 from conformance.rules import CATALOGUE, Severity
 
 DOCS = "schemas/generated/PROFILE.md"
@@ -119,14 +121,20 @@ def builtin_names() -> list[str]:
     return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith(".yaml"))
 
 
-def load(name_or_path: str | Path | None) -> Profile:
-    """A built-in profile by name (``default``, ``strict``, ...) or a YAML file by path."""
+MAX_EXTENDS = 8
+"""How many profiles an ``extends`` chain may hold (the built-ins need 3)."""
+
+
+def load(name_or_path: str | Path | None, _chain: tuple[str, ...] = ()) -> Profile:
+    """A built-in profile by name (``default``, ``strict``, ...) or a YAML file by path, read
+    as a YAML subset (``profile_yaml``: no anchors, aliases or tags, bounded size and depth,
+    finite numbers, UTF-8); an ``extends`` cycle is refused with its chain."""
     if name_or_path is None:
         name_or_path = "default"
     text_path = str(name_or_path)
     if text_path in builtin_names():
-        source = f"<built-in {text_path}>"
-        text = (resources.files("conformance.profiles") / f"{text_path}.yaml").read_text("utf-8")
+        source = key = f"<built-in {text_path}>"
+        data = (resources.files("conformance.profiles") / f"{text_path}.yaml").read_bytes()
     else:
         path = Path(text_path)
         if not path.is_file():
@@ -135,23 +143,34 @@ def load(name_or_path: str | Path | None) -> Profile:
             raise ProfileError(
                 f"profile {text_path!r} is neither a built-in profile ({', '.join(builtin_names())}) "
                 f"nor a file{hint}")
-        source = str(path)
-        text = path.read_text("utf-8")
+        source, key = str(path), str(path.resolve())
+        with path.open("rb") as f:
+            data = f.read(profile_yaml.MAX_BYTES + 1)
+    chain = (*_chain, key)
+    if key in _chain or len(chain) > MAX_EXTENDS:
+        shown = " -> ".join(chain)
+        why = "extends itself" if key in _chain else f"extends more than {MAX_EXTENDS} deep"
+        raise ProfileError(f"{source}: the profile {why} ({shown}); remove an extends")
     try:
-        data = yaml.safe_load(text) or {}
+        parsed = profile_yaml.read(profile_yaml.decode(data)) or {}
+    except profile_yaml.YamlRefused as e:
+        raise ProfileError(f"{source}: {e}") from None
     except yaml.YAMLError as e:
-        raise ProfileError(f"{source}: not valid YAML: {e}") from None
-    return from_dict(data, source)
+        raise ProfileError(f"{source}: not valid YAML: {' '.join(str(e).split())}") from None
+    return from_dict(parsed, source, _chain=chain)
 
 
-def from_dict(data: Any, source: str = "<dict>") -> Profile:
+def from_dict(data: Any, source: str = "<dict>", *, _chain: tuple[str, ...] = ()) -> Profile:
     """Build a profile from parsed YAML, naming every bad key and value."""
     if not isinstance(data, dict):
         raise ProfileError(f"{source}: a profile is a mapping of keys to values, got "
                            f"{type(data).__name__}")
     base: dict[str, Any] = {}
     if "extends" in data:
-        parent = load(data["extends"])
+        if not isinstance(data["extends"], str):
+            raise ProfileError(f"{source}: extends must be a built-in profile's name or a "
+                               f"file, got {data['extends']!r}")
+        parent = load(data["extends"], _chain)
         base = {f: getattr(parent, f) for f in _FIELDS if f != "source"}
         base["severity"] = dict(parent.severity)
     kwargs: dict[str, Any] = dict(base)
@@ -163,8 +182,8 @@ def from_dict(data: Any, source: str = "<dict>") -> Profile:
         if canonical not in properties:
             close = difflib.get_close_matches(canonical, list(properties), n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise ProfileError(f"{source}: unknown key {key!r}{hint}; valid keys: "
-                               f"{', '.join(properties)} (see {DOCS})")
+            raise ProfileError(f"{source}: unknown key {printable(shorten(repr(key), 80))}{hint}; "
+                               f"valid keys: {', '.join(properties)} (see {DOCS})")
         _check(canonical, value, properties[canonical], source)
         attr = canonical.replace("-", "_")
         if attr == "tasks":
