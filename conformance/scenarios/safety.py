@@ -137,11 +137,21 @@ class Safety:
         known = self._task_moves(task)
         return True if known is None else (known or task in MOVES_WITHOUT_TAG)
 
-    def may_start(self, task: str) -> tuple[bool, str]:
-        """(allowed, reason it is not) for starting ``task`` on this unit."""
+    def may_start(self, task: str, scenario: str = "") -> tuple[bool, str]:
+        """(allowed, reason it is not) for starting ``task`` on this unit in ``scenario``
+        (the profile may name the scenarios a task is for): only a task whose parameters
+        are known (the profile's, or a section 9 example: never invented)."""
+        from conformance.scenarios.params import has_params, no_params_reason
+
         if self.profile.tasks and task not in self.profile.tasks:
             return False, (f"profile '{self.profile.name}' does not let the suite start "
                            f"'{task}' (its tasks: {', '.join(self.profile.tasks)})")
+        only = self.profile.task_scenarios.get(task)
+        if scenario and only is not None and scenario not in only:
+            return False, (f"the profile lets only the scenarios {', '.join(only)} start "
+                           f"'{task}'")
+        if not has_params(task, self.profile.task_params):
+            return False, no_params_reason(task)
         if not self.profile.is_simulation(self.unit.role) and self.moves(task):
             if not self.allow_motion:
                 return False, (f"'{task}' moves the unit and {self.unit} is a real unit: pass "

@@ -58,8 +58,8 @@ def run(ctx: Context) -> None:
     """Start, watch and end every startable task; then the generated task-uuid."""
     available = ctx.tasks_available()
     origin = ctx.position()
-    startable = [n for n in available if ctx.safety.may_start(n)[0]]
-    refused = {n: ctx.safety.may_start(n)[1] for n in available if n not in startable}
+    startable = [n for n in available if ctx.safety.may_start(n, "start")[0]]
+    refused = {n: ctx.safety.may_start(n, "start")[1] for n in available if n not in startable}
     if not startable:
         why = "; ".join(refused.values()) or "tasks-available is empty"
         for rule in RULES:
@@ -205,7 +205,7 @@ def run_refusals(ctx: Context) -> None:
     # 004: a task the suite may start, preferably one that does not move the unit, in case
     # the unit wrongly accepts the parameters.
     chosen = None
-    for task in ctx.startable():
+    for task in ctx.startable("refuse"):
         if origin is not None and (bad := invalid_params(task, origin, ctx.safety, ctx.seed)):
             chosen = (task, *bad)
             break

@@ -86,7 +86,6 @@ def run(c: Certification, node: pytest.Item) -> None:
     collector = Collector(str(c.unit), lambda rule: judged(rule, c.profile.severity_of))
     explorer = Explorer(c.context, collector, lambda task_uuid: _model_state(c, task_uuid),
                         dead=c.unit_died)
-    explorer.warm()
     c.connection.listeners.append(collector)
     died = ""
     try:

@@ -25,7 +25,6 @@ from certify_helpers import (
     Rebooter,
     certify,
     recorded,
-    warm_parameters,
 )
 
 from conformance.sim import SimUnit
@@ -60,10 +59,6 @@ def test_the_groups_cover_every_variant_and_keep_conflicts_apart() -> None:
     assert tst | {v for g in AWAITING for v in g} >= {"strict", "terse", "verbose", "slow",
                                                      "key-order", "feedback-first"}
 
-
-@pytest.fixture(scope="module", autouse=True)
-def parameters() -> None:
-    warm_parameters(("look-at-bearing", "move-to", "navigate"), range(1, 5))
 
 
 def certify_and_record(pytester: pytest.Pytester, broker: str, unit: UnitAddress,
