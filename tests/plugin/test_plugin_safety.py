@@ -311,10 +311,13 @@ def test_hostile_payloads_reach_only_a_simulation_or_an_opted_in_real_unit(
 
 
 def test_a_dry_run_shows_the_safety_decision_and_what_it_would_refuse(
-        pytester: pytest.Pytester, mosquitto: str, prefix: str) -> None:
+        pytester: pytest.Pytester, mosquitto: str, prefix: str, tmp_path: Path) -> None:
+    """The header says the decision, and a profile's downgrade of errors (forged or not)."""
+    profile = tmp_path / "downgrading.yaml"
+    profile.write_text(f"extends: {MATRIX}\nseverity: {{'HB-01*': warning}}\n")
     unit = f"{prefix}/unit/air/live/dji0"
     with SimUnit(unit, mosquitto, rate=3.0) as sim, Wire(mosquitto, prefix) as wire:
-        run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={MATRIX}",
+        run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={profile}",
                       "--dry-run", "--seed", "3", "-k", "EXEC-ROBUST or EXEC-START-001",
                       plugins=(Rebooter(sim),))
     assert wire.commands() == []
@@ -322,6 +325,7 @@ def test_a_dry_run_shows_the_safety_decision_and_what_it_would_refuse(
             "simulated-roles are simulations): no motion (no --allow-motion), no hostile "
             "payloads (no --allow-hostile)") in run.text
     assert "dry run: would not publish" in run.text
+    assert "the profile downgrades 'HB-01*': warning (" in run.text
     assert "would publish" in run.text and '"name":"move-to"' not in run.text
     rules = run.unit_rules()
     assert "--allow-hostile" in rules["EXEC-ROBUST-002"]["reason"], rules["EXEC-ROBUST-002"]
