@@ -7,6 +7,7 @@ environment (``WARAPS_PASSWORD``), never from an option.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import os
 import secrets
@@ -30,6 +31,7 @@ INI = {
     "waraps_allow_motion": "waraps_allow_motion",
     "waraps_allow_hostile": "waraps_allow_hostile",
     "waraps_dry_run": "waraps_dry_run",
+    "waraps_strict_rules": "waraps_strict_rules",
     "waraps_reports_dir": "waraps_reports_dir",
     "waraps_ca_file": "waraps_ca_file",
     "waraps_cert_file": "waraps_cert_file",
@@ -58,6 +60,8 @@ class Settings:
     allow_hostile: bool = False
     """--allow-hostile: hostile and malformed payloads may go to a real unit (DESIGN 'Safety')."""
     dry_run: bool = False
+    strict_rules: bool = False
+    """--strict-rules: decided rules fail (the profile is made strict)."""
     reports_dir: Path = Path("reports")
     seed: int = 0
     sim_faults: tuple[str, ...] = ()
@@ -138,6 +142,8 @@ class Settings:
             parts.append("--allow-hostile")
         if self.dry_run:
             parts.append("--dry-run")
+        if self.strict_rules:
+            parts.append("--strict-rules")
         if self.max_duration != MAX_DURATION:
             parts += ["--max-duration", f"{self.max_duration:g}"]
         parts += ["--seed", str(self.seed)]
@@ -206,6 +212,9 @@ def read(config: pytest.Config) -> Settings:
         profile = load(profile_name)
     except ProfileError as e:
         raise pytest.UsageError(f"--profile: {e}") from None
+    strict_rules = _flag(config, "waraps_strict_rules")
+    if strict_rules:
+        profile = dataclasses.replace(profile, strict=True)
     scale_text = _value(config, "waraps_timing_scale")
     try:
         scale = float(scale_text) if scale_text not in (None, "") else 1.0
@@ -272,7 +281,8 @@ def read(config: pytest.Config) -> Settings:
                     reboot_cmd=str(reboot) if reboot else None,
                     allow_motion=_flag(config, "waraps_allow_motion"),
                     allow_hostile=_flag(config, "waraps_allow_hostile"),
-                    dry_run=_flag(config, "waraps_dry_run"), reports_dir=reports, seed=seed,
+                    dry_run=_flag(config, "waraps_dry_run"), strict_rules=strict_rules,
+                    reports_dir=reports, seed=seed,
                     sim_faults=faults, sim_variants=variants, sim_rate=float(sim_rate), sim_tst=sim_tst,
                     tst_command_topic=tst_topic)
 
