@@ -15,7 +15,7 @@ import math
 import random
 from typing import Any
 
-from conformance.scenarios.safety import Position, Safety
+from conformance.scenarios.safety import NoParams, Position, Safety, no_params_reason
 
 # Parameters of section 9 that are distances in metres, bounded to the safe area.
 DISTANCE_PARAMS = frozenset({"radius", "distance", "height", "height-above-takeoff",
@@ -89,23 +89,6 @@ def make_safe(params: Any, origin: Position, safety: Safety, rng: random.Random,
         return value
 
     return fix(copy.deepcopy(params))
-
-
-class NoParams(LookupError):
-    """A task the suite would have to invent parameters for (DESIGN 'Safety'); the message
-    says what to add to the profile."""
-
-
-def no_params_reason(task: str) -> str:
-    """Why ``task`` is not started: its parameters are not known (issue 25 §2)."""
-    return (f"no task to start: {task} has no parameters in the profile and is not a section "
-            f"9 task; add tasks: {{{task}: {{params: ...}}}} to the profile")
-
-
-def has_params(task: str, given: dict[str, Any]) -> bool:
-    """Whether the suite knows parameters for ``task``: the profile's (``given``), or the
-    example of a section 9 task (9: each task's specification has one)."""
-    return task in given or bool((task_schema(task) or {}).get("examples"))
 
 
 def valid_params(task: str, origin: Position, safety: Safety, seed: int, *,

@@ -141,8 +141,6 @@ class Safety:
         """(allowed, reason it is not) for starting ``task`` on this unit in ``scenario``
         (the profile may name the scenarios a task is for): only a task whose parameters
         are known (the profile's, or a section 9 example: never invented)."""
-        from conformance.scenarios.params import has_params, no_params_reason
-
         if self.profile.tasks and task not in self.profile.tasks:
             return False, (f"profile '{self.profile.name}' does not let the suite start "
                            f"'{task}' (its tasks: {', '.join(self.profile.tasks)})")
@@ -180,6 +178,30 @@ class Safety:
 
     def within(self, origin: Position, point: Position) -> bool:
         return origin.distance(point) <= self.profile.safe_radius
+
+
+class NoParams(LookupError):
+    """A task the suite would have to invent parameters for (DESIGN 'Safety'); the message
+    says what to add to the profile."""
+
+
+def no_params_reason(task: str) -> str:
+    """Why ``task`` is not started: its parameters are not known (issue 25 §2)."""
+    return (f"no task to start: {task} has no parameters in the profile and is not a section "
+            f"9 task; add tasks: {{{task}: {{params: ...}}}} to the profile")
+
+
+def has_params(task: str, given: dict[str, Any]) -> bool:
+    """Whether the suite knows parameters for ``task``: the profile's (``given``), or the
+    example of a section 9 task (9: each task's specification has one)."""
+    from conformance import taskspec
+
+    if task in given:
+        return True
+    try:
+        return bool(taskspec.params_schema(task).get("examples"))
+    except KeyError:
+        return False
 
 
 def motion_tasks_of_the_spec() -> frozenset[str]:
