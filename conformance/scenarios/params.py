@@ -15,7 +15,7 @@ import math
 import random
 from typing import Any
 
-from conformance.scenarios.safety import NoParams, Position, Safety, no_params_reason
+from conformance.scenarios.safety import DROPPED, NoParams, Position, Safety, no_params_reason
 
 # Parameters of section 9 that are distances in metres, bounded to the safe area.
 DISTANCE_PARAMS = frozenset({"radius", "distance", "height", "height-above-takeoff",
@@ -25,8 +25,6 @@ SPEED_LIMIT = 5.0
 # Flags that would make a task run on forever, or somewhere else than near the unit.
 FORCED = {"loop-flag": False, "hold-flag": False, "continue-flag": False,
           "land-at-current-position-flag": True}
-DROPPED = frozenset({"named-position", "named-positions", "image-input-ros-topic",
-                     "detections-sensor-topic", "salient-points-topic"})
 EXAMPLES = 4
 MAX_DURATION = 30  # 9.8 observe-position: seconds; the suite ends it with $enough anyway
 

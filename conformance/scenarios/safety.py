@@ -41,6 +41,9 @@ MAX_COMMAND_BYTES = 64 * 1024
 """A command larger than this is a huge payload (the suite's own are well under 4 KiB)."""
 MAX_COMMAND_DEPTH = 16
 """A command nested deeper than this is a deep payload (a TST tree of the suite: under 10)."""
+# Parameters left out of anything sent: they name positions elsewhere than near the unit.
+DROPPED = frozenset({"named-position", "named-positions", "image-input-ros-topic",
+                     "detections-sensor-topic", "salient-points-topic"})
 WELL_FORMED_FINDINGS = frozenset({"TASK-002"})
 """Validator findings a well-formed command may have: a task outside section 9 (5.3 lets a
 unit offer others; the refusal probes name one no unit has)."""
@@ -263,6 +266,34 @@ def _depth_over(value: Any, limit: int) -> bool:
     return False
 
 
+def _shape(value: Any) -> Any:
+    """What making parameters safe leaves of them (``params.make_safe``: positions moved,
+    numbers bounded, flags forced, some keys dropped): keys, strings and the type of every
+    other leaf. Iterative; the depth was bounded before."""
+    def leaf(v: Any) -> Any:
+        if isinstance(v, dict) and "latitude" in v and "longitude" in v:
+            return "<GeoPoint>"
+        if isinstance(v, bool):
+            return "<bool>"
+        if isinstance(v, (int, float)):
+            return "<number>"
+        return v if not isinstance(v, (dict, list)) else None
+
+    root: list[Any] = [None]
+    stack: list[tuple[Any, list[Any] | dict[str, Any], Any]] = [(value, root, 0)]
+    while stack:
+        v, into, key = stack.pop()
+        out = leaf(v)
+        if out is None and isinstance(v, dict):
+            out = {}
+            stack.extend((x, out, k) for k, x in v.items() if k not in DROPPED)
+        elif out is None and isinstance(v, list):
+            out = [None] * len(v)
+            stack.extend((x, out, i) for i, x in enumerate(v))
+        into[key] = out
+    return root[0]
+
+
 def hostility(topic: str, payload: bytes, *, given: dict[str, Any] | None = None
               ) -> str | None:
     """What makes ``payload`` hostile or malformed as a command on ``topic`` (12, 14), or
@@ -290,7 +321,8 @@ def hostility(topic: str, payload: bytes, *, given: dict[str, Any] | None = None
                     and not v.rule.startswith(("ERR-", "TOPIC-"))})
     task = body.get("task")
     if found == ["TASK-001"] and given and isinstance(task, dict) \
-            and given.get(str(task.get("name"))) == task.get("params"):
+            and str(task.get("name")) in given \
+            and _shape(given[str(task.get("name"))]) == _shape(task.get("params")):
         return None  # the profile's own parameters for this task (the user's word)
     return f"malformed ({', '.join(found)})" if found else None
 

@@ -31,6 +31,7 @@ def test_the_draft_of_the_reference_unit_loads_and_says_what_it_declares(
     text = out.read_text()
     assert "# motion-tasks: [" in text and "move-to" in text.split("# motion-tasks:")[1]
     assert "heartbeat: declares rate 5.0 Hz, measured" in text
+    assert "PROBLEM" not in text  # the reference unit keeps its word
     assert '"sensor/position": published at' in text
     assert f"observing {unit_address}" in capsys.readouterr().err  # says what it waits for
     # an edited profile is never overwritten
@@ -134,3 +135,18 @@ def test_a_hostile_unit_cannot_certify_itself_through_its_drafted_profile(
     assert run.ret != 0, run.stdout.str()
     assert "downgrades" not in run.stdout.str()  # the header would say a forged downgrade
     run.stdout.fnmatch_lines(["*TOPIC-* *[[]fail[]]*"])
+
+
+def test_a_unit_slower_than_it_declares_is_a_problem_in_the_draft_and_on_stderr(
+        unit_address: UnitAddress, mosquitto: str, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """FIELD-NOTES: an agent declaring 5 Hz publishes at 0.2 Hz; the draft says so as a
+    problem, not as a neutral note."""
+    out = tmp_path / "slow.yaml"
+    with SimUnit(unit_address, mosquitto, rate=5.0, faults=["heartbeat-rate-drift"]):
+        assert main(["profile", "--unit", str(unit_address), "--broker", mosquitto,
+                     "--observe", "3s", "-o", str(out)]) == 0
+    text = out.read_text()
+    assert "#   PROBLEM: declares heartbeat rate 5.0 Hz, measured" in text, text
+    assert "PROBLEM: declares heartbeat rate 5.0 Hz, measured" in capsys.readouterr().err
+    profile.load(out)

@@ -397,3 +397,31 @@ def test_a_task_whose_abort_went_unanswered_is_not_aborted_in_every_scenario() -
     assert commander.abort_all(0.2, stuck=False) == [] and aborts() == 1
     assert commander.abort_all(0.2, stuck=False) == [] and aborts() == 1  # not again
     assert commander.abort_all(0.2) == [] and aborts() == 2  # the last teardown: once more
+
+
+def test_the_profile_own_parameters_are_the_user_word_and_a_broken_copy_is_not() -> None:
+    """A profile may give a section 9 task parameters its schema refuses (an agent's own
+    reading of section 9): sent to a real unit as the user wrote them (positions made safe);
+    the refusal probe made from them (one parameter of the wrong type) is still hostile."""
+    from conformance.scenarios.params import invalid_params, task_moves, valid_params
+    from conformance.scenarios.safety import Safety
+    from conformance.scenarios.sender import Sender
+
+    unit = UnitAddress.parse("waraps/unit/air/live/dji0")
+    drone = Profile(tasks=("move-to",), motion_tasks=("move-to",), task_params={"move-to": {
+        "speed": 5.0, "waypoint": {"latitude": 1.0, "longitude": 2.0, "altitude": 9.0,
+                                   "rostype": "GeoPoint"}}})
+    safety = Safety(unit, drone, allow_motion=True, task_moves=task_moves)
+    gate = MotionGate(unit, drone, allow_motion=True, task_moves=task_moves)
+    origin = Position(58.39, 15.56, 2.0)
+
+    def start(params: dict) -> bytes:
+        return Sender.compose({"command": "start-task", "execution-unit": "dji0",
+                               "task-uuid": "9b4c701c-e8a2-4a92-9370-87c8f57e0dc0",
+                               "task": {"name": "move-to", "params": params}})[0]
+    given = start(valid_params("move-to", origin, safety, 3))
+    assert "TASK-001" in (MotionGate(unit, Profile(motion_tasks=("move-to",)),
+                                     allow_motion=True).refusal(given) or "")  # not the user's
+    assert gate.refusal(given) is None
+    broken, _ = invalid_params("move-to", origin, safety, 3)
+    assert "--allow-hostile" in (gate.refusal(start(broken)) or "")
