@@ -31,7 +31,7 @@ from conformance.sim.faults import TST_FAULTS, TST_LEVEL_FAULTS, check_names
 from conformance.sim.memory import Resends
 from conformance.sim.publisher import CAMERA_URL_EVERY, Publisher, topic_base
 from conformance.sim.runner import STEP, TaskRunner
-from conformance.sim.tasks import Task, TaskSpec, tasks_for
+from conformance.sim.tasks import GO_HOME, Task, TaskSpec, tasks_for
 from conformance.sim.tst import TstEngine
 from conformance.sim.variants import SLOW_PERIODS, check_variants
 from conformance.sim.vehicle import LINKOPING, GeoPoint, Vehicle
@@ -81,6 +81,8 @@ class UnitCore:
         self._emit = emit
         self.vehicle = Vehicle(address.agent_type, position or GeoPoint(*LINKOPING, 0.0), heading)
         self.specs: dict[str, TaskSpec] = {t.name: t for t in tasks_for(address.agent_type)}
+        if "own-task" in self.variants:  # 5.3: a task beyond section 9
+            self.specs[GO_HOME.name] = GO_HOME
         self.base = topic_base(address, self.faults)
         self.command_topic = f"{self.base}/exec/command"
         # Identity of one life (12.1: history is lost with a reboot).

@@ -425,3 +425,31 @@ def test_the_profile_own_parameters_are_the_user_word_and_a_broken_copy_is_not()
     assert gate.refusal(given) is None
     broken, _ = invalid_params("move-to", origin, safety, 3)
     assert "--allow-hostile" in (gate.refusal(start(broken)) or "")
+
+
+def test_a_task_outside_section_9_is_started_only_with_the_profile_parameters(
+        pytester: pytest.Pytester, mosquitto: str, prefix: str, tmp_path: Path) -> None:
+    """Issue 25 §2, from the broker's traffic: a unit offering go-home (variant own-task)
+    is never sent it with invented parameters; without parameters in the profile the rules
+    that needed it say could-not-test naming them; with them it is started with exactly
+    those."""
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    bare, given = tmp_path / "bare.yaml", tmp_path / "given.yaml"
+    bare.write_text(f"extends: {FAST}\ntasks: [go-home]\n")
+    given.write_text(f"extends: {FAST}\ntasks: {{go-home: {{params: {{speed: 3.0}}}}}}\n")
+    runs = {}
+    for path in (bare, given):
+        with SimUnit(unit, mosquitto, rate=3.0, variants=["own-task"]) as sim, \
+                Wire(mosquitto, prefix) as wire:
+            run = certify(pytester, "--unit", unit, "--broker", mosquitto,
+                          f"--profile={path}", "--seed", "3", "-k", "EXEC-START-001",
+                          plugins=(Rebooter(sim),))
+        runs[path] = (run, [b["task"] for _, b in started(wire)])
+    run, tasks = runs[bare]
+    assert tasks == [], tasks
+    reason = run.unit_rules()["EXEC-START-001"]["reason"]
+    assert ("no task to start: go-home has no parameters in the profile and is not a section "
+            "9 task; add tasks: {go-home: {params: ...}} to the profile") in reason, reason
+    run, tasks = runs[given]
+    assert run.result.ret == 0, run.text
+    assert tasks and all(t == {"name": "go-home", "params": {"speed": 3.0}} for t in tasks)

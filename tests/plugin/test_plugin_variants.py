@@ -38,7 +38,8 @@ EXPLORE = "10s"
 """Exploration is part of every certification: a variant it falsely fails is not certified
 (the orders it sends are judged as the scripted ones are)."""
 GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
-    (("terse", "sensor-rate-edge", "rate-edge", "success-vocabulary", "pretty-json"), False),
+    (("terse", "sensor-rate-edge", "rate-edge", "success-vocabulary", "pretty-json",
+      "own-task"), False),
     (("strict", "slow", "verbose", "feedback-first", "starting-feedback", "level-spelling",
       "geopoint-type"), True),
     # info-rates apart from sensor-rate-edge: both set sensor_info's rate.
