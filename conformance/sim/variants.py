@@ -85,6 +85,10 @@ _ALL = (
     Variant("level-spelling", "5.1",
             "Declares its level 'direct_execution' (5.1's prose spelling; ERR-008).",
             warns=("ERR-008",)),
+    Variant("own-task", "5.3 (tasks-available may hold tasks beyond section 9)",
+            "Also offers 'go-home', a task of its own that section 9 does not define: it "
+            "needs a numeric 'speed' (as the public agents' go-home does), refuses a start "
+            "without one ('failed', with a fail-reason) and, started, runs for a second."),
     Variant("geopoint-type", "6.1, 10, 11",
             "Tags its position \"type\": \"GeoPoint\" instead of rostype (ERR-010).",
             warns=("ERR-010",)),

@@ -28,7 +28,6 @@ from certify_helpers import (
     Rebooter,
     certify,
     certify_sim,
-    warm_parameters,
 )
 
 from conformance.plugin import NOT_CERTIFIED_EXIT
@@ -130,10 +129,6 @@ def explain(run: Certified, expected: set[str]) -> str:
                      f" ({r.get('verdict')}: {r.get('reason')}; {why.get('observed', '')})")
     return "\n".join(lines)
 
-
-@pytest.fixture(scope="module", autouse=True)
-def parameters() -> None:
-    warm_parameters(("look-at-bearing", "move-to", "navigate"), range(1, 5))
 
 
 # The rerun lines run again against their faults: one rule for each way a rerun selects what it
