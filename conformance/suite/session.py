@@ -238,7 +238,10 @@ class Certification:
             kind="certification", unit=str(self.unit), strict=self.profile.is_strict,
             error=error or self.error, broker_lost=self.broker_lost,
             interrupted=bool(cut), cut_short=cut, selection=self.selection,
-            selected=tuple(self.selected), ran=tuple(sorted(self.ran)),
+            # A rule the exploration (or its replay) judged was judged, selected or not.
+            selected=tuple(dict.fromkeys([*self.selected, *self.replays]))
+            if self.selected or self.selection else (),
+            ran=tuple(sorted(self.ran | set(self.replays))),
             enacted_pass=tuple(sorted(r for r, shown in self.enacted.items()
                                       if shown is not Verdict.FAIL)))
 

@@ -130,3 +130,8 @@ def test_a_rule_only_exploration_found_reruns_by_replaying_its_story(
     again = certify(pytester, *shlex.split(line)[1:])
     assert again.result.ret == 1, again.text
     assert "disagree again" in again.text and rule in again.text
+    # The replay's exit status, verdict and report agree (issue 24, 4): the rule it judged
+    # failed, not 'not run: not selected (-k test_explore)'.
+    assert again.report is not None
+    assert (again.report["verdict"], again.report["conclusion"]["exit_code"]) == ("fail", 1)
+    assert again.unit_rules()[rule]["verdict"] == "fail"
