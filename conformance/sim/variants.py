@@ -97,13 +97,15 @@ _ALL = (
     Variant("silent-unknown-command", "12.1 (four commands; nothing said of any other)",
             "Answers no command whose 'command' is a string other than 12.1's four (the "
             "official agents dispatch on the four names and drop the rest); malformed "
-            "commands and the four are answered as before."),
+            "commands and the four are answered as before.",
+            warns=("EXEC-ROBUST-002",)),
     Variant("respawn", "5, 5.1 (a reboot loses state; nothing ties a position across it)",
             "Comes back from a reboot at a new spawn point, RESPAWN_METRES from where it was "
             "(a restarted simulated agent draws a new random start), with its new agent-uuid."),
     Variant("signed-heading", "6.1 ('heading : float', no range)",
             "Publishes heading in (-180, 180] (atan2's range); it faces west at start, so "
-            "its heading is negative."),
+            "its heading is negative.",
+            warns=("SENS-002",)),
 )
 
 VARIANTS: dict[str, Variant] = {v.name: v for v in _ALL}
