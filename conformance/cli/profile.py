@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
         return 3
     text = draft(seen)
     for problem in problems(seen):  # said, not only written: the unit contradicts itself
-        print(f"PROBLEM: {problem}", file=sys.stderr)
+        print(opts.shown(f"PROBLEM: {problem}"), file=sys.stderr)
     if out is None:
         sys.stdout.write(text)
     else:
