@@ -369,7 +369,8 @@ def findings(report: Any, unit: str, *, error_said: bool = False) -> list[str]:
         if group.not_run:
             if error_said:
                 continue
-            lines.append(f"  not run {len(group.rules):>3}  {printable(group.reason)}")
+            why = group.reason.removeprefix("not run: ")  # each word once
+            lines.append(f"  not run {len(group.rules):>3}  {printable(why)}")
         else:
             lines.append(f"  could not test {', '.join(group.rules)}: "
                          f"{printable(group.reason)}")
