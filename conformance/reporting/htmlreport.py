@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from conformance.conclusion import NOT_RUN, Conclusion, UnitStatus, ranked_findings
+from conformance.conclusion import NOT_RUN, Conclusion, UnitStatus, facts_of, ranked_findings
 from conformance.conclusion import of as conclusion_of
 from conformance.display import shorten
 from conformance.reporting.bounds import bounded
@@ -108,7 +108,8 @@ def render_html(report: RunReport, files: list[str] | None = None) -> str:
         verdict=conclusion.verdict, conclusion=conclusion,
         failing=[(u, r) for _, u, r in found if r.verdict is Verdict.FAIL],
         warned=[(u, r) for _, u, r in found if r.verdict is Verdict.WARN],
-        untested=untested(report), story=str(report.meta.get("explore_story") or "").split("\n"),
+        untested=untested(report), untimed=facts_of(report).untimed,
+        story=str(report.meta.get("explore_story") or "").split("\n"),
         gaps=[(a, b) for a, b in report.gaps if b - a >= MIN_GAP],
         head=_head_facts(report, conclusion),
         units=[_unit(name, unit, conclusion.units[name]) for name, unit in report.units.items()],
