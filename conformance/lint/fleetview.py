@@ -309,15 +309,13 @@ def _judged(profile: Any) -> Any:
 
     from conformance.judge import violation_verdict
 
-    strict = bool(getattr(profile, "is_strict", False))
-
     @cache
     def fails(rule_id: str) -> bool:
         rule = CATALOGUE.get(rule_id)
         severity = profile.severity_of(rule_id)
         if rule is None:
             return severity.value == "error"
-        return violation_verdict(rule, severity, strict=strict) is Verdict.FAIL
+        return violation_verdict(rule, severity, strict=profile.adopts(rule_id)) is Verdict.FAIL
 
     return fails
 

@@ -108,6 +108,8 @@ class Certification:
         self.explore_story = ""
         """The story exploration found, as told (the HTML report shows it step by step)."""
         """What the exploration did (``suite/exploration.py``), for the report's meta."""
+        self.replays: dict[str, tuple[float, str]] = {}
+        """Rule -> (when exploration began, the replay line of the story that found it)."""
         from conformance.suite.progress import Progress
 
         self.progress = Progress(config)
@@ -123,6 +125,7 @@ class Certification:
             self.unit, settings.tst_topic, self.traffic, self.connection.publish,
             dry_run=settings.dry_run, say=self._say,
             wait_connected=self.connection.wait_connected, deviations=self.deviations)
+        self.commander.refuse = self.tst.refuse = self.connection.refuse_payload
         self.safety = Safety(self.unit, self.profile, allow_motion=settings.allow_motion,
                              task_moves=task_moves)
         self.context = Context(self.unit, self.profile, self.traffic, self.commander,
@@ -237,7 +240,10 @@ class Certification:
             kind="certification", unit=str(self.unit), strict=self.profile.is_strict,
             error=error or self.error, broker_lost=self.broker_lost,
             interrupted=bool(cut), cut_short=cut, selection=self.selection,
-            selected=tuple(self.selected), ran=tuple(sorted(self.ran)),
+            # A rule the exploration (or its replay) judged was judged, selected or not.
+            selected=tuple(dict.fromkeys([*self.selected, *self.replays]))
+            if self.selected or self.selection else (),
+            ran=tuple(sorted(self.ran | set(self.replays))),
             enacted_pass=tuple(sorted(r for r, shown in self.enacted.items()
                                       if shown is not Verdict.FAIL)))
 
@@ -285,6 +291,8 @@ class Certification:
             "unit": str(self.unit), "seed": str(s.seed), "timing_scale": f"{s.timing_scale:g}",
             "profile_source": self.profile.source, "dry_run": str(s.dry_run).lower(),
             "allow_motion": str(s.allow_motion).lower(),
+            "allow_hostile": str(s.allow_hostile).lower(),
+            "safety": self.connection.motion.decision.sentence(),
             "reboot": self.reboot.how() if self.context.reboot else "none",
             "agent_uuid": str(hb.get("agent-uuid")) if hb else "",
             "commands_sent": str(self.commander.sent_count + self.tst.sent_count),
@@ -295,7 +303,11 @@ class Certification:
         }
 
     def rerun_command(self, rule: str | None = None) -> str:
-        """The pytest command that repeats this run (of ``rule`` alone, when given)."""
+        """The pytest command that repeats this run (of ``rule`` alone, when given); a rule
+        only exploration found, by replaying its story (``-k RULE`` sends no such order)."""
+        since, replay = self.replays.get(rule or "", (0.0, ""))
+        if replay and all((v.time or since) >= since for v in self.result(rule).violations):
+            return replay
         return self.settings.rerun_command(rule, self._observe_for(rule) if rule else 0)
 
     def _observe_for(self, rule: str) -> int:
@@ -498,7 +510,8 @@ class Certification:
             self.settings, broker=self.connection.broker_url, heartbeat=self.context.heartbeat(),
             levels=self.context.levels(),
             reboot=self.reboot.how() if self.context.reboot else None,
-            reports=self.settings.reports_dir / self.stem, rerun=self.rerun_command())]
+            reports=self.settings.reports_dir / self.stem, rerun=self.rerun_command(),
+            decision=self.connection.motion.decision)]
 
 
 
