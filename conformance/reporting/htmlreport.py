@@ -103,6 +103,13 @@ def render_html(report: RunReport, files: list[str] | None = None) -> str:
     with it (the footer says which)."""
     conclusion = conclusion_of(report)
     found = ranked_findings(report)
+    units = [_unit(name, unit, conclusion.units[name]) for name, unit in report.units.items()]
+    # A failed or warned rate rule shows its rate over time with its evidence.
+    rate_plots: dict[tuple[str, str], list[Plot]] = {}
+    for view in units:
+        for plot in view.plots:
+            if plot.stat.rule and plot.stat.verdict in (Verdict.FAIL, Verdict.WARN):
+                rate_plots.setdefault((view.name, plot.stat.rule), []).append(plot)
     return environment().get_template("report.html.j2").render(
         report=report, title=f"WARA-PS conformance {report.kind} report",
         verdict=conclusion.verdict, conclusion=conclusion,
@@ -111,8 +118,7 @@ def render_html(report: RunReport, files: list[str] | None = None) -> str:
         untested=untested(report), untimed=facts_of(report).untimed,
         story=str(report.meta.get("explore_story") or "").split("\n"),
         gaps=[(a, b) for a, b in report.gaps if b - a >= MIN_GAP],
-        head=_head_facts(report, conclusion),
-        units=[_unit(name, unit, conclusion.units[name]) for name, unit in report.units.items()],
+        head=_head_facts(report, conclusion), units=units, rate_plots=rate_plots,
         written=", ".join(files or [])) + "\n"
 
 

@@ -108,9 +108,9 @@ def test_hostile_markup_is_shown_as_text_and_never_runs(tmp_path):
     text = visible_text(dom).replace("&lt;", "<").replace("&gt;", ">").replace("&amp;", "&")
     for shown in HOSTILE:  # as it was on the wire, in the unit name, evidence and rate caption
         assert text.count(shown) >= 5, shown
-    # the rate plot and HB-003's small plot in its scorecard row, the hostile kind in their
-    # aria-labels
-    assert dom.count("<svg") == 2
+    # the rate plot (with HB-003's evidence and in the unit's rates) and HB-003's small plot
+    # in its scorecard row, the hostile kind in their aria-labels
+    assert dom.count("<svg") == 3
 
 
 def test_the_probe_sees_a_script_that_runs(tmp_path):

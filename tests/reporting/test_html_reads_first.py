@@ -62,6 +62,7 @@ def test_a_failing_run_opens_with_the_failing_rule_its_evidence_and_basis(prefix
     assert "expected" in top and "observed" in top  # the evidence itself, not a link to it
     assert '<div class="basis"><b>stated</b>' in top  # and its basis
     assert "Could not be tested" not in top
+    assert 'aria-label="heartbeat rate"' in top  # the rate over time, with its evidence
     assert page.index("What failed") < page.index('<table class="head">')  # metadata below
 
 
