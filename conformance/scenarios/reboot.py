@@ -56,6 +56,7 @@ def _reboot(ctx: Context, names: Any) -> None:
         ctx.traffic.wait_for(second, ctx.timing.periods(3, rate), after=ctx.traffic.mark(),
                              subtopic="heartbeat", what="two heartbeats before the reboot")
         known = names.heard()
+    heard = {e.get("agent-uuid") for e in ctx.traffic.since(0, "heartbeat")}
     requested = time.time()
     error = ctx.reboot()
     if error is not None:
@@ -63,23 +64,26 @@ def _reboot(ctx: Context, names: Any) -> None:
             ctx.record(rule, verdict=Verdict.COULD_NOT_TEST,
                        reason=f"the reboot ({ctx.reboot_how}) failed: {error}")
         return
-    # Back when two heartbeats in a row (within two declared periods) carry another agent-uuid
-    # than before: the new life is under way, its commands subscribed (one heartbeat of another
-    # uuid may be a unit whose uuid changes on its own, HB-006, or its twin's, HB-011). Or a
-    # heartbeat follows a silence of more than two declared periods (HB-006's reboot silence)
-    # with the same one (REBOOT-001 fails on it).
+    # Back when a heartbeat of an agent-uuid never heard before the reboot is followed by
+    # another within two declared periods: the new life is under way, its commands subscribed
+    # (a new uuid alone may be one that changes on its own, HB-006, just as the reboot began).
+    # Or a heartbeat follows a silence of more than two declared periods (HB-006's reboot
+    # silence) with the same one (REBOOT-001 fails on it).
     last = [ctx.traffic.latest("heartbeat")]
+    first: list[Entry | None] = [None]
 
     def back(entry) -> bool:
         previous, last[0] = last[0], entry
         if previous is None:
             return False
         soon = entry.time - previous.time <= 2.0 / rate
-        if entry.get("agent-uuid") != old_agent:
-            return soon and previous.get("agent-uuid") != old_agent and previous.time > requested
-        return not soon
+        if previous.time >= requested and previous.get("agent-uuid") not in heard and soon:
+            first[0] = previous  # the new life's first heartbeat: REBOOT-001 reads its uuid
+            return True
+        return entry.get("agent-uuid") == old_agent and not soon
 
     hb = ctx.traffic.wait_for(back, ctx.timing.reboot, after=before, subtopic="heartbeat")
+    hb = first[0] or hb
     renamed = names.new_name(known, requested, 0.0) if hb is None and names else None
     if renamed is not None:
         # 3.1: UNIT is the unit's name; back under another, it is another unit to every
