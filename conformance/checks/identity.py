@@ -100,7 +100,8 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
     tracker = private.get("rates", {}).get(HB)
     if ctx.reboots:
         revived = next((r for r in ctx.reboots if last < r <= msg.time), None)
-        if revived is not None and revived - last > SILENCE_PERIODS * heartbeat_period(unit):
+        if revived is not None and revived - last > SILENCE_PERIODS * heartbeat_period(unit) \
+                and not _broker_gap(ctx, last, revived):
             # Silent for good until the suite rebooted it: a death (HB-012), not a silence.
             deaths = private.setdefault("deaths", [])
             deaths.append((last, revived))
@@ -164,10 +165,21 @@ def death(ctx: CheckContext, unit: UnitState, now: float) -> tuple[float, float]
     if last is None or unit.period(HB) is None:
         return None
     period = heartbeat_period(unit)
-    if now - last <= SILENCE_PERIODS * period or (
-            ctx.in_gap(last, now) and not any(last < r <= now for r in ctx.reboots)):
+    if now - last <= SILENCE_PERIODS * period:
         return None
+    if ctx.in_gap(last, now):
+        # Over a gap of the broker it is unknown whether it fell silent; silent until a
+        # reboot the suite requested (a zero-length gap of its own) is a death all the same.
+        revived = next((r for r in ctx.reboots if last < r <= now), None)
+        if revived is None or _broker_gap(ctx, last, revived):
+            return None
     return last - period, last
+
+
+def _broker_gap(ctx: CheckContext, t0: float, t1: float) -> bool:
+    """Whether the observer lost or the broker held traffic (a gap of non-zero length, not
+    the instant of a reboot the suite requested) between ``t0`` and ``t1``."""
+    return any(start < end and start <= t1 and end >= t0 for start, end in ctx.gaps)
 
 
 @check("HB-012", finish=True)

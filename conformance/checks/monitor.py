@@ -42,6 +42,7 @@ from conformance.checks.rows import (
     suite_version,
 )
 from conformance.checks.shapes import Shapes
+from conformance.checks.stall import StallWatch
 from conformance.checks.tst_routing import TstRouting
 from conformance.message import Message
 from conformance.profile import Profile
@@ -165,6 +166,7 @@ class Monitor:
         self._latest = float("-inf")
         """The latest arrival time fed (-inf before the first message)."""
         self._validate = self.validator.validate
+        self._stalls = StallWatch()
         self._finished: float | None = None
         self.created = _time.time()
 
@@ -190,6 +192,7 @@ class Monitor:
         v = self._validate(topic, message.payload, t)
         if v.message is not None and len(message.payload) > bounds.ID_CHARS:
             bounds.bound_ids(v.message)  # what the checks keep of a message is bounded (issue 19 §3)
+        self._stalls.feed(self.ctx, t, topic, route.topic_kind, v.message)  # before any check
         if t > self._latest:
             self._latest = t
             if self.ctx.started is None:
@@ -378,6 +381,16 @@ class Monitor:
         over that time are not judged (rates, silence, uuid changes). Call it before feeding
         the messages received after the reconnect."""
         self.ctx.add_gap(float(start), float(end))
+
+    def stalls(self) -> list[tuple[float, float]]:
+        """The broker's stalls found in the traffic (``checks/stall.py``), (start, end) in Unix
+        seconds: marked as gaps, so nothing over them is judged."""
+        return list(self._stalls.found)
+
+    @property
+    def stall_count(self) -> int:
+        """How many stalls of the broker were found so far (cheap: asked per message)."""
+        return self._stalls.count
 
     def reboot_requested(self, t: float) -> None:
         """The observer's side rebooted the unit at ``t`` (Unix seconds): the restart is not

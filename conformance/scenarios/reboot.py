@@ -5,6 +5,7 @@ both rules are could-not-test."""
 
 from __future__ import annotations
 
+from conformance.checks.stall import stamp_of
 from conformance.scenarios.context import Context, describe
 from conformance.scenarios.query import status_answer
 from conformance.scenarios.sender import new_uuid
@@ -12,6 +13,16 @@ from conformance.scenarios.traffic import Entry
 from conformance.violation import Verdict
 
 RULES = ("REBOOT-001", "REBOOT-002")
+
+
+def silence(previous: Entry, entry: Entry) -> float:
+    """Seconds between two heartbeats: by the unit's stamps where both have one (5.1), so that
+    heartbeats a stalled broker held and then delivered at once are not taken for the silence
+    of a reboot (issue 25 §3); else by their arrivals."""
+    stamps = [stamp_of(e.body, e.time) for e in (previous, entry)]
+    if stamps[0] is not None and stamps[1] is not None:
+        return stamps[1] - stamps[0]
+    return entry.time - previous.time
 
 
 def run(ctx: Context) -> None:
@@ -40,7 +51,7 @@ def run(ctx: Context) -> None:
         previous, last[0] = last[0], entry
         if entry.get("agent-uuid") != old_agent:
             return True
-        return previous is not None and entry.time - previous.time > 2.0 / rate
+        return previous is not None and silence(previous, entry) > 2.0 / rate
 
     hb = ctx.traffic.wait_for(back, ctx.timing.reboot, after=before, subtopic="heartbeat")
     if hb is None:

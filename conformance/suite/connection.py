@@ -124,7 +124,10 @@ class Connection:
     def _on_message(self, message: Message) -> None:
         """Every message of ``<unit>/#``, on the MQTT network thread: keep it quick."""
         with self.monitor_lock:
+            stalls = self.monitor.stall_count
             found = self.monitor.feed(message)
+            if self.monitor.stall_count != stalls:
+                self._say_stall(message.time)
         if found:
             for listener in list(self.listeners):
                 listener(found)
@@ -132,6 +135,13 @@ class Connection:
         if not message.retain and message.topic.endswith("/heartbeat") \
                 and message.topic == self.unit.topic("heartbeat"):
             self._alive.set()
+
+    def _say_stall(self, now: float) -> None:
+        """A stall of the broker was found in the traffic (``checks/stall.py``)."""
+        start, _ = self.monitor.stalls()[-1]
+        self.events.at(now, f"the broker stalled: nothing arrived for {now - start:.1f} s, "
+                            f"then what it held at once: rates, silences and deadlines over "
+                            f"it are not judged")
 
     def _on_connection(self, connected: bool, reason: str) -> None:
         now = time.time()

@@ -10,7 +10,7 @@ from collections.abc import Collection, Iterable
 from conformance.conclusion import INTERRUPTED, NOT_CERTIFIED, NOT_RUN  # noqa: F401
 from conformance.conclusion import counts as conclusion_counts
 from conformance.results import COMMANDER_REASON, RunReport, UnitReport
-from conformance.rules import CATALOGUE, Side
+from conformance.rules import CATALOGUE, Mode, Side
 from conformance.suite.events import clock
 from conformance.topics import UnitAddress
 from conformance.violation import RuleResult, Verdict
@@ -67,6 +67,29 @@ def excuse_outage(report: RunReport, unit: UnitAddress, lost: float) -> None:
         times = [v.time for v in result.violations if v.time is not None]
         if times and min(times) >= lost:  # an explicit failure was recorded while up
             found.rules[rule] = RuleResult(rule, Verdict.COULD_NOT_TEST, why)
+
+
+def excuse_gaps(report: RunReport, unit: UnitAddress, slack: float) -> None:
+    """The broker lost or held traffic for a while and came back (an outage of the
+    connection, or a stall found in the traffic: ``checks/stall.py``): a scenario waiting
+    then saw nothing of what the unit sent (issue 25 §3). A rule that needed a conversation
+    and failed only on evidence from such a gap, or from the ``slack`` seconds (the longest
+    wait) before it, could not be tested; what the messages themselves show stays judged."""
+    found = report.units.get(str(unit))
+    gaps = [(start - slack, end) for start, end in report.gaps if end > start]
+    if found is None or not gaps:
+        return
+    for rule, result in list(found.rules.items()):
+        if result.verdict is not Verdict.FAIL or CATALOGUE[rule].mode is Mode.PASSIVE:
+            continue
+        times = [v.time for v in result.violations if v.time is not None]
+        spans = [(s, e) for s, e in gaps if times and all(s <= t <= e for t in times)]
+        if spans:
+            start, end = spans[0]
+            found.rules[rule] = RuleResult(rule, Verdict.COULD_NOT_TEST, (
+                f"the broker lost or held the traffic from {clock(start + slack)} for "
+                f"{end - start - slack:.1f} s: its evidence falls in that window, where what "
+                f"the unit sent is unknown (a broker's fault is never the unit's)"))
 
 
 def counts(report: RunReport) -> dict[str, int]:

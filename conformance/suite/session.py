@@ -235,6 +235,8 @@ class Certification:
         outcome.set_commander_rules_aside(report, self.unit)
         if self.broker_lost is not None:
             outcome.excuse_outage(report, self.unit, self.broker_lost)
+        outcome.excuse_gaps(report, self.unit, max(  # the longest wait of a scenario
+            self.timing.response, self.timing.feedback, self.timing.reboot))
         return report
 
     def report(self, **extra: Any) -> RunReport:
