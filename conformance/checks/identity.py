@@ -165,14 +165,10 @@ def death(ctx: CheckContext, unit: UnitState, now: float) -> tuple[float, float]
     if last is None or unit.period(HB) is None:
         return None
     period = heartbeat_period(unit)
-    if now - last <= SILENCE_PERIODS * period:
-        return None
-    if ctx.in_gap(last, now):
-        # Over a gap of the broker it is unknown whether it fell silent; silent until a
+    if now - last <= SILENCE_PERIODS * period or _broker_gap(ctx, last, now):
+        # Over a gap of the broker it is unknown whether it fell silent; silent through a
         # reboot the suite requested (a zero-length gap of its own) is a death all the same.
-        revived = next((r for r in ctx.reboots if last < r <= now), None)
-        if revived is None or _broker_gap(ctx, last, revived):
-            return None
+        return None
     return last - period, last
 
 
