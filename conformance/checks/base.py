@@ -418,6 +418,9 @@ class CheckContext:
         self.started: float | None = None
         """Arrival time of the first message the observer saw (of any unit)."""
         self.gaps: list[tuple[float, float]] = []
+        self.quiet: float | None = None
+        """While messages arrive in a burst after a silence of every topic (a stall of the
+        broker, perhaps: ``checks/stall.py``): when that silence began; None otherwise."""
         self.reboots: list[float] = []
         """When the observer's side (the suite) rebooted the unit: a silence that only such a
         reboot ended was a death (HB-012), not a silence the unit came back from."""

@@ -78,6 +78,20 @@ def agent_uuid_changes_only_on_reboot(ctx: CheckContext, unit: UnitState, msg: M
 @check("HB-010", on=(HB,))
 def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
                               v: Validation) -> list[Violation] | None:
+    """5.1: the heartbeat registers availability; a silence over 3 declared periods warns.
+    A silence that ended in a burst after a silence of every topic is judged at the next
+    heartbeat, once the burst has shown whether the broker stalled (issue 25 §3)."""
+    pending = unit.private.get("hb010_pending")
+    if not pending:
+        return _silence(ctx, unit, msg, v)
+    unit.private["hb010_pending"] = None
+    found = _silence(ctx, unit, msg, v)
+    kept = [f for f in pending if not ctx.in_gap(f.time, msg.time)]
+    return [*kept, *(found or ())] or None
+
+
+def _silence(ctx: CheckContext, unit: UnitState, msg: Message,
+             v: Validation) -> list[Violation] | None:
     """5.1: the heartbeat registers availability; a silence over 3 declared periods warns,
     saying whether the unit came back with the same agent-uuid (resumed) or a new one."""
     last = _previous_live(unit)
@@ -126,6 +140,10 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
         # No interval yet within 3 periods: a unit that sends far slower than it declares is
         # HB-003's (its rate), not a string of silences. Held until it keeps its period once.
         private["hb010_held"] = [*(held or ()), *found][-8:]
+        return None
+    if ctx.quiet is not None and ctx.quiet >= last:
+        # The whole observer was silent too: perhaps the broker stalled; the burst will say.
+        private["hb010_pending"], private["hb010_held"] = [*(held or ()), *found], []
         return None
     if held:
         unit.private["hb010_held"] = []

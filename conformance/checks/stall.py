@@ -90,9 +90,10 @@ class StallWatch:
             return
         if t - last > BURST_SPACING:
             if t - last < STALL_SILENCE:
-                self.silence_from = None
+                self.silence_from = ctx.quiet = None
                 return
             self.silence_from, self.stalled = last, False
+            ctx.quiet = last
             self.burst = {}
         elif self.silence_from is None:
             return
