@@ -13,7 +13,8 @@ held arrives within milliseconds. It is told from a unit's own silence by either
   topic, so a unit whose clock is off by a constant (MSG-005's) is not taken for a stall.
 
 The gap runs from the last arrival before the silence to the end of the burst. Memory is
-bounded: the last lag of at most MAX_TOPICS topics, the topics of one burst.
+bounded: the latest message of at most MAX_TOPICS periodic topics, the topics of one
+burst.
 """
 
 from __future__ import annotations
@@ -37,9 +38,8 @@ STAMP_PLAUSIBLE = 86_400.0
 """A stamp further than a day from its arrival is not seconds since the epoch (MSG-005's):
 its differences say nothing."""
 MAX_TOPICS = 4096
-PERIODIC = frozenset({TopicKind.HEARTBEAT, TopicKind.SENSOR_INFO,
-                      TopicKind.DIRECT_EXECUTION_INFO, TopicKind.TST_EXECUTION_INFO,
-                      TopicKind.SENSOR})
+HB, SENSOR, SI = TopicKind.HEARTBEAT, TopicKind.SENSOR, TopicKind.SENSOR_INFO
+DEI, TEI = TopicKind.DIRECT_EXECUTION_INFO, TopicKind.TST_EXECUTION_INFO
 
 
 def stamp_of(message: Any, t: float) -> float | None:
@@ -53,9 +53,11 @@ def stamp_of(message: Any, t: float) -> float | None:
 
 
 class StallWatch:
-    """Finds stalls of the broker in the arrival times of every message the observer sees."""
+    """Finds stalls of the broker in the arrival times of every message the observer sees.
+    ``feed`` runs on every message of a fleet: the usual case (no silence of everything
+    before it) costs a comparison and a dict store."""
 
-    __slots__ = ("last", "silence_from", "burst", "stalled", "lags", "found", "count")
+    __slots__ = ("last", "silence_from", "burst", "stalled", "previous", "found", "count")
 
     def __init__(self) -> None:
         self.last: float | None = None
@@ -65,8 +67,8 @@ class StallWatch:
         self.burst: dict[str, tuple[float, float | None]] = {}
         """Periodic topics of the current burst: (arrival, stamp)."""
         self.stalled = False
-        self.lags: dict[str, float] = {}
-        """Per topic, arrival minus stamp of its latest stamped message."""
+        self.previous: dict[str, tuple[float, Any]] = {}
+        """Per periodic topic, its latest message: (arrival, decoded body)."""
         self.found: list[tuple[float, float]] = []
         """The stalls found, (start, end) in Unix seconds (the latest 16)."""
         self.count = 0
@@ -77,15 +79,26 @@ class StallWatch:
         """One message arrived at ``t``; a stall found is added to ``ctx``'s gaps at once,
         before the checks judge this message."""
         last = self.last
+        periodic = kind is HB or kind is SENSOR or kind is SI or kind is DEI or kind is TEI
+        before = None
+        if periodic:
+            previous = self.previous
+            before = previous.get(topic)
+            previous[topic] = (t, message)
+            if len(previous) > MAX_TOPICS:  # bounded: start again (a lag is then unknown)
+                previous.clear()
+        if last is not None and t - last <= BURST_SPACING and self.silence_from is None:
+            if t > last:  # the usual case: traffic flows
+                self.last = t
+            return
+        self._after_silence(ctx, t, topic, periodic, message, before)
+
+    def _after_silence(self, ctx: CheckContext, t: float, topic: str, periodic: bool,
+                       message: Any, before: tuple[float, Any] | None) -> None:
+        """A message after a silence of every topic, or in the burst that followed one."""
+        last = self.last
         if last is None or t > last:
             self.last = t
-        stamp = stamp_of(message, t) if kind in PERIODIC else None
-        lag = None
-        if stamp is not None:
-            lag, before = t - stamp, self.lags.get(topic)
-            if before is not None or len(self.lags) < MAX_TOPICS:
-                self.lags[topic] = lag
-            lag = None if before is None else lag - before
         if last is None:
             return
         if t - last > BURST_SPACING:
@@ -95,19 +108,29 @@ class StallWatch:
             self.silence_from, self.stalled = last, False
             ctx.quiet = last
             self.burst = {}
-        elif self.silence_from is None:
-            return
+        silence_from = self.silence_from
+        assert silence_from is not None
+        stamp = stamp_of(message, t) if periodic else None
         if not self.stalled:
-            self.stalled = (lag is not None and lag >= LAG_JUMP) or (
-                kind in PERIODIC and self._repeated(topic, t, stamp))
+            self.stalled = periodic and (self._held(t, stamp, before)
+                                         or self._repeated(topic, t, stamp))
             if not self.stalled:
                 return
-            self.found.append((self.silence_from, t))
+            self.found.append((silence_from, t))
             del self.found[:-16]
             self.count += 1
         # 1 us after the last arrival before it: an interval ending there is not the stall's.
-        ctx.add_gap(self.silence_from + 1e-6, t)
+        ctx.add_gap(silence_from + 1e-6, t)
         self.found[-1] = (self.found[-1][0], t)
+
+    @staticmethod
+    def _held(t: float, stamp: float | None, before: tuple[float, Any] | None) -> bool:
+        """Whether the message's stamp lags its arrival by LAG_JUMP more than the topic's
+        previous message's did: published on time, delivered late."""
+        if stamp is None or before is None:
+            return False
+        stamp0 = stamp_of(before[1], before[0])
+        return stamp0 is not None and (t - stamp) - (before[0] - stamp0) >= LAG_JUMP
 
     def _repeated(self, topic: str, t: float, stamp: float | None) -> bool:
         """Whether ``topic`` came already in this burst, published apart (by the stamps)."""
