@@ -22,22 +22,34 @@ FREEZE = 20.0  # seconds the broker stays frozen (the issue's)
 
 class BrokerFault:
     """Kills (or freezes) the private broker INTO_RUN seconds after the certification's
-    tests are collected, and brings it back after ``down`` seconds. The times are the
-    stimulus, not something waited for."""
+    tests are collected (or, ``on_signal``, as soon as the suite sends its first signal-task:
+    the final feedback it asks for is then sent while the broker is away), and brings it back
+    after ``down`` seconds. The times are the stimulus, not something waited for."""
 
-    def __init__(self, broker: PrivateMosquitto, *, freeze: bool, down: float) -> None:
+    def __init__(self, broker: PrivateMosquitto, *, freeze: bool, down: float,
+                 on_signal: bool = False) -> None:
         self.broker, self.freeze, self.down = broker, freeze, down
+        self.on_signal = on_signal
         self.done = threading.Event()
         self.thread: threading.Thread | None = None
 
     def pytest_collection_finish(self, session: pytest.Session) -> None:
         if self.thread is None:
-            self.thread = threading.Thread(target=self._fault, daemon=True)
+            traffic = None
+            if self.on_signal:
+                from conformance.suite.session import CERTIFICATION
+
+                traffic = session.config.stash[CERTIFICATION].traffic
+            self.thread = threading.Thread(target=self._fault, args=(traffic,), daemon=True)
             self.thread.start()
 
-    def _fault(self) -> None:
+    def _fault(self, traffic) -> None:  # type: ignore[no-untyped-def]
         timer = threading.Event()
-        timer.wait(INTO_RUN)
+        if traffic is None:
+            timer.wait(INTO_RUN)
+        elif traffic.wait_for(lambda e: e.get("command") == "signal-task", 120, after=0,
+                              subtopic="exec/command") is None:
+            return
         if self.freeze:
             self.broker.freeze()
         else:
@@ -55,10 +67,10 @@ class BrokerFault:
 
 
 def certify_through(tmp_path: Path, pytester: pytest.Pytester, *, freeze: bool,
-                    down: float, seed: int):
+                    down: float, seed: int, on_signal: bool = False):
     broker = PrivateMosquitto(tmp_path).start()
     unit = "waraps/unit/air/simulation/dji0"
-    fault = BrokerFault(broker, freeze=freeze, down=down)
+    fault = BrokerFault(broker, freeze=freeze, down=down, on_signal=on_signal)
     try:
         with SimUnit(unit, broker.url, rate=1.0, seed=seed) as sim:  # stamps 1 s apart
             run = certify(pytester, "--unit", unit, "--broker", broker.url,
@@ -78,9 +90,11 @@ def assert_never_failed(run) -> None:
     assert "fail" not in verdicts.values(), {r: v for r, v in verdicts.items() if v == "fail"}
 
 
+@pytest.mark.parametrize("on_signal", [False, True], ids=["18s-in", "as-a-signal-is-sent"])
 def test_a_broker_killed_and_restarted_mid_run_fails_nothing(
-        pytester: pytest.Pytester, tmp_path: Path) -> None:
-    run = certify_through(tmp_path, pytester, freeze=False, down=OUTAGE, seed=2)
+        pytester: pytest.Pytester, tmp_path: Path, on_signal: bool) -> None:
+    run = certify_through(tmp_path, pytester, freeze=False, down=OUTAGE, seed=2,
+                          on_signal=on_signal)
     assert "broker connection lost" in run.text
     assert_never_failed(run)
 
