@@ -212,7 +212,9 @@ class Certification:
         if self.broker_lost is None:
             lost = self.connection.lost_since()
             if lost is None or self.connection.wait_connected(self.broker_budget()):
-                return
+                lost = self.connection.await_delivery(self.timing.response, self.broker_budget())
+                if lost is None:  # it delivers (a stall that delivers again is a gap)
+                    return
             self.broker_lost = lost
             self.events.at(time.time(), f"the broker has not come back within "
                                         f"{self.broker_budget():g} s: the run stops here, "
