@@ -234,14 +234,21 @@ class Connection:
         self._heard_again.wait(max(0.0, deadline - time.monotonic()))
         return True
 
-    def await_delivery(self, slack: float, budget: float) -> float | None:
-        """A command the suite sent more than ``slack`` seconds ago has not come back: the
-        broker stalls. Wait up to ``budget`` seconds for it to deliver again; the time since
-        then is a gap of the observation either way (what the unit sent is unknown). None
-        when it delivers, else when it stopped (it is then lost, as a link that never came
-        back)."""
+    def await_delivery(self, slack: float, budget: float, *, probe: bool = False
+                       ) -> float | None:
+        """A command the suite sent has not come back within ``slack`` seconds: the broker
+        stalls. Wait up to ``budget`` seconds for it to deliver again; the time since then is
+        a gap of the observation either way (what the unit sent is unknown). None when it
+        delivers, else when it stopped (it is then lost, as a link that never came back).
+        ``probe`` (the unit fell silent: dead, or the broker frozen?): with nothing pending,
+        a ping is sent to see whether the broker still delivers."""
+        if probe and self._unechoed is None and self._echoed.is_set() \
+                and not self.settings.dry_run:
+            from conformance.scenarios.sender import Sender
+
+            self.publish(self.unit.topic("exec/command"), Sender.compose({"command": "ping"})[0])
         since = self._unechoed
-        if since is None or time.time() - since <= slack:
+        if since is None or self._echoed.wait(max(0.0, since + slack - time.time())):
             return None
         start = min(since, self._last_arrival or since)
         back = self._echoed.wait(budget)
