@@ -65,6 +65,8 @@ class Connection:
     and a command sent before it has is lost."""
     _back_at: float = field(default=0.0, init=False)
     _last_arrival: float | None = field(default=None, init=False)
+    _probed: float | None = field(default=None, init=False)
+    """The last heartbeat whose silence was probed with a ping (once per silence)."""
 
     def __post_init__(self) -> None:
         self.broker_url: BrokerURL = self.settings.broker
@@ -234,19 +236,14 @@ class Connection:
         self._heard_again.wait(max(0.0, deadline - time.monotonic()))
         return True
 
-    def await_delivery(self, slack: float, budget: float, *, probe: bool = False
-                       ) -> float | None:
+    def await_delivery(self, slack: float, budget: float) -> float | None:
         """A command the suite sent has not come back within ``slack`` seconds: the broker
         stalls. Wait up to ``budget`` seconds for it to deliver again; the time since then is
         a gap of the observation either way (what the unit sent is unknown). None when it
         delivers, else when it stopped (it is then lost, as a link that never came back).
-        ``probe`` (the unit fell silent: dead, or the broker frozen?): with nothing pending,
-        a ping is sent to see whether the broker still delivers."""
-        if probe and self._unechoed is None and self._echoed.is_set() \
-                and not self.settings.dry_run:
-            from conformance.scenarios.sender import Sender
-
-            self.publish(self.unit.topic("exec/command"), Sender.compose({"command": "ping"})[0])
+        A unit silent for 3 declared periods (dead, or the broker frozen?) is sent one ping
+        per silence, with nothing pending, to see whether the broker still delivers."""
+        self._probe_silence()
         since = self._unechoed
         if since is None or self._echoed.wait(max(0.0, since + slack - time.time())):
             return None
@@ -260,6 +257,23 @@ class Connection:
                             f"{'it delivers again; ' if back else ''}what the unit sent "
                             f"meanwhile is not judged")
         return None if back else start
+
+    def _probe_silence(self) -> None:
+        """One ping when the unit has been silent for 3 declared periods (HB-012's window):
+        its echo tells a dead unit from a broker that delivers nothing (issue 25 §3)."""
+        from conformance.checks.identity import SILENCE_PERIODS
+
+        latest = self.traffic.latest("heartbeat")
+        rate = latest.get("rate") if latest is not None else None
+        if (latest is None or type(rate) not in (int, float) or rate <= 0
+                or latest.time == self._probed or self._unechoed is not None
+                or not self._echoed.is_set() or self.settings.dry_run
+                or time.time() - latest.time <= SILENCE_PERIODS / rate):
+            return
+        from conformance.scenarios.sender import Sender
+
+        self._probed = latest.time
+        self.publish(self.unit.topic("exec/command"), Sender.compose({"command": "ping"})[0])
 
     def close(self) -> None:
         if self.client is not None:

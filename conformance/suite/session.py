@@ -205,15 +205,14 @@ class Certification:
         the suite gives up aborting its tasks): 10 s, or 3 response timeouts if longer."""
         return max(10.0 * self.settings.timing_scale, 3 * self.timing.response)
 
-    def check_broker(self, rules: tuple[str, ...] = (), *, probe: bool = False) -> None:
+    def check_broker(self, rules: tuple[str, ...] = ()) -> None:
         """Before a test judges anything: the broker is there, or comes back within the budget.
         Lost for good, the run stops (not certified, exit 6) with no traceback: ``rules``
         could not be tested, the test is skipped and the plugin stops the session."""
         if self.broker_lost is None:
             lost = self.connection.lost_since()
             if lost is None or self.connection.wait_connected(self.broker_budget()):
-                lost = self.connection.await_delivery(self.timing.response, self.broker_budget(),
-                                                      probe=probe)
+                lost = self.connection.await_delivery(self.timing.response, self.broker_budget())
                 if lost is None:  # it delivers (a stall that delivers again is a gap)
                     return
             self.broker_lost = lost
@@ -450,7 +449,7 @@ class Certification:
         except OutOfTime as e:
             self._out_of_time(e)
         self._fail_if_out_of_time()
-        self.check_broker(probe=bool(self.unit_died()))  # dead, or the broker frozen?
+        self.check_broker()
         with self._lock:
             self.monitor.finish(time.time())
         self._passive_ready = True
