@@ -15,6 +15,7 @@ import pytest
 
 from conformance.cli.options import BROKER_ENV, CREDENTIALS, TLS_FILES, TLS_INSECURE
 from conformance.display import printable
+from conformance.exits import EXIT_NOT_CERTIFIED
 
 if TYPE_CHECKING:
     from conformance.suite.session import Certification
@@ -30,7 +31,7 @@ FAILED_EXIT = pytest.ExitCode.TESTS_FAILED
 """1: a rule failed."""
 INTERRUPTED_EXIT = pytest.ExitCode.INTERRUPTED
 """2: interrupted (Ctrl-C, or --max-duration reached): not every rule ran."""
-NOT_CERTIFIED_EXIT = 6
+NOT_CERTIFIED_EXIT = EXIT_NOT_CERTIFIED  # README "Exit status"
 """6: not certified: the broker or the unit could not be reached, or the broker was lost for
 good during the run."""
 EXIT_HELP = ("exit status: 0 no rule failed, 1 a rule failed, 2 interrupted (Ctrl-C or "
@@ -67,6 +68,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                                         "'real' unit")
     group.addoption("--dry-run", dest="waraps_dry_run", action="store_true", default=False,
                     help="publish nothing; print what would be published")
+    group.addoption("--strict-rules", dest="waraps_strict_rules", action="store_true",
+                    default=False, help="adopt the suite's decisions as conventions: a rule "
+                                        "whose basis is 'decided' (the spec is silent) fails "
+                                        "instead of warning (as 'strict: true' in the profile)")
     group.addoption("--reports-dir", dest="waraps_reports_dir", default=None, metavar="DIR",
                     help="where the JSON and HTML certification reports go (default reports/)")
     group.addoption("--seed", dest="waraps_seed", default=None, metavar="N",
@@ -124,6 +129,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         parser.addini(name, help_, default="")
     for name, help_ in (("waraps_allow_motion", "default for --allow-motion"),
                         ("waraps_dry_run", "default for --dry-run"),
+                        ("waraps_strict_rules", "default for --strict-rules"),
                         ("waraps_tls_insecure", "default for --tls-insecure")):
         parser.addini(name, help_, type="bool", default=False)
 
@@ -259,7 +265,7 @@ class _CertificationPlugin:
         if c.out_of_time and self.session is not None:
             self.session.shouldstop = c.out_of_time
         if c.broker_lost is not None and self.session is not None:
-            self.session.shouldstop = c.not_run_reason()
+            self.session.shouldstop = c.facts().not_run_reason()
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_sessionfinish(self, session: pytest.Session, exitstatus: int) -> None:
@@ -283,28 +289,29 @@ class _CertificationPlugin:
             return
         tr = terminalreporter
         tr.section("waraps-conformance")
-        if c.error:
+        if c.error:  # what went wrong and how to fix it; the verdict line below says no more
             tr.line(printable(f"not certified: {c.error}"), red=True)
         for event in c.events:
             tr.line(printable(event))
         report = c.report()
         conclusion = c.conclusion(report)
         counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
-        tr.line(f"{c.unit}: {conclusion.headline()} ({counts})",
+        head = conclusion.verdict if c.error else conclusion.headline()
+        tr.line(f"{c.unit}: {head}; {counts}",
                 red=conclusion.verdict not in ("pass", "warn"))
         unit = conclusion.units.get(str(c.unit))
         for level in unit.levels if unit is not None else ():
             tr.line(f"  {level}")
         for line in skipped_by_reason(report.units.get(str(c.unit))):
             tr.line(line)
-        later = report.meta.get("judged_after_test")
+        later = conclusion.judged_after_test
         if later:  # their tests passed before the traffic that fails them came
             tr.line(f"failed after their tests ran (later traffic is evidence too; the "
-                    f"reports hold it): {later}", red=True)
+                    f"reports hold it): {', '.join(later)}", red=True)
             from conformance.reporting import render_violation
 
             rules = report.units[str(c.unit)].rules
-            for rule in later.split(", "):
+            for rule in later:
                 # The evidence came from a later scenario: the whole run reproduces it.
                 for v in rules[rule].violations[:1]:
                     tr.line(render_violation(rule, v, str(c.unit), rerun_hint=c.rerun_command()))

@@ -28,6 +28,12 @@ DELEGATION = "delegation"
 LEVELS = (SENSOR_LEVEL, DIRECT_EXECUTION, TST_EXECUTION, DELEGATION)
 
 
+def level_name(declared: str) -> str:
+    """A level as a heartbeat declares it, in 5.1's words: ``direct_execution`` is read as
+    ``direct execution`` (ERR-008: the spec spells it both ways)."""
+    return declared.replace("_", " ")
+
+
 class TopicKind(str, enum.Enum):
     """What a topic under a unit carries (3.1, 5, 6, 12, 14)."""
 

@@ -9,7 +9,7 @@ from typing import Any
 
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.message import Message
-from conformance.topics import INFO_KIND_OF_LEVEL, TopicKind
+from conformance.topics import INFO_KIND_OF_LEVEL, TopicKind, level_name
 from conformance.validator import Validation
 from conformance.violation import Violation
 
@@ -283,7 +283,7 @@ def declared_level_has_info(ctx: CheckContext, unit: UnitState, msg: Message,
     since = _level_since(unit)
     for lv in levels:
         if isinstance(lv, str):
-            level = lv.replace("_", " ")
+            level = level_name(lv)
             if level in INFO_KIND_OF_LEVEL and level not in since:
                 since[level] = msg.time
     return None

@@ -164,9 +164,13 @@ class Monitor:
         self._over = 0
         self._over_units: list[str] = []
         self._latest = float("-inf")
+        self.version = 0
+        """Counts every change of what the Monitor knows (a message, a record, a gap, the
+        end): a report made at one version stays true until the next (a cache's key)."""
         """The latest arrival time fed (-inf before the first message)."""
         self._validate = self.validator.validate
-        self._stalls = StallWatch()
+        self.stalls = StallWatch()
+        """The broker's stalls found in the traffic, marked as gaps (``found``, ``count``)."""
         self._finished: float | None = None
         self.created = _time.time()
 
@@ -175,6 +179,7 @@ class Monitor:
     def feed(self, message: Message) -> list[Violation]:
         """Validate one message, run the checks that can decide now, record everything;
         the violations this message shows (stateful ones included)."""
+        self.version += 1
         topic = message.topic
         route = self._by_topic.get(topic)
         if route is None:
@@ -192,7 +197,7 @@ class Monitor:
         v = self._validate(topic, message.payload, t)
         if v.message is not None and len(message.payload) > bounds.ID_CHARS:
             bounds.bound_ids(v.message)  # what the checks keep of a message is bounded (issue 19 §3)
-        self._stalls.feed(self.ctx, t, topic, route.topic_kind, v.message)  # before any check
+        self.stalls.feed(self.ctx, t, topic, route.topic_kind, v.message)  # before any check
         if t > self._latest:
             self._latest = t
             if self.ctx.started is None:
@@ -380,28 +385,21 @@ class Monitor:
         """The observer was disconnected from ``start`` to ``end`` (Unix seconds): intervals
         over that time are not judged (rates, silence, uuid changes). Call it before feeding
         the messages received after the reconnect."""
+        self.version += 1
         self.ctx.add_gap(float(start), float(end))
-
-    def stalls(self) -> list[tuple[float, float]]:
-        """The broker's stalls found in the traffic (``checks/stall.py``), (start, end) in Unix
-        seconds: marked as gaps, so nothing over them is judged."""
-        return list(self._stalls.found)
-
-    @property
-    def stall_count(self) -> int:
-        """How many stalls of the broker were found so far (cheap: asked per message)."""
-        return self._stalls.count
 
     def reboot_requested(self, t: float) -> None:
         """The observer's side rebooted the unit at ``t`` (Unix seconds): the restart is not
         judged as a silence or a rate gap, but a unit already silent for good before it had
         died (HB-012), however it came back."""
+        self.version += 1
         self.ctx.add_gap(float(t), float(t))
         self.ctx.reboots.append(float(t))
         del self.ctx.reboots[:-1000]
 
     def unexamined(self, count: int) -> None:
         """``count`` messages the observer could not examine (dropped, queue overflow)."""
+        self.version += 1
         self._unexamined += int(count)
 
     def _over_cap(self, topic: str) -> None:
@@ -419,6 +417,7 @@ class Monitor:
     def finish(self, now: float | None = None) -> None:
         """End-of-run judgements at ``now`` (Unix seconds; default: the latest arrival time
         seen, so a replay ends where the recording ended). Calling it again re-judges."""
+        self.version += 1
         now = self._now(now)
         for entry in self._entries.values():
             entry.final = self._run_finish(entry, now)
@@ -450,16 +449,25 @@ class Monitor:
         return entry.state
 
     def record(self, unit: UnitAddress | None, rule: str, *, violation: Violation | None = None,
-               verdict: Verdict | None = None, reason: str = "") -> None:
+               verdict: Verdict | None = None, reason: str = "", excused: str = "") -> None:
         """Record an active scenario's outcome for ``rule``: a violation; or an explicit
         skip / could-not-test / fail / warn with its reason; or ``verdict=PASS``: examined.
-        ``unit`` None: a finding that names no unit (a ROS bag's, reported unattributed)."""
+        ``excused``: a violation that is no evidence, and why (the unit had died, the link was
+        down): the judge says could-not-test. ``unit`` None: a finding that names no unit (a
+        ROS bag's, reported unattributed)."""
+        self.version += 1
         if rule not in CATALOGUE:
             from conformance.rules import get
 
             get(rule)  # raises naming close ids
         entry = self._entries.get(unit) or self._new_entry(unit, force=True)
         assert entry is not None
+        if violation is not None and excused:
+            rec = entry.records.get(rule)
+            if rec is None:
+                rec = entry.records[rule] = RuleRecord()
+            rec.excused = rec.excused or excused
+            return
         if violation is not None:
             if violation.rule != rule:
                 violation = dataclasses.replace(violation, rule=rule)

@@ -37,6 +37,7 @@ from collections.abc import Iterator
 from operator import add
 
 from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.identity import SILENCE_PERIODS
 from conformance.checks.stall import stamp_of
 from conformance.message import Message
 from conformance.results import RateStat
@@ -50,7 +51,6 @@ RATE_RULES = {
     TopicKind.DIRECT_EXECUTION_INFO: "DEI-002",
     TopicKind.TST_EXECUTION_INFO: "TEI-002",
 }
-SILENCE_PERIODS = 3.0  # HB-010's decision
 GROSS_FACTOR = 3.0  # HB-003's decision: a mean this far off fails early
 GROSS_MIN_INTERVALS = 3
 GROSS_SLOW_MIN_INTERVALS = 2

@@ -28,7 +28,6 @@ from conformance.violation import Verdict, Violation
 # subjects for signals and queries, because they do not end on their own mid-test.
 RUNS_UNTIL_ENOUGH = ("look-at-bearing", "look-at-position", "look-at-positions",
                      "image-object-detection", "observe-position")
-BUILTIN_SIGNALS = ("$enough", "$pause", "$continue", "$abort")  # 12.2.2
 
 
 class Recorder(Protocol):

@@ -11,6 +11,7 @@ one (12.1). Then a start-task with invalid parameters is refused with a reason
 
 from __future__ import annotations
 
+from conformance.protocol import NO_SUCH_TASK
 from conformance.scenarios.context import Context
 from conformance.scenarios.deviation import meaning
 from conformance.scenarios.params import invalid_params, valid_params
@@ -21,7 +22,6 @@ RULES = ("EXEC-START-001", "EXEC-START-002", "EXEC-START-003", "DEI-004")
 LINK_LOST = ("the broker connection was lost while waiting for tasks-executing (an outage of "
              "the observer, not the unit's)")
 REFUSAL_RULES = ("EXEC-START-004", "EXEC-START-005")
-NO_SUCH_TASK = "waraps-conformance-no-such-task"
 # Tasks that end on their own (9.6, 9.7, 9.15, 9.13): the first one available is let run to
 # its end. move-to first: a target near the unit is reached in seconds.
 NATURAL_END = ("move-to", "take-off", "move-path", "land")

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from itertools import cycle
 
+from conformance.protocol import NO_SUCH_TASK
 from conformance.scenarios.context import Context, describe
 from conformance.scenarios.deviation import SHORT
 from conformance.scenarios.params import valid_params
@@ -42,7 +43,6 @@ LIVE = ("active", "running", "waiting")
 LEAF_ENDINGS = (("signal-tst-tree", "$abort"), ("signal-tst-tree", "$enough"),
                 ("signal-unit", "$enough"), ("signal-unit", "$abort"))
 """The signals the leaf trees end with: those the seq and conc trees do not send."""
-NO_SUCH_TASK = "waraps-conformance-no-such-task"
 
 
 class _Drive:

@@ -9,6 +9,7 @@ from typing import Any
 
 from conformance import __version__
 from conformance.client import BrokerURL
+from conformance.rules import reading
 from conformance.suite.settings import Settings
 from conformance.topics import TST_EXECUTION
 
@@ -37,6 +38,7 @@ def header_lines(settings: Settings, *, broker: BrokerURL, heartbeat: dict[str, 
         f"waraps-conformance {__version__}: certifying {unit}",
         f"  broker:   {where}",
         f"  profile:  {profile.name} ({profile.source}), timing scale {s.timing_scale:g}",
+        f"  rules:    {reading(profile.is_strict)}",
         f"  unit:     agent-uuid {heartbeat.get('agent-uuid', '?')}, agent-type "
         f"{heartbeat.get('agent-type', '?')}, levels: {declared}",
         f"  reboot:   {reboot or 'none (REBOOT-* could not test)'}",
@@ -44,3 +46,4 @@ def header_lines(settings: Settings, *, broker: BrokerURL, heartbeat: dict[str, 
         f"  reports:  {reports}.json / .html",
         f"  Using --seed={s.seed} (repeat this run: {rerun})",
     ]
+

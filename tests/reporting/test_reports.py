@@ -9,6 +9,9 @@ import orjson
 import pytest
 
 from conformance.client import BrokerURL
+from conformance.conclusion import conclude
+from conformance.display import printable, shorten
+from conformance.facts import RunFacts
 from conformance.reporting import files as files_mod
 from conformance.reporting import (
     read_json,
@@ -19,6 +22,7 @@ from conformance.reporting import (
     write_all,
 )
 from conformance.results import RunReport
+from conformance.rules import CATALOGUE
 from conformance.violation import Verdict, Violation
 
 
@@ -30,7 +34,7 @@ def test_report_content(run_report: RunReport):
     assert good.rules["REBOOT-001"].verdict is Verdict.COULD_NOT_TEST
     assert "(unattributed)" in run_report.units
     assert run_report.broker == "mqtts://alice@127.0.0.1:8883"
-    assert run_report.exit_code() == 1
+    assert conclude(run_report).exit_code == 1
     counts = run_report.verdict_counts()
     assert set(counts) == {v.value for v in Verdict} and counts["fail"] >= 2
 
@@ -105,6 +109,8 @@ def test_render_violation_reads_like_the_style_guide():
         "  observed  0.61 Hz over 12 intervals (min 1.58 s, max 1.71 s)",
         "  topic     waraps/unit/air/simulation/dji0/heartbeat",
         "  spec      5.1 General Heartbeat Message",
+        # What the rule stands on (issue 24): the spec's words, or this suite's decision.
+        f"  basis     {printable(shorten(CATALOGUE['HB-003'].basis_text()))}",
         "  rerun     pytest --unit waraps/unit/air/simulation/dji0 -k HB-003",
     ]
     warn = render_violation("HB-010", Violation.of("HB-010", expected="a", observed="b\x07"),
@@ -207,14 +213,14 @@ def test_html_footer_names_the_files_written_with_it(run_report: RunReport, tmp_
 
 @pytest.mark.parametrize(("facts", "verdict"), [
     ({"error": "cannot reach the broker at mqtt://127.0.0.1:1"}, "not certified"),
-    ({"broker_lost": "1700000006.0"}, "not certified"),
-    ({"interrupted": "true", "cut_short": "--max-duration 60 s reached"}, "interrupted"),
+    ({"broker_lost": 1700000006.0}, "not certified"),
+    ({"interrupted": True, "cut_short": "--max-duration 60 s reached"}, "interrupted"),
     ({"selection": "-k 'HB-003 or HB-012'"}, "fail")])
 def test_a_run_that_did_not_complete_never_reads_as_a_pass(run_report: RunReport, facts: dict,
                                                           verdict: str, tmp_path):
     """The verdict comes from the run's facts (conformance.conclusion), in every output."""
     run_report.kind = "certification"
-    run_report.meta.update(facts)
+    run_report.facts = RunFacts(**facts)
     page = render_html(run_report)
     title = page[page.index("<h1>"):page.index("</h1>")]
     assert verdict in title and "pass" not in title
