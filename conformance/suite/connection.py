@@ -236,14 +236,16 @@ class Connection:
         self._heard_again.wait(max(0.0, deadline - time.monotonic()))
         return True
 
-    def await_delivery(self, slack: float, budget: float) -> float | None:
+    def await_delivery(self, slack: float, budget: float, *, silent_periods: float = 3.0
+                       ) -> float | None:
         """A command the suite sent has not come back within ``slack`` seconds: the broker
         stalls. Wait up to ``budget`` seconds for it to deliver again; the time since then is
         a gap of the observation either way (what the unit sent is unknown). None when it
         delivers, else when it stopped (it is then lost, as a link that never came back).
-        A unit silent for 3 declared periods (dead, or the broker frozen?) is sent one ping
-        per silence, with nothing pending, to see whether the broker still delivers."""
-        self._probe_silence()
+        A unit silent for ``silent_periods`` declared periods (3: HB-012's window; dead, or
+        the broker frozen?) is sent one ping per silence, with nothing pending, to see
+        whether the broker still delivers."""
+        self._probe_silence(silent_periods)
         since = self._unechoed
         if since is None or self._echoed.wait(max(0.0, since + slack - time.time())):
             return None
@@ -258,17 +260,15 @@ class Connection:
                             f"meanwhile is not judged")
         return None if back else start
 
-    def _probe_silence(self) -> None:
-        """One ping when the unit has been silent for 3 declared periods (HB-012's window):
-        its echo tells a dead unit from a broker that delivers nothing (issue 25 §3)."""
-        from conformance.checks.identity import SILENCE_PERIODS
-
+    def _probe_silence(self, periods: float) -> None:
+        """One ping when the unit has been silent for ``periods`` declared periods: its echo
+        tells a dead unit from a broker that delivers nothing (issue 25 §3)."""
         latest = self.traffic.latest("heartbeat")
         rate = latest.get("rate") if latest is not None else None
         if (latest is None or type(rate) not in (int, float) or rate <= 0
                 or latest.time == self._probed or self._unechoed is not None
                 or not self._echoed.is_set() or self.settings.dry_run
-                or time.time() - latest.time <= SILENCE_PERIODS / rate):
+                or time.time() - latest.time <= periods / rate):
             return
         from conformance.scenarios.sender import Sender
 

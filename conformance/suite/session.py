@@ -461,6 +461,9 @@ class Certification:
             # Lost during the last test: the run is over, the broker gets the budget to return.
             if not self.connection.wait_connected(self.broker_budget()):
                 self.broker_lost = lost
+        elif lost is None and self.connection.client is not None and self.broker_lost is None:
+            self.broker_lost = self.connection.await_delivery(  # a silent unit is probed
+                self.timing.response, self.broker_budget(), silent_periods=1.0)
         started = bool(self.commander.open_tasks or self.tst.open_trees)
         try:
             if self.settings.dry_run:
