@@ -65,7 +65,12 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                          "could-not-test)")
     group.addoption("--allow-motion", dest="waraps_allow_motion", action="store_true",
                     default=False, help="let the suite start the profile's motion-tasks on a "
-                                        "'real' unit")
+                                        "real unit (every role but 'simulation' and the "
+                                        "profile's simulated-roles)")
+    group.addoption("--allow-hostile", dest="waraps_allow_hostile", action="store_true",
+                    default=False, help="let the suite send hostile and malformed payloads "
+                                        "(the robustness probes) to a real unit; the profile's "
+                                        "robustness: true does the same")
     group.addoption("--dry-run", dest="waraps_dry_run", action="store_true", default=False,
                     help="publish nothing; print what would be published")
     group.addoption("--strict-rules", dest="waraps_strict_rules", action="store_true",
@@ -128,6 +133,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
             ("waraps_explore", "default for --explore (0: off)")):
         parser.addini(name, help_, default="")
     for name, help_ in (("waraps_allow_motion", "default for --allow-motion"),
+                        ("waraps_allow_hostile", "default for --allow-hostile"),
                         ("waraps_dry_run", "default for --dry-run"),
                         ("waraps_strict_rules", "default for --strict-rules"),
                         ("waraps_tls_insecure", "default for --tls-insecure")):

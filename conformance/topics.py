@@ -124,8 +124,11 @@ class UnitAddress:
 
     @property
     def is_real(self) -> bool:
-        """A ``real`` unit moves hardware: motion needs an explicit opt-in (DESIGN: safety)."""
-        return self.role == "real"
+        """Whether this unit is taken for hardware when nothing else is known: every role but
+        ``simulation`` (DESIGN 'Safety': fail closed; 3.1 lists real, simulation, playback,
+        and a role outside the list only warns). A profile may name more simulated roles:
+        ``Profile.is_simulation``."""
+        return self.role != "simulation"
 
     def with_name(self, name: str) -> UnitAddress:
         return UnitAddress(self.prefix, self.agent_type, self.role, name)

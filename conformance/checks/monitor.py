@@ -429,6 +429,10 @@ class Monitor:
         """Every unit seen (or recorded into), in address order."""
         return sorted(a for a in self._entries if a is not None)
 
+    def commanders(self) -> list[str]:
+        """The rows of commanders seen so far (lint), by label (``commander op0``), sorted."""
+        return sorted(entry.unit for entry in self._commanders.values())
+
     def live_findings(self, unit: UnitAddress) -> list[Violation]:
         """What is wrong with ``unit`` right now that the rules judge only over the whole
         observation (its rates over their latest intervals: ``rates.live_findings``). A view

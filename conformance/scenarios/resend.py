@@ -17,10 +17,10 @@ RULES = ("EXEC-RESEND-001", "EXEC-RESEND-002")
 def run(ctx: Context) -> None:
     available = ctx.tasks_available()
     origin = ctx.position()
-    task = next(iter(ctx.startable()), None)
+    task = next(iter(ctx.startable("resend")), None)
     if task is None or origin is None:
         reason = ("the unit reports no sensor/position" if origin is None
-                  else "no task the suite may start")
+                  else ctx.none_startable("resend"))
         for rule in RULES:
             ctx.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=reason)
         return

@@ -15,6 +15,7 @@ from conformance.protocol import NO_SUCH_TASK
 from conformance.scenarios.context import Context
 from conformance.scenarios.deviation import meaning
 from conformance.scenarios.params import invalid_params, valid_params
+from conformance.scenarios.sender import Refused
 from conformance.scenarios.traffic import Entry
 from conformance.violation import Verdict, Violation
 
@@ -57,8 +58,8 @@ def run(ctx: Context) -> None:
     """Start, watch and end every startable task; then the generated task-uuid."""
     available = ctx.tasks_available()
     origin = ctx.position()
-    startable = [n for n in available if ctx.safety.may_start(n)[0]]
-    refused = {n: ctx.safety.may_start(n)[1] for n in available if n not in startable}
+    startable = [n for n in available if ctx.safety.may_start(n, "start")[0]]
+    refused = {n: ctx.safety.may_start(n, "start")[1] for n in available if n not in startable}
     if not startable:
         why = "; ".join(refused.values()) or "tasks-available is empty"
         for rule in RULES:
@@ -204,7 +205,7 @@ def run_refusals(ctx: Context) -> None:
     # 004: a task the suite may start, preferably one that does not move the unit, in case
     # the unit wrongly accepts the parameters.
     chosen = None
-    for task in ctx.startable():
+    for task in ctx.startable("refuse"):
         if origin is not None and (bad := invalid_params(task, origin, ctx.safety, ctx.seed)):
             chosen = (task, *bad)
             break
@@ -214,9 +215,14 @@ def run_refusals(ctx: Context) -> None:
         ctx.record("EXEC-START-004", verdict=Verdict.COULD_NOT_TEST, reason=reason)
     else:
         task, params, what = chosen
-        sent, answer = ctx.commander.start_task(task, params, ctx.timing.response, invalid=True)
-        _expect_refusal(ctx, "EXEC-START-004", answer, f"start-task '{task}' whose {what}",
-                        with_reason=True)
+        try:
+            sent, answer = ctx.commander.start_task(task, params, ctx.timing.response,
+                                                    invalid=True)
+        except Refused as e:  # malformed on purpose: a real unit gets it only by opt-in
+            ctx.record("EXEC-START-004", verdict=Verdict.COULD_NOT_TEST, reason=str(e))
+        else:
+            _expect_refusal(ctx, "EXEC-START-004", answer, f"start-task '{task}' whose {what}",
+                            with_reason=True)
     # 005: a name that is certainly not in tasks-available; it cannot move anything.
     name = NO_SUCH_TASK if NO_SUCH_TASK not in available else NO_SUCH_TASK + "-2"
     sent, answer = ctx.commander.start_task(name, {}, ctx.timing.response, invalid=True)

@@ -81,7 +81,7 @@ _ALL = (
        "Publishes position as a one-element list of GeoPoints (10.1.6's example form)."),
     _f("camera-data-url", "MSG-004",
        "Publishes camera_url as an inline 'data:image/jpeg;base64,...' frame of 1.5 MB."),
-    _f("stamp-milliseconds", "MSG-005",
+    _f("stamp-milliseconds", "MSG-008",
        "Stamps heartbeat and info messages in milliseconds (Date.now() style)."),
     _f("stamp-clock-skew", "MSG-005",
        "Stamps with a clock that runs 120 s behind (no NTP)."),
@@ -97,6 +97,9 @@ _ALL = (
        "Sends type 'Heartbeat' instead of 'HeartBeat'."),
     _f("heartbeat-rate-drift", "HB-003",
        "Declares its heartbeat rate but sends at 1/1.35 of it (sleep(period) plus work)."),
+    _f("heartbeat-rate-gross", "HB-003",
+       "Declares its heartbeat rate but sends every 5 declared periods (a period written "
+       "where its rate belongs: a public agent declares 5 Hz and sends every 5 s)."),
     _f("agent-type-mismatch", "HB-004",
        "Says another agent-type in its heartbeat than its topic does (configured from a "
        "ground unit's template: 'ground', or 'air' on a ground unit)."),
@@ -187,6 +190,10 @@ _ALL = (
        "(seen in the field): feedback flows, no answer comes."),
     _f("start-no-generated-task-uuid", "EXEC-START-002",
        "Generates a task-uuid for a start-task that has none, but does not return it."),
+    _f("start-no-task-uuid-unanswered", "EXEC-START-001 EXEC-START-002",
+       "Drops a start-task without task-uuid: msg['task-uuid'] raises a KeyError in its "
+       "message callback, which the MQTT library survives (no answer, no task; seen in the "
+       "field). A start-task it would refuse anyway (no task object) is still refused."),
     _f("dies-on-missing-task-uuid", "HB-012",
        "Its MQTT thread dies on a start-task without task-uuid (a KeyError): from then on it "
        "publishes and answers nothing, while the process lives on (seen in the field).",
@@ -248,6 +255,9 @@ _ALL = (
        "Keeps its agent-uuid across a reboot (read from a config file) but loses its history."),
     _f("reboot-remembers-history", "REBOOT-002",
        "Gets a new agent-uuid on reboot but still knows its earlier tasks (history on disk)."),
+    _f("reboot-renames", "REBOOT-001",
+       "Names itself anew at every start: after a reboot it comes back as '<name>_<4 hex "
+       "digits>' (a random suffix per start), gone from the address it was certified at."),
     # --- errata readings ----------------------------------------------------------------------
     _f("sensor-dot-info", "ERR-001",
        "Sends sensor_info on 'sensor.info' (5.2's spelling)."),

@@ -121,6 +121,7 @@ class Certification:
             self.unit, settings.tst_topic, self.traffic, self.connection.publish,
             dry_run=settings.dry_run, say=self._say,
             wait_connected=self.connection.wait_connected, deviations=self.deviations)
+        self.commander.refuse = self.tst.refuse = self.connection.refuse_payload
         self.safety = Safety(self.unit, self.profile, allow_motion=settings.allow_motion,
                              task_moves=task_moves)
         self.context = Context(self.unit, self.profile, self.traffic, self.commander,
@@ -285,6 +286,8 @@ class Certification:
             "unit": str(self.unit), "seed": str(s.seed), "timing_scale": f"{s.timing_scale:g}",
             "profile_source": self.profile.source, "dry_run": str(s.dry_run).lower(),
             "allow_motion": str(s.allow_motion).lower(),
+            "allow_hostile": str(s.allow_hostile).lower(),
+            "safety": self.connection.motion.decision.sentence(),
             "reboot": self.reboot.how() if self.context.reboot else "none",
             "agent_uuid": str(hb.get("agent-uuid")) if hb else "",
             "commands_sent": str(self.commander.sent_count + self.tst.sent_count),
@@ -500,7 +503,8 @@ class Certification:
             self.settings, broker=self.connection.broker_url, heartbeat=self.context.heartbeat(),
             levels=self.context.levels(),
             reboot=self.reboot.how() if self.context.reboot else None,
-            reports=self.settings.reports_dir / self.stem, rerun=self.rerun_command())]
+            reports=self.settings.reports_dir / self.stem, rerun=self.rerun_command(),
+            decision=self.connection.motion.decision)]
 
 
 

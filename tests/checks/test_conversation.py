@@ -10,7 +10,10 @@ from conformance.checks import Monitor
 from conformance.profile import Profile
 from conformance.violation import Verdict
 
-TIMEOUTS = Profile(response_timeout=1.0, feedback_timeout=3.0)
+# Strict: these tests show each check finding what it finds; a decided rule (rules.toml basis)
+# then fails as it did before the catalogue said what each rule stands on. That a decided rule
+# only warns by default is the judge's, tested in tests/core/test_judge.py.
+TIMEOUTS = Profile(response_timeout=1.0, feedback_timeout=3.0, strict=True)
 
 
 def new() -> str:

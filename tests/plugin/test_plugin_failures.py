@@ -20,7 +20,6 @@ from certify_helpers import (
     Rebooter,
     SilentUnit,
     certify,
-    warm_parameters,
 )
 
 from conformance.broker import free_port
@@ -193,7 +192,3 @@ def test_the_packaged_suite_runs_from_a_project_with_its_own_testpaths(tmp_path:
     assert "test_passive.py::test_rule[HB-003]" in out.stdout
     assert "test_execution.py::test_ping[EXEC-PING-001]" in out.stdout
 
-
-@pytest.fixture(scope="module", autouse=True)
-def parameters() -> None:
-    warm_parameters(("look-at-bearing", "look-at-position"), range(1, 3))
