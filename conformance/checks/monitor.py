@@ -42,7 +42,6 @@ from conformance.checks.rows import (
     suite_version,
 )
 from conformance.checks.shapes import Shapes
-from conformance.checks.stall import StallWatch
 from conformance.checks.tst_routing import TstRouting
 from conformance.message import Message
 from conformance.profile import Profile
@@ -169,8 +168,6 @@ class Monitor:
         end): a report made at one version stays true until the next (a cache's key)."""
         """The latest arrival time fed (-inf before the first message)."""
         self._validate = self.validator.validate
-        self.stalls = StallWatch()
-        """The broker's stalls found in the traffic, marked as gaps (``found``, ``count``)."""
         self._finished: float | None = None
         self.created = _time.time()
 
@@ -197,7 +194,7 @@ class Monitor:
         v = self._validate(topic, message.payload, t)
         if v.message is not None and len(message.payload) > bounds.ID_CHARS:
             bounds.bound_ids(v.message)  # what the checks keep of a message is bounded (issue 19 §3)
-        self.stalls.feed(self.ctx, t, topic, route.topic_kind, v.message)  # before any check
+        self.ctx.stalls.feed(t, topic, route.topic_kind, v.message)  # before any check
         if t > self._latest:
             self._latest = t
             if self.ctx.started is None:

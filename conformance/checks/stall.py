@@ -19,10 +19,12 @@ burst.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from conformance.checks.base import CheckContext
 from conformance.topics import TopicKind
+
+if TYPE_CHECKING:
+    from conformance.checks.base import CheckContext
 
 STALL_SILENCE = 2.0
 """Seconds every topic must have been silent before a burst reads as a stall (decision: twice
@@ -57,9 +59,11 @@ class StallWatch:
     ``feed`` runs on every message of a fleet: the usual case (no silence of everything
     before it) costs a comparison and a dict store."""
 
-    __slots__ = ("last", "silence_from", "burst", "stalled", "previous", "found", "count")
+    __slots__ = ("ctx", "last", "silence_from", "burst", "stalled", "previous", "found", "count")
 
-    def __init__(self) -> None:
+    def __init__(self, ctx: CheckContext) -> None:
+        self.ctx = ctx
+        """Where the stalls found are marked as gaps (and ``quiet`` is kept)."""
         self.last: float | None = None
         self.silence_from: float | None = None
         """The last arrival before the silence that opened the current burst (None: no
@@ -74,8 +78,7 @@ class StallWatch:
         self.count = 0
         """How many stalls were found."""
 
-    def feed(self, ctx: CheckContext, t: float, topic: str, kind: TopicKind,
-             message: Any) -> None:
+    def feed(self, t: float, topic: str, kind: TopicKind, message: Any) -> None:
         """One message arrived at ``t``; a stall found is added to ``ctx``'s gaps at once,
         before the checks judge this message."""
         last = self.last
@@ -91,12 +94,12 @@ class StallWatch:
             if t > last:  # the usual case: traffic flows
                 self.last = t
             return
-        self._after_silence(ctx, t, topic, periodic, message, before)
+        self._after_silence(t, topic, periodic, message, before)
 
-    def _after_silence(self, ctx: CheckContext, t: float, topic: str, periodic: bool,
-                       message: Any, before: tuple[float, Any] | None) -> None:
+    def _after_silence(self, t: float, topic: str, periodic: bool, message: Any,
+                       before: tuple[float, Any] | None) -> None:
         """A message after a silence of every topic, or in the burst that followed one."""
-        last = self.last
+        ctx, last = self.ctx, self.last
         if last is None or t > last:
             self.last = t
         if last is None:

@@ -147,9 +147,9 @@ class Connection:
                 # Until the unit is back on the broker, what it sent is unknown too.
                 self.monitor.connection_gap(self._back_at, message.time)
                 self._heard_again.set()
-            stalls = self.monitor.stalls.count
+            stalls = self.monitor.ctx.stalls.count
             found = self.monitor.feed(message)
-            if self.monitor.stalls.count != stalls:
+            if self.monitor.ctx.stalls.count != stalls:
                 self._say_stall(message.time)
         if found:
             for listener in list(self.listeners):
@@ -160,7 +160,7 @@ class Connection:
 
     def _say_stall(self, now: float) -> None:
         """A stall of the broker was found in the traffic (``checks/stall.py``)."""
-        start, _ = self.monitor.stalls.found[-1]
+        start, _ = self.monitor.ctx.stalls.found[-1]
         self.events.at(now, f"the broker stalled: nothing arrived for {now - start:.1f} s, "
                             f"then what it held at once: rates, silences and deadlines over "
                             f"it are not judged")

@@ -57,7 +57,7 @@ def held(stream, messages, window=FROZEN):
 def test_a_burst_after_a_stall_is_no_rate_fault_and_no_silence(stream):
     m = Monitor(Profile(min_intervals=8))
     stream.feed(m, held(stream, published(stream, 50)))
-    (stall,) = m.stalls.found
+    (stall,) = m.ctx.stalls.found
     assert stall[0] < at(stream, FROZEN[0]) < at(stream, FROZEN[1]) < stall[1]
     rules = rules_of(m, stream)
     for rule in (*RATES, "HB-010", "HB-012", "HB-006"):
@@ -73,7 +73,7 @@ def test_a_burst_after_a_stall_is_found_without_stamps(stream):
     """Stamps on the whole second are not read: the same topic twice in the burst says it."""
     m = Monitor(Profile(min_intervals=8))
     stream.feed(m, held(stream, published(stream, 50, stamped=False)))
-    assert len(m.stalls.found) == 1
+    assert len(m.ctx.stalls.found) == 1
     rules = rules_of(m, stream)
     assert {r: rules[r].verdict for r in RATES} == dict.fromkeys(RATES, Verdict.PASS)
 
@@ -85,7 +85,7 @@ def test_the_same_burst_without_a_silence_before_it_still_fails_the_rate(stream)
     beats = [stream.heartbeat(i * 0.1 + (0.0 if i % 2 else 0.001), stamp=None)
              for i in range(40)]  # declared 1 Hz, sent at 10 Hz in pairs
     stream.feed(m, beats)
-    assert m.stalls.found == []
+    assert m.ctx.stalls.found == []
     assert rules_of(m, stream)["HB-003"].verdict is Verdict.FAIL
 
 
@@ -97,7 +97,7 @@ def test_a_units_own_silence_is_no_stall(stream):
     beats = [stream.heartbeat(t, stamp=at(stream, t) + skew + 0.25)
              for t in [*range(10), *range(15, 30)]]
     stream.feed(m, beats)
-    assert m.stalls.found == []
+    assert m.ctx.stalls.found == []
     assert rules_of(m, stream)["HB-010"].verdict is Verdict.WARN
 
 
