@@ -44,15 +44,11 @@ def dumps(obj: Any) -> str:
 
 
 def geopoint_schema() -> dict[str, Any]:
-    """GeoPoint (6.1 geographic_msgs/GeoPoint): degrees WGS 84 and metres; tagged rostype."""
-    return {
-        "$schema": DRAFT,
-        "$id": BASE_URI + f"{GENERATED}/geopoint.json",
-        "title": "GeoPoint",
-        "description": "A position (spec 6.1: geographic_msgs/GeoPoint): latitude and longitude "
-                       "in degrees (WGS 84), altitude in metres. Every example of the spec tags "
-                       "it \"rostype\": \"GeoPoint\"; a 'type' tag or no tag is an erratum "
-                       "reading (ERR-010), a tag with another value is an error.",
+    """GeoPoint (6.1 geographic_msgs/GeoPoint): degrees WGS 84 and metres; tagged rostype in
+    task parameters, as every example of sections 10 and 11 is. ``$defs/untagged`` is the
+    GeoPoint without that tag requirement: sensor/position's (6.1 says only 'GeoPoint' and
+    has no example, so no tag is asked of it)."""
+    untagged = {
         "type": "object",
         "required": ["altitude", "latitude", "longitude"],
         "properties": {
@@ -64,13 +60,26 @@ def geopoint_schema() -> dict[str, Any]:
             "rostype": {"const": "GeoPoint"},
             "type": {"const": "GeoPoint"},
         },
+    }
+    return {
+        "$schema": DRAFT,
+        "$id": BASE_URI + f"{GENERATED}/geopoint.json",
+        "title": "GeoPoint",
+        "description": "A position (spec 6.1: geographic_msgs/GeoPoint): latitude and longitude "
+                       "in degrees (WGS 84), altitude in metres. Every example of the spec "
+                       "(task parameters, sections 10 and 11) tags it \"rostype\": "
+                       "\"GeoPoint\"; there a 'type' tag or no tag is an erratum reading "
+                       "(ERR-010), a tag with another value is an error. sensor/position (6.1, "
+                       "no example) uses $defs/untagged: no tag is asked of it.",
+        **untagged,
         "allOf": [{
             "x-rule": "ERR-010",
             "x-expected": "a GeoPoint tagged \"rostype\": \"GeoPoint\"",
-            "x-detail": "every spec example tags rostype; 'type' or no tag is accepted with a "
-                        "warning (strict: fail)",
+            "x-detail": "every spec example of a task's GeoPoint tags rostype; 'type' or no "
+                        "tag is accepted with a warning (strict: fail)",
             "required": ["rostype"],
         }],
+        "$defs": {"untagged": untagged},
     }
 
 

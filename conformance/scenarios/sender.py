@@ -12,11 +12,9 @@ from typing import Any
 
 import orjson
 
+from conformance.checks.suite_commands import SENDER  # the suite's name: lint knows it too
 from conformance.scenarios.traffic import Entry, Traffic
 from conformance.topics import UnitAddress
-
-SENDER = "waraps-conformance"
-"""The ``sender`` of every command the suite publishes."""
 
 
 class NotSent(Exception):

@@ -85,6 +85,14 @@ def run(ctx: Context) -> None:
                                                 task_uuid=None if generate else "new")
         response = _check_answer(ctx, task, answer)
         if answer is None:
+            if generate:
+                # 12.1 'a generated task-uuid will be returned in the response message': no
+                # response, so no task-uuid was seen either way. Not a pass (the answers to
+                # start-tasks that named one say nothing of this), and not a second failure
+                # of the one unanswered command (EXEC-START-001's).
+                ctx.record("EXEC-START-002", verdict=Verdict.COULD_NOT_TEST, reason=(
+                    f"the start-task '{task}' sent without a task-uuid was not answered "
+                    f"(EXEC-START-001): whether the unit generates one was not seen"))
             continue
         task_uuid = answer.get("task-uuid")
         wanted = sent.body.get("task-uuid")

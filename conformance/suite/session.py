@@ -106,6 +106,8 @@ class Certification:
         """When the broker was lost for good (it did not come back within the budget)."""
         self.explored = ""
         """What the exploration did (``suite/exploration.py``), for the report's meta."""
+        self.replays: dict[str, tuple[float, str]] = {}
+        """Rule -> (when exploration began, the replay line of the story that found it)."""
         from conformance.suite.progress import Progress
 
         self.progress = Progress(config)
@@ -238,7 +240,10 @@ class Certification:
             kind="certification", unit=str(self.unit), strict=self.profile.is_strict,
             error=error or self.error, broker_lost=self.broker_lost,
             interrupted=bool(cut), cut_short=cut, selection=self.selection,
-            selected=tuple(self.selected), ran=tuple(sorted(self.ran)),
+            # A rule the exploration (or its replay) judged was judged, selected or not.
+            selected=tuple(dict.fromkeys([*self.selected, *self.replays]))
+            if self.selected or self.selection else (),
+            ran=tuple(sorted(self.ran | set(self.replays))),
             enacted_pass=tuple(sorted(r for r, shown in self.enacted.items()
                                       if shown is not Verdict.FAIL)))
 
@@ -297,7 +302,11 @@ class Certification:
         }
 
     def rerun_command(self, rule: str | None = None) -> str:
-        """The pytest command that repeats this run (of ``rule`` alone, when given)."""
+        """The pytest command that repeats this run (of ``rule`` alone, when given); a rule
+        only exploration found, by replaying its story (``-k RULE`` sends no such order)."""
+        since, replay = self.replays.get(rule or "", (0.0, ""))
+        if replay and all((v.time or since) >= since for v in self.result(rule).violations):
+            return replay
         return self.settings.rerun_command(rule, self._observe_for(rule) if rule else 0)
 
     def _observe_for(self, rule: str) -> int:

@@ -328,6 +328,21 @@ def test_declared_level_not_judged_over_a_connection_gap(stream):
 
 # -- sensors: SI-003, SI-004, SI-005, SENS-005 -----------------------------------------------------
 
+def test_a_heading_outside_the_decided_range_warns_once_per_unit_not_per_message(stream):
+    """6.1 says 'heading : float': [0, 360) is SENS-002's decision, an interop risk said once
+    per unit (a unit sending headings in (-180, 180] warned at every message: 228 times)."""
+    m = Monitor()
+    msgs = stream.alive(5) + [stream.sensor("heading", -143.0, 0.5 + i) for i in range(5)]
+    msgs += [stream.sensor("course", -10.0, 0.6 + i) for i in range(5)]
+    stream.feed(m, msgs)
+    r = verdict(m, stream, "SENS-002")
+    assert r.verdict is Verdict.WARN and len(r.violations) == 1
+    assert "-143" in r.violations[0].observed and "no range" in r.violations[0].detail
+    good = Monitor()
+    stream.feed(good, stream.alive(5))
+    assert verdict(good, stream, "SENS-002").verdict is Verdict.PASS
+
+
 def test_listed_sensor_not_published_fails(stream):
     m = Monitor()
     msgs = stream.alive(5)
