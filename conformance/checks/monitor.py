@@ -162,11 +162,10 @@ class Monitor:
         self._unexamined = 0
         self._over = 0
         self._over_units: list[str] = []
-        self._latest = float("-inf")
+        self._latest = float("-inf")  # the latest arrival time fed (-inf before the first)
         self.version = 0
         """Counts every change of what the Monitor knows (a message, a record, a gap, the
         end): a report made at one version stays true until the next (a cache's key)."""
-        """The latest arrival time fed (-inf before the first message)."""
         self._validate = self.validator.validate
         self._finished: float | None = None
         self.created = _time.time()
