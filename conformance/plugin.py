@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from conformance.cli.options import BROKER_ENV, CREDENTIALS, TLS_FILES, TLS_INSECURE
-from conformance.display import printable
+from conformance.display import printable, printable_lines
 from conformance.exits import EXIT_NOT_CERTIFIED
 
 if TYPE_CHECKING:
@@ -189,6 +189,8 @@ class _CertificationPlugin:
         self.certification = certification
         self.finished = False
         self.session: pytest.Session | None = None
+        self.explore_outcome = ""
+        """test_explore's outcome in the suite's words (it judges no rule of its own)."""
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_sessionstart(self, session: pytest.Session) -> None:
@@ -261,8 +263,13 @@ class _CertificationPlugin:
         locate_skip(item, report)
         return report
 
+    @pytest.hookimpl(tryfirst=True)  # before pytest writes the result: our line goes first
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         c = self.certification
+        c.progress.clear()
+        if report.nodeid.endswith("::test_explore") and (
+                report.when == "call" or report.outcome != "passed"):
+            self.explore_outcome = _explore_outcome(report, c.explored)
         marker = report.keywords.get("waraps_rule") if report.when == "call" or (
             report.when == "setup" and report.outcome != "passed") else None
         if marker is not None:
@@ -294,20 +301,26 @@ class _CertificationPlugin:
         if c.collect_only:
             return
         tr = terminalreporter
+        c.progress.clear()
         tr.section("waraps-conformance")
         if c.error:  # what went wrong and how to fix it; the verdict line below says no more
-            tr.line(printable(f"not certified: {c.error}"), red=True)
+            # Our own line breaks stay line breaks; each line is escaped (printable_lines).
+            tr.line(printable_lines(f"not certified: {c.error}"), red=True)
         for event in c.events:
             tr.line(printable(event))
         report = c.report()
         conclusion = c.conclusion(report)
         counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
         head = conclusion.verdict if c.error else conclusion.headline()
-        tr.line(f"{c.unit}: {head}; {counts}",
+        # The rules' counts, and the exploration apart: together they are pytest's tests.
+        explored = f"; exploration: {self.explore_outcome}" if self.explore_outcome else ""
+        tr.line(f"{c.unit}: {head}; rules: {counts}{printable(explored)}",
                 red=conclusion.verdict not in ("pass", "warn"))
         unit = conclusion.units.get(str(c.unit))
         for level in unit.levels if unit is not None else ():
             tr.line(f"  {level}")
+        for line in findings(report, str(c.unit), error_said=bool(c.error)):
+            tr.line(line, red=line.startswith("  failed"))
         for line in skipped_by_reason(report.units.get(str(c.unit))):
             tr.line(line)
         later = conclusion.judged_after_test
@@ -326,6 +339,48 @@ class _CertificationPlugin:
         if not c.report_paths:
             tr.line("no report was written")
         tr.line(f"repeat this run: {c.rerun_command()}")
+
+
+def _explore_outcome(report: pytest.TestReport, explored: str) -> str:
+    """``pass (5 examples, 120 steps in 50 s ...)``, ``fail``, ``could-not-test (why)``."""
+    if report.skipped:
+        reason = str(report.longrepr[-1]) if isinstance(report.longrepr, tuple) else ""
+        reason = reason.removeprefix("Skipped: ")
+        if reason.startswith("could not test: "):
+            return f"could-not-test ({reason.removeprefix('could not test: ')})"
+        return f"skip ({reason})" if reason else "skip"
+    word = "pass" if report.passed else "fail"
+    return f"{word} ({explored})" if explored else word
+
+
+def findings(report: Any, unit: str, *, error_said: bool = False) -> list[str]:
+    """What the summary names after the levels (issue 27 §2): each failed rule with its title
+    (its evidence is in pytest's failures above), then the rules that could not be tested,
+    grouped by their reason, which names the option that would test them (``--reboot-cmd``),
+    and the rules not run, counted (unless the error that kept them from running was said:
+    ``error_said``)."""
+    from conformance.reporting.htmlreport import untested
+    from conformance.rules import CATALOGUE
+    from conformance.violation import Verdict
+
+    row = report.units.get(unit)
+    if row is None:
+        return []
+    lines = [f"  failed  {r.rule} {printable(CATALOGUE[r.rule].title)}"
+             for r in row.rules.values()
+             if r.verdict is Verdict.FAIL and r.rule in CATALOGUE]
+    for group in untested(report):
+        if group.unit != unit:
+            continue
+        if group.not_run:
+            if error_said:
+                continue
+            why = group.reason.removeprefix("not run: ")  # each word once
+            lines.append(f"  not run {len(group.rules):>3}  {printable(why)}")
+        else:
+            lines.append(f"  could not test {', '.join(group.rules)}: "
+                         f"{printable(group.reason)}")
+    return lines
 
 
 def skipped_by_reason(unit: Any) -> list[str]:

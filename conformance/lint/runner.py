@@ -143,6 +143,7 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
         meta["not_judged"] = _not_judged(over, over_units)
     from conformance.facts import RunFacts
     from conformance.judge import judge
+    from conformance.recording import UNTIMED_NOTE
     from conformance.reporting.text import render_verdicts
 
     report = judge(_report(monitor, linter, kind_meta=meta, broker=broker,
@@ -154,8 +155,12 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
     if serving:  # the fleet page's last snapshot: every verdict final
         serving.view.finish(linter, report, verdict=conclusion.verdict,
                             not_judged=meta.get("not_judged", ""))
-    # Each unit's verdict and its most severe findings first (issue 18, 6), then the table.
-    scorecard.final(linter, report, opening=render_verdicts(report))
+    # Each unit's verdict and its most severe findings first (issue 18, 6), then the table;
+    # a capture without times says so before anything else (issue 27, 4).
+    first = [n for n in notes if n.startswith(UNTIMED_NOTE)] if report.facts.untimed else []
+    notes = [n for n in notes if n not in first]
+    scorecard.final(linter, report, opening="\n".join(
+        [*(f"note: {n}" for n in first), render_verdicts(report)]))
     for problem in problems:
         print(printable(f"malformed {problem}"), file=out)
     if problem_count > len(problems):

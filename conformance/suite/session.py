@@ -105,6 +105,8 @@ class Certification:
         self.broker_lost: float | None = None
         """When the broker was lost for good (it did not come back within the budget)."""
         self.explored = ""
+        self.explore_story = ""
+        """The story exploration found, as told (the HTML report shows it step by step)."""
         """What the exploration did (``suite/exploration.py``), for the report's meta."""
         self.replays: dict[str, tuple[float, str]] = {}
         """Rule -> (when exploration began, the replay line of the story that found it)."""
@@ -298,6 +300,7 @@ class Certification:
             "commands_sent": str(self.commander.sent_count + self.tst.sent_count),
             "tst_command_topic": s.tst_topic,
             "explore": self.explored or ("off" if s.explore == 0 else "not run"),
+            "explore_story": self.explore_story,
             "rerun": self.rerun_command(),
         }
 
