@@ -11,8 +11,9 @@ import time
 from pathlib import Path
 from typing import IO, Any
 
-from conformance.display import NAME_CHARS, printable, printable_lines, shorten
+from conformance.display import NAME_CHARS, printable, printable_lines, shorten, shown
 from conformance.lint import EXIT_FAIL, EXIT_NOT_RUN, EXIT_PASS
+from conformance.reporting.bounds import file_stem
 
 GATES = ("all", "units")
 REPORT_FORMATS = ("json", "html", "junit")
@@ -70,7 +71,7 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
         try:
             end = run_bag(linter, scorecard, reader_of_bag, options)
         except BagError as e:
-            print(printable(f"waraps-conformance lint: {e}"), file=err)
+            print(shown(f"waraps-conformance lint: {e}"), file=err)
             return EXIT_NOT_RUN
         meta = {"source": reader_of_bag.name, "recording_formats": reader_of_bag.format,
                 "bag_messages_read": str(reader_of_bag.read)}
@@ -81,7 +82,7 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
         try:
             stream, name = open_recording(source, stdin)
         except RecordingError as e:
-            print(printable(f"waraps-conformance lint: {e}"), file=err)
+            print(shown(f"waraps-conformance lint: {e}"), file=err)
             return EXIT_NOT_RUN
         scorecard = Scorecard(out, tty=False if plain else None, title=name, live=False)
         scorecard = serving.watch(scorecard) if serving else scorecard
@@ -89,8 +90,8 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
             reader, end = run_recorded(linter, scorecard, stream, name, options)
         meta = {"source": name, "recording_lines": str(reader.lines),
                 "recording_formats": ", ".join(sorted(reader.formats))}
-        print(f"read {name} as {', '.join(sorted(reader.formats)) or 'no known format'}"
-              f" ({reader.messages} messages)", file=out)
+        print(shown(f"read {name} as {', '.join(sorted(reader.formats)) or 'no known format'}"
+                    f" ({reader.messages} messages)"), file=out)
         if reader.problem_count:
             meta["recording_problems"] = str(reader.problem_count)
             meta["recording_problem_lines"] = "; ".join(str(p) for p in reader.problems[:20])
@@ -107,16 +108,16 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
         try:
             capture.start()
         except BrokerError as e:
-            print(printable(f"waraps-conformance lint: {e}"), file=err)
+            print(shown(f"waraps-conformance lint: {e}"), file=err)
             return EXIT_NOT_RUN
         scorecard = Scorecard(out, tty=False if plain else None,
                               title=f"{options.broker} {' '.join(options.topics)}", live=True)
         if serving:
             scorecard = serving.watch(scorecard)
         if not scorecard.tty:
-            print(f"linting {', '.join(options.topics)} on {options.broker} (read-only)"
-                  + (f" for {options.duration:g} s" if options.duration else " until Ctrl-C"),
-                  file=out, flush=True)
+            print(shown(f"linting {', '.join(options.topics)} on {options.broker} (read-only)"
+                        + (f" for {options.duration:g} s" if options.duration
+                           else " until Ctrl-C")), file=out, flush=True)
         end = run_live(linter, scorecard, capture, options)
         meta = {"source": f"live {' '.join(options.topics)}"}
         if options.broker.tls_arguments():  # the rerun line repeats them (reporting/text.py)
@@ -181,7 +182,7 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
     if formats:
         paths = write_reports(report, Path(reports_dir), formats, report_stem(source))
         for path in paths:
-            print(f"report: {path}", file=out)
+            print(shown(f"report: {path}"), file=out)
     evidence = failures(report)
     if evidence:
         print(f"\n{printable_lines(evidence)}\n", file=out)
@@ -397,9 +398,8 @@ def report_stem(source: str | None) -> str:
     ``lint-<local time>``."""
     if source and source != "-":
         name = Path(source).name.split(".")[0]
-        safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
-        if safe:
-            return f"lint-{safe}"
+        if name:  # bounded and sanitised (a 300-character name: issue 26)
+            return f"lint-{file_stem(name).replace('.', '_')}"
     return time.strftime("lint-%Y%m%d-%H%M%S")
 
 

@@ -26,9 +26,10 @@ from conformance.checks import Monitor
 from conformance.client import BrokerError, MqttClient
 from conformance.conclusion import INTERRUPTED, NOT_CERTIFIED, Conclusion
 from conformance.conclusion import of as conclusion_of
-from conformance.display import LINE_CHARS, printable, shorten
+from conformance.display import LINE_CHARS, shorten, shown
 from conformance.facts import CTRL_C, RunFacts
 from conformance.judge import judge, unexamined
+from conformance.reporting.bounds import file_stem
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
 from conformance.scenarios import (
@@ -81,7 +82,8 @@ class Certification:
                                      self.events)
         self.reboot = Reboot(config, self.connection, self.timing.reboot,
                              self._reboot_requested, self.events)
-        self.stem = f"{self.unit.name}-{time.strftime('%Y%m%dT%H%M%S', time.localtime())}"
+        when = time.strftime('%Y%m%dT%H%M%S', time.localtime())
+        self.stem = f"{file_stem(self.unit.name)}-{when}"  # a bounded file name (issue 26)
         self.report_paths: dict[str, Path] = {}
         self.collect_only = False
         """--collect-only: nothing is connected, run or written."""
@@ -175,9 +177,9 @@ class Certification:
         capman = self.config.pluginmanager.getplugin("capturemanager")
         if capman is not None:
             with capman.global_and_fixture_disabled():
-                tw.line(printable(text))
+                tw.line(shown(text))
         else:
-            tw.line(printable(text))
+            tw.line(shown(text))
 
     def _adapted(self, deviation: Deviation) -> None:
         """A systematic deviation, seen for the first time: say so once (summary and -v)."""
@@ -510,8 +512,9 @@ class Certification:
 
     def header(self) -> list[str]:
         """The lines pytest shows before the tests (``header_lines``); the unit's own words
-        in them (agent-uuid, agent-type, levels) escaped and excerpted (issue 19 §5)."""
-        return [printable(shorten(line, LINE_CHARS)) for line in header_lines(
+        in them (agent-uuid, agent-type, levels) escaped and excerpted (issue 19 §5), never a
+        password (issue 26 §5)."""
+        return [shown(shorten(line, LINE_CHARS)) for line in header_lines(
             self.settings, broker=self.connection.broker_url, heartbeat=self.context.heartbeat(),
             levels=self.context.levels(),
             reboot=self.reboot.how() if self.context.reboot else None,
