@@ -61,9 +61,11 @@ class Connection:
     (a stall: issue 25 §3)."""
     _echoed: threading.Event = field(default_factory=threading.Event, init=False)
     _heard_again: threading.Event = field(default_factory=threading.Event, init=False)
-    """Clear from a reconnect until the unit's next heartbeat: it reconnects on its own time,
-    and a command sent before it has is lost."""
+    """Clear from a reconnect until the unit's second heartbeat after it: it reconnects on its
+    own time, and a command sent before it has (or subscribed again: its first heartbeat may
+    be one it held, sent before its subscription) is lost."""
     _back_at: float = field(default=0.0, init=False)
+    _beats_back: int = field(default=0, init=False)
     _last_arrival: float | None = field(default=None, init=False)
     _probed: float | None = field(default=None, init=False)
     """The last heartbeat whose silence was probed with a ping (once per silence)."""
@@ -146,7 +148,9 @@ class Connection:
             if heartbeat and not self._heard_again.is_set():
                 # Until the unit is back on the broker, what it sent is unknown too.
                 self.monitor.connection_gap(self._back_at, message.time)
-                self._heard_again.set()
+                self._beats_back += 1
+                if self._beats_back >= 2:
+                    self._heard_again.set()
             stalls = self.monitor.ctx.stalls.count
             found = self.monitor.feed(message)
             if self.monitor.ctx.stalls.count != stalls:
@@ -181,7 +185,7 @@ class Connection:
             elif self._gap_start is not None:
                 start, self._gap_start = self._gap_start, None
                 self.monitor.connection_gap(start, now)
-                self._back_at = now
+                self._back_at, self._beats_back = now, 0
                 self._heard_again.clear()
                 self.events.at(now, f"broker connection back after {now - start:.1f} s: "
                                     f"rates, silences and uuid changes over the gap are not "
