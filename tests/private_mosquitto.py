@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import time
@@ -86,9 +87,20 @@ class PrivateMosquitto:
 
     def stop(self) -> None:
         if self.proc is not None and self.proc.poll() is None:
+            self.thaw()  # a frozen process would not act on SIGTERM
             self.proc.terminate()
             self.proc.wait(10)
         self.proc = None
+
+    def freeze(self) -> None:
+        """Stop the broker's process (SIGSTOP) without closing a socket: a broker that stalls."""
+        assert self.proc is not None and self.proc.poll() is None
+        os.kill(self.proc.pid, signal.SIGSTOP)
+
+    def thaw(self) -> None:
+        """Let a frozen broker run again (SIGCONT): it delivers what it held, in a burst."""
+        if self.proc is not None and self.proc.poll() is None:
+            os.kill(self.proc.pid, signal.SIGCONT)
 
     def log_text(self) -> str:
         return self.log.read_text(errors="replace") if self.log.exists() else ""

@@ -18,6 +18,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
+from conformance.checks.stall import StallWatch
 from conformance.message import Message
 from conformance.profile import Profile
 from conformance.topics import TopicKind, UnitAddress, level_name
@@ -418,6 +419,12 @@ class CheckContext:
         self.started: float | None = None
         """Arrival time of the first message the observer saw (of any unit)."""
         self.gaps: list[tuple[float, float]] = []
+        self.stalls = StallWatch(self)
+        """The broker's stalls found in the traffic, each marked as a gap: ``found``, ``count``
+        (``Monitor.feed`` feeds it every message before any check)."""
+        self.quiet: float | None = None
+        """While messages arrive in a burst after a silence of every topic (a stall of the
+        broker, perhaps: ``checks/stall.py``): when that silence began; None otherwise."""
         self.reboots: list[float] = []
         """When the observer's side (the suite) rebooted the unit: a silence that only such a
         reboot ended was a death (HB-012), not a silence the unit came back from."""

@@ -80,7 +80,8 @@ class Task:
     """One task of a unit as the traffic showed it (12.4)."""
 
     __slots__ = ("task_uuid", "name", "command", "life", "last_status", "last_time", "state",
-                 "final", "resent", "resend_failed", "listed", "left_at", "running_feedback")
+                 "final", "resent", "resend_failed", "listed", "listed_at", "left_at",
+                 "running_feedback")
 
     def __init__(self, task_uuid: str, name: str | None, command: Command | None,
                  life: str | None) -> None:
@@ -101,6 +102,8 @@ class Task:
         self.resend_failed: float | None = None
         """When a resend of its start-task was answered 'failed' (a contradiction)."""
         self.listed = False
+        self.listed_at: float | None = None
+        """When tasks-executing last listed it (5.3)."""
         self.left_at: float | None = None
         """When it left tasks-executing (5.3) without a final feedback."""
         self.running_feedback = 0

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.command_history import (
+    OVER_A_GAP,
     dead_since,
     dying_from,
     judged_on_a_copy,
@@ -79,6 +80,9 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
     found: list[Violation] = []
     timeout = response_timeout(ctx)
     for cmd in c.overdue(now, timeout, reboot):
+        if ctx.gaps and ctx.in_gap(cmd.time, cmd.last_sent + timeout):
+            unit.note("EXEC-RESEND-002", OVER_A_GAP)  # the first may never have reached it
+            continue
         unit.examine("EXEC-RESEND-002")
         found.append(late("EXEC-RESEND-002", unit.address.topic("exec/command"), cmd,
                           f"a second answer to the resent {cmd.describe()} within "
@@ -90,6 +94,9 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
         if e.deadline < now or reboot:
             c.expects.remove(e)
             if reboot:
+                continue
+            if ctx.gaps and ctx.in_gap(e.command.last_sent, e.deadline):
+                unit.note(e.rule, OVER_A_GAP)  # the feedback may be what the broker lost
                 continue
             if unit.private.get(FEEDBACK_WITHOUT_TASK_UUID):
                 # The awaited status may have come in feedback naming no task (EXEC-FB-001's
@@ -111,6 +118,11 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
             c.ended(task, ("left tasks-executing", None, task.left_at))
             if unit.private.get(FEEDBACK_WITHOUT_TASK_UUID):
                 continue  # its final feedback may be one without task-uuid
+            if ctx.gaps and ctx.in_gap(task.listed_at or task.left_at, task.left_at + timeout):
+                # It ended while the broker lost or held traffic: its final feedback may have
+                # been sent then (issue 25 §3: the broker killed 18 s into a run).
+                unit.note("EXEC-START-003", OVER_A_GAP)
+                continue
             unit.examine("EXEC-START-003")
             found.append(late("EXEC-START-003", unit.address.topic("exec/command"),
                               task.command, f"a final feedback for task {task.task_uuid} "
@@ -145,7 +157,8 @@ def _judge_streak(ctx: CheckContext, unit: UnitState, c: Conversations, *, ended
     after = [cmd for cmd in streak
              if (c.last_answer is None or cmd.last_sent > c.last_answer)
              and cmd.name in c.answered_kinds
-             and (alive_until is None or cmd.last_sent + timeout <= alive_until)]
+             and (alive_until is None or cmd.last_sent + timeout <= alive_until)
+             and not (ctx.gaps and ctx.in_gap(cmd.last_sent, cmd.last_sent + timeout))]
     kinds = {cmd.name for cmd in after}
     if len(after) >= 2 and len(kinds) >= 2 and expects_answers(unit, c):
         first = after[0]

@@ -117,7 +117,7 @@ def tasks_executing_follow_tasks(ctx: CheckContext, unit: UnitState, msg: Messag
     for task in open_tasks:
         n = listed.count(task.task_uuid)
         if n:
-            task.listed, task.left_at = True, None
+            task.listed, task.listed_at, task.left_at = True, msg.time, None
             if n > 1 and task.resent is not None:
                 unit.examine("EXEC-RESEND-001")
                 task.resent = None  # said once

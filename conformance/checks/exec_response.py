@@ -15,7 +15,13 @@ from typing import Any
 
 from conformance import protocol
 from conformance.checks.base import CheckContext, UnitState, check, reinterprets
-from conformance.checks.command_history import late, response_timeout, str_of, violation
+from conformance.checks.command_history import (
+    OVER_A_GAP,
+    late,
+    response_timeout,
+    str_of,
+    violation,
+)
 from conformance.checks.conversation import (
     ANSWER_RULE,
     Command,
@@ -79,6 +85,10 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
     in_time = waited <= timeout
     if in_time:
         unit.examine("EXEC-010")
+    elif ctx.gaps and ctx.in_gap(cmd.last_sent, t):
+        # The broker held or lost traffic meanwhile (an outage, a stall): when the unit
+        # answered is unknown (issue 25 §3).
+        unit.note("EXEC-010", OVER_A_GAP)
     else:
         # Late: how late is EXEC-010's finding; the command's own rule wanted it in time.
         yield violation("EXEC-010", msg, expected=f"an answer within {timeout:.1f} s (the "
@@ -304,6 +314,9 @@ def judge_unanswered(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: 
                        f"a pong with response-to {stray}", cmd.last_sent,
                        "copy the command's com-uuid into response-to, unchanged (12.3)")
             return
+    if ctx.gaps and ctx.in_gap(cmd.last_sent, cmd.last_sent + timeout):
+        unit.note(rule, OVER_A_GAP)  # its answer may be what the broker lost (issue 25 §3)
+        return
     unit.examine(rule)
     cmd.missed = True
     yield late(rule, unit.address.topic("exec/command"), cmd, f"an answer to "

@@ -88,6 +88,20 @@ def agent_uuid_changes_only_on_reboot(ctx: CheckContext, unit: UnitState, msg: M
 @check("HB-010", on=(HB,))
 def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
                               v: Validation) -> list[Violation] | None:
+    """5.1: the heartbeat registers availability; a silence over 3 declared periods warns.
+    A silence that ended in a burst after a silence of every topic is judged at the next
+    heartbeat, once the burst has shown whether the broker stalled (issue 25 §3)."""
+    pending = unit.private.get("hb010_pending")
+    if not pending:
+        return _silence(ctx, unit, msg, v)
+    unit.private["hb010_pending"] = None
+    found = _silence(ctx, unit, msg, v)
+    kept = [f for f in pending if not ctx.in_gap(f.time, msg.time)]
+    return [*kept, *(found or ())] or None
+
+
+def _silence(ctx: CheckContext, unit: UnitState, msg: Message,
+             v: Validation) -> list[Violation] | None:
     """5.1: the heartbeat registers availability; a silence over 3 declared periods warns,
     saying whether the unit came back with the same agent-uuid (resumed) or a new one."""
     last = _previous_live(unit)
@@ -110,7 +124,8 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
     tracker = private.get("rates", {}).get(HB)
     if ctx.reboots:
         revived = next((r for r in ctx.reboots if last < r <= msg.time), None)
-        if revived is not None and revived - last > SILENCE_PERIODS * heartbeat_period(unit):
+        if revived is not None and revived - last > SILENCE_PERIODS * heartbeat_period(unit) \
+                and not _broker_gap(ctx, last, revived):
             # Silent for good until the suite rebooted it: a death (HB-012), not a silence.
             deaths = private.setdefault("deaths", [])
             deaths.append((last, revived))
@@ -137,6 +152,10 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
         # No interval yet within 3 periods: a unit that sends far slower than it declares is
         # HB-003's (its rate), not a string of silences. Held until it keeps its period once.
         private["hb010_held"] = [*(held or ()), *found][-8:]
+        return None
+    if ctx.quiet is not None and ctx.quiet >= last:
+        # The whole observer was silent too: perhaps the broker stalled; the burst will say.
+        private["hb010_pending"], private["hb010_held"] = [*(held or ()), *found], []
         return None
     if held:
         unit.private["hb010_held"] = []
@@ -176,10 +195,17 @@ def death(ctx: CheckContext, unit: UnitState, now: float) -> tuple[float, float]
     if last is None or unit.period(HB) is None:
         return None
     period = heartbeat_period(unit)
-    if now - last <= SILENCE_PERIODS * period or (
-            ctx.in_gap(last, now) and not any(last < r <= now for r in ctx.reboots)):
+    if now - last <= SILENCE_PERIODS * period or _broker_gap(ctx, last, now):
+        # Over a gap of the broker it is unknown whether it fell silent; silent through a
+        # reboot the suite requested (a zero-length gap of its own) is a death all the same.
         return None
     return last - period, last
+
+
+def _broker_gap(ctx: CheckContext, t0: float, t1: float) -> bool:
+    """Whether the observer lost or the broker held traffic (a gap of non-zero length, not
+    the instant of a reboot the suite requested) between ``t0`` and ``t1``."""
+    return any(start < end and start <= t1 and end >= t0 for start, end in ctx.gaps)
 
 
 @check("HB-012", finish=True)

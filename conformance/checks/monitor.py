@@ -162,11 +162,10 @@ class Monitor:
         self._unexamined = 0
         self._over = 0
         self._over_units: list[str] = []
-        self._latest = float("-inf")
+        self._latest = float("-inf")  # the latest arrival time fed (-inf before the first)
         self.version = 0
         """Counts every change of what the Monitor knows (a message, a record, a gap, the
         end): a report made at one version stays true until the next (a cache's key)."""
-        """The latest arrival time fed (-inf before the first message)."""
         self._validate = self.validator.validate
         self._finished: float | None = None
         self.created = _time.time()
@@ -194,6 +193,7 @@ class Monitor:
         v = self._validate(topic, message.payload, t)
         if v.message is not None and len(message.payload) > bounds.ID_CHARS:
             bounds.bound_ids(v.message)  # what the checks keep of a message is bounded (issue 19 §3)
+        self.ctx.stalls.feed(t, topic, route.topic_kind, v.message)  # before any check
         if t > self._latest:
             self._latest = t
             if self.ctx.started is None:

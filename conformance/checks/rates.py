@@ -7,6 +7,14 @@ alarm at 1 and 10 Hz). Intervals that overlap a connection gap of the observer a
 Intervals over 3 declared periods are silences (HB-010: a boat out of range may fall silent);
 they are left out of the mean while the other intervals are enough to judge, and counted in
 otherwise (a unit that is always "silent" simply publishes far slower than it declares).
+A gross mismatch fails before ``min_intervals``: the mean off by 3x after 3 intervals, or every
+interval 3 declared periods or longer after 2 (declared 5 Hz, sent every 5 s).
+
+An interval is measured between the unit's own stamps (5.1) where both messages carry one that
+reads as Unix seconds, else between arrivals: a broker that held traffic delivers it in a
+burst, and the stamps keep the unit's spacing (issue 25 §3). Intervals over a gap of the
+observer (its connection down, or a stall of the broker found in the traffic,
+``checks/stall.py``) are left out either way; the rate's note says both.
 
 The interval across a reboot (an agent-uuid not seen before, spec 5.1) is left out too: the
 restart's silence is HB-006's and HB-010's to judge, not the rate's. Agent-uuids that take
@@ -16,7 +24,7 @@ Memory is bounded: running sums, min and max, and a series of at most 600 points
 
 Live (``live_findings``, what lint's scorecard shows while it runs): the same judgement over
 the latest ``profile.min_intervals`` clean intervals of each rate (a gross mismatch after
-3), so an operator sees a unit turn red within seconds of a gross mismatch and within a
+2 or 3), so an operator sees a unit turn red within seconds of a gross mismatch and within a
 minute of a fine one at 1 Hz. It is a view, not a verdict: the rules are judged over the
 whole observation, as before (a rate that recovered is judged on everything it did).
 """
@@ -30,6 +38,7 @@ from operator import add
 
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.identity import SILENCE_PERIODS
+from conformance.checks.stall import stamp_of
 from conformance.message import Message
 from conformance.results import RateStat
 from conformance.topics import TopicKind
@@ -44,6 +53,10 @@ RATE_RULES = {
 }
 GROSS_FACTOR = 3.0  # HB-003's decision: a mean this far off fails early
 GROSS_MIN_INTERVALS = 3
+GROSS_SLOW_MIN_INTERVALS = 2
+"""HB-003's decision (issue 24 §2): when every interval is at least GROSS_FACTOR declared
+periods long, 2 intervals are enough to fail the rate (declared 5 Hz, sent every 5 s: each
+interval 25 periods); a near miss still needs ``min_intervals``."""
 MAX_SERIES = 600
 MAX_CLOSED_SEGMENTS = 8
 MAX_AGENTS = 4
@@ -92,7 +105,8 @@ class RateTracker:
 
     __slots__ = ("kind", "rule", "topic", "declared", "last", "start", "end", "n", "total",
                  "min", "max", "max_at", "silences", "all_n", "all_total", "all_max",
-                 "all_max_at", "excluded", "series", "agents", "recent")
+                 "all_max_at", "all_min", "excluded", "series", "agents", "recent",
+                 "last_stamp", "by_stamp")
 
     def __init__(self, kind: TopicKind, topic: str, declared: float | None) -> None:
         self.kind = kind
@@ -112,7 +126,13 @@ class RateTracker:
         self.all_total = 0.0
         self.all_max = 0.0
         self.all_max_at = 0.0
+        self.all_min = float("inf")
         self.excluded = 0
+        """Intervals left out: across a reboot, or over a gap of the observer (an outage of
+        its connection, or a stall of the broker: ``checks/stall.py``)."""
+        self.last_stamp: float | None = None
+        self.by_stamp = 0
+        """Intervals measured between the unit's own stamps (5.1), not between arrivals."""
         self.series = _Series()
         self.agents: tuple[object, ...] = ()
         """The agent-uuids seen on this topic, latest last (at most MAX_AGENTS)."""
@@ -130,16 +150,18 @@ class RateTracker:
             self.agents = (*(a for a in agents if a != agent), agent)
             return
         if agents and self.last is not None:
-            self.last = None
+            self.last = self.last_stamp = None
             self.excluded += 1
         self.agents = (*agents[-(MAX_AGENTS - 1):], agent)
 
-    def add(self, ctx: CheckContext, t: float, agent: object = None) -> None:
-        """A message at ``t``, carrying ``agent`` (its agent-uuid, if any)."""
+    def add(self, ctx: CheckContext, t: float, agent: object = None,
+            stamp: float | None = None) -> None:
+        """A message that arrived at ``t``, carrying ``agent`` (its agent-uuid, if any) and
+        ``stamp`` (its 5.1 stamp when it reads as Unix seconds: ``stall.stamp_of``)."""
         if agent is not None and (not self.agents or self.agents[-1] != agent):
             self._agent(agent)
-        last = self.last
-        self.last = t
+        last, last_stamp = self.last, self.last_stamp
+        self.last, self.last_stamp = t, stamp
         if self.start is None:
             self.start = t
         self.end = t
@@ -151,7 +173,14 @@ class RateTracker:
         if ctx.gaps and ctx.in_gap(last, t):
             self.excluded += 1
             return
+        if stamp is not None and last_stamp is not None and stamp > last_stamp:
+            # The unit's own spacing (issue 25 §3): arrivals bunch when a broker or link
+            # holds traffic and delivers it at once; the stamps say when it was sent.
+            dt = stamp - last_stamp
+            self.by_stamp += 1
         self.all_n += 1
+        if dt < self.all_min:
+            self.all_min = dt
         self.all_total += dt
         if dt > self.all_max:
             self.all_max, self.all_max_at = dt, t
@@ -192,10 +221,10 @@ class RateTracker:
             stat.reason = f"no valid declared rate in {self.kind.value}.rate"
             return stat, []
         period = 1.0 / declared
-        gross = n >= GROSS_MIN_INTERVALS and mean is not None and (
-            mean > GROSS_FACTOR * period or mean < period / GROSS_FACTOR)
+        gross = mean is not None and _gross(n, mean, self.all_min, period)
+        how = self._how()
         if n < need and not gross:
-            stat.reason = f"only {n} intervals observed; need {need}"
+            stat.reason = f"only {n} intervals observed; need {need}{how}"
             return stat, []
         found: list[Violation] = []
         silences = f", {silences_in} silences counted in" if silences_in else ""
@@ -206,7 +235,7 @@ class RateTracker:
                 self.rule,
                 expected=f"{declared:.2f} Hz (declared in {self.kind.value}.rate)",
                 observed=f"{1.0 / mean:.3f} Hz {window}, off by more than {GROSS_FACTOR:g}x "
-                         f"(judged after {n} intervals: a gross mismatch)",
+                         f"(judged after {n} intervals: a gross mismatch{how})",
                 topic=self.topic, time=self.end, unit=unit,
                 detail=f"mean interval {mean:.3f} s, declared period {period:.3f} s: is the "
                        f"rate in Hz? publish at the declared rate, or declare the rate used"))
@@ -228,9 +257,20 @@ class RateTracker:
                 topic=self.topic, time=hi_at, unit=unit,
                 detail=f"{window}; a single late message means the publisher stalls"))
         stat.verdict = Verdict.FAIL if found else Verdict.PASS
-        stat.reason = (f"{len(found)} violation{'s' if len(found) > 1 else ''}" if found
-                       else f"min {lo:.3f} s, max {hi:.3f} s{silences}")
+        stat.reason = (f"{len(found)} violation{'s' if len(found) > 1 else ''}{how}" if found
+                       else f"min {lo:.3f} s, max {hi:.3f} s{silences}{how}")
         return stat, found
+
+    def _how(self) -> str:
+        """How the intervals were measured, for the rate's note (issue 25 §3)."""
+        said = []
+        if self.by_stamp:
+            said.append("intervals by the unit's stamps" if self.by_stamp == self.all_n else
+                        f"{self.by_stamp} of {self.all_n} intervals by the unit's stamps")
+        if self.excluded:
+            said.append(f"{self.excluded} left out (a reboot, or a stall or outage of the "
+                        f"broker)")
+        return f"; {', '.join(said)}" if said else ""
 
 
     def live(self, ctx: CheckContext, unit: str) -> Violation | None:
@@ -238,7 +278,7 @@ class RateTracker:
         after 3 intervals, past the tolerance after ``min_intervals``); None while it holds
         or too few intervals were seen. Pure: a view for the live scorecard, never recorded."""
         declared = self.declared
-        if not declared or len(self.recent) < GROSS_MIN_INTERVALS:
+        if not declared or len(self.recent) < GROSS_SLOW_MIN_INTERVALS:
             return None
         profile = ctx.profile
         need = max(profile.min_intervals, GROSS_MIN_INTERVALS)
@@ -250,7 +290,7 @@ class RateTracker:
         k = len(window)
         mean = sum(dt for _, dt in window) / k
         period = 1.0 / declared
-        gross = mean > GROSS_FACTOR * period or mean < period / GROSS_FACTOR
+        gross = _gross(k, mean, min(dt for _, dt in window), period)
         if not gross and (k < profile.min_intervals
                           or abs(mean - period) <= profile.rate_tolerance * period):
             return None
@@ -263,6 +303,16 @@ class RateTracker:
                      f"{clock(since)}){', a gross mismatch' if gross else ''}",
             topic=self.topic, time=window[-1][0], unit=unit,
             detail="live: judged over the whole observation when the run ends")
+
+
+def _gross(n: int, mean: float, shortest: float, period: float) -> bool:
+    """A gross mismatch (HB-003's decision): the mean off by GROSS_FACTOR after
+    GROSS_MIN_INTERVALS intervals, or every one of at least GROSS_SLOW_MIN_INTERVALS intervals
+    GROSS_FACTOR declared periods or longer."""
+    if n >= GROSS_MIN_INTERVALS and (mean > GROSS_FACTOR * period
+                                     or mean < period / GROSS_FACTOR):
+        return True
+    return n >= GROSS_SLOW_MIN_INTERVALS and shortest >= GROSS_FACTOR * period
 
 
 def live_findings(ctx: CheckContext, unit: UnitState) -> list[Violation]:
@@ -317,7 +367,10 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
         tracker = None
     if tracker is None:
         tracker = trackers[kind] = RateTracker(kind, msg.topic, declared)
-    tracker.add(ctx, msg.time, m.get("agent-uuid") if type(m) is dict else None)
+    if type(m) is dict:
+        tracker.add(ctx, msg.time, m.get("agent-uuid"), stamp_of(m, msg.time))
+    else:
+        tracker.add(ctx, msg.time)
     return found
 
 

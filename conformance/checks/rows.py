@@ -10,6 +10,7 @@ from __future__ import annotations
 from typing import Any
 
 from conformance.checks.base import CheckContext, UnitState
+from conformance.checks.command_history import OVER_A_GAP
 from conformance.judge import judge_rule
 from conformance.profile import Profile
 from conformance.results import UnitReport, skip_reason
@@ -123,6 +124,7 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
     counts = {}
     times: dict[str, tuple[float, float]] = {}
     died = deaths(ctx, state, now) if address is not None else []
+    held = _broker_gaps(ctx, profile)
     for rid in rule_ids:
         rule = CATALOGUE.get(rid)
         if rule is None:
@@ -140,6 +142,14 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
                 count -= len(evidence) - len(kept)
                 evidence = kept
                 excused = excused or "the unit died (HB-012) before it could answer"
+        if held and evidence and rule.mode is not Mode.PASSIVE:
+            # What a scenario found missing while the broker lost or held the traffic, or
+            # in the longest wait before (issue 25 §3): the broker's fault, not the unit's.
+            kept = [v for v in evidence if not _during(v.time, held)]
+            if len(kept) < len(evidence):
+                count -= len(evidence) - len(kept)
+                evidence = kept
+                excused = excused or OVER_A_GAP
         if count:
             counts[rid] = count
             when = [t for t in (rec.first if rec else None, rec.last if rec else None,
@@ -174,6 +184,14 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
         examined={k: examined[k] for k in sorted(examined)}, violation_counts=counts,
         violation_times=times,
         facts=facts)
+
+
+def _broker_gaps(ctx: CheckContext, profile: Profile) -> list[tuple[float, float]]:
+    """The gaps of the observer (an outage, a stall; not the instant of a reboot the suite
+    requested), each from the longest wait of a scenario before it: an answer due then was
+    due while the broker lost or held it."""
+    slack = max(profile.response_timeout, profile.feedback_timeout, profile.reboot_timeout)
+    return [(start - slack, end) for start, end in ctx.gaps if end > start]
 
 
 def _during(t: float | None, windows: list[tuple[float, float]]) -> bool:

@@ -223,16 +223,22 @@ def position_moves_plausibly(ctx: CheckContext, unit: UnitState, msg: Message,
     point = geopoint(v.message)
     if point is None:
         return None
+    life = unit.agent_uuid
     if burst:  # arrival times of a flushed queue are not the unit's timing: start again here
-        private["sens005_anchor"] = (point, t)
+        private["sens005_anchor"] = (point, t, life)
         return None
     if anchor is None:
-        private["sens005_anchor"] = (point, t)
+        private["sens005_anchor"] = (point, t, life)
         unit.note("SENS-005", "only one position seen")
         return None
-    prev, t0 = anchor
+    prev, t0, life0 = anchor
     dt = t - t0
-    private["sens005_anchor"] = (point, t)
+    private["sens005_anchor"] = (point, t, life)
+    if life != life0 or (ctx.gaps and ctx.in_gap(t0, t)):
+        # Another life of the unit (issue 24 §2): a new agent-uuid, a reboot the suite asked
+        # for, or a gap of the broker between the two positions. A restarted agent may spawn
+        # elsewhere; positions are compared within one life only.
+        return None
     examined = unit.examined
     examined["SENS-005"] = examined.get("SENS-005", 0) + 1
     limit = 3 * unit.max_speed + 5.0

@@ -13,6 +13,7 @@ from collections.abc import Iterator
 
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.command_history import (
+    OVER_A_GAP,
     dead_since,
     dying_from,
     judged_on_a_copy,
@@ -87,6 +88,9 @@ def _expire(ctx: CheckContext, unit: UnitState, c: TstConversations, now: float,
     found: list[Violation] = []
     timeout = response_timeout(ctx)
     for cmd in c.overdue(now, timeout, reboot):
+        if ctx.gaps and ctx.in_gap(cmd.time, cmd.last_sent + timeout):
+            unit.note("TST-007", OVER_A_GAP)  # the first may never have reached it
+            continue
         unit.examine("TST-007")
         found.append(late("TST-007", cmd.topic, cmd, f"a second answer to the resent "
                           f"{cmd.describe()} within {timeout:.1f} s", "none",
@@ -99,6 +103,9 @@ def _expire(ctx: CheckContext, unit: UnitState, c: TstConversations, now: float,
         c.expects.remove(e)
         if e.node.final is None and not runs(e.node):
             continue  # its children did as signalled; its own silence is TST-009's
+        if ctx.gaps and ctx.in_gap(e.command.last_sent, e.deadline):
+            unit.note("TST-012", OVER_A_GAP)  # the feedback may be what the broker lost
+            continue
         unit.examine("TST-012")
         found.append(late("TST-012", e.command.topic, e.command, f"'{e.wanted}' for node "
                           f"{e.node.node_uuid} ('{e.node.name}') within "
@@ -114,6 +121,9 @@ def _expire(ctx: CheckContext, unit: UnitState, c: TstConversations, now: float,
         if due >= now:
             continue
         c.awaiting.pop(node.node_uuid, None)
+        if ctx.gaps and ctx.in_gap(node.status_time or due, due):
+            unit.note("TST-009", OVER_A_GAP)  # its final status may be what the broker lost
+            continue
         unit.examine("TST-009")
         if "TST-009" in node.judged:
             continue

@@ -13,7 +13,13 @@ from collections.abc import Iterator
 from typing import Any
 
 from conformance.checks.base import CheckContext, UnitState, check
-from conformance.checks.command_history import late, response_timeout, str_of, violation
+from conformance.checks.command_history import (
+    OVER_A_GAP,
+    late,
+    response_timeout,
+    str_of,
+    violation,
+)
 from conformance.checks.tst_conversation import (
     ANSWER_RULE,
     Expect,
@@ -214,6 +220,9 @@ def judge_unanswered(ctx: CheckContext, unit: UnitState, c: TstConversations, cm
     if not (c.answered_any or unit.claims(TST_EXECUTION)):
         unit.note(rule, "TST commands seen, but the unit declares no 'tst execution' and "
                         "answered none")
+        return
+    if ctx.gaps and ctx.in_gap(cmd.last_sent, cmd.last_sent + response_timeout(ctx)):
+        unit.note(rule, OVER_A_GAP)  # its answer may be what the broker lost (issue 25 §3)
         return
     unit.examine(rule)
     yield late(rule, cmd.topic, cmd, f"an answer to {cmd.describe()} within "

@@ -172,6 +172,10 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
         print(f"connection gap: {time.strftime('%H:%M:%S', time.localtime(gap.start))} for "
               f"{gap.duration:.1f} s ({printable(gap.reason or 'connection lost')}); rates over it not "
               f"judged", file=out)
+    for start, end in linter.monitor.ctx.stalls.found:  # issue 25 §3: the broker's, not the units'
+        print(f"broker stalled: {time.strftime('%H:%M:%S', time.localtime(start))} for "
+              f"{end - start:.1f} s (nothing arrived, then what it held at once); rates, "
+              f"silences and deadlines over it not judged", file=out)
     if report.unexamined:
         print(f"not examined: {report.unexamined} messages (rates in those windows not judged)",
               file=out)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from conformance.checks.stall import stamp_of
 from conformance.scenarios.context import Context, describe
 from conformance.scenarios.query import status_answer
 from conformance.scenarios.sender import new_uuid
@@ -15,6 +16,16 @@ from conformance.scenarios.traffic import Entry
 from conformance.violation import Verdict
 
 RULES = ("REBOOT-001", "REBOOT-002")
+
+
+def silence(previous: Entry, entry: Entry) -> float:
+    """Seconds between two heartbeats: by the unit's stamps where both have one (5.1), so that
+    heartbeats a stalled broker held and then delivered at once are not taken for the silence
+    of a reboot (issue 25 §3); else by their arrivals."""
+    stamps = [stamp_of(e.body, e.time) for e in (previous, entry)]
+    if stamps[0] is not None and stamps[1] is not None:
+        return stamps[1] - stamps[0]
+    return entry.time - previous.time
 
 
 def run(ctx: Context) -> None:
@@ -76,7 +87,7 @@ def _reboot(ctx: Context, names: Any) -> None:
         previous, last[0] = last[0], entry
         if previous is None:
             return False
-        soon = entry.time - previous.time <= 2.0 / rate
+        soon = silence(previous, entry) <= 2.0 / rate
         if previous.time >= requested and previous.get("agent-uuid") not in heard and soon:
             first[0] = previous  # the new life's first heartbeat: REBOOT-001 reads its uuid
             return True

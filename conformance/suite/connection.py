@@ -21,7 +21,7 @@ from conformance.message import Message
 from conformance.scenarios import Traffic
 from conformance.scenarios.params import task_moves
 from conformance.scenarios.safety import MotionGate
-from conformance.suite.events import Events
+from conformance.suite.events import Events, clock
 from conformance.suite.probe import NotAlive, Probe, not_alive
 from conformance.suite.settings import Settings
 from conformance.topics import UnitAddress
@@ -55,6 +55,20 @@ class Connection:
     _gap_start: float | None = field(default=None, init=False)
     _linked: bool = field(default=False, init=False)
     """Whether the broker ever accepted the connection (before that, nothing can be lost)."""
+    _unechoed: float | None = field(default=None, init=False)
+    """When the earliest command the suite published that has not come back was sent: the
+    broker delivers a subscriber's own messages back, so one that does not is not delivering
+    (a stall: issue 25 §3)."""
+    _echoed: threading.Event = field(default_factory=threading.Event, init=False)
+    _heard_again: threading.Event = field(default_factory=threading.Event, init=False)
+    """Clear from a reconnect until the unit's second heartbeat after it: it reconnects on its
+    own time, and a command sent before it has (or subscribed again: its first heartbeat may
+    be one it held, sent before its subscription) is lost."""
+    _back_at: float = field(default=0.0, init=False)
+    _beats_back: int = field(default=0, init=False)
+    _last_arrival: float | None = field(default=None, init=False)
+    _probed: float | None = field(default=None, init=False)
+    """The last heartbeat whose silence was probed with a ping (once per silence)."""
 
     def __post_init__(self) -> None:
         self.broker_url: BrokerURL = self.settings.broker
@@ -64,6 +78,7 @@ class Connection:
                                  allow_hostile=self.settings.allow_hostile,
                                  listed=self._tasks_listed, task_moves=task_moves)
         """What may not be said to a real unit (DESIGN 'Safety'), asked about every payload."""
+        self._heard_again.set()  # no reconnect yet
 
     @property
     def unit(self) -> UnitAddress:
@@ -124,15 +139,35 @@ class Connection:
 
     def _on_message(self, message: Message) -> None:
         """Every message of ``<unit>/#``, on the MQTT network thread: keep it quick."""
+        heartbeat = not message.retain and message.topic == self.unit.topic("heartbeat")
+        if message.topic == self.unit.topic("exec/command"):
+            self._unechoed = None
+            self._echoed.set()
         with self.monitor_lock:
+            self._last_arrival = message.time
+            if heartbeat and not self._heard_again.is_set():
+                # Until the unit is back on the broker, what it sent is unknown too.
+                self.monitor.connection_gap(self._back_at, message.time)
+                self._beats_back += 1
+                if self._beats_back >= 2:
+                    self._heard_again.set()
+            stalls = self.monitor.ctx.stalls.count
             found = self.monitor.feed(message)
+            if self.monitor.ctx.stalls.count != stalls:
+                self._say_stall(message.time)
         if found:
             for listener in list(self.listeners):
                 listener(found)
         self.traffic.add(message)
-        if not message.retain and message.topic.endswith("/heartbeat") \
-                and message.topic == self.unit.topic("heartbeat"):
+        if heartbeat:
             self._alive.set()
+
+    def _say_stall(self, now: float) -> None:
+        """A stall of the broker was found in the traffic (``checks/stall.py``)."""
+        start, _ = self.monitor.ctx.stalls.found[-1]
+        self.events.at(now, f"the broker stalled: nothing arrived for {now - start:.1f} s, "
+                            f"then what it held at once: rates, silences and deadlines over "
+                            f"it are not judged")
 
     def _on_connection(self, connected: bool, reason: str) -> None:
         now = time.time()
@@ -150,6 +185,8 @@ class Connection:
             elif self._gap_start is not None:
                 start, self._gap_start = self._gap_start, None
                 self.monitor.connection_gap(start, now)
+                self._back_at, self._beats_back = now, 0
+                self._heard_again.clear()
                 self.events.at(now, f"broker connection back after {now - start:.1f} s: "
                                     f"rates, silences and uuid changes over the gap are not "
                                     f"judged")
@@ -174,6 +211,12 @@ class Connection:
         assert self.client is not None
         # QoS 1 without waiting for the PUBACK: the unit's answer is what the scenario waits
         # for, and paho resends an unacknowledged command after a reconnect.
+        if self._unechoed is None and self._echoed.is_set() \
+                and topic == self.unit.topic("exec/command"):
+            # Only once an echo was seen: a broker whose ACL hides the command topic from
+            # the suite never echoes, and is no stall.
+            self._unechoed = time.time()
+            self._echoed.clear()
         self.client.publish(topic, payload, qos=1, timeout=0)
 
     def lost_since(self) -> float | None:
@@ -189,8 +232,53 @@ class Connection:
         return len(self.client.gaps) if self.client else 0
 
     def wait_connected(self, timeout: float) -> bool:
-        """Wait up to ``timeout`` seconds for the link (a command sent into a gap is lost)."""
-        return self.client.wait_connected(timeout) if self.client else False
+        """Wait up to ``timeout`` seconds for the link (a command sent into a gap is lost),
+        and after a reconnect for the unit's next heartbeat within that time (it reconnects
+        on its own; a command sent before it has is lost as well)."""
+        deadline = time.monotonic() + timeout
+        if not (self.client and self.client.wait_connected(timeout)):
+            return False
+        self._heard_again.wait(max(0.0, deadline - time.monotonic()))
+        return True
+
+    def await_delivery(self, slack: float, budget: float, *, silent_periods: float = 3.0
+                       ) -> float | None:
+        """A command the suite sent has not come back within ``slack`` seconds: the broker
+        stalls. Wait up to ``budget`` seconds for it to deliver again; the time since then is
+        a gap of the observation either way (what the unit sent is unknown). None when it
+        delivers, else when it stopped (it is then lost, as a link that never came back).
+        A unit silent for ``silent_periods`` declared periods (3: HB-012's window; dead, or
+        the broker frozen?) is sent one ping per silence, with nothing pending, to see
+        whether the broker still delivers."""
+        self._probe_silence(silent_periods)
+        since = self._unechoed
+        if since is None or self._echoed.wait(max(0.0, since + slack - time.time())):
+            return None
+        start = min(since, self._last_arrival or since)
+        back = self._echoed.wait(budget)
+        now = time.time()
+        with self.monitor_lock:
+            self.monitor.connection_gap(start, now)
+        self.events.at(now, f"the broker delivered nothing from {clock(start)} for "
+                            f"{now - start:.1f} s (the suite's own command did not come back): "
+                            f"{'it delivers again; ' if back else ''}what the unit sent "
+                            f"meanwhile is not judged")
+        return None if back else start
+
+    def _probe_silence(self, periods: float) -> None:
+        """One ping when the unit has been silent for ``periods`` declared periods: its echo
+        tells a dead unit from a broker that delivers nothing (issue 25 §3)."""
+        latest = self.traffic.latest("heartbeat")
+        rate = latest.get("rate") if latest is not None else None
+        if (latest is None or type(rate) not in (int, float) or rate <= 0
+                or latest.time == self._probed or self._unechoed is not None
+                or not self._echoed.is_set() or self.settings.dry_run
+                or time.time() - latest.time <= periods / rate):
+            return
+        from conformance.scenarios.sender import Sender
+
+        self._probed = latest.time
+        self.publish(self.unit.topic("exec/command"), Sender.compose({"command": "ping"})[0])
 
     def close(self) -> None:
         if self.client is not None:

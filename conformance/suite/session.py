@@ -220,7 +220,9 @@ class Certification:
         if self.broker_lost is None:
             lost = self.connection.lost_since()
             if lost is None or self.connection.wait_connected(self.broker_budget()):
-                return
+                lost = self.connection.await_delivery(self.timing.response, self.broker_budget())
+                if lost is None:  # it delivers (a stall that delivers again is a gap)
+                    return
             self.broker_lost = lost
             self.events.at(time.time(), f"the broker has not come back within "
                                         f"{self.broker_budget():g} s: the run stops here, "
@@ -476,6 +478,9 @@ class Certification:
             # Lost during the last test: the run is over, the broker gets the budget to return.
             if not self.connection.wait_connected(self.broker_budget()):
                 self.broker_lost = lost
+        elif lost is None and self.connection.client is not None and self.broker_lost is None:
+            self.broker_lost = self.connection.await_delivery(  # a silent unit is probed
+                self.timing.response, self.broker_budget(), silent_periods=1.0)
         started = bool(self.commander.open_tasks or self.tst.open_trees)
         try:
             if self.settings.dry_run:

@@ -67,7 +67,7 @@ def test_rate_fails_on_a_single_long_gap(stream):
 
 def test_a_rate_is_judged_live_over_its_latest_intervals_and_finally_over_the_whole(stream):
     """Issue 20: the live view turns red once min_intervals (10) clean intervals are off, a
-    gross mismatch after 3, and clears when the rate recovers; the rule is judged over the
+    gross mismatch after 2 or 3, and clears when the rate recovers; the rule is judged over the
     whole observation at the end (a rate that recovered may pass)."""
     m = Monitor()
     unit = stream.address
@@ -95,13 +95,14 @@ def test_a_conformant_rate_is_never_shown_off_live(stream, times):
         assert m.live_findings(stream.address) == [], t
 
 
-def test_a_gross_rate_mismatch_shows_live_after_three_intervals(stream):
+def test_a_gross_rate_mismatch_shows_live_after_two_intervals(stream):
+    """Issue 24 §2: every interval 3 declared periods or longer is gross after 2 intervals."""
     m = Monitor()
-    stream.feed(m, [stream.heartbeat(i * 5.0) for i in range(3)])
+    stream.feed(m, [stream.heartbeat(i * 5.0) for i in range(2)])
     assert m.live_findings(stream.address) == []
-    stream.feed(m, [stream.heartbeat(15.0)])
+    stream.feed(m, [stream.heartbeat(10.0)])
     (live,) = m.live_findings(stream.address)
-    assert "0.20 Hz over the latest 3 intervals" in live.observed and "gross" in live.observed
+    assert "0.20 Hz over the latest 2 intervals" in live.observed and "gross" in live.observed
     assert verdict(m, stream, "HB-003").verdict is Verdict.FAIL
 
 

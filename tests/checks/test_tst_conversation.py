@@ -303,3 +303,19 @@ def test_commands_on_an_operators_topic_are_judged_as_the_units_they_concern(str
     report = m.report()
     assert report.units[str(stream.address)].rules["TST-004"].verdict is not Verdict.FAIL
     assert report.units[str(op0)].rules["TST-004"].verdict is Verdict.FAIL
+
+
+def test_a_start_tst_whose_answer_falls_in_an_outage_is_not_failed(stream):
+    """Issue 25 §3: the observer's connection was down while the answer was due; what the
+    unit sent then is unknown (the same traffic without the gap fails TST-004, above)."""
+    x = Tst(stream)
+    lost = x.start(2.0, leaf("look-at-bearing", new()))
+    later = x.signal(5.0, "signal-tst-node", new(), "$pause")
+    m = Monitor(TIMEOUTS)
+    gap = (lost.time + 0.05, lost.time + 2.0)
+    m.connection_gap(*gap)
+    heard = [msg for msg in stream.alive(20.0) if not gap[0] <= msg.time <= gap[1]]
+    stream.feed(m, [*heard, lost, later, x.response(5.1, com_of(later), "failed", "unknown")])
+    m.finish()
+    r = m.report().units[str(stream.address)].rules["TST-004"]
+    assert r.verdict is not Verdict.FAIL and "broker" in r.reason, r

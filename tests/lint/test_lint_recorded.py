@@ -237,3 +237,23 @@ def test_a_commanders_rerun_line_lints_the_unit_it_commanded_and_finds_it_again(
     again = run_lint(shlex.split(rerun)[2:], reports_dir)
     assert "MSG-002" in failed_rules(again.report, "commander alice")
     assert set(again.report["units"]) == {dji1, "commander alice"}
+
+
+def test_a_recorded_stall_of_the_broker_is_not_the_units(tmp_path: Path, reports_dir: Path,
+                                                         prefix: str) -> None:
+    """Issue 25 §3: the broker froze 20 s, then delivered what it held within milliseconds.
+    lint finds the stall in the traffic, says so, and judges no rate or silence over it (the
+    burst fails HB-003 of every unit when taken for the units' own timing)."""
+    msgs = fleet_traffic(prefix, ["dji0", "dji1"], seconds=60)
+    burst = [m for m in msgs if T0 + 20.0 <= m.time < T0 + 40.0]
+    held = [Message(T0 + 40.0 + k * 0.001, m.topic, m.payload) for k, m in enumerate(burst)]
+    msgs = [m for m in msgs if not T0 + 20.0 <= m.time < T0 + 40.0] + held
+    run = run_lint(["--from", str(write_recording(tmp_path / "stall.jsonl", msgs))],
+                   reports_dir)
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    assert run.code == 0, run.out
+    assert "broker stalled:" in run.out and "rates, silences and deadlines over it not " \
+        "judged" in run.out
+    got = verdicts(run.report, unit)
+    assert {r: got[r] for r in ("HB-003", "SI-002", "DEI-002", "HB-010")} == dict.fromkeys(
+        ("HB-003", "SI-002", "DEI-002", "HB-010"), "pass")

@@ -1,0 +1,114 @@
+"""A broker's fault is the broker's (issue 25 §3): the broker killed mid-certification of the
+conformant reference unit and restarted 5 s later, or frozen 20 s (SIGSTOP, SIGCONT) and then
+delivering what it held in one burst. What the unit published meanwhile is unknown:
+the run certifies, or says could-not-test, and never fails a rule."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from certify_helpers import FAST, PrivateMosquitto, Rebooter, certify
+
+from conformance.sim import SimUnit
+
+pytestmark = pytest.mark.slow
+OUTAGE = 5.0  # seconds the killed broker stays down (the issue's)
+FREEZE = 20.0  # seconds the broker stays frozen (the issue's)
+
+
+class BrokerFault:
+    """Kills (or freezes) the private broker as the suite sends its first command named
+    ``when`` (``start-task``: the task's response, feedback and tasks-executing are then sent
+    while the broker is away; ``signal-task``: the final feedback a signal asks for), or
+    ``passive``, as the passive rules' tests begin (the unit then looks dead to the end);
+    brings it back after ``down`` seconds. The events are the stimulus: a certification of
+    this unit now takes about 20 s, and a fixed time into it (the issue's 18 s) may fall
+    after its end."""
+
+    def __init__(self, broker: PrivateMosquitto, *, freeze: bool, down: float,
+                 when: str) -> None:
+        self.broker, self.freeze, self.down, self.when = broker, freeze, down, when
+        self.done = threading.Event()
+        self.thread: threading.Thread | None = None
+
+    def _begin(self, traffic: object = None) -> None:
+        if self.thread is None:
+            self.thread = threading.Thread(target=self._fault, args=(traffic,), daemon=True)
+            self.thread.start()
+
+    def pytest_collection_finish(self, session: pytest.Session) -> None:
+        if self.when != "passive":
+            from conformance.suite.session import CERTIFICATION
+
+            self._begin(session.config.stash[CERTIFICATION].traffic)
+
+    def pytest_runtest_setup(self, item: pytest.Item) -> None:
+        if self.when == "passive" and "test_passive" in item.nodeid:
+            self._begin()
+
+    def _fault(self, traffic) -> None:  # type: ignore[no-untyped-def]
+        if traffic is not None and traffic.wait_for(
+                lambda e: e.get("command") == self.when, 120, after=0,
+                subtopic="exec/command") is None:
+            return
+        if self.freeze:
+            self.broker.freeze()
+        else:
+            self.broker.stop()
+        threading.Event().wait(self.down)
+        if self.freeze:
+            self.broker.thaw()
+        else:
+            self.broker.start()
+        self.done.set()
+
+    def join(self) -> None:
+        if self.thread is not None:
+            self.thread.join(self.down + 10)
+
+
+def certify_through(tmp_path: Path, pytester: pytest.Pytester, *, freeze: bool,
+                    down: float, seed: int, when: str):
+    broker = PrivateMosquitto(tmp_path).start()
+    unit = "waraps/unit/air/simulation/dji0"
+    fault = BrokerFault(broker, freeze=freeze, down=down, when=when)
+    try:
+        with SimUnit(unit, broker.url, rate=1.0, seed=seed) as sim:  # stamps 1 s apart
+            run = certify(pytester, "--unit", unit, "--broker", broker.url,
+                          f"--profile={FAST}", "--seed", str(seed),
+                          plugins=(Rebooter(sim), fault))
+    finally:
+        fault.join()
+        broker.stop()
+    assert fault.done.is_set(), f"the run ended before the broker came back\n{run.text}"
+    return run
+
+
+def assert_never_failed(run) -> None:
+    assert not run.failed, run.text[-4000:]
+    assert run.result.ret in (0, 6), run.text[-4000:]
+    verdicts = {r: v["verdict"] for r, v in run.unit_rules().items()}
+    assert "fail" not in verdicts.values(), {r: v for r, v in verdicts.items() if v == "fail"}
+
+
+@pytest.mark.parametrize("when", ["start-task", "signal-task"])
+def test_a_broker_killed_and_restarted_mid_run_fails_nothing(
+        pytester: pytest.Pytester, tmp_path: Path, when: str) -> None:
+    run = certify_through(tmp_path, pytester, freeze=False, down=OUTAGE, seed=2, when=when)
+    assert "broker connection lost" in run.text
+    assert_never_failed(run)
+
+
+@pytest.mark.parametrize("when", ["start-task", "passive"])
+def test_a_broker_frozen_mid_run_fails_nothing(
+        pytester: pytest.Pytester, tmp_path: Path, when: str) -> None:
+    started = time.monotonic()
+    run = certify_through(tmp_path, pytester, freeze=True, down=FREEZE, seed=3, when=when)
+    assert_never_failed(run)
+    if when != "passive":  # (as the passive tests begin, the run may end before it shows)
+        assert "the broker stalled" in run.text or "the broker delivered nothing" in \
+            run.text, run.text[-3000:]
+    assert time.monotonic() - started < 600
