@@ -1,18 +1,13 @@
 """What a run concludes: the one verdict model (DESIGN 'Semantics').
 
-Every output (the suite's terminal summary and JUnit properties, the JSON, HTML and JUnit
-reports, lint's text) shows ``conclude(report)``; none decides on its own. It reads the
-``RunReport`` and the run's facts, which the run writes into ``report.meta``:
+The judge (``conformance.judge.judge``) calls ``conclude`` once, on the judged report and the
+run's typed facts (``report.facts``: ``conformance.facts.RunFacts``), and stores the result in
+``report.conclusion``; every output (the suite's terminal summary and JUnit properties, the
+JSON, HTML and JUnit reports, lint's text) and the exit status read that one (``of``).
 
-- ``error``: the broker or the unit could not be reached, no rule ran;
-- ``broker_lost``: Unix time the broker was lost for good (it did not come back in time);
-- ``interrupted`` (``true``) and ``cut_short``: Ctrl-C or ``--max-duration``, and why;
-- ``selection``: the rules were selected (``-k 'HB-003'``, ``--rule=HB-003``);
-- ``not_run``: the rules whose tests never ran.
-
-A level is **certified** only when the run is a complete certification (none of the facts
-above) and every rule of that level (the catalogue's ``level``) was judged on evidence: none
-failed, none could not be tested; a rule that holds for every level (no ``level``: topics,
+A level is **certified** only when the run is a complete certification (``RunFacts.complete``)
+and every rule of that level (the catalogue's ``level``) was judged on evidence: none failed,
+none could not be tested; a rule that holds for every level (no ``level``: topics,
 heartbeat, death, reboot) failing or not tested denies every level (REBOOT-* without
 --reboot-cmd: no level is certified). Skips (not claimed, not applicable) do not count
 against a level. A run that selected rules or was cut short is **partial**: its verdict is never
@@ -23,9 +18,9 @@ never commanded"), never "certified".
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
 from typing import Any
 
+from conformance.facts import RunFacts, iso
 from conformance.results import RunReport, UnitReport
 from conformance.rules import CATALOGUE, Mode
 from conformance.violation import RuleResult, Verdict
@@ -92,6 +87,11 @@ class Conclusion:
     counts: dict[str, int] = field(default_factory=dict)
     """(unit, rule) results per verdict, the rules that never ran apart as ``not run``: the
     counts every output shows."""
+    strict: bool = False
+    """Decided rules failed instead of warning (``--strict-rules``, ``strict: true``)."""
+    judged_after_test: tuple[str, ...] = ()
+    """Rules that failed on the whole run although their test passed when it ran (traffic
+    after it is evidence too)."""
 
     def certified_levels(self, unit: str) -> list[str]:
         found = self.units.get(unit)
@@ -104,21 +104,32 @@ class Conclusion:
     def to_dict(self) -> dict[str, Any]:
         return {"verdict": self.verdict, "partial": self.partial, "why": list(self.why),
                 "exit_code": self.exit_code, "counts": dict(self.counts),
+                "strict": self.strict, "judged_after_test": list(self.judged_after_test),
                 "units": {name: u.to_dict() for name, u in self.units.items()}}
 
 
-def conclude(report: RunReport, gate: str = "all") -> Conclusion:
-    """The conclusion of ``report`` (module docstring). ``gate`` (lint): ``all`` rows or only
-    ``units`` decide the exit status."""
+def of(report: RunReport) -> Conclusion:
+    """The conclusion the judge stored in ``report`` (or, for a report made without the judge,
+    such as one read back from an older file, the same computation)."""
+    found = report.conclusion
+    return found if isinstance(found, Conclusion) else conclude(report)
+
+
+def facts_of(report: RunReport) -> RunFacts:
+    """The run's facts (the defaults of its kind when it was never judged)."""
+    return report.facts if report.facts is not None else RunFacts(kind=report.kind)
+
+
+def conclude(report: RunReport) -> Conclusion:
+    """The conclusion of ``report`` under its facts (module docstring)."""
+    facts = facts_of(report)
     if report.kind == "lint":
-        return _conclude_lint(report, gate)
-    meta = report.meta
-    why = run_facts(report)
-    lost = _time(meta.get("broker_lost"))
+        return _conclude_lint(report, facts)
+    why = facts.reasons()
     worst = report.worst()
-    if meta.get("error") or lost is not None:
+    if facts.error or facts.broker_lost is not None:
         verdict, code = NOT_CERTIFIED, EXIT_NOT_CERTIFIED
-    elif _interrupted(meta):
+    elif facts.interrupted:
         verdict, code = INTERRUPTED, EXIT_INTERRUPTED
     elif worst is Verdict.FAIL:
         verdict, code = Verdict.FAIL.value, EXIT_FAILED
@@ -126,41 +137,32 @@ def conclude(report: RunReport, gate: str = "all") -> Conclusion:
         verdict, code = PARTIAL, EXIT_CERTIFIED  # no selected rule failed; not a certificate
     else:
         verdict, code = worst.value, EXIT_CERTIFIED
-    not_run = set(meta.get("not_run", "").split())
+    not_run = set(report.not_run)
     units = {name: _certification_unit(name, u, why, not_run)
              for name, u in report.units.items()}
-    return Conclusion(report.kind, verdict, bool(why), tuple(why), code, units, counts(report))
+    return Conclusion(report.kind, verdict, bool(why), tuple(why), code, units, counts(report),
+                      facts.strict, _judged_after_test(report, facts))
+
+
+def _judged_after_test(report: RunReport, facts: RunFacts) -> tuple[str, ...]:
+    """Rules shown passing when their test ran that the whole run fails (12.1: a later
+    scenario's command left unanswered is evidence too)."""
+    unit = report.units.get(facts.unit)
+    if unit is None:
+        return ()
+    return tuple(sorted(r for r in facts.enacted_pass
+                        if r in unit.rules and unit.rules[r].verdict is Verdict.FAIL))
 
 
 def counts(report: RunReport) -> dict[str, int]:
     """Verdict counts, with the rules that never ran counted as ``not run`` (they are
     recorded could-not-test, reason 'not run: ...')."""
     found = dict(report.verdict_counts())
-    not_run = len(report.meta.get("not_run", "").split())
+    not_run = len(report.not_run)
     if not_run:
         found[Verdict.COULD_NOT_TEST.value] -= not_run
         found[NOT_RUN] = not_run
     return found
-
-
-def run_facts(report: RunReport) -> list[str]:
-    """Why a certification is partial or not certified, from its facts, in words."""
-    meta = report.meta
-    why = []
-    if meta.get("error"):
-        why.append(meta["error"].splitlines()[0])
-    lost = _time(meta.get("broker_lost"))
-    if lost is not None:
-        why.append(f"the broker was lost at {_clock(lost)} and did not come back")
-    if _interrupted(meta):
-        why.append(meta.get("cut_short") or "the run was interrupted")
-    if meta.get("selection"):
-        why.append(f"only the selected rules ran ({meta['selection']})")
-    return why
-
-
-def _interrupted(meta: dict[str, str]) -> bool:
-    return meta.get("interrupted") == "true" or bool(meta.get("cut_short"))
 
 
 def died_at(unit: UnitReport) -> float | None:
@@ -228,14 +230,18 @@ def _level_of(rule: str) -> str | None:
 
 
 # --- lint: what was observed -----------------------------------------------------------------
-def _conclude_lint(report: RunReport, gate: str) -> Conclusion:
-    rows = [u for u in report.units.values() if gate == "all" or u.party == "unit"]
+def _conclude_lint(report: RunReport, facts: RunFacts) -> Conclusion:
+    """Lint's verdict: ``fail`` when a row the gate looks at fails a rule (or units past the
+    bound were not judged: never a pass), ``warn``, else ``clean``; exit 1 on ``fail``."""
+    rows = [u for u in report.units.values() if facts.gate == "all" or u.party == "unit"]
     worst = Verdict.worst([u.worst() for u in rows])
-    verdict = (Verdict.FAIL.value if worst is Verdict.FAIL else
+    failed = worst is Verdict.FAIL or bool(facts.not_judged)
+    verdict = (Verdict.FAIL.value if failed else
                Verdict.WARN.value if worst is Verdict.WARN else CLEAN)
+    why = (facts.not_judged,) if facts.not_judged else ()
     units = {name: _lint_unit(name, u) for name, u in report.units.items()}
-    return Conclusion(report.kind, verdict, False, (), 1 if worst is Verdict.FAIL else 0,
-                      units, counts(report))
+    return Conclusion(report.kind, verdict, False, why, 1 if failed else 0,
+                      units, counts(report), facts.strict)
 
 
 def commands_seen(unit: UnitReport) -> int:
@@ -309,16 +315,4 @@ def duration(seconds: float) -> str:
     return f"{s // 3600} h" + (f" {s % 3600 // 60} min" if s % 3600 // 60 else "")
 
 
-def _time(text: str | None) -> float | None:
-    try:
-        return float(text) if text else None
-    except ValueError:
-        return None
-
-
-def _clock(t: float) -> str:
-    """ISO 8601 UTC to the millisecond, as every report writes times."""
-    try:
-        return datetime.fromtimestamp(t, UTC).isoformat(timespec="milliseconds")
-    except (OverflowError, OSError, ValueError):
-        return repr(t)
+_clock = iso

@@ -10,7 +10,7 @@ from typing import Any
 import orjson
 
 from conformance import profile as profile_module
-from conformance.rules import CATALOGUE, Severity
+from conformance.rules import CATALOGUE
 from conformance.validator import Validation, Validator
 from conformance.violation import Verdict
 
@@ -79,7 +79,12 @@ def validate_tst(validator: Validator, payload: bytes) -> Validation:
 
 
 def verdict_of(rule_id: str, profile: profile_module.Profile) -> Verdict:
-    return Verdict.FAIL if profile.severity_of(rule_id) is Severity.ERROR else Verdict.WARN
+    """The verdict a violation of ``rule_id`` earns under ``profile`` (the judge's)."""
+    from conformance.judge import violation_verdict
+    from conformance.rules import get
+
+    return violation_verdict(get(rule_id), profile.severity_of(rule_id),
+                             strict=profile.is_strict)
 
 
 def overall_verdict(validation: Validation, profile: profile_module.Profile) -> Verdict:

@@ -67,6 +67,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                                         "'real' unit")
     group.addoption("--dry-run", dest="waraps_dry_run", action="store_true", default=False,
                     help="publish nothing; print what would be published")
+    group.addoption("--strict-rules", dest="waraps_strict_rules", action="store_true",
+                    default=False, help="adopt the suite's decisions as conventions: a rule "
+                                        "whose basis is 'decided' (the spec is silent) fails "
+                                        "instead of warning (as 'strict: true' in the profile)")
     group.addoption("--reports-dir", dest="waraps_reports_dir", default=None, metavar="DIR",
                     help="where the JSON and HTML certification reports go (default reports/)")
     group.addoption("--seed", dest="waraps_seed", default=None, metavar="N",
@@ -124,6 +128,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         parser.addini(name, help_, default="")
     for name, help_ in (("waraps_allow_motion", "default for --allow-motion"),
                         ("waraps_dry_run", "default for --dry-run"),
+                        ("waraps_strict_rules", "default for --strict-rules"),
                         ("waraps_tls_insecure", "default for --tls-insecure")):
         parser.addini(name, help_, type="bool", default=False)
 
@@ -259,7 +264,7 @@ class _CertificationPlugin:
         if c.out_of_time and self.session is not None:
             self.session.shouldstop = c.out_of_time
         if c.broker_lost is not None and self.session is not None:
-            self.session.shouldstop = c.not_run_reason()
+            self.session.shouldstop = c.facts().not_run_reason()
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_sessionfinish(self, session: pytest.Session, exitstatus: int) -> None:
@@ -297,14 +302,14 @@ class _CertificationPlugin:
             tr.line(f"  {level}")
         for line in skipped_by_reason(report.units.get(str(c.unit))):
             tr.line(line)
-        later = report.meta.get("judged_after_test")
+        later = conclusion.judged_after_test
         if later:  # their tests passed before the traffic that fails them came
             tr.line(f"failed after their tests ran (later traffic is evidence too; the "
-                    f"reports hold it): {later}", red=True)
+                    f"reports hold it): {', '.join(later)}", red=True)
             from conformance.reporting import render_violation
 
             rules = report.units[str(c.unit)].rules
-            for rule in later.split(", "):
+            for rule in later:
                 # The evidence came from a later scenario: the whole run reproduces it.
                 for v in rules[rule].violations[:1]:
                     tr.line(render_violation(rule, v, str(c.unit), rerun_hint=c.rerun_command()))

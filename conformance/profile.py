@@ -68,6 +68,9 @@ class Profile:
     lower rate than the heartbeat."""
     task_specific_statuses: tuple[str, ...] = ()
     """Feedback statuses this unit's tasks use beyond 12.4's standard ones (EXEC-FB-002)."""
+    strict: bool = False
+    """The run adopts this suite's decisions as conventions: a decided rule (the spec is silent
+    or contradicts itself) fails instead of warning (``--strict`` sets it too)."""
     source: str = "<built-in>"
 
     def severity_of(self, rule_id: str) -> Severity:
@@ -79,7 +82,7 @@ class Profile:
 
     @property
     def is_strict(self) -> bool:
-        return self.severity_of("ERR-001") is Severity.ERROR
+        return self.strict
 
 
 _FIELDS = {f.name: f for f in fields(Profile)}
@@ -190,6 +193,8 @@ def describe(prop: dict[str, Any]) -> str:
         if "enum" in items:
             return "a list of " + ", ".join(map(repr, items["enum"]))
         return "a list of strings"
+    if kind == "boolean":
+        return "true or false"
     if kind == "object":
         return "a mapping of rule ids (or globs like ERR-*) to error|warning"
     return "a string"
@@ -205,6 +210,10 @@ def _coerce(attr: str, value: Any, source: str) -> Any:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0:
             raise ProfileError(f"{where} must be a non-negative number, got {value!r}")
         return float(value)
+    if attr == "strict":
+        if not isinstance(value, bool):
+            raise ProfileError(f"{where} must be true or false, got {value!r}")
+        return value
     if attr == "min_intervals":
         if isinstance(value, bool) or not isinstance(value, int) or value < 2:
             raise ProfileError(f"{where} must be a whole number >= 2, got {value!r}")

@@ -1,14 +1,8 @@
-"""Results: the verdict of every rule for every unit, rate statistics, and the run report.
+"""Results: the report of a run (a row per unit or commander: a verdict for every rule, rate
+statistics, facts for people) and its serialisation.
 
-The one place verdicts are aggregated (DESIGN 'Semantics'). For one rule and one unit:
-
-- any violation, and the rule's severity under the profile is ``error`` -> fail;
-- violations, all under ``warning`` severity -> warn;
-- examined at least once without a violation -> pass;
-- set explicitly to skip or could-not-test (an active scenario) -> that, with its reason;
-- never examined -> skip, with the reason (not claimed, needs a stimulus, too few intervals...).
-
-A rule passes only when it was actually examined: a skip never becomes a pass.
+The verdicts in it are made by the one judge (``conformance.judge``) and read by every writer;
+a rule passes only when it was actually examined: a skip never becomes a pass.
 """
 
 from __future__ import annotations
@@ -19,36 +13,11 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
-from conformance.rules import CATALOGUE, Mode, Rule, Severity, Side
+from conformance.facts import RunFacts
+from conformance.rules import CATALOGUE, Mode, Rule, Side
 from conformance.violation import RuleResult, Verdict, Violation
 
 KINDS = ("certification", "lint")
-
-
-def judge_rule(rule: Rule, *, severity: Severity, violations: list[Violation], count: int = -1,
-               examined: int = 0, explicit: Verdict | None = None, explicit_reason: str = "",
-               default_reason: str = "") -> RuleResult:
-    """The verdict of one rule for one unit from what was recorded (module docstring).
-
-    ``count`` is the number of violations seen (``violations`` holds the first few as evidence;
-    -1 means ``len(violations)``); ``examined`` how many times the rule was examined.
-    """
-    count = len(violations) if count < 0 else count
-    if count:
-        verdict = Verdict.FAIL if severity is Severity.ERROR else Verdict.WARN
-        if explicit is not None and explicit.rank > verdict.rank:
-            verdict = explicit
-        noun = "violation" if count == 1 else "violations"
-        reason = f"{count} {noun}" + (f" ({explicit_reason})" if explicit_reason else "")
-        return RuleResult(rule.id, verdict, reason, list(violations))
-    if explicit in (Verdict.FAIL, Verdict.WARN):
-        return RuleResult(rule.id, explicit, explicit_reason, [])
-    if examined:
-        noun = "time" if examined == 1 else "times"
-        return RuleResult(rule.id, Verdict.PASS, f"examined {examined} {noun}", [])
-    if explicit in (Verdict.SKIP, Verdict.COULD_NOT_TEST):
-        return RuleResult(rule.id, explicit, explicit_reason or default_reason, [])
-    return RuleResult(rule.id, Verdict.SKIP, default_reason or "not examined", [])
 
 
 COMMANDER_REASON = ("commander-side rule: in a certification the suite itself is the commander "
@@ -188,8 +157,14 @@ class UnitReport:
 
 
 def _rule_result_to_dict(r: RuleResult) -> dict[str, Any]:
-    return {"rule": r.rule, "verdict": r.verdict.value, "reason": r.reason,
-            "violations": [v.to_dict() for v in r.violations]}
+    out = {"rule": r.rule, "verdict": r.verdict.value, "reason": r.reason,
+           "violations": [v.to_dict() for v in r.violations]}
+    rule = CATALOGUE.get(r.rule)
+    if rule is not None and r.verdict in (Verdict.FAIL, Verdict.WARN):
+        # A finding carries what its rule stands on (STYLE 'Judging once').
+        out["basis"] = {"basis": rule.basis.value, "quote": rule.quote,
+                        "because": rule.because, "decision": rule.decision}
+    return out
 
 
 def _rule_result_from_dict(d: dict[str, Any]) -> RuleResult:
@@ -216,6 +191,13 @@ class RunReport:
     gaps: list[tuple[float, float]] = field(default_factory=list)
     unexamined: int = 0
     meta: dict[str, str] = field(default_factory=dict)
+    """What the run was, for people (source, seed, options): no verdict reads it."""
+    facts: RunFacts | None = None
+    """The run's facts the judge read (``conformance.judge.judge``); None before judging."""
+    not_run: list[str] = field(default_factory=list)
+    """The rules the judge listed as not run (a selection, a run that did not complete)."""
+    conclusion: Any = None
+    """The judge's ``conclusion.Conclusion``: every writer and the exit status read it."""
 
     def __post_init__(self) -> None:
         self.broker = redact_broker(self.broker)
@@ -229,12 +211,6 @@ class RunReport:
 
     def worst(self) -> Verdict:
         return Verdict.worst([u.worst() for u in self.units.values()])
-
-    def exit_code(self, gate: str = "all") -> int:
-        """0 when no rule failed, 1 otherwise (warn, skip and could-not-test exit 0).
-        ``gate="units"`` looks only at units' rows, not at commanders'."""
-        rows = [u for u in self.units.values() if gate == "all" or u.party == "unit"]
-        return 1 if Verdict.worst([u.worst() for u in rows]) is Verdict.FAIL else 0
 
     def failures(self) -> list[tuple[str, RuleResult]]:
         """(unit, result) for every failed or warned rule, failures first."""
@@ -252,6 +228,8 @@ class RunReport:
             "units": {name: u.to_dict() for name, u in self.units.items()},
             "gaps": [list(g) for g in self.gaps], "unexamined": self.unexamined,
             "meta": dict(self.meta),
+            "facts": self.facts.to_dict() if self.facts is not None else None,
+            "not_run": list(self.not_run),
         }
 
     @classmethod
@@ -263,6 +241,8 @@ class RunReport:
             units={n: UnitReport.from_dict(u) for n, u in d.get("units", {}).items()},
             gaps=[(float(a), float(b)) for a, b in d.get("gaps", [])],
             unexamined=int(d.get("unexamined", 0)), meta=dict(d.get("meta", {})),
+            facts=RunFacts.from_dict(d["facts"]) if d.get("facts") else None,
+            not_run=[str(r) for r in d.get("not_run", ())],
         )
 
 

@@ -42,6 +42,18 @@ class Mode(str, enum.Enum):
     ACTIVE = "active"
 
 
+class Basis(str, enum.Enum):
+    """What a rule stands on (DESIGN 'What a rule stands on'): only ``stated`` and ``implied``
+    rules fail a unit; a ``decided`` rule warns as an interop risk unless the run is strict."""
+
+    STATED = "stated"
+    """Words of the spec (``quote``, verbatim) from which the rule follows with nothing added."""
+    IMPLIED = "implied"
+    """A quote and the one sentence (``because``) why the rule follows from it necessarily."""
+    DECIDED = "decided"
+    """The spec is silent or contradicts itself: ``decision`` says what this project chose."""
+
+
 class Side(str, enum.Enum):
     """Whose fault a violation is (DESIGN 'Conversations, and whose fault it is')."""
 
@@ -62,9 +74,17 @@ class Rule:
     level: Level
     mode: Mode
     decision: str = ""
-    """For errata and unclear points: what this suite decided, and why."""
+    """A decided rule's decision: what this suite chose where the spec is silent or
+    contradicts itself, and why."""
     side: Side = Side.UNIT
     """Whose fault a violation is; every rule on a command topic is the commander's."""
+    basis: Basis = Basis.STATED
+    quote: str = ""
+    """The spec's words the rule stands on, verbatim (stated and implied rules)."""
+    because: str = ""
+    """An implied rule: why it follows from ``quote`` necessarily."""
+    note: str = ""
+    """A clarification of a stated or implied rule that adds no condition."""
 
     @property
     def spec_level(self) -> str | None:
@@ -76,6 +96,18 @@ class Rule:
     def is_erratum(self) -> bool:
         return self.id.startswith("ERR-")
 
+    @property
+    def is_decided(self) -> bool:
+        return self.basis is Basis.DECIDED
+
+    def basis_text(self) -> str:
+        """What the rule stands on, for people: the quote (and why it follows), or the
+        decision (an interop risk: the spec does not say)."""
+        if self.basis is Basis.DECIDED:
+            return f"decided: {self.decision}" if self.decision else "decided"
+        text = f'{self.basis.value}: "{self.quote}"' if self.quote else self.basis.value
+        return text + (f" ({self.because})" if self.because else "")
+
 
 def _load(text: str) -> tuple[Rule, ...]:
     """The rules of a catalogue file (``rules.toml``), in its order."""
@@ -83,7 +115,9 @@ def _load(text: str) -> tuple[Rule, ...]:
     for entry in tomllib.loads(text)["rule"]:
         out.append(Rule(entry["id"], entry["title"], entry["section"],
                         Severity(entry["severity"]), Level(entry["level"]), Mode(entry["mode"]),
-                        entry.get("decision", ""), Side(entry.get("side", "unit"))))
+                        entry.get("decision", ""), Side(entry.get("side", "unit")),
+                        Basis(entry.get("basis", "stated")), entry.get("quote", ""),
+                        entry.get("because", ""), entry.get("note", "")))
     return tuple(out)
 
 
@@ -105,6 +139,11 @@ def get(rule_id: str) -> Rule:
         close = difflib.get_close_matches(rule_id, CATALOGUE, n=3)
         hint = f" (did you mean {', '.join(close)}?)" if close else ""
         raise KeyError(f"unknown rule id {rule_id!r}{hint}") from None
+
+
+def basis_counts() -> dict[str, int]:
+    """How many rules stand on each basis (``stated``, ``implied``, ``decided``)."""
+    return {b.value: sum(r.basis is b for r in _CATALOGUE) for b in Basis}
 
 
 def rules(*, level: Level | None = None, mode: Mode | None = None) -> list[Rule]:

@@ -437,16 +437,24 @@ class Monitor:
         return entry.state
 
     def record(self, unit: UnitAddress | None, rule: str, *, violation: Violation | None = None,
-               verdict: Verdict | None = None, reason: str = "") -> None:
+               verdict: Verdict | None = None, reason: str = "", excused: str = "") -> None:
         """Record an active scenario's outcome for ``rule``: a violation; or an explicit
         skip / could-not-test / fail / warn with its reason; or ``verdict=PASS``: examined.
-        ``unit`` None: a finding that names no unit (a ROS bag's, reported unattributed)."""
+        ``excused``: a violation that is no evidence, and why (the unit had died, the link was
+        down): the judge says could-not-test. ``unit`` None: a finding that names no unit (a
+        ROS bag's, reported unattributed)."""
         if rule not in CATALOGUE:
             from conformance.rules import get
 
             get(rule)  # raises naming close ids
         entry = self._entries.get(unit) or self._new_entry(unit, force=True)
         assert entry is not None
+        if violation is not None and excused:
+            rec = entry.records.get(rule)
+            if rec is None:
+                rec = entry.records[rule] = RuleRecord()
+            rec.excused = rec.excused or excused
+            return
         if violation is not None:
             if violation.rule != rule:
                 violation = dataclasses.replace(violation, rule=rule)

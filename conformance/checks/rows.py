@@ -10,8 +10,9 @@ from __future__ import annotations
 from typing import Any
 
 from conformance.checks.base import CheckContext, UnitState
+from conformance.judge import judge_rule
 from conformance.profile import Profile
-from conformance.results import UnitReport, judge_rule, skip_reason
+from conformance.results import UnitReport, skip_reason
 from conformance.rules import CATALOGUE, Mode, Side
 from conformance.topics import UnitAddress
 from conformance.validator import Examined
@@ -26,13 +27,16 @@ UNATTRIBUTED = "(unattributed)"
 class RuleRecord:
     """What was recorded for one rule of one unit: a count and the first few violations."""
 
-    __slots__ = ("count", "evidence", "explicit", "reason", "first", "last")
+    __slots__ = ("count", "evidence", "explicit", "reason", "first", "last", "excused")
 
     def __init__(self) -> None:
         self.count = 0
         self.evidence: list[Violation] = []
         self.explicit: Verdict | None = None
         self.reason = ""
+        self.excused = ""
+        """Why what a scenario found missing is not evidence (the unit had died, the link
+        was down when it should have answered): the judge makes that could-not-test."""
         self.first: float | None = None
         self.last: float | None = None
         """Times of the first and the latest violation (of all, not only those kept)."""
@@ -127,6 +131,7 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
         evidence = (rec.evidence if rec else []) + extra.get(rid, [])
         count = (rec.count if rec else 0) + len(extra.get(rid, ()))
         explicit, reason = (rec.explicit, rec.reason) if rec else (None, "")
+        excused = rec.excused if rec else ""
         if died and evidence and rule.mode is not Mode.PASSIVE:
             # A dead unit answers nothing: what a scenario found missing while it was
             # dead is its death's evidence (HB-012), not a fault of its own.
@@ -134,9 +139,7 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
             if len(kept) < len(evidence):
                 count -= len(evidence) - len(kept)
                 evidence = kept
-                if not count and explicit is None:
-                    explicit, reason = Verdict.COULD_NOT_TEST, (
-                        "the unit died (HB-012) before it could answer")
+                excused = excused or "the unit died (HB-012) before it could answer"
         if count:
             counts[rid] = count
             when = [t for t in (rec.first if rec else None, rec.last if rec else None,
@@ -144,9 +147,9 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
             if when:
                 times[rid] = (min(when), max(when))
         rules[rid] = judge_rule(
-            rule, severity=profile.severity_of(rid), violations=evidence[:MAX_EVIDENCE],
-            count=count, examined=examined.get(rid, 0),
-            explicit=explicit, explicit_reason=reason,
+            rule, severity=profile.severity_of(rid), strict=profile.is_strict,
+            violations=evidence[:MAX_EVIDENCE], count=count, examined=examined.get(rid, 0),
+            explicit=explicit, explicit_reason=reason, excused=excused,
             default_reason=skip_reason(rule, kind=kind, unit=unit,
                                        levels=state.levels, note=notes.get(rid, ""),
                                        party=entry.party))

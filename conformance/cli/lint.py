@@ -61,6 +61,10 @@ def build_parser() -> argparse.ArgumentParser:
                      help="what the exit status judges: all (units and commanders, the "
                           "default) or units (a fleet gate that commanders' faults do not "
                           "fail)")
+    out.add_argument("--strict", action="store_true",
+                     help="adopt the suite's decisions as conventions: a rule whose basis is "
+                          "'decided' (the spec is silent) fails instead of warning (as "
+                          "'strict: true' in the profile)")
     return p
 
 
@@ -93,6 +97,10 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
         options = opts.capture_options(args, need_broker=not args.source)
         formats = parse_formats(args.format)
         profile = load(args.profile)
+        if args.strict:
+            import dataclasses
+
+            profile = dataclasses.replace(profile, strict=True)
     except (CaptureOptionsError, ProfileError, ValueError) as e:
         return usage(str(e))
     ros_unit = None

@@ -1,5 +1,5 @@
-"""``waraps-conformance rules``: print the rule catalogue (id, severity, mode, side, section,
-title)."""
+"""``waraps-conformance rules``: print the rule catalogue (id, severity, mode, side, basis,
+section, title; with ``--basis`` what each stands on: its quote or its decision)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ import json
 
 from conformance import profile as profiles
 from conformance.cli import options as opts
-from conformance.rules import CATALOGUE
+from conformance.display import printable
+from conformance.rules import CATALOGUE, basis_counts
 
 
 def main(argv: list[str]) -> int:
@@ -16,6 +17,8 @@ def main(argv: list[str]) -> int:
     opts.add_profile_option(parser)  # the severities as this profile sets them (e.g. strict)
     parser.add_argument("--errata", action="store_true", help="only the spec's errata, with "
                         "the decision taken on each")
+    parser.add_argument("--basis", action="store_true", help="what each rule stands on: the "
+                        "spec's words (stated, implied: and why) or this suite's decision")
     args = parser.parse_args(argv)
     try:
         profile = profiles.load(args.profile)
@@ -26,13 +29,20 @@ def main(argv: list[str]) -> int:
         print(json.dumps([{"id": r.id, "title": r.title, "section": r.section,
                            "severity": profile.severity_of(r.id).value, "level": r.level.value,
                            "mode": r.mode.value, "side": r.side.value,
-                           "decision": r.decision} for r in rules],
+                           "basis": r.basis.value, "quote": r.quote, "because": r.because,
+                           "decision": r.decision, "note": r.note} for r in rules],
                          indent=2))
         return 0
     w = max(len(r.id) for r in rules)
     for r in rules:
         print(f"{r.id:<{w}}  {profile.severity_of(r.id).value:<7}  {r.mode.value:<12}  "
-              f"{r.side.value:<9}  {r.section:<32.32}  {r.title}")
-        if args.errata and r.decision:
+              f"{r.side.value:<9}  {r.basis.value:<7}  {r.section:<32.32}  {r.title}")
+        if args.basis:
+            print(printable(f"{'':<{w}}  {r.basis_text()}") + "\n")
+        elif args.errata and r.decision:
             print(f"{'':<{w}}  decision: {r.decision}\n")
+    counts = basis_counts()
+    print(f"\n{len(CATALOGUE)} rules: {counts['stated']} stated, {counts['implied']} implied, "
+          f"{counts['decided']} decided (decided rules warn as interop risks unless the run is "
+          f"strict: pytest --strict-rules, lint --strict, or strict: true in the profile)")
     return 0

@@ -113,15 +113,16 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
     over, over_units = monitor.not_judged()
     if over:
         meta["not_judged"] = _not_judged(over, over_units)
-    report = _report(monitor, linter, kind_meta=meta, broker=broker,
-                     started=started if not source else (linter.first_time or started),
-                     finished=end)
-    if untimed(linter):
-        not_judged_untimed(report)
-    from conformance.conclusion import conclude
+    from conformance.facts import RunFacts
+    from conformance.judge import judge
     from conformance.reporting.text import render_verdicts
 
-    conclusion = conclude(report, gate)
+    report = judge(_report(monitor, linter, kind_meta=meta, broker=broker,
+                           started=started if not source else (linter.first_time or started),
+                           finished=end),
+                   RunFacts(kind="lint", gate=gate, strict=profile.is_strict,
+                            untimed=untimed(linter), not_judged=meta.get("not_judged", "")))
+    conclusion = report.conclusion
     # Each unit's verdict and its most severe findings first (issue 18, 6), then the table.
     scorecard.final(linter, report, opening=render_verdicts(report))
     for problem in problems:
@@ -155,7 +156,7 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
     if over:  # past the bound: never a pass (issue 19)
         print(f"FAIL: {printable(meta['not_judged'])}", file=out)
     out.flush()
-    return EXIT_FAIL if conclusion.exit_code or over else EXIT_PASS
+    return EXIT_FAIL if conclusion.exit_code else EXIT_PASS
 
 
 def _not_judged(over: int, units: list[str]) -> str:
@@ -169,22 +170,6 @@ def _not_judged(over: int, units: list[str]) -> str:
 def untimed(linter: Any) -> bool:
     """Whether the traffic had no recorded times (``recording.UNTIMED``)."""
     return bool(getattr(linter.monitor, "untimed", False))
-
-
-def not_judged_untimed(report: Any) -> None:
-    """The rules that need arrival times become could-not-test on every unit's row: a
-    capture without times (mosquitto_sub -v) neither passes nor fails them (issue 20)."""
-    from conformance.recording import UNTIMED_REASON, UNTIMED_RULES
-    from conformance.violation import RuleResult, Verdict
-
-    for rep in report.units.values():
-        for rule in UNTIMED_RULES:
-            if rule in rep.rules:
-                rep.rules[rule] = RuleResult(rule, Verdict.COULD_NOT_TEST, UNTIMED_REASON)
-                rep.violation_counts.pop(rule, None)
-                rep.violation_times.pop(rule, None)
-                rep.examined.pop(rule, None)
-        rep.rates = []
 
 
 MAX_FAILURES_SHOWN = 10
@@ -302,7 +287,7 @@ def feed_recorded(linter: Any, scorecard: Any, items: Any, options: Any) -> floa
 
 class _Untimed:
     """The Monitor of traffic without recorded times: what it finds on the rules that need
-    them is not shown while feeding (``not_judged_untimed`` turns them could-not-test)."""
+    them is not shown while feeding (the judge makes them could-not-test: ``conformance.judge``)."""
 
     untimed = True
 

@@ -22,7 +22,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from conformance.conclusion import NOT_RUN, Conclusion, UnitStatus, conclude, ranked_findings
+from conformance.conclusion import NOT_RUN, Conclusion, UnitStatus, ranked_findings
+from conformance.conclusion import of as conclusion_of
 from conformance.display import shorten
 from conformance.reporting.bounds import bounded
 from conformance.reporting.files import atomic_write
@@ -94,13 +95,13 @@ def as_verdict(text: str) -> Verdict | None:
 
 def run_verdict(report: RunReport) -> str:
     """The run's verdict (``conformance.conclusion``: the one verdict model)."""
-    return conclude(report).verdict
+    return conclusion_of(report).verdict
 
 
 def render_html(report: RunReport, files: list[str] | None = None) -> str:
     """The whole report as one HTML document; ``files`` are the names of the files written
     with it (the footer says which)."""
-    conclusion = conclude(report)
+    conclusion = conclusion_of(report)
     return environment().get_template("report.html.j2").render(
         report=report, title=f"WARA-PS conformance {report.kind} report",
         verdict=conclusion.verdict, conclusion=conclusion,

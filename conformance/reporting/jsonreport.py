@@ -8,7 +8,7 @@ from typing import Any
 
 import orjson
 
-from conformance.conclusion import conclude
+from conformance.conclusion import of as conclusion_of
 from conformance.display import SHORT_CHARS, shorten
 from conformance.reporting.bounds import bounded
 from conformance.reporting.files import atomic_write
@@ -44,7 +44,7 @@ def _dumps(report: RunReport) -> bytes:
     data = _shortened(report.to_dict())
     # The one verdict model (conformance.conclusion): the run's verdict, whether it is
     # partial and why, each unit's status and levels, the counts every output shows.
-    conclusion = conclude(report)
+    conclusion = conclusion_of(report)
     data["verdict"] = conclusion.verdict
     data["partial"] = conclusion.partial
     data["conclusion"] = _shortened(conclusion.to_dict())

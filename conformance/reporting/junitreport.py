@@ -10,7 +10,7 @@ import os
 from pathlib import Path
 from xml.sax.saxutils import escape, quoteattr
 
-from conformance.conclusion import conclude
+from conformance.conclusion import of as conclusion_of
 from conformance.display import printable, shorten
 from conformance.reporting.bounds import bounded
 from conformance.reporting.files import atomic_write
@@ -41,7 +41,7 @@ def _to_junit(report: RunReport) -> str:
     # the whole document again with minidom, 5 s and 3 GB for 4096 units (issue 19 §4).
     suites: list[str] = []
     tests = failures_total = 0
-    conclusion = conclude(report)
+    conclusion = conclusion_of(report)
     truncated = report.meta.get("report_truncated")
     for name, unit in report.units.items():
         status = conclusion.units.get(name)

@@ -80,6 +80,7 @@ def render_violation(rule: str | Rule, violation: Violation, unit: str = "",
     line("at", iso_time(violation.time))
     line("payload", violation.excerpt)
     line("spec", r.section if r else "")
+    line("basis", r.basis_text() if r else "")
     line("hint", violation.detail)
     if rerun_hint is None and unit:
         rerun_hint = rerun_command(report, unit, rule_id, violation.topic or "")
@@ -89,11 +90,11 @@ def render_violation(rule: str | Rule, violation: Violation, unit: str = "",
 
 def render_summary(report: object) -> str:
     """A few lines per unit: verdict counts and the failing and warning rules."""
-    from conformance.conclusion import conclude
+    from conformance.conclusion import of as conclusion_of
     from conformance.results import RunReport
 
     assert isinstance(report, RunReport)
-    conclusion = conclude(report)  # the one verdict model: its words and counts
+    conclusion = conclusion_of(report)  # the one verdict model: its words and counts
     out = [f"{report.kind} report, profile {report.profile}, broker {report.broker or '-'}: "
            f"{printable(conclusion.headline())}; "
            + ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)]
@@ -121,9 +122,10 @@ def render_verdicts(report: Any, per_unit: int = FINDINGS_PER_UNIT) -> str:
     counts as the JSON and HTML reports), then each unit's verdict and its most severe findings
     first (``conformance.conclusion.TRIAGE``), units with the most severe findings first. A
     cap cuts only the least severe."""
-    from conformance.conclusion import LINT_NEVER_CERTIFIES, TRIAGE, conclude, ranked_findings
+    from conformance.conclusion import LINT_NEVER_CERTIFIES, TRIAGE, ranked_findings
+    from conformance.conclusion import of as conclusion_of
 
-    conclusion = conclude(report)
+    conclusion = conclusion_of(report)
     counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
     out = [f"verdict: {conclusion.verdict} ({counts})"
            + (f"; {LINT_NEVER_CERTIFIES}" if report.kind == "lint" else "")]

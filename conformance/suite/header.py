@@ -37,6 +37,7 @@ def header_lines(settings: Settings, *, broker: BrokerURL, heartbeat: dict[str, 
         f"waraps-conformance {__version__}: certifying {unit}",
         f"  broker:   {where}",
         f"  profile:  {profile.name} ({profile.source}), timing scale {s.timing_scale:g}",
+        f"  rules:    {rules_reading(profile.is_strict)}",
         f"  unit:     agent-uuid {heartbeat.get('agent-uuid', '?')}, agent-type "
         f"{heartbeat.get('agent-type', '?')}, levels: {declared}",
         f"  reboot:   {reboot or 'none (REBOOT-* could not test)'}",
@@ -44,3 +45,15 @@ def header_lines(settings: Settings, *, broker: BrokerURL, heartbeat: dict[str, 
         f"  reports:  {reports}.json / .html",
         f"  Using --seed={s.seed} (repeat this run: {rerun})",
     ]
+
+
+def rules_reading(strict: bool) -> str:
+    """How the run reads the catalogue's decided rules (DESIGN 'What a rule stands on')."""
+    from conformance.rules import basis_counts
+
+    counts = basis_counts()
+    said = f"{counts['stated']} stated, {counts['implied']} implied, {counts['decided']} decided"
+    if strict:
+        return f"{said}; strict: decided rules fail (--strict-rules or strict: true)"
+    return (f"{said}; decided rules warn as interop risks (the spec does not say; "
+            f"--strict-rules makes them fail)")

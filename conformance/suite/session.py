@@ -7,8 +7,8 @@ record their verdicts into the same Monitor; the Monitor's report is what the te
 and HTML reports and the JUnit properties show.
 
 Its parts: the link to the broker ``connection.py`` (and ``probe.py`` when the unit is not
-there), how long the unit is watched ``observation.py``, rebooting it ``reboot.py``, what the
-report concludes ``outcome.py``, the header ``header.py``.
+there), how long the unit is watched ``observation.py``, rebooting it ``reboot.py``, the verdicts
+and the conclusion come from the one judge (``conformance.judge``), the header ``header.py``.
 """
 
 from __future__ import annotations
@@ -24,8 +24,11 @@ import pytest
 from conformance import __version__
 from conformance.checks import Monitor
 from conformance.client import BrokerError, MqttClient
-from conformance.conclusion import Conclusion, conclude
+from conformance.conclusion import INTERRUPTED, NOT_CERTIFIED, Conclusion
+from conformance.conclusion import of as conclusion_of
 from conformance.display import LINE_CHARS, printable, shorten
+from conformance.facts import RunFacts
+from conformance.judge import judge, unexamined
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
 from conformance.scenarios import (
@@ -41,12 +44,10 @@ from conformance.scenarios import (
 from conformance.scenarios.deviation import Deviation, Deviations
 from conformance.scenarios.params import task_moves
 from conformance.scenarios.traffic import OutOfTime
-from conformance.suite import outcome
 from conformance.suite.connection import Connection
 from conformance.suite.events import Events, clock
 from conformance.suite.header import header_lines
 from conformance.suite.observation import Observation
-from conformance.suite.outcome import COMMANDER_RULES, INTERRUPTED, NOT_CERTIFIED
 from conformance.suite.probe import NotAlive
 from conformance.suite.reboot import Reboot
 from conformance.suite.settings import Settings
@@ -186,14 +187,13 @@ class Certification:
         """Where scenarios report (``Context.record``): into the Monitor's results. What a
         scenario found missing from a unit that has died is not a fault of its own: the death
         is the finding (HB-012), so the rule could not be tested."""
+        excused = ""
         if violation is not None and CATALOGUE[rule].mode is not Mode.PASSIVE:
             lost = self.connection.lost_since()
-            died = self.outage(lost) if lost is not None else self.unit_died(settle=True)
-            if died:
-                violation, verdict, reason = None, Verdict.COULD_NOT_TEST, died
+            excused = self.outage(lost) if lost is not None else self.unit_died(settle=True)
         with self._lock:
             self.monitor.record(self.unit, rule, violation=violation, verdict=verdict,
-                                reason=reason)
+                                reason=reason, excused=excused)
 
     @staticmethod
     def outage(lost: float) -> str:
@@ -217,7 +217,7 @@ class Certification:
             self.events.at(time.time(), f"the broker has not come back within "
                                         f"{self.broker_budget():g} s: the run stops here, "
                                         f"not certified")
-        why = self.not_run_reason()[len("not run: "):]
+        why = self.facts().not_run_reason()[len("not run: "):]
         for rule in rules:
             self.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=why)
         self.write_reports(force=True)
@@ -227,69 +227,36 @@ class Certification:
         """Why the unit counts as dead, or "" while it lives (``Observation.unit_died``)."""
         return self.observation.unit_died(settle=settle)
 
-    def _judged(self, **extra: Any) -> RunReport:
-        """The Monitor's report of the unit's own rules, an outage not charged to it: what
-        each rule's test enacts."""
+    def facts(self, *, error: str = "") -> RunFacts:
+        """What the judge must know of this run so far (``conformance.facts.RunFacts``)."""
+        cut = self.out_of_time or ("interrupted (Ctrl-C)" if self.interrupted else "")
+        return RunFacts(
+            kind="certification", unit=str(self.unit), strict=self.profile.is_strict,
+            error=error or self.error, broker_lost=self.broker_lost,
+            interrupted=bool(cut), cut_short=cut, selection=self.selection,
+            selected=tuple(self.selected), ran=tuple(sorted(self.ran)),
+            enacted_pass=tuple(sorted(r for r, shown in self.enacted.items()
+                                      if shown is not Verdict.FAIL)))
+
+    def report(self, *, error: str = "", **extra: Any) -> RunReport:
+        """The run's report, judged (``conformance.judge``) under the run's facts: every rule's
+        verdict and the conclusion every output shows."""
         with self._lock:
             report = self.monitor.report(**self.meta(), **extra)
-        outcome.set_commander_rules_aside(report, self.unit)
-        if self.broker_lost is not None:
-            outcome.excuse_outage(report, self.unit, self.broker_lost)
-        return report
+        return judge(report, self.facts(error=error))
 
-    def report(self, **extra: Any) -> RunReport:
-        """The run's report: ``_judged``, with the rules a partial run did not run listed as
-        not run, and the verdict model's verdict in ``meta['verdict']``."""
-        report = self._judged(**extra)
-        if self.selection:
-            chosen = set(self.selected)
-            outcome.mark_not_run(report, self.unit, [r for r in CATALOGUE if r not in chosen],
-                                 (), f"not run: not selected ({self.selection})",
-                                 keep_failures=False)
-        if self.error or self.interrupted or self.out_of_time or self.broker_lost is not None:
-            outcome.mark_not_run(report, self.unit, self.selected or list(CATALOGUE), self.ran,
-                                 self.not_run_reason())
-        later = self.judged_after_test(report)
-        if later:
-            report.meta["judged_after_test"] = ", ".join(later)
-        report.meta["verdict"] = self.conclusion(report).verdict
-        return report
-
-    def judged_after_test(self, report: RunReport) -> list[str]:
-        """Rules that fail on the whole run although their test passed when it ran: traffic
-        after it (a later scenario's command left unanswered, 12.1) is evidence too. The
-        report and the exit status say fail; the terminal names them (pytest's own count
-        cannot change an outcome already shown)."""
-        unit = report.units.get(str(self.unit))
-        if unit is None:
-            return []
-        return sorted(r for r, shown in self.enacted.items()
-                      if shown is not Verdict.FAIL and r in unit.rules
-                      and unit.rules[r].verdict is Verdict.FAIL)
-
-    def run_facts(self) -> dict[str, str]:
-        """What the verdict model needs to know of this run (``conformance.conclusion``)."""
-        facts = {}
-        if self.broker_lost is not None:
-            facts["broker_lost"] = repr(self.broker_lost)
-        facts["interrupted"] = str(bool(self.interrupted or self.out_of_time)).lower()
-        if self.interrupted or self.out_of_time:
-            facts["cut_short"] = self.out_of_time or "interrupted (Ctrl-C)"
-        if self.selection:
-            facts["selection"] = self.selection
-        return facts
-
-    def not_run_reason(self) -> str:
-        if self.error:
-            return f"not run: {self.error.splitlines()[0]}"
-        if self.broker_lost is not None:
-            return f"not run: the broker was lost at {clock(self.broker_lost)}"
-        return f"not run: {self.out_of_time or 'interrupted (Ctrl-C)'}"
+    def _judged(self) -> RunReport:
+        """The report as each rule's test enacts it: judged under the facts known mid-run (a
+        selection and a cut short run mark rules not run only in ``report``)."""
+        with self._lock:
+            report = self.monitor.report(**self.meta())
+        facts = self.facts()
+        return judge(report, RunFacts(kind=facts.kind, unit=facts.unit, strict=facts.strict,
+                                      broker_lost=facts.broker_lost))
 
     def conclusion(self, report: RunReport) -> Conclusion:
-        """What the run concludes (``conformance.conclusion.conclude``: the one verdict
-        model every output shows)."""
-        return conclude(report)
+        """What the run concludes: the judge's conclusion stored in ``report``."""
+        return conclusion_of(report)
 
     def verdict(self, report: RunReport) -> str:
         """The run's verdict (``conclusion``)."""
@@ -297,7 +264,7 @@ class Certification:
 
     def counts(self, report: RunReport) -> dict[str, int]:
         """Verdict counts, with the rules that never ran counted as 'not run'."""
-        return outcome.counts(report)
+        return self.conclusion(report).counts
 
     def meta(self) -> dict[str, Any]:
         s = self.settings
@@ -315,7 +282,6 @@ class Certification:
             "tst_command_topic": s.tst_topic,
             "explore": self.explored or ("off" if s.explore == 0 else "not run"),
             "rerun": self.rerun_command(),
-            **self.run_facts(),
         }
 
     def rerun_command(self, rule: str | None = None) -> str:
@@ -340,7 +306,7 @@ class Certification:
         report = self._judged()
         unit = report.units.get(str(self.unit))
         if unit is None or rule not in unit.rules:
-            return RuleResult(rule, Verdict.SKIP, "not examined")
+            return unexamined(rule)
         return unit.rules[rule]
 
     def run_evidence(self, rule: str) -> None:
@@ -505,11 +471,9 @@ class Certification:
             with self._lock:
                 # Lost for good: the observation ended then (an outage is no death).
                 self.monitor.finish(self.broker_lost or time.time())
-            extra = {"error": self.error} if self.error else {}
             finished = time.time()
-            status = exit_status(self.conclusion(self.report(finished=finished, **extra)),
-                                 exitstatus)
-            self.write_reports(force=True, finished=finished, exit_status=str(status), **extra)
+            status = exit_status(self.conclusion(self.report(finished=finished)), exitstatus)
+            self.write_reports(force=True, finished=finished, exit_status=str(status))
         finally:
             self.close()
         return status
@@ -540,5 +504,5 @@ def exit_status(conclusion: Conclusion, pytest_status: int) -> int:
         return int(pytest_status)
     return 0
 
-__all__ = ["CERTIFICATION", "COMMANDER_RULES", "INTERRUPTED", "NOT_CERTIFIED", "Certification",
+__all__ = ["CERTIFICATION", "INTERRUPTED", "NOT_CERTIFIED", "Certification",
            "NotAlive"]

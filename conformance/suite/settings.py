@@ -7,6 +7,7 @@ environment (``WARAPS_PASSWORD``), never from an option.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import os
 import secrets
@@ -29,6 +30,7 @@ INI = {
     "waraps_reboot_cmd": "waraps_reboot_cmd",
     "waraps_allow_motion": "waraps_allow_motion",
     "waraps_dry_run": "waraps_dry_run",
+    "waraps_strict_rules": "waraps_strict_rules",
     "waraps_reports_dir": "waraps_reports_dir",
     "waraps_ca_file": "waraps_ca_file",
     "waraps_cert_file": "waraps_cert_file",
@@ -55,6 +57,8 @@ class Settings:
     reboot_cmd: str | None = None
     allow_motion: bool = False
     dry_run: bool = False
+    strict_rules: bool = False
+    """--strict-rules: decided rules fail (the profile is made strict)."""
     reports_dir: Path = Path("reports")
     seed: int = 0
     sim_faults: tuple[str, ...] = ()
@@ -133,6 +137,8 @@ class Settings:
             parts.append("--allow-motion")
         if self.dry_run:
             parts.append("--dry-run")
+        if self.strict_rules:
+            parts.append("--strict-rules")
         if self.max_duration != MAX_DURATION:
             parts += ["--max-duration", f"{self.max_duration:g}"]
         parts += ["--seed", str(self.seed)]
@@ -201,6 +207,9 @@ def read(config: pytest.Config) -> Settings:
         profile = load(profile_name)
     except ProfileError as e:
         raise pytest.UsageError(f"--profile: {e}") from None
+    strict_rules = _flag(config, "waraps_strict_rules")
+    if strict_rules:
+        profile = dataclasses.replace(profile, strict=True)
     scale_text = _value(config, "waraps_timing_scale")
     try:
         scale = float(scale_text) if scale_text not in (None, "") else 1.0
@@ -266,7 +275,8 @@ def read(config: pytest.Config) -> Settings:
                     explore_replay=_replay(config, reports),
                     reboot_cmd=str(reboot) if reboot else None,
                     allow_motion=_flag(config, "waraps_allow_motion"),
-                    dry_run=_flag(config, "waraps_dry_run"), reports_dir=reports, seed=seed,
+                    dry_run=_flag(config, "waraps_dry_run"), strict_rules=strict_rules,
+                    reports_dir=reports, seed=seed,
                     sim_faults=faults, sim_variants=variants, sim_rate=float(sim_rate), sim_tst=sim_tst,
                     tst_command_topic=tst_topic)
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from conformance.checks import Monitor, covered_rules
+from conformance.conclusion import conclude
 from conformance.message import Message
 from conformance.profile import Profile
 from conformance.topics import UnitAddress
@@ -58,7 +59,7 @@ def test_active_rule_in_certification_is_skip_until_recorded(stream):
         "EXEC-PING-002", expected="response-to = com-uuid", observed="other"))
     r = rules_of(m, stream.address)["EXEC-PING-002"]
     assert r.verdict is Verdict.FAIL and r.violations[0].unit == str(stream.address)
-    assert m.report().exit_code() == 1
+    assert conclude(m.report()).exit_code == 1
 
 
 def test_warning_rule_violation_warns_and_strict_profile_fails(stream):

@@ -41,7 +41,7 @@ class Certified:
     def failed(self) -> set[str]:
         """Rules whose test failed, and those that failed after their test ran (later
         traffic: the report's ``judged_after_test``, named in the terminal summary)."""
-        later = (self.report or {}).get("meta", {}).get("judged_after_test", "")
+        later = ", ".join((self.report or {}).get("conclusion", {}).get("judged_after_test", ()))
         if later:
             assert f"failed after their tests ran (later traffic is evidence too; the reports " \
                    f"hold it): {later}" in self.text

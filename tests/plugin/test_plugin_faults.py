@@ -199,7 +199,7 @@ def rerun_lines(pytester: pytest.Pytester, run: Certified, rules: set[str]) -> d
     repeat = re.search(r"^repeat this run: (pytest .*)$", run.text, re.M)
     assert repeat, "no 'repeat this run' line"
     lines = {}
-    later = (run.report or {}).get("meta", {}).get("judged_after_test", "").split(", ")
+    later = (run.report or {}).get("conclusion", {}).get("judged_after_test", [])
     for rule in sorted(rules):
         if rule in later:  # failed on a later scenario's traffic: the whole run reproduces it
             assert re.search(rf"^{re.escape(rule)} .*\n(.*\n)*?\s*rerun\s+"

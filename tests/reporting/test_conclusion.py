@@ -14,6 +14,7 @@ from conformance.conclusion import (
     conclude,
     triage_rank,
 )
+from conformance.facts import RunFacts
 from conformance.results import RunReport, UnitReport
 from conformance.rules import CATALOGUE
 from conformance.violation import RuleResult, Verdict, Violation
@@ -69,17 +70,19 @@ def test_a_skipped_rule_is_not_applicable_and_does_not_deny() -> None:
 @pytest.mark.parametrize(("facts", "verdict", "code", "why"), [
     ({"error": "cannot reach the broker"}, "not certified", EXIT_NOT_CERTIFIED,
      "cannot reach the broker"),
-    ({"broker_lost": "1700000006.0"}, "not certified", EXIT_NOT_CERTIFIED,
+    ({"broker_lost": 1700000006.0}, "not certified", EXIT_NOT_CERTIFIED,
      "the broker was lost at 2023-11-14T22:13:26.000+00:00 and did not come back"),
-    ({"interrupted": "true", "cut_short": "--max-duration 60 s reached"}, "interrupted",
+    ({"interrupted": True, "cut_short": "--max-duration 60 s reached"}, "interrupted",
      EXIT_INTERRUPTED, "--max-duration 60 s reached"),
     ({"selection": "-k HB-003"}, "partial", EXIT_CERTIFIED,
      "only the selected rules ran (-k HB-003)")])
-def test_a_run_that_is_partial_never_passes_nor_certifies(facts: dict[str, str], verdict: str,
-                                                         code: int, why: str) -> None:
-    # The rules that never ran are recorded could-not-test and listed (suite/outcome.py).
+def test_a_run_that_is_partial_never_passes_nor_certifies(facts: dict[str, object],
+                                                         verdict: str, code: int,
+                                                         why: str) -> None:
+    # The rules that never ran are recorded could-not-test and listed (conformance/judge.py).
     run = report(EXEC_PING_001=Verdict.COULD_NOT_TEST, HB_003=Verdict.COULD_NOT_TEST)
-    run.meta.update(facts, not_run="EXEC-PING-001 HB-003")
+    run.facts = RunFacts(unit=UNIT, **facts)  # type: ignore[arg-type]
+    run.not_run = ["EXEC-PING-001", "HB-003"]
     found = conclude(run)
     assert (found.verdict, found.exit_code, found.partial) == (verdict, code, True)
     assert found.why == (why,)

@@ -9,6 +9,8 @@ import orjson
 import pytest
 
 from conformance.client import BrokerURL
+from conformance.conclusion import conclude
+from conformance.facts import RunFacts
 from conformance.reporting import files as files_mod
 from conformance.reporting import (
     read_json,
@@ -30,7 +32,7 @@ def test_report_content(run_report: RunReport):
     assert good.rules["REBOOT-001"].verdict is Verdict.COULD_NOT_TEST
     assert "(unattributed)" in run_report.units
     assert run_report.broker == "mqtts://alice@127.0.0.1:8883"
-    assert run_report.exit_code() == 1
+    assert conclude(run_report).exit_code == 1
     counts = run_report.verdict_counts()
     assert set(counts) == {v.value for v in Verdict} and counts["fail"] >= 2
 
@@ -207,14 +209,14 @@ def test_html_footer_names_the_files_written_with_it(run_report: RunReport, tmp_
 
 @pytest.mark.parametrize(("facts", "verdict"), [
     ({"error": "cannot reach the broker at mqtt://127.0.0.1:1"}, "not certified"),
-    ({"broker_lost": "1700000006.0"}, "not certified"),
-    ({"interrupted": "true", "cut_short": "--max-duration 60 s reached"}, "interrupted"),
+    ({"broker_lost": 1700000006.0}, "not certified"),
+    ({"interrupted": True, "cut_short": "--max-duration 60 s reached"}, "interrupted"),
     ({"selection": "-k 'HB-003 or HB-012'"}, "fail")])
 def test_a_run_that_did_not_complete_never_reads_as_a_pass(run_report: RunReport, facts: dict,
                                                           verdict: str, tmp_path):
     """The verdict comes from the run's facts (conformance.conclusion), in every output."""
     run_report.kind = "certification"
-    run_report.meta.update(facts)
+    run_report.facts = RunFacts(**facts)
     page = render_html(run_report)
     title = page[page.index("<h1>"):page.index("</h1>")]
     assert verdict in title and "pass" not in title

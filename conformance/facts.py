@@ -1,0 +1,106 @@
+"""The run's facts: a typed record of what kind of run it was and how it went, the one input
+besides the evidence that the judge (``conformance.judge``) reads.
+
+Written by the run that knows them (the certification's ``suite/session.py``, lint's
+``lint/runner.py``), carried in the report (``RunReport.facts``, the JSON's ``facts``), and
+read only by the judge and the conclusion: never as strings in ``meta``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields
+from datetime import UTC, datetime
+from typing import Any
+
+GATES = ("all", "units")
+"""Which rows decide lint's exit status: every row, or only the units' (not commanders')."""
+
+
+@dataclass(frozen=True)
+class RunFacts:
+    """What the judge must know of a run. Times are Unix seconds."""
+
+    kind: str = "certification"
+    """``certification`` (pytest --unit) or ``lint``."""
+    unit: str = ""
+    """A certification's unit under test (its address)."""
+    strict: bool = False
+    """Decided rules fail instead of warning (``--strict-rules``, ``strict: true``)."""
+    gate: str = "all"
+    """Lint: ``all`` rows or only ``units`` decide the exit status (``GATES``)."""
+    error: str = ""
+    """The broker or the unit could not be reached: no rule ran."""
+    broker_lost: float | None = None
+    """When the broker was lost for good (it did not come back within the budget)."""
+    interrupted: bool = False
+    """Ctrl-C, or ``--max-duration`` reached (``cut_short`` says which)."""
+    cut_short: str = ""
+    selection: str = ""
+    """The rules were selected (``-k 'HB-003'``, ``--rule=HB-003``), as typed, shell-quoted."""
+    selected: tuple[str, ...] = ()
+    """The rules the selection chose (empty: every rule)."""
+    ran: tuple[str, ...] = ()
+    """The rules whose tests ran (a certification that did not complete)."""
+    enacted_pass: tuple[str, ...] = ()
+    """Rules whose test was shown passing when it ran: one failing on the whole run failed on
+    traffic that came after its test (``Conclusion.judged_after_test``)."""
+    untimed: bool = False
+    """Lint of a capture without arrival times (``mosquitto_sub -v``)."""
+    not_judged: str = ""
+    """Lint: traffic of units past the bound on units was not judged (why, in words)."""
+    outages: tuple[tuple[float, float], ...] = field(default_factory=tuple)
+    """Windows (start, end) in which the observer could not hear the broker."""
+
+    @property
+    def complete(self) -> bool:
+        """A certification that ran every rule to the end: nothing selected, nothing cut."""
+        return not (self.error or self.broker_lost is not None or self.interrupted
+                    or self.selection)
+
+    def reasons(self) -> list[str]:
+        """Why the run is partial or not certified, in words (empty for a complete run)."""
+        why = []
+        if self.error:
+            why.append(self.error.splitlines()[0])
+        if self.broker_lost is not None:
+            why.append(f"the broker was lost at {iso(self.broker_lost)} and did not come back")
+        if self.interrupted:
+            why.append(self.cut_short or "the run was interrupted")
+        if self.selection:
+            why.append(f"only the selected rules ran ({self.selection})")
+        return why
+
+    def not_run_reason(self) -> str:
+        """Why a rule whose test never ran was not run."""
+        if self.error:
+            return f"not run: {self.error.splitlines()[0]}"
+        if self.broker_lost is not None:
+            return f"not run: the broker was lost at {iso(self.broker_lost)}"
+        return f"not run: {self.cut_short or 'interrupted (Ctrl-C)'}"
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        for key in ("selected", "ran", "enacted_pass"):
+            d[key] = list(d[key])
+        d["outages"] = [list(w) for w in self.outages]
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> RunFacts:
+        """The facts a JSON report carries; unknown keys are ignored (a newer writer)."""
+        known = {f.name for f in fields(cls)}
+        kw = {k: v for k, v in d.items() if k in known}
+        for key in ("selected", "ran", "enacted_pass"):
+            kw[key] = tuple(str(x) for x in kw.get(key, ()))
+        kw["outages"] = tuple((float(a), float(b)) for a, b in kw.get("outages", ()))
+        if kw.get("broker_lost") is not None:
+            kw["broker_lost"] = float(kw["broker_lost"])
+        return cls(**kw)
+
+
+def iso(t: float) -> str:
+    """ISO 8601 UTC to the millisecond, as every report writes times."""
+    try:
+        return datetime.fromtimestamp(t, UTC).isoformat(timespec="milliseconds")
+    except (OverflowError, OSError, ValueError):
+        return repr(t)

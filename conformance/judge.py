@@ -1,0 +1,188 @@
+"""The one judge: the evidence a run gathered and its typed facts in, each rule's verdict and
+the run's conclusion out (STYLE.md 'Judging once').
+
+- ``judge_rule``: one rule for one row, from its evidence (violations, times examined, what a
+  scenario recorded, evidence excused by a death or an outage) and its basis: a *decided*
+  rule (the spec is silent; ``rules.toml``) warns as an interop risk unless the run is strict.
+  The Monitor calls it for every rule of every row when it makes a report (``checks/rows.py``).
+- ``judge``: the run's facts (``conformance.facts.RunFacts``) applied to that report: in a
+  certification the commander's rules are the suite's own, an outage is the broker's, rules
+  a partial run did not run are *not run*; in lint a capture without times judges no timed
+  rule. Then the conclusion is made (``conformance.conclusion.conclude``), stored in the
+  report, and the report's verdicts are frozen.
+
+No other module decides or changes a verdict: ``tests/core/test_judge.py`` greps for it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Iterable
+from types import MappingProxyType
+
+from conformance.facts import RunFacts, iso
+from conformance.results import COMMANDER_REASON, RunReport, UnitReport
+from conformance.rules import CATALOGUE, Rule, Severity, Side
+from conformance.violation import RuleResult, Verdict, Violation
+
+INTEROP_RISK = "interop risk: the spec does not say; this suite decided: "
+"""What a decided rule's warning says (DESIGN 'What a rule stands on')."""
+
+
+def judge_rule(rule: Rule, *, severity: Severity, strict: bool, violations: list[Violation],
+               count: int = -1, examined: int = 0, explicit: Verdict | None = None,
+               explicit_reason: str = "", default_reason: str = "",
+               excused: str = "") -> RuleResult:
+    """The verdict of one rule for one row:
+
+    - any violation: fail when the rule's severity (under the profile) is ``error`` and the
+      rule is stated or implied, or decided in a strict run; else warn;
+    - an explicit fail or warn a scenario recorded, under the same basis;
+    - examined at least once without a violation: pass;
+    - evidence that was all excused (``excused``: the unit had died, the broker was out):
+      could-not-test, saying why;
+    - an explicit skip or could-not-test, with its reason; else skip (``default_reason``).
+
+    ``count`` is the number of violations seen (``violations`` holds the first few as
+    evidence; -1 means ``len(violations)``); a skip never becomes a pass.
+    """
+    count = len(violations) if count < 0 else count
+    lenient = rule.is_decided and not strict and severity is Severity.ERROR
+    if lenient:
+        severity = Severity.WARNING
+    risk = interop_risk(rule) if lenient else ""
+    if explicit is Verdict.FAIL and lenient:
+        explicit = Verdict.WARN
+    if count:
+        verdict = Verdict.FAIL if severity is Severity.ERROR else Verdict.WARN
+        if explicit is not None and explicit.rank > verdict.rank:
+            verdict = explicit
+        noun = "violation" if count == 1 else "violations"
+        reason = "; ".join(x for x in (f"{count} {noun}" + (
+            f" ({explicit_reason})" if explicit_reason else ""), risk) if x)
+        return RuleResult(rule.id, verdict, reason, list(violations))
+    if explicit in (Verdict.FAIL, Verdict.WARN):
+        return RuleResult(rule.id, explicit, "; ".join(x for x in (explicit_reason, risk) if x),
+                          [])
+    if examined:
+        noun = "time" if examined == 1 else "times"
+        return RuleResult(rule.id, Verdict.PASS, f"examined {examined} {noun}", [])
+    if excused and explicit is None:
+        return RuleResult(rule.id, Verdict.COULD_NOT_TEST, excused, [])
+    if explicit in (Verdict.SKIP, Verdict.COULD_NOT_TEST):
+        return RuleResult(rule.id, explicit, explicit_reason or default_reason, [])
+    return RuleResult(rule.id, Verdict.SKIP, default_reason or "not examined", [])
+
+
+def violation_verdict(rule: Rule, severity: Severity, *, strict: bool) -> Verdict:
+    """What a violation of ``rule`` earns on its own (``validate`` of one message, a finding
+    shown alone): fail for an error of a stated or implied rule (or any error in a strict
+    run), else warn."""
+    if severity is Severity.ERROR and (strict or not rule.is_decided):
+        return Verdict.FAIL
+    return Verdict.WARN
+
+
+def interop_risk(rule: Rule) -> str:
+    """Why a decided rule only warns: the spec does not say, this suite decided."""
+    return f"{INTEROP_RISK}{rule.decision}" if rule.decision else INTEROP_RISK.rstrip(": ")
+
+
+def unexamined(rule: str) -> RuleResult:
+    """A rule of which nothing was recorded at all (not even a reason): skip."""
+    return RuleResult(rule, Verdict.SKIP, "not examined")
+
+
+def judge(report: RunReport, facts: RunFacts) -> RunReport:
+    """``report`` (each rule judged from its evidence by ``judge_rule``) under the run's
+    ``facts``, with its conclusion; its verdicts are frozen afterwards."""
+    from conformance.conclusion import conclude
+
+    if facts.kind == "certification" and facts.unit:
+        unit = _row(report, facts.unit)
+        _commander_rules_aside(unit)
+        if facts.broker_lost is not None:
+            _excuse_outage(unit, facts.broker_lost)
+        not_run: list[str] = []
+        if facts.selection:
+            chosen = set(facts.selected)
+            not_run += _not_run(unit, [r for r in CATALOGUE if r not in chosen], (),
+                                f"not run: not selected ({facts.selection})",
+                                keep_failures=False)
+        if facts.error or facts.interrupted or facts.broker_lost is not None:
+            not_run += _not_run(unit, facts.selected or list(CATALOGUE), facts.ran,
+                                facts.not_run_reason())
+        report.not_run = list(dict.fromkeys(not_run))
+    if facts.untimed:
+        _untimed(report)
+    for row in report.units.values():
+        for stat in row.rates:  # a rate shown as its rule was judged (a decided one warns)
+            if stat.verdict is Verdict.FAIL and stat.rule in row.rules:
+                stat.verdict = row.rules[stat.rule].verdict
+    report.facts = facts
+    report.conclusion = conclude(report)
+    for row in report.units.values():
+        row.rules = MappingProxyType(dict(row.rules))  # type: ignore[assignment]
+    return report
+
+
+def _row(report: RunReport, name: str) -> UnitReport:
+    """The unit under test's row (an empty one when it was never heard)."""
+    found = report.units.get(name)
+    if found is None:
+        from conformance.topics import UnitAddress
+
+        address = UnitAddress.parse(name)
+        found = report.units[name] = UnitReport(name, address.agent_type, address.role,
+                                                address.name)
+    return found
+
+
+def _commander_rules_aside(unit: UnitReport) -> None:
+    """In a certification the suite itself is the commander: what commanders send says
+    nothing about the unit (``lint`` judges commanders). A failure stays one: it would be the
+    suite's own bug."""
+    for rule, result in list(unit.rules.items()):
+        if CATALOGUE[rule].side is Side.COMMANDER and result.verdict is not Verdict.FAIL:
+            unit.rules[rule] = RuleResult(rule, Verdict.SKIP, COMMANDER_REASON)
+
+
+def _excuse_outage(unit: UnitReport, lost: float) -> None:
+    """The broker was lost for good at ``lost``: an outage is never the unit's fault. What was
+    found missing from then on (no answer, no heartbeat) could not be tested."""
+    why = f"the broker was lost at {iso(lost)}: nothing could be observed after that"
+    for rule, result in list(unit.rules.items()):
+        times = [v.time for v in result.violations if v.time is not None]
+        if result.verdict is Verdict.FAIL and times and min(times) >= lost:
+            unit.rules[rule] = RuleResult(rule, Verdict.COULD_NOT_TEST, why)
+
+
+def _not_run(unit: UnitReport, selected: Iterable[str], ran: Collection[str], why: str, *,
+             keep_failures: bool = True) -> list[str]:
+    """Every selected rule whose test did not run is listed as not run (could-not-test,
+    ``why``; never a pass); a failure already seen stays one unless ``keep_failures`` is off
+    (rules left out of a selection judge nothing). Returns the rules marked."""
+    marked = []
+    for rule in selected:
+        if rule in ran:
+            continue
+        result = unit.rules.get(rule)
+        if keep_failures and result is not None and result.verdict is Verdict.FAIL:
+            continue
+        unit.rules[rule] = RuleResult(rule, Verdict.COULD_NOT_TEST, why)
+        marked.append(rule)
+    return marked
+
+
+def _untimed(report: RunReport) -> None:
+    """A capture without arrival times (mosquitto_sub -v) neither passes nor fails the rules
+    that need them (issue 20): they are could-not-test on every row, and no rate is shown."""
+    from conformance.recording import UNTIMED_REASON, UNTIMED_RULES
+
+    for row in report.units.values():
+        for rule in UNTIMED_RULES:
+            if rule in row.rules:
+                row.rules[rule] = RuleResult(rule, Verdict.COULD_NOT_TEST, UNTIMED_REASON)
+                row.violation_counts.pop(rule, None)
+                row.violation_times.pop(rule, None)
+                row.examined.pop(rule, None)
+        row.rates = []

@@ -1,0 +1,103 @@
+"""The one judge (conformance/judge.py): no other module decides or changes a verdict; a
+decided rule warns unless the run is strict; lint's gate reaches its JSON and its exit status
+alike (issue 28 §1, issue 24 §1)."""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from pathlib import Path
+
+import orjson
+import pytest
+
+from conformance.facts import RunFacts
+from conformance.judge import judge, judge_rule, violation_verdict
+from conformance.reporting.jsonreport import dumps
+from conformance.results import RunReport, UnitReport
+from conformance.rules import CATALOGUE, Basis, Severity
+from conformance.violation import RuleResult, Verdict, Violation
+
+PACKAGE = Path(__file__).resolve().parents[2] / "conformance"
+JUDGE = PACKAGE / "judge.py"
+# A verdict made or changed: a RuleResult built, a row's rule replaced, a verdict or a
+# conclusion assigned.
+MAKES_A_VERDICT = re.compile(r"RuleResult\(|\.rules\[[^\]]+\]\s*=(?!=)|"
+                             r"\bconclusion\s*=\s*conclude\(|\.conclusion\s*=(?!=)")
+READS_BACK = {PACKAGE / "results.py"}
+"""Where a report written earlier is read back (its verdicts as written, not decided)."""
+
+
+def test_no_module_but_the_judge_makes_or_changes_a_verdict() -> None:
+    offenders = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        if path == JUDGE or path.is_relative_to(PACKAGE / "sim"):
+            continue
+        for n, line in enumerate(path.read_text("utf-8").splitlines(), 1):
+            code = line.split("#", 1)[0]
+            if MAKES_A_VERDICT.search(code) and not (
+                    path in READS_BACK and "def _rule_result_from_dict" in
+                    path.read_text("utf-8") and "d[\"rule\"]" in code):
+                offenders.append(f"{path.relative_to(PACKAGE.parent)}:{n}: {line.strip()}")
+    assert not offenders, "verdicts are made only by conformance/judge.py:\n" + "\n".join(
+        offenders)
+
+
+def test_the_grep_finds_a_planted_verdict(tmp_path: Path) -> None:
+    planted = 'found.rules[rule] = RuleResult(rule, Verdict.SKIP, "x")'
+    assert MAKES_A_VERDICT.search(planted)
+    assert not MAKES_A_VERDICT.search("if found.rules[rule] == other:")
+
+
+def decided(rule_id: str = "HB-003") -> object:
+    return dataclasses.replace(CATALOGUE[rule_id], basis=Basis.DECIDED,
+                               decision="this suite reads it so")
+
+
+@pytest.mark.parametrize(("strict", "verdict"), [(False, Verdict.WARN), (True, Verdict.FAIL)])
+def test_a_decided_rule_warns_as_an_interop_risk_unless_strict(strict: bool,
+                                                                verdict: Verdict) -> None:
+    v = Violation.of("HB-003", expected="1 Hz", observed="0.2 Hz")
+    found = judge_rule(decided(), severity=Severity.ERROR, strict=strict,  # type: ignore[arg-type]
+                       violations=[v])
+    assert found.verdict is verdict
+    assert ("interop risk: the spec does not say; this suite decided: this suite reads it so"
+            in found.reason) is (not strict)
+    stated = judge_rule(CATALOGUE["HB-003"], severity=Severity.ERROR, strict=False,
+                        violations=[v])
+    assert stated.verdict is Verdict.FAIL
+    assert violation_verdict(decided(), Severity.ERROR, strict=strict) is verdict  # type: ignore[arg-type]
+
+
+def test_a_scenario_s_explicit_failure_of_a_decided_rule_warns_too() -> None:
+    found = judge_rule(decided(), severity=Severity.ERROR, strict=False,  # type: ignore[arg-type]
+                       violations=[], explicit=Verdict.FAIL, explicit_reason="not answered")
+    assert found.verdict is Verdict.WARN and found.reason.startswith("not answered; interop")
+
+
+def fleet() -> RunReport:
+    """A unit that passes and a commander whose command broke a rule (EXEC-001)."""
+    unit = UnitReport("waraps/unit/air/simulation/dji0", "air", "simulation", "dji0",
+                      rules={"HB-001": RuleResult("HB-001", Verdict.PASS, "examined 3 times")})
+    commander = UnitReport("op0 (commander)", "", "", "", party="commander", rules={
+        "EXEC-001": RuleResult("EXEC-001", Verdict.FAIL, "1 violation",
+                               [Violation.of("EXEC-001", expected="a com-uuid",
+                                             observed="none")])})
+    return RunReport("lint", 1.0, 2.0, units={unit.unit: unit, commander.unit: commander})
+
+
+@pytest.mark.parametrize(("gate", "verdict", "code"), [("all", "fail", 1), ("units", "clean", 0)])
+def test_lint_s_gate_reaches_the_json_and_the_exit_status_alike(gate: str, verdict: str,
+                                                                code: int) -> None:
+    report = judge(fleet(), RunFacts(kind="lint", gate=gate))
+    data = orjson.loads(dumps(report))
+    assert (report.conclusion.verdict, report.conclusion.exit_code) == (verdict, code)
+    assert (data["verdict"], data["conclusion"]["exit_code"]) == (verdict, code)
+    assert data["facts"]["gate"] == gate
+
+
+def test_a_judged_report_s_verdicts_are_frozen() -> None:
+    report = judge(fleet(), RunFacts(kind="lint"))
+    with pytest.raises(TypeError):
+        report.units["op0 (commander)"].rules["EXEC-001"] = RuleResult(
+            "EXEC-001", Verdict.PASS)
