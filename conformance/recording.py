@@ -51,14 +51,20 @@ import orjson
 
 from conformance.bounds import (
     MAX_LINE_BYTES,
+    MAX_LINE_VALUES,
     MAX_NESTING,
     MAX_PAYLOAD_BYTES,
     MAX_TIME,
     MIN_TIME,
 )
+from conformance.jsontext import dumps as json_text
 from conformance.message import Message
 
 CHUNK_BYTES = 1 << 20
+MAX_EXAMINED_BYTES = 1 << 20
+"""A payload is examined up to this (``validator.MAX_PAYLOAD_BYTES``, MSG-004)."""
+BIG_LINE_BYTES = 1 << 20
+"""A line longer than this has its JSON values counted before it is parsed (MAX_LINE_VALUES)."""
 MAX_PROBLEMS_KEPT = 100
 """Malformed lines kept with their text; beyond this they are only counted (bounded memory)."""
 
@@ -251,6 +257,11 @@ class RecordingReader:
         try:
             for first, lines in self._batches():
                 for number, line in enumerate(lines, first):
+                    if len(line) > BIG_LINE_BYTES and _values(line) > MAX_LINE_VALUES:
+                        self.problem(number, f"line of {len(line)} bytes holds more than the "
+                                     f"{MAX_LINE_VALUES} JSON values a line over 1 MiB may "
+                                     f"take; skipped", line)
+                        continue
                     try:
                         obj = loads(line)  # JSON whitespace (a trailing CR) is fine
                     except decode_error as e:
@@ -308,8 +319,8 @@ class RecordingReader:
         if self._truncated:
             self.notes.append(
                 f"{self._truncated} payload(s) were cut at a NUL byte by mosquitto_sub -F %j "
-                f"(payloadlen is longer than the payload); the missing bytes were replaced by "
-                f"NUL bytes. Record with 'waraps-conformance record' for byte-exact payloads.")
+                f"(payloadlen is longer than the payload); the cut is marked by a NUL byte (a "
+                f"payload declared over 1 MiB: NUL bytes to that bound). Record with 'waraps-conformance record' for byte-exact payloads.")
         if FORMAT_MOSQUITTO_V in self.formats:
             self.notes.append(
                 f"a mosquitto_sub -v capture has no times: {', '.join(UNTIMED_RULES)} are "
@@ -434,31 +445,47 @@ class RecordingReader:
                 as_json = orjson.dumps(value)
             except orjson.JSONEncodeError:  # surrogate escapes: raw bytes, so -F %j
                 as_json = b""
-            if len(raw) == length and FORMAT_MOSQUITTO_JJ not in self.formats:
+            # Told per line (issue 26 §4: a -F %J line among -F %j lines must not turn them
+            # all into JSON strings): the lengths decide; only a line they leave open follows
+            # the format seen before it.
+            if len(raw) == length:
                 payload = raw  # -F %j: the payload as it was
                 self.formats.add(FORMAT_MOSQUITTO_J)
-            elif len(as_json) == length or FORMAT_MOSQUITTO_JJ in self.formats:
+            elif len(as_json) == length or (FORMAT_MOSQUITTO_JJ in self.formats
+                                            and FORMAT_MOSQUITTO_J not in self.formats):
                 payload = as_json  # -F %J: the payload was a JSON string
                 self.formats.add(FORMAT_MOSQUITTO_JJ)
             elif len(raw) < length:
-                # -F %j cut the payload at a NUL byte; what followed it is unknown. A NUL can
-                # never stand in JSON text (RFC 8259), so padding keeps the verdict right.
-                payload = raw + b"\x00" * (length - len(raw))
+                payload = _cut_at_nul(raw, length)
                 self._truncated += 1
                 self.formats.add(FORMAT_MOSQUITTO_J)
             else:
                 payload = raw
                 self.formats.add(FORMAT_MOSQUITTO_J)
         else:
-            try:
-                payload = orjson.dumps(value)
-            except orjson.JSONEncodeError:
-                payload = json.dumps(value, separators=(",", ":")).encode()
+            payload = json_text(value)  # any depth a line may take, without recursion
             self.formats.add(FORMAT_MOSQUITTO_JJ)
         qos, retain = obj.get("qos", 0), obj.get("retain", 0)
         if qos not in (0, 1, 2) or isinstance(qos, bool):
             raise ValueError(f"'qos' is {qos!r}, not 0, 1 or 2")
         return Message(ts, topic, payload, int(qos), bool(retain))
+
+
+def _values(line: bytes) -> int:
+    """At least the JSON values a line holds beyond its first (a bound counted without parsing:
+    ',' '[' '{' inside strings count too, which only errs towards reading less)."""
+    return line.count(b",") + line.count(b"[") + line.count(b"{")
+
+
+def _cut_at_nul(raw: bytes, length: int) -> bytes:
+    """The payload ``mosquitto_sub -F %j`` cut at a NUL byte: what is known of it, then one NUL
+    (which JSON text never holds: MSG-002 fails on it, as on the payload itself). A payload
+    declared longer than a message is examined (MSG-004) is padded to one byte past that
+    bound, no further: the declared length is never materialised (issue 26 §4)."""
+    if length > MAX_EXAMINED_BYTES:
+        return raw + bytes(MAX_EXAMINED_BYTES + 1 - len(raw)) if len(raw) <= MAX_EXAMINED_BYTES \
+            else raw
+    return raw + b"\x00"
 
 
 def _utf8(text: str) -> str:

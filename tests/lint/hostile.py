@@ -143,6 +143,32 @@ def mosquitto_j(payloadlen: int, payload: str = "x") -> bytes:
             + b',"payload":"' + payload.encode() + b'"}')
 
 
+def mosquitto_jj(topic: str, value: bytes, payloadlen: int, t: str = "07:26:55.807087") -> bytes:
+    """A ``mosquitto_sub -F %J`` line: the payload ``value`` embedded as JSON."""
+    return (b'{"tst":"2026-11-21T' + t.encode() + b'Z+0100","topic":"' + topic.encode()
+            + b'","qos":0,"retain":0,"payloadlen":' + str(payloadlen).encode() + b',"payload":'
+            + value + b"}")
+
+
+def as_mosquitto_j(jsonl: bytes) -> bytes:
+    """A JSON Lines line of ours as ``mosquitto_sub -F %j`` prints the same message."""
+    obj = orjson.loads(jsonl)
+    tst = time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(obj["ts"])) + \
+        f".{int(obj['ts'] % 1 * 1e6):06d}Z+0000"
+    payload = obj["payload"].encode()
+    return orjson.dumps({"tst": tst, "topic": obj["topic"], "qos": 0, "retain": 0,
+                         "payloadlen": len(payload), "payload": obj["payload"]})
+
+
+def mixed_j_and_jj(tmp: Path) -> Path:
+    """Issue 26 §4: one ``-F %J`` line, then a conformant unit's ``-F %j`` lines (30 false
+    MSG-003 findings when the first line's format was taken for the whole file)."""
+    path = tmp / "mixed.txt"
+    first = mosquitto_jj(f"{UNIT}/sensor/speed", b"0.1", 3, "06:39:59.9")
+    path.write_bytes(b"\n".join([first, *map(as_mosquitto_j, good_lines(12))]) + b"\n")
+    return path
+
+
 @dataclass
 class Case:
     """A recording (lines, or raw bytes) linted, or a command run, and what must follow."""
@@ -259,6 +285,16 @@ RECORDING_CASES = [
     Case("overlong-line", _recording(b"x" * ((64 << 20) + 10)),
          says=("malformed line 7: line of 67108875 bytes is longer than the 64 MiB",)),
     Case("empty", b"", codes=frozenset({3}), says=("no messages were read",)),
+    # Issue 26 §4: bounded by construction, not by case.
+    Case("jj-nested-999", _recording(mosquitto_jj(f"{UNIT}/sensor/speed", b"[" * 999
+                                                  + b"]" * 999, 1998)),
+         codes=frozenset({1}), says=("MSG-004",)),
+    Case("jj-66mb-of-empty-objects", _recording(mosquitto_jj(
+        f"{UNIT}/sensor/speed", b"[" + b",".join([b"{}"] * 22_000_000) + b"]", 66_000_001)),
+         says=("malformed line 7: line of 66000150 bytes holds more than the 1048576 JSON "
+               "values",)),
+    Case("payloadlen-64mib-2000-lines", _recording([mosquitto_j(64 << 20)] * 2000),
+         codes=frozenset({1}), says=("2000 payload(s) were cut at a NUL byte", "MSG-004")),
 ]
 
 

@@ -217,3 +217,16 @@ def test_random_damage_to_a_recording_is_never_a_traceback(tmp_path: Path) -> No
     assert len(codes) == 120
     bad = [(path, code) for path, code, _ in codes if code not in EXIT_TABLE["lint"]]
     assert not bad, bad[:3]
+
+
+def test_formats_are_told_per_line(tmp_path: Path) -> None:
+    """Issue 26 §4: one ``-F %J`` line before a conformant unit's ``-F %j`` lines: each line is
+    read in its own format, so the heartbeats are objects (no MSG-003) and the unit is clean."""
+    from hostile import mixed_j_and_jj
+
+    case = Case("mixed-j-and-jj", args=("lint", "--from", "{file}", "--plain", "--format",
+                                        "json"), make=mixed_j_and_jj, codes=frozenset({0}))
+    _check(case, tmp_path)
+    report = json.loads((tmp_path / "reports" / "lint-mixed.json").read_text())
+    assert report["meta"]["recording_formats"] == "mosquitto_sub -F %J, mosquitto_sub -F %j"
+    assert report["units"][UNIT]["rules"]["MSG-003"]["verdict"] == "pass"
