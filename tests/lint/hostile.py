@@ -293,6 +293,9 @@ RECORDING_CASES = [
         f"{UNIT}/sensor/speed", b"[" + b",".join([b"{}"] * 22_000_000) + b"]", 66_000_001)),
          says=("malformed line 7: line of 66000150 bytes holds more than the 1048576 JSON "
                "values",)),
+    Case("heartbeats-all-at-one-instant", _recording([  # found by fuzz/recording_mixed
+        line(T0 + 0.5, "waraps/unit/air/simulation/dji9/heartbeat", heartbeat(T0, "dji9", 9))
+        for _ in range(6)]), codes=frozenset({1}), says=("a mean interval of 0 s",)),
     Case("payloadlen-64mib-2000-lines", _recording([mosquitto_j(64 << 20)] * 2000),
          codes=frozenset({1}), says=("2000 payload(s) were cut at a NUL byte", "MSG-004")),
 ]
