@@ -404,6 +404,33 @@ def damaged_bags(tmp: Path, storage: str, copies: int) -> tuple[Path, list[Path]
     return src, out
 
 
+BILLION_LAUGHS = "".join(
+    [f"a0: &a0 [{', '.join(['x'] * 9)}]\n"]
+    + [f"a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * 9)}]\n" for i in range(1, 10)])
+"""About 1 KB of YAML that expands to 9**10 strings."""
+
+
+def metadata_bags(tmp: Path) -> list[Path]:
+    """Issue 26 §4: ROS 2 bags whose metadata.yaml says ``message_count: lots`` (in a topic's
+    count, then in the total), is a billion laughs, or nests 10,000 levels deep."""
+    sys.path.insert(0, str(Path(__file__).parent.parent / "ros"))
+    from ros_bags import unit_entries, write_bag
+
+    src = write_bag(tmp / "good", unit_entries(seconds=3, ros2=True), ros2=True)
+    text = (src / "metadata.yaml").read_text()
+    variants = [re.sub(r"- message_count: \d+", "- message_count: lots", text, count=1),
+                re.sub(r"\n  message_count: \d+", "\n  message_count: lots", text, count=1),
+                text + BILLION_LAUGHS.replace("a0:", "  a0:").replace("\na", "\n  a"),
+                "[" * 10_000 + "]" * 10_000]
+    out = []
+    for i, variant in enumerate(variants):
+        path = tmp / f"meta-{i}"
+        shutil.copytree(src, path)
+        (path / "metadata.yaml").write_text(variant)
+        out.append(path)
+    return out
+
+
 def bag_codes(run: Run) -> list[tuple[str, object, str]]:
     """(bag, exit code or traceback, end of its errors) of a BAG_DRIVER run."""
     return [tuple(x) for x in json.loads(run.out.strip().splitlines()[-1])]
