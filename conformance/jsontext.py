@@ -1,13 +1,15 @@
 """JSON text of a parsed value without recursion (issue 26 §4: no recursion over input).
 
-orjson writes at most 255 levels and ``json.dumps`` recurses (a ``-F %J`` payload of 999
-nested arrays raised RecursionError); a recording line may nest ``bounds.MAX_NESTING`` levels.
+orjson writes at most 255 levels (and no string holding surrogates), and ``json.dumps``
+recurses (a ``-F %J`` payload of 999 nested arrays raised RecursionError); a recording line
+may nest ``bounds.MAX_NESTING`` levels.
 ``dumps`` writes what orjson can, and anything deeper with an explicit stack: compact, as
 orjson writes it, so both give the same bytes where both can.
 """
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
 import orjson
@@ -44,9 +46,25 @@ def dumps(value: Any) -> bytes:
             for i in range(len(entries) - 1, -1, -1):
                 key, member = entries[i]
                 stack.append(member)
-                stack.append(orjson.dumps(key) + _COLON)
+                stack.append(_scalar(key) + _COLON)
                 if i:
                     stack.append(_COMMA)
         else:
-            out.append(orjson.dumps(item))
+            out.append(_scalar(item))
     return b"".join(out)
+
+
+def _scalar(item: Any) -> bytes:
+    """A number, string, true, false or null. A string read from a line that was not UTF-8
+    holds surrogate escapes (``recording._loads_not_utf8``): written back as the bytes they
+    stand for, so the payload is the one received; any other lone surrogate as an escape."""
+    try:
+        return orjson.dumps(item)
+    except orjson.JSONEncodeError:
+        if type(item) is not str:
+            raise
+    text = json.dumps(item, ensure_ascii=False)
+    try:
+        return text.encode("utf-8", "surrogateescape")
+    except UnicodeEncodeError:
+        return json.dumps(item).encode()

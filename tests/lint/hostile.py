@@ -160,6 +160,19 @@ def as_mosquitto_j(jsonl: bytes) -> bytes:
                          "payloadlen": len(payload), "payload": obj["payload"]})
 
 
+def _empty_objects(path: Path, count: int = 22_000_000) -> Path:
+    """Issue 26 §4: a -F %J line of 66 MB, ``[{},{},...]`` (2.1 GB as Python objects: once a
+    SIGSEGV in orjson.dumps), among good lines; written in pieces, never held."""
+    good = good_lines()
+    head, tail = mosquitto_jj(f"{UNIT}/sensor/speed", b"@", 3 * count).split(b"@")
+    with path.open("wb") as f:
+        f.write(b"\n".join(good[:6]) + b"\n" + head + b"[{}")
+        for _ in range(count // 100_000):
+            f.write(b",{}" * 100_000)
+        f.write(b"]" + tail + b"\n" + b"\n".join(good[6:]) + b"\n")
+    return path
+
+
 def mixed_j_and_jj(tmp: Path) -> Path:
     """Issue 26 §4: one ``-F %J`` line, then a conformant unit's ``-F %j`` lines (30 false
     MSG-003 findings when the first line's format was taken for the whole file)."""
@@ -289,10 +302,12 @@ RECORDING_CASES = [
     Case("jj-nested-999", _recording(mosquitto_jj(f"{UNIT}/sensor/speed", b"[" * 999
                                                   + b"]" * 999, 1998)),
          codes=frozenset({1}), says=("MSG-004",)),
-    Case("jj-66mb-of-empty-objects", _recording(mosquitto_jj(
-        f"{UNIT}/sensor/speed", b"[" + b",".join([b"{}"] * 22_000_000) + b"]", 66_000_001)),
-         says=("malformed line 7: line of 66000150 bytes holds more than the 1048576 JSON "
+    Case("jj-66mb-of-empty-objects", make=lambda tmp: _empty_objects(tmp / "jj-66mb-of-empty-objects.jsonl"),
+         says=("malformed line 7: line of 66000153 bytes holds more than the 1048576 JSON "
                "values",)),
+    Case("jj-key-not-utf8", _recording(mosquitto_jj(  # found by fuzz/recording_mixed
+        f"{UNIT}/sensor/battery", b'{"volt\xb1age": 12.5}', 19)),
+         codes=frozenset({1}), says=("MSG-001",)),
     Case("heartbeats-all-at-one-instant", _recording([  # found by fuzz/recording_mixed
         line(T0 + 0.5, "waraps/unit/air/simulation/dji9/heartbeat", heartbeat(T0, "dji9", 9))
         for _ in range(6)]), codes=frozenset({1}), says=("a mean interval of 0 s",)),
