@@ -43,7 +43,6 @@ import sys
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
-from datetime import datetime
 from pathlib import Path
 from typing import IO, Any
 
@@ -57,14 +56,17 @@ from conformance.bounds import (
     MAX_TIME,
     MIN_TIME,
 )
+from conformance.display import shorten
 from conformance.jsontext import dumps as json_text
 from conformance.message import Message
+from conformance.mosquitto_sub import cut_at_nul, parse_tst
 
 CHUNK_BYTES = 1 << 20
-MAX_EXAMINED_BYTES = 1 << 20
-"""A payload is examined up to this (``validator.MAX_PAYLOAD_BYTES``, MSG-004)."""
 BIG_LINE_BYTES = 1 << 20
 """A line longer than this has its JSON values counted before it is parsed (MAX_LINE_VALUES)."""
+PROBLEM_CHARS = 300
+"""A problem's text is kept up to this (it may quote the line: a 64 MiB 'tst', found by
+fuzz/recording_mixed, was kept whole, and 100 problems are kept)."""
 MAX_PROBLEMS_KEPT = 100
 """Malformed lines kept with their text; beyond this they are only counted (bounded memory)."""
 
@@ -116,26 +118,6 @@ class RecordingError(ValueError):
     """A recording that cannot be opened at all."""
 
 
-# mosquitto_sub's tst: local time, a stray 'Z', then the offset ("...33.546275Z+0100").
-_TST = re.compile(r"^(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d(?:\.\d{1,9})?)Z?([+-]\d\d:?\d\d)?$")
-
-
-def parse_tst(text: str) -> float:
-    """Unix seconds of a mosquitto_sub ``tst`` value; ValueError if it is not one."""
-    m = _TST.match(text)
-    if m is None:
-        raise ValueError(f"tst {text!r} is not an ISO 8601 time like 2026-11-21T06:26:33.546275Z+0000")
-    stamp, offset = m.groups()
-    if "." in stamp:  # fromisoformat takes 3 or 6 fraction digits only
-        whole, frac = stamp.split(".")
-        stamp = f"{whole}.{(frac + '000000')[:6]}"
-    if offset is None:
-        offset = "+00:00"
-    elif ":" not in offset:
-        offset = f"{offset[:3]}:{offset[3:]}"
-    return datetime.fromisoformat(stamp + offset).timestamp()
-
-
 def check_time(ts: float, what: str = "ts") -> float:
     """``ts`` if it is a time within the bounds (1970..2100), else ValueError naming them."""
     if not MIN_TIME <= ts <= MAX_TIME:  # NaN fails too
@@ -182,8 +164,9 @@ class RecordingReader:
 
     def problem(self, line: int, problem: str, raw: bytes = b"") -> None:
         self.problem_count += 1
-        if len(self.problems) < MAX_PROBLEMS_KEPT:
-            self.problems.append(LineProblem(line, problem, _excerpt(raw) if raw else ""))
+        if len(self.problems) < MAX_PROBLEMS_KEPT:  # bounded whatever the text quotes
+            self.problems.append(LineProblem(line, shorten(problem, PROBLEM_CHARS),
+                                             _excerpt(raw) if raw else ""))
 
     def _batches(self) -> Iterator[tuple[int, list[bytes]]]:
         """(number of the first line, lines without their newlines), a chunk's worth at a
@@ -456,7 +439,7 @@ class RecordingReader:
                 payload = as_json  # -F %J: the payload was a JSON string
                 self.formats.add(FORMAT_MOSQUITTO_JJ)
             elif len(raw) < length:
-                payload = _cut_at_nul(raw, length)
+                payload = cut_at_nul(raw, length)
                 self._truncated += 1
                 self.formats.add(FORMAT_MOSQUITTO_J)
             else:
@@ -475,17 +458,6 @@ def _values(line: bytes) -> int:
     """At least the JSON values a line holds beyond its first (a bound counted without parsing:
     ',' '[' '{' inside strings count too, which only errs towards reading less)."""
     return line.count(b",") + line.count(b"[") + line.count(b"{")
-
-
-def _cut_at_nul(raw: bytes, length: int) -> bytes:
-    """The payload ``mosquitto_sub -F %j`` cut at a NUL byte: what is known of it, then one NUL
-    (which JSON text never holds: MSG-002 fails on it, as on the payload itself). A payload
-    declared longer than a message is examined (MSG-004) is padded to one byte past that
-    bound, no further: the declared length is never materialised (issue 26 §4)."""
-    if length > MAX_EXAMINED_BYTES:
-        return raw + bytes(MAX_EXAMINED_BYTES + 1 - len(raw)) if len(raw) <= MAX_EXAMINED_BYTES \
-            else raw
-    return raw + b"\x00"
 
 
 def _utf8(text: str) -> str:
