@@ -241,6 +241,18 @@ def fleet(tmp: Path, units: int = 100_000) -> Path:
     return path
 
 
+def long_names(tmp: Path, units: int = 100, chars: int = 100_000) -> Path:
+    """Issue 26 §4: ``units`` units whose names take ``chars`` characters, one heartbeat each
+    (800 such units once took gigabytes: the name repeated in each rule's reason)."""
+    path = tmp / "long-names.jsonl"
+    with open(path, "wb") as f:
+        for i in range(units):
+            name = f"u{i}" + "n" * chars
+            f.write(line(T0 + i * 1e-3, f"waraps/unit/air/simulation/{name}/heartbeat",
+                         heartbeat(T0, name, i)) + b"\n")
+    return path
+
+
 NOT_JSON_SAYS = ("malformed line 7",)
 RECORDING_CASES = [
     Case("ts-1e17", _recording(b'{"ts": 1e17, "topic": "' + UNIT.encode() + b'/heartbeat", '

@@ -248,3 +248,15 @@ def test_a_hostile_metadata_yaml_is_refused_in_one_line(tmp_path: Path) -> None:
         assert err.count("\n") == 1 and "nothing was judged" in err and "Fix:" in err, err
     assert "is 'lots', not a whole number" in codes[0][2] and "'lots'" in codes[1][2]
     assert "anchors or aliases" in codes[2][2] and "deeper than 32 levels" in codes[3][2]
+
+
+def test_long_unit_names_are_stored_once(tmp_path: Path) -> None:
+    """Issue 26 §4: 100 units with 100 KB names (20 MB): every report written within the memory
+    bound (527 MB before: each rule's reason repeated the name) and about the input's size."""
+    from hostile import long_names
+
+    path = long_names(tmp_path)
+    run = run_bounded("long-names", ["lint", "--from", str(path), "--plain"], tmp_path)
+    _bounded(run)
+    for report in (tmp_path / "reports").iterdir():
+        assert report.stat().st_size < 2 * path.stat().st_size, report
