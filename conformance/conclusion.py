@@ -20,9 +20,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from conformance.exits import (  # noqa: F401 (their one home; read here by the outputs)
+    EXIT_CERTIFIED,
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_NOT_CERTIFIED,
+)
 from conformance.facts import RunFacts, iso
 from conformance.results import RunReport, UnitReport
 from conformance.rules import CATALOGUE, Mode
+from conformance.topics import level_name
 from conformance.violation import RuleResult, Verdict
 
 CERTIFIED = "certified"
@@ -32,9 +39,6 @@ PARTIAL = "partial"
 NOT_RUN = "not run"
 CLEAN = "clean"
 """Lint's verdict when nothing failed or warned: what was observed, not a certificate."""
-
-# Exit statuses of a certification (README 'Exit status'); pytest's own keep their meaning.
-EXIT_CERTIFIED, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_NOT_CERTIFIED = 0, 1, 2, 6
 
 LINT_NEVER_CERTIFIES = "lint observes; only a complete pytest --unit run certifies"
 
@@ -98,7 +102,9 @@ class Conclusion:
         return [lv.level for lv in found.levels if lv.certified] if found else []
 
     def headline(self) -> str:
-        """The verdict and, when the run is partial or not certified, why (one line)."""
+        """The verdict and, when the run is partial or not certified, why (one line, each
+        word once: ``interrupted (Ctrl-C)``, ``partial (only the selected rules ran: -k
+        HB-003)``)."""
         return self.verdict + (f" ({'; '.join(self.why)})" if self.why else "")
 
     def to_dict(self) -> dict[str, Any]:
@@ -185,7 +191,7 @@ def _certification_unit(name: str, unit: UnitReport, run_why: list[str],
     died = died_at(unit)
     general = [r for r in unit.rules.values() if _level_of(r.rule) is None]
     levels = []
-    for level in dict.fromkeys(lv.replace("_", " ") for lv in unit.levels):  # ERR-008
+    for level in dict.fromkeys(map(level_name, unit.levels)):  # ERR-008
         own = [r for r in unit.rules.values() if _level_of(r.rule) == level]
         # A rule of every level (topics, heartbeat, reboot) counts against each of them.
         failed = sum(r.verdict is Verdict.FAIL for r in own + general)
@@ -271,7 +277,7 @@ def _lint_unit(name: str, unit: UnitReport) -> UnitStatus:
     if died is not None:
         summary += f"; it died at {_clock(died)}"
     levels = tuple(LevelStatus(lv, False, LINT_NEVER_CERTIFIES)
-                   for lv in dict.fromkeys(x.replace("_", " ") for x in unit.levels))
+                   for lv in dict.fromkeys(map(level_name, unit.levels)))
     verdict = worst.value if worst in (Verdict.FAIL, Verdict.WARN) else CLEAN
     return UnitStatus(name, unit.party, verdict, summary, levels, died)
 

@@ -82,16 +82,18 @@ def stamp_violations(limits: Limits, parsed: ParsedTopic, stamp: float, raw: byt
     if abs(off) <= tolerance:
         return []
     detail = "5.1: stamp is time.time(), seconds since the Unix epoch as a double"
+    rule = "MSG-005"  # the unit's clock (decided), unless the stamp is in another unit (5.1)
     for scale, unit_name in ((1e3, "milliseconds"), (1e6, "microseconds"),
                              (1e9, "nanoseconds")):
         if abs(stamp / scale - time) <= tolerance:
             detail = f"looks like {unit_name}: divide by {scale:.0e} ({detail})"
+            rule = "MSG-008"
             break
     else:
         detail = (f"{abs(off):.1f} s {'ahead of' if off > 0 else 'behind'} the arrival "
                   f"time: is the unit's clock set? ({detail})")
     return [Violation.of(
-        "MSG-005", expected=f"Unix seconds within {_seconds(tolerance)} of its arrival at "
+        rule, expected=f"Unix seconds within {_seconds(tolerance)} of its arrival at "
                             f"{clock(time)} ({time:.3f})",
         observed=repr(stamp), topic=parsed.topic, path="$.stamp", time=time, payload=raw,
         unit=unit_of(parsed), detail=detail)]
@@ -145,7 +147,8 @@ def tst_command_checks(limits: Limits, parsed: ParsedTopic, message: dict[str, A
 
 
 _INFO = ContentCheck(info_checks, (
-    ("MSG-006", "name", (str,)), ("MSG-005", "stamp", (float, int))))
+    ("MSG-006", "name", (str,)), ("MSG-005", "stamp", (float, int)),
+    ("MSG-008", "stamp", (float, int))))
 CONTENT_CHECKS: dict[TopicKind, ContentCheck] = {
     TopicKind.HEARTBEAT: ContentCheck(info_checks,
                                       _INFO.examines + (("HB-004", "agent-type", (str,)),)),

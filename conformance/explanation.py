@@ -84,7 +84,7 @@ def verdict_of(rule_id: str, profile: profile_module.Profile) -> Verdict:
     from conformance.rules import get
 
     return violation_verdict(get(rule_id), profile.severity_of(rule_id),
-                             strict=profile.is_strict)
+                             strict=profile.adopts(rule_id))
 
 
 def overall_verdict(validation: Validation, profile: profile_module.Profile) -> Verdict:

@@ -12,6 +12,8 @@ from dataclasses import asdict, dataclass, field, fields
 from datetime import UTC, datetime
 from typing import Any
 
+CTRL_C = "Ctrl-C"
+"""``RunFacts.cut_short`` of a run interrupted by the user (else what cut it: --max-duration)."""
 GATES = ("all", "units")
 """Which rows decide lint's exit status: every row, or only the units' (not commanders')."""
 
@@ -65,9 +67,9 @@ class RunFacts:
         if self.broker_lost is not None:
             why.append(f"the broker was lost at {iso(self.broker_lost)} and did not come back")
         if self.interrupted:
-            why.append(self.cut_short or "the run was interrupted")
+            why.append(self.cut_short or CTRL_C)
         if self.selection:
-            why.append(f"only the selected rules ran ({self.selection})")
+            why.append(f"only the selected rules ran: {self.selection}")
         return why
 
     def not_run_reason(self) -> str:
@@ -76,7 +78,9 @@ class RunFacts:
             return f"not run: {self.error.splitlines()[0]}"
         if self.broker_lost is not None:
             return f"not run: the broker was lost at {iso(self.broker_lost)}"
-        return f"not run: {self.cut_short or 'interrupted (Ctrl-C)'}"
+        if self.cut_short in ("", CTRL_C):
+            return f"not run: interrupted ({CTRL_C})"
+        return f"not run: {self.cut_short}"
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)

@@ -15,6 +15,7 @@ import pytest
 
 from conformance.cli.options import BROKER_ENV, CREDENTIALS, TLS_FILES, TLS_INSECURE
 from conformance.display import printable
+from conformance.exits import EXIT_NOT_CERTIFIED
 
 if TYPE_CHECKING:
     from conformance.suite.session import Certification
@@ -30,7 +31,7 @@ FAILED_EXIT = pytest.ExitCode.TESTS_FAILED
 """1: a rule failed."""
 INTERRUPTED_EXIT = pytest.ExitCode.INTERRUPTED
 """2: interrupted (Ctrl-C, or --max-duration reached): not every rule ran."""
-NOT_CERTIFIED_EXIT = 6
+NOT_CERTIFIED_EXIT = EXIT_NOT_CERTIFIED  # README "Exit status"
 """6: not certified: the broker or the unit could not be reached, or the broker was lost for
 good during the run."""
 EXIT_HELP = ("exit status: 0 no rule failed, 1 a rule failed, 2 interrupted (Ctrl-C or "
@@ -64,7 +65,12 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                          "could-not-test)")
     group.addoption("--allow-motion", dest="waraps_allow_motion", action="store_true",
                     default=False, help="let the suite start the profile's motion-tasks on a "
-                                        "'real' unit")
+                                        "real unit (every role but 'simulation' and the "
+                                        "profile's simulated-roles)")
+    group.addoption("--allow-hostile", dest="waraps_allow_hostile", action="store_true",
+                    default=False, help="let the suite send hostile and malformed payloads "
+                                        "(the robustness probes) to a real unit; the profile's "
+                                        "robustness: true does the same")
     group.addoption("--dry-run", dest="waraps_dry_run", action="store_true", default=False,
                     help="publish nothing; print what would be published")
     group.addoption("--strict-rules", dest="waraps_strict_rules", action="store_true",
@@ -127,6 +133,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
             ("waraps_explore", "default for --explore (0: off)")):
         parser.addini(name, help_, default="")
     for name, help_ in (("waraps_allow_motion", "default for --allow-motion"),
+                        ("waraps_allow_hostile", "default for --allow-hostile"),
                         ("waraps_dry_run", "default for --dry-run"),
                         ("waraps_strict_rules", "default for --strict-rules"),
                         ("waraps_tls_insecure", "default for --tls-insecure")):
@@ -288,14 +295,15 @@ class _CertificationPlugin:
             return
         tr = terminalreporter
         tr.section("waraps-conformance")
-        if c.error:
+        if c.error:  # what went wrong and how to fix it; the verdict line below says no more
             tr.line(printable(f"not certified: {c.error}"), red=True)
         for event in c.events:
             tr.line(printable(event))
         report = c.report()
         conclusion = c.conclusion(report)
         counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
-        tr.line(f"{c.unit}: {conclusion.headline()} ({counts})",
+        head = conclusion.verdict if c.error else conclusion.headline()
+        tr.line(f"{c.unit}: {head}; {counts}",
                 red=conclusion.verdict not in ("pass", "warn"))
         unit = conclusion.units.get(str(c.unit))
         for level in unit.levels if unit is not None else ():

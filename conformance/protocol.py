@@ -59,6 +59,8 @@ from conformance.message import Message
 from conformance.status import FINAL_STATUSES, meaning
 
 BUILTIN_SIGNALS = ("$abort", "$continue", "$enough", "$pause")
+NO_SUCH_TASK = "waraps-conformance-no-such-task"
+"""A task name no unit offers: what the suite starts to see a refusal (12.2.1, TST-011)."""
 """12.2.2: 'The buildtin signals are $enough, $pause, $continue and $abort.'"""
 COMMANDS = ("ping", "start-task", "signal-task", "query-status")  # 12.1
 NEW_TASK = ""

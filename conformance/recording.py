@@ -75,7 +75,7 @@ FORMAT_MOSQUITTO_J = "mosquitto_sub -F %j"
 FORMAT_MOSQUITTO_JJ = "mosquitto_sub -F %J"
 FORMAT_MOSQUITTO_V = "mosquitto_sub -v"
 UNTIMED_RULES = ("HB-003", "SI-002", "DEI-002", "TEI-002", "HB-010", "HB-011", "HB-012",
-                 "MSG-005", "MSG-007", "SENS-005", "EXEC-010", "EXEC-PING-001",
+                 "MSG-005", "MSG-007", "MSG-008", "SENS-005", "EXEC-010", "EXEC-PING-001",
                  "EXEC-ROBUST-001")
 """Rules judged on arrival times (rates, silences, stamps against arrival, deadlines): not
 judged on a capture without times (``mosquitto_sub -v``), a could-not-test with

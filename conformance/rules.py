@@ -146,6 +146,17 @@ def basis_counts() -> dict[str, int]:
     return {b.value: sum(r.basis is b for r in _CATALOGUE) for b in Basis}
 
 
+def reading(strict: bool) -> str:
+    """How a run reads the catalogue: the counts by basis and what a decided rule does
+    (DESIGN 'What a rule stands on'); every output's header says it."""
+    counts = basis_counts()
+    said = f"{counts['stated']} stated, {counts['implied']} implied, {counts['decided']} decided"
+    if strict:
+        return f"{said}; strict: decided rules fail (--strict-rules, lint --strict, strict: true)"
+    return (f"{said}; decided rules warn as interop risks (the spec does not say; "
+            f"--strict-rules makes them fail)")
+
+
 def rules(*, level: Level | None = None, mode: Mode | None = None) -> list[Rule]:
     """The catalogue in id order, optionally filtered by level and mode."""
     return [

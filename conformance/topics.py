@@ -28,6 +28,12 @@ DELEGATION = "delegation"
 LEVELS = (SENSOR_LEVEL, DIRECT_EXECUTION, TST_EXECUTION, DELEGATION)
 
 
+def level_name(declared: str) -> str:
+    """A level as a heartbeat declares it, in 5.1's words: ``direct_execution`` is read as
+    ``direct execution`` (ERR-008: the spec spells it both ways)."""
+    return declared.replace("_", " ")
+
+
 class TopicKind(str, enum.Enum):
     """What a topic under a unit carries (3.1, 5, 6, 12, 14)."""
 
@@ -118,8 +124,11 @@ class UnitAddress:
 
     @property
     def is_real(self) -> bool:
-        """A ``real`` unit moves hardware: motion needs an explicit opt-in (DESIGN: safety)."""
-        return self.role == "real"
+        """Whether this unit is taken for hardware when nothing else is known: every role but
+        ``simulation`` (DESIGN 'Safety': fail closed; 3.1 lists real, simulation, playback,
+        and a role outside the list only warns). A profile may name more simulated roles:
+        ``Profile.is_simulation``."""
+        return self.role != "simulation"
 
     def with_name(self, name: str) -> UnitAddress:
         return UnitAddress(self.prefix, self.agent_type, self.role, name)

@@ -20,7 +20,7 @@ from typing import Any
 
 from conformance.message import Message
 from conformance.profile import Profile
-from conformance.topics import TopicKind, UnitAddress
+from conformance.topics import TopicKind, UnitAddress, level_name
 from conformance.validator import Validation
 from conformance.violation import Violation
 
@@ -349,7 +349,7 @@ class UnitState:
             self.private["_levels_raw"] = levels  # unchanged since (the usual case): kept
             # ERR-008: 'direct_execution' is read as 'direct execution' (the warning is the
             # validator's); the claim is the same.
-            self.levels = tuple(lv.replace("_", " ") for lv in levels if isinstance(lv, str))[:8]
+            self.levels = tuple(level_name(lv) for lv in levels if isinstance(lv, str))[:8]
 
     def _observe_direct_execution_info(self, m: dict[str, Any]) -> None:
         available = m.get("tasks-available")

@@ -9,7 +9,7 @@ from typing import Any
 
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.message import Message
-from conformance.topics import INFO_KIND_OF_LEVEL, TopicKind
+from conformance.topics import INFO_KIND_OF_LEVEL, TopicKind, level_name
 from conformance.validator import Validation
 from conformance.violation import Violation
 
@@ -175,7 +175,7 @@ def unit_does_not_die(ctx: CheckContext, unit: UnitState, now: float,
                       findings: Any) -> Iterator[Violation]:
     """5.1: the heartbeat registers availability. One that stops for good is a death (error):
     the finding names the last command the unit received before it fell silent."""
-    from conformance.checks.conversation import command_died_on
+    from conformance.checks.conversation import commands_died_on
 
     if unit.last_heartbeat is None or unit.period(HB) is None:
         return
@@ -183,21 +183,36 @@ def unit_does_not_die(ctx: CheckContext, unit: UnitState, now: float,
     period = heartbeat_period(unit)
     for last, end in deaths(ctx, unit, now):
         silence = min(end, now) - last
-        command = command_died_on(unit, last, period)
-        gap = command.last_sent - last if command is not None else 0.0
-        said = (f"; the last command it received: {command.describe()}, {abs(gap):.2f} s "
-                f"{'after' if gap >= 0 else 'before'} its last heartbeat"
-                if command is not None else "; it had received no command")
+        commands = commands_died_on(unit, last, period)
         how = ("it never came back" if end == float("inf")
                else "it came back only when the suite rebooted it")
         yield Violation.of(
             "HB-012", expected=f"a heartbeat at least every {SILENCE_PERIODS * period:.2f} s "
                                f"until the end of the observation",
             observed=f"no heartbeat for {silence:.2f} s ({silence / period:.1f} periods); "
-                     f"{how}{said}",
+                     f"{how}{_commands_said(commands, last)}",
             topic=unit.address.topic("heartbeat"), time=last,
-            payload=command.excerpt if command is not None else None,
+            payload=commands[0].excerpt if commands else None,
             detail="a unit that dies on a command must survive it (12.1)")
+
+
+NAMED_KEPT = 8
+"""Commands HB-012 names at most (the rest are counted)."""
+
+
+def _commands_said(commands: list[Any], last: float) -> str:
+    """The commands a death may have been caused by, the last first, each with its time
+    relative to the last heartbeat ``last``."""
+    if not commands:
+        return "; it had received no command"
+    said = [f"{cmd.describe()}, {abs(cmd.last_sent - last):.2f} s "
+            f"{'after' if cmd.last_sent >= last else 'before'} its last heartbeat"
+            + (" (answered)" if cmd.answers else "") for cmd in commands[:NAMED_KEPT]]
+    more = len(commands) - NAMED_KEPT
+    if len(commands) == 1:
+        return f"; the last command it received: {said[0]}"
+    return (f"; the commands it received as it fell silent, the last first: {'; '.join(said)}"
+            + (f"; and {more} more" if more > 0 else ""))
 
 
 @check("MSG-007", on=(HB, TopicKind.SENSOR_INFO, TopicKind.DIRECT_EXECUTION_INFO,
@@ -257,7 +272,7 @@ def declared_level_has_info(ctx: CheckContext, unit: UnitState, msg: Message,
     since = _level_since(unit)
     for lv in levels:
         if isinstance(lv, str):
-            level = lv.replace("_", " ")
+            level = level_name(lv)
             if level in INFO_KIND_OF_LEVEL and level not in since:
                 since[level] = msg.time
     return None

@@ -42,6 +42,7 @@ from conformance.checks.rows import (
     suite_version,
 )
 from conformance.checks.shapes import Shapes
+from conformance.checks.suite_commands import suite_row
 from conformance.checks.tst_routing import TstRouting
 from conformance.message import Message
 from conformance.profile import Profile
@@ -52,8 +53,7 @@ from conformance.validator import Examined, Validation, Validator
 from conformance.violation import Verdict, Violation
 
 MAX_UNITS = bounds.MAX_UNITS
-"""Units tracked at once; messages of further units are counted as unexamined, and lint fails
-on them (``not_judged``)."""
+"""Units tracked at once; further units' messages are unexamined: lint fails (``not_judged``)."""
 MAX_NAMED_OVER_CAP = 8
 """Units past MAX_UNITS named when the run says what it did not judge."""
 MAX_TOPICS = bounds.MAX_TOPICS_CACHED
@@ -163,6 +163,9 @@ class Monitor:
         self._over = 0
         self._over_units: list[str] = []
         self._latest = float("-inf")
+        self.version = 0
+        """Counts every change of what the Monitor knows (a message, a record, a gap, the
+        end): a report made at one version stays true until the next (a cache's key)."""
         """The latest arrival time fed (-inf before the first message)."""
         self._validate = self.validator.validate
         self._finished: float | None = None
@@ -173,6 +176,7 @@ class Monitor:
     def feed(self, message: Message) -> list[Violation]:
         """Validate one message, run the checks that can decide now, record everything;
         the violations this message shows (stateful ones included)."""
+        self.version += 1
         topic = message.topic
         route = self._by_topic.get(topic)
         if route is None:
@@ -234,9 +238,10 @@ class Monitor:
     def _feed_command(self, route: _Route, entry: Row, message: Message, v: Validation,
                       examined: Examined) -> list[Violation]:
         """A command: the unit's state learns of it (its conversations), but what is wrong in
-        it is the commander's (by ``sender``), never the unit's. Commands are rare: the
-        bookkeeping here may cost what the hot path may not."""
-        commander = self._commander_entry(entry, v.message, message.payload)
+        it is the commander's (by ``sender``; the suite's own: no one's, ``suite_commands``),
+        never the unit's. Commands are rare: the bookkeeping may cost what the hot path may not."""
+        commander = suite_row(entry.state, v.message, message.payload) or \
+            self._commander_entry(entry, v.message, message.payload)
         commander.groups[examined] = commander.groups.get(examined, 0) + 1
         commander.state.observe(message, v)
         state = entry.state
@@ -377,18 +382,21 @@ class Monitor:
         """The observer was disconnected from ``start`` to ``end`` (Unix seconds): intervals
         over that time are not judged (rates, silence, uuid changes). Call it before feeding
         the messages received after the reconnect."""
+        self.version += 1
         self.ctx.add_gap(float(start), float(end))
 
     def reboot_requested(self, t: float) -> None:
         """The observer's side rebooted the unit at ``t`` (Unix seconds): the restart is not
         judged as a silence or a rate gap, but a unit already silent for good before it had
         died (HB-012), however it came back."""
+        self.version += 1
         self.ctx.add_gap(float(t), float(t))
         self.ctx.reboots.append(float(t))
         del self.ctx.reboots[:-1000]
 
     def unexamined(self, count: int) -> None:
         """``count`` messages the observer could not examine (dropped, queue overflow)."""
+        self.version += 1
         self._unexamined += int(count)
 
     def _over_cap(self, topic: str) -> None:
@@ -406,6 +414,7 @@ class Monitor:
     def finish(self, now: float | None = None) -> None:
         """End-of-run judgements at ``now`` (Unix seconds; default: the latest arrival time
         seen, so a replay ends where the recording ended). Calling it again re-judges."""
+        self.version += 1
         now = self._now(now)
         for entry in self._entries.values():
             entry.final = self._run_finish(entry, now)
@@ -416,6 +425,10 @@ class Monitor:
     def units(self) -> list[UnitAddress]:
         """Every unit seen (or recorded into), in address order."""
         return sorted(a for a in self._entries if a is not None)
+
+    def commanders(self) -> list[str]:
+        """The rows of commanders seen so far (lint), by label (``commander op0``), sorted."""
+        return sorted(entry.unit for entry in self._commanders.values())
 
     def live_findings(self, unit: UnitAddress) -> list[Violation]:
         """What is wrong with ``unit`` right now that the rules judge only over the whole
@@ -443,6 +456,7 @@ class Monitor:
         ``excused``: a violation that is no evidence, and why (the unit had died, the link was
         down): the judge says could-not-test. ``unit`` None: a finding that names no unit (a
         ROS bag's, reported unattributed)."""
+        self.version += 1
         if rule not in CATALOGUE:
             from conformance.rules import get
 

@@ -29,6 +29,7 @@ from collections.abc import Iterator
 from operator import add
 
 from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.identity import SILENCE_PERIODS
 from conformance.message import Message
 from conformance.results import RateStat
 from conformance.topics import TopicKind
@@ -41,7 +42,6 @@ RATE_RULES = {
     TopicKind.DIRECT_EXECUTION_INFO: "DEI-002",
     TopicKind.TST_EXECUTION_INFO: "TEI-002",
 }
-SILENCE_PERIODS = 3.0  # HB-010's decision
 GROSS_FACTOR = 3.0  # HB-003's decision: a mean this far off fails early
 GROSS_MIN_INTERVALS = 3
 MAX_SERIES = 600

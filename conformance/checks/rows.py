@@ -147,7 +147,7 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
             if when:
                 times[rid] = (min(when), max(when))
         rules[rid] = judge_rule(
-            rule, severity=profile.severity_of(rid), strict=profile.is_strict,
+            rule, severity=profile.severity_of(rid), strict=profile.adopts(rid),
             violations=evidence[:MAX_EVIDENCE], count=count, examined=examined.get(rid, 0),
             explicit=explicit, explicit_reason=reason, excused=excused,
             default_reason=skip_reason(rule, kind=kind, unit=unit,

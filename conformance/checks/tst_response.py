@@ -24,13 +24,13 @@ from conformance.checks.tst_conversation import (
     tst_conversations,
 )
 from conformance.message import Message
+from conformance.protocol import BUILTIN_SIGNALS as SIGNALS
 from conformance.topics import TST_EXECUTION, TopicKind
 from conformance.tst import FINAL, unit_name
 from conformance.validator import Validation
 from conformance.violation import Violation
 
 EXPECTS_KEPT = 256
-SIGNALS = ("$abort", "$pause", "$continue", "$enough")  # 14: abort/pause/continue/enough
 STARTED = ("started", "running")  # 14.4.4; 'running' is ERR-015's reading (the validator's)
 SIGNAL_FEEDBACK = {"$abort": "aborted", "$enough": "succeeded", "$pause": "paused",
                    "$continue": "running"}

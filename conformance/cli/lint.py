@@ -22,7 +22,7 @@ from typing import IO
 
 from conformance.bounds import bounds_help
 from conformance.cli import options as opts
-from conformance.lint import EXIT_USAGE
+from conformance.lint import EXIT_NOT_RUN, EXIT_USAGE
 from conformance.lint.runner import GATES, REPORT_FORMATS, lint
 
 
@@ -34,7 +34,7 @@ def build_parser() -> argparse.ArgumentParser:
         "Exit status: 0 no unit or commander fails a rule of severity error (with "
                "--gate units: no unit), 1 one does (or units past the bound were not judged), "
                "2 bad usage, 3 nothing could be linted (no broker, no messages, a ROS bag "
-               "that cannot be read whole). What is wrong in a command is its commander's "
+               "that cannot be read whole, a --serve address that cannot be bound). What is wrong in a command is its commander's "
                "fault: commanders (by the command's 'sender', else 'of UNIT') have rows of "
                "their own. " + bounds_help())
     src = p.add_argument_group("recorded traffic")
@@ -65,7 +65,27 @@ def build_parser() -> argparse.ArgumentParser:
                      help="adopt the suite's decisions as conventions: a rule whose basis is "
                           "'decided' (the spec is silent) fails instead of warning (as "
                           "'strict: true' in the profile)")
+    web = p.add_argument_group("serving the fleet page (read-only)")
+    web.add_argument("--serve", metavar="[HOST:]PORT",
+                     help="while linting, serve the live fleet page on http://127.0.0.1:PORT/ "
+                          "(a row per unit and commander, its rates and findings, a page per "
+                          "unit), /metrics (Prometheus text) and /report.json (the report as "
+                          "it stands); HOST:PORT serves on another address, with a warning "
+                          "(anyone who reaches it can read it); port 0 picks a free one")
+    web.add_argument("--serve-linger", metavar="TIME",
+                     help="how long to keep serving once lint has ended: 0, or a time like "
+                          "90s, 10m (default: until Ctrl-C after a recording (--from), not at "
+                          "all after live linting)")
     return p
+
+
+def parse_linger(text: str | None, recorded: bool) -> float | None:
+    """Seconds to keep serving after the run (None: until Ctrl-C)."""
+    if text is None:
+        return None if recorded else 0.0
+    if text.strip() in ("0", "0s"):
+        return 0.0
+    return opts.parse_duration(text)
 
 
 def parse_formats(text: str) -> tuple[str, ...]:
@@ -83,6 +103,7 @@ def parse_formats(text: str) -> tuple[str, ...]:
 def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
          stdin: IO[bytes] | None = None) -> int:
     from conformance.lint.capture import CaptureOptionsError
+    from conformance.lint.serve import ServeError, parse_address
     from conformance.profile import ProfileError, load
 
     args = build_parser().parse_args(argv)
@@ -101,8 +122,12 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
             import dataclasses
 
             profile = dataclasses.replace(profile, strict=True)
+        serve = parse_address(args.serve) if args.serve is not None else None
+        linger = parse_linger(args.serve_linger, bool(args.source))
     except (CaptureOptionsError, ProfileError, ValueError) as e:
         return usage(str(e))
+    if args.serve_linger is not None and serve is None:
+        return usage("--serve-linger applies with --serve only")
     ros_unit = None
     if args.ros_unit:
         from conformance.rosbag import is_bag
@@ -115,6 +140,10 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
             ros_unit = UnitAddress.parse(args.ros_unit)
         except TopicError as e:
             return usage(f"--ros-unit: {e}")
-    return lint(options, profile, source=args.source, ros_unit=ros_unit,
-                reports_dir=Path(args.reports_dir), formats=formats, gate=args.gate,
-                plain=args.plain, stdout=stdout, stdin=stdin)
+    try:
+        return lint(options, profile, source=args.source, ros_unit=ros_unit,
+                    reports_dir=Path(args.reports_dir), formats=formats, gate=args.gate,
+                    plain=args.plain, stdout=stdout, stdin=stdin, serve=serve, linger=linger)
+    except ServeError as e:  # the address cannot be bound: nothing was linted
+        print(f"waraps-conformance lint: {e}", file=sys.stderr)
+        return EXIT_NOT_RUN

@@ -33,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     from conformance.client import BrokerError, BrokerURL, MqttClient
-    from conformance.profile_draft import draft, observe
+    from conformance.profile_draft import draft, observe, problems
     from conformance.topics import TopicError, UnitAddress
 
     args = build_parser().parse_args(argv)
@@ -67,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{prog}: {e}", file=sys.stderr)
         return 3
     text = draft(seen)
+    for problem in problems(seen):  # said, not only written: the unit contradicts itself
+        print(f"PROBLEM: {problem}", file=sys.stderr)
     if out is None:
         sys.stdout.write(text)
     else:

@@ -178,7 +178,18 @@ class Linter:
         return events
 
     def is_error(self, rule: str) -> bool:
-        return self.profile.severity_of(rule) is Severity.ERROR
+        """Whether a violation of ``rule`` fails (else warns), as the judge will say at the
+        end (``judge.violation_verdict``: a decided rule warns unless the profile adopts it)."""
+        from conformance.judge import violation_verdict
+        from conformance.rules import CATALOGUE
+        from conformance.violation import Verdict
+
+        found = CATALOGUE.get(rule)
+        severity = self.profile.severity_of(rule)
+        if found is None:
+            return severity is Severity.ERROR
+        return violation_verdict(found, severity,
+                                 strict=self.profile.adopts(rule)) is Verdict.FAIL
 
     def failing_units(self) -> list[str]:
         """Units with a violation of a rule of severity error so far."""

@@ -21,11 +21,30 @@ REPORT_FORMATS = ("json", "html", "junit")
 def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any = None,
          reports_dir: Path = Path("reports"), formats: tuple[str, ...] = REPORT_FORMATS,
          gate: str = "all", plain: bool = False, stdout: IO[str] | None = None,
-         stdin: IO[bytes] | None = None) -> int:
+         stdin: IO[bytes] | None = None, serve: Any = None, linger: float | None = 0.0) -> int:
     """Lint the traffic ``options`` (``CaptureOptions``) name, live, or the recording or ROS
     bag at ``source``; print the scorecard and write the reports. Returns the exit status:
     EXIT_PASS, EXIT_FAIL (a unit, or with ``gate`` all also a commander, fails a rule of
-    severity error) or EXIT_NOT_RUN (no broker, nothing read)."""
+    severity error) or EXIT_NOT_RUN (no broker, nothing read).
+
+    ``serve`` (a ``serve.Address``): serve the fleet page, /metrics and /report.json while
+    linting, and ``linger`` seconds after (None: until Ctrl-C). Raises ``ServeError`` when the
+    address cannot be bound."""
+    if serve is None:
+        return _lint(options, profile, source=source, ros_unit=ros_unit,
+                     reports_dir=reports_dir, formats=formats, gate=gate, plain=plain,
+                     stdout=stdout, stdin=stdin)
+    from conformance.lint.serve import Serving
+
+    with Serving(serve, linger, stdout or sys.stdout, live=not source) as serving:
+        return _lint(options, profile, source=source, ros_unit=ros_unit, reports_dir=reports_dir,
+                     formats=formats, gate=gate, plain=plain, stdout=stdout, stdin=stdin,
+                     serving=serving)
+
+
+def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
+          reports_dir: Path, formats: tuple[str, ...], gate: str, plain: bool,
+          stdout: IO[str] | None, stdin: IO[bytes] | None, serving: Any = None) -> int:
     from conformance.lint.linter import Linter
     from conformance.rosbag import is_bag
     from conformance.scorecard import Scorecard
@@ -35,6 +54,11 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
     bag = bool(source) and is_bag(source)
     monitor = _monitor(profile, options.units)
     linter = Linter(monitor, profile)
+    if serving:  # /report.json while lint runs: judged as the end will judge it
+        from conformance.facts import RunFacts
+
+        serving.view.report_meta(broker=str(options.broker or ""),
+                                 facts=RunFacts(kind="lint", gate=gate, strict=profile.is_strict))
     started = time.time()
     if bag:
         from conformance.rosbag import BagError, BagReader
@@ -42,6 +66,7 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
         reader_of_bag = BagReader(source, ros_unit)
         scorecard = Scorecard(out, tty=False if plain else None, title=reader_of_bag.name,
                               live=False)
+        scorecard = serving.watch(scorecard) if serving else scorecard
         try:
             end = run_bag(linter, scorecard, reader_of_bag, options)
         except BagError as e:
@@ -59,6 +84,7 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
             print(printable(f"waraps-conformance lint: {e}"), file=err)
             return EXIT_NOT_RUN
         scorecard = Scorecard(out, tty=False if plain else None, title=name, live=False)
+        scorecard = serving.watch(scorecard) if serving else scorecard
         with stream if stream is not (stdin or sys.stdin.buffer) else _noop():
             reader, end = run_recorded(linter, scorecard, stream, name, options)
         meta = {"source": name, "recording_lines": str(reader.lines),
@@ -85,6 +111,8 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
             return EXIT_NOT_RUN
         scorecard = Scorecard(out, tty=False if plain else None,
                               title=f"{options.broker} {' '.join(options.topics)}", live=True)
+        if serving:
+            scorecard = serving.watch(scorecard)
         if not scorecard.tty:
             print(f"linting {', '.join(options.topics)} on {options.broker} (read-only)"
                   + (f" for {options.duration:g} s" if options.duration else " until Ctrl-C"),
@@ -123,6 +151,9 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
                    RunFacts(kind="lint", gate=gate, strict=profile.is_strict,
                             untimed=untimed(linter), not_judged=meta.get("not_judged", "")))
     conclusion = report.conclusion
+    if serving:  # the fleet page's last snapshot: every verdict final
+        serving.view.finish(linter, report, verdict=conclusion.verdict,
+                            not_judged=meta.get("not_judged", ""))
     # Each unit's verdict and its most severe findings first (issue 18, 6), then the table.
     scorecard.final(linter, report, opening=render_verdicts(report))
     for problem in problems:

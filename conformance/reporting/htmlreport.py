@@ -128,7 +128,9 @@ def _head_facts(report: RunReport, conclusion: Conclusion) -> HeadFacts:
     counts = dict(conclusion.counts)
     not_run = counts.pop(NOT_RUN, 0)
     words = dict(META_WORDS)
-    meta = []
+    from conformance.rules import reading
+
+    meta = [("rules", reading(conclusion.strict))]
     for key in dict.fromkeys([k for k, _ in META_WORDS] + sorted(report.meta)):
         value = report.meta.get(key)
         if value and key not in META_SHOWN_ELSEWHERE:

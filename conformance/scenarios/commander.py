@@ -14,6 +14,7 @@ from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from typing import Any
 
+from conformance.protocol import NO_SUCH_TASK
 from conformance.scenarios.deviation import (
     FINAL_STATUSES,
     SHORT,
@@ -26,7 +27,6 @@ from conformance.scenarios.sender import Sender, Sent, new_uuid
 from conformance.scenarios.traffic import Entry, Traffic
 from conformance.topics import UnitAddress
 
-NO_SUCH_TASK = "waraps-conformance-no-such-task"
 """A task name no unit offers: a start-task of it is refused and can move nothing."""
 
 

@@ -24,7 +24,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from conformance.scenarios.context import BUILTIN_SIGNALS, RUNS_UNTIL_ENOUGH
+from conformance.protocol import BUILTIN_SIGNALS
+from conformance.scenarios.context import RUNS_UNTIL_ENOUGH
 from conformance.scenarios.explore_steps import UNCHANGED, Disagreement, Explorer, Step
 from conformance.scenarios.shrink import shrink
 from conformance.scenarios.story import Story

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from itertools import cycle
 
+from conformance.protocol import NO_SUCH_TASK
 from conformance.scenarios.context import Context, describe
 from conformance.scenarios.deviation import SHORT
 from conformance.scenarios.params import valid_params
@@ -42,7 +43,6 @@ LIVE = ("active", "running", "waiting")
 LEAF_ENDINGS = (("signal-tst-tree", "$abort"), ("signal-tst-tree", "$enough"),
                 ("signal-unit", "$enough"), ("signal-unit", "$abort"))
 """The signals the leaf trees end with: those the seq and conc trees do not send."""
-NO_SUCH_TASK = "waraps-conformance-no-such-task"
 
 
 class _Drive:
@@ -238,12 +238,12 @@ def _kind(task: str) -> str:
 def run(ctx: Context) -> None:
     tc = ctx.tst
     origin = ctx.position()
-    tasks = ctx.startable()
+    tasks = ctx.startable("tst")
     if tc is None or origin is None or not tasks:
         reason = ("no TST command topic" if tc is None else
                   "the unit reports no sensor/position: task positions are generated near it "
                   "(DESIGN 'Safety')" if origin is None else
-                  "no task the suite may start is in tasks-available")
+                  ctx.none_startable("tst"))
         for rule in RULES:
             ctx.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=reason)
         return

@@ -115,7 +115,7 @@ class CommandExecutor:
         elif not isinstance(command, str):
             self._answer(com, "failed", fail_reason="the command has no 'command' field (one of "
                          f"{', '.join(COMMANDS)})")
-        else:
+        elif "silent-unknown-command" not in self.variants:  # 12.1 asks nothing of others
             self._answer(com, "failed", fail_reason=f"unknown command {command[:64]!r}: this "
                          f"unit understands {', '.join(COMMANDS)} (12.1)" + misdirected(command))
 
@@ -230,6 +230,8 @@ class CommandExecutor:
             self._answer(com, "failed", task_uuid=task_uuid, fail_reason="start-task needs "
                          "'task': {'name': ..., 'params': {...}} (12.2.3, section 10)")
             return
+        if sent_uuid is None and "start-no-task-uuid-unanswered" in self.faults:
+            return  # msg["task-uuid"]: a KeyError the MQTT library catches; the command is lost
         if (task_uuid in tasks and "resend-executes-twice" in self.faults
                 and tasks[task_uuid].com_uuid == com):
             del tasks[task_uuid]  # the resend starts the same task again from scratch

@@ -81,7 +81,7 @@ _ALL = (
        "Publishes position as a one-element list of GeoPoints (10.1.6's example form)."),
     _f("camera-data-url", "MSG-004",
        "Publishes camera_url as an inline 'data:image/jpeg;base64,...' frame of 1.5 MB."),
-    _f("stamp-milliseconds", "MSG-005",
+    _f("stamp-milliseconds", "MSG-008",
        "Stamps heartbeat and info messages in milliseconds (Date.now() style)."),
     _f("stamp-clock-skew", "MSG-005",
        "Stamps with a clock that runs 120 s behind (no NTP)."),
@@ -97,6 +97,9 @@ _ALL = (
        "Sends type 'Heartbeat' instead of 'HeartBeat'."),
     _f("heartbeat-rate-drift", "HB-003",
        "Declares its heartbeat rate but sends at 1/1.35 of it (sleep(period) plus work)."),
+    _f("heartbeat-rate-gross", "HB-003",
+       "Declares its heartbeat rate but sends every 5 declared periods (a period written "
+       "where its rate belongs: a public agent declares 5 Hz and sends every 5 s)."),
     _f("agent-type-mismatch", "HB-004",
        "Says another agent-type in its heartbeat than its topic does (configured from a "
        "ground unit's template: 'ground', or 'air' on a ground unit)."),
@@ -187,6 +190,10 @@ _ALL = (
        "(seen in the field): feedback flows, no answer comes."),
     _f("start-no-generated-task-uuid", "EXEC-START-002",
        "Generates a task-uuid for a start-task that has none, but does not return it."),
+    _f("start-no-task-uuid-unanswered", "EXEC-START-001 EXEC-START-002",
+       "Drops a start-task without task-uuid: msg['task-uuid'] raises a KeyError in its "
+       "message callback, which the MQTT library survives (no answer, no task; seen in the "
+       "field). A start-task it would refuse anyway (no task object) is still refused."),
     _f("dies-on-missing-task-uuid", "HB-012",
        "Its MQTT thread dies on a start-task without task-uuid (a KeyError): from then on it "
        "publishes and answers nothing, while the process lives on (seen in the field).",
@@ -248,6 +255,9 @@ _ALL = (
        "Keeps its agent-uuid across a reboot (read from a config file) but loses its history."),
     _f("reboot-remembers-history", "REBOOT-002",
        "Gets a new agent-uuid on reboot but still knows its earlier tasks (history on disk)."),
+    _f("reboot-renames", "REBOOT-001",
+       "Names itself anew at every start: after a reboot it comes back as '<name>_<4 hex "
+       "digits>' (a random suffix per start), gone from the address it was certified at."),
     # --- errata readings ----------------------------------------------------------------------
     _f("sensor-dot-info", "ERR-001",
        "Sends sensor_info on 'sensor.info' (5.2's spelling)."),
@@ -255,10 +265,6 @@ _ALL = (
        "Reports a finished task as 'success' in feedback (12.1's query-status word)."),
     _f("level-underscore", "ERR-008",
        "Declares the level 'direct_execution'."),
-    _f("geopoint-type-tag", "ERR-010",
-       "Tags its position \"type\": \"GeoPoint\"."),
-    _f("geopoint-untagged", "ERR-010",
-       "Publishes its position without a rostype tag."),
     _f("info-no-agent-uuid", "ERR-012",
        "Leaves agent-uuid out of sensor_info and direct_execution_info (5.2/5.3's examples)."),
     _f("signal-response-tst-form", "ERR-013",
@@ -364,6 +370,8 @@ NOT_UNIT_BREAKABLE: dict[str, str] = {
     "ERR-017": "unit names in TST commands (the commander's); a unit understands both forms",
     "ERR-002": "about the spec's example text; a unit copying it breaks MSG-002 (course-nan)",
     "ERR-003": "a misspelled parameter in a start-task command (the commander's)",
+    "ERR-010": "a task's GeoPoint tag, in a start-task or start-tst command (the commander's); "
+               "sensor/position is not judged by it (6.1 has no example)",
     "ERR-004": "observe-position parameter forms in a start-task command (the commander's)",
     "ERR-005": "a TST node name in start-tst (the commander's)",
     "ERR-007": "the signal-executor command (sent by a commander)",

@@ -23,6 +23,9 @@ CAMERA_URL_EVERY = 2
 window of three periods (checks.sensors.PUBLISH_WINDOW_PERIODS), so an observer that joins
 late still sees it in time."""
 DRIFT = 1.35  # the rate-drift faults send at 1/DRIFT of the declared rate
+GROSS = 5.0
+"""Fault heartbeat-rate-gross: every heartbeat interval is this many declared periods (the
+field's was 25: a mismatch this gross is judged from a few intervals, 5.1)."""
 
 
 def topic_base(address: UnitAddress, faults: frozenset[str]) -> str:
@@ -99,7 +102,8 @@ class Publisher:
         def stream(name: str, drift_fault: str, normal: float = period) -> Stream:
             return Stream(name, normal * DRIFT if drift_fault in self.faults else normal, first)
 
-        self.streams = [stream("heartbeat", "heartbeat-rate-drift", fast),
+        beat = fast * GROSS if "heartbeat-rate-gross" in self.faults else fast
+        self.streams = [stream("heartbeat", "heartbeat-rate-drift", beat),
                         stream("sensor_info", "sensor-info-rate-drift",
                                edge if "sensor-rate-edge" in self.variants else slower or period),
                         stream("direct_execution_info", "dei-rate-drift", info),
@@ -253,10 +257,8 @@ class Publisher:
             lat, lon = round(lat * 1e7), round(lon * 1e7)  # type: ignore[assignment]
         msg: dict[str, Any] = {"altitude": round(p.altitude, 2), "latitude": lat,
                                "longitude": lon, "rostype": "GeoPoint"}
-        if "geopoint-type-tag" in self.faults or "geopoint-type" in self.variants:
+        if "geopoint-type" in self.variants:
             msg["type"] = msg.pop("rostype")
-        elif "geopoint-untagged" in self.faults:
-            del msg["rostype"]
         return [msg] if "position-as-list" in self.faults else msg
 
     def _publish_sensors(self, stream: Stream, now: float) -> None:
@@ -264,7 +266,8 @@ class Publisher:
         # Speed, heading and course go out before the position they belong with: an observer
         # judging a position step (SENS-005) then already knows the speed that made it.
         heading = round(v.heading, 2) % 360.0
-        if "heading-signed" in self.faults and heading > 180.0:
+        if heading > 180.0 and ("heading-signed" in self.faults
+                                or "signed-heading" in unit.variants):
             heading -= 360.0
         unit.send("sensor/heading", heading)
         if "mandatory-sensor-missing" not in self.faults:

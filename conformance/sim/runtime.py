@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 
 from conformance.client import BrokerURL, Message, MqttClient
 from conformance.sim.executor import MAX_COMMAND_BYTES
+from conformance.sim.publisher import topic_base
 
 if TYPE_CHECKING:
     from conformance.sim.unit import UnitCore
@@ -70,8 +71,10 @@ class Runtime:
             raise RuntimeError("add units before start()")
         self.units.append(unit)
         index = len(self.units) - 1
-        self._by_topic[unit.command_topic] = index
-        self._bases.add(unit.base)
+        for life in unit.lives:  # one, or the names a renaming unit takes (reboot-renames)
+            base = topic_base(life, unit.faults)
+            self._by_topic[f"{base}/exec/command"] = index
+            self._bases.add(base)
         if unit.tst is not None:
             for topic in unit.tst.topics:
                 self._tst_by_topic.setdefault(topic, []).append(index)

@@ -31,10 +31,10 @@ from conformance.sim.faults import TST_FAULTS, TST_LEVEL_FAULTS, check_names
 from conformance.sim.memory import Resends
 from conformance.sim.publisher import CAMERA_URL_EVERY, Publisher, topic_base
 from conformance.sim.runner import STEP, TaskRunner
-from conformance.sim.tasks import Task, TaskSpec, tasks_for
+from conformance.sim.tasks import GO_HOME, Task, TaskSpec, tasks_for
 from conformance.sim.tst import TstEngine
-from conformance.sim.variants import SLOW_PERIODS, check_variants
-from conformance.sim.vehicle import LINKOPING, GeoPoint, Vehicle
+from conformance.sim.variants import RESPAWN_METRES, SLOW_PERIODS, check_variants
+from conformance.sim.vehicle import LINKOPING, GeoPoint, Vehicle, destination
 from conformance.topics import UnitAddress
 
 __all__ = ["CAMERA_URL_EVERY", "Emit", "UnitCore"]  # CAMERA_URL_EVERY: bench/bench_sim.py
@@ -45,6 +45,9 @@ HELD = frozenset({"exec/response", "exec/feedback", "tst/response", "tst/feedbac
 VENDOR = {"name": "waraps-conformance reference unit", "variant": "verbose"}
 """Variant verbose: the field of its own it adds to every message (2: more fields are not
 forbidden; a reader ignores what it does not know)."""
+RENAMES = 3
+"""Fault reboot-renames: how many reboots bring a new name (later ones keep the last); the
+runtime listens and may publish under every one of them from the start."""
 REBOOT_SILENCE = 2.5
 """A reboot is silent for this many heartbeat periods, counted from the last heartbeat: more
 than HB-006's two (so the new agent-uuid reads as a reboot), less than HB-010's three."""
@@ -81,6 +84,12 @@ class UnitCore:
         self._emit = emit
         self.vehicle = Vehicle(address.agent_type, position or GeoPoint(*LINKOPING, 0.0), heading)
         self.specs: dict[str, TaskSpec] = {t.name: t for t in tasks_for(address.agent_type)}
+        self.lives = (address,) + tuple(
+            address.with_name(f"{address.name}_{(0x9E37 * n) & 0xFFFF:04x}")
+            for n in range(1, RENAMES + 1) if "reboot-renames" in self.faults)
+        """The addresses of its lives: its own, then the names it takes after each reboot."""
+        if "own-task" in self.variants:  # 5.3: a task beyond section 9
+            self.specs[GO_HOME.name] = GO_HOME
         self.base = topic_base(address, self.faults)
         self.command_topic = f"{self.base}/exec/command"
         # Identity of one life (12.1: history is lost with a reboot).
@@ -254,6 +263,10 @@ class UnitCore:
 
     def _come_back(self, now: float) -> None:
         self.boot += 1
+        if len(self.lives) > 1:  # fault reboot-renames: a new name for the new life
+            self.address = self.lives[min(self.boot, len(self.lives) - 1)]
+            self.base = topic_base(self.address, self.faults)
+            self.command_topic = f"{self.base}/exec/command"
         if "reboot-keeps-agent-uuid" not in self.faults:
             self.agent_uuid = self._new_agent_uuid()
         if "reboot-remembers-history" not in self.faults:
@@ -265,6 +278,11 @@ class UnitCore:
                     t.status, t.fail_reason = "failed", "interrupted by a reboot"
         if self.tst is not None:
             self.tst.forget()
+        if "respawn" in self.variants:  # a new life starts where its simulator spawns it
+            # A bearing of its own per life (the golden angle), not drawn from rng: the
+            # identifiers of the new life stay those of a unit without the variant.
+            self.vehicle.position = destination(self.vehicle.position, self.boot * 137.5,
+                                                RESPAWN_METRES)
         self.crashed = False
         self.dead = False
         self.up = True

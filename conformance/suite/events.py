@@ -3,12 +3,7 @@ summary (``pytest_terminal_summary``): one line each, most stamped with the wall
 
 from __future__ import annotations
 
-import time
-
-
-def clock(t: float) -> str:
-    """Unix seconds as local wall-clock time to the millisecond: ``14:03:07.250``."""
-    return time.strftime("%H:%M:%S", time.localtime(t)) + f".{int(t % 1 * 1000):03d}"
+from conformance.violation import clock  # one clock: UTC, as findings and reports say times
 
 
 class Events(list[str]):

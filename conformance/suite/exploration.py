@@ -15,7 +15,7 @@ import pytest
 from conformance.reporting.text import printable
 from conformance.scenarios.explore import Outcome, Search, Stopped, replay
 from conformance.scenarios.explore_steps import Collector, Explorer, UnitDied, judged
-from conformance.scenarios.sender import DryRun
+from conformance.scenarios.sender import NotSent
 from conformance.scenarios.story import Story, StoryError, load
 from conformance.scenarios.traffic import OutOfTime
 from conformance.suite.session import Certification
@@ -61,6 +61,13 @@ def rerun(c: Certification, path: Path) -> str:
     return base if selected else base + " -k test_explore"
 
 
+def remember(c: Certification, story: Story, path: Path, began: float) -> None:
+    """Each rule ``story`` broke is repeated by replaying it (``Certification.rerun_command``),
+    unless the rule was also found before exploration ``began`` (Unix seconds)."""
+    for rule in story.rules:
+        c.replays.setdefault(rule, (began, rerun(c, path)))
+
+
 def run(c: Certification, node: pytest.Item) -> None:
     """Explore (or replay a stored story) and turn what was found into this test's outcome."""
     s = c.settings
@@ -86,20 +93,19 @@ def run(c: Certification, node: pytest.Item) -> None:
     collector = Collector(str(c.unit), lambda rule: judged(rule, c.profile.severity_of))
     explorer = Explorer(c.context, collector, lambda task_uuid: _model_state(c, task_uuid),
                         dead=c.unit_died)
-    explorer.warm()
     c.connection.listeners.append(collector)
-    died = ""
+    died, began = "", time.time()
     try:
         if actions is not None:
-            _replay(c, explorer, actions, node)
+            _replay(c, explorer, actions, node, began)
         else:
-            _explore(c, explorer, node)
+            _explore(c, explorer, node, began)
     except UnitDied as e:  # in a replay (of a stored story, or while shrinking)
         died = str(e)
     except Stopped as e:
         if isinstance(e.cause, UnitDied):
             died = str(e.cause)
-        elif isinstance(e.cause, DryRun):
+        elif isinstance(e.cause, NotSent):  # --dry-run, or the publish policy refused it
             pytest.skip(f"could not test: {e.cause}")
         elif isinstance(e.cause, OutOfTime):
             c._out_of_time(e.cause)
@@ -112,14 +118,16 @@ def run(c: Certification, node: pytest.Item) -> None:
             c.commander.abort_all(c.timing.response)
         c.write_reports()
     if died:
-        _died(c, explorer, died, node)
+        _died(c, explorer, died, node, began)
 
 
-def _died(c: Certification, explorer: Explorer, why: str, node: pytest.Item) -> None:
+def _died(c: Certification, explorer: Explorer, why: str, node: pytest.Item,
+          began: float) -> None:
     """The unit died on what the exploration sent (HB-012 fails too, naming the command):
     the steps that led there, stored and replayable; nothing more could be explored."""
     story = Story.of(explorer.steps, c.settings.seed)
     path = story.save(story_path(c), str(c.unit))
+    remember(c, story, path, began)
     c.explored = f"the unit died at step {len(explorer.steps)} of an example"
     node.user_properties.append(("explore", c.explored))
     pytest.fail(story.render(str(c.unit), "", brief=True, heading=(
@@ -148,7 +156,7 @@ def _say(c: Certification, text: str) -> None:
             c.progress.line(line)
 
 
-def _explore(c: Certification, explorer: Explorer, node: pytest.Item) -> None:
+def _explore(c: Certification, explorer: Explorer, node: pytest.Item, began: float) -> None:
     seconds = budget(c)
     if seconds <= 0:
         pytest.skip("could not test: no time left for exploration within --max-duration "
@@ -157,6 +165,7 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item) -> None:
 
     def tell(story: Story) -> None:  # at once: shrinking may take the rest of the budget
         story.save(path, str(c.unit))
+        remember(c, story, path, began)
         _say(c, story.render(str(c.unit), rerun(c, path), brief=True, heading=(
             f"exploration found a disagreement after {story.found_after:.0f} s "
             f"({steps(story.found_steps)}); shrinking it within the {seconds:.0f} s budget "
@@ -177,6 +186,7 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item) -> None:
         _say(c, f"exploration: {summary}: the unit answered as the model says")
         return
     story.save(path, str(c.unit))
+    remember(c, story, path, began)
     state = "shrunk" if story.shrunk else "not fully shrunk (the budget ran out)"
     pytest.fail(story.render(str(c.unit), rerun(c, path), heading=(
         f"exploration: the unit and the model disagree at step {story.failing + 1} of this "
@@ -186,7 +196,7 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item) -> None:
 
 
 def _replay(c: Certification, explorer: Explorer, actions: list[dict[str, object]],
-            node: pytest.Item) -> None:
+            node: pytest.Item, began: float) -> None:
     path = c.settings.explore_replay
     assert path is not None
     _say(c, f"replaying the {steps(len(actions))} of {printable(str(path))}")
@@ -197,6 +207,7 @@ def _replay(c: Certification, explorer: Explorer, actions: list[dict[str, object
         _say(c, f"replay of {printable(str(path))}: no longer fails: the unit answered every "
                 "step as the model says")
         return
+    remember(c, story, path, began)
     pytest.fail(story.render(str(c.unit), rerun(c, path), heading=(
         f"replay of {printable(str(path))}: the unit and the model disagree again, at step "
         f"{story.failing + 1}")), pytrace=False)

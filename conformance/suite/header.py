@@ -9,13 +9,16 @@ from typing import Any
 
 from conformance import __version__
 from conformance.client import BrokerURL
+from conformance.profile import downgrades
+from conformance.rules import reading
+from conformance.scenarios.safety import SafetyDecision
 from conformance.suite.settings import Settings
 from conformance.topics import TST_EXECUTION
 
 
 def header_lines(settings: Settings, *, broker: BrokerURL, heartbeat: dict[str, Any],
-                 levels: list[str], reboot: str | None, reports: Path, rerun: str
-                 ) -> list[str]:
+                 levels: list[str], reboot: str | None, reports: Path, rerun: str,
+                 decision: SafetyDecision) -> list[str]:
     """The lines pytest shows before the tests: ``broker`` connected to, the unit's
     ``heartbeat`` and ``levels``, how it is rebooted (None: it is not), where ``reports``
     go (without suffix), and the ``rerun`` line."""
@@ -25,10 +28,10 @@ def header_lines(settings: Settings, *, broker: BrokerURL, heartbeat: dict[str, 
         f"embedded {broker} with the bundled reference unit" + (
             f" (faults: {', '.join(s.sim_faults)})" if s.sim_faults else "") + (
             f" (variants: {', '.join(s.sim_variants)})" if s.sim_variants else "")
-    safety = [f"role {unit.role}"]
-    if unit.is_real:
-        safety.append("motion tasks: " + (", ".join(profile.motion_tasks) or "none")
-                      if s.allow_motion else "no task that moves the unit (no --allow-motion)")
+    safety = [decision.sentence()]
+    downgraded = downgrades(profile)
+    if downgraded:
+        safety.append(f"the profile downgrades {downgraded} to warnings")
     if s.dry_run:
         safety.append("DRY RUN: nothing is published")
     if TST_EXECUTION in levels:
@@ -37,7 +40,7 @@ def header_lines(settings: Settings, *, broker: BrokerURL, heartbeat: dict[str, 
         f"waraps-conformance {__version__}: certifying {unit}",
         f"  broker:   {where}",
         f"  profile:  {profile.name} ({profile.source}), timing scale {s.timing_scale:g}",
-        f"  rules:    {rules_reading(profile.is_strict)}",
+        f"  rules:    {reading(profile.is_strict)}",
         f"  unit:     agent-uuid {heartbeat.get('agent-uuid', '?')}, agent-type "
         f"{heartbeat.get('agent-type', '?')}, levels: {declared}",
         f"  reboot:   {reboot or 'none (REBOOT-* could not test)'}",
@@ -46,14 +49,3 @@ def header_lines(settings: Settings, *, broker: BrokerURL, heartbeat: dict[str, 
         f"  Using --seed={s.seed} (repeat this run: {rerun})",
     ]
 
-
-def rules_reading(strict: bool) -> str:
-    """How the run reads the catalogue's decided rules (DESIGN 'What a rule stands on')."""
-    from conformance.rules import basis_counts
-
-    counts = basis_counts()
-    said = f"{counts['stated']} stated, {counts['implied']} implied, {counts['decided']} decided"
-    if strict:
-        return f"{said}; strict: decided rules fail (--strict-rules or strict: true)"
-    return (f"{said}; decided rules warn as interop risks (the spec does not say; "
-            f"--strict-rules makes them fail)")

@@ -27,7 +27,7 @@ from conformance.client import BrokerError, MqttClient
 from conformance.conclusion import INTERRUPTED, NOT_CERTIFIED, Conclusion
 from conformance.conclusion import of as conclusion_of
 from conformance.display import LINE_CHARS, printable, shorten
-from conformance.facts import RunFacts
+from conformance.facts import CTRL_C, RunFacts
 from conformance.judge import judge, unexamined
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
@@ -51,7 +51,7 @@ from conformance.suite.observation import Observation
 from conformance.suite.probe import NotAlive
 from conformance.suite.reboot import Reboot
 from conformance.suite.settings import Settings
-from conformance.topics import DIRECT_EXECUTION, UnitAddress
+from conformance.topics import DIRECT_EXECUTION, UnitAddress, level_name
 from conformance.violation import RuleResult, Verdict
 
 CERTIFICATION = pytest.StashKey["Certification"]()
@@ -94,6 +94,7 @@ class Certification:
         """The rules whose tests were selected to run (after -k, -m, --rule)."""
         self.ran: set[str] = set()
         self.enacted: dict[str, Verdict] = {}
+        self._judged_at: tuple[tuple[int, float | None], RunReport] | None = None
         """The verdict each rule's test showed when it ran (``suite.verdict.enact``)."""
         """The rules whose tests ran (a test that never ran judged nothing)."""
         self.out_of_time: str | None = None
@@ -105,6 +106,8 @@ class Certification:
         """When the broker was lost for good (it did not come back within the budget)."""
         self.explored = ""
         """What the exploration did (``suite/exploration.py``), for the report's meta."""
+        self.replays: dict[str, tuple[float, str]] = {}
+        """Rule -> (when exploration began, the replay line of the story that found it)."""
         from conformance.suite.progress import Progress
 
         self.progress = Progress(config)
@@ -120,6 +123,7 @@ class Certification:
             self.unit, settings.tst_topic, self.traffic, self.connection.publish,
             dry_run=settings.dry_run, say=self._say,
             wait_connected=self.connection.wait_connected, deviations=self.deviations)
+        self.commander.refuse = self.tst.refuse = self.connection.refuse_payload
         self.safety = Safety(self.unit, self.profile, allow_motion=settings.allow_motion,
                              task_moves=task_moves)
         self.context = Context(self.unit, self.profile, self.traffic, self.commander,
@@ -229,12 +233,15 @@ class Certification:
 
     def facts(self, *, error: str = "") -> RunFacts:
         """What the judge must know of this run so far (``conformance.facts.RunFacts``)."""
-        cut = self.out_of_time or ("interrupted (Ctrl-C)" if self.interrupted else "")
+        cut = self.out_of_time or (CTRL_C if self.interrupted else "")
         return RunFacts(
             kind="certification", unit=str(self.unit), strict=self.profile.is_strict,
             error=error or self.error, broker_lost=self.broker_lost,
             interrupted=bool(cut), cut_short=cut, selection=self.selection,
-            selected=tuple(self.selected), ran=tuple(sorted(self.ran)),
+            # A rule the exploration (or its replay) judged was judged, selected or not.
+            selected=tuple(dict.fromkeys([*self.selected, *self.replays]))
+            if self.selected or self.selection else (),
+            ran=tuple(sorted(self.ran | set(self.replays))),
             enacted_pass=tuple(sorted(r for r, shown in self.enacted.items()
                                       if shown is not Verdict.FAIL)))
 
@@ -247,12 +254,18 @@ class Certification:
 
     def _judged(self) -> RunReport:
         """The report as each rule's test enacts it: judged under the facts known mid-run (a
-        selection and a cut short run mark rules not run only in ``report``)."""
+        selection and a cut short run mark rules not run only in ``report``). Made once per
+        change of what the Monitor knows: a hundred rule tests in a row read the same one."""
         with self._lock:
+            key = (self.monitor.version, self.broker_lost)
+            if self._judged_at is not None and self._judged_at[0] == key:
+                return self._judged_at[1]
             report = self.monitor.report(**self.meta())
         facts = self.facts()
-        return judge(report, RunFacts(kind=facts.kind, unit=facts.unit, strict=facts.strict,
-                                      broker_lost=facts.broker_lost))
+        judged = judge(report, RunFacts(kind=facts.kind, unit=facts.unit, strict=facts.strict,
+                                        broker_lost=facts.broker_lost))
+        self._judged_at = (key, judged)
+        return judged
 
     def conclusion(self, report: RunReport) -> Conclusion:
         """What the run concludes: the judge's conclusion stored in ``report``."""
@@ -276,6 +289,8 @@ class Certification:
             "unit": str(self.unit), "seed": str(s.seed), "timing_scale": f"{s.timing_scale:g}",
             "profile_source": self.profile.source, "dry_run": str(s.dry_run).lower(),
             "allow_motion": str(s.allow_motion).lower(),
+            "allow_hostile": str(s.allow_hostile).lower(),
+            "safety": self.connection.motion.decision.sentence(),
             "reboot": self.reboot.how() if self.context.reboot else "none",
             "agent_uuid": str(hb.get("agent-uuid")) if hb else "",
             "commands_sent": str(self.commander.sent_count + self.tst.sent_count),
@@ -285,7 +300,11 @@ class Certification:
         }
 
     def rerun_command(self, rule: str | None = None) -> str:
-        """The pytest command that repeats this run (of ``rule`` alone, when given)."""
+        """The pytest command that repeats this run (of ``rule`` alone, when given); a rule
+        only exploration found, by replaying its story (``-k RULE`` sends no such order)."""
+        since, replay = self.replays.get(rule or "", (0.0, ""))
+        if replay and all((v.time or since) >= since for v in self.result(rule).violations):
+            return replay
         return self.settings.rerun_command(rule, self._observe_for(rule) if rule else 0)
 
     def _observe_for(self, rule: str) -> int:
@@ -388,7 +407,7 @@ class Certification:
 
     def _claims(self, level: str) -> bool:
         # ERR-008: a level written with an underscore is the same claim
-        return level in (lv.replace("_", " ") for lv in self.context.levels())
+        return level in map(level_name, self.context.levels())
 
     def _answers_none(self) -> str:
         """Why the unit answers no command at all, or "": ping unanswered, then each other
@@ -488,7 +507,8 @@ class Certification:
             self.settings, broker=self.connection.broker_url, heartbeat=self.context.heartbeat(),
             levels=self.context.levels(),
             reboot=self.reboot.how() if self.context.reboot else None,
-            reports=self.settings.reports_dir / self.stem, rerun=self.rerun_command())]
+            reports=self.settings.reports_dir / self.stem, rerun=self.rerun_command(),
+            decision=self.connection.motion.decision)]
 
 
 

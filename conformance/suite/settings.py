@@ -29,6 +29,7 @@ INI = {
     "waraps_timing_scale": "waraps_timing_scale",
     "waraps_reboot_cmd": "waraps_reboot_cmd",
     "waraps_allow_motion": "waraps_allow_motion",
+    "waraps_allow_hostile": "waraps_allow_hostile",
     "waraps_dry_run": "waraps_dry_run",
     "waraps_strict_rules": "waraps_strict_rules",
     "waraps_reports_dir": "waraps_reports_dir",
@@ -56,6 +57,8 @@ class Settings:
     timing_scale: float = 1.0
     reboot_cmd: str | None = None
     allow_motion: bool = False
+    allow_hostile: bool = False
+    """--allow-hostile: hostile and malformed payloads may go to a real unit (DESIGN 'Safety')."""
     dry_run: bool = False
     strict_rules: bool = False
     """--strict-rules: decided rules fail (the profile is made strict)."""
@@ -135,6 +138,8 @@ class Settings:
             parts += ["--reboot-cmd", q(self.reboot_cmd)]
         if self.allow_motion:
             parts.append("--allow-motion")
+        if self.allow_hostile:
+            parts.append("--allow-hostile")
         if self.dry_run:
             parts.append("--dry-run")
         if self.strict_rules:
@@ -275,6 +280,7 @@ def read(config: pytest.Config) -> Settings:
                     explore_replay=_replay(config, reports),
                     reboot_cmd=str(reboot) if reboot else None,
                     allow_motion=_flag(config, "waraps_allow_motion"),
+                    allow_hostile=_flag(config, "waraps_allow_hostile"),
                     dry_run=_flag(config, "waraps_dry_run"), strict_rules=strict_rules,
                     reports_dir=reports, seed=seed,
                     sim_faults=faults, sim_variants=variants, sim_rate=float(sim_rate), sim_tst=sim_tst,

@@ -10,6 +10,9 @@ from conformance.checks import Monitor, covered_rules
 from conformance.profile import Profile
 from conformance.violation import Verdict
 
+STRICT = Profile(strict=True)
+"""HB-008 and TEI-002 are decided rules (rules.toml): they fail only in a strict run."""
+
 
 def verdict(m: Monitor, stream, rule: str, finish: bool = True):
     if finish:
@@ -170,7 +173,7 @@ def test_tst_execution_info_rate(stream):
     def tei(t):
         return stream.msg("tst_execution_info", {"name": "dji0", "rate": 2.0, "stamp": t,
                                                  "type": "TstExecutionInfo"}, t)
-    good, bad = Monitor(), Monitor()
+    good, bad = Monitor(STRICT), Monitor(STRICT)
     stream.feed(good, [tei(i * 0.5) for i in range(12)])
     stream.feed(bad, [tei(i * 0.3) for i in range(12)])
     assert verdict(good, stream, "TEI-002").verdict is Verdict.PASS
@@ -270,26 +273,26 @@ def test_retained_heartbeat_does_not_count_as_a_uuid_change(stream):
 
 
 def test_declared_level_without_info_fails(stream):
-    m = Monitor()
+    m = Monitor(STRICT)
     stream.feed(m, [stream.heartbeat(i) for i in range(32)])  # 31 s >= info_wait (30 s)
     r = verdict(m, stream, "HB-008")
     assert r.verdict is Verdict.FAIL and "sensor_info" in r.violations[0].expected
     assert {v.observed for v in r.violations} == {"no sensor_info in 31.0 s",
                                                   "no direct_execution_info in 31.0 s"}
-    good = Monitor()
+    good = Monitor(STRICT)
     assert stateful(stream.feed(good, stream.alive(31))) == []
     assert verdict(good, stream, "HB-008").verdict is Verdict.PASS
 
 
 def test_declared_level_judged_at_finish_only_after_enough_time(stream):
-    m = Monitor()
+    m = Monitor(STRICT)
     found = stream.feed(m, [stream.heartbeat(i) for i in range(5)])
     assert "HB-008" not in rules_found(found)  # decided at finish, never mid-stream
     r = verdict(m, stream, "HB-008")
     assert r.verdict is Verdict.SKIP and "observed 4.0 s; need 30.0 s to judge" in r.reason
     m.finish(now=stream.heartbeat(30).time)
     assert m.report().units[str(stream.address)].rules["HB-008"].verdict is Verdict.FAIL
-    short = Monitor(Profile(info_wait=3.0))  # a profile may wait less
+    short = Monitor(Profile(info_wait=3.0, strict=True))  # a profile may wait less
     stream.feed(short, [stream.heartbeat(i) for i in range(5)])
     assert verdict(short, stream, "HB-008").verdict is Verdict.FAIL
 
@@ -306,7 +309,7 @@ def test_declared_level_with_slow_info_passes(stream):
 
 def test_declared_level_waits_three_heartbeat_periods_at_least(stream):
     slow = type(stream)(stream.address, rate=0.05)  # one heartbeat every 20 s
-    m = Monitor()
+    m = Monitor(STRICT)
     slow.feed(m, [slow.heartbeat(0), slow.heartbeat(20), slow.heartbeat(40)])
     r = verdict(m, slow, "HB-008")
     assert r.verdict is Verdict.SKIP and "need 60.0 s" in r.reason
@@ -323,6 +326,21 @@ def test_declared_level_not_judged_over_a_connection_gap(stream):
 
 
 # -- sensors: SI-003, SI-004, SI-005, SENS-005 -----------------------------------------------------
+
+def test_a_heading_outside_the_decided_range_warns_once_per_unit_not_per_message(stream):
+    """6.1 says 'heading : float': [0, 360) is SENS-002's decision, an interop risk said once
+    per unit (a unit sending headings in (-180, 180] warned at every message: 228 times)."""
+    m = Monitor()
+    msgs = stream.alive(5) + [stream.sensor("heading", -143.0, 0.5 + i) for i in range(5)]
+    msgs += [stream.sensor("course", -10.0, 0.6 + i) for i in range(5)]
+    stream.feed(m, msgs)
+    r = verdict(m, stream, "SENS-002")
+    assert r.verdict is Verdict.WARN and len(r.violations) == 1
+    assert "-143" in r.violations[0].observed and "no range" in r.violations[0].detail
+    good = Monitor()
+    stream.feed(good, stream.alive(5))
+    assert verdict(good, stream, "SENS-002").verdict is Verdict.PASS
+
 
 def test_listed_sensor_not_published_fails(stream):
     m = Monitor()

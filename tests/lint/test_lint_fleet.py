@@ -22,8 +22,9 @@ def test_lint_over_a_simulated_fleet_fails_exactly_the_faulty_units(mosquitto: s
     faulty = {1: ["heartbeat-type-case"], 3: ["speed-sentinel"]}
     with Fleet(f"{prefix}/unit/air/simulation/dji0", mosquitto, 5, rate=5.0, seed=1,
                faults_by_index=faulty) as fleet:
+        # --strict: SENS-003 (speed a number of m/s >= 0) is a decided rule (rules.toml)
         run = run_lint(["--broker", mosquitto, "--topic", f"{prefix}/#", "--duration", "3s",
-                        "--profile", str(profile)], tmp_path / "reports")
+                        "--profile", str(profile), "--strict"], tmp_path / "reports")
         names = [a.base for a in fleet.addresses]
         assert fleet.errors == 0
     assert run.code == 1, run.out

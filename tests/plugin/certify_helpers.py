@@ -119,16 +119,6 @@ def certify_stalling(pytester: pytest.Pytester, broker: str, prefix: str,
     return run
 
 
-def warm_parameters(tasks: tuple[str, ...], seeds: range) -> None:
-    """Generate (and cache) the task parameters a certification with these seeds will use, so
-    hypothesis does not hold the GIL while an in-process reference unit should publish."""
-    from conformance.scenarios.params import drawn
-
-    for task in tasks:
-        for seed in seeds:
-            drawn(task, seed)
-
-
 class Rebooter:
     """A plugin object that reboots an in-process reference unit (pytest_waraps_reboot)."""
 

@@ -28,7 +28,6 @@ from certify_helpers import (
     Rebooter,
     certify,
     certify_sim,
-    warm_parameters,
 )
 
 from conformance.plugin import NOT_CERTIFIED_EXIT
@@ -38,16 +37,27 @@ pytestmark = pytest.mark.slow
 
 # Where the suite and the reference unit's fault table disagree on the rules a fault breaks.
 # strict: once they agree, the XPASS fails this test and the entry must go.
-AWAITING_SCENARIOS: dict[str, str] = {}
+AWAITING_SCENARIOS: dict[str, str] = {
+    # Behaviours of the public agents (issue 24 part 3), misjudged as the checks stand:
+    "heartbeat-rate-gross": "HB-010 or HB-012 also fails: each interval of 5 declared "
+                            "periods reads as a silence ('then came back with the same "
+                            "agent-uuid', or a death that 'came back only when the suite "
+                            "rebooted it')",
+    "reboot-renames": "REBOOT-001 is could-not-test and HB-012 fails 'never came back': the "
+                      "unit came back from the requested reboot under another name",
+    "start-no-task-uuid-unanswered": "EXEC-START-002 passes although the start-task without "
+                                     "task-uuid was never answered",
+}
 # Areas whose faults change what every scenario sees (levels, identity, timing, answers).
 # Signal faults too (the scenarios end their tasks with signals), and tst_execution_info ones
 # (they declare one more level).
 ALONE = {"HB", "EXEC-PING", "EXEC-ROBUST", "EXEC-START", "EXEC-SIG", "REBOOT", "TEI",
-         "MSG-005", "MSG-007", "ERR-008", "ERR-014"}
+         "MSG-005", "MSG-007", "MSG-008", "ERR-008", "ERR-014"}
 GROUP_SIZE = 5
 # Rules that judge the same messages as another area's: a fault of one and a fault of the
 # other would alter the same message (a sensor value, a query or signal answer).
-SAME_MESSAGES = {"MSG": "SENS", "ERR-010": "SENS", "ERR-006": "EXEC-QUERY",
+# MSG-008 (a stamp in ms) and MSG-005 (a clock far off) judge the same stamps.
+SAME_MESSAGES = {"MSG": "SENS", "ERR-010": "SENS", "ERR-006": "EXEC-QUERY", "MSG-008": "MSG-005",
                  "ERR-013": "EXEC-SIG", "ERR-001": "SI", "ERR-012": "SI"}
 # Rules whose faults also change what another area's scenario or check relies on: feedback
 # without task-uuid hides when a task ends, so the query scenario has no finished task to ask
@@ -63,7 +73,7 @@ ALSO = {"EXEC-FB-001": ("EXEC-QUERY",), "SENS-004": ("TOPIC",)}
 SUITE_ALSO = {"crash-on-malformed": ("EXEC-START-001",), "twin-agent": ("EXEC-QUERY-001",)}
 # Faults of ALONE areas that only change what their own rule alone judges, and nothing a
 # scenario reads: the heartbeat's type (HB-002), an unknown level besides the known ones
-# (HB-007), stamps (MSG-005; MSG-007 reads them on retained messages only, and its fault runs
+# (HB-007), stamps (MSG-005, MSG-008; MSG-007 reads them on retained messages only, and its fault runs
 # alone). They join combined groups, one of each area per group.
 JOIN = {"heartbeat-type-case", "level-unknown", "stamp-clock-skew", "stamp-milliseconds"}
 # Faults that leave the unit without a readable position: the scenarios that start tasks
@@ -119,10 +129,6 @@ def explain(run: Certified, expected: set[str]) -> str:
                      f" ({r.get('verdict')}: {r.get('reason')}; {why.get('observed', '')})")
     return "\n".join(lines)
 
-
-@pytest.fixture(scope="module", autouse=True)
-def parameters() -> None:
-    warm_parameters(("look-at-bearing", "move-to", "navigate"), range(1, 5))
 
 
 # The rerun lines run again against their faults: one rule for each way a rerun selects what it

@@ -10,6 +10,7 @@ import pytest
 
 from conformance.client import BrokerURL
 from conformance.conclusion import conclude
+from conformance.display import printable, shorten
 from conformance.facts import RunFacts
 from conformance.reporting import files as files_mod
 from conformance.reporting import (
@@ -21,6 +22,7 @@ from conformance.reporting import (
     write_all,
 )
 from conformance.results import RunReport
+from conformance.rules import CATALOGUE
 from conformance.violation import Verdict, Violation
 
 
@@ -107,6 +109,8 @@ def test_render_violation_reads_like_the_style_guide():
         "  observed  0.61 Hz over 12 intervals (min 1.58 s, max 1.71 s)",
         "  topic     waraps/unit/air/simulation/dji0/heartbeat",
         "  spec      5.1 General Heartbeat Message",
+        # What the rule stands on (issue 24): the spec's words, or this suite's decision.
+        f"  basis     {printable(shorten(CATALOGUE['HB-003'].basis_text()))}",
         "  rerun     pytest --unit waraps/unit/air/simulation/dji0 -k HB-003",
     ]
     warn = render_violation("HB-010", Violation.of("HB-010", expected="a", observed="b\x07"),

@@ -132,6 +132,9 @@ def workout(u: UnitView, reboot: Callable[[], None], malformed: set[str] | None 
     if r is None and u.heartbeat_uuid(u.obs.mark()) is None:
         ok["(died)"] = False  # the unit died on it: HB-012, for the Monitor to judge
         return ok
+    if r is None and not u.json_on("exec/feedback", mark):
+        ok["(dropped)"] = False  # lost without a trace: no task to follow (EXEC-START-001)
+        return ok
     if r is not None:
         judge("EXEC-START-002", isinstance(looking, str) and bool(looking))
     if not isinstance(looking, str):  # not returned: follow the task by its feedback

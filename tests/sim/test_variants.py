@@ -22,11 +22,13 @@ from conformance.rules import CATALOGUE, Severity
 from conformance.sim.unit import UnitCore
 from conformance.sim.variants import (
     EDGE,
+    RESPAWN_METRES,
     SLOW_PERIODS,
     VARIANTS,
     VariantError,
     check_variants,
 )
+from conformance.sim.vehicle import GeoPoint, distance
 from conformance.topics import UnitAddress
 
 ADDRESS = UnitAddress("h", "air", "simulation", "dji0")
@@ -84,7 +86,10 @@ class Run:
             while todo and todo[0][0] <= self.now:
                 _, where, body = todo.pop(0)
                 payload = body if isinstance(body, bytes) else orjson.dumps(body)
-                if where == "exec":
+                if where == "reboot":  # as --reboot-cmd would (SimUnit.reboot)
+                    self.unit.request_reboot()
+                    self.unit.due = self.now
+                elif where == "exec":
                     self.unit.command(payload, self.now)
                 else:
                     self.unit.tst_command(payload, self.now, f"{ADDRESS.base}/tst/command")
@@ -428,3 +433,69 @@ def test_rate_edge_speeds_the_heartbeat_and_execution_info_inside_the_tolerance(
         assert abs(ratio - (1 + EDGE)) < 0.04, (sub, ratio)  # faster, not past 20 %
     for sub in ("/sensor_info", "/sensor/position"):
         assert count(run, sub) == count(base, sub)
+
+
+# --- behaviours of the public agents certified live (FIELD-NOTES) -------------------------------
+
+def test_silent_unknown_command_leaves_only_the_unknown_command_unanswered(plain: Run) -> None:
+    unknown = (5.5, "exec", {"com-uuid": com(8), "command": "waraps-conformance-no-such",
+                             "sender": "commander"})
+    base, run = Run(script=[*SCRIPT, unknown]), Run("silent-unknown-command",
+                                                    script=[*SCRIPT, unknown])
+    assert base.answer(com(8))["response"] == "failed"
+    assert all(m.get("response-to") != com(8) for _, m in run.messages("/exec/response"))
+    # the malformed command (com 6) and the four commands are answered as before
+    assert run.answer(com(6))["response"] == "failed"
+    kept = [(t, without(m, "com-uuid")) for t, m in base.messages()
+            if not (isinstance(m, dict) and m.get("response-to") == com(8))]
+    assert [(t, without(m, "com-uuid")) for t, m in run.messages()] == kept
+
+
+def test_respawn_moves_only_the_position_of_the_life_after_a_reboot() -> None:
+    script = [(1.0, "reboot", b"")]
+    base, run = Run(script=script, seconds=5.0), Run("respawn", script=script, seconds=5.0)
+    uuids = {m["agent-uuid"] for _, m in run.messages("/heartbeat")}
+    assert len(uuids) == 2 and uuids == {m["agent-uuid"] for _, m in base.messages("/heartbeat")}
+
+    def positions(r: Run) -> list[GeoPoint]:
+        return [GeoPoint(m["latitude"], m["longitude"], m["altitude"])
+                for _, m in r.messages("/sensor/position")]
+
+    before, after = positions(run)[0], positions(run)[-1]
+    assert positions(base)[0] == before and positions(base)[-1] == before  # it stands still
+    assert abs(distance(before, after) - RESPAWN_METRES) < 1.0
+    assert [m for t, m in run.messages() if t != "/sensor/position"] == [
+        m for t, m in base.messages() if t != "/sensor/position"]
+
+
+def test_signed_heading_changes_only_headings_past_180(plain: Run) -> None:
+    run = Run("signed-heading")
+    headings = [(m, p) for (t, m), (_, p) in zip(run.messages(), plain.messages(), strict=True)
+                if t == "/sensor/heading"]
+    assert headings and all(-180.0 < m <= 180.0 for m, _ in headings)
+    assert all(m == (p - 360.0 if p > 180.0 else p) for m, p in headings)
+    assert any(m < 0 for m, _ in headings)  # it faces west at start: 270 reads -90
+    assert [m for t, m in run.messages() if t != "/sensor/heading"] == [
+        m for t, m in plain.messages() if t != "/sensor/heading"]
+
+
+def test_own_task_adds_go_home_to_tasks_available_and_needs_its_speed(plain: Run) -> None:
+    """5.3: a task beyond section 9; started without 'speed' it is refused with a reason
+    (the public agents raise KeyError 'speed' instead), with one it runs."""
+    script = [(0.6, "exec", {"com-uuid": com(1), "command": "start-task", "sender": "c",
+                             "execution-unit": "dji0", "task-uuid": T1,
+                             "task": {"name": "go-home", "params": {}}}),
+              (0.8, "exec", {"com-uuid": com(2), "command": "start-task", "sender": "c",
+                             "execution-unit": "dji0", "task-uuid": T2,
+                             "task": {"name": "go-home", "params": {"speed": 3.0}}})]
+    own, bare = Run("own-task", script=script, seconds=2.0), Run(script=script, seconds=2.0)
+
+    def listed(run: Run) -> list[str]:
+        info = [m for _, m in run.messages("/direct_execution_info")][-1]
+        return [t["name"] for t in info["tasks-available"]]
+    assert set(listed(own)) - set(listed(bare)) == {"go-home"}
+    assert set(listed(bare)) <= set(listed(own))
+    refused = own.answer(com(1))
+    assert refused["response"] == "failed" and "speed" in refused["fail-reason"]
+    assert own.answer(com(2))["response"] == "running"
+    assert bare.answer(com(2))["response"] == "failed"  # the plain unit has no go-home

@@ -28,7 +28,7 @@ from conformance.validator import Validator
 CORPUS = Path(__file__).parent / "corpus"
 ADDRESS = UnitAddress("waraps", "air", "simulation", "dji0")
 CONTENT_RULES = {
-    "MSG-005", "MSG-006", "HB-004",  # the infos' stamp and name, the heartbeat's agent-type
+    "MSG-005", "MSG-006", "MSG-008", "HB-004",  # the infos' stamp and name, the heartbeat's agent-type
     "EXEC-005", "TST-002",  # a response's own com-uuid
     "EXEC-FB-002",  # a feedback's status
     "TST-014",  # a start-tst's tree

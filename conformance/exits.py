@@ -1,0 +1,5 @@
+"""The exit statuses of a certification (README 'Exit status'); pytest's own keep their
+meaning. Their one home: the verdict model (``conclusion.py``) and the plugin read them here,
+and the plugin stays cheap to import."""
+
+EXIT_CERTIFIED, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_NOT_CERTIFIED = 0, 1, 2, 6

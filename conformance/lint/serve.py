@@ -1,0 +1,349 @@
+"""``lint --serve [HOST:]PORT``: the live fleet page, ``/metrics`` and ``/report.json``.
+
+A small read-only WSGI application served by waitress (an established pure-Python production
+server) in threads of its own. It only reads the latest ``fleetview.Snapshot`` (made in lint's
+loop), never the Monitor: nothing it does changes the run, and nothing publishes.
+
+- ``/``: a row per unit and commander, updated every second by a short poll of
+  ``/fragment/fleet`` (the table made here, escaped by the templates: the page's script only
+  swaps it in; a poll, not a stream, so no connection stays open);
+- ``/unit/<address>``: a unit's findings with their evidence and their basis;
+- ``/metrics``: Prometheus text (``lint.metrics``); ``/report.json``: the report as it stands.
+
+Loopback unless a host is named (and then only asked for by a loopback name: a page elsewhere
+cannot read it through DNS rebinding, 421); every method but GET and HEAD is refused (405);
+requests are bounded by waitress's limits (headers 8 KiB, no body, 32 connections, idle ones
+closed after 30 s).
+"""
+
+from __future__ import annotations
+
+import functools
+import ipaddress
+import threading
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import Any
+from urllib.parse import quote
+
+from conformance.display import NAME_CHARS, printable, shorten
+from conformance.lint.fleetview import FleetView, Snapshot
+
+LOOPBACK = "127.0.0.1"
+MAX_PATH = 2048
+"""The longest request path answered (a unit address is at most a few hundred characters)."""
+LIMITS = {"threads": 4, "connection_limit": 32, "max_request_header_size": 8192,
+          "max_request_body_size": 0, "channel_timeout": 30, "cleanup_interval": 10,
+          "ident": "waraps-conformance", "asyncore_loop_timeout": 1}
+"""waitress's bounds (its adjustments): the page, its fragments and scrapes are small GETs."""
+MAX_ROWS_SHOWN = 500
+"""Rows on the fleet page, worst first (a page of 4096 units would be some 6 MB a second)."""
+MAX_CACHED = 16
+"""Answers kept per snapshot (pages of the units being looked at, /metrics)."""
+STATIC = {"fleet.css": "text/css; charset=utf-8", "fleet.js": "text/javascript; charset=utf-8"}
+HEADERS = [("X-Content-Type-Options", "nosniff"), ("Cache-Control", "no-store"),
+           ("Referrer-Policy", "no-referrer"),
+           # Nothing from outside the package, no inline script: a name that slipped through
+           # escaping still could not run.
+           ("Content-Security-Policy", "default-src 'none'; script-src 'self'; "
+            "style-src 'self'; img-src 'self' data:; connect-src 'self'; "
+            "frame-ancestors 'none'; base-uri 'none'; form-action 'none'")]
+
+
+class ServeError(ValueError):
+    """A ``--serve`` value that cannot be used; the message says why."""
+
+
+@dataclass(frozen=True)
+class Address:
+    host: str
+    port: int
+
+    @property
+    def loopback(self) -> bool:
+        try:
+            return ipaddress.ip_address(self.host).is_loopback
+        except ValueError:
+            return self.host == "localhost"
+
+
+def parse_address(text: str) -> Address:
+    """``PORT`` (loopback), ``HOST:PORT`` or ``[V6]:PORT``; ServeError names the form."""
+    host, sep, port = text.strip().rpartition(":")
+    if not sep:
+        host = LOOPBACK
+    host = host.strip("[]") or LOOPBACK
+    if not port.isdigit() or not 0 <= int(port) <= 65535:
+        raise ServeError(f"--serve {text!r}: use PORT (on 127.0.0.1), or HOST:PORT to serve "
+                         f"on another address, e.g. --serve 8080")
+    return Address(host, int(port))
+
+
+def warnings(address: Address) -> list[str]:
+    """What the header of every page (and the terminal) says about where it is served."""
+    if address.loopback:
+        return []
+    return [f"served on {address.host}: anyone who can reach this address can read this page "
+            f"(--serve PORT serves on loopback only)"]
+
+
+LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
+
+
+def _host_name(host: str) -> str:
+    """The name in a Host header, without its port (``[::1]:8080`` -> ``::1``)."""
+    host = host.strip().lower()
+    if host.startswith("["):
+        return host[1:].partition("]")[0]
+    return host.rpartition(":")[0] if host.count(":") == 1 else host
+
+
+def _escape_unit(unit: str) -> str:
+    return quote(unit, safe="/")
+
+
+@functools.cache
+def environment() -> Any:
+    """The pages' templates (``lint/templates``), autoescape on: wire text is escaped."""
+    from jinja2 import Environment, PackageLoader, StrictUndefined
+
+    env = Environment(loader=PackageLoader("conformance.lint", "templates"), autoescape=True,
+                      undefined=StrictUndefined, trim_blocks=True, lstrip_blocks=True,
+                      finalize=_finalize)
+    env.filters.update(unit_url=_escape_unit, clock=_clock, hz=_hz, ago=_ago, short=_short)
+    from conformance.lint.plots import sparkline
+
+    env.globals.update(sparkline=sparkline, rule_of=_rule_of, max_rows=MAX_ROWS_SHOWN)
+    return env
+
+
+def _finalize(value: Any) -> Any:
+    if type(value) in (int, float) or hasattr(value, "__html__"):  # numbers: most of a page
+        return value
+    return "" if value is None else printable(shorten(value))
+
+
+def _short(value: Any, limit: int = NAME_CHARS) -> str:
+    return printable(shorten(value, limit))
+
+
+def _clock(t: float | None) -> str:
+    return time.strftime("%H:%M:%S", time.localtime(t)) if t is not None else ""
+
+
+def _ago(t: float | None, now: float | None) -> str:
+    if t is None:
+        return "never"
+    if now is None:
+        return _clock(t)
+    d = max(0.0, now - t)
+    return "now" if d < 1 else f"{d:.0f} s ago" if d < 120 else f"{d / 60:.0f} min ago"
+
+
+def _hz(rate: float | None) -> str:
+    return "–" if rate is None else f"{rate:.3g} Hz"
+
+
+def _rule_of(rule_id: str) -> Any:
+    from conformance.rules import CATALOGUE
+
+    return CATALOGUE.get(rule_id)
+
+
+class App:
+    """The WSGI application over ``view``'s snapshots. ``header``: lines for the top of
+    every page (the address, a warning when it is not loopback)."""
+
+    def __init__(self, view: FleetView, header: Iterable[str] = (),
+                 hosts: frozenset[str] | None = None) -> None:
+        self.view = view
+        self.header = tuple(header)
+        self.hosts = hosts
+        """Host names a request may name (None: any); on loopback only loopback names, so
+        that a web page elsewhere cannot read the fleet through DNS rebinding."""
+        self._made: dict[tuple[int, str], tuple[str, bytes, str]] = {}
+        self._lock = threading.Lock()
+
+    def __call__(self, environ: dict[str, Any], start: Callable[..., Any]) -> list[bytes]:
+        method = environ.get("REQUEST_METHOD", "")
+        if method not in ("GET", "HEAD"):
+            return self._send(start, "405 Method Not Allowed", b"read-only: GET only\n",
+                              "text/plain; charset=utf-8", [("Allow", "GET, HEAD")])
+        if self.hosts is not None and _host_name(environ.get("HTTP_HOST", "")) not in self.hosts:
+            return self._send(start, "421 Misdirected Request",
+                              b"ask for this page by a loopback address\n")
+        raw = environ.get("PATH_INFO", "") or "/"
+        if len(raw) > MAX_PATH:
+            return self._send(start, "414 URI Too Long", b"path too long\n")
+        # WSGI hands the path as latin-1 text of its bytes: the unit names are UTF-8.
+        path = raw.encode("latin-1", "replace").decode("utf-8", "replace")
+        status, body, ctype = self.route(path)
+        return self._send(start, status, body, ctype, head=method == "HEAD")
+
+    def route(self, path: str) -> tuple[str, bytes, str]:
+        """The answer to GET ``path``: made once per snapshot and path, whoever asks (each
+        viewer polls every second; a page of 200 units takes some 100 ms to make)."""
+        if path == "/report.json" or path.startswith("/static/"):
+            return self._route(path, self.view.snapshot)
+        with self._lock:
+            snap = self.view.snapshot
+            key = (snap.version, path)
+            made = self._made.get(key)
+            if made is None:
+                made = self._route(path, snap)
+                if len(self._made) >= MAX_CACHED:
+                    self._made = {k: v for k, v in self._made.items() if k[0] == snap.version}
+                    if len(self._made) >= MAX_CACHED:
+                        self._made.clear()
+                self._made[key] = made
+            return made
+
+    def _route(self, path: str, snap: Snapshot) -> tuple[str, bytes, str]:
+        html = "text/html; charset=utf-8"
+        if path == "/":
+            return "200 OK", self._page("fleet.html.j2", snap), html
+        if path == "/fragment/fleet":
+            return "200 OK", self._page("fleet_rows.html.j2", snap), html
+        if path.startswith(("/unit/", "/fragment/unit/")):
+            unit = path.split("/unit/", 1)[1]
+            row = snap.row(unit)
+            if row is None:
+                return "404 Not Found", self._page("missing.html.j2", snap, unit=unit), html
+            name = "unit.html.j2" if path.startswith("/unit/") else "unit_body.html.j2"
+            return "200 OK", self._page(name, snap, row=row), html
+        if path == "/metrics":
+            from prometheus_client import CONTENT_TYPE_LATEST
+
+            from conformance.lint.metrics import exposition
+
+            return "200 OK", exposition(lambda: snap), CONTENT_TYPE_LATEST
+        if path == "/report.json":
+            data = self.view.report_json()
+            if data is None:
+                return "503 Service Unavailable", b"no report yet: retry\n", "text/plain"
+            return "200 OK", data, "application/json"
+        if path.startswith("/static/") and path[8:] in STATIC:
+            from importlib.resources import files
+
+            body = files("conformance.lint").joinpath("templates", path[8:]).read_bytes()
+            return "200 OK", body, STATIC[path[8:]]
+        return "404 Not Found", b"not found\n", "text/plain; charset=utf-8"
+
+    def _page(self, name: str, snap: Snapshot, **extra: Any) -> bytes:
+        template = environment().get_template(name)
+        return template.render(s=snap, header=self.header, **extra).encode("utf-8")
+
+    @staticmethod
+    def _send(start: Callable[..., Any], status: str, body: bytes,
+              ctype: str = "text/plain; charset=utf-8",
+              extra: list[tuple[str, str]] | None = None, head: bool = False) -> list[bytes]:
+        start(status, [("Content-Type", ctype), ("Content-Length", str(len(body))),
+                       *HEADERS, *(extra or [])])
+        return [b""] if head else [body]
+
+
+class Server:
+    """waitress serving ``App`` in a thread; ``stop()`` closes every connection."""
+
+    def __init__(self, view: FleetView, address: Address) -> None:
+        import logging
+
+        from waitress.server import create_server
+
+        # 'Task queue depth is N' (a few viewers at once) is no news for the person at the
+        # terminal, whose scorecard it would break into.
+        logging.getLogger("waitress.queue").setLevel(logging.ERROR)
+        self.address = address
+        self.app = App(view, warnings(address),
+                       LOOPBACK_NAMES | {address.host.lower()} if address.loopback else None)
+        try:
+            self._server = create_server(self.app, host=address.host, port=address.port,
+                                         **LIMITS)
+        except OSError as e:
+            raise ServeError(f"--serve {address.host}:{address.port}: {e.strerror or e}") from e
+        except ValueError as e:  # waitress: a host that resolves to nothing
+            raise ServeError(f"--serve {address.host}:{address.port}: {e}") from e
+        self.port = int(self._server.effective_port)  # type: ignore[union-attr]
+        self._thread = threading.Thread(target=self._server.run, name="lint-serve", daemon=True)
+
+    @property
+    def url(self) -> str:
+        host = f"[{self.address.host}]" if ":" in self.address.host else self.address.host
+        return f"http://{host}:{self.port}/"
+
+    def start(self) -> Server:
+        self._thread.start()
+        return self
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Close the listening socket and every connection (in the server's own loop, through
+        its trigger), then stop the worker threads; bounded by ``timeout`` seconds."""
+        from waitress import wasyncore
+
+        server = self._server
+        server.task_dispatcher.shutdown(cancel_pending=True, timeout=timeout)
+        try:
+            server.trigger.pull_trigger(lambda: wasyncore.close_all(server._map))
+        except OSError:  # already closed
+            pass
+        self._thread.join(timeout)
+
+
+class Watched:
+    """A scorecard that also hands the linter to the fleet view on each ``update`` (before the
+    scorecard takes the fresh violations); everything else is the scorecard's."""
+
+    def __init__(self, scorecard: Any, view: FleetView) -> None:
+        self._scorecard = scorecard
+        self._view = view
+        view.title = scorecard.title
+
+    def update(self, linter: Any, *, elapsed: float | None = None,
+               connected: bool | None = None, force: bool = False) -> None:
+        self._view.observe(linter, connected=connected, force=force)
+        self._scorecard.update(linter, elapsed=elapsed, connected=connected, force=force)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._scorecard, name)
+
+
+class Serving:
+    """``lint --serve`` around a lint run: starts the server (its URL on ``out``), and at the
+    end, once the last snapshot is made, keeps serving ``linger`` seconds (None: until
+    Ctrl-C) before it stops. A run that ended without a final snapshot does not linger."""
+
+    def __init__(self, address: Address, linger: float | None, out: Any, *, live: bool) -> None:
+        self.view = FleetView("", live=live)
+        self.linger = linger
+        self.out = out
+        self.server = Server(self.view, address)
+
+    def __enter__(self) -> Serving:
+        self.server.start()
+        for line in self.server.app.header:
+            print(f"warning: {line}", file=self.out)
+        print(f"serving {self.server.url} (the fleet page; /metrics, /report.json; read-only)",
+              file=self.out, flush=True)
+        return self
+
+    def watch(self, scorecard: Any) -> Watched:
+        return Watched(scorecard, self.view)
+
+    def __exit__(self, *exc: object) -> None:
+        try:
+            if exc[0] is None and self.view.snapshot.finished and self.linger != 0:
+                self._linger()
+        finally:
+            self.server.stop()
+
+    def _linger(self) -> None:
+        until = "until Ctrl-C" if self.linger is None else f"for {self.linger:g} s"
+        print(f"serving the final fleet page on {self.server.url} {until}", file=self.out,
+              flush=True)
+        end = None if self.linger is None else time.monotonic() + self.linger
+        try:
+            while end is None or time.monotonic() < end:
+                time.sleep(0.2 if end is None else max(0.0, min(0.2, end - time.monotonic())))
+        except KeyboardInterrupt:
+            pass
