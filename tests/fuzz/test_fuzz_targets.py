@@ -33,8 +33,6 @@ SURFACES = {
 }
 """Issue 26 §1's surfaces, each with its targets."""
 KNOWN_OPEN = {
-    "profile_loader": "a profile file that is not UTF-8 (UnicodeDecodeError): issue 26 §2, the "
-                      "loader's hardening, is another helper's",
     "option_parsers": "--unit accepts a NUL byte, '#' and '+' in a name: the CLI option cases "
                       "of issue 26 are another helper's",
 }
