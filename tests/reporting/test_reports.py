@@ -251,3 +251,23 @@ def test_every_writer_writes_a_topic_holding_a_lone_surrogate(tmp_path):
     write_junit(report, tmp_path / "r.xml")
     text = write_json(report, tmp_path / "r.json").read_text()
     assert "dj\\\\udff5" in text and json_module.loads(text)["units"]
+
+
+def test_the_html_report_plots_a_rate_whose_messages_came_at_one_instant(tmp_path):
+    """Found by fuzz/message_path: heartbeats all at one instant made the rate plot's time axis
+    zero wide (a ZeroDivisionError writing the HTML report)."""
+    import orjson
+
+    from conformance.checks import Monitor
+    from conformance.message import Message
+    from conformance.reporting import write_html
+
+    monitor = Monitor(kind="lint")
+    t = 1_763_700_000.0
+    heartbeat = orjson.dumps({"agent-type": "air", "agent-uuid": "u", "levels": ["sensor"],
+                              "name": "dji0", "rate": 1.0, "stamp": t, "type": "HeartBeat"})
+    for _ in range(6):
+        monitor.feed(Message(t, "waraps/unit/air/simulation/dji0/heartbeat", heartbeat))
+    monitor.finish(t)
+    report = monitor.report(broker="", started=t, finished=t)
+    assert "<svg" in write_html(report, tmp_path / "r.html").read_text()
