@@ -34,9 +34,12 @@ def run(ctx: Context) -> None:
     again = ctx.commander.resend(first)
     answer2 = ctx.commander.response(first, ctx.timing.response, after=again.mark)
     if answer2 is not None and answer2.get("com-uuid") == answer1.get("com-uuid"):
-        # The first answer published again (its own com-uuid: EXEC-009's), arriving after the
-        # resend: not the resend's answer, which may still come.
-        answer2 = ctx.commander.response(first, ctx.timing.response, after=answer2.seq)
+        # The first answer again (its own com-uuid), arriving after the resend: a copy the
+        # unit published twice (EXEC-009's), or its stored answer sent again for the resend
+        # (2: resend 'until a response has arrived'; nothing asks for a new message). Another
+        # answer that still comes is the resend's; if none does, the copy answered it.
+        copy = answer2
+        answer2 = ctx.commander.response(first, ctx.timing.response, after=copy.seq) or copy
     ctx.commander.track_response(again, answer2)
     if answer2 is not None:
         ctx.record("EXEC-RESEND-002", verdict=Verdict.PASS)

@@ -120,7 +120,7 @@ _ALL = (
     _f("dropouts", "HB-010",
        "Falls silent for 4 periods every 25 periods (out of radio range) and comes back with "
        "the same agent-uuid (a silence is not judged as a rate: HB-003 stays clean)."),
-    _f("twin-agent", "HB-011 HB-006 HB-003",
+    _f("twin-agent", "HB-011 HB-003",
        "A second, stale process publishes heartbeats under the same name with another "
        "agent-uuid, interleaved with the unit's own."),
     # --- 5.2 sensor_info and 6 sensors -------------------------------------------------------

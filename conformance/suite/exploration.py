@@ -129,6 +129,8 @@ def _died(c: Certification, explorer: Explorer, why: str, node: pytest.Item,
     path = story.save(story_path(c), str(c.unit))
     remember(c, story, path, began)
     c.explored = f"the unit died at step {len(explorer.steps)} of an example"
+    c.explore_story = _told(story, f"the unit died during step {len(explorer.steps)} of "
+                                   f"these: {why}")
     node.user_properties.append(("explore", c.explored))
     pytest.fail(story.render(str(c.unit), "", brief=True, heading=(
         f"exploration: the unit died during step {len(explorer.steps)} of these (not shrunk: "
@@ -174,8 +176,19 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item, began: flo
     order = "" if c.settings.explore_order == "model" else ", in random order"
     _say(c, f"exploring command orders for {seconds:.0f} s (hypothesis, seed "
             f"{c.settings.seed}{order})")
-    outcome = Search(explorer, seconds, c.settings.seed, tell,
-                     guided=c.settings.explore_order == "model").run()
+    search = Search(explorer, seconds, c.settings.seed, tell,
+                    guided=c.settings.explore_order == "model")
+
+    def doing(what: str) -> None:  # the terminal shows where it stands (issue 27 §3)
+        o = search.outcome
+        c.progress.show_status(
+            f"exploring: {time.monotonic() - search.started:.0f} s of {seconds:.0f} s, "
+            f"{o.examples} example{'s' * (o.examples != 1)}, {steps(o.steps)}; {what}")
+    search.on_step = doing
+    try:
+        outcome = search.run()
+    finally:
+        c.progress.show_status("")
     summary = _summary(outcome)
     if outcome.last_error and c.progress.verbosity > 0:
         _say(c, f"exploration ended with {printable(outcome.last_error)}")
@@ -188,11 +201,13 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item, began: flo
     story.save(path, str(c.unit))
     remember(c, story, path, began)
     state = "shrunk" if story.shrunk else "not fully shrunk (the budget ran out)"
-    pytest.fail(story.render(str(c.unit), rerun(c, path), heading=(
-        f"exploration: the unit and the model disagree at step {story.failing + 1} of this "
-        f"story ({state}, {steps(story.length)}; first found after {story.found_after:.0f} s "
-        f"and {steps(story.found_steps)}, in {steps(story.first_length)}; {summary})"))
-        + f"\n\nstory stored: {printable(str(path))}", pytrace=False)
+    heading = (f"exploration: the unit and the model disagree at step {story.failing + 1} of "
+               f"this story ({state}, {steps(story.length)}; first found after "
+               f"{story.found_after:.0f} s and {steps(story.found_steps)}, in "
+               f"{steps(story.first_length)}; {summary})")
+    c.explore_story = _told(story, f"{heading}; stored: {path}")
+    pytest.fail(story.render(str(c.unit), rerun(c, path), heading=heading)
+                + f"\n\nstory stored: {printable(str(path))}", pytrace=False)
 
 
 def _replay(c: Certification, explorer: Explorer, actions: list[dict[str, object]],
@@ -208,9 +223,16 @@ def _replay(c: Certification, explorer: Explorer, actions: list[dict[str, object
                 "step as the model says")
         return
     remember(c, story, path, began)
-    pytest.fail(story.render(str(c.unit), rerun(c, path), heading=(
-        f"replay of {printable(str(path))}: the unit and the model disagree again, at step "
-        f"{story.failing + 1}")), pytrace=False)
+    heading = (f"replay of {printable(str(path))}: the unit and the model disagree again, at "
+               f"step {story.failing + 1}")
+    c.explore_story = _told(story, heading)
+    pytest.fail(story.render(str(c.unit), rerun(c, path), heading=heading), pytrace=False)
+
+
+def _told(story: Story, heading: str) -> str:
+    """The story for the reports: its steps and the rules broken at each (its messages are
+    in the evidence and in the stored story file)."""
+    return story.render("", "", heading=heading, brief=True)
 
 
 def steps(count: int) -> str:

@@ -5,6 +5,7 @@ Around the reboot, ``Names`` watches for the unit coming back under another name
 
 from __future__ import annotations
 
+import shlex
 import subprocess
 import threading
 import time
@@ -14,6 +15,7 @@ from dataclasses import dataclass
 import pytest
 
 from conformance.client import BrokerError, MqttClient
+from conformance.masking import mask_password
 from conformance.message import Message
 from conformance.suite.connection import Connection
 from conformance.suite.events import Events
@@ -38,7 +40,8 @@ class Reboot:
     def how(self) -> str:
         """The way the unit is rebooted, in the words of the option that says so."""
         if self.settings.reboot_cmd:
-            return f"--reboot-cmd {self.settings.reboot_cmd!r}"
+            # As a shell word, never with a password (issue 26 §3, §5); escaped where shown.
+            return f"--reboot-cmd {shlex.quote(mask_password(self.settings.reboot_cmd))}"
         if self.settings.embedded:
             return "the bundled reference unit's reboot"
         return "a pytest_waraps_reboot hook"
@@ -70,7 +73,8 @@ class Reboot:
                 return f"did not finish within {self.timeout:.1f} s"
             if done.returncode != 0:
                 err = (done.stderr or done.stdout).strip().splitlines()
-                return f"exit status {done.returncode}" + (f": {err[-1]}" if err else "")
+                return f"exit status {done.returncode}" + (
+                    f": {mask_password(err[-1])}" if err else "")
             return None
         if self.connection.reference is not None:
             self.connection.reference.reboot()

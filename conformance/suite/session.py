@@ -26,9 +26,10 @@ from conformance.checks import Monitor
 from conformance.client import BrokerError, MqttClient
 from conformance.conclusion import INTERRUPTED, NOT_CERTIFIED, Conclusion
 from conformance.conclusion import of as conclusion_of
-from conformance.display import LINE_CHARS, printable, shorten
+from conformance.display import LINE_CHARS, shorten, shown
 from conformance.facts import CTRL_C, RunFacts
 from conformance.judge import judge, unexamined
+from conformance.reporting.bounds import file_stem
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
 from conformance.scenarios import (
@@ -81,7 +82,8 @@ class Certification:
                                      self.events)
         self.reboot = Reboot(config, self.connection, self.timing.reboot,
                              self._reboot_requested, self.events)
-        self.stem = f"{self.unit.name}-{time.strftime('%Y%m%dT%H%M%S', time.localtime())}"
+        when = time.strftime('%Y%m%dT%H%M%S', time.localtime())
+        self.stem = f"{file_stem(self.unit.name)}-{when}"  # a bounded file name (issue 26)
         self.report_paths: dict[str, Path] = {}
         self.collect_only = False
         """--collect-only: nothing is connected, run or written."""
@@ -105,6 +107,8 @@ class Certification:
         self.broker_lost: float | None = None
         """When the broker was lost for good (it did not come back within the budget)."""
         self.explored = ""
+        self.explore_story = ""
+        """The story exploration found, as told (the HTML report shows it step by step)."""
         """What the exploration did (``suite/exploration.py``), for the report's meta."""
         self.replays: dict[str, tuple[float, str]] = {}
         """Rule -> (when exploration began, the replay line of the story that found it)."""
@@ -173,9 +177,9 @@ class Certification:
         capman = self.config.pluginmanager.getplugin("capturemanager")
         if capman is not None:
             with capman.global_and_fixture_disabled():
-                tw.line(printable(text))
+                tw.line(shown(text))
         else:
-            tw.line(printable(text))
+            tw.line(shown(text))
 
     def _adapted(self, deviation: Deviation) -> None:
         """A systematic deviation, seen for the first time: say so once (summary and -v)."""
@@ -296,6 +300,7 @@ class Certification:
             "commands_sent": str(self.commander.sent_count + self.tst.sent_count),
             "tst_command_topic": s.tst_topic,
             "explore": self.explored or ("off" if s.explore == 0 else "not run"),
+            "explore_story": self.explore_story,
             "rerun": self.rerun_command(),
         }
 
@@ -502,8 +507,9 @@ class Certification:
 
     def header(self) -> list[str]:
         """The lines pytest shows before the tests (``header_lines``); the unit's own words
-        in them (agent-uuid, agent-type, levels) escaped and excerpted (issue 19 §5)."""
-        return [printable(shorten(line, LINE_CHARS)) for line in header_lines(
+        in them (agent-uuid, agent-type, levels) escaped and excerpted (issue 19 §5), never a
+        password (issue 26 §5)."""
+        return [shown(shorten(line, LINE_CHARS)) for line in header_lines(
             self.settings, broker=self.connection.broker_url, heartbeat=self.context.heartbeat(),
             levels=self.context.levels(),
             reboot=self.reboot.how() if self.context.reboot else None,

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from conformance.cli.options import parse_duration
+from conformance.cli.options import parse_duration, reports_dir_problem
 from conformance.client import BrokerURL, mask_password
 from conformance.profile import Profile, ProfileError, builtin_names, load
 from conformance.topics import TopicError, UnitAddress
@@ -113,7 +113,7 @@ class Settings:
         """The pytest command that repeats this run (``rule``: only that rule, observing at
         least ``observe`` seconds): every option that changes what is tested or how, TLS
         files included. Never a secret: the broker URL carries no password (the password
-        comes only from WARAPS_PASSWORD)."""
+        comes only from WARAPS_PASSWORD), a reboot command's is masked (issue 26 §5)."""
         b = self.broker
         # '=' for paths: a path in its own argument could be taken for a test path by pytest.
         q = shlex.quote  # every value shell-quoted: a unit name may be `x;rm -rf ~` (issue 19 §5)
@@ -134,8 +134,8 @@ class Settings:
             parts += [f"--profile={q(self.profile.source)}"]
         if self.timing_scale != 1.0:
             parts += ["--timing-scale", f"{self.timing_scale:g}"]
-        if self.reboot_cmd:
-            parts += ["--reboot-cmd", q(self.reboot_cmd)]
+        if self.reboot_cmd:  # a password in it (curl https://u:pw@...) is never printed
+            parts += ["--reboot-cmd", q(mask_password(self.reboot_cmd))]
         if self.allow_motion:
             parts.append("--allow-motion")
         if self.allow_hostile:
@@ -228,6 +228,10 @@ def read(config: pytest.Config) -> Settings:
     reports = Path(str(_value(config, "waraps_reports_dir") or "reports"))
     if not reports.is_absolute():
         reports = Path(config.invocation_params.dir) / reports
+    problem = reports_dir_problem(
+        reports, create=not config.getoption("collectonly", False))  # listing writes nothing
+    if problem:
+        raise pytest.UsageError(problem)
     seed_text = config.getoption("waraps_seed", None)
     if seed_text is None:
         seed = secrets.randbelow(10**9)

@@ -136,9 +136,11 @@ class SilentUnit:
     """A unit that heartbeats and says it executes tasks, but answers no command at all.
 
     Publishes heartbeat, sensor_info, direct_execution_info and the mandatory sensors at
-    ``rate`` Hz from a thread (its own MqttClient, publishing only under its own address)."""
+    ``rate`` Hz from a thread (its own MqttClient, publishing only under its own address);
+    ``levels``: what its heartbeat declares."""
 
-    def __init__(self, unit: str, broker: str, rate: float = 5.0) -> None:
+    def __init__(self, unit: str, broker: str, rate: float = 5.0,
+                 levels: tuple[str, ...] = ("sensor", "direct execution")) -> None:
         import threading
         import uuid
 
@@ -147,6 +149,7 @@ class SilentUnit:
 
         self.unit = UnitAddress.parse(unit)
         self.rate = rate
+        self.levels = list(levels)
         self.agent_uuid = str(uuid.uuid4())
         base = self.unit.base + "/"
         self.client = MqttClient(BrokerURL.parse(broker), may_publish=lambda t: t.startswith(base))
@@ -158,7 +161,7 @@ class SilentUnit:
         info = {"name": u.name, "rate": self.rate, "stamp": now, "agent-uuid": self.agent_uuid}
         return {
             "heartbeat": {**info, "type": "HeartBeat", "agent-type": u.agent_type,
-                          "levels": ["sensor", "direct execution"]},
+                          "levels": self.levels},
             "sensor_info": {**info, "type": "SensorInfo",
                             "sensor-data-provided": ["position", "heading", "course", "speed"]},
             "direct_execution_info": {**info, "type": "DirectExecutionInfo",
