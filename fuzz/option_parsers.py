@@ -6,9 +6,9 @@ the sim's rate (``sim --rate``, a float that must be positive and finite).
 
 Invariant: each parser returns a value or raises its documented error (``TopicError``,
 ``CaptureOptionsError``, ``ValueError``) with a one-line message; a value returned is usable:
-a unit address whose parts hold no MQTT wildcard, no '/', and that fits a file name (the
-reports are named after it); a filter MQTT accepts ('+' and '#' whole levels); a broker host
-that is a host name or an address; a duration finite and positive. Time proportional to the
+a unit address whose parts hold no MQTT wildcard, no '/', and whose reports' file name
+(``reporting.bounds.file_stem``) fits a file system's 255 bytes; a filter MQTT accepts ('+' and '#' whole levels); a broker host
+without empty labels, spaces, controls or URL delimiters (an IDN name may hold any letters); a duration finite and positive. Time proportional to the
 input.
 """
 
@@ -22,14 +22,14 @@ import atheris
 from conformance.cli.options import parse_duration
 from conformance.client import BrokerURL
 from conformance.lint.capture import CaptureOptionsError, capture_options
+from conformance.reporting.bounds import file_stem
 from conformance.topics import TopicError, UnitAddress
 from fuzz.harness import Broken, one_line, within_time
 
 NAME_BYTES = 255
 """A file name's length on Linux: the reports are named after a unit."""
-_HOST = re.compile(r"^(?:[A-Za-z0-9_](?:[A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?)"
-                   r"(?:\.[A-Za-z0-9_](?:[A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?)*\.?$"
-                   r"|^[0-9a-fA-F:.%A-Za-z0-9]+$")
+_NOT_IN_HOST = re.compile(r"[\s/\\@#?\x00-\x1f\x7f]")
+"""What no host name or address holds (an IDN name may hold letters of any script)."""
 SEEDS = ["waraps/unit/air/simulation/dji0", "waraps/#", "mqtt://127.0.0.1:1883",
          "mqtts://broker.example:8883", "embedded", "10m", "1h30m", "90s", "0.5", "a/+/b"]
 
@@ -47,8 +47,9 @@ def _unit(text: str) -> None:
     for part in (unit.prefix, unit.agent_type, unit.role, unit.name):
         if not part or any(c in part for c in "/+#\x00"):
             raise Broken(f"unit address {text!r} accepted with part {part!r}")
-    if len(f"lint-{unit.name}.json".encode("utf-8", "surrogatepass")) > NAME_BYTES:
-        raise Broken(f"unit address accepted with a {len(unit.name)}-character name")
+    stem = f"{file_stem(unit.name)}-20261126-120000.json"  # as the session names its reports
+    if len(stem.encode("utf-8", "surrogatepass")) > NAME_BYTES:
+        raise Broken(f"unit address accepted whose reports' file name takes {len(stem)} chars")
 
 
 def _filter(text: str) -> None:
@@ -68,7 +69,9 @@ def _broker(text: str) -> None:
     except ValueError as e:
         one_line(e, "--broker error", shown=True)
         return
-    if url.scheme != "embedded" and not _HOST.match(url.host):
+    labels = url.host.rstrip(".").split(".")
+    if url.scheme != "embedded" and (_NOT_IN_HOST.search(url.host) or not all(labels)) \
+            and ":" not in url.host:  # an IPv6 address has no dots
         raise Broken(f"broker {text!r} accepted with host {url.host!r}")
     if not 0 < url.port < 65536:
         raise Broken(f"broker {text!r} accepted with port {url.port}")
