@@ -63,15 +63,21 @@ def _reboot(ctx: Context, names: Any) -> None:
             ctx.record(rule, verdict=Verdict.COULD_NOT_TEST,
                        reason=f"the reboot ({ctx.reboot_how}) failed: {error}")
         return
-    # Back when a heartbeat carries another agent-uuid, or follows a silence of more than two
-    # declared periods (HB-006's reboot silence) with the same one.
+    # Back when two heartbeats in a row (within two declared periods) carry another agent-uuid
+    # than before: the new life is under way, its commands subscribed (one heartbeat of another
+    # uuid may be a unit whose uuid changes on its own, HB-006, or its twin's, HB-011). Or a
+    # heartbeat follows a silence of more than two declared periods (HB-006's reboot silence)
+    # with the same one (REBOOT-001 fails on it).
     last = [ctx.traffic.latest("heartbeat")]
 
     def back(entry) -> bool:
         previous, last[0] = last[0], entry
+        if previous is None:
+            return False
+        soon = entry.time - previous.time <= 2.0 / rate
         if entry.get("agent-uuid") != old_agent:
-            return True
-        return previous is not None and entry.time - previous.time > 2.0 / rate
+            return soon and previous.get("agent-uuid") != old_agent and previous.time > requested
+        return not soon
 
     hb = ctx.traffic.wait_for(back, ctx.timing.reboot, after=before, subtopic="heartbeat")
     renamed = names.new_name(known, requested, 0.0) if hb is None and names else None
