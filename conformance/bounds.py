@@ -20,6 +20,10 @@ MAX_PAYLOAD_BYTES = MAX_LINE_BYTES
 MAX_NESTING = 1024
 """JSON nesting of a recording line (orjson's own limit; deeper is a problem of the line). A
 payload deeper than 64 levels is MSG-004's violation (``validator.MAX_DEPTH``)."""
+MAX_LINE_VALUES = 1 << 20
+"""A recording line over 1 MiB is read only if it holds at most this many JSON values (its
+',', '[' and '{' bytes, counted before parsing): a 64 MiB line ``[{},{},...]`` would take
+~2 GB as Python objects (issue 26 §4). Past it the line is a problem, as past the others."""
 MIN_TIME = 0.0
 MAX_TIME = 4_102_444_800.0
 """Recorded times (Unix seconds) from 1970-01-01 to 2100-01-01; a time outside is a problem
@@ -47,7 +51,8 @@ def bounds_help(*, validate: bool = False) -> str:
                 f"2); a payload is examined up to 1 MiB and 64 levels of nesting (MSG-004).")
     return (f"Bounds: a recording line up to {_size(MAX_LINE_BYTES)}; a payload as received and "
             f"as declared (payloadlen) up to {_size(MAX_PAYLOAD_BYTES)}; JSON nesting of a line "
-            f"up to {MAX_NESTING} levels (of a payload 64, MSG-004); times from 1970 to 2100 "
+            f"up to {MAX_NESTING} levels (of a payload 64, MSG-004) and, in a line over 1 MiB, up "
+            f"to {MAX_LINE_VALUES} values; times from 1970 to 2100 "
             f"({MIN_TIME:.0f}..{MAX_TIME:.0f} Unix seconds). A line past a bound is reported "
             f"as malformed and the run goes on. At most {MAX_UNITS} units are judged (past "
             f"that the run fails, naming what was not judged: narrow it with --unit or "

@@ -43,7 +43,6 @@ import sys
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
-from datetime import datetime
 from pathlib import Path
 from typing import IO, Any
 
@@ -51,14 +50,23 @@ import orjson
 
 from conformance.bounds import (
     MAX_LINE_BYTES,
+    MAX_LINE_VALUES,
     MAX_NESTING,
     MAX_PAYLOAD_BYTES,
     MAX_TIME,
     MIN_TIME,
 )
+from conformance.display import shorten
+from conformance.jsontext import dumps as json_text
 from conformance.message import Message
+from conformance.mosquitto_sub import cut_at_nul, parse_tst
 
 CHUNK_BYTES = 1 << 20
+BIG_LINE_BYTES = 1 << 20
+"""A line longer than this has its JSON values counted before it is parsed (MAX_LINE_VALUES)."""
+PROBLEM_CHARS = 300
+"""A problem's text is kept up to this (it may quote the line: a 64 MiB 'tst', found by
+fuzz/recording_mixed, was kept whole, and 100 problems are kept)."""
 MAX_PROBLEMS_KEPT = 100
 """Malformed lines kept with their text; beyond this they are only counted (bounded memory)."""
 
@@ -112,26 +120,6 @@ class RecordingError(ValueError):
     """A recording that cannot be opened at all."""
 
 
-# mosquitto_sub's tst: local time, a stray 'Z', then the offset ("...33.546275Z+0100").
-_TST = re.compile(r"^(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d(?:\.\d{1,9})?)Z?([+-]\d\d:?\d\d)?$")
-
-
-def parse_tst(text: str) -> float:
-    """Unix seconds of a mosquitto_sub ``tst`` value; ValueError if it is not one."""
-    m = _TST.match(text)
-    if m is None:
-        raise ValueError(f"tst {text!r} is not an ISO 8601 time like 2026-11-21T06:26:33.546275Z+0000")
-    stamp, offset = m.groups()
-    if "." in stamp:  # fromisoformat takes 3 or 6 fraction digits only
-        whole, frac = stamp.split(".")
-        stamp = f"{whole}.{(frac + '000000')[:6]}"
-    if offset is None:
-        offset = "+00:00"
-    elif ":" not in offset:
-        offset = f"{offset[:3]}:{offset[3:]}"
-    return datetime.fromisoformat(stamp + offset).timestamp()
-
-
 def check_time(ts: float, what: str = "ts") -> float:
     """``ts`` if it is a time within the bounds (1970..2100), else ValueError naming them."""
     if not MIN_TIME <= ts <= MAX_TIME:  # NaN fails too
@@ -178,8 +166,9 @@ class RecordingReader:
 
     def problem(self, line: int, problem: str, raw: bytes = b"") -> None:
         self.problem_count += 1
-        if len(self.problems) < MAX_PROBLEMS_KEPT:
-            self.problems.append(LineProblem(line, problem, _excerpt(raw) if raw else ""))
+        if len(self.problems) < MAX_PROBLEMS_KEPT:  # bounded whatever the text quotes
+            self.problems.append(LineProblem(line, shorten(problem, PROBLEM_CHARS),
+                                             _excerpt(raw) if raw else ""))
 
     def _batches(self) -> Iterator[tuple[int, list[bytes]]]:
         """(number of the first line, lines without their newlines), a chunk's worth at a
@@ -253,6 +242,11 @@ class RecordingReader:
         try:
             for first, lines in self._batches():
                 for number, line in enumerate(lines, first):
+                    if len(line) > BIG_LINE_BYTES and _values(line) > MAX_LINE_VALUES:
+                        self.problem(number, f"line of {len(line)} bytes holds more than the "
+                                     f"{MAX_LINE_VALUES} JSON values a line over 1 MiB may "
+                                     f"take; skipped", line)
+                        continue
                     try:
                         obj = loads(line)  # JSON whitespace (a trailing CR) is fine
                     except decode_error as e:
@@ -310,8 +304,8 @@ class RecordingReader:
         if self._truncated:
             self.notes.append(
                 f"{self._truncated} payload(s) were cut at a NUL byte by mosquitto_sub -F %j "
-                f"(payloadlen is longer than the payload); the missing bytes were replaced by "
-                f"NUL bytes. Record with 'waraps-conformance record' for byte-exact payloads.")
+                f"(payloadlen is longer than the payload); the cut is marked by a NUL byte (a "
+                f"payload declared over 1 MiB: NUL bytes to that bound). Record with 'waraps-conformance record' for byte-exact payloads.")
         if FORMAT_MOSQUITTO_V in self.formats:
             self.notes.append(
                 f"{UNTIMED_NOTE}: {', '.join(UNTIMED_RULES)} are "
@@ -436,31 +430,36 @@ class RecordingReader:
                 as_json = orjson.dumps(value)
             except orjson.JSONEncodeError:  # surrogate escapes: raw bytes, so -F %j
                 as_json = b""
-            if len(raw) == length and FORMAT_MOSQUITTO_JJ not in self.formats:
+            # Told per line (issue 26 §4: a -F %J line among -F %j lines must not turn them
+            # all into JSON strings): the lengths decide; only a line they leave open follows
+            # the format seen before it.
+            if len(raw) == length:
                 payload = raw  # -F %j: the payload as it was
                 self.formats.add(FORMAT_MOSQUITTO_J)
-            elif len(as_json) == length or FORMAT_MOSQUITTO_JJ in self.formats:
+            elif len(as_json) == length or (FORMAT_MOSQUITTO_JJ in self.formats
+                                            and FORMAT_MOSQUITTO_J not in self.formats):
                 payload = as_json  # -F %J: the payload was a JSON string
                 self.formats.add(FORMAT_MOSQUITTO_JJ)
             elif len(raw) < length:
-                # -F %j cut the payload at a NUL byte; what followed it is unknown. A NUL can
-                # never stand in JSON text (RFC 8259), so padding keeps the verdict right.
-                payload = raw + b"\x00" * (length - len(raw))
+                payload = cut_at_nul(raw, length)
                 self._truncated += 1
                 self.formats.add(FORMAT_MOSQUITTO_J)
             else:
                 payload = raw
                 self.formats.add(FORMAT_MOSQUITTO_J)
         else:
-            try:
-                payload = orjson.dumps(value)
-            except orjson.JSONEncodeError:
-                payload = json.dumps(value, separators=(",", ":")).encode()
+            payload = json_text(value)  # any depth a line may take, without recursion
             self.formats.add(FORMAT_MOSQUITTO_JJ)
         qos, retain = obj.get("qos", 0), obj.get("retain", 0)
         if qos not in (0, 1, 2) or isinstance(qos, bool):
             raise ValueError(f"'qos' is {qos!r}, not 0, 1 or 2")
         return Message(ts, topic, payload, int(qos), bool(retain))
+
+
+def _values(line: bytes) -> int:
+    """At least the JSON values a line holds beyond its first (a bound counted without parsing:
+    ',' '[' '{' inside strings count too, which only errs towards reading less)."""
+    return line.count(b",") + line.count(b"[") + line.count(b"{")
 
 
 def _utf8(text: str) -> str:

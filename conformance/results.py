@@ -23,6 +23,16 @@ COMMANDER_REASON = ("commander-side rule: in a certification the suite itself is
                     "(waraps-conformance lint judges commanders)")
 
 
+UNIT_WORD_CHARS = 200
+"""A unit address longer than this is not repeated in each rule's reason: the reasons of 800
+units with 100 KB names took gigabytes (issue 26 §4: names stored once)."""
+
+
+def _unit_word(unit: str) -> str:
+    """The unit as a shell word in a reason, or a stand-in for an address too long to repeat."""
+    return shlex.quote(unit) if len(unit) <= UNIT_WORD_CHARS else "ADDRESS (this unit's)"
+
+
 def skip_reason(rule: Rule, *, kind: str, unit: str, levels: tuple[str, ...] | None,
                 note: str = "", party: str = "unit") -> str:
     """Why a rule that was never examined is skipped (the reason a person reads).
@@ -40,10 +50,10 @@ def skip_reason(rule: Rule, *, kind: str, unit: str, levels: tuple[str, ...] | N
     if rule.id.startswith("ROS-") and not note:
         return "judged from ROS bags that hold the topics it is about (lint --from run.bag)"
     if rule.mode is Mode.ACTIVE and kind == "lint":
-        return f"needs a stimulus: run pytest --unit {shlex.quote(unit)}"
+        return f"needs a stimulus: run pytest --unit {_unit_word(unit)}"
     if rule.mode is Mode.CONVERSATION and kind == "lint" and not note:
         return (f"no command to this unit that the rule applies to was seen (pytest --unit "
-                f"{shlex.quote(unit)} sends them)")
+                f"{_unit_word(unit)} sends them)")
     level = rule.spec_level
     if level is not None and note == "":
         if levels is None:

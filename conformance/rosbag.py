@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 import orjson
 
+from conformance.bagmeta import check_metadata, odd_count
 from conformance.client import Message
 from conformance.topics import MANDATORY_SENSORS, TopicKind, UnitAddress, parse_topic
 from conformance.violation import Violation
@@ -173,6 +174,8 @@ class BagReader:
                 f"{path} is a directory but not a ROS 2 bag (no metadata.yaml, no .db3 or .mcap "
                 f"file). Pass the directory 'ros2 bag record -o NAME' made, a ROS 1 .bag file, "
                 f"or a JSON Lines recording")
+        if self.ros2 and path.is_dir() and (why := check_metadata(path / "metadata.yaml")):
+            raise BagError(why)
         if not self.ros2:
             with path.open("rb") as f:
                 head = f.read(len(ROS1_MAGIC))
@@ -216,8 +219,11 @@ class BagReader:
         self.undecodable = self.not_topic_msg = 0  # counted again by the main pass
         self._attribute(routes)
         linted = [c for c in reader.connections if routes.get(c.id, _SKIP).deserialize]
-        indexed = sum(c.msgcount for c in linted)
         total = getattr(reader, "message_count", None)
+        why = odd_count(self.path, [*(c.msgcount for c in reader.connections), total])
+        if why:  # metadata.yaml's counts, as rosbags read them (issue 26 §4)
+            raise BagError(why)
+        indexed = sum(c.msgcount for c in linted)
         if total is not None and total != sum(c.msgcount for c in reader.connections):
             raise BagError(
                 f"{self.path}: the bag's own counts disagree ({total} messages in all, "
@@ -249,9 +255,10 @@ class BagReader:
         if self.not_topic_msg:
             self.notes.append(f"{self.not_topic_msg} /heartbeat_info message(s) were not linted: "
                               f"they have no string fields 'topic' and 'msg' (ROS-003)")
-        if self.undecodable:
-            self.notes.append(f"{self.undecodable} message(s) could not be deserialized with "
-                              f"their connection's type and were skipped")
+        if self.undecodable:  # a damaged container gives no verdict (issue 26 §4)
+            raise BagError(f"{self.path}: {self.undecodable} message(s) could not be deserialized "
+                           f"with their connection's type (the bag is damaged), so nothing was "
+                           f"judged. Fix: record it again")
         yield from self._mandatory_sensors(routes, last)
 
     def _damaged(self, e: Exception) -> BagError:
@@ -537,5 +544,5 @@ def _listed(items: list[str]) -> str:
 
 
 def _reason(e: BaseException) -> str:
-    text = str(e).strip().rstrip(".") or type(e).__name__
+    text = " ".join(str(e).split()).rstrip(".") or type(e).__name__
     return text if len(text) <= 200 else text[:199] + "…"

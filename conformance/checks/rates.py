@@ -234,7 +234,7 @@ class RateTracker:
             found.append(Violation.of(
                 self.rule,
                 expected=f"{declared:.2f} Hz (declared in {self.kind.value}.rate)",
-                observed=f"{1.0 / mean:.3f} Hz {window}, off by more than {GROSS_FACTOR:g}x "
+                observed=f"{_hz(mean, 3)} {window}, off by more than {GROSS_FACTOR:g}x "
                          f"(judged after {n} intervals: a gross mismatch{how})",
                 topic=self.topic, time=self.end, unit=unit,
                 detail=f"mean interval {mean:.3f} s, declared period {period:.3f} s: is the "
@@ -299,7 +299,7 @@ class RateTracker:
             self.rule,
             expected=f"{declared:.2f} Hz +-{profile.rate_tolerance:.0%} "
                      f"(declared in {self.kind.value}.rate)",
-            observed=f"{1.0 / mean:.2f} Hz over the latest {k} intervals (since "
+            observed=f"{_hz(mean)} over the latest {k} intervals (since "
                      f"{clock(since)}){', a gross mismatch' if gross else ''}",
             topic=self.topic, time=window[-1][0], unit=unit,
             detail="live: judged over the whole observation when the run ends")
@@ -392,3 +392,8 @@ def rate_stats(ctx: CheckContext, unit: UnitState) -> list[RateStat]:
     for tracker in _trackers(unit).values():
         out.append(tracker.judge(ctx, str(unit.address))[0])
     return out
+
+
+def _hz(mean: float, digits: int = 2) -> str:
+    """The rate of a mean interval; a recording may stamp every message alike (mean 0)."""
+    return f"{1.0 / mean:.{digits}f} Hz" if mean > 0 else "a mean interval of 0 s"

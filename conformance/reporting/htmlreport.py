@@ -293,7 +293,10 @@ def plot_of(stat: RateStat, index: int) -> Plot:
                        if stat.measured_hz else "not measured"), points=[])
     pts = [(t, r) for t, r in stat.series if r == r and r != float("inf")]
     t0 = stat.start if stat.start is not None else (pts[0][0] if pts else 0.0)
-    t1 = max([stat.end or t0] + [t for t, _ in pts] + [t0 + 1e-9])
+    t1 = max([stat.end or t0] + [t for t, _ in pts])
+    # Every point at one instant: t0 + 1e-9 rounds back to t0 at 1.7e9 s (found by
+    # fuzz/message_path: a ZeroDivisionError writing the HTML report).
+    width = t1 - t0 if t1 > t0 else 1.0
     ymax = max([r for _, r in pts] + [(stat.declared_hz or 0) * 1.5, 1e-9]) * 1.1
     if stat.declared_hz and ymax > stat.declared_hz * 4:
         # A burst at 1000x the declared rate would flatten everything else: clip at 4x.
@@ -301,7 +304,7 @@ def plot_of(stat: RateStat, index: int) -> Plot:
         pts = [(t, min(r, ymax)) for t, r in pts]
 
     def x(t: float) -> float:
-        return p.left + (t - t0) / (t1 - t0) * (p.w - p.left - p.right)
+        return p.left + (t - t0) / width * (p.w - p.left - p.right)
 
     def y(r: float) -> float:
         return p.top + (1 - r / ymax) * (p.h - p.top - p.bottom)

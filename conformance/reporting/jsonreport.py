@@ -48,8 +48,39 @@ def _dumps(report: RunReport) -> bytes:
     data["verdict"] = conclusion.verdict
     data["partial"] = conclusion.partial
     data["conclusion"] = _shortened(conclusion.to_dict())
-    return orjson.dumps(data, option=orjson.OPT_INDENT_2 | orjson.OPT_SORT_KEYS
-                        | orjson.OPT_NON_STR_KEYS) + b"\n"
+    option = orjson.OPT_INDENT_2 | orjson.OPT_SORT_KEYS | orjson.OPT_NON_STR_KEYS
+    try:
+        return orjson.dumps(data, option=option) + b"\n"
+    except orjson.JSONEncodeError:  # a lone surrogate in a string from the wire (TOPIC-008)
+        return orjson.dumps(_utf8(data), option=option) + b"\n"
+
+
+def _utf8(value: Any) -> Any:
+    """``value`` with every string UTF-8 can carry as it is and the rest's lone surrogates
+    as backslash escapes (found by fuzz/message_path: a topic of one failed the report).
+    Iterative: no recursion over a report's depth."""
+    def fixed(x: Any) -> Any:
+        if isinstance(x, str):
+            try:
+                x.encode("utf-8")
+            except UnicodeEncodeError:
+                return x.encode("utf-8", "backslashreplace").decode("utf-8")
+        return x
+
+    root: list[Any] = [value]
+    stack: list[tuple[Any, Any]] = [(root, 0)]
+    while stack:
+        parent, key = stack.pop()
+        item = parent[key]
+        if isinstance(item, dict):
+            item = parent[key] = {fixed(k): v for k, v in item.items()}
+            stack.extend((item, k) for k in item)
+        elif isinstance(item, (list, tuple)):
+            item = parent[key] = list(item)
+            stack.extend((item, i) for i in range(len(item)))
+        else:
+            parent[key] = fixed(item)
+    return root[0]
 
 
 def write_json(report: RunReport, path: str | os.PathLike[str]) -> Path:

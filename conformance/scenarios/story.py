@@ -138,12 +138,46 @@ def load(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
             or not isinstance(data.get("steps"), list):
         raise StoryError(f"{path}: not a story written by --explore (format {FORMAT!r})")
     actions = []
-    for step in data["steps"]:
+    for number, step in enumerate(data["steps"], 1):
         action = step.get("action") if isinstance(step, dict) else None
-        if not isinstance(action, dict) or action.get("do") not in (
-                "start", "signal", "query", "resend", "ping", "wait"):
+        if not isinstance(action, dict) or action.get("do") not in FIELDS:
             raise StoryError(f"{path}: a step that is not an exploration step: "
                              f"{printable(str(action))[:200]}")
+        wrong = _wrong_field(action)
+        if wrong:
+            raise StoryError(f"{path}: step {number} ({action['do']}): {wrong}")
         if not action.get("teardown"):
             actions.append(action)
     return actions, data
+
+
+_KINDS = {
+    "name": (lambda v: type(v) is str and bool(v), "a name"),
+    "count": (lambda v: type(v) is int and v >= 0, "a whole number from 0"),
+    "slot": (lambda v: v is None or type(v) is int and v >= 0,
+             "a slot: a whole number from 0 (the n-th start-task), or null"),
+    "flag": (lambda v: type(v) is bool, "true or false"),
+}
+FIELDS: dict[str, dict[str, tuple[bool, str]]] = {
+    "start": {"task": (True, "name"), "slot": (False, "slot"), "task_uuid": (False, "flag")},
+    "signal": {"signal": (True, "name"), "slot": (False, "slot")},
+    "query": {"slot": (False, "slot")},
+    "resend": {"step": (True, "count")},
+    "ping": {},
+    "wait": {"periods": (False, "count")},
+}
+"""Each kind of step: its fields, whether each is needed, and the kind of value it holds (what
+the explorer reads, ``explore_steps.Explorer``; every step may say 'teardown'). A stored story
+is checked when it is loaded, so a wrong one is one line, never a traceback (issue 26 §4)."""
+
+
+def _wrong_field(action: dict[str, Any]) -> str:
+    """What is wrong with a step's fields, or ''."""
+    for key, (needed, kind) in [*FIELDS[action["do"]].items(), ("teardown", (False, "flag"))]:
+        holds, what = _KINDS[kind]
+        if key not in action:
+            if needed:
+                return f"'{key}' is missing ({what})"
+        elif not holds(action[key]):
+            return f"'{key}' is {printable(repr(action[key]))[:80]}, not {what}"
+    return ""

@@ -342,6 +342,12 @@ def _replay(config: pytest.Config, reports: Path) -> Path | None:
     if not path.is_file():
         raise pytest.UsageError(f"--explore-replay {value}: no such file (a failing "
                                 f"exploration stores its story under {reports})")
+    from conformance.scenarios.story import StoryError, load
+
+    try:  # read now: a story that is none is a usage error, before anything runs
+        load(path)
+    except StoryError as e:
+        raise pytest.UsageError(f"--explore-replay: {e}") from None
     return path
 
 

@@ -143,6 +143,45 @@ def mosquitto_j(payloadlen: int, payload: str = "x") -> bytes:
             + b',"payload":"' + payload.encode() + b'"}')
 
 
+def mosquitto_jj(topic: str, value: bytes, payloadlen: int, t: str = "07:26:55.807087") -> bytes:
+    """A ``mosquitto_sub -F %J`` line: the payload ``value`` embedded as JSON."""
+    return (b'{"tst":"2026-11-21T' + t.encode() + b'Z+0100","topic":"' + topic.encode()
+            + b'","qos":0,"retain":0,"payloadlen":' + str(payloadlen).encode() + b',"payload":'
+            + value + b"}")
+
+
+def as_mosquitto_j(jsonl: bytes) -> bytes:
+    """A JSON Lines line of ours as ``mosquitto_sub -F %j`` prints the same message."""
+    obj = orjson.loads(jsonl)
+    tst = time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(obj["ts"])) + \
+        f".{int(obj['ts'] % 1 * 1e6):06d}Z+0000"
+    payload = obj["payload"].encode()
+    return orjson.dumps({"tst": tst, "topic": obj["topic"], "qos": 0, "retain": 0,
+                         "payloadlen": len(payload), "payload": obj["payload"]})
+
+
+def _empty_objects(path: Path, count: int = 22_000_000) -> Path:
+    """Issue 26 §4: a -F %J line of 66 MB, ``[{},{},...]`` (2.1 GB as Python objects: once a
+    SIGSEGV in orjson.dumps), among good lines; written in pieces, never held."""
+    good = good_lines()
+    head, tail = mosquitto_jj(f"{UNIT}/sensor/speed", b"@", 3 * count).split(b"@")
+    with path.open("wb") as f:
+        f.write(b"\n".join(good[:6]) + b"\n" + head + b"[{}")
+        for _ in range(count // 100_000):
+            f.write(b",{}" * 100_000)
+        f.write(b"]" + tail + b"\n" + b"\n".join(good[6:]) + b"\n")
+    return path
+
+
+def mixed_j_and_jj(tmp: Path) -> Path:
+    """Issue 26 §4: one ``-F %J`` line, then a conformant unit's ``-F %j`` lines (30 false
+    MSG-003 findings when the first line's format was taken for the whole file)."""
+    path = tmp / "mixed.txt"
+    first = mosquitto_jj(f"{UNIT}/sensor/speed", b"0.1", 3, "06:39:59.9")
+    path.write_bytes(b"\n".join([first, *map(as_mosquitto_j, good_lines(12))]) + b"\n")
+    return path
+
+
 @dataclass
 class Case:
     """A recording (lines, or raw bytes) linted, or a command run, and what must follow."""
@@ -199,6 +238,18 @@ def fleet(tmp: Path, units: int = 100_000) -> Path:
             bad = {"type": "Heartbeat"} if i == units - 1 else {}
             f.write(line(T0 + i * 1e-5, f"waraps/unit/air/simulation/{name}/heartbeat",
                          heartbeat(T0, name, i, **bad)) + b"\n")
+    return path
+
+
+def long_names(tmp: Path, units: int = 100, chars: int = 100_000) -> Path:
+    """Issue 26 §4: ``units`` units whose names take ``chars`` characters, one heartbeat each
+    (800 such units once took gigabytes: the name repeated in each rule's reason)."""
+    path = tmp / "long-names.jsonl"
+    with open(path, "wb") as f:
+        for i in range(units):
+            name = f"u{i}" + "n" * chars
+            f.write(line(T0 + i * 1e-3, f"waraps/unit/air/simulation/{name}/heartbeat",
+                         heartbeat(T0, name, i)) + b"\n")
     return path
 
 
@@ -260,6 +311,21 @@ RECORDING_CASES = [
     Case("overlong-line", _recording(b"x" * ((64 << 20) + 10)),
          says=("malformed line 7: line of 67108875 bytes is longer than the 64 MiB",)),
     Case("empty", b"", codes=frozenset({3}), says=("no messages were read",)),
+    # Issue 26 §4: bounded by construction, not by case.
+    Case("jj-nested-999", _recording(mosquitto_jj(f"{UNIT}/sensor/speed", b"[" * 999
+                                                  + b"]" * 999, 1998)),
+         codes=frozenset({0, 1}), says=("MSG-004",)),  # a decided rule: warns unless strict
+    Case("jj-66mb-of-empty-objects", make=lambda tmp: _empty_objects(tmp / "jj-66mb-of-empty-objects.jsonl"),
+         says=("malformed line 7: line of 66000153 bytes holds more than the 1048576 JSON "
+               "values",)),
+    Case("jj-key-not-utf8", _recording(mosquitto_jj(  # found by fuzz/recording_mixed
+        f"{UNIT}/sensor/battery", b'{"volt\xb1age": 12.5}', 19)),
+         codes=frozenset({1}), says=("MSG-001",)),
+    Case("heartbeats-all-at-one-instant", _recording([  # found by fuzz/recording_mixed
+        line(T0 + 0.5, "waraps/unit/air/simulation/dji9/heartbeat", heartbeat(T0, "dji9", 9))
+        for _ in range(6)]), codes=frozenset({1}), says=("a mean interval of 0 s",)),
+    Case("payloadlen-64mib-2000-lines", _recording([mosquitto_j(64 << 20)] * 2000),
+         codes=frozenset({1}), says=("2000 payload(s) were cut at a NUL byte", "MSG-004")),
 ]
 
 
@@ -364,6 +430,33 @@ def damaged_bags(tmp: Path, storage: str, copies: int) -> tuple[Path, list[Path]
         meta.write_text(text.replace(total[0], f"\n  message_count: {int(total[1]) + 3}", 1))
         out.append(path)
     return src, out
+
+
+BILLION_LAUGHS = "".join(
+    [f"a0: &a0 [{', '.join(['x'] * 9)}]\n"]
+    + [f"a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * 9)}]\n" for i in range(1, 10)])
+"""About 1 KB of YAML that expands to 9**10 strings."""
+
+
+def metadata_bags(tmp: Path) -> list[Path]:
+    """Issue 26 §4: ROS 2 bags whose metadata.yaml says ``message_count: lots`` (in a topic's
+    count, then in the total), is a billion laughs, or nests 10,000 levels deep."""
+    sys.path.insert(0, str(Path(__file__).parent.parent / "ros"))
+    from ros_bags import unit_entries, write_bag
+
+    src = write_bag(tmp / "good", unit_entries(seconds=3, ros2=True), ros2=True)
+    text = (src / "metadata.yaml").read_text()
+    variants = [re.sub(r"- message_count: \d+", "- message_count: lots", text, count=1),
+                re.sub(r"\n  message_count: \d+", "\n  message_count: lots", text, count=1),
+                text + BILLION_LAUGHS.replace("a0:", "  a0:").replace("\na", "\n  a"),
+                "[" * 10_000 + "]" * 10_000]
+    out = []
+    for i, variant in enumerate(variants):
+        path = tmp / f"meta-{i}"
+        shutil.copytree(src, path)
+        (path / "metadata.yaml").write_text(variant)
+        out.append(path)
+    return out
 
 
 def bag_codes(run: Run) -> list[tuple[str, object, str]]:

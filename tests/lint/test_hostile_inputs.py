@@ -240,3 +240,46 @@ def test_random_damage_to_a_recording_is_never_a_traceback(tmp_path: Path) -> No
     assert len(codes) == 120
     bad = [(path, code) for path, code, _ in codes if code not in EXIT_TABLE["lint"]]
     assert not bad, bad[:3]
+
+
+def test_formats_are_told_per_line(tmp_path: Path) -> None:
+    """Issue 26 §4: one ``-F %J`` line before a conformant unit's ``-F %j`` lines: each line is
+    read in its own format, so the heartbeats are objects (no MSG-003) and the unit is clean."""
+    from hostile import mixed_j_and_jj
+
+    case = Case("mixed-j-and-jj", args=("lint", "--from", "{file}", "--plain", "--format",
+                                        "json"), make=mixed_j_and_jj, codes=frozenset({0}))
+    _check(case, tmp_path)
+    report = json.loads((tmp_path / "reports" / "lint-mixed.json").read_text())
+    assert report["meta"]["recording_formats"] == "mosquitto_sub -F %J, mosquitto_sub -F %j"
+    assert report["units"][UNIT]["rules"]["MSG-003"]["verdict"] == "pass"
+
+
+def test_a_hostile_metadata_yaml_is_refused_in_one_line(tmp_path: Path) -> None:
+    """Issue 26 §4: a ROS 2 bag whose metadata.yaml holds 'message_count: lots' (once a
+    TypeError), a 1 KB billion laughs (once a hang) or 10,000 levels of nesting: each refused
+    (exit 3) with one line naming the file and how to fix it, within the bounds."""
+    from hostile import metadata_bags
+
+    bags = metadata_bags(tmp_path)
+    run = run_bounded("metadata", [str(p) for p in bags], tmp_path, script=BAG_DRIVER)
+    _bounded(run)
+    codes = bag_codes(run)
+    assert len(codes) == len(bags)
+    for bag, code, err in codes:
+        assert code == EXIT_NOT_RUN, f"{bag}: {code} {err}"
+        assert err.count("\n") == 1 and "nothing was judged" in err and "Fix:" in err, err
+    assert "is 'lots', not a whole number" in codes[0][2] and "'lots'" in codes[1][2]
+    assert "anchors or aliases" in codes[2][2] and "deeper than 32 levels" in codes[3][2]
+
+
+def test_long_unit_names_are_stored_once(tmp_path: Path) -> None:
+    """Issue 26 §4: 100 units with 100 KB names (20 MB): every report written within the memory
+    bound (527 MB before: each rule's reason repeated the name) and about the input's size."""
+    from hostile import long_names
+
+    path = long_names(tmp_path)
+    run = run_bounded("long-names", ["lint", "--from", str(path), "--plain"], tmp_path)
+    _bounded(run)
+    for report in (tmp_path / "reports").iterdir():
+        assert report.stat().st_size < 2 * path.stat().st_size, report

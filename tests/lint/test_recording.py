@@ -189,8 +189,8 @@ def test_mosquitto_sub_j_format_recovers_every_payload(prefix: str, publisher: M
     got = {m.topic.rsplit("/", 1)[1]: m.payload for m in items}
     assert reader.problem_count == 0 and reader.formats == {FORMAT_MOSQUITTO_J}
     for name, payload in SAMPLES:
-        if name == "nul":  # cut at the NUL by mosquitto_sub: padded with NULs to payloadlen
-            assert got[name] == b'{"a": 1}' + b"\x00" * 5
+        if name == "nul":  # cut at the NUL by mosquitto_sub: the cut marked by one NUL
+            assert got[name] == b'{"a": 1}' + b"\x00"
         else:
             assert got[name] == payload, name
     assert any("cut at a NUL byte" in n for n in reader.notes)
@@ -257,3 +257,25 @@ def test_record_to_a_pipe_passes_on_a_steady_trickle(mosquitto: str, prefix: str
             time.sleep(0.1)  # the trickle's pace (a schedule, not a wait for a result)
     finally:
         proc.interrupt()
+
+
+def test_json_text_is_written_without_recursion_at_any_depth() -> None:
+    """Issue 26 §4: what orjson writes where it can; deeper (999 levels: once a RecursionError
+    in the json fallback) with an explicit stack; a string of surrogate escapes (a line that
+    was not UTF-8) as the bytes it stands for."""
+    import json
+
+    import orjson
+
+    from conformance.jsontext import dumps
+
+    shallow = {"a": [1, 2.5, None, True, "x\u00e9"], "b": {}}
+    assert dumps(shallow) == orjson.dumps(shallow)
+    deep = orjson.loads(b"[" * 999 + b'{"k":1}' + b"]" * 999)
+    assert dumps(deep) == b"[" * 999 + b'{"k":1}' + b"]" * 999
+    mixed: object = [{"k": [1]}]
+    for _ in range(300):
+        mixed = {"a": mixed, "b": [mixed and 2]}
+    assert json.loads(dumps(mixed)) == mixed
+    escaped = b'{"volt\xb1age":1}'.decode("utf-8", "surrogateescape")
+    assert dumps(json.loads(escaped)) == b'{"volt\xb1age":1}'

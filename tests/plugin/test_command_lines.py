@@ -82,3 +82,10 @@ def test_reasons_that_name_a_command_quote_the_unit(tmp_path, name):
         reason = skip_reason(get(rule), kind="lint", unit=unit, levels=None)
         line = reason[reason.index("pytest --unit"):].removesuffix(" sends them)")
         assert pasted(line, tmp_path) == ["--unit", unit]
+
+
+def test_a_unit_too_long_to_repeat_is_not_repeated_in_each_reason():
+    """Issue 26 §4: names stored once; a reason names a long unit by a stand-in."""
+    unit = "waraps/unit/air/simulation/" + "n" * 100_000
+    reason = skip_reason(get(ACTIVE), kind="lint", unit=unit, levels=None)
+    assert "nnnn" not in reason and "pytest --unit ADDRESS (this unit's)" in reason

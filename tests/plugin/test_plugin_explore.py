@@ -147,10 +147,27 @@ def test_replay_of_a_file_that_is_no_story(pytester: pytest.Pytester) -> None:
                                            *EMBEDDED, "--explore-replay=nowhere.json")
     assert missing.ret == pytest.ExitCode.USAGE_ERROR
     assert "--explore-replay nowhere.json: no such file" in "\n".join(missing.errlines)
-    bad = pytester.path / "bad.json"
-    bad.write_text(json.dumps({"format": "something else", "steps": []}))
-    run = certify(pytester, *EMBEDDED, f"--explore-replay={bad}", "-k", "test_explore")
-    assert run.result.ret == 1 and "not a story written by --explore" in run.text
+    start = {"do": "start", "task": "move-to", "slot": 0}
+    for name, steps, says in (  # issue 26 §4: each one line, a usage error, before any test
+            ("other-format", None, "not a story written by --explore"),
+            ("slot-string", [start, {"do": "query", "slot": "0"}],
+             "step 2 (query): 'slot' is '0', not a slot"),
+            ("slot-negative", [start, {"do": "signal", "signal": "$pause", "slot": -1}],
+             "step 2 (signal): 'slot' is -1, not a slot"),
+            ("start-without-task", [{"do": "start", "slot": 0}],
+             "step 1 (start): 'task' is missing (a name)"),
+            ("periods-float", [{"do": "wait", "periods": 1.5}],
+             "step 1 (wait): 'periods' is 1.5, not a whole number from 0")):
+        bad = pytester.path / f"{name}.json"
+        bad.write_text(json.dumps({"format": "something else", "steps": []} if steps is None
+                                  else {"format": "waraps-conformance explore story 1",
+                                        "steps": [{"action": a} for a in steps]}))
+        run = pytester.runpytest_inprocess("-p", "no:cacheprovider", "-o", "addopts=",
+                                           *EMBEDDED, f"--explore-replay={bad}")
+        errors = "\n".join(run.errlines)
+        assert run.ret == pytest.ExitCode.USAGE_ERROR, (name, errors)
+        assert f"--explore-replay: {bad}: {says}" in errors, (name, errors)
+        assert "Traceback" not in errors + "\n".join(run.outlines), name
 
 
 def test_replay_never_moves_a_real_unit_without_allow_motion(pytester: pytest.Pytester) -> None:

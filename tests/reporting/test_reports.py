@@ -231,3 +231,43 @@ def test_a_run_that_did_not_complete_never_reads_as_a_pass(run_report: RunReport
     props = to_junit(run_report)
     assert f'name="verdict" value="{verdict}"' in props
     assert 'name="partial" value="true"' in props
+
+
+def test_every_writer_writes_a_topic_holding_a_lone_surrogate(tmp_path):
+    """Found by fuzz/message_path: a topic with a lone surrogate (TOPIC-008's case) failed the
+    JSON report (orjson refuses it); it is written with the surrogate as a backslash escape."""
+    import json as json_module
+
+    from conformance.checks import Monitor
+    from conformance.message import Message
+    from conformance.reporting import write_html, write_json, write_junit
+
+    monitor = Monitor(kind="lint")
+    topic = "waraps/unit/air/simulation/dj\udff5/heartbeat"
+    monitor.feed(Message(1_763_700_000.0, topic, b"{}"))
+    monitor.finish(1_763_700_001.0)
+    report = monitor.report(broker="", started=1_763_700_000.0, finished=1_763_700_001.0)
+    write_html(report, tmp_path / "r.html")
+    write_junit(report, tmp_path / "r.xml")
+    text = write_json(report, tmp_path / "r.json").read_text()
+    assert "dj\\\\udff5" in text and json_module.loads(text)["units"]
+
+
+def test_the_html_report_plots_a_rate_whose_messages_came_at_one_instant(tmp_path):
+    """Found by fuzz/message_path: heartbeats all at one instant made the rate plot's time axis
+    zero wide (a ZeroDivisionError writing the HTML report)."""
+    import orjson
+
+    from conformance.checks import Monitor
+    from conformance.message import Message
+    from conformance.reporting import write_html
+
+    monitor = Monitor(kind="lint")
+    t = 1_763_700_000.0
+    heartbeat = orjson.dumps({"agent-type": "air", "agent-uuid": "u", "levels": ["sensor"],
+                              "name": "dji0", "rate": 1.0, "stamp": t, "type": "HeartBeat"})
+    for _ in range(6):
+        monitor.feed(Message(t, "waraps/unit/air/simulation/dji0/heartbeat", heartbeat))
+    monitor.finish(t)
+    report = monitor.report(broker="", started=t, finished=t)
+    assert "<svg" in write_html(report, tmp_path / "r.html").read_text()

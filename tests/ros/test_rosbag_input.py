@@ -112,14 +112,17 @@ def test_the_console_script_prints_no_traceback(tmp_path: Path) -> None:
     assert done.stderr.startswith(f"waraps-conformance lint: {bag}: cannot read this rosbag2")
 
 
-def test_a_message_its_type_cannot_read_is_skipped_and_counted(tmp_path: Path) -> None:
+def test_a_message_its_type_cannot_read_refuses_the_bag(tmp_path: Path) -> None:
+    """Issue 26 §4: a damaged container gives no verdict, never 'clean' on what survives."""
     entries = unit_entries()
     entries.append(Entry("/husky0/sensor/speed", "std_msgs/msg/Float32", 1_763_700_005.5,
                          raw=b"\x01"))  # 1 byte where a float32 takes 4
-    run = lint_bag(write_bag(tmp_path / "run.bag", entries), tmp_path / "reports")
-    assert run.code == 0, run.out + run.err
-    assert "note: 1 message(s) could not be deserialized with their connection's type and " \
-           "were skipped" in run.out
+    bag = write_bag(tmp_path / "run.bag", entries)
+    run = lint_bag(bag, tmp_path / "reports")
+    assert run.code == EXIT_NOT_RUN, run.out + run.err
+    assert run.err.strip() == (
+        f"waraps-conformance lint: {bag}: 1 message(s) could not be deserialized with their "
+        f"connection's type (the bag is damaged), so nothing was judged. Fix: record it again")
 
 
 def test_a_ros1_bag_damaged_in_the_middle(tmp_path: Path) -> None:

@@ -1,0 +1,24 @@
+"""Fuzz target: the bytes of a ROS 1 ``.bag`` file,
+read by ``BagReader`` as ``lint --from`` does. Seeded with a conformant bag (``fuzz.seeds``).
+
+Invariant (``fuzz.bags``): read whole, or refused with a one-line ``BagError``; a message that
+cannot be deserialized refuses the bag (no verdict on a damaged container); time proportional
+to the input.
+"""
+
+from __future__ import annotations
+
+from fuzz.bags import check, copy_of, good_bag, storage_file
+
+STORAGE = "ros1"
+
+
+def prepare() -> None:
+    """Write the good bag once."""
+    good_bag(STORAGE)
+
+
+def test_one_input(data: bytes) -> None:
+    bag = copy_of(STORAGE)
+    storage_file(bag).write_bytes(data)
+    check(bag, len(data))
