@@ -9,7 +9,6 @@ passive checks as the linter) and to ``Traffic`` (which the scenarios wait on).
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Callable
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
@@ -51,7 +50,8 @@ class Connection:
     listeners: list[Callable[[list[Violation]], None]] = field(default_factory=list,
                                                                 init=False)
     """Told the violations the Monitor finds in each message (the exploration's oracle)."""
-    _alive: threading.Event = field(default_factory=threading.Event, init=False)
+    _alive: bool = field(default=False, init=False)
+    _alive_changed: threading.Condition = field(default_factory=threading.Condition, init=False)
     _gap_start: float | None = field(default=None, init=False)
     _linked: bool = field(default=False, init=False)
     """Whether the broker ever accepted the connection (before that, nothing can be lost)."""
@@ -75,7 +75,9 @@ class Connection:
 
         Raises ``BrokerError`` (broker unreachable or refusing) or ``NotAlive``."""
         s = self.settings
-        if s.embedded:
+        if s.virtual:
+            self._open_virtual()
+        elif s.embedded:
             # Imported here: the broker and the simulator load only for --broker embedded.
             from conformance.sim.reference import Reference
 
@@ -84,6 +86,24 @@ class Connection:
                                        seed=s.seed, tst=s.sim_tst,
                                        tst_operator=s.tst_operator).start()
             self.broker_url = BrokerURL.parse(self.reference.url)
+        probe = None if s.virtual else self._open_mqtt()
+        try:
+            if not self._wait_alive(alive_timeout):
+                revived = self._revive(revive, alive_timeout) if revive else None
+                if revived is None or revived[1]:
+                    raise NotAlive(not_alive(
+                        self.unit, s.profile, self.broker_url, waited=alive_timeout,
+                        own_subtopics=self.traffic.subtopics(),
+                        seen=probe.topics() if probe else {},
+                        timing_scale=s.timing_scale,
+                        revived=revived[1] if revived else None))
+        finally:
+            if probe is not None:
+                probe.close()
+
+    def _open_mqtt(self) -> Probe:
+        """Connect the suite's client; returns the probe that notes what else is seen."""
+        s = self.settings
         probe = Probe(self.broker_url, self.unit)
         self.client = MqttClient(self.broker_url, on_message=self._on_message,
                                  may_publish=self.may_publish,
@@ -94,31 +114,48 @@ class Connection:
         if s.tst_operator is not None:  # 14.1: commands and answers there
             self.client.subscribe(s.tst_operator.base + "/tst/#")
         probe.start()
-        try:
-            if not self._alive.wait(alive_timeout):
-                revived = self._revive(revive, alive_timeout) if revive else None
-                if revived is None or revived[1]:
-                    raise NotAlive(not_alive(
-                        self.unit, s.profile, self.broker_url, waited=alive_timeout,
-                        own_subtopics=self.traffic.subtopics(), seen=probe.topics(),
-                        timing_scale=s.timing_scale,
-                        revived=revived[1] if revived else None))
-        finally:
-            probe.close()
+        return probe
+
+    def _open_virtual(self) -> None:
+        """--broker virtual: the reference unit and an in-memory broker on the traffic's
+        virtual clock (the test suite's matrices only: ``conformance.sim.virtual``)."""
+        from conformance.sim.virtual import VirtualClient, VirtualReference
+
+        s = self.settings
+        reference = VirtualReference(self.unit, self.traffic.clock,  # type: ignore[arg-type]
+                                     faults=s.sim_faults, variants=s.sim_variants,
+                                     rate=s.sim_rate, seed=s.seed, tst=s.sim_tst,
+                                     tst_operator=s.tst_operator).start()
+        self.reference = reference  # type: ignore[assignment]
+        self.client = VirtualClient(reference.broker, self._on_message,  # type: ignore[assignment]
+                                    self.may_publish, self.refuse_payload)
+        self.client.subscribe(self.unit.base + "/#")
+        if s.tst_operator is not None:  # 14.1: commands and answers there
+            self.client.subscribe(s.tst_operator.base + "/tst/#")
+
+    def _wait_alive(self, timeout: float) -> bool:
+        """Whether the unit's first live heartbeat came within ``timeout`` seconds."""
+        clock = self.traffic.clock
+        end = clock.monotonic() + timeout
+        with self._alive_changed:
+            while not self._alive and (left := end - clock.monotonic()) > 0:
+                clock.wait(self._alive_changed, left)
+            return self._alive
 
     def _revive(self, revive: Revive, waited: float) -> tuple[str, str]:
         """Restart a unit that is not alive, and wait for its heartbeat: (how, "") when it
         came, else (how, what went wrong)."""
         how, timeout, restart = revive
-        self.events.at(time.time(), f"no heartbeat within {waited:.1f} s: restarting the unit "
-                                    f"before judging it")
+        self.events.at(self.traffic.clock.now(), f"no heartbeat within {waited:.1f} s: "
+                                                 f"restarting the unit before judging it")
         failure = restart()
         if failure is not None:
             return how, f"restarted with {how}, which failed: {failure}"
-        if not self._alive.wait(timeout):
+        if not self._wait_alive(timeout):
             return how, f"restarted with {how}; still no heartbeat {timeout:.0f} s later"
-        self.events.at(time.time(), f"the unit was not alive when the run began (an earlier "
-                                    f"run may have left it dead); restarted with {how}")
+        self.events.at(self.traffic.clock.now(), f"the unit was not alive when the run began "
+                                                 f"(an earlier run may have left it dead); "
+                                                 f"restarted with {how}")
         return how, ""
 
     def _on_message(self, message: Message) -> None:
@@ -131,10 +168,12 @@ class Connection:
         self.traffic.add(message)
         if not message.retain and message.topic.endswith("/heartbeat") \
                 and message.topic == self.unit.topic("heartbeat"):
-            self._alive.set()
+            with self._alive_changed:
+                self._alive = True
+                self._alive_changed.notify_all()
 
     def _on_connection(self, connected: bool, reason: str) -> None:
-        now = time.time()
+        now = self.traffic.clock.now()
         with self.monitor_lock:
             if connected:
                 self._linked = True

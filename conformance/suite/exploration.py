@@ -7,7 +7,6 @@ folder, and its rerun line replays exactly that story (``--explore-replay``).
 from __future__ import annotations
 
 import shlex
-import time
 from pathlib import Path
 
 import pytest
@@ -43,7 +42,7 @@ def budget(c: Certification) -> float:
         wanted = default_budget(c.context.rate_of("heartbeat"))
     deadline = c.traffic.waits.deadline
     if deadline is not None:
-        wanted = min(wanted, deadline - time.monotonic() - RESERVE)
+        wanted = min(wanted, deadline - c.traffic.clock.monotonic() - RESERVE)
     return max(0.0, wanted)
 
 

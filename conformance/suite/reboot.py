@@ -5,7 +5,6 @@ reboot under ``--broker embedded``; with none of them the REBOOT-* rules could n
 from __future__ import annotations
 
 import subprocess
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -47,7 +46,7 @@ class Reboot:
         """Reboot the unit; None when done, else what went wrong. The time of the reboot is
         marked as a gap in the observation: a rebooting unit is allowed its silence there
         (REBOOT-001 judges the reboot itself)."""
-        now = time.time()
+        now = self.connection.traffic.clock.now()
         self.requested(now)
         self.events.at(now, f"reboot requested ({self.how()})")
         if self.config.pluginmanager.hook.pytest_waraps_reboot(

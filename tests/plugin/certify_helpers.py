@@ -95,6 +95,18 @@ def certify_sim(pytester: pytest.Pytester, broker: str, unit: str, *args: str,
                        plugins=(Rebooter(sim),))
 
 
+def certify_virtual(pytester: pytest.Pytester, unit: str, *args: str,
+                    faults: tuple[str, ...] = (), variants: tuple[str, ...] = (),
+                    rate: float = 2.0) -> Certified:
+    """Certify the reference unit (with ``faults``, ``variants``) in virtual time: the unit,
+    the suite and the Monitor on one simulated clock, through the in-memory broker double
+    (``--broker virtual``, ``conformance.sim.virtual``): the same run as ``certify_sim``'s on
+    a real broker, in the CPU time its messages cost."""
+    return certify(pytester, "--unit", unit, "--broker", "virtual", "--sim-rate", f"{rate:g}",
+                   *(f"--sim-fault={f}" for f in faults),
+                   *(f"--sim-variant={v}" for v in variants), *args)
+
+
 STALL = HERE / "profiles" / "stall.yaml"
 DEADLINE = 90.0
 """Seconds: the issue's bound for a 1 Hz unit (i18 4); stalling faults run at 2 Hz with the
@@ -225,3 +237,19 @@ def recorded(broker: str, prefix: str, path: Path) -> Iterator[None]:
             yield
         finally:
             recorder.close()
+
+
+@contextmanager
+def recorded_virtual(path: Path) -> Iterator[None]:
+    """Record every message the in-memory broker doubles carry while the block runs (the
+    virtual-time twin of ``recorded``: ``conformance.sim.virtual.TAPS``)."""
+    from conformance.recording import RecordingWriter
+    from conformance.sim.virtual import TAPS
+
+    with path.open("wb") as f:
+        writer = RecordingWriter(f)
+        TAPS.append(writer.write)
+        try:
+            yield
+        finally:
+            TAPS.remove(writer.write)

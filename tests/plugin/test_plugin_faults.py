@@ -4,8 +4,10 @@ its rule: every line, as printed, repeats the run with ``-k RULE`` (and ``--obse
 evidence came late) and selects exactly that rule's test; one rule for each way a rerun selects
 what it runs (``RERUN``) is run again against the same faults and fails that rule again, alone.
 
-To keep the matrix within a couple of minutes on 2 cores (-n 2), faults that touch different
-spec areas run together, at 2 Hz with the matrix profile's short windows; faults of the areas
+The matrix runs in virtual time (``--broker virtual``: the reference unit, the suite and the
+Monitor on one simulated clock, through the in-memory broker double of ``conformance.sim.virtual``),
+but for the runs of ``REAL_BROKER``, end to end on Mosquitto and amqtt: one for each kind of
+scenario. To keep the matrix short, faults that touch different spec areas run together, at 2 Hz with the matrix profile's short windows; faults of the areas
 that gate others (heartbeat, ping, robustness, start-task, signals, reboot, stamps) run alone,
 but for those that change only what their own rule judges (JOIN). A combined run must fail
 exactly the union of its faults' rules: one that does not fails, naming its faults and the
@@ -28,6 +30,7 @@ from certify_helpers import (
     Rebooter,
     certify,
     certify_sim,
+    certify_virtual,
     warm_parameters,
 )
 
@@ -80,6 +83,23 @@ JOIN = {"heartbeat-type-case", "level-unknown", "stamp-clock-skew", "stamp-milli
 # Faults that leave the unit without a readable position: the scenarios that start tasks
 # place them near it (DESIGN 'Safety') and cannot test without one, whatever their area.
 ALONE_FAULTS = {"position-deg-e7", "position-as-list"}
+
+
+# Runs end to end on a real broker (the rest run in virtual time): a group runs on the broker
+# named beside any fault it holds. Together they run every kind of scenario (ping, start,
+# signal, query, resend, robustness, reboot, TST, the passive window) on Mosquitto and amqtt.
+REAL_BROKER = {
+    "pong-missing": "mosquitto",  # ping (the gate) and robustness
+    "reboot-remembers-history": "mosquitto",  # reboot after start (Scenario.needs)
+    "query-forgets-finished": "mosquitto",  # a combined group: query, resend, TST, passive
+    "abort-ignored": "embedded_broker",  # start and signal, on amqtt
+    "heading-signed": "embedded_broker",  # a combined group: the passive window, on amqtt
+}
+
+
+def broker_for(faults: list[str]) -> str | None:
+    """The real broker fixture a group runs on, None for virtual time."""
+    return next((REAL_BROKER[f] for f in faults if f in REAL_BROKER), None)
 
 
 def areas(rule: str) -> set[str]:
@@ -171,6 +191,14 @@ def selection(rule: str) -> str:
     return "the passive window after its evidence" if rule in EVIDENCE else "the passive window"
 
 
+def test_real_broker_runs_are_kept_on_both_brokers() -> None:
+    """The virtual-time matrix keeps end-to-end runs on Mosquitto and amqtt."""
+    runs = [broker_for(g) for g in groups()]
+    assert {"mosquitto", "embedded_broker"} <= set(runs)
+    assert all(any(f in g for g in groups()) for f in REAL_BROKER), "a fault of no group"
+    assert runs.count(None) > len(runs) // 2, "most of the matrix runs in virtual time"
+
+
 def test_the_reruns_cover_every_way_a_rerun_selects_what_it_runs() -> None:
     broken = {r for f in FAULTS.values() if f.scope == "unit" for r in f.rules}
     assert all(rule in FAULTS[f].rules for rule, f in RERUN.items()), "a rule its fault breaks"
@@ -186,12 +214,18 @@ def test_the_reruns_cover_every_way_a_rerun_selects_what_it_runs() -> None:
     pytest.param([name], id=name, marks=pytest.mark.xfail(strict=True, reason=why))
     for name, why in AWAITING_SCENARIOS.items()])
 def test_faults_fail_exactly_their_rules(pytester: pytest.Pytester, faults: list[str],
-                                         mosquitto: str, prefix: str) -> None:
-    # On Mosquitto: a broker in its own process leaves this one's CPU to the unit and the suite.
+                                         request: pytest.FixtureRequest, prefix: str) -> None:
     unit = f"{prefix}/unit/air/simulation/dji0"
-
-    run = certify_sim(pytester, mosquitto, unit, f"--profile={MATRIX}", "--seed", "1",
-                      faults=tuple(faults))
+    real = broker_for(faults)
+    broker = None
+    if real is not None:
+        found = request.getfixturevalue(real)
+        broker = found if isinstance(found, str) else found.url
+        run = certify_sim(pytester, broker, unit, f"--profile={MATRIX}", "--seed", "1",
+                          faults=tuple(faults))
+    else:
+        run = certify_virtual(pytester, unit, f"--profile={MATRIX}", "--seed", "1",
+                              faults=tuple(faults))
     expected = {r for f in faults for r in FAULTS[f].rules} | {
         r for f in faults for r in SUITE_ALSO.get(f, ())}
     assert run.failed == expected, f"{' + '.join(faults)}:\n{explain(run, expected)}"
@@ -200,7 +234,7 @@ def test_faults_fail_exactly_their_rules(pytester: pytest.Pytester, faults: list
     for rule, fault in RERUN.items():
         if fault in faults:
             assert rule not in LATE or "--observe" in lines[rule], lines[rule]
-            fails_again(pytester, lines[rule], rule, faults, mosquitto, unit)
+            fails_again(pytester, lines[rule], rule, faults, broker, unit)
 
 
 def rerun_lines(pytester: pytest.Pytester, run: Certified, rules: set[str]) -> dict[str, str]:
@@ -232,13 +266,16 @@ def rerun_lines(pytester: pytest.Pytester, run: Certified, rules: set[str]) -> d
 
 
 def fails_again(pytester: pytest.Pytester, line: str, rule: str, faults: list[str],
-                broker: str, unit: str) -> None:
+                broker: str | None, unit: str) -> None:
     """The rerun line, run against the same faults, fails the rule again (and judges nothing
-    else)."""
+    else). In virtual time (``broker`` None) the line itself names the faults."""
     from conformance.sim import SimUnit
 
-    with SimUnit(unit, broker, faults=tuple(faults), rate=2.0, seed=1) as sim:
-        again = certify(pytester, *shlex.split(line)[1:], plugins=(Rebooter(sim),))
+    if broker is None:
+        again = certify(pytester, *shlex.split(line)[1:])
+    else:
+        with SimUnit(unit, broker, faults=tuple(faults), rate=2.0, seed=1) as sim:
+            again = certify(pytester, *shlex.split(line)[1:], plugins=(Rebooter(sim),))
     assert again.failed == {rule}, f"{line}:\n{explain(again, {rule})}"
     assert again.result.ret == pytest.ExitCode.TESTS_FAILED
 
