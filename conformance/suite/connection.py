@@ -28,6 +28,7 @@ from conformance.violation import Violation
 
 if TYPE_CHECKING:
     from conformance.sim.reference import Reference
+    from conformance.sim.virtual import VirtualClient, VirtualReference
 
 Revive = tuple[str, float, Callable[[], "str | None"]]
 """How a unit that is not alive is restarted before the run: (how, in the words of the option;
@@ -44,9 +45,9 @@ class Connection:
     monitor_lock: AbstractContextManager[Any]
     """Held while the Monitor is fed or read (the MQTT network thread feeds it)."""
     events: Events
-    client: MqttClient | None = field(default=None, init=False)
-    reference: Reference | None = field(default=None, init=False)
-    """The bundled reference unit and its broker, under --broker embedded."""
+    client: MqttClient | VirtualClient | None = field(default=None, init=False)
+    reference: Reference | VirtualReference | None = field(default=None, init=False)
+    """The bundled reference unit and its broker, under --broker embedded (or virtual)."""
     listeners: list[Callable[[list[Violation]], None]] = field(default_factory=list,
                                                                 init=False)
     """Told the violations the Monitor finds in each message (the exploration's oracle)."""
@@ -119,16 +120,17 @@ class Connection:
     def _open_virtual(self) -> None:
         """--broker virtual: the reference unit and an in-memory broker on the traffic's
         virtual clock (the test suite's matrices only: ``conformance.sim.virtual``)."""
+        from conformance.clock import VirtualClock
         from conformance.sim.virtual import VirtualClient, VirtualReference
 
         s = self.settings
-        reference = VirtualReference(self.unit, self.traffic.clock,  # type: ignore[arg-type]
-                                     faults=s.sim_faults, variants=s.sim_variants,
-                                     rate=s.sim_rate, seed=s.seed, tst=s.sim_tst,
-                                     tst_operator=s.tst_operator).start()
-        self.reference = reference  # type: ignore[assignment]
-        self.client = VirtualClient(reference.broker, self._on_message,  # type: ignore[assignment]
-                                    self.may_publish, self.refuse_payload)
+        clock = self.traffic.clock
+        assert isinstance(clock, VirtualClock), "--broker virtual runs in virtual time"
+        self.reference = reference = VirtualReference(
+            self.unit, clock, faults=s.sim_faults, variants=s.sim_variants, rate=s.sim_rate,
+            seed=s.seed, tst=s.sim_tst, tst_operator=s.tst_operator).start()
+        self.client = VirtualClient(reference.broker, self._on_message, self.may_publish,
+                                    self.refuse_payload)
         self.client.subscribe(self.unit.base + "/#")
         if s.tst_operator is not None:  # 14.1: commands and answers there
             self.client.subscribe(s.tst_operator.base + "/tst/#")

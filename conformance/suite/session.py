@@ -147,7 +147,9 @@ class Certification:
         Raises ``BrokerError`` (broker unreachable or refusing) or ``NotAlive``."""
         self.traffic.waits.deadline = self.traffic.clock.monotonic() + self.settings.max_duration
         if self.config.get_verbosity() >= 0:  # the first seconds: say what is awaited
-            where = ("the embedded broker and the bundled reference unit" if
+            where = ("the in-memory broker double and the bundled reference unit, in virtual "
+                     "time" if self.settings.virtual else
+                     "the embedded broker and the bundled reference unit" if
                      self.settings.embedded else f"{self.settings.broker}")
             self._say(f"waraps-conformance: connecting to {where}, then waiting up to "
                       f"{self.alive_timeout():.0f} s for a heartbeat of {self.unit}")
