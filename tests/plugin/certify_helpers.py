@@ -114,18 +114,30 @@ default feedback deadline (30 s), where waiting it out again for a seen deviatio
 each tree) takes 60-150 s or more."""
 
 
-def certify_stalling(pytester: pytest.Pytester, broker: str, prefix: str,
+REAL_STALL = "no-final-feedback"
+"""The stalling fault certified end to end on a real broker (the others in virtual time)."""
+
+
+def certify_stalling(pytester: pytest.Pytester, broker: str | None, prefix: str,
                      fault: str) -> Certified:
     """Certify a reference unit with a fault that stalls a scenario: the run ends within
-    ``DEADLINE`` and fails exactly the fault's rules."""
+    ``DEADLINE`` of the unit's time and fails exactly the fault's rules. On ``broker``, or
+    in virtual time when it is None (the run's time: its report's start to its end)."""
     import time
 
     from conformance.sim import FAULTS
 
+    unit = f"{prefix}/unit/air/simulation/dji0"
     started = time.monotonic()
-    run = certify_sim(pytester, broker, f"{prefix}/unit/air/simulation/dji0",
-                      f"--profile={STALL}", "--seed", "1", "-q", faults=(fault,))
-    took = time.monotonic() - started
+    if broker is None:
+        run = certify_virtual(pytester, unit, f"--profile={STALL}", "--seed", "1", "-q",
+                              faults=(fault,))
+        assert run.report is not None, run.text[-3000:]
+        took = run.report["finished"] - run.report["started"]
+    else:
+        run = certify_sim(pytester, broker, unit, f"--profile={STALL}", "--seed", "1", "-q",
+                          faults=(fault,))
+        took = time.monotonic() - started
     assert took < DEADLINE, f"{fault}: {took:.0f} s"
     assert run.failed == set(FAULTS[fault].rules), run.text[-3000:]
     return run
