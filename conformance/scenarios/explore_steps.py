@@ -220,8 +220,9 @@ class Explorer:
         self.ctx.commander.abort_all(t.response)
         if self._pending_until:
             until = self._pending_until
+            left = until - self.ctx.traffic.clock.now()
             self.ctx.traffic.wait_for(lambda e: e.time > until,
-                                      until - self.ctx.traffic.clock.now() + t.periods(2, self._rate()),
+                                      left + t.periods(2, self._rate()),
                                       subtopic="heartbeat", what="the deadlines of the "
                                       "exploration's commands")
         found += ours(self.collector.since(mark), self._uuids())

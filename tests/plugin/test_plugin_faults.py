@@ -5,11 +5,12 @@ evidence came late) and selects exactly that rule's test; one rule for each way 
 what it runs (``RERUN``) is run again against the same faults and fails that rule again, alone.
 
 The matrix runs in virtual time (``--broker virtual``: the reference unit, the suite and the
-Monitor on one simulated clock, through the in-memory broker double of ``conformance.sim.virtual``),
+Monitor on one simulated clock, through the in-memory broker double ``conformance.sim.virtual``),
 but for the runs of ``REAL_BROKER``, end to end on Mosquitto and amqtt: one for each kind of
-scenario. To keep the matrix short, faults that touch different spec areas run together, at 2 Hz with the matrix profile's short windows; faults of the areas
-that gate others (heartbeat, ping, robustness, start-task, signals, reboot, stamps) run alone,
-but for those that change only what their own rule judges (JOIN). A combined run must fail
+scenario. To keep the matrix short, faults that touch different spec areas run together, at
+2 Hz with the matrix profile's short windows; faults of the areas that gate others (heartbeat,
+ping, robustness, start-task, signals, reboot, stamps) run alone, but for those that change
+only what their own rule judges (JOIN). A combined run must fail
 exactly the union of its faults' rules: one that does not fails, naming its faults and the
 rules (faults interact: those that legitimately affect each other are kept apart, in ALONE,
 SAME_MESSAGES or ALSO, with a comment saying why).

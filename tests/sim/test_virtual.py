@@ -54,7 +54,7 @@ def test_the_reference_unit_heartbeats_and_answers_ping_in_virtual_time() -> Non
     beats = [m for m in got if m.topic == UNIT.topic("heartbeat")]
     assert 19 <= len(beats) <= 21, len(beats)
     stamps = [orjson.loads(m.payload)["stamp"] for m in beats]
-    assert all(abs(s - m.time) < 0.01 for s, m in zip(stamps, beats))  # one clock
+    assert all(abs(s - m.time) < 0.01 for s, m in zip(stamps, beats, strict=True))  # one clock
     client.publish(UNIT.topic("exec/command"), orjson.dumps(
         {"command": "ping", "com-uuid": "c0ffee00-0000-4000-8000-000000000001",
          "sender": "test"}))
