@@ -86,21 +86,23 @@ JOIN = {"heartbeat-type-case", "level-unknown", "stamp-clock-skew", "stamp-milli
 ALONE_FAULTS = {"position-deg-e7", "position-as-list"}
 
 
-# Runs end to end on a real broker (the rest run in virtual time): a group runs on the broker
-# named beside any fault it holds. Together they run every kind of scenario (ping, start,
-# signal, query, resend, robustness, reboot, TST, the passive window) on Mosquitto and amqtt.
+# Runs end to end on Mosquitto (the rest run in virtual time): a group holding one of these.
+# Together they run every kind of scenario (ping, start, signal, query, resend, robustness,
+# reboot, TST, the passive window). Not on amqtt: the embedded broker shares this process (and
+# its GIL) with the unit and the suite, and on a loaded 2-core machine its stalls at 2 Hz read
+# as silences (HB-010, DEI-002: seen in a full -n 2 run); amqtt runs end to end in
+# test_plugin_certify.py, test_plugin_explore.py and the demo.
 REAL_BROKER = {
-    "pong-missing": "mosquitto",  # ping (the gate) and robustness
-    "reboot-remembers-history": "mosquitto",  # reboot after start (Scenario.needs)
-    "query-forgets-finished": "mosquitto",  # a combined group: query, resend, TST, passive
-    "abort-ignored": "embedded_broker",  # start and signal, on amqtt
-    "heading-signed": "embedded_broker",  # a combined group: the passive window, on amqtt
+    "pong-missing",  # ping (the gate) and robustness
+    "reboot-remembers-history",  # reboot after start (Scenario.needs)
+    "query-forgets-finished",  # a combined group: query, resend, TST, passive
+    "abort-ignored",  # start and signal
 }
 
 
-def broker_for(faults: list[str]) -> str | None:
-    """The real broker fixture a group runs on, None for virtual time."""
-    return next((REAL_BROKER[f] for f in faults if f in REAL_BROKER), None)
+def on_mosquitto(faults: list[str]) -> bool:
+    """Whether a group runs end to end on Mosquitto (else in virtual time)."""
+    return bool(REAL_BROKER & set(faults))
 
 
 def areas(rule: str) -> set[str]:
@@ -192,12 +194,11 @@ def selection(rule: str) -> str:
     return "the passive window after its evidence" if rule in EVIDENCE else "the passive window"
 
 
-def test_real_broker_runs_are_kept_on_both_brokers() -> None:
-    """The virtual-time matrix keeps end-to-end runs on Mosquitto and amqtt."""
-    runs = [broker_for(g) for g in groups()]
-    assert {"mosquitto", "embedded_broker"} <= set(runs)
-    assert all(any(f in g for g in groups()) for f in REAL_BROKER), "a fault of no group"
-    assert runs.count(None) > len(runs) // 2, "most of the matrix runs in virtual time"
+def test_real_broker_runs_are_kept() -> None:
+    """The virtual-time matrix keeps end-to-end runs on Mosquitto, one group each."""
+    real = [g for g in groups() if on_mosquitto(g)]
+    assert len(real) == len(REAL_BROKER), "each in a group of its own"
+    assert len(real) < len(groups()) // 4, "most of the matrix runs in virtual time"
 
 
 def test_the_reruns_cover_every_way_a_rerun_selects_what_it_runs() -> None:
@@ -217,11 +218,9 @@ def test_the_reruns_cover_every_way_a_rerun_selects_what_it_runs() -> None:
 def test_faults_fail_exactly_their_rules(pytester: pytest.Pytester, faults: list[str],
                                          request: pytest.FixtureRequest, prefix: str) -> None:
     unit = f"{prefix}/unit/air/simulation/dji0"
-    real = broker_for(faults)
     broker = None
-    if real is not None:
-        found = request.getfixturevalue(real)
-        broker = found if isinstance(found, str) else found.url
+    if on_mosquitto(faults):
+        broker = request.getfixturevalue("mosquitto")
         run = certify_sim(pytester, broker, unit, f"--profile={MATRIX}", "--seed", "1",
                           faults=tuple(faults))
     else:
