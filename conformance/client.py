@@ -9,6 +9,7 @@ client may publish nowhere; the suite's only to the unit under test).
 
 from __future__ import annotations
 
+import ipaddress
 import os
 import queue
 import re
@@ -22,6 +23,8 @@ from urllib.parse import urlsplit
 
 import paho.mqtt.client as paho
 
+from conformance.display import shorten
+from conformance.masking import mask_password  # re-exported: a URL made fit to print
 from conformance.message import Gap, Message  # re-exported: ``from conformance.client import ...``
 
 SCHEMES = ("mqtt", "mqtts", "embedded")
@@ -36,24 +39,24 @@ class PublishRefused(PermissionError):
     """A publish the safety rules forbid (DESIGN: safety). Never caught to carry on."""
 
 
-_NETLOC = re.compile(r"([a-z][a-z0-9+.-]*://)([^/\s?#]*)", re.I)
+_LABEL = re.compile(r"[a-z0-9_](?:[a-z0-9_-]{0,61}[a-z0-9_])?", re.I)
+"""One label of a host name (RFC 1123 2.1; '_' as resolvers accept it)."""
 
 
-def mask_password(text: str) -> str:
-    """``text`` with the password of every ``scheme://user:password@host`` in it shown as
-    ``***`` (a password may hold '@': the host follows the last one). The one place a URL is
-    made fit to print; a bare ``user:password@host`` is read as a URL when it is all of
-    ``text`` (what ``--broker`` accepts)."""
-    if "://" not in text and "@" in text.split("/", 1)[0]:
-        return mask_password("x://" + text)[4:]
-
-    def masked(m: re.Match[str]) -> str:
-        userinfo, at, hostport = m.group(2).rpartition("@")
-        if not at or ":" not in userinfo:
-            return m.group(0)
-        return f"{m.group(1)}{userinfo.partition(':')[0]}:***@{hostport}"
-
-    return _NETLOC.sub(masked, text)
+def _is_host(host: str) -> bool:
+    """``host`` is an IP address or a host name a resolver can be asked about (labels of 1 to
+    63 characters, 253 in all, after IDNA): ``a..b`` is not (issue 26)."""
+    try:
+        ipaddress.ip_address(host)
+        return True
+    except ValueError:
+        pass
+    try:
+        name = host.encode("idna").decode("ascii")
+    except UnicodeError:
+        return False
+    labels = name.removesuffix(".").split(".")
+    return len(name) <= 253 and all(_LABEL.fullmatch(label) for label in labels)
 
 
 @dataclass(frozen=True)
@@ -83,7 +86,8 @@ class BrokerURL:
         if text in ("embedded", "virtual"):  # virtual: the tests' in-memory double (sim/virtual)
             return cls(text)
         parts = urlsplit(text if "://" in text else f"mqtt://{text}")
-        shown = mask_password(text)  # what an error may say: never a password it wrongly has
+        # What an error may say: never a password it wrongly has, a long URL excerpted.
+        shown = shorten(mask_password(text, url=True), 200)
         if parts.scheme not in ("mqtt", "mqtts"):
             raise ValueError(
                 f"broker URL {shown!r}: scheme {parts.scheme!r} is not one of mqtt, mqtts, "
@@ -99,6 +103,9 @@ class BrokerURL:
                 f"broker URL {shown!r}: the port is not a number from 1 to 65535") from None
         if not parts.hostname:
             raise ValueError(f"broker URL {shown!r} has no host (for example mqtt://127.0.0.1:1883)")
+        if not _is_host(parts.hostname):
+            raise ValueError(f"broker URL {shown!r}: {shorten(parts.hostname, 100)!r} is not a "
+                             f"host name or an IP address (for example mqtt://127.0.0.1:1883)")
         return cls(parts.scheme, parts.hostname, port,
                    username=parts.username or env.get("WARAPS_USERNAME") or None,
                    password=env.get("WARAPS_PASSWORD") or None)
@@ -276,7 +283,7 @@ class MqttClient:
             raise BrokerError(f"TLS handshake with {b} failed: {e.reason or e}. Check the CA "
                               f"file (--ca-file) and that the broker speaks TLS on this port"
                               ) from None
-        except OSError as e:
+        except (OSError, UnicodeError) as e:  # UnicodeError: a host name IDNA refuses
             raise BrokerError(f"cannot reach the broker at {b}: {e.strerror or e}. Is it "
                               f"running and listening there? (--broker, WARAPS_BROKER/"
                               f"WARAPS_PORT)") from None

@@ -245,7 +245,7 @@ def _conclude_lint(report: RunReport, facts: RunFacts) -> Conclusion:
     verdict = (Verdict.FAIL.value if failed else
                Verdict.WARN.value if worst is Verdict.WARN else CLEAN)
     why = (facts.not_judged,) if facts.not_judged else ()
-    units = {name: _lint_unit(name, u) for name, u in report.units.items()}
+    units = {name: _lint_unit(name, u, untimed=facts.untimed) for name, u in report.units.items()}
     return Conclusion(report.kind, verdict, False, why, 1 if failed else 0,
                       units, counts(report), facts.strict)
 
@@ -258,7 +258,12 @@ def commands_seen(unit: UnitReport) -> int:
                    ("exec/command/", "tst/command/")))
 
 
-def _lint_unit(name: str, unit: UnitReport) -> UnitStatus:
+UNTIMED_SPAN = "no times in the capture"
+"""What lint says instead of a duration when the traffic had no recorded times (a
+``mosquitto_sub -v`` capture): its arrival times are the reading's, not the traffic's."""
+
+
+def _lint_unit(name: str, unit: UnitReport, *, untimed: bool = False) -> UnitStatus:
     worst = unit.worst()
     failed = sum(r.verdict is Verdict.FAIL for r in unit.rules.values())
     warned = sum(r.verdict is Verdict.WARN for r in unit.rules.values())
@@ -272,8 +277,11 @@ def _lint_unit(name: str, unit: UnitReport) -> UnitStatus:
     died = died_at(unit)
     found = ", ".join(t for c, t in ((failed, f"{failed} rule(s) failed"),
                                      (warned, f"{warned} rule(s) warned")) if c)
-    summary = (f"{found} in {duration(span)} observed" if found
-               else f"{CLEAN} for {duration(span)}") + f", {commanded}"
+    if untimed:  # never 'clean for 0 s': the reading's times are not the traffic's
+        summary = f"{found or CLEAN} ({UNTIMED_SPAN}), {commanded}"
+    else:
+        summary = (f"{found} in {duration(span)} observed" if found
+                   else f"{CLEAN} for {duration(span)}") + f", {commanded}"
     if died is not None:
         summary += f"; it died at {_clock(died)}"
     levels = tuple(LevelStatus(lv, False, LINT_NEVER_CERTIFIES)

@@ -12,6 +12,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+from conformance.display import shown
+
 
 class _Collector:
     """Remembers where the certification wrote its reports (read after pytest.main)."""
@@ -54,14 +56,14 @@ def certify(unit: str, *, rate: float = 1.0, faults: Sequence[str] = (),
     if quiet:
         command.append("-q")
     command += pytest_args
-    print("waraps-conformance demo: pytest " + " ".join(command), flush=True)
+    print(shown("waraps-conformance demo: pytest " + " ".join(command)), flush=True)
     collector = _Collector()
     code = int(pytest.main(command, plugins=[collector]))
     if collector.paths:
         print("\nreports:")
         for kind, path in sorted(collector.paths.items()):
-            print(f"  {kind:5} {path}")
+            print(shown(f"  {kind:5} {path}"))
     verdict = "passed" if code == 0 else f"did not pass (pytest exit status {code})"
-    print(f"\nthe reference unit {unit} {verdict}"
+    print(f"\nthe reference unit {shown(unit)} {verdict}"
           + ("" if code == 0 or faults else ": this is a bug, please report it"))
     return code

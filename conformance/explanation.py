@@ -10,6 +10,7 @@ from typing import Any
 import orjson
 
 from conformance import profile as profile_module
+from conformance.display import printable, shorten
 from conformance.rules import CATALOGUE
 from conformance.validator import Validation, Validator
 from conformance.violation import Verdict
@@ -27,14 +28,16 @@ FORMS = ("<prefix>/unit/<agent-type>/<role>/<name>/heartbeat",
 def unplaceable(topic: str) -> str:
     """Why ``topic`` is refused: it names no unit, so no message kind can be judged."""
     forms = "\n".join(f"  {f}" for f in FORMS)
-    return (f"waraps-conformance validate: cannot place topic {topic!r}: it is not under "
+    return (f"waraps-conformance validate: cannot place topic {printable(repr(topic))}: it is "
+            f"not under "
             f"a unit's address (spec 3). Accepted forms, e.g. "
             f"waraps/unit/air/simulation/dji0/heartbeat:\n{forms}")
 
 
 def render(validation: Validation, profile: profile_module.Profile) -> str:
     """The kind, then each violation as the STYLE guide shows it, then a one-line verdict."""
-    lines = [f"topic     {validation.topic.topic}", f"kind      {validation.kind}"]
+    # What the message holds is shown escaped (issue 26 §3): topic, paths, values.
+    lines = [f"topic     {printable(validation.topic.topic)}", f"kind      {validation.kind}"]
     for v in validation.violations:
         rule = CATALOGUE.get(v.rule)
         judged = verdict_of(v.rule, profile)
@@ -42,11 +45,11 @@ def render(validation: Validation, profile: profile_module.Profile) -> str:
         lines.append("")
         lines.append(f"{v.rule} {title}".ljust(72) + f" [{judged.value}]")
         if v.path:
-            lines.append(f"  path      {v.path}")
-        lines.append(f"  expected  {v.expected}")
-        lines.append(f"  observed  {v.observed}")
+            lines.append(f"  path      {printable(shorten(v.path))}")
+        lines.append(f"  expected  {printable(shorten(v.expected))}")
+        lines.append(f"  observed  {printable(shorten(v.observed))}")
         if v.detail:
-            lines.append(f"  detail    {v.detail}")
+            lines.append(f"  detail    {printable(shorten(v.detail))}")
         if rule:
             lines.append(f"  spec      {rule.section}")
     lines.append("")

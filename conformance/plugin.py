@@ -13,9 +13,10 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from conformance.cli.options import BROKER_ENV, CREDENTIALS, TLS_FILES, TLS_INSECURE
-from conformance.display import printable
+from conformance.cli.options import BROKER_ENV, CREDENTIALS, TLS_FILES, TLS_INSECURE, parse_rate
+from conformance.display import printable, printable_lines
 from conformance.exits import EXIT_NOT_CERTIFIED
+from conformance.masking import mask_password
 
 if TYPE_CHECKING:
     from conformance.suite.session import Certification
@@ -65,7 +66,12 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                          "could-not-test)")
     group.addoption("--allow-motion", dest="waraps_allow_motion", action="store_true",
                     default=False, help="let the suite start the profile's motion-tasks on a "
-                                        "'real' unit")
+                                        "real unit (every role but 'simulation' and the "
+                                        "profile's simulated-roles)")
+    group.addoption("--allow-hostile", dest="waraps_allow_hostile", action="store_true",
+                    default=False, help="let the suite send hostile and malformed payloads "
+                                        "(the robustness probes) to a real unit; the profile's "
+                                        "robustness: true does the same")
     group.addoption("--dry-run", dest="waraps_dry_run", action="store_true", default=False,
                     help="publish nothing; print what would be published")
     group.addoption("--strict-rules", dest="waraps_strict_rules", action="store_true",
@@ -105,7 +111,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     metavar="VARIANT", help="with --broker embedded: switch on a conformant "
                     "variant of the bundled reference unit (repeatable; waraps-conformance sim "
                     "--list-variants lists them)")
-    group.addoption("--sim-rate", dest="waraps_sim_rate", type=float, default=None,
+    group.addoption("--sim-rate", dest="waraps_sim_rate", type=parse_rate, default=None,
                     metavar="HZ", help="with --broker embedded: the reference unit's rate")
     group.addoption("--sim-tst", dest="waraps_sim_tst", action="store_true", default=False,
                     help="with --broker embedded: the reference unit declares 'tst execution' "
@@ -128,6 +134,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
             ("waraps_explore", "default for --explore (0: off)")):
         parser.addini(name, help_, default="")
     for name, help_ in (("waraps_allow_motion", "default for --allow-motion"),
+                        ("waraps_allow_hostile", "default for --allow-hostile"),
                         ("waraps_dry_run", "default for --dry-run"),
                         ("waraps_strict_rules", "default for --strict-rules"),
                         ("waraps_tls_insecure", "default for --tls-insecure")):
@@ -171,7 +178,11 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "waraps_rule(rule_id): the rule this test judges")
     config.addinivalue_line("markers", "waraps_explore: the exploration (runs after the "
                                        "scripted scenarios)")
-    certification = Certification(config, read(config))
+    try:
+        settings = read(config)
+    except pytest.UsageError as e:  # it repeats what was typed: escaped, never a password
+        raise pytest.UsageError(printable(mask_password(str(e)))) from None
+    certification = Certification(config, settings)
     config.stash[CERTIFICATION] = certification
     config.pluginmanager.register(_CertificationPlugin(certification), PLUGIN_NAME)
 
@@ -183,6 +194,8 @@ class _CertificationPlugin:
         self.certification = certification
         self.finished = False
         self.session: pytest.Session | None = None
+        self.explore_outcome = ""
+        """test_explore's outcome in the suite's words (it judges no rule of its own)."""
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_sessionstart(self, session: pytest.Session) -> None:
@@ -255,8 +268,13 @@ class _CertificationPlugin:
         locate_skip(item, report)
         return report
 
+    @pytest.hookimpl(tryfirst=True)  # before pytest writes the result: our line goes first
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         c = self.certification
+        c.progress.clear()
+        if report.nodeid.endswith("::test_explore") and (
+                report.when == "call" or report.outcome != "passed"):
+            self.explore_outcome = _explore_outcome(report, c.explored)
         marker = report.keywords.get("waraps_rule") if report.when == "call" or (
             report.when == "setup" and report.outcome != "passed") else None
         if marker is not None:
@@ -288,38 +306,92 @@ class _CertificationPlugin:
         if c.collect_only:
             return
         tr = terminalreporter
+
+        def line(text: str, **markup: bool) -> None:
+            # Every line through the one escape (issue 26 §3): the unit's own words (its
+            # levels, names, reasons) never reach the terminal raw; our own line breaks stay.
+            # Never a password (§5): the repeat line, an error naming a URL.
+            tr.line(printable_lines(mask_password(text)), **markup)
+
+        c.progress.clear()
         tr.section("waraps-conformance")
         if c.error:  # what went wrong and how to fix it; the verdict line below says no more
-            tr.line(printable(f"not certified: {c.error}"), red=True)
+            line(f"not certified: {c.error}", red=True)
         for event in c.events:
-            tr.line(printable(event))
+            line(printable(event))
         report = c.report()
         conclusion = c.conclusion(report)
         counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
         head = conclusion.verdict if c.error else conclusion.headline()
-        tr.line(f"{c.unit}: {head}; {counts}",
-                red=conclusion.verdict not in ("pass", "warn"))
+        # The rules' counts, and the exploration apart: together they are pytest's tests.
+        explored = f"; exploration: {self.explore_outcome}" if self.explore_outcome else ""
+        line(f"{printable(c.unit)}: {printable(head)}; rules: {counts}{printable(explored)}",
+             red=conclusion.verdict not in ("pass", "warn"))
         unit = conclusion.units.get(str(c.unit))
         for level in unit.levels if unit is not None else ():
-            tr.line(f"  {level}")
-        for line in skipped_by_reason(report.units.get(str(c.unit))):
-            tr.line(line)
+            line(f"  {printable(level)}")
+        for text in findings(report, str(c.unit), error_said=bool(c.error)):
+            line(text, red=text.startswith("  failed"))
+        for text in skipped_by_reason(report.units.get(str(c.unit))):
+            line(text)
         later = conclusion.judged_after_test
         if later:  # their tests passed before the traffic that fails them came
-            tr.line(f"failed after their tests ran (later traffic is evidence too; the "
-                    f"reports hold it): {', '.join(later)}", red=True)
+            line(f"failed after their tests ran (later traffic is evidence too; the "
+                 f"reports hold it): {printable(', '.join(later))}", red=True)
             from conformance.reporting import render_violation
 
             rules = report.units[str(c.unit)].rules
             for rule in later:
                 # The evidence came from a later scenario: the whole run reproduces it.
                 for v in rules[rule].violations[:1]:
-                    tr.line(render_violation(rule, v, str(c.unit), rerun_hint=c.rerun_command()))
+                    line(render_violation(rule, v, str(c.unit), rerun_hint=c.rerun_command()))
         for kind, path in sorted(c.report_paths.items()):
-            tr.line(f"{kind} report: {path}")
+            line(f"{kind} report: {printable(path)}")
         if not c.report_paths:
-            tr.line("no report was written")
-        tr.line(f"repeat this run: {c.rerun_command()}")
+            line("no report was written")
+        line(f"repeat this run: {printable(c.rerun_command())}")
+
+
+def _explore_outcome(report: pytest.TestReport, explored: str) -> str:
+    """``pass (5 examples, 120 steps in 50 s ...)``, ``fail``, ``could-not-test (why)``."""
+    if report.skipped:
+        reason = str(report.longrepr[-1]) if isinstance(report.longrepr, tuple) else ""
+        reason = reason.removeprefix("Skipped: ")
+        if reason.startswith("could not test: "):
+            return f"could-not-test ({reason.removeprefix('could not test: ')})"
+        return f"skip ({reason})" if reason else "skip"
+    word = "pass" if report.passed else "fail"
+    return f"{word} ({explored})" if explored else word
+
+
+def findings(report: Any, unit: str, *, error_said: bool = False) -> list[str]:
+    """What the summary names after the levels (issue 27 §2): each failed rule with its title
+    (its evidence is in pytest's failures above), then the rules that could not be tested,
+    grouped by their reason, which names the option that would test them (``--reboot-cmd``),
+    and the rules not run, counted (unless the error that kept them from running was said:
+    ``error_said``)."""
+    from conformance.reporting.htmlreport import untested
+    from conformance.rules import CATALOGUE
+    from conformance.violation import Verdict
+
+    row = report.units.get(unit)
+    if row is None:
+        return []
+    lines = [f"  failed  {r.rule} {printable(CATALOGUE[r.rule].title)}"
+             for r in row.rules.values()
+             if r.verdict is Verdict.FAIL and r.rule in CATALOGUE]
+    for group in untested(report):
+        if group.unit != unit:
+            continue
+        if group.not_run:
+            if error_said:
+                continue
+            why = group.reason.removeprefix("not run: ")  # each word once
+            lines.append(f"  not run {len(group.rules):>3}  {printable(why)}")
+        else:
+            lines.append(f"  could not test {', '.join(group.rules)}: "
+                         f"{printable(group.reason)}")
+    return lines
 
 
 def skipped_by_reason(unit: Any) -> list[str]:

@@ -17,6 +17,8 @@ from typing import Any
 
 import yaml
 
+from conformance import profile_yaml
+from conformance.display import printable, shorten
 from conformance.rules import CATALOGUE, Severity
 
 DOCS = "schemas/generated/PROFILE.md"
@@ -45,8 +47,17 @@ class Profile:
     tasks: tuple[str, ...] = ()
     """Tasks the suite may start (empty: every task in tasks-available that does not move the
     unit; moving ones only with ``allow_motion``)."""
+    task_params: dict[str, dict[str, Any]] = field(default_factory=dict)
+    """Task name -> the parameters to start it with (the profile's ``tasks`` as a mapping)."""
+    task_scenarios: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    """Task name -> the scenarios that may start it (absent: every scenario)."""
     motion_tasks: tuple[str, ...] = ()
-    """Tasks allowed to move a ``real`` unit, and only with --allow-motion (DESIGN: safety)."""
+    """Tasks allowed to move a real unit, and only with --allow-motion (DESIGN: safety)."""
+    simulated_roles: tuple[str, ...] = ()
+    """Roles besides ``simulation`` that are simulations; every other role is real (DESIGN
+    'Safety': fail closed)."""
+    robustness: bool = False
+    """Hostile and malformed payloads may be sent to a real unit (as --allow-hostile)."""
     safe_radius: float = 50.0
     """Motion targets stay within this distance of the unit's own reported position."""
     rate_tolerance: float = 0.2
@@ -80,6 +91,11 @@ class Profile:
                 return Severity(sev)
         return CATALOGUE[rule_id].severity if rule_id in CATALOGUE else Severity.ERROR
 
+    def is_simulation(self, role: str) -> bool:
+        """Whether a unit of ``role`` (3.1) is a simulation: ``simulation`` or one of the
+        ``simulated_roles``; every other role, known or not, is real (DESIGN 'Safety')."""
+        return role == "simulation" or role in self.simulated_roles
+
     @property
     def is_strict(self) -> bool:
         return self.strict
@@ -96,7 +112,8 @@ class Profile:
 
 
 _FIELDS = {f.name: f for f in fields(Profile)}
-_TUPLE_KEYS = {"levels", "sensors", "tasks", "motion_tasks", "task_specific_statuses"}
+_TUPLE_KEYS = {"levels", "sensors", "motion_tasks", "task_specific_statuses",
+               "simulated_roles"}
 _FLOAT_KEYS = {"safe_radius", "rate_tolerance", "max_gap_periods", "clock_tolerance",
                "response_timeout", "feedback_timeout", "alive_timeout", "reboot_timeout",
                "info_wait"}
@@ -117,14 +134,20 @@ def builtin_names() -> list[str]:
     return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith(".yaml"))
 
 
-def load(name_or_path: str | Path | None) -> Profile:
-    """A built-in profile by name (``default``, ``strict``, ...) or a YAML file by path."""
+MAX_EXTENDS = 8
+"""How many profiles an ``extends`` chain may hold (the built-ins need 3)."""
+
+
+def load(name_or_path: str | Path | None, _chain: tuple[str, ...] = ()) -> Profile:
+    """A built-in profile by name (``default``, ``strict``, ...) or a YAML file by path, read
+    as a YAML subset (``profile_yaml``: no anchors, aliases or tags, bounded size and depth,
+    finite numbers, UTF-8); an ``extends`` cycle is refused with its chain."""
     if name_or_path is None:
         name_or_path = "default"
     text_path = str(name_or_path)
     if text_path in builtin_names():
-        source = f"<built-in {text_path}>"
-        text = (resources.files("conformance.profiles") / f"{text_path}.yaml").read_text("utf-8")
+        source = key = f"<built-in {text_path}>"
+        data = (resources.files("conformance.profiles") / f"{text_path}.yaml").read_bytes()
     else:
         path = Path(text_path)
         if not path.is_file():
@@ -133,23 +156,34 @@ def load(name_or_path: str | Path | None) -> Profile:
             raise ProfileError(
                 f"profile {text_path!r} is neither a built-in profile ({', '.join(builtin_names())}) "
                 f"nor a file{hint}")
-        source = str(path)
-        text = path.read_text("utf-8")
+        source, key = str(path), str(path.resolve())
+        with path.open("rb") as f:
+            data = f.read(profile_yaml.MAX_BYTES + 1)
+    chain = (*_chain, key)
+    if key in _chain or len(chain) > MAX_EXTENDS:
+        shown = " -> ".join(chain)
+        why = "extends itself" if key in _chain else f"extends more than {MAX_EXTENDS} deep"
+        raise ProfileError(f"{source}: the profile {why} ({shown}); remove an extends")
     try:
-        data = yaml.safe_load(text) or {}
+        parsed = profile_yaml.read(profile_yaml.decode(data)) or {}
+    except profile_yaml.YamlRefused as e:
+        raise ProfileError(f"{source}: {e}") from None
     except yaml.YAMLError as e:
-        raise ProfileError(f"{source}: not valid YAML: {e}") from None
-    return from_dict(data, source)
+        raise ProfileError(f"{source}: not valid YAML: {' '.join(str(e).split())}") from None
+    return from_dict(parsed, source, _chain=chain)
 
 
-def from_dict(data: Any, source: str = "<dict>") -> Profile:
+def from_dict(data: Any, source: str = "<dict>", *, _chain: tuple[str, ...] = ()) -> Profile:
     """Build a profile from parsed YAML, naming every bad key and value."""
     if not isinstance(data, dict):
         raise ProfileError(f"{source}: a profile is a mapping of keys to values, got "
                            f"{type(data).__name__}")
     base: dict[str, Any] = {}
     if "extends" in data:
-        parent = load(data["extends"])
+        if not isinstance(data["extends"], str):
+            raise ProfileError(f"{source}: extends must be a built-in profile's name or a "
+                               f"file, got {data['extends']!r}")
+        parent = load(data["extends"], _chain)
         base = {f: getattr(parent, f) for f in _FIELDS if f != "source"}
         base["severity"] = dict(parent.severity)
     kwargs: dict[str, Any] = dict(base)
@@ -161,15 +195,33 @@ def from_dict(data: Any, source: str = "<dict>") -> Profile:
         if canonical not in properties:
             close = difflib.get_close_matches(canonical, list(properties), n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise ProfileError(f"{source}: unknown key {key!r}{hint}; valid keys: "
-                               f"{', '.join(properties)} (see {DOCS})")
+            raise ProfileError(f"{source}: unknown key {printable(shorten(repr(key), 80))}{hint}; "
+                               f"valid keys: {', '.join(properties)} (see {DOCS})")
         _check(canonical, value, properties[canonical], source)
         attr = canonical.replace("-", "_")
+        if attr == "tasks":
+            kwargs.update(_tasks(value))
+            continue
         kwargs[attr] = _coerce(attr, value, source)
     if "severity" in data:
         kwargs["severity"] = {**base.get("severity", {}), **kwargs["severity"]}
     kwargs["source"] = source
     return Profile(**kwargs)
+
+
+def downgrades(profile: Profile) -> str:
+    """The profile's ``severity`` entries that turn rules the catalogue makes errors into
+    warnings, as ``'*': warning (95 rules)``; "" when there are none. A run header says it:
+    a downgrade (forged or not) is never silent."""
+    out = []
+    for pattern, sev in profile.severity.items():
+        if sev != "warning":
+            continue
+        hit = [r for r, rule in CATALOGUE.items() if fnmatch.fnmatchcase(r, pattern)
+               and rule.severity is Severity.ERROR]
+        if hit:
+            out.append(f"{pattern!r}: warning ({len(hit)} rule{'s' if len(hit) != 1 else ''})")
+    return ", ".join(out)
 
 
 def _check(key: str, value: Any, prop: dict[str, Any], source: str) -> None:
@@ -192,7 +244,11 @@ def _check(key: str, value: Any, prop: dict[str, Any], source: str) -> None:
 
 def describe(prop: dict[str, Any]) -> str:
     """What a profile key takes, in words (its schema's type and bounds)."""
+    if "x-takes" in prop:
+        return str(prop["x-takes"])
     kind = prop.get("type")
+    if kind == "boolean":
+        return "true or false"
     if kind == "number":
         return "a non-negative number" if prop.get("minimum") == 0 else "a number"
     if kind == "integer":
@@ -203,11 +259,21 @@ def describe(prop: dict[str, Any]) -> str:
         if "enum" in items:
             return "a list of " + ", ".join(map(repr, items["enum"]))
         return "a list of strings"
-    if kind == "boolean":
-        return "true or false"
     if kind == "object":
         return "a mapping of rule ids (or globs like ERR-*) to error|warning"
     return "a string"
+
+
+def _tasks(value: Any) -> dict[str, Any]:
+    """``tasks`` (checked against the schema already): a list of names, or a mapping of names
+    to ``{params, scenarios}``, as the Profile's ``tasks``, ``task_params``, ``task_scenarios``."""
+    if isinstance(value, list):
+        return {"tasks": tuple(value), "task_params": {}, "task_scenarios": {}}
+    params = {str(k): v["params"] for k, v in value.items() if v and "params" in v}
+    scenarios = {str(k): tuple(v["scenarios"]) for k, v in value.items()
+                 if v and "scenarios" in v}
+    return {"tasks": tuple(str(k) for k in value), "task_params": params,
+            "task_scenarios": scenarios}
 
 
 def _coerce(attr: str, value: Any, source: str) -> Any:
@@ -220,7 +286,7 @@ def _coerce(attr: str, value: Any, source: str) -> Any:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0:
             raise ProfileError(f"{where} must be a non-negative number, got {value!r}")
         return float(value)
-    if attr == "strict":
+    if attr in ("robustness", "strict"):
         if not isinstance(value, bool):
             raise ProfileError(f"{where} must be true or false, got {value!r}")
         return value

@@ -3,8 +3,11 @@
 The unit is observed read-only for a while; its heartbeat (5.1: levels, rate), its
 ``sensor_info`` (5.2: the sensors it provides), its ``direct_execution_info`` (5.3: the tasks
 it offers) and the rates it actually publishes at become a commented YAML profile for the user
-to edit (the format: ``schemas/generated/PROFILE.md``). Nothing is judged here: a unit that
-declares something odd gets it written down with a comment, and certification judges it.
+to edit (the format: ``schemas/generated/PROFILE.md``). What was measured against what the
+unit declares (a rate, a level without its info message) is written as a PROBLEM; each task is
+written with the parameters the suite would start it with (section 9's example) or a
+placeholder to fill in. Every byte from the wire is quoted or escaped: nothing a unit
+publishes can become a key of the profile (issue 26 §2).
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 from typing import Any
 
+from conformance.display import shorten
 from conformance.message import Message
 from conformance.taskspec import task_spec
 from conformance.topics import LEVELS, MANDATORY_SENSORS, TopicKind, UnitAddress, parse_topic
@@ -89,78 +93,159 @@ def _moves(task: str) -> bool:
         return True  # a task this suite does not know: treated as moving (DESIGN: safety)
 
 
+def _q(value: Any) -> str:
+    """Wire text as a YAML scalar that is only ever that value: a JSON string with every
+    non-ASCII code point escaped (``\\u2028``, ``\\u0085``, bidi and control characters
+    included), which YAML reads as a double-quoted scalar (issue 26 §2: nothing a unit
+    publishes becomes a key or a line of the profile)."""
+    return json.dumps(str(value), ensure_ascii=True)
+
+
+def _c(value: Any) -> str:
+    """Wire data for a comment: JSON, ASCII only (no code point YAML takes for a line
+    break), at most 200 characters."""
+    return shorten(json.dumps(value, ensure_ascii=True, default=str), 200)
+
+
 def _yaml_list(items: list[str]) -> str:
-    return "[" + ", ".join(json.dumps(i) if not i.replace("-", "").replace("_", "").isalnum()
-                           else i for i in items) + "]"
+    return "[" + ", ".join(_q(i) for i in items) + "]"
+
+
+def _example(task: str) -> dict[str, Any] | None:
+    """The parameters of section 9's own example for ``task``, or None (not a section 9
+    task)."""
+    from conformance.scenarios.params import task_schema
+
+    examples = (task_schema(task) or {}).get("examples") or []
+    return next((e for e in examples if isinstance(e, dict)), None)
+
+
+def problems(seen: Observed, tolerance: float = 0.2) -> list[str]:
+    """What the unit was measured doing that contradicts what it declares: each a problem
+    certification will fail it on, not a neutral note."""
+    out = []
+    hb = seen.heartbeat or {}
+    declared = hb.get("rate")
+    measured = _rate(seen.arrivals.get("heartbeat", []))
+    if isinstance(declared, (int, float)) and not isinstance(declared, bool) and declared > 0 \
+            and measured is not None and abs(measured - declared) > tolerance * declared:
+        out.append(f"declares heartbeat rate {float(declared):.1f} Hz, measured "
+                   f"{measured:.2f} Hz (HB-003)")
+    levels = [lv for lv in (_canonical_level(x) for x in hb.get("levels") or []) if lv] \
+        if isinstance(hb.get("levels"), list) else []
+    odd = [x for x in hb.get("levels") or [] if _canonical_level(x) is None] \
+        if isinstance(hb.get("levels"), list) else []
+    if odd:
+        out.append(f"declares levels that are not 5.1's: {_c(odd)}")
+    if "sensor" in levels and seen.sensor_info is None:
+        out.append("declares level sensor, but no sensor_info came (5.2, HB-008)")
+    if "direct execution" in levels and seen.dei is None:
+        out.append("declares level direct execution, but no direct_execution_info came "
+                   "(5.3, HB-008)")
+    if seen.sensor_info is not None:
+        listed = _names(seen.sensor_info.get("sensor-data-provided"))
+        published = {k[len("sensor/"):] for k in seen.arrivals if k.startswith("sensor/")}
+        missing = [x for x in listed if x not in published]
+        if missing:
+            out.append(f"sensor_info lists {_c(missing)}, never published while observed")
+        unlisted = sorted(published - set(listed))
+        if unlisted:
+            out.append(f"publishes sensors {_c(unlisted)} that sensor_info does not list")
+    return out
 
 
 def draft(seen: Observed) -> str:
     """The profile text: every value from what the unit showed, each with a comment saying
-    where it came from, and the lines a person must decide on left as comments."""
+    where it came from, the lines a person must decide on left as comments, and what was
+    measured against what the unit declares. Wire text is always quoted (``_q``, ``_c``)."""
     u = seen.unit
-    lines = [f"# A starting profile for {u}, written by 'waraps-conformance profile' from "
-             f"{seen.seconds:.0f} s of its traffic.",
-             "# Edit it, then: pytest --unit " + str(u) + " --profile THIS-FILE "
+    lines = [f"# A starting profile for {_c(str(u))}, written by 'waraps-conformance "
+             f"profile' from {seen.seconds:.0f} s of its traffic.",
+             "# Edit it, then: pytest --unit " + _c(str(u)) + " --profile THIS-FILE "
              "--reboot-cmd 'COMMAND THAT RESTARTS THE UNIT'",
              "# Every key: schemas/generated/PROFILE.md. Keys left out come from 'extends'.",
-             "extends: default", f"name: {u.name}", ""]
+             "extends: default", f"name: {_q(u.name)}", ""]
+    found = problems(seen)
+    if found:
+        lines += ["# PROBLEMS measured against what the unit declares (certification will "
+                  "fail on these):"] + [f"#   PROBLEM: {p}" for p in found] + [""]
     hb = seen.heartbeat
     if hb is None:
         lines += ["# No heartbeat was seen: is the unit running and the address right?",
                   "# levels: [sensor]"]
     else:
         declared = hb.get("levels")
-        levels = [lv for lv in (_canonical_level(x) for x in declared or []) if lv]
-        odd = [x for x in declared or [] if _canonical_level(x) is None]
-        lines.append(f"# Its heartbeat declares levels {json.dumps(declared)} (5.1).")
-        if odd:
-            lines.append(f"# Not a level of 5.1, left out: {json.dumps(odd)}.")
+        levels = [lv for lv in (_canonical_level(x) for x in declared or []) if lv] \
+            if isinstance(declared, list) else []
+        lines.append(f"# Its heartbeat declares levels {_c(declared)} (5.1).")
         lines.append(f"levels: {_yaml_list(levels)}")
         lines += _rate_comment("heartbeat", hb.get("rate"), seen.arrivals.get("heartbeat", []))
     lines.append("")
-    provided = _names((seen.sensor_info or {}).get("sensor-data-provided"))
-    extra = [s for s in provided if s not in MANDATORY_SENSORS]
-    if seen.sensor_info is None:
-        lines.append("# No sensor_info was seen (5.2): the sensors below are those it published.")
-        extra = sorted(k[len("sensor/"):] for k in seen.arrivals if k.startswith("sensor/")
-                       and k[len("sensor/"):] not in MANDATORY_SENSORS)
-    else:
-        lines.append(f"# sensor_info lists {json.dumps(provided)} (5.2); beyond the mandatory "
-                     f"four the unit must publish:")
-    lines.append(f"sensors: {_yaml_list(extra)}")
-    for name in sorted(k for k in seen.arrivals if k.startswith("sensor/")):
-        rate = _rate(seen.arrivals[name])
-        shown = f"{rate:.2f} Hz" if rate else "once"
-        lines.append(f"#   {name}: published at {shown} while observed")
+    lines += _sensor_lines(seen)
     lines.append("")
-    tasks = _names((seen.dei or {}).get("tasks-available"), "name")
-    if seen.dei is None:
-        lines += ["# No direct_execution_info was seen (5.3): no tasks to list.", "tasks: []",
-                  "motion-tasks: []"]
-    else:
-        still = [t for t in tasks if not _moves(t)]
-        moving = [t for t in tasks if _moves(t)]
-        lines += [f"# direct_execution_info offers {json.dumps(tasks)} (5.3).",
-                  "# Tasks the suite may start; those that move the unit only where it is not",
-                  "# 'real', or with --allow-motion and listed in motion-tasks below.",
-                  f"tasks: {_yaml_list(tasks)}"]
-        if moving:
-            lines += ["# These move the unit. Uncomment to let the suite start them on a real "
-                      "unit (with --allow-motion):",
-                      f"# motion-tasks: {_yaml_list(moving)}", "motion-tasks: []",
-                      "safe-radius: 50        # metres from the unit's own position"]
-        elif still:
-            lines.append("motion-tasks: []")
+    lines += _task_lines(seen)
     lines += ["", "# Timing (seconds); a slow link is better served by --timing-scale.",
               "response-timeout: 5", "feedback-timeout: 30", "reboot-timeout: 30",
               "rate-tolerance: 0.2"]
     return "\n".join(lines) + "\n"
 
 
+def _sensor_lines(seen: Observed) -> list[str]:
+    provided = _names((seen.sensor_info or {}).get("sensor-data-provided"))
+    extra = [s for s in provided if s not in MANDATORY_SENSORS]
+    lines = []
+    if seen.sensor_info is None:
+        lines.append("# No sensor_info was seen (5.2): the sensors below are those it published.")
+        extra = sorted(k[len("sensor/"):] for k in seen.arrivals if k.startswith("sensor/")
+                       and k[len("sensor/"):] not in MANDATORY_SENSORS)
+    else:
+        lines.append(f"# sensor_info lists {_c(provided)} (5.2); beyond the mandatory "
+                     f"four the unit must publish:")
+    lines.append(f"sensors: {_yaml_list(extra)}")
+    for name in sorted(k for k in seen.arrivals if k.startswith("sensor/")):
+        rate = _rate(seen.arrivals[name])
+        shown = f"{rate:.2f} Hz" if rate else "once"
+        lines.append(f"#   {_c(name)}: published at {shown} while observed")
+    return lines
+
+
+def _task_lines(seen: Observed) -> list[str]:
+    """``tasks`` as a mapping: each section 9 task with its example's parameters, every
+    other task a commented placeholder saying what to fill in (never invented: issue 25)."""
+    tasks = _names((seen.dei or {}).get("tasks-available"), "name")
+    if seen.dei is None:
+        return ["# No direct_execution_info was seen (5.3): no tasks to list.", "tasks: []",
+                "motion-tasks: []"]
+    moving = [t for t in tasks if _moves(t)]
+    known = [(t, _example(t)) for t in tasks]
+    lines = [f"# direct_execution_info offers {_c(tasks)} (5.3).",
+             "# Tasks the suite may start, with the parameters it starts them with (never",
+             "# invented): section 9 tasks have the spec example's (positions are moved near",
+             "# the unit when sent); fill in the others. Tasks that move the unit are started",
+             "# only on a simulation, or with --allow-motion and listed in motion-tasks.",
+             "tasks:" if any(e is not None for _, e in known) else "tasks: {}"]
+    for task, example in known:
+        if example is not None:
+            lines.append(f"  {_q(task)}: {{params: "
+                         f"{json.dumps(example, ensure_ascii=True, sort_keys=True)}}}")
+        else:
+            lines += [f"  # {_c(task)} is not a section 9 task: fill in the parameters the "
+                      f"unit needs to start it, then uncomment:",
+                      f"  # {_q(task)}: {{params: {{}}}}"]
+    if moving:
+        lines += ["# These move the unit. Uncomment to let the suite start them on a real "
+                  "unit (with --allow-motion):",
+                  f"# motion-tasks: {_yaml_list(moving)}", "motion-tasks: []",
+                  "safe-radius: 50        # metres from the unit's own position"]
+    else:
+        lines.append("motion-tasks: []")
+    return lines
+
+
 def _rate_comment(what: str, declared: Any, times: list[float]) -> list[str]:
     rate = _rate(times)
     measured = f"{rate:.2f} Hz over {len(times) - 1} intervals" if rate else "too few arrivals"
-    return [f"# {what}: declares rate {json.dumps(declared)} Hz, measured {measured}."]
+    return [f"# {what}: declares rate {_c(declared)} Hz, measured {measured}."]
 
 
 def observe(client_factory: Any, unit: UnitAddress, seconds: float,

@@ -89,6 +89,8 @@ class Event:
 
 
 EVENT_KINDS = ("disconnected", "connected", "unexamined", "start", "end")
+UNTIMED_NOTE = "a mosquitto_sub -v capture has no times"
+"""How the note on such a capture starts (lint prints it first: issue 27, 4)."""
 UNTIMED = "untimed"
 """The kind of the ``Event`` a reader yields before the first message without a recorded time
 (never read from a line): the consumer judges no rule of ``UNTIMED_RULES``."""
@@ -312,7 +314,7 @@ class RecordingReader:
                 f"NUL bytes. Record with 'waraps-conformance record' for byte-exact payloads.")
         if FORMAT_MOSQUITTO_V in self.formats:
             self.notes.append(
-                f"a mosquitto_sub -v capture has no times: {', '.join(UNTIMED_RULES)} are "
+                f"{UNTIMED_NOTE}: {', '.join(UNTIMED_RULES)} are "
                 f"could-not-test ({UNTIMED_REASON}). Record with 'waraps-conformance record' "
                 f"or mosquitto_sub -F %j to have them judged.")
         if self.unprintable:

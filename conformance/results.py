@@ -7,7 +7,6 @@ a rule passes only when it was actually examined: a skip never becomes a pass.
 
 from __future__ import annotations
 
-import re
 import shlex
 from collections import Counter
 from dataclasses import dataclass, field
@@ -59,8 +58,11 @@ def skip_reason(rule: Rule, *, kind: str, unit: str, levels: tuple[str, ...] | N
 
 
 def redact_broker(url: str) -> str:
-    """A broker URL fit for a report: never with a password (``mqtts://user@host:8883``)."""
-    return re.sub(r"^([a-z][a-z0-9+.-]*://)([^:@/]*):[^@/]*@", r"\1\2@", url or "", flags=re.I)
+    """A broker URL fit for a report: never with a password (``mqtts://user@host:8883``: the
+    lint's rerun line pastes it)."""
+    from conformance.masking import mask_password
+
+    return mask_password(url or "", url=True, hidden=None)
 
 
 @dataclass

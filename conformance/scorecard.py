@@ -23,7 +23,7 @@ import time
 from dataclasses import dataclass
 from typing import IO, TYPE_CHECKING, Any
 
-from conformance.conclusion import triage_rank
+from conformance.conclusion import facts_of, triage_rank
 from conformance.display import LINE_CHARS, NAME_CHARS, printable, shorten
 from conformance.lint.linter import NOT_A_UNIT, OTHER_UNITS, Linter
 from conformance.recording import Event
@@ -160,7 +160,9 @@ class Scorecard:
             first = getattr(state, "first_seen", None)
             last = getattr(state, "last_seen", None)
             rate = None
-            if overall:
+            if getattr(monitor, "untimed", False):  # a capture without times: no rate
+                pass
+            elif overall:
                 if first is not None and last is not None and last > first and count > 1:
                     rate = (count - 1) / (last - first)
             else:
@@ -385,11 +387,13 @@ def styled(header: str, table: list[str], statuses: list[tuple[int, int, str]],
 
 def rows_from_report(report: Any) -> list[UnitRow]:
     """Scorecard rows from a ``RunReport``: status is the worst verdict, violations counted
-    per rule, rate over the whole run (messages per second)."""
+    per rule, rate over the whole run (messages per second). A capture without times shows
+    no rate and no time (the reading's times are not the traffic's: issue 27, 4)."""
     rows = []
+    untimed = facts_of(report).untimed
     for unit, u in report.units.items():
         rate = None  # a commander's commands come in bursts: no rate
-        if (u.party == "unit" and u.first_seen is not None and u.last_seen is not None
+        if (not untimed and u.party == "unit" and u.first_seen is not None and u.last_seen is not None
                 and u.last_seen > u.first_seen):
             rate = (u.message_count - 1) / (u.last_seen - u.first_seen)
         failed = {r for r, res in u.rules.items() if res.verdict.value == "fail"}
@@ -402,7 +406,7 @@ def rows_from_report(report: Any) -> list[UnitRow]:
                             u.role,
                             tuple(u.levels) if u.levels or u.message_count == 0
                             or u.party == "commander" else None,
-                            u.message_count, rate, u.last_seen,
+                            u.message_count, rate, None if untimed else u.last_seen,
                             errors=len(failed), warnings=len(warned),
                             violations=tuple((r, n) for r, n in order if r in failed | warned)))
     order_of = {"FAIL": 0, "warn": 1, "ok": 2, "-": 3}
@@ -417,12 +421,13 @@ def findings_from_report(report: Any, limit: int = MAX_FINDINGS_SHOWN) -> list[s
     many violations, and the first and latest time; the most severe first (death, deafness,
     commands, messages, warnings: ``conclusion.TRIAGE``), then by first time."""
     found = []
+    untimed = facts_of(report).untimed  # the reading's times are not the traffic's
     for unit, u in report.units.items():
         for rule, res in u.rules.items():
             if res.verdict.value not in ("fail", "warn"):
                 continue
             n = u.violation_counts.get(rule, len(res.violations))
-            first, last = u.violation_times.get(rule, (None, None))
+            first, last = (None, None) if untimed else u.violation_times.get(rule, (None, None))
             when = (f"at {_clock(first)}" if n == 1 or first == last
                     else f"first {_clock(first)}, last {_clock(last)}") if first else ""
             title = CATALOGUE[rule].title if rule in CATALOGUE else ""

@@ -81,6 +81,50 @@ class TopicError(ValueError):
     """A string that is not a unit address; the message says what is wrong and how to fix it."""
 
 
+MAX_TOPIC_BYTES = 65535
+"""The longest topic MQTT carries, in UTF-8 bytes (MQTT 3.1.1 1.5.3: a length-prefixed
+string)."""
+_NOT_IN_TOPIC = re.compile("[\x00\ud800-\udfff]")
+"""What no topic may hold (MQTT 3.1.1 1.5.3): U+0000, and what UTF-8 cannot encode."""
+
+
+def _quoted(text: str) -> str:
+    """``text`` quoted for an error message, excerpted when long (a 100 KB option value)."""
+    return repr(text) if len(text) <= 200 else f"{text[:200]!r}... ({len(text)} chars)"
+
+
+def _level_problem(text: str, option: str) -> str | None:
+    """Why ``text`` cannot be an MQTT topic name or filter (``option`` names what it is), or
+    None: it is empty, too long, or holds U+0000 or an unencodable code point."""
+    if not text:
+        return f"{option} is empty"
+    bad = _NOT_IN_TOPIC.search(text)
+    if bad:
+        return (f"{option} {_quoted(text)} holds U+{ord(bad.group()):04X}, which no MQTT topic "
+                f"may hold (MQTT 3.1.1 1.5.3)")
+    if len(text.encode("utf-8")) > MAX_TOPIC_BYTES:
+        return (f"{option} {_quoted(text)} is longer than an MQTT topic can be "
+                f"({MAX_TOPIC_BYTES} bytes)")
+    return None
+
+
+def filter_problem(text: str, option: str = "--topic") -> str | None:
+    """Why ``text`` is not an MQTT subscription filter (MQTT 3.1.1 4.7.1: '+' a whole level,
+    '#' a whole level and the last one), or None."""
+    problem = _level_problem(text, option)
+    if problem:
+        return problem
+    levels = text.split("/")
+    for i, level in enumerate(levels):
+        if "#" in level and (level != "#" or i != len(levels) - 1):
+            return (f"{option} {_quoted(text)} is not an MQTT subscription filter ('#' only as "
+                    f"the whole last level, e.g. waraps/#)")
+        if "+" in level and level != "+":
+            return (f"{option} {_quoted(text)} is not an MQTT subscription filter ('+' only as "
+                    f"a whole level, e.g. waraps/unit/+/real/#)")
+    return None
+
+
 @dataclass(frozen=True, order=True)
 class UnitAddress:
     """Where a unit lives: ``waraps/unit/air/simulation/dji0`` (spec 3.1).
@@ -100,13 +144,20 @@ class UnitAddress:
         parts = text.strip().strip("/").split("/")
         if len(parts) != 5 or parts[1] != "unit" or not all(parts):
             raise TopicError(
-                f"{text!r} is not a unit address; expected PREFIX1/unit/TYPE/ROLE/UNIT "
+                f"{_quoted(text)} is not a unit address; expected PREFIX1/unit/TYPE/ROLE/UNIT "
                 f"(spec 3.1), for example waraps/unit/air/simulation/dji0"
             )
+        problem = _level_problem(text, "unit address")
+        if problem:
+            raise TopicError(problem)
+        if "+" in text or "#" in text:  # a topic name holds no wildcard (MQTT 3.1.1 4.7.1)
+            raise TopicError(f"{_quoted(text)} is not a unit address: '+' and '#' are the "
+                             f"wildcards of subscriptions, never in a unit's topics")
         prefix, _, agent_type, role, name = parts
         if agent_type not in AGENT_TYPES:
             raise TopicError(
-                f"{text!r}: agent type {agent_type!r} is not one of {', '.join(AGENT_TYPES)} "
+                f"{_quoted(text)}: agent type {_quoted(agent_type)} is not one of "
+                f"{', '.join(AGENT_TYPES)} "
                 f"(spec 5.1)"
             )
         return cls(prefix, agent_type, role, name)
@@ -124,8 +175,11 @@ class UnitAddress:
 
     @property
     def is_real(self) -> bool:
-        """A ``real`` unit moves hardware: motion needs an explicit opt-in (DESIGN: safety)."""
-        return self.role == "real"
+        """Whether this unit is taken for hardware when nothing else is known: every role but
+        ``simulation`` (DESIGN 'Safety': fail closed; 3.1 lists real, simulation, playback,
+        and a role outside the list only warns). A profile may name more simulated roles:
+        ``Profile.is_simulation``."""
+        return self.role != "simulation"
 
     def with_name(self, name: str) -> UnitAddress:
         return UnitAddress(self.prefix, self.agent_type, self.role, name)

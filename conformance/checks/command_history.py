@@ -26,6 +26,7 @@ PENDING_KEPT = 256
 UNANSWERED_KEPT = 64
 LIVES_KEPT = 8
 VALUES_KEPT = 4
+KINDS_KEPT = 16
 
 Judge = Callable[[CheckContext, UnitState, Any, float], list[Violation]]
 """``judge(ctx, unit, c, now)``: violations in what is still open in conversations ``c``."""
@@ -69,6 +70,9 @@ class CommandHistory:
         self.unanswered: list[Any] = []
         """Commands that got no answer in time, judged when the unit next answers (or not)."""
         self.answered_any = False
+        self.answered_kinds: set[str] = set()
+        """The kinds of command (their names) the unit answered, at most KINDS_KEPT: only
+        those, left unanswered, say it stopped answering (EXEC-ROBUST-001)."""
         self.last_answer: float | None = None
         """When the unit last answered a command it was sent (any answer, even a late one):
         only commands sent after it, left unanswered, say it stopped answering."""
@@ -95,6 +99,8 @@ class CommandHistory:
     def heard(self, cmd: SentCommand, value: str | None, named: str | None) -> None:
         """An answer to ``cmd``: once answered as often as sent, it awaits nothing more."""
         cmd.answers += 1
+        if len(self.answered_kinds) < KINDS_KEPT:
+            self.answered_kinds.add(cmd.name)
         if len(cmd.values) < VALUES_KEPT:
             cmd.values.append((value, named))
         if cmd.answers >= cmd.sends:
@@ -184,6 +190,24 @@ def died_on(c: CommandHistory, last: float, period: float) -> Any:
     if before:
         return max(before, key=lambda cmd: cmd.last_sent)
     return min(near, key=lambda cmd: cmd.last_sent) if near else None
+
+
+def died_on_any(c: CommandHistory, last: float, period: float) -> list[Any]:
+    """Every command a unit heard until its last heartbeat ``last`` may have died on, the last
+    first: those it left unanswered within a period before ``last`` (else the first within a
+    period after it), sent after the last command it answered: a command it answered another
+    one after did not kill it. Which of a burst killed it the traffic cannot tell (FIELD-NOTES:
+    a non-UTF-8 payload killed a unit that then received an unknown command)."""
+    answered = max((cmd.last_sent for cmd in c.commands.values() if cmd.answers),
+                   default=float("-inf"))
+    near = [cmd for cmd in c.commands.values()
+            if last - period <= cmd.last_sent <= last + period and cmd.answers == 0
+            and cmd.last_sent > answered]
+    before = sorted((cmd for cmd in near if cmd.last_sent <= last),
+                    key=lambda cmd: cmd.last_sent, reverse=True)
+    if before:
+        return before
+    return [min(near, key=lambda cmd: cmd.last_sent)] if near else []
 
 
 def dying_from(c: CommandHistory, last: float, period: float) -> float:

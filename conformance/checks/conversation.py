@@ -11,10 +11,11 @@ TST conversations share is ``command_history``'s.
 
 Blame goes to the root cause, so that one fault fails one rule:
 - each command left unanswered fails its own rule, judged when the unit next answers or at the
-  end; a unit that also answers none of two or more commands of different kinds sent after
-  its last answer, while it heartbeats past their deadline, stopped answering (EXEC-ROBUST-001,
-  naming the command before them); the command a dying unit received last, and those after,
-  are its death's (HB-012); those before it were left unanswered by a live unit;
+  end; a unit that also answers none of two or more commands of different kinds, kinds it
+  answered before, sent after its last answer, while it heartbeats past their deadline,
+  stopped answering (EXEC-ROBUST-001, naming the command before them); the command a dying
+  unit received last, and those after, are its death's (HB-012, which names every command of
+  the period before its last heartbeat); those before it were left unanswered by a live unit;
 - feedback after a final status that a resend caused is EXEC-RESEND-001's, not EXEC-FB-004's.
 
 Everything is bounded: histories are LRUs, open expectations are capped and expire, and what
@@ -30,7 +31,7 @@ from conformance.checks.command_history import (
     PENDING_KEPT,
     CommandHistory,
     SentCommand,
-    died_on,
+    died_on_any,
     per_unit,
     str_of,
 )
@@ -157,20 +158,22 @@ def conversations(unit: UnitState) -> Conversations:
     return per_unit(unit, "conversations", Conversations)  # type: ignore[no-any-return]
 
 
-def command_died_on(unit: UnitState, last: float, period: float) -> Command | None:
-    """The command a unit whose last heartbeat was at ``last`` may have died on
-    (``command_history.died_on``), else the last it received before it fell silent: HB-012's
-    finding names it."""
+def commands_died_on(unit: UnitState, last: float, period: float) -> list[Command]:
+    """The commands a unit whose last heartbeat was at ``last`` may have died on, the last
+    first (``command_history.died_on_any``), else the last it received before it fell silent
+    if it answered none after it: HB-012's finding names them."""
     c = unit.private.get("conversations")
     if c is None:
-        return None
-    found = died_on(c, last, period)
-    if found is None:
-        for cmd in c.commands.values():
-            if cmd.last_sent <= last + period and (found is None
-                                                   or cmd.last_sent >= found.last_sent):
-                found = cmd
-    return found  # type: ignore[no-any-return]
+        return []
+    found = died_on_any(c, last, period)
+    if found:
+        return found
+    latest = None
+    for cmd in c.commands.values():
+        if cmd.last_sent <= last + period and (latest is None
+                                               or cmd.last_sent >= latest.last_sent):
+            latest = cmd
+    return [latest] if latest is not None else []
 
 
 def dropped(unit: UnitState) -> int:

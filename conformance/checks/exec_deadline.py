@@ -4,8 +4,9 @@ Answers due (a resend left unanswered: EXEC-RESEND-002), feedback a signal's 'ok
 (12.2.2), the final feedback of a task that left tasks-executing (EXEC-START-003). A new
 agent-uuid is a new life: what the old one left open is not judged (the reboot lost it).
 Commands still unanswered when a life or the observation ends are judged here, each by its
-own rule; a unit that answers none of two or more commands of different kinds sent after its
-last answer, while it still heartbeats past their deadline, also stopped answering
+own rule; a unit that answers none of two or more commands of different kinds (kinds it
+answered before) sent after its last answer, while it still heartbeats past their deadline,
+also stopped answering
 (EXEC-ROBUST-001); the command a dying unit received last, and those after, are HB-012's.
 """
 
@@ -138,9 +139,12 @@ def _judge_streak(ctx: CheckContext, unit: UnitState, c: Conversations, *, ended
     found: list[Violation] = []
     timeout = response_timeout(ctx)
     # Answers in flight (FIELD-NOTES, precision): a command sent before the unit's last
-    # answer says nothing about whether it still answers, only about itself.
+    # answer says nothing about whether it still answers, only about itself. Nor does a kind
+    # of command it never answered (FIELD-NOTES, real agents: kinds never answered): that
+    # fails its own rule from the first second; only the kinds it answered before can stop.
     after = [cmd for cmd in streak
              if (c.last_answer is None or cmd.last_sent > c.last_answer)
+             and cmd.name in c.answered_kinds
              and (alive_until is None or cmd.last_sent + timeout <= alive_until)]
     kinds = {cmd.name for cmd in after}
     if len(after) >= 2 and len(kinds) >= 2 and expects_answers(unit, c):

@@ -276,14 +276,12 @@ def _judge_resend_answer(unit: UnitState, c: Conversations, cmd: Command, msg: M
                         f"task {task_uuid}", path="$.task-uuid",
                         detail="12.1: remember com-uuids; answer a resend from memory")
     elif value == "failed":
+        # Refusing is not executing (EXEC-RESEND-001 is about running it twice): a 'failed'
+        # answer alone ('A task is already running') leaves the task alone. Only a 'failed'
+        # feedback for the task that runs on, right after it, breaks it (exec_feedback).
         task = c.tasks.get(first_task) if first_task else None
         if task is not None and task.final is None:
             task.resend_failed = msg.time
-        yield violation("EXEC-RESEND-001", msg, expected=f"the first answer again ('running', "
-                        f"task {first_task}) to the resent {cmd.describe()}",
-                        observed="'failed', although the task runs", path="$.response",
-                        detail="12.1: a resend is the same command; answer it as before, "
-                        "do not execute it again")
 
 
 def judge_unanswered(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: Command
@@ -371,3 +369,20 @@ def success_answers_query_status(ctx: CheckContext, unit: UnitState, msg: Messag
     else:
         unit.examine("ERR-006")
     return [f for f in found if f.rule != "ERR-006"]
+
+
+@reinterprets("EXEC-007", on=(TopicKind.EXEC_RESPONSE,))
+def query_status_reports_a_status(ctx: CheckContext, unit: UnitState, msg: Message,
+                                  v: Validation, found: list[Violation]) -> list[Violation]:
+    """12.1: query-status 'return[s] the status of the task (running, failed, success,
+    unknown)': a 'failed' answering it reports a task's status, it refuses nothing, so no
+    fail-reason is owed (EXEC-007 is for a refused command). Knowing what a response answers
+    needs the command: stateful; a response to a command not seen keeps the finding."""
+    if not found or str_of(v.message, "response") != "failed":
+        return found
+    c = unit.private.get("conversations")
+    command = c.commands.get(str_of(v.message, "response-to") or "") if c is not None else None
+    if command is None or command.name != "query-status":
+        return found
+    unit.examine("EXEC-007")
+    return [f for f in found if f.rule != "EXEC-007"]

@@ -16,6 +16,9 @@ from conformance.violation import Violation
 HB = TopicKind.HEARTBEAT
 REBOOT_SILENCE_PERIODS = 2.0  # HB-006's decision
 SILENCE_PERIODS = 3.0  # HB-010's decision
+FAST_RESTART_PERIODS = 30.0
+"""HB-006: a unit may restart within a heartbeat period (a new agent-uuid without a silence)
+once; a second such change within this many declared periods is no reboot."""
 STALE_PERIODS = 3.0  # MSG-007's decision
 LEVEL_INFO_PERIODS = 3.0  # HB-008: wait at least 3 declared heartbeat periods (and info_wait)
 
@@ -40,9 +43,11 @@ def _previous_live(unit: UnitState) -> float | None:
 def agent_uuid_changes_only_on_reboot(ctx: CheckContext, unit: UnitState, msg: Message,
                                       v: Validation) -> list[Violation] | None:
     """5.1: agent-uuid 'should change when rebooting', and only then. Against the previous
-    live heartbeat: a new agent-uuid must follow a silence of more than two declared periods
-    (a reboot, HB-006); an earlier one coming back without such a silence is a second agent
-    under the same name (HB-011)."""
+    live heartbeat: a new agent-uuid after a silence of more than two declared periods is a
+    reboot; so is one new agent-uuid without a silence (a process restarted within a period:
+    5.1 asks for a new uuid then). A second such change within ``FAST_RESTART_PERIODS`` is no
+    reboot: the uuid is made per thread or per message (HB-006). An earlier one coming back
+    without a silence is a second agent under the same name (HB-011)."""
     uuid, prev, last = _uuid(v), unit.agent_uuid, _previous_live(unit)
     if uuid is None or prev is None or msg.retain or last is None:
         if uuid is not None and prev is None:
@@ -66,13 +71,18 @@ def agent_uuid_changes_only_on_reboot(ctx: CheckContext, unit: UnitState, msg: M
             detail="two agents publish under one unit name; give each its own UNIT name (3.1)")]
     if period is None:
         return None
+    before = unit.private.get("hb006_fast_change")
+    unit.private["hb006_fast_change"] = msg.time
+    if before is None or msg.time - before > FAST_RESTART_PERIODS * period:
+        return None  # one fast restart is a reboot: the new uuid is what 5.1 asks for
     return [Violation.of(
         "HB-006", expected=f"agent-uuid {prev} until a reboot (a silence over "
                            f"{REBOOT_SILENCE_PERIODS:g} declared periods, "
-                           f"{REBOOT_SILENCE_PERIODS * period:.2f} s)",
-        observed=f"agent-uuid {uuid} after only {silence:.3f} s", topic=msg.topic,
+                           f"{REBOOT_SILENCE_PERIODS * period:.2f} s, or one fast restart)",
+        observed=f"agent-uuid {uuid} after only {silence:.3f} s, the second change without a "
+                 f"silence within {msg.time - before:.1f} s", topic=msg.topic,
         path="$.agent-uuid", time=msg.time, payload=msg.payload,
-        detail="generate the agent-uuid once per process start, not per message")]
+        detail="generate the agent-uuid once per process start, not per thread or message")]
 
 
 @check("HB-010", on=(HB,))
@@ -114,7 +124,9 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
     elif uuid == unit.agent_uuid:
         came_back = "came back with the same agent-uuid (resumed)"
     else:
-        came_back = f"came back with a new agent-uuid {uuid} (a reboot)"
+        # A reboot (5.1: a new agent-uuid) is unavailable while it restarts: no silence to
+        # warn of; one that never ends is HB-012's.
+        return None
     found = [Violation.of(
         "HB-010", expected=f"a heartbeat at least every {SILENCE_PERIODS * period:.2f} s "
                            f"({SILENCE_PERIODS:g} declared periods)",
@@ -175,7 +187,7 @@ def unit_does_not_die(ctx: CheckContext, unit: UnitState, now: float,
                       findings: Any) -> Iterator[Violation]:
     """5.1: the heartbeat registers availability. One that stops for good is a death (error):
     the finding names the last command the unit received before it fell silent."""
-    from conformance.checks.conversation import command_died_on
+    from conformance.checks.conversation import commands_died_on
 
     if unit.last_heartbeat is None or unit.period(HB) is None:
         return
@@ -183,21 +195,36 @@ def unit_does_not_die(ctx: CheckContext, unit: UnitState, now: float,
     period = heartbeat_period(unit)
     for last, end in deaths(ctx, unit, now):
         silence = min(end, now) - last
-        command = command_died_on(unit, last, period)
-        gap = command.last_sent - last if command is not None else 0.0
-        said = (f"; the last command it received: {command.describe()}, {abs(gap):.2f} s "
-                f"{'after' if gap >= 0 else 'before'} its last heartbeat"
-                if command is not None else "; it had received no command")
+        commands = commands_died_on(unit, last, period)
         how = ("it never came back" if end == float("inf")
                else "it came back only when the suite rebooted it")
         yield Violation.of(
             "HB-012", expected=f"a heartbeat at least every {SILENCE_PERIODS * period:.2f} s "
                                f"until the end of the observation",
             observed=f"no heartbeat for {silence:.2f} s ({silence / period:.1f} periods); "
-                     f"{how}{said}",
+                     f"{how}{_commands_said(commands, last)}",
             topic=unit.address.topic("heartbeat"), time=last,
-            payload=command.excerpt if command is not None else None,
+            payload=commands[0].excerpt if commands else None,
             detail="a unit that dies on a command must survive it (12.1)")
+
+
+NAMED_KEPT = 8
+"""Commands HB-012 names at most (the rest are counted)."""
+
+
+def _commands_said(commands: list[Any], last: float) -> str:
+    """The commands a death may have been caused by, the last first, each with its time
+    relative to the last heartbeat ``last``."""
+    if not commands:
+        return "; it had received no command"
+    said = [f"{cmd.describe()}, {abs(cmd.last_sent - last):.2f} s "
+            f"{'after' if cmd.last_sent >= last else 'before'} its last heartbeat"
+            + (" (answered)" if cmd.answers else "") for cmd in commands[:NAMED_KEPT]]
+    more = len(commands) - NAMED_KEPT
+    if len(commands) == 1:
+        return f"; the last command it received: {said[0]}"
+    return (f"; the commands it received as it fell silent, the last first: {'; '.join(said)}"
+            + (f"; and {more} more" if more > 0 else ""))
 
 
 @check("MSG-007", on=(HB, TopicKind.SENSOR_INFO, TopicKind.DIRECT_EXECUTION_INFO,

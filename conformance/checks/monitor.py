@@ -42,6 +42,7 @@ from conformance.checks.rows import (
     suite_version,
 )
 from conformance.checks.shapes import Shapes
+from conformance.checks.suite_commands import suite_row
 from conformance.checks.tst_routing import TstRouting
 from conformance.message import Message
 from conformance.profile import Profile
@@ -52,8 +53,7 @@ from conformance.validator import Examined, Validation, Validator
 from conformance.violation import Verdict, Violation
 
 MAX_UNITS = bounds.MAX_UNITS
-"""Units tracked at once; messages of further units are counted as unexamined, and lint fails
-on them (``not_judged``)."""
+"""Units tracked at once; further units' messages are unexamined: lint fails (``not_judged``)."""
 MAX_NAMED_OVER_CAP = 8
 """Units past MAX_UNITS named when the run says what it did not judge."""
 MAX_TOPICS = bounds.MAX_TOPICS_CACHED
@@ -238,9 +238,10 @@ class Monitor:
     def _feed_command(self, route: _Route, entry: Row, message: Message, v: Validation,
                       examined: Examined) -> list[Violation]:
         """A command: the unit's state learns of it (its conversations), but what is wrong in
-        it is the commander's (by ``sender``), never the unit's. Commands are rare: the
-        bookkeeping here may cost what the hot path may not."""
-        commander = self._commander_entry(entry, v.message, message.payload)
+        it is the commander's (by ``sender``; the suite's own: no one's, ``suite_commands``),
+        never the unit's. Commands are rare: the bookkeeping may cost what the hot path may not."""
+        commander = suite_row(entry.state, v.message, message.payload) or \
+            self._commander_entry(entry, v.message, message.payload)
         commander.groups[examined] = commander.groups.get(examined, 0) + 1
         commander.state.observe(message, v)
         state = entry.state

@@ -4,11 +4,12 @@ faster than the reported speed allows (SENS-005)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterator
 from typing import Any
 
-from conformance.checks.base import CheckContext, UnitState, check, geopoint
+from conformance.checks.base import CheckContext, UnitState, check, geopoint, reinterprets
 from conformance.message import Message
 from conformance.topics import MANDATORY_SENSORS, TopicKind
 from conformance.validator import Validation
@@ -36,6 +37,27 @@ def _listed(v: Validation) -> list[str] | None:
     if not isinstance(listed, list):
         return None
     return [s for s in listed if isinstance(s, str)]
+
+
+@reinterprets("SENS-002", on=(TopicKind.SENSOR,))
+def angle_range_once(ctx: CheckContext, unit: UnitState, msg: Message, v: Validation,
+                     found: list[Violation]) -> list[Violation]:
+    """6.1 says only 'heading : float' (and course): the range [0, 360) is this suite's
+    decision (SENS-002), an interop risk, not a fault of each message. It is said once per
+    unit, on the first value outside it, and not repeated (a unit that sends
+    headings in (-180, 180] would otherwise warn at every message)."""
+    if not found:
+        return found
+    kept: list[Violation] = []
+    for f in found:
+        if f.rule != "SENS-002":
+            kept.append(f)
+        elif not unit.private.get("sens002_said"):
+            unit.private["sens002_said"] = True
+            kept.append(dataclasses.replace(
+                f, detail="6.1 says 'float' and states no range: [0, 360) is this suite's "
+                          "decision; said once per unit, later values are not repeated"))
+    return kept
 
 
 @check("SI-004", on=(SI,))

@@ -51,14 +51,22 @@ def main(argv: list[str] | None = None) -> int:
 
         close = difflib.get_close_matches(name, COMMANDS, n=1)
         hint = f" Did you mean {close[0]!r}?" if close else ""
-        print(f"waraps-conformance: unknown command {name!r}.{hint}\n\n{usage()}", file=sys.stderr)
+        from conformance.display import printable
+
+        print(f"waraps-conformance: unknown command {printable(repr(name))}.{hint}\n\n{usage()}",
+              file=sys.stderr)
         return 2
     module = importlib.import_module(f"{__name__}.{name}")
+    from conformance.cli.pipe import PipeOut
+
+    stdout, sys.stdout = sys.stdout, PipeOut(sys.stdout)  # type: ignore[assignment]
     try:
         return int(module.main(rest) or 0)
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:  # `... | head`: the reader left; not an error of ours
+    except BrokenPipeError:  # `... | head` where a part writes to the stream itself
         sys.stderr.close()
         return 0
+    finally:
+        sys.stdout = stdout

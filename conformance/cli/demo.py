@@ -31,7 +31,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         UnitAddress.parse(args.unit)
     except ValueError as e:
-        print(f"waraps-conformance demo: --unit: {e}", file=sys.stderr)
+        opts.say("demo", f"--unit: {e}")
         return 2
     return certify(args.unit, rate=args.rate, faults=args.fault, variants=args.variant,
                    profile=args.profile,

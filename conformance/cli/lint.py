@@ -16,7 +16,6 @@ itself is ``conformance.lint.runner.lint``.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import IO
 
@@ -109,7 +108,7 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
     args = build_parser().parse_args(argv)
 
     def usage(message: str) -> int:
-        print(f"waraps-conformance lint: {message}", file=sys.stderr)
+        opts.say("lint", message)
         return EXIT_USAGE
 
     if args.source and args.broker:
@@ -117,6 +116,9 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
     try:
         options = opts.capture_options(args, need_broker=not args.source)
         formats = parse_formats(args.format)
+        problem = opts.reports_dir_problem(args.reports_dir) if formats else None
+        if problem:
+            raise ValueError(problem)
         profile = load(args.profile)
         if args.strict:
             import dataclasses
@@ -145,5 +147,5 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
                     reports_dir=Path(args.reports_dir), formats=formats, gate=args.gate,
                     plain=args.plain, stdout=stdout, stdin=stdin, serve=serve, linger=linger)
     except ServeError as e:  # the address cannot be bound: nothing was linted
-        print(f"waraps-conformance lint: {e}", file=sys.stderr)
+        opts.say("lint", e)
         return EXIT_NOT_RUN

@@ -12,7 +12,10 @@ from __future__ import annotations
 import argparse
 import re
 import sys
-from typing import TYPE_CHECKING, Any
+from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any, NoReturn
+
+from conformance.display import shown
 
 if TYPE_CHECKING:
     from conformance.client import BrokerURL
@@ -32,6 +35,8 @@ TLS_INSECURE = ("--tls-insecure",
                 "do not verify the mqtts:// broker's certificate (test brokers only)")
 
 
+MAX_DURATION_SECONDS = 366 * 86400
+"""The longest duration an option takes (a year: '9' * 400 seconds is infinity as a float)."""
 _DURATION = re.compile(r"(\d+(?:\.\d*)?|\.\d+)(ms|min|h|m|s)?")
 _UNIT_SECONDS = {"h": 3600.0, "min": 60.0, "m": 60.0, "s": 1.0, "ms": 0.001, None: 1.0}
 
@@ -49,17 +54,55 @@ def parse_duration(text: str) -> float:
             break
         total += float(m.group(1)) * _UNIT_SECONDS[m.group(2)]
         pos = m.end()
-    if not s or pos != len(s) or total <= 0:
-        raise ValueError(f"duration {text!r} is not a positive time like 90s, 10m, 1h30m or a "
-                         f"number of seconds")
+    if not s or pos != len(s) or not 0 < total <= MAX_DURATION_SECONDS:  # inf: issue 26
+        raise ValueError(f"duration {_excerpt(text)} is not a positive time like 90s, 10m, "
+                         f"1h30m or a number of seconds, at most {MAX_DURATION_SECONDS // 86400} "
+                         f"days")
     return total
+
+
+def _excerpt(text: str) -> str:
+    return repr(text) if len(text) <= 80 else f"{text[:80]!r}... ({len(text)} chars)"
+
+
+def say(command: str, message: object, file: IO[str] | None = None) -> None:
+    """``waraps-conformance COMMAND: message`` on one line of ``file`` (standard error)."""
+    print(shown(f"waraps-conformance {command}: {message}"),
+          file=sys.stderr if file is None else file, flush=True)
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser whose errors (which repeat what was typed: ``unrecognized
+    arguments: ...``) are shown escaped and masked, like every other error."""
+
+    def error(self, message: str) -> NoReturn:
+        self.print_usage(sys.stderr)
+        self.exit(2, f"{self.prog}: error: {shown(message)}\n")
+
+
+MAX_RATE = 1000.0
+"""The fastest the reference unit publishes, in Hz (a period of 1 ms: its loop keeps up)."""
+
+
+def parse_rate(text: str) -> float:
+    """A rate in Hz as ``--rate`` and ``--sim-rate`` take it: a number above 0, at most
+    ``MAX_RATE`` (``inf``, ``nan``, 0 and negative numbers are refused: issue 26). An
+    ``argparse.ArgumentTypeError`` (a usage error of the command, or of pytest) says so."""
+    try:
+        rate = float(text)
+    except ValueError:
+        rate = float("nan")
+    if not 0 < rate <= MAX_RATE:  # False for nan too
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a rate: a positive number of Hz, at most {MAX_RATE:g}")
+    return rate
 
 
 def parser(command: str, description: str, epilog: str | None = None
            ) -> argparse.ArgumentParser:
     """The argument parser of ``waraps-conformance COMMAND``."""
-    return argparse.ArgumentParser(prog=f"waraps-conformance {command}",
-                                   description=description, epilog=epilog)
+    return _Parser(prog=f"waraps-conformance {command}", description=description,
+                   epilog=epilog)
 
 
 class _DeprecatedFlag(argparse.Action):
@@ -149,6 +192,25 @@ def add_reports_dir_option(parser: argparse.ArgumentParser | argparse._ArgumentG
                         help="where the reports go (default: reports/)")
 
 
+def reports_dir_problem(path: str | Path, *, create: bool = True) -> str | None:
+    """Why ``--reports-dir`` ``path`` cannot hold reports (it, or the nearest of its parents
+    that exists, is not a folder; with ``create``, it cannot be made), or None; said before
+    anything runs, not at the end."""
+    here = Path(path)
+    for folder in (here, *here.parents):
+        if folder.exists():
+            if not folder.is_dir():
+                return (f"--reports-dir {str(path)!r}: {str(folder)!r} is not a folder (the "
+                        f"reports go into a folder, created when missing)")
+            break
+    if create:
+        try:
+            here.mkdir(parents=True, exist_ok=True)
+        except OSError as e:  # a read-only file system, no permission
+            return f"--reports-dir {str(path)!r}: cannot create it: {e.strerror or e}"
+    return None
+
+
 REFERENCE_UNIT = "waraps/unit/air/simulation/dji0"
 """Where the bundled reference unit runs unless told otherwise (``sim``, ``demo``)."""
 
@@ -159,7 +221,7 @@ def add_reference_unit_options(parser: argparse.ArgumentParser, *,
     ``sim`` and ``demo`` (which runs it under the certification) both take them."""
     parser.add_argument("--unit", default=REFERENCE_UNIT, metavar="ADDRESS",
                         help=f"its address, PREFIX/unit/TYPE/ROLE/NAME (default {REFERENCE_UNIT})")
-    parser.add_argument("--rate", type=float, default=1.0, metavar="HZ",
+    parser.add_argument("--rate", type=parse_rate, default=1.0, metavar="HZ",
                         help="declared rate of heartbeat, info messages and sensors (default 1)")
     parser.add_argument("--fault", action="append", default=[], metavar=fault_metavar,
                         help="switch a fault on (repeatable; waraps-conformance sim "

@@ -33,11 +33,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     from conformance.client import BrokerError, BrokerURL, MqttClient
-    from conformance.profile_draft import draft, observe
+    from conformance.profile_draft import draft, observe, problems
     from conformance.topics import TopicError, UnitAddress
 
     args = build_parser().parse_args(argv)
-    prog = "waraps-conformance profile"
     try:
         option = "--unit"
         unit = UnitAddress.parse(args.unit)
@@ -46,30 +45,38 @@ def main(argv: list[str] | None = None) -> int:
         option = "--broker"
         broker = BrokerURL.parse(args.broker) if args.broker else BrokerURL.from_env()
     except (TopicError, ValueError) as e:
-        print(f"{prog}: {option}: {e}", file=sys.stderr)
+        opts.say("profile", f"{option}: {e}")
         return 2
     if broker is None:
-        print(f"{prog}: no broker: pass --broker mqtt://host:port or set WARAPS_BROKER",
-              file=sys.stderr)
+        opts.say("profile", "no broker: pass --broker mqtt://host:port or set WARAPS_BROKER")
         return 2
     out = None if args.output == "-" else Path(args.output)
     if out is not None and out.exists():
-        print(f"{prog}: {out} exists; name a new file (a profile you edited is never "
-              f"overwritten)", file=sys.stderr)
+        opts.say("profile", f"{out} exists; name a new file (a profile you edited is never "
+                 f"overwritten)")
+        return 2
+    if out is not None and not out.absolute().parent.is_dir():  # said before observing
+        opts.say("profile", f"cannot write {out}: {out.parent} is not a folder")
         return 2
     def say(text: str) -> None:
-        print(text, file=sys.stderr)
+        print(opts.shown(text), file=sys.stderr)
 
     try:
         with MqttClient(opts.with_tls(broker, args)).connect() as client:
             seen = observe(lambda: client, unit, seconds, say=say)
     except BrokerError as e:  # the message says what failed and how to fix it
-        print(f"{prog}: {e}", file=sys.stderr)
+        opts.say("profile", e)
         return 3
     text = draft(seen)
+    for problem in problems(seen):  # said, not only written: the unit contradicts itself
+        print(opts.shown(f"PROBLEM: {problem}"), file=sys.stderr)
     if out is None:
         sys.stdout.write(text)
     else:
-        out.write_text(text, "utf-8")
-        print(f"wrote {out}", file=sys.stderr)
+        try:
+            out.write_text(text, "utf-8")
+        except OSError as e:  # a full disk
+            opts.say("profile", f"cannot write {out}: {e.strerror or e}")
+            return 3
+        print(opts.shown(f"wrote {out}"), file=sys.stderr)
     return 0 if seen.heartbeat is not None else 6

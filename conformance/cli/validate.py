@@ -67,16 +67,15 @@ def main(argv: list[str] | None = None) -> int:
     try:
         profile = profile_module.load(args.profile)
     except profile_module.ProfileError as e:
-        print(f"waraps-conformance validate: {e}", file=sys.stderr)
+        opts.say("validate", e)
         return 2
     try:
         payload = read_bounded(args.file)
     except OSError as e:
-        print(f"waraps-conformance validate: cannot read {args.file}: {e.strerror}",
-              file=sys.stderr)
+        opts.say("validate", f"cannot read {args.file}: {e.strerror}")
         return 2
     except ValueError as e:
-        print(f"waraps-conformance validate: {e}", file=sys.stderr)
+        opts.say("validate", e)
         return 2
     arrival = time_module.time() if args.now else args.time
     notes: list[str] = []

@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 
 from conformance.client import BrokerURL, Message, MqttClient, publish_nowhere
 from conformance.recording import Event
-from conformance.topics import TopicError, UnitAddress
+from conformance.topics import TopicError, UnitAddress, filter_problem
 
 DEFAULT_TOPIC = "waraps/#"
 MAX_QUEUED_MESSAGES = 200_000
@@ -78,9 +78,9 @@ def capture_options(broker: str | None, *, topics: Sequence[str] = (),
             raise CaptureOptionsError(f"--unit: {e}") from None
     filters = tuple(topics or ([f"{u.base}/#" for u in addresses] or [DEFAULT_TOPIC]))
     for t in filters:
-        if not t or "#" in t[:-1] or (t.endswith("#") and len(t) > 1 and t[-2] != "/"):
-            raise CaptureOptionsError(f"--topic {t!r} is not an MQTT subscription filter "
-                                      f"('#' only as the last level, e.g. waraps/#)")
+        problem = filter_problem(t)
+        if problem:
+            raise CaptureOptionsError(problem)
     url = None
     if need_broker:
         try:

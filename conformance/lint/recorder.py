@@ -7,6 +7,7 @@ from __future__ import annotations
 import time
 from typing import IO
 
+from conformance.display import shown
 from conformance.lint.capture import CaptureOptions, LiveCapture
 from conformance.recording import Event, RecordingWriter
 
@@ -19,8 +20,9 @@ def record(options: CaptureOptions, out: IO[bytes], *, name: str, log: IO[str]) 
     writer = RecordingWriter(out)
     capture = LiveCapture(options.broker, options.topics)
     capture.start()
-    print(f"recording {', '.join(options.topics)} from {options.broker} to {name}"
-          + (f" for {options.duration:g} s" if options.duration else " until Ctrl-C"), file=log)
+    print(shown(f"recording {', '.join(options.topics)} from {options.broker} to {name}"
+                + (f" for {options.duration:g} s" if options.duration else " until Ctrl-C")),
+          file=log)
     writer.write(Event(time.time(), "start", "subscribed"))
     deadline = None if not options.duration else time.monotonic() + options.duration
     try:
@@ -30,8 +32,9 @@ def record(options: CaptureOptions, out: IO[bytes], *, name: str, log: IO[str]) 
             for event in events:
                 writer.write(event)
                 if event.kind != "unexamined":
-                    print(f"{time.strftime('%H:%M:%S', time.localtime(event.time))} "
-                          f"{event.kind}{': ' + event.detail if event.detail else ''}", file=log)
+                    print(shown(f"{time.strftime('%H:%M:%S', time.localtime(event.time))} "
+                                f"{event.kind}{': ' + event.detail if event.detail else ''}"),
+                          file=log)
             for message in batch:
                 if options.wants(message.topic):
                     writer.write(message)
@@ -47,7 +50,7 @@ def record(options: CaptureOptions, out: IO[bytes], *, name: str, log: IO[str]) 
         # Lint judges up to here: a unit silent since its last message until now has died.
         writer.write(Event(time.time(), "end", "stopped"))
         writer.flush()
-    print(f"recorded {writer.messages} messages ({writer.bytes} bytes) to {name}"
-          + (f"; {capture.dropped} could not be kept up with (recorded as unexamined)"
-             if capture.dropped else ""), file=log)
+    print(shown(f"recorded {writer.messages} messages ({writer.bytes} bytes) to {name}"
+                + (f"; {capture.dropped} could not be kept up with (recorded as unexamined)"
+                   if capture.dropped else "")), file=log)
     return 0

@@ -11,8 +11,9 @@ import time
 from pathlib import Path
 from typing import IO, Any
 
-from conformance.display import NAME_CHARS, printable, printable_lines, shorten
+from conformance.display import NAME_CHARS, printable, printable_lines, shorten, shown
 from conformance.lint import EXIT_FAIL, EXIT_NOT_RUN, EXIT_PASS
+from conformance.reporting.bounds import file_stem
 
 GATES = ("all", "units")
 REPORT_FORMATS = ("json", "html", "junit")
@@ -70,7 +71,7 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
         try:
             end = run_bag(linter, scorecard, reader_of_bag, options)
         except BagError as e:
-            print(printable(f"waraps-conformance lint: {e}"), file=err)
+            print(shown(f"waraps-conformance lint: {e}"), file=err)
             return EXIT_NOT_RUN
         meta = {"source": reader_of_bag.name, "recording_formats": reader_of_bag.format,
                 "bag_messages_read": str(reader_of_bag.read)}
@@ -81,7 +82,7 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
         try:
             stream, name = open_recording(source, stdin)
         except RecordingError as e:
-            print(printable(f"waraps-conformance lint: {e}"), file=err)
+            print(shown(f"waraps-conformance lint: {e}"), file=err)
             return EXIT_NOT_RUN
         scorecard = Scorecard(out, tty=False if plain else None, title=name, live=False)
         scorecard = serving.watch(scorecard) if serving else scorecard
@@ -89,8 +90,8 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
             reader, end = run_recorded(linter, scorecard, stream, name, options)
         meta = {"source": name, "recording_lines": str(reader.lines),
                 "recording_formats": ", ".join(sorted(reader.formats))}
-        print(f"read {name} as {', '.join(sorted(reader.formats)) or 'no known format'}"
-              f" ({reader.messages} messages)", file=out)
+        print(shown(f"read {name} as {', '.join(sorted(reader.formats)) or 'no known format'}"
+                    f" ({reader.messages} messages)"), file=out)
         if reader.problem_count:
             meta["recording_problems"] = str(reader.problem_count)
             meta["recording_problem_lines"] = "; ".join(str(p) for p in reader.problems[:20])
@@ -107,16 +108,16 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
         try:
             capture.start()
         except BrokerError as e:
-            print(printable(f"waraps-conformance lint: {e}"), file=err)
+            print(shown(f"waraps-conformance lint: {e}"), file=err)
             return EXIT_NOT_RUN
         scorecard = Scorecard(out, tty=False if plain else None,
                               title=f"{options.broker} {' '.join(options.topics)}", live=True)
         if serving:
             scorecard = serving.watch(scorecard)
         if not scorecard.tty:
-            print(f"linting {', '.join(options.topics)} on {options.broker} (read-only)"
-                  + (f" for {options.duration:g} s" if options.duration else " until Ctrl-C"),
-                  file=out, flush=True)
+            print(shown(f"linting {', '.join(options.topics)} on {options.broker} (read-only)"
+                        + (f" for {options.duration:g} s" if options.duration
+                           else " until Ctrl-C")), file=out, flush=True)
         end = run_live(linter, scorecard, capture, options)
         meta = {"source": f"live {' '.join(options.topics)}"}
         if options.broker.tls_arguments():  # the rerun line repeats them (reporting/text.py)
@@ -143,6 +144,7 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
         meta["not_judged"] = _not_judged(over, over_units)
     from conformance.facts import RunFacts
     from conformance.judge import judge
+    from conformance.recording import UNTIMED_NOTE
     from conformance.reporting.text import render_verdicts
 
     report = judge(_report(monitor, linter, kind_meta=meta, broker=broker,
@@ -154,8 +156,12 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
     if serving:  # the fleet page's last snapshot: every verdict final
         serving.view.finish(linter, report, verdict=conclusion.verdict,
                             not_judged=meta.get("not_judged", ""))
-    # Each unit's verdict and its most severe findings first (issue 18, 6), then the table.
-    scorecard.final(linter, report, opening=render_verdicts(report))
+    # Each unit's verdict and its most severe findings first (issue 18, 6), then the table;
+    # a capture without times says so before anything else (issue 27, 4).
+    first = [n for n in notes if n.startswith(UNTIMED_NOTE)] if report.facts.untimed else []
+    notes = [n for n in notes if n not in first]
+    scorecard.final(linter, report, opening="\n".join(
+        [*(f"note: {n}" for n in first), render_verdicts(report)]))
     for problem in problems:
         print(printable(f"malformed {problem}"), file=out)
     if problem_count > len(problems):
@@ -172,7 +178,7 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
     if formats:
         paths = write_reports(report, Path(reports_dir), formats, report_stem(source))
         for path in paths:
-            print(f"report: {path}", file=out)
+            print(shown(f"report: {path}"), file=out)
     evidence = failures(report)
     if evidence:
         print(f"\n{printable_lines(evidence)}\n", file=out)
@@ -388,9 +394,8 @@ def report_stem(source: str | None) -> str:
     ``lint-<local time>``."""
     if source and source != "-":
         name = Path(source).name.split(".")[0]
-        safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
-        if safe:
-            return f"lint-{safe}"
+        if name:  # bounded and sanitised (a 300-character name: issue 26)
+            return f"lint-{file_stem(name).replace('.', '_')}"
     return time.strftime("lint-%Y%m%d-%H%M%S")
 
 

@@ -323,7 +323,7 @@ class Serving:
         self.server.start()
         for line in self.server.app.header:
             print(f"warning: {line}", file=self.out)
-        print(f"serving {self.server.url} (the fleet page; /metrics, /report.json; read-only)",
+        print(f"serving {printable(self.server.url)} (the fleet page; /metrics, /report.json; read-only)",
               file=self.out, flush=True)
         return self
 
@@ -339,7 +339,7 @@ class Serving:
 
     def _linger(self) -> None:
         until = "until Ctrl-C" if self.linger is None else f"for {self.linger:g} s"
-        print(f"serving the final fleet page on {self.server.url} {until}", file=self.out,
+        print(f"serving the final fleet page on {printable(self.server.url)} {until}", file=self.out,
               flush=True)
         end = None if self.linger is None else time.monotonic() + self.linger
         try:

@@ -12,6 +12,7 @@ whole report.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 from collections.abc import Callable
 from typing import TypeVar
 
@@ -25,6 +26,22 @@ TRUNCATED = "report_truncated"
 """The ``meta`` key that says what a bounded report left out."""
 
 Out = TypeVar("Out", str, bytes)
+
+STEM_CHARS = 80
+"""The most characters of a name a report's file name keeps (file systems allow 255 bytes)."""
+
+
+def file_stem(name: str, limit: int = STEM_CHARS) -> str:
+    """``name`` (a unit's, a recording's: anything a person or a unit chose) as the start of a
+    report's file name: itself when it is at most ``limit`` characters of ``A-Za-z0-9._-``;
+    else those characters kept, others as '_', cut to ``limit``, and a hash of the whole so
+    that two names never share a file (issue 26: a 300-character unit name)."""
+    safe = "".join(c if c.isascii() and (c.isalnum() or c in "._-") else "_" for c in
+                   name[:limit + 1]).lstrip(".")
+    if safe == name and len(name) <= limit:
+        return name
+    digest = hashlib.sha256(name.encode("utf-8", "surrogatepass")).hexdigest()[:10]
+    return f"{safe[:limit]}-{digest}"
 
 
 def bounded(render: Callable[[RunReport], Out], report: RunReport,

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from conformance.conclusion import NOT_RUN, Conclusion, UnitStatus, ranked_findings
+from conformance.conclusion import NOT_RUN, Conclusion, UnitStatus, facts_of, ranked_findings
 from conformance.conclusion import of as conclusion_of
 from conformance.display import shorten
 from conformance.reporting.bounds import bounded
@@ -50,7 +50,7 @@ META_WORDS = (("not_run", "rules not run"),
               ("rerun", "repeat this run"))
 META_SHOWN_ELSEWHERE = {"unit", "broker", "started", "finished", "suite_version", "agent_uuid",
                         "verdict", "interrupted", "exit_status", "error", "broker_lost",
-                        "cut_short", "selection"}
+                        "cut_short", "selection", "explore_story"}
 SERIES_COLOURS = ["#0969da", "#bf3989", "#1a7f37", "#bc4c00", "#8250df", "#6e7781"]
 
 
@@ -102,13 +102,54 @@ def render_html(report: RunReport, files: list[str] | None = None) -> str:
     """The whole report as one HTML document; ``files`` are the names of the files written
     with it (the footer says which)."""
     conclusion = conclusion_of(report)
+    found = ranked_findings(report)
+    units = [_unit(name, unit, conclusion.units[name]) for name, unit in report.units.items()]
+    # A failed or warned rate rule shows its rate over time with its evidence.
+    rate_plots: dict[tuple[str, str], list[Plot]] = {}
+    for view in units:
+        for plot in view.plots:
+            if plot.stat.rule and plot.stat.verdict in (Verdict.FAIL, Verdict.WARN):
+                rate_plots.setdefault((view.name, plot.stat.rule), []).append(plot)
     return environment().get_template("report.html.j2").render(
         report=report, title=f"WARA-PS conformance {report.kind} report",
         verdict=conclusion.verdict, conclusion=conclusion,
-        failing=[(u, r) for _, u, r in ranked_findings(report) if r.verdict is Verdict.FAIL],
-        head=_head_facts(report, conclusion),
-        units=[_unit(name, unit, conclusion.units[name]) for name, unit in report.units.items()],
+        failing=[(u, r) for _, u, r in found if r.verdict is Verdict.FAIL],
+        warned=[(u, r) for _, u, r in found if r.verdict is Verdict.WARN],
+        untested=untested(report), untimed=facts_of(report).untimed,
+        story=str(report.meta.get("explore_story") or "").split("\n"),
+        gaps=[(a, b) for a, b in report.gaps if b - a >= MIN_GAP],
+        head=_head_facts(report, conclusion), units=units, rate_plots=rate_plots,
         written=", ".join(files or [])) + "\n"
+
+
+MIN_GAP = 0.05
+"""Seconds: a shorter observer gap is noise (it would read '0.0 s'), not shown."""
+
+
+@dataclass
+class Untested:
+    """Rules of one unit that could not be tested for one reason (the reason names the option
+    that would test them: ``--reboot-cmd``, ``--allow-motion``...)."""
+
+    unit: str
+    reason: str
+    rules: list[str]
+    not_run: bool
+    """The rules never ran (not selected, the run cut short): no option tests them."""
+
+
+def untested(report: RunReport) -> list[Untested]:
+    """The could-not-test rules grouped by unit and reason, the ones that ran first."""
+    not_run = set(report.not_run)
+    groups: dict[tuple[str, str], Untested] = {}
+    for name, unit in report.units.items():
+        for r in unit.rules.values():
+            if r.verdict is Verdict.COULD_NOT_TEST:
+                key = (name, r.reason or "")
+                group = groups.setdefault(key, Untested(name, r.reason or "", [],
+                                                         r.rule in not_run))
+                group.rules.append(r.rule)
+    return sorted(groups.values(), key=lambda g: (g.not_run, -len(g.rules), g.unit))
 
 
 @dataclass
@@ -157,6 +198,8 @@ class UnitView:
     skipped: list[RuleResult]
     bad: list[RuleResult]
     plots: list[Plot] = field(default_factory=list)
+    sparks: dict[str, Spark] = field(default_factory=dict)
+    """rule -> its rate's small plot (a rate rule shows its intervals, not a count)."""
     verdict: str = ""
     """The row's verdict in the verdict model's words (lint: clean, warn, fail)."""
     status: str = ""
@@ -178,7 +221,45 @@ def _unit(name: str, unit: UnitReport, status: UnitStatus) -> UnitView:
                     shown=[r for r in ranked if r.verdict is not Verdict.SKIP],
                     skipped=[r for r in ranked if r.verdict is Verdict.SKIP],
                     bad=[r for r in ranked if r.verdict in (Verdict.FAIL, Verdict.WARN)],
-                    plots=[plot_of(r, i) for i, r in enumerate(unit.rates)])
+                    plots=[plot_of(r, i) for i, r in enumerate(unit.rates)],
+                    sparks=sparks(unit))
+
+
+@dataclass
+class Spark:
+    """A rate rule's intervals as a small plot in its scorecard row: the measured rate over
+    time (the worst of its kinds), the declared rate dashed."""
+
+    points: str
+    declared_y: float | None
+    words: str
+    w: int = 120
+    h: int = 22
+
+
+def sparks(unit: UnitReport) -> dict[str, Spark]:
+    """One small plot per rate rule of ``unit``: its worst rate (a failing one first)."""
+    found: dict[str, Spark] = {}
+    for stat in sorted(unit.rates, key=lambda s: ORDER.index(s.verdict)):
+        if stat.rule in found or not stat.rule:
+            continue
+        pts = [(t, r) for t, r in stat.series if r == r and r != float("inf")]
+        t0 = pts[0][0] if pts else 0.0
+        span = (max(t for t, _ in pts) - t0 if pts else 0.0) or 1.0
+        top = max([r for _, r in pts] + [(stat.declared_hz or 0) * 1.5, 1e-9]) * 1.1
+        if stat.declared_hz:
+            top = min(top, stat.declared_hz * 4)  # a burst would flatten the rest
+        spark = Spark("", None, "")
+        w, h = spark.w - 2, spark.h - 2
+        spark.points = " ".join(f"{1 + (t - t0) / span * w:.1f},"
+                                f"{1 + (1 - min(r, top) / top) * h:.1f}" for t, r in pts)
+        if stat.declared_hz:
+            spark.declared_y = 1 + (1 - min(stat.declared_hz, top) / top) * h
+        declared = f"declared {stat.declared_hz:.2f} Hz" if stat.declared_hz else "none declared"
+        spark.words = (f"{stat.kind}: {stat.measured_hz:.2f} Hz over {stat.intervals} intervals, "
+                       f"{declared}" if stat.measured_hz else f"{stat.kind}: not measured")
+        found[stat.rule] = spark
+    return found
 
 
 @dataclass

@@ -165,12 +165,20 @@ class Context:
                             payload=entry.excerpt if entry else None, detail=detail,
                             unit=str(self.unit))
 
-    def startable(self, prefer: tuple[str, ...] = RUNS_UNTIL_ENOUGH) -> list[str]:
-        """Tasks in tasks-available the suite may start, the ``prefer``red ones first, those
-        that do not move the unit before those that do."""
-        names = [n for n in self.tasks_available() if self.safety.may_start(n)[0]]
+    def startable(self, scenario: str = "", prefer: tuple[str, ...] = RUNS_UNTIL_ENOUGH
+                  ) -> list[str]:
+        """Tasks in tasks-available the suite may start in ``scenario``, the ``prefer``red
+        ones first, those that do not move the unit before those that do."""
+        names = [n for n in self.tasks_available() if self.safety.may_start(n, scenario)[0]]
         return sorted(names, key=lambda n: (n not in prefer, self.safety.moves(n),
                                             prefer.index(n) if n in prefer else 0, n))
+
+    def none_startable(self, scenario: str = "") -> str:
+        """Why no task in tasks-available may be started in ``scenario``: each task's reason
+        (the missing parameters, motion, the profile), or that none is offered."""
+        why = [self.safety.may_start(n, scenario)[1] for n in self.tasks_available()]
+        return "no task the suite may start: " + ("; ".join(w for w in why if w)
+                                                   or "tasks-available is empty")
 
     def end_task(self, task_uuid: str, signals: list[str], *, after: int) -> Entry | None:
         """End a running task: ``$enough`` or ``$abort`` when it lists them, then wait for its

@@ -27,7 +27,7 @@ from conformance.protocol import BUILTIN_SIGNALS
 from conformance.scenarios.context import RUNS_UNTIL_ENOUGH
 from conformance.scenarios.explore_steps import UNCHANGED, Disagreement, Explorer, Step
 from conformance.scenarios.shrink import shrink
-from conformance.scenarios.story import Story
+from conformance.scenarios.story import Story, describe
 
 STEPS = 10
 """Steps per example at most (hypothesis' stateful_step_count)."""
@@ -98,6 +98,9 @@ class Search:
         self.failed = False
         """This example disagreed: its teardown ends the exploration (``Found``)."""
         self.example_began = self.started
+        self.on_step: Callable[[str], None] = lambda doing: None
+        """Told what the exploration does next (a step, a replay while shrinking): the
+        terminal shows it with the counts (``suite/exploration.py``)."""
 
     def left(self) -> float:
         return self.budget - (self.clock.monotonic() - self.started)
@@ -115,6 +118,7 @@ class Search:
 
     def run_step(self, action: dict[str, Any]) -> None:
         self.check()
+        self.on_step(describe(action))
         try:
             self.explorer.do(action)
         except Disagreement:
@@ -181,6 +185,8 @@ class Search:
 
         def attempt(actions: list[dict[str, Any]]) -> tuple[int, set[int], Story] | None:
             self.outcome.replays += 1
+            self.on_step(f"shrinking the story: replay {self.outcome.replays}, "
+                         f"{len(actions)} steps")
             found = run_example(self.explorer, actions, self.seed)
             self.outcome.steps = self.explorer.total_steps
             return None if found is None else (found.failing, self.explorer.involved(), found)

@@ -176,7 +176,7 @@ class Explorer:
         self.model_state = model_state
         """The protocol model's state of a task-uuid (``conformance.protocol``: what the
         Monitor's model holds from the traffic), None where it knows nothing."""
-        self.tasks = ctx.startable()
+        self.tasks = ctx.startable("explore")
         """Tasks the suite may start (tasks-available, the profile, DESIGN 'Safety')."""
         self.slots: list[Slot] = []
         self.commands: dict[int, Sent] = {}
@@ -333,14 +333,6 @@ class Explorer:
                 elif status in ("running", "paused"):  # a task's own words change nothing
                     slot.state = status
 
-    def warm(self) -> None:
-        """Draw every task's parameters now (hypothesis-jsonschema, cached): not inside the
-        exploration, whose hypothesis run they would stall."""
-        from conformance.scenarios.params import drawn
-
-        for task in self.tasks:
-            drawn(task, self.ctx.seed)
-
     def states(self) -> list[str]:
         """Each slot's state as the unit last showed it."""
         for slot in self.slots:
@@ -350,14 +342,14 @@ class Explorer:
     # --- the commands (12.1) ------------------------------------------------------------------
     def _start(self, step: Step, action: dict[str, Any]) -> None:
         name = str(action["task"])
-        allowed, why = self.ctx.safety.may_start(name)
+        allowed, why = self.ctx.safety.may_start(name, "explore")
         if not allowed:  # a stored story replayed on a unit it may not move (DESIGN 'Safety')
             self.slots.append(Slot(name, None, self.ctx.traffic.mark(), "refused"))
             step.came.append(f"not sent: {why}")
             return
         origin = self.ctx.position()
-        # Drawn from the task's schema with the run's seed, inside the safe radius (DESIGN
-        # 'Safety'); ``warm`` drew them before the exploration's clock started.
+        # The profile's or the spec example's, never invented, inside the safe radius (DESIGN
+        # 'Safety'; ``may_start`` above knows there are some).
         params = valid_params(name, origin, self.ctx.safety, self.ctx.seed) \
             if origin is not None else {}
         body: dict[str, Any] = {"command": "start-task", "execution-unit": self.ctx.unit.name,

@@ -39,7 +39,7 @@ def run(ctx: Context) -> None:
     # A running task (one that runs until $enough, if the unit has one the suite may start).
     available = ctx.tasks_available()
     origin = ctx.position()
-    task = next(iter(ctx.startable()), None)
+    task = next(iter(ctx.startable("query")), None)
     if task is not None and origin is not None:
         params = valid_params(task, origin, ctx.safety, ctx.seed)
         sent, answer = ctx.commander.start_task(task, params, ctx.timing.response)
@@ -59,7 +59,8 @@ def run(ctx: Context) -> None:
             f"task '{name}' that ended '{status}'")
     if not ctx.notes.get("ended"):
         ctx.record("EXEC-QUERY-001", verdict=Verdict.COULD_NOT_TEST,
-                   reason="no task could be started and ended to ask about")
+                   reason="no task could be started and ended to ask about" + (
+                       f" ({ctx.none_startable('query')})" if task is None else ""))
     ghost = new_uuid()
     sent, answer = ctx.commander.query(ghost, ctx.timing.response)
     if status_answer(answer) == "unknown":

@@ -5,6 +5,8 @@ both rules are could-not-test."""
 
 from __future__ import annotations
 
+from typing import Any
+
 from conformance.scenarios.context import Context, describe
 from conformance.scenarios.query import status_answer
 from conformance.scenarios.sender import new_uuid
@@ -21,11 +23,39 @@ def run(ctx: Context) -> None:
                        reason="no way to reboot the unit: pass --reboot-cmd 'COMMAND' (a shell "
                        "command that restarts it)")
         return
+    # Some agents come back under another name (a random suffix per start): watch the names
+    # of the unit's type and role (suite/reboot.py's Reboot can; a bare callable cannot).
+    watch = getattr(ctx.reboot, "watch_names", None)
+    names = watch() if watch is not None else None
+    try:
+        _reboot(ctx, names)
+    finally:
+        if names is not None:
+            names.close()
+
+
+def _reboot(ctx: Context, names: Any) -> None:
+    """The reboot and what it shows; ``names``: a ``suite.reboot.Names`` watch, or None."""
+    assert ctx.reboot is not None
     old_agent = ctx.agent_uuid
     rate = ctx.rate_of("heartbeat") or 1.0
     ended = ctx.notes.get("ended", [])
     before = ctx.traffic.mark()
     ctx.commander.abort_all(ctx.timing.response)  # tasks die with the reboot anyway
+    known: set[str] = set()
+    if names is not None:
+        # Two heartbeats of the unit: units of its type and role that were there before the
+        # reboot have been heard by then (unless far slower), and are not taken for it.
+        count = [0]
+
+        def second(_entry: Entry) -> bool:
+            count[0] += 1
+            return count[0] >= 2
+
+        ctx.traffic.wait_for(second, ctx.timing.periods(3, rate), after=ctx.traffic.mark(),
+                             subtopic="heartbeat", what="two heartbeats before the reboot")
+        known = names.heard()
+    requested = ctx.traffic.clock.now()
     error = ctx.reboot()
     if error is not None:
         for rule in RULES:
@@ -43,6 +73,18 @@ def run(ctx: Context) -> None:
         return previous is not None and entry.time - previous.time > 2.0 / rate
 
     hb = ctx.traffic.wait_for(back, ctx.timing.reboot, after=before, subtopic="heartbeat")
+    renamed = names.new_name(known, requested, 0.0) if hb is None and names else None
+    if renamed is not None:
+        # 3.1: UNIT is the unit's name; back under another, it is another unit to every
+        # commander. A failure of its own (not could-not-test: it did not die).
+        ctx.record("REBOOT-001", verdict=Verdict.FAIL, reason=(
+            f"after the reboot ({ctx.reboot_how}) the unit came back as "
+            f"'{renamed}' (a unit of the same type and role first heard "
+            f"after the reboot), not as '{ctx.unit.name}': it must keep its name (3.1), and "
+            f"only its agent-uuid changes (5.1)"))
+        ctx.record("REBOOT-002", verdict=Verdict.COULD_NOT_TEST,
+                   reason=f"the unit came back under another name ('{renamed}', REBOOT-001)")
+        return
     if hb is None:
         ctx.record("REBOOT-001", violation=ctx.violation(
             "REBOOT-001", expected=f"a heartbeat with a new agent-uuid within "

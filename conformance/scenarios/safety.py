@@ -1,14 +1,17 @@
-"""Which tasks the suite may start on the unit under test, and where (DESIGN 'Safety').
+"""Which tasks the suite may start on the unit under test, what it may send, and where
+(DESIGN 'Safety').
 
-A unit whose topic says ``real`` is sent no task that moves it unless ``--allow-motion`` is
-given AND the profile lists that task in ``motion_tasks``. Positions for any task are computed
-near the unit's own reported position, within the profile's ``safe_radius`` (metres), never
-the spec's example coordinates.
+Safety fails closed: a unit is a simulation only when its role is ``simulation`` or one of the
+profile's ``simulated-roles``; every other role (real, playback, live, a misspelling, an
+unknown word) is real (``SafetyDecision``). A real unit is sent no task that moves it unless
+``--allow-motion`` is given AND the profile lists that task in ``motion_tasks``, and no hostile
+or malformed payload (``hostility``) unless ``--allow-hostile`` is given or the profile says
+``robustness: true``. Positions for any task are computed near the unit's own reported
+position, within the profile's ``safe_radius`` (metres), never the spec's example coordinates.
 
-``MotionGate`` is the same decision made on the bytes about to be published (DESIGN: 'the
-publish policy is the one gate'): the suite's connection asks it about every payload, so no
-payload naming a motion task reaches a ``real`` unit without the flag, whatever the scenario
-meant to send and however malformed the payload is.
+``MotionGate`` makes the decision on the bytes about to be published (DESIGN: 'the publish
+policy is the one gate'): the suite's connection asks it about every payload, so nothing the
+decision forbids reaches a real unit, whatever the scenario meant to send.
 """
 
 from __future__ import annotations
@@ -30,6 +33,64 @@ from conformance.topics import UnitAddress
 MOVES_WITHOUT_TAG = frozenset({"navigate", "observe-position"})
 
 EARTH_METRES_PER_DEGREE = 111_320.0
+
+HOSTILE_REFUSAL = ("not sent: hostile payloads to a real unit need --allow-hostile (or "
+                   "robustness: true in the profile)")
+"""Why a hostile payload is not published: the reason its rules' could-not-test gives."""
+MAX_COMMAND_BYTES = 64 * 1024
+"""A command larger than this is a huge payload (the suite's own are well under 4 KiB)."""
+MAX_COMMAND_DEPTH = 16
+"""A command nested deeper than this is a deep payload (a TST tree of the suite: under 10)."""
+# Parameters left out of anything sent: they name positions elsewhere than near the unit.
+DROPPED = frozenset({"named-position", "named-positions", "image-input-ros-topic",
+                     "detections-sensor-topic", "salient-points-topic"})
+WELL_FORMED_FINDINGS = frozenset({"TASK-002"})
+"""Validator findings a well-formed command may have: a task outside section 9 (5.3 lets a
+unit offer others; the refusal probes name one no unit has)."""
+
+
+@dataclass(frozen=True)
+class SafetyDecision:
+    """What the suite may send to one unit, and why (the run header says it)."""
+
+    role: str
+    simulation: bool
+    """Whether the unit is a simulation (role ``simulation`` or a profile's simulated-roles)."""
+    allow_motion: bool
+    motion_tasks: tuple[str, ...]
+    hostile: str
+    """How hostile payloads were allowed ("--allow-hostile", "robustness: true in the
+    profile"), or "" when they are not."""
+
+    @classmethod
+    def of(cls, unit: UnitAddress, profile: Profile, *, allow_motion: bool,
+           allow_hostile: bool) -> SafetyDecision:
+        how = "--allow-hostile" if allow_hostile else (
+            "robustness: true in the profile" if profile.robustness else "")
+        return cls(unit.role, profile.is_simulation(unit.role), allow_motion,
+                   tuple(profile.motion_tasks), how)
+
+    @property
+    def real(self) -> bool:
+        return not self.simulation
+
+    @property
+    def hostile_allowed(self) -> bool:
+        return self.simulation or bool(self.hostile)
+
+    def sentence(self) -> str:
+        """The decision and why, in one line (the run header's ``safety:``)."""
+        if self.simulation:
+            why = ("'simulation'" if self.role == "simulation"
+                   else "listed in the profile's simulated-roles")
+            return f"role {self.role!r} is a simulation ({why}): motion and hostile payloads allowed"
+        motion = ("motion tasks: " + (", ".join(self.motion_tasks) or "none (no motion-tasks "
+                                      "in the profile)")
+                  if self.allow_motion else "no motion (no --allow-motion)")
+        hostile = (f"hostile payloads allowed ({self.hostile})" if self.hostile
+                   else "no hostile payloads (no --allow-hostile)")
+        return (f"role {self.role!r} is treated as real (only 'simulation' or a profile's "
+                f"simulated-roles are simulations): {motion}, {hostile}")
 
 
 @dataclass(frozen=True)
@@ -79,12 +140,20 @@ class Safety:
         known = self._task_moves(task)
         return True if known is None else (known or task in MOVES_WITHOUT_TAG)
 
-    def may_start(self, task: str) -> tuple[bool, str]:
-        """(allowed, reason it is not) for starting ``task`` on this unit."""
+    def may_start(self, task: str, scenario: str = "") -> tuple[bool, str]:
+        """(allowed, reason it is not) for starting ``task`` on this unit in ``scenario``
+        (the profile may name the scenarios a task is for): only a task whose parameters
+        are known (the profile's, or a section 9 example: never invented)."""
         if self.profile.tasks and task not in self.profile.tasks:
             return False, (f"profile '{self.profile.name}' does not let the suite start "
                            f"'{task}' (its tasks: {', '.join(self.profile.tasks)})")
-        if self.unit.is_real and self.moves(task):
+        only = self.profile.task_scenarios.get(task)
+        if scenario and only is not None and scenario not in only:
+            return False, (f"the profile lets only the scenarios {', '.join(only)} start "
+                           f"'{task}'")
+        if not has_params(task, self.profile.task_params):
+            return False, no_params_reason(task)
+        if not self.profile.is_simulation(self.unit.role) and self.moves(task):
             if not self.allow_motion:
                 return False, (f"'{task}' moves the unit and {self.unit} is a real unit: pass "
                                f"--allow-motion and list it in the profile's motion-tasks")
@@ -112,6 +181,30 @@ class Safety:
 
     def within(self, origin: Position, point: Position) -> bool:
         return origin.distance(point) <= self.profile.safe_radius
+
+
+class NoParams(LookupError):
+    """A task the suite would have to invent parameters for (DESIGN 'Safety'); the message
+    says what to add to the profile."""
+
+
+def no_params_reason(task: str) -> str:
+    """Why ``task`` is not started: its parameters are not known (issue 25 §2)."""
+    return (f"no task to start: {task} has no parameters in the profile and is not a section "
+            f"9 task; add tasks: {{{task}: {{params: ...}}}} to the profile")
+
+
+def has_params(task: str, given: dict[str, Any]) -> bool:
+    """Whether the suite knows parameters for ``task``: the profile's (``given``), or the
+    example of a section 9 task (9: each task's specification has one)."""
+    from conformance import taskspec
+
+    if task in given:
+        return True
+    try:
+        return bool(taskspec.params_schema(task).get("examples"))
+    except KeyError:
+        return False
 
 
 def motion_tasks_of_the_spec() -> frozenset[str]:
@@ -161,20 +254,97 @@ def named_tasks(payload: bytes, names: Iterable[str]) -> list[str]:
     return sorted(found)
 
 
+def _depth_over(value: Any, limit: int) -> bool:
+    """Whether a decoded JSON value nests deeper than ``limit`` (iterative: no recursion)."""
+    stack = [(value, 1)]
+    while stack:
+        v, depth = stack.pop()
+        if isinstance(v, (dict, list)):
+            if depth > limit:
+                return True
+            stack.extend((x, depth + 1) for x in (v.values() if isinstance(v, dict) else v))
+    return False
+
+
+def _shape(value: Any) -> Any:
+    """What making parameters safe leaves of them (``params.make_safe``: positions moved,
+    numbers bounded, flags forced, some keys dropped): keys, strings and the type of every
+    other leaf. Iterative; the depth was bounded before."""
+    def leaf(v: Any) -> Any:
+        if isinstance(v, dict) and "latitude" in v and "longitude" in v:
+            return "<GeoPoint>"
+        if isinstance(v, bool):
+            return "<bool>"
+        if isinstance(v, (int, float)):
+            return "<number>"
+        return v if not isinstance(v, (dict, list)) else None
+
+    root: list[Any] = [None]
+    stack: list[tuple[Any, list[Any] | dict[str, Any], Any]] = [(value, root, 0)]
+    while stack:
+        v, into, key = stack.pop()
+        out = leaf(v)
+        if out is None and isinstance(v, dict):
+            out = {}
+            stack.extend((x, out, k) for k, x in v.items() if k not in DROPPED)
+        elif out is None and isinstance(v, list):
+            out = [None] * len(v)
+            stack.extend((x, out, i) for i, x in enumerate(v))
+        into[key] = out
+    return root[0]
+
+
+def hostility(topic: str, payload: bytes, *, given: dict[str, Any] | None = None
+              ) -> str | None:
+    """What makes ``payload`` hostile or malformed as a command on ``topic`` (12, 14), or
+    None for a well-formed one: huge, not UTF-8, not JSON, not an object, deep, or a command
+    the suite's own validator finds fault with (unknown command, missing or mistyped fields,
+    parameters invalid under the task's section 9 schema). ``given``: task name -> the
+    parameters the profile gives it; a start-task with exactly those is the user's choice."""
+    if len(payload) > MAX_COMMAND_BYTES:
+        return f"{len(payload)} bytes (over {MAX_COMMAND_BYTES})"
+    try:
+        payload.decode("utf-8")
+        body = orjson.loads(payload)
+    except UnicodeDecodeError:
+        return "not UTF-8"
+    except orjson.JSONDecodeError:
+        return "not JSON"
+    if not isinstance(body, dict):
+        return f"a JSON {type(body).__name__}, not an object"
+    if _depth_over(body, MAX_COMMAND_DEPTH):
+        return f"nested deeper than {MAX_COMMAND_DEPTH}"
+    from conformance.validator import validate  # loaded with the first publish only
+
+    found = sorted({v.rule for v in validate(topic, payload).violations
+                    if v.rule not in WELL_FORMED_FINDINGS
+                    and not v.rule.startswith(("ERR-", "TOPIC-"))})
+    task = body.get("task")
+    if found == ["TASK-001"] and given and isinstance(task, dict) \
+            and str(task.get("name")) in given \
+            and _shape(given[str(task.get("name"))]) == _shape(task.get("params")):
+        return None  # the profile's own parameters for this task (the user's word)
+    return f"malformed ({', '.join(found)})" if found else None
+
+
 class MotionGate:
     """The payload half of the suite's publish policy (DESIGN 'Safety').
 
-    On a ``real`` unit, a payload that names a motion task is refused unless
-    ``--allow-motion`` is given and the profile lists that task in ``motion_tasks``. Motion
-    tasks: section 9's moving tasks, the profile's ``motion_tasks``, and the tasks the unit
-    lists (``listed()``) that this suite does not know (assumed to move, as ``Safety.moves``)."""
+    On a real unit (``SafetyDecision``), a payload that names a motion task is refused unless
+    ``--allow-motion`` is given and the profile lists that task in ``motion_tasks``; a hostile
+    or malformed one (``hostility``) unless hostile payloads are allowed. Motion tasks:
+    section 9's moving tasks, the profile's ``motion_tasks``, and the tasks the unit lists
+    (``listed()``) that this suite does not know (assumed to move, as ``Safety.moves``)."""
 
     def __init__(self, unit: UnitAddress, profile: Profile, *, allow_motion: bool,
+                 allow_hostile: bool = False,
                  listed: Callable[[], Iterable[str]] = tuple,
                  task_moves: Callable[[str], bool | None] | None = None) -> None:
         self.unit = unit
         self.profile = profile
         self.allow_motion = allow_motion
+        self.decision = SafetyDecision.of(unit, profile, allow_motion=allow_motion,
+                                          allow_hostile=allow_hostile)
         self._listed = listed
         self._task_moves = task_moves
         self._spec = motion_tasks_of_the_spec() | frozenset(profile.motion_tasks)
@@ -186,15 +356,23 @@ class MotionGate:
                    and self._task_moves(t) is None}
         return set(self._spec) | unknown
 
-    def refusal(self, payload: bytes) -> str | None:
-        """Why ``payload`` may not be published to the unit, or None when it may."""
-        if not self.unit.is_real:
+    def refusal(self, payload: bytes, topic: str | None = None) -> str | None:
+        """Why ``payload`` may not be published to the unit on ``topic`` (default: its
+        exec/command), or None when it may."""
+        if self.decision.simulation:
             return None
         allowed = set(self.profile.motion_tasks) if self.allow_motion else set()
         named = named_tasks(payload, self.motion_tasks() - allowed)
         if not named:
-            return None
+            return self._hostile(payload, topic)
         how = ("list it in the profile's motion-tasks" if self.allow_motion else
                "pass --allow-motion and list it in the profile's motion-tasks")
         return (f"not sent: the payload names the motion task(s) {', '.join(named)} and "
                 f"{self.unit} is a real unit ({how}; DESIGN 'Safety')")
+
+    def _hostile(self, payload: bytes, topic: str | None) -> str | None:
+        if self.decision.hostile_allowed:
+            return None
+        what = hostility(topic or self.unit.topic("exec/command"), payload,
+                         given=self.profile.task_params)
+        return f"{HOSTILE_REFUSAL}; this payload is {what}" if what is not None else None

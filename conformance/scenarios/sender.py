@@ -12,11 +12,9 @@ from typing import Any
 
 import orjson
 
+from conformance.checks.suite_commands import SENDER  # the suite's name: lint knows it too
 from conformance.scenarios.traffic import Entry, Traffic
 from conformance.topics import UnitAddress
-
-SENDER = "waraps-conformance"
-"""The ``sender`` of every command the suite publishes."""
 
 
 class NotSent(Exception):
@@ -58,6 +56,9 @@ class Sender:
 
     responses = ""
     """The subtopic the responses come on (``exec/response``, ``tst/response``)."""
+    refuse: Callable[[str, bytes], str | None] | None = None
+    """The publish policy's payload half (``Connection.refuse_payload``), asked under
+    --dry-run too, so that a dry run shows what the policy would refuse."""
 
     def __init__(self, unit: UnitAddress, topic: str, traffic: Traffic,
                  publish: Callable[[str, bytes], None], *, dry_run: bool,
@@ -96,6 +97,10 @@ class Sender:
         """Publish ``payload`` (whose decoded ``body`` it is) to the command topic; under
         --dry-run say what would be published and raise ``DryRun``."""
         if self.dry_run:
+            why = self.refuse(self.topic, payload) if self.refuse is not None else None
+            if why is not None:
+                self._say(f"dry run: would not publish to {self.topic}: {why}")
+                raise Refused(why)
             self.would_publish.append((self.topic, payload))
             shown = payload.decode("utf-8", "backslashreplace")
             self._say(f"dry run: would publish to {self.topic}: {shown}")

@@ -74,7 +74,7 @@ def _signal(ctx: Context, task: str, task_uuid: str, signal: str, mark: int) -> 
 
 def run(ctx: Context) -> None:
     available = ctx.tasks_available()
-    startable = ctx.startable()
+    startable = ctx.startable("signal")
     todo: list[str] = []  # each distinct signal once, built-ins in a sensible order
     for signals in available.values():
         todo += [s for s in signals if s not in todo]
@@ -106,13 +106,18 @@ def run(ctx: Context) -> None:
         wanted = [s for s, r in RULE_OF.items() if r == rule]
         if not any(s in done for s in wanted) and rule != "EXEC-SIG-001":
             listed = [s for s in wanted if s in todo]
+            blocked = [ctx.safety.may_start(t, "signal")[1] for t in available
+                       if t not in startable and any(s in available[t] for s in listed)]
             reason = (f"no task the suite may start lists {' or '.join(wanted)}" if not listed
-                      else f"no task listing {' or '.join(listed)} could be started")
+                      else f"no task listing {' or '.join(listed)} could be started"
+                      + (f" ({'; '.join(blocked)})" if blocked and not any(
+                          any(s in available[t] for s in listed) for t in startable) else ""))
             ctx.record(rule, verdict=Verdict.SKIP if not listed else Verdict.COULD_NOT_TEST,
                        reason=reason)
     if not done:
         ctx.record("EXEC-SIG-001", verdict=Verdict.COULD_NOT_TEST,
-                   reason="no task with signals could be started")
+                   reason="no task with signals could be started" + (
+                       f" ({ctx.none_startable('signal')})" if not startable else ""))
     # EXEC-SIG-005: a task-uuid this unit has never seen.
     ghost = new_uuid()
     sent, answer = ctx.commander.signal(ghost, "$abort", ctx.timing.response)

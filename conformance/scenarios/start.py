@@ -15,6 +15,7 @@ from conformance.protocol import NO_SUCH_TASK
 from conformance.scenarios.context import Context
 from conformance.scenarios.deviation import meaning
 from conformance.scenarios.params import invalid_params, valid_params
+from conformance.scenarios.sender import Refused
 from conformance.scenarios.traffic import Entry
 from conformance.violation import Verdict, Violation
 
@@ -57,8 +58,8 @@ def run(ctx: Context) -> None:
     """Start, watch and end every startable task; then the generated task-uuid."""
     available = ctx.tasks_available()
     origin = ctx.position()
-    startable = [n for n in available if ctx.safety.may_start(n)[0]]
-    refused = {n: ctx.safety.may_start(n)[1] for n in available if n not in startable}
+    startable = [n for n in available if ctx.safety.may_start(n, "start")[0]]
+    refused = {n: ctx.safety.may_start(n, "start")[1] for n in available if n not in startable}
     if not startable:
         why = "; ".join(refused.values()) or "tasks-available is empty"
         for rule in RULES:
@@ -84,6 +85,14 @@ def run(ctx: Context) -> None:
                                                 task_uuid=None if generate else "new")
         response = _check_answer(ctx, task, answer)
         if answer is None:
+            if generate:
+                # 12.1 'a generated task-uuid will be returned in the response message': no
+                # response, so no task-uuid was seen either way. Not a pass (the answers to
+                # start-tasks that named one say nothing of this), and not a second failure
+                # of the one unanswered command (EXEC-START-001's).
+                ctx.record("EXEC-START-002", verdict=Verdict.COULD_NOT_TEST, reason=(
+                    f"the start-task '{task}' sent without a task-uuid was not answered "
+                    f"(EXEC-START-001): whether the unit generates one was not seen"))
             continue
         task_uuid = answer.get("task-uuid")
         wanted = sent.body.get("task-uuid")
@@ -204,7 +213,7 @@ def run_refusals(ctx: Context) -> None:
     # 004: a task the suite may start, preferably one that does not move the unit, in case
     # the unit wrongly accepts the parameters.
     chosen = None
-    for task in ctx.startable():
+    for task in ctx.startable("refuse"):
         if origin is not None and (bad := invalid_params(task, origin, ctx.safety, ctx.seed)):
             chosen = (task, *bad)
             break
@@ -214,9 +223,14 @@ def run_refusals(ctx: Context) -> None:
         ctx.record("EXEC-START-004", verdict=Verdict.COULD_NOT_TEST, reason=reason)
     else:
         task, params, what = chosen
-        sent, answer = ctx.commander.start_task(task, params, ctx.timing.response, invalid=True)
-        _expect_refusal(ctx, "EXEC-START-004", answer, f"start-task '{task}' whose {what}",
-                        with_reason=True)
+        try:
+            sent, answer = ctx.commander.start_task(task, params, ctx.timing.response,
+                                                    invalid=True)
+        except Refused as e:  # malformed on purpose: a real unit gets it only by opt-in
+            ctx.record("EXEC-START-004", verdict=Verdict.COULD_NOT_TEST, reason=str(e))
+        else:
+            _expect_refusal(ctx, "EXEC-START-004", answer, f"start-task '{task}' whose {what}",
+                            with_reason=True)
     # 005: a name that is certainly not in tasks-available; it cannot move anything.
     name = NO_SUCH_TASK if NO_SUCH_TASK not in available else NO_SUCH_TASK + "-2"
     sent, answer = ctx.commander.start_task(name, {}, ctx.timing.response, invalid=True)

@@ -81,6 +81,9 @@ def answer_fields(body: Any) -> Any:
 Predicate = Callable[[Entry], bool]
 TICK = 1.0
 """Seconds between two progress reports of a wait that lasts."""
+STREAK_GAP = 0.5
+"""Seconds between two waits that still belong to one busy stretch: a scenario that waits a
+second in short waits shows them too (issue 27 §3: every second says what it waits for)."""
 
 
 class OutOfTime(Exception):
@@ -114,6 +117,20 @@ class Waits:
         self.current: Wait | None = None
         self.expired: str | None = None
         """What was being waited for when the time ran out."""
+        self.busy_since: float | None = None
+        """When the current stretch of waits began (monotonic seconds)."""
+        self.ticked_at = float("-inf")
+        self.ended_at = float("-inf")
+
+    def due(self, wait: Wait, now: float) -> bool:
+        """Whether a wait in progress is to be shown now: a second into it, or a second into
+        a stretch of short waits, and at most once a ``TICK``."""
+        busy = self.busy_since if self.busy_since is not None else wait.started
+        return now - self.ticked_at >= TICK and now - min(busy, wait.started) >= TICK
+
+    def began(self, wait: Wait) -> None:
+        if self.busy_since is None or wait.started - self.ended_at > STREAK_GAP:
+            self.busy_since = wait.started
 
     def check(self, what: str) -> None:
         if self.deadline is not None and self.clock.monotonic() >= self.deadline:
@@ -221,7 +238,7 @@ class Traffic:
         wait = Wait(what, clock.monotonic(), max(0.0, timeout), clock)
         deadline = wait.started + wait.timeout
         checked = after
-        ticked = wait.started
+        waits.began(wait)
         try:
             with self._cond:
                 waits.current = wait
@@ -236,8 +253,8 @@ class Traffic:
                     left = deadline - now
                     if left <= 0:
                         return None
-                    if now - ticked >= TICK:
-                        ticked = now
+                    if waits.due(wait, now):
+                        waits.ticked_at = now
                         if waits.on_tick is not None:
                             waits.on_tick(wait)
                         waits.check(what)
@@ -248,5 +265,6 @@ class Traffic:
                         waits.check(what)
         finally:
             waits.current = None
-            if waits.on_end is not None and clock.monotonic() - wait.started >= TICK:
+            waits.ended_at = clock.monotonic()
+            if waits.on_end is not None:
                 waits.on_end(wait)

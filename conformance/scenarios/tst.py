@@ -233,12 +233,12 @@ def _kind(task: str) -> str:
 def run(ctx: Context) -> None:
     tc = ctx.tst
     origin = ctx.position()
-    tasks = ctx.startable()
+    tasks = ctx.startable("tst")
     if tc is None or origin is None or not tasks:
         reason = ("no TST command topic" if tc is None else
                   "the unit reports no sensor/position: task positions are generated near it "
                   "(DESIGN 'Safety')" if origin is None else
-                  "no task the suite may start is in tasks-available")
+                  ctx.none_startable("tst"))
         for rule in RULES:
             ctx.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=reason)
         return

@@ -120,7 +120,7 @@ _ALL = (
     _f("dropouts", "HB-010",
        "Falls silent for 4 periods every 25 periods (out of radio range) and comes back with "
        "the same agent-uuid (a silence is not judged as a rate: HB-003 stays clean)."),
-    _f("twin-agent", "HB-011 HB-006 HB-003",
+    _f("twin-agent", "HB-011 HB-003",
        "A second, stale process publishes heartbeats under the same name with another "
        "agent-uuid, interleaved with the unit's own."),
     # --- 5.2 sensor_info and 6 sensors -------------------------------------------------------
@@ -265,10 +265,6 @@ _ALL = (
        "Reports a finished task as 'success' in feedback (12.1's query-status word)."),
     _f("level-underscore", "ERR-008",
        "Declares the level 'direct_execution'."),
-    _f("geopoint-type-tag", "ERR-010",
-       "Tags its position \"type\": \"GeoPoint\"."),
-    _f("geopoint-untagged", "ERR-010",
-       "Publishes its position without a rostype tag."),
     _f("info-no-agent-uuid", "ERR-012",
        "Leaves agent-uuid out of sensor_info and direct_execution_info (5.2/5.3's examples)."),
     _f("signal-response-tst-form", "ERR-013",
@@ -374,6 +370,8 @@ NOT_UNIT_BREAKABLE: dict[str, str] = {
     "ERR-017": "unit names in TST commands (the commander's); a unit understands both forms",
     "ERR-002": "about the spec's example text; a unit copying it breaks MSG-002 (course-nan)",
     "ERR-003": "a misspelled parameter in a start-task command (the commander's)",
+    "ERR-010": "a task's GeoPoint tag, in a start-task or start-tst command (the commander's); "
+               "sensor/position is not judged by it (6.1 has no example)",
     "ERR-004": "observe-position parameter forms in a start-task command (the commander's)",
     "ERR-005": "a TST node name in start-tst (the commander's)",
     "ERR-007": "the signal-executor command (sent by a commander)",

@@ -23,6 +23,7 @@ import threading
 from collections.abc import Sequence
 
 from conformance.client import BrokerError, BrokerURL
+from conformance.display import shown as shown_line
 from conformance.sim.faults import FAULTS, NOT_UNIT_BREAKABLE, FaultError, check_names
 from conformance.topics import UnitAddress
 
@@ -102,7 +103,7 @@ def run(address: UnitAddress, broker: BrokerURL | None, *, count: int = 1, rate:
     try:
         runner.start(timeout=max(10.0, 3.0 / rate))
     except (BrokerError, TimeoutError) as e:
-        print(f"waraps-conformance sim: {e}", file=sys.stderr)
+        print(shown_line(f"waraps-conformance sim: {e}"), file=sys.stderr)
         if embedded is not None:
             embedded.stop()
         return 1
@@ -124,8 +125,8 @@ def run(address: UnitAddress, broker: BrokerURL | None, *, count: int = 1, rate:
     if variants:
         shown += f" variants={','.join(sorted(variant_names))}"
     tst_shown = f" tst=on{f' operator={tst_operator}' if tst_operator else ''}" if tst else ""
-    print(f"ready pid={os.getpid()} broker={broker} {units} rate={rate:g} "
-          f"faults={shown}{tst_shown}", flush=True)
+    print(shown_line(f"ready pid={os.getpid()} broker={broker} {units} rate={rate:g} "
+                     f"faults={shown}{tst_shown}"), flush=True)
     try:
         while not stop.wait(0.2):
             pass
@@ -145,11 +146,13 @@ def _read_control(reboot, stop: threading.Event) -> None:  # type: ignore[no-unt
         try:
             if words[0] == "reboot":
                 reboot(words[1] if len(words) > 1 else None)
-                print(f"rebooting {words[1] if len(words) > 1 else 'all'}", flush=True)
+                print(shown_line(f"rebooting {words[1] if len(words) > 1 else 'all'}"),
+                      flush=True)
             elif words[0] in ("stop", "quit", "exit"):
                 stop.set()
                 return
             else:
-                print(f"unknown control {words[0]!r}: reboot [NAME], stop", flush=True)
+                print(shown_line(f"unknown control {words[0]!r}: reboot [NAME], stop"),
+                      flush=True)
         except (KeyError, IndexError) as e:
-            print(f"control {line.strip()!r}: {e}", flush=True)
+            print(shown_line(f"control {line.strip()!r}: {e}"), flush=True)

@@ -257,10 +257,8 @@ class Publisher:
             lat, lon = round(lat * 1e7), round(lon * 1e7)  # type: ignore[assignment]
         msg: dict[str, Any] = {"altitude": round(p.altitude, 2), "latitude": lat,
                                "longitude": lon, "rostype": "GeoPoint"}
-        if "geopoint-type-tag" in self.faults or "geopoint-type" in self.variants:
+        if "geopoint-type" in self.variants:
             msg["type"] = msg.pop("rostype")
-        elif "geopoint-untagged" in self.faults:
-            del msg["rostype"]
         return [msg] if "position-as-list" in self.faults else msg
 
     def _publish_sensors(self, stream: Stream, now: float) -> None:

@@ -195,6 +195,8 @@ _ALL = (
              agent_types=("air",)),
 )
 TASKS: dict[str, TaskSpec] = {t.name: t for t in _ALL}
+GO_HOME = TaskSpec("go-home", {"speed": number}, required=("speed",))
+"""Variant own-task: a task of the unit's own, outside section 9 (5.3)."""
 
 
 def tasks_for(agent_type: str) -> list[TaskSpec]:

@@ -31,7 +31,7 @@ from conformance.sim.faults import TST_FAULTS, TST_LEVEL_FAULTS, check_names
 from conformance.sim.memory import Resends
 from conformance.sim.publisher import CAMERA_URL_EVERY, Publisher, topic_base
 from conformance.sim.runner import STEP, TaskRunner
-from conformance.sim.tasks import Task, TaskSpec, tasks_for
+from conformance.sim.tasks import GO_HOME, Task, TaskSpec, tasks_for
 from conformance.sim.tst import TstEngine
 from conformance.sim.variants import RESPAWN_METRES, SLOW_PERIODS, check_variants
 from conformance.sim.vehicle import LINKOPING, GeoPoint, Vehicle, destination
@@ -88,6 +88,8 @@ class UnitCore:
             address.with_name(f"{address.name}_{(0x9E37 * n) & 0xFFFF:04x}")
             for n in range(1, RENAMES + 1) if "reboot-renames" in self.faults)
         """The addresses of its lives: its own, then the names it takes after each reboot."""
+        if "own-task" in self.variants:  # 5.3: a task beyond section 9
+            self.specs[GO_HOME.name] = GO_HOME
         self.base = topic_base(address, self.faults)
         self.command_topic = f"{self.base}/exec/command"
         # Identity of one life (12.1: history is lost with a reboot).

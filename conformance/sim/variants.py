@@ -85,20 +85,27 @@ _ALL = (
     Variant("level-spelling", "5.1",
             "Declares its level 'direct_execution' (5.1's prose spelling; ERR-008).",
             warns=("ERR-008",)),
-    Variant("geopoint-type", "6.1, 10, 11",
-            "Tags its position \"type\": \"GeoPoint\" instead of rostype (ERR-010).",
-            warns=("ERR-010",)),
+    Variant("own-task", "5.3 (tasks-available may hold tasks beyond section 9)",
+            "Also offers 'go-home', a task of its own that section 9 does not define: it "
+            "needs a numeric 'speed' (as the public agents' go-home does), refuses a start "
+            "without one ('failed', with a fail-reason) and, started, runs for a second."),
+    Variant("geopoint-type", "6.1",
+            "Tags its position \"type\": \"GeoPoint\" instead of rostype: 6.1 says only "
+            "'GeoPoint' and has no example of sensor/position (ERR-010 is for task "
+            "parameters, whose examples tag rostype)."),
     # Behaviours of public agents certified live (FIELD-NOTES 'Real agents certified live').
     Variant("silent-unknown-command", "12.1 (four commands; nothing said of any other)",
             "Answers no command whose 'command' is a string other than 12.1's four (the "
             "official agents dispatch on the four names and drop the rest); malformed "
-            "commands and the four are answered as before."),
+            "commands and the four are answered as before.",
+            warns=("EXEC-ROBUST-002",)),
     Variant("respawn", "5, 5.1 (a reboot loses state; nothing ties a position across it)",
             "Comes back from a reboot at a new spawn point, RESPAWN_METRES from where it was "
             "(a restarted simulated agent draws a new random start), with its new agent-uuid."),
     Variant("signed-heading", "6.1 ('heading : float', no range)",
             "Publishes heading in (-180, 180] (atan2's range); it faces west at start, so "
-            "its heading is negative."),
+            "its heading is negative.",
+            warns=("SENS-002",)),
 )
 
 VARIANTS: dict[str, Variant] = {v.name: v for v in _ALL}

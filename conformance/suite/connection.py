@@ -62,6 +62,7 @@ class Connection:
         """The broker connected to (under --broker embedded: the embedded one's address)."""
         self.motion = MotionGate(self.unit, self.settings.profile,
                                  allow_motion=self.settings.allow_motion,
+                                 allow_hostile=self.settings.allow_hostile,
                                  listed=self._tasks_listed, task_moves=task_moves)
         """What may not be said to a real unit (DESIGN 'Safety'), asked about every payload."""
 
@@ -201,7 +202,7 @@ class Connection:
 
     def refuse_payload(self, topic: str, payload: bytes) -> str | None:
         # DESIGN 'Safety': the policy, not each scenario, decides; malformed probes included.
-        return self.motion.refusal(payload)
+        return self.motion.refusal(payload, topic)
 
     def _tasks_listed(self) -> list[str]:
         """The task names the unit lists in tasks-available (5.3), as last seen."""

@@ -14,7 +14,7 @@ import pytest
 from conformance.reporting.text import printable
 from conformance.scenarios.explore import Outcome, Search, Stopped, replay
 from conformance.scenarios.explore_steps import Collector, Explorer, UnitDied, judged
-from conformance.scenarios.sender import DryRun
+from conformance.scenarios.sender import NotSent
 from conformance.scenarios.story import Story, StoryError, load
 from conformance.scenarios.traffic import OutOfTime
 from conformance.suite.session import Certification
@@ -60,6 +60,13 @@ def rerun(c: Certification, path: Path) -> str:
     return base if selected else base + " -k test_explore"
 
 
+def remember(c: Certification, story: Story, path: Path, began: float) -> None:
+    """Each rule ``story`` broke is repeated by replaying it (``Certification.rerun_command``),
+    unless the rule was also found before exploration ``began`` (Unix seconds)."""
+    for rule in story.rules:
+        c.replays.setdefault(rule, (began, rerun(c, path)))
+
+
 def run(c: Certification, node: pytest.Item) -> None:
     """Explore (or replay a stored story) and turn what was found into this test's outcome."""
     s = c.settings
@@ -85,20 +92,19 @@ def run(c: Certification, node: pytest.Item) -> None:
     collector = Collector(str(c.unit), lambda rule: judged(rule, c.profile.severity_of))
     explorer = Explorer(c.context, collector, lambda task_uuid: _model_state(c, task_uuid),
                         dead=c.unit_died)
-    explorer.warm()
     c.connection.listeners.append(collector)
-    died = ""
+    died, began = "", c.traffic.clock.now()
     try:
         if actions is not None:
-            _replay(c, explorer, actions, node)
+            _replay(c, explorer, actions, node, began)
         else:
-            _explore(c, explorer, node)
+            _explore(c, explorer, node, began)
     except UnitDied as e:  # in a replay (of a stored story, or while shrinking)
         died = str(e)
     except Stopped as e:
         if isinstance(e.cause, UnitDied):
             died = str(e.cause)
-        elif isinstance(e.cause, DryRun):
+        elif isinstance(e.cause, NotSent):  # --dry-run, or the publish policy refused it
             pytest.skip(f"could not test: {e.cause}")
         elif isinstance(e.cause, OutOfTime):
             c._out_of_time(e.cause)
@@ -111,15 +117,19 @@ def run(c: Certification, node: pytest.Item) -> None:
             c.commander.abort_all(c.timing.response)
         c.write_reports()
     if died:
-        _died(c, explorer, died, node)
+        _died(c, explorer, died, node, began)
 
 
-def _died(c: Certification, explorer: Explorer, why: str, node: pytest.Item) -> None:
+def _died(c: Certification, explorer: Explorer, why: str, node: pytest.Item,
+          began: float) -> None:
     """The unit died on what the exploration sent (HB-012 fails too, naming the command):
     the steps that led there, stored and replayable; nothing more could be explored."""
     story = Story.of(explorer.steps, c.settings.seed)
     path = story.save(story_path(c), str(c.unit))
+    remember(c, story, path, began)
     c.explored = f"the unit died at step {len(explorer.steps)} of an example"
+    c.explore_story = _told(story, f"the unit died during step {len(explorer.steps)} of "
+                                   f"these: {why}")
     node.user_properties.append(("explore", c.explored))
     pytest.fail(story.render(str(c.unit), "", brief=True, heading=(
         f"exploration: the unit died during step {len(explorer.steps)} of these (not shrunk: "
@@ -147,7 +157,7 @@ def _say(c: Certification, text: str) -> None:
             c.progress.line(line)
 
 
-def _explore(c: Certification, explorer: Explorer, node: pytest.Item) -> None:
+def _explore(c: Certification, explorer: Explorer, node: pytest.Item, began: float) -> None:
     seconds = budget(c)
     if seconds <= 0:
         pytest.skip("could not test: no time left for exploration within --max-duration "
@@ -156,6 +166,7 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item) -> None:
 
     def tell(story: Story) -> None:  # at once: shrinking may take the rest of the budget
         story.save(path, str(c.unit))
+        remember(c, story, path, began)
         _say(c, story.render(str(c.unit), rerun(c, path), brief=True, heading=(
             f"exploration found a disagreement after {story.found_after:.0f} s "
             f"({steps(story.found_steps)}); shrinking it within the {seconds:.0f} s budget "
@@ -164,8 +175,19 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item) -> None:
     order = "" if c.settings.explore_order == "model" else ", in random order"
     _say(c, f"exploring command orders for {seconds:.0f} s (hypothesis, seed "
             f"{c.settings.seed}{order})")
-    outcome = Search(explorer, seconds, c.settings.seed, tell,
-                     guided=c.settings.explore_order == "model").run()
+    search = Search(explorer, seconds, c.settings.seed, tell,
+                    guided=c.settings.explore_order == "model")
+
+    def doing(what: str) -> None:  # the terminal shows where it stands (issue 27 §3)
+        o = search.outcome
+        c.progress.show_status(
+            f"exploring: {search.clock.monotonic() - search.started:.0f} s of {seconds:.0f} s, "
+            f"{o.examples} example{'s' * (o.examples != 1)}, {steps(o.steps)}; {what}")
+    search.on_step = doing
+    try:
+        outcome = search.run()
+    finally:
+        c.progress.show_status("")
     summary = _summary(outcome)
     if outcome.last_error and c.progress.verbosity > 0:
         _say(c, f"exploration ended with {printable(outcome.last_error)}")
@@ -176,16 +198,19 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item) -> None:
         _say(c, f"exploration: {summary}: the unit answered as the model says")
         return
     story.save(path, str(c.unit))
+    remember(c, story, path, began)
     state = "shrunk" if story.shrunk else "not fully shrunk (the budget ran out)"
-    pytest.fail(story.render(str(c.unit), rerun(c, path), heading=(
-        f"exploration: the unit and the model disagree at step {story.failing + 1} of this "
-        f"story ({state}, {steps(story.length)}; first found after {story.found_after:.0f} s "
-        f"and {steps(story.found_steps)}, in {steps(story.first_length)}; {summary})"))
-        + f"\n\nstory stored: {printable(str(path))}", pytrace=False)
+    heading = (f"exploration: the unit and the model disagree at step {story.failing + 1} of "
+               f"this story ({state}, {steps(story.length)}; first found after "
+               f"{story.found_after:.0f} s and {steps(story.found_steps)}, in "
+               f"{steps(story.first_length)}; {summary})")
+    c.explore_story = _told(story, f"{heading}; stored: {path}")
+    pytest.fail(story.render(str(c.unit), rerun(c, path), heading=heading)
+                + f"\n\nstory stored: {printable(str(path))}", pytrace=False)
 
 
 def _replay(c: Certification, explorer: Explorer, actions: list[dict[str, object]],
-            node: pytest.Item) -> None:
+            node: pytest.Item, began: float) -> None:
     path = c.settings.explore_replay
     assert path is not None
     _say(c, f"replaying the {steps(len(actions))} of {printable(str(path))}")
@@ -196,9 +221,17 @@ def _replay(c: Certification, explorer: Explorer, actions: list[dict[str, object
         _say(c, f"replay of {printable(str(path))}: no longer fails: the unit answered every "
                 "step as the model says")
         return
-    pytest.fail(story.render(str(c.unit), rerun(c, path), heading=(
-        f"replay of {printable(str(path))}: the unit and the model disagree again, at step "
-        f"{story.failing + 1}")), pytrace=False)
+    remember(c, story, path, began)
+    heading = (f"replay of {printable(str(path))}: the unit and the model disagree again, at "
+               f"step {story.failing + 1}")
+    c.explore_story = _told(story, heading)
+    pytest.fail(story.render(str(c.unit), rerun(c, path), heading=heading), pytrace=False)
+
+
+def _told(story: Story, heading: str) -> str:
+    """The story for the reports: its steps and the rules broken at each (its messages are
+    in the evidence and in the stored story file)."""
+    return story.render("", "", heading=heading, brief=True)
 
 
 def steps(count: int) -> str:

@@ -9,14 +9,16 @@ from typing import Any
 
 from conformance import __version__
 from conformance.client import BrokerURL
+from conformance.profile import downgrades
 from conformance.rules import reading
+from conformance.scenarios.safety import SafetyDecision
 from conformance.suite.settings import Settings
 from conformance.topics import TST_EXECUTION
 
 
 def header_lines(settings: Settings, *, broker: BrokerURL, heartbeat: dict[str, Any],
-                 levels: list[str], reboot: str | None, reports: Path, rerun: str
-                 ) -> list[str]:
+                 levels: list[str], reboot: str | None, reports: Path, rerun: str,
+                 decision: SafetyDecision) -> list[str]:
     """The lines pytest shows before the tests: ``broker`` connected to, the unit's
     ``heartbeat`` and ``levels``, how it is rebooted (None: it is not), where ``reports``
     go (without suffix), and the ``rerun`` line."""
@@ -27,10 +29,10 @@ def header_lines(settings: Settings, *, broker: BrokerURL, heartbeat: dict[str, 
         " with the bundled reference unit" + (
             f" (faults: {', '.join(s.sim_faults)})" if s.sim_faults else "") + (
             f" (variants: {', '.join(s.sim_variants)})" if s.sim_variants else "")
-    safety = [f"role {unit.role}"]
-    if unit.is_real:
-        safety.append("motion tasks: " + (", ".join(profile.motion_tasks) or "none")
-                      if s.allow_motion else "no task that moves the unit (no --allow-motion)")
+    safety = [decision.sentence()]
+    downgraded = downgrades(profile)
+    if downgraded:
+        safety.append(f"the profile downgrades {downgraded} to warnings")
     if s.dry_run:
         safety.append("DRY RUN: nothing is published")
     if TST_EXECUTION in levels:

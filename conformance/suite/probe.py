@@ -7,6 +7,7 @@ from __future__ import annotations
 import difflib
 
 from conformance.client import BrokerError, BrokerURL, MqttClient
+from conformance.display import printable
 from conformance.message import Message
 from conformance.profile import Profile
 from conformance.rules import CATALOGUE
@@ -61,7 +62,7 @@ def not_alive(unit: UnitAddress, profile: Profile, broker: BrokerURL, *, waited:
     lines = [f"the unit {unit} is not alive: no heartbeat on {topic} within "
              f"{waited:.1f} s (broker {broker})."]
     if own_subtopics:
-        lines.append(f"Its own topics were seen ({', '.join(sorted(own_subtopics))}"
+        lines.append(f"Its own topics were seen ({printable(', '.join(sorted(own_subtopics)))}"
                      f"), but no live heartbeat (retained ones do not count).")
 
     def base(topic: str) -> str:
@@ -76,10 +77,10 @@ def not_alive(unit: UnitAddress, profile: Profile, broker: BrokerURL, *, waited:
     close = difflib.get_close_matches(unit.base, others, n=1, cutoff=0.8)
     if close:
         if _is_address(close[0]):
-            lines.append(f"A unit publishes at {close[0]}: did you mean --unit "
-                         f"{close[0]}?")
+            lines.append(f"A unit publishes at {printable(close[0])}: did you mean --unit "
+                         f"{printable(close[0])}?")
         else:
-            lines.append(f"A unit publishes at {close[0]}.")
+            lines.append(f"A unit publishes at {printable(close[0])}.")
     elif others:
         lines.append(f"{len(others)} other unit(s) publish under {prefix}/, none at a "
                      "similar address.")
@@ -92,7 +93,7 @@ def not_alive(unit: UnitAddress, profile: Profile, broker: BrokerURL, *, waited:
             continue
         for v in validator.validate(topic, payload).violations:
             if profile.severity_of(v.rule).value == "error":
-                broken.setdefault(v.rule, f"{v.rule} {CATALOGUE[v.rule].title} ({topic})")
+                broken.setdefault(v.rule, f"{v.rule} {CATALOGUE[v.rule].title} ({printable(topic)})")
     if broken and close:
         lines.append("Its topics break: " + "; ".join(broken[r] for r in sorted(broken)))
     if not seen:

@@ -1,15 +1,21 @@
 """How a certification reboots the unit under test (REBOOT-001, REBOOT-002): a
 ``pytest_waraps_reboot`` hook, else ``--reboot-cmd``, else the bundled reference unit's own
-reboot under ``--broker embedded``; with none of them the REBOOT-* rules could not be tested."""
+reboot under ``--broker embedded``; with none of them the REBOOT-* rules could not be tested.
+Around the reboot, ``Names`` watches for the unit coming back under another name."""
 
 from __future__ import annotations
 
+import shlex
 import subprocess
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import pytest
 
+from conformance.client import BrokerError, MqttClient
+from conformance.masking import mask_password
+from conformance.message import Message
 from conformance.suite.connection import Connection
 from conformance.suite.events import Events
 from conformance.suite.settings import Settings
@@ -33,10 +39,16 @@ class Reboot:
     def how(self) -> str:
         """The way the unit is rebooted, in the words of the option that says so."""
         if self.settings.reboot_cmd:
-            return f"--reboot-cmd {self.settings.reboot_cmd!r}"
+            # As a shell word, never with a password (issue 26 §3, §5); escaped where shown.
+            return f"--reboot-cmd {shlex.quote(mask_password(self.settings.reboot_cmd))}"
         if self.settings.embedded:
             return "the bundled reference unit's reboot"
         return "a pytest_waraps_reboot hook"
+
+    def watch_names(self) -> Names:
+        """A watch, started now, on the heartbeats of units of the unit's type and role: the
+        reboot scenario asks it for a name that appeared after the reboot."""
+        return Names(self.connection, self.settings.unit.base).start()
 
     def available(self) -> bool:
         hooks = self.config.pluginmanager.hook.pytest_waraps_reboot.get_hookimpls()
@@ -60,9 +72,78 @@ class Reboot:
                 return f"did not finish within {self.timeout:.1f} s"
             if done.returncode != 0:
                 err = (done.stderr or done.stdout).strip().splitlines()
-                return f"exit status {done.returncode}" + (f": {err[-1]}" if err else "")
+                return f"exit status {done.returncode}" + (
+                    f": {mask_password(err[-1])}" if err else "")
             return None
         if self.connection.reference is not None:
             self.connection.reference.reboot()
             return None
         return "no way to reboot the unit"
+
+
+NAMES_KEPT = 64
+"""Unit names a ``Names`` watch remembers at most (the rest are not followed)."""
+
+
+class Names:
+    """A read-only watch on ``<prefix>/unit/<type>/<role>/+/heartbeat``: when each unit name
+    of the unit's type and role first heartbeated (live, not retained). Some agents add a
+    random suffix to their name at every start (FIELD-NOTES: ``cppl2_9d00``): after the reboot
+    the suite requested, a name first heard then is the unit, back under another name."""
+
+    def __init__(self, connection: Connection, base: str) -> None:
+        self._connection, self._base = connection, base
+        self._own = base.rpartition("/")[2]
+        self._first: dict[str, float] = {}
+        self._changed = threading.Condition()
+        self._client: MqttClient | None = None
+
+    def start(self) -> Names:
+        prefix = self._base.rpartition("/")[0]
+        if self._connection.settings.virtual:  # the test suite's broker double, its own time
+            from conformance.sim.virtual import VirtualReference
+
+            reference = self._connection.reference
+            if isinstance(reference, VirtualReference):
+                reference.broker.subscribe(f"{prefix}/+/heartbeat", self._seen)
+            return self
+        try:
+            self._client = MqttClient(self._connection.broker_url, on_message=self._seen)
+            self._client.connect()
+            self._client.subscribe(f"{prefix}/+/heartbeat")
+        except BrokerError:
+            self._client = None  # the reboot is judged without it, as before
+        return self
+
+    def _seen(self, m: Message) -> None:
+        name = m.topic.rsplit("/", 2)[-2]
+        if m.retain or name == self._own or name in self._first:
+            return
+        with self._changed:
+            if len(self._first) < NAMES_KEPT:
+                self._first[name] = m.time
+                self._changed.notify_all()
+
+    def heard(self) -> set[str]:
+        """The names heard so far (of other units of the same type and role)."""
+        with self._changed:
+            return set(self._first)
+
+    def new_name(self, known: set[str], since: float, wait: float) -> str | None:
+        """A name not in ``known`` first heard at or after ``since`` (Unix seconds), waiting
+        up to ``wait`` seconds for one; None when none came."""
+        clock = self._connection.traffic.clock
+        deadline = clock.monotonic() + wait
+        with self._changed:
+            while True:
+                found = sorted((t, n) for n, t in self._first.items()
+                               if n not in known and t >= since)
+                left = deadline - clock.monotonic()
+                if found or left <= 0:
+                    return found[0][1] if found else None
+                clock.wait(self._changed, left)
+
+    def close(self) -> None:
+        if self._client is not None:
+            self._client.close()
+            self._client = None

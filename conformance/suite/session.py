@@ -27,9 +27,10 @@ from conformance.client import BrokerError, MqttClient
 from conformance.clock import REAL, VirtualClock
 from conformance.conclusion import INTERRUPTED, NOT_CERTIFIED, Conclusion
 from conformance.conclusion import of as conclusion_of
-from conformance.display import LINE_CHARS, printable, shorten
+from conformance.display import LINE_CHARS, shorten, shown
 from conformance.facts import CTRL_C, RunFacts
 from conformance.judge import judge, unexamined
+from conformance.reporting.bounds import file_stem
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
 from conformance.scenarios import (
@@ -85,7 +86,8 @@ class Certification:
                                      self.events)
         self.reboot = Reboot(config, self.connection, self.timing.reboot,
                              self._reboot_requested, self.events)
-        self.stem = f"{self.unit.name}-{time.strftime('%Y%m%dT%H%M%S', time.localtime())}"
+        when = time.strftime('%Y%m%dT%H%M%S', time.localtime())
+        self.stem = f"{file_stem(self.unit.name)}-{when}"  # a bounded file name (issue 26)
         self.report_paths: dict[str, Path] = {}
         self.collect_only = False
         """--collect-only: nothing is connected, run or written."""
@@ -109,7 +111,11 @@ class Certification:
         self.broker_lost: float | None = None
         """When the broker was lost for good (it did not come back within the budget)."""
         self.explored = ""
+        self.explore_story = ""
+        """The story exploration found, as told (the HTML report shows it step by step)."""
         """What the exploration did (``suite/exploration.py``), for the report's meta."""
+        self.replays: dict[str, tuple[float, str]] = {}
+        """Rule -> (when exploration began, the replay line of the story that found it)."""
         from conformance.suite.progress import Progress
 
         self.progress = Progress(config)
@@ -125,6 +131,7 @@ class Certification:
             self.unit, settings.tst_topic, self.traffic, self.connection.publish,
             dry_run=settings.dry_run, say=self._say,
             wait_connected=self.connection.wait_connected, deviations=self.deviations)
+        self.commander.refuse = self.tst.refuse = self.connection.refuse_payload
         self.safety = Safety(self.unit, self.profile, allow_motion=settings.allow_motion,
                              task_moves=task_moves)
         self.context = Context(self.unit, self.profile, self.traffic, self.commander,
@@ -176,9 +183,9 @@ class Certification:
         capman = self.config.pluginmanager.getplugin("capturemanager")
         if capman is not None:
             with capman.global_and_fixture_disabled():
-                tw.line(printable(text))
+                tw.line(shown(text))
         else:
-            tw.line(printable(text))
+            tw.line(shown(text))
 
     def _adapted(self, deviation: Deviation) -> None:
         """A systematic deviation, seen for the first time: say so once (summary and -v)."""
@@ -241,7 +248,10 @@ class Certification:
             kind="certification", unit=str(self.unit), strict=self.profile.is_strict,
             error=error or self.error, broker_lost=self.broker_lost,
             interrupted=bool(cut), cut_short=cut, selection=self.selection,
-            selected=tuple(self.selected), ran=tuple(sorted(self.ran)),
+            # A rule the exploration (or its replay) judged was judged, selected or not.
+            selected=tuple(dict.fromkeys([*self.selected, *self.replays]))
+            if self.selected or self.selection else (),
+            ran=tuple(sorted(self.ran | set(self.replays))),
             enacted_pass=tuple(sorted(r for r, shown in self.enacted.items()
                                       if shown is not Verdict.FAIL)))
 
@@ -289,16 +299,23 @@ class Certification:
             "unit": str(self.unit), "seed": str(s.seed), "timing_scale": f"{s.timing_scale:g}",
             "profile_source": self.profile.source, "dry_run": str(s.dry_run).lower(),
             "allow_motion": str(s.allow_motion).lower(),
+            "allow_hostile": str(s.allow_hostile).lower(),
+            "safety": self.connection.motion.decision.sentence(),
             "reboot": self.reboot.how() if self.context.reboot else "none",
             "agent_uuid": str(hb.get("agent-uuid")) if hb else "",
             "commands_sent": str(self.commander.sent_count + self.tst.sent_count),
             "tst_command_topic": s.tst_topic,
             "explore": self.explored or ("off" if s.explore == 0 else "not run"),
+            "explore_story": self.explore_story,
             "rerun": self.rerun_command(),
         }
 
     def rerun_command(self, rule: str | None = None) -> str:
-        """The pytest command that repeats this run (of ``rule`` alone, when given)."""
+        """The pytest command that repeats this run (of ``rule`` alone, when given); a rule
+        only exploration found, by replaying its story (``-k RULE`` sends no such order)."""
+        since, replay = self.replays.get(rule or "", (0.0, ""))
+        if replay and all((v.time or since) >= since for v in self.result(rule).violations):
+            return replay
         return self.settings.rerun_command(rule, self._observe_for(rule) if rule else 0)
 
     def _observe_for(self, rule: str) -> int:
@@ -496,12 +513,14 @@ class Certification:
 
     def header(self) -> list[str]:
         """The lines pytest shows before the tests (``header_lines``); the unit's own words
-        in them (agent-uuid, agent-type, levels) escaped and excerpted (issue 19 §5)."""
-        return [printable(shorten(line, LINE_CHARS)) for line in header_lines(
+        in them (agent-uuid, agent-type, levels) escaped and excerpted (issue 19 §5), never a
+        password (issue 26 §5)."""
+        return [shown(shorten(line, LINE_CHARS)) for line in header_lines(
             self.settings, broker=self.connection.broker_url, heartbeat=self.context.heartbeat(),
             levels=self.context.levels(),
             reboot=self.reboot.how() if self.context.reboot else None,
-            reports=self.settings.reports_dir / self.stem, rerun=self.rerun_command())]
+            reports=self.settings.reports_dir / self.stem, rerun=self.rerun_command(),
+            decision=self.connection.motion.decision)]
 
 
 

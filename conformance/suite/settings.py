@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from conformance.cli.options import parse_duration
+from conformance.cli.options import parse_duration, reports_dir_problem
 from conformance.client import BrokerURL, mask_password
 from conformance.profile import Profile, ProfileError, builtin_names, load
 from conformance.topics import TopicError, UnitAddress
@@ -29,6 +29,7 @@ INI = {
     "waraps_timing_scale": "waraps_timing_scale",
     "waraps_reboot_cmd": "waraps_reboot_cmd",
     "waraps_allow_motion": "waraps_allow_motion",
+    "waraps_allow_hostile": "waraps_allow_hostile",
     "waraps_dry_run": "waraps_dry_run",
     "waraps_strict_rules": "waraps_strict_rules",
     "waraps_reports_dir": "waraps_reports_dir",
@@ -56,6 +57,8 @@ class Settings:
     timing_scale: float = 1.0
     reboot_cmd: str | None = None
     allow_motion: bool = False
+    allow_hostile: bool = False
+    """--allow-hostile: hostile and malformed payloads may go to a real unit (DESIGN 'Safety')."""
     dry_run: bool = False
     strict_rules: bool = False
     """--strict-rules: decided rules fail (the profile is made strict)."""
@@ -116,7 +119,7 @@ class Settings:
         """The pytest command that repeats this run (``rule``: only that rule, observing at
         least ``observe`` seconds): every option that changes what is tested or how, TLS
         files included. Never a secret: the broker URL carries no password (the password
-        comes only from WARAPS_PASSWORD)."""
+        comes only from WARAPS_PASSWORD), a reboot command's is masked (issue 26 §5)."""
         b = self.broker
         # '=' for paths: a path in its own argument could be taken for a test path by pytest.
         q = shlex.quote  # every value shell-quoted: a unit name may be `x;rm -rf ~` (issue 19 §5)
@@ -137,10 +140,12 @@ class Settings:
             parts += [f"--profile={q(self.profile.source)}"]
         if self.timing_scale != 1.0:
             parts += ["--timing-scale", f"{self.timing_scale:g}"]
-        if self.reboot_cmd:
-            parts += ["--reboot-cmd", q(self.reboot_cmd)]
+        if self.reboot_cmd:  # a password in it (curl https://u:pw@...) is never printed
+            parts += ["--reboot-cmd", q(mask_password(self.reboot_cmd))]
         if self.allow_motion:
             parts.append("--allow-motion")
+        if self.allow_hostile:
+            parts.append("--allow-hostile")
         if self.dry_run:
             parts.append("--dry-run")
         if self.strict_rules:
@@ -229,6 +234,10 @@ def read(config: pytest.Config) -> Settings:
     reports = Path(str(_value(config, "waraps_reports_dir") or "reports"))
     if not reports.is_absolute():
         reports = Path(config.invocation_params.dir) / reports
+    problem = reports_dir_problem(
+        reports, create=not config.getoption("collectonly", False))  # listing writes nothing
+    if problem:
+        raise pytest.UsageError(problem)
     seed_text = config.getoption("waraps_seed", None)
     if seed_text is None:
         seed = secrets.randbelow(10**9)
@@ -281,6 +290,7 @@ def read(config: pytest.Config) -> Settings:
                     explore_replay=_replay(config, reports),
                     reboot_cmd=str(reboot) if reboot else None,
                     allow_motion=_flag(config, "waraps_allow_motion"),
+                    allow_hostile=_flag(config, "waraps_allow_hostile"),
                     dry_run=_flag(config, "waraps_dry_run"), strict_rules=strict_rules,
                     reports_dir=reports, seed=seed,
                     sim_faults=faults, sim_variants=variants, sim_rate=float(sim_rate), sim_tst=sim_tst,

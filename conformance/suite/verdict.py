@@ -32,7 +32,7 @@ def explain(certification: Certification, result: RuleResult) -> str:
                               verdict=result.verdict) for v in result.violations[:SHOWN]]
     if not texts:
         texts = [f"{rule.id} {rule.title}  [{result.verdict.value}]\n  {printable(result.reason)}\n"
-                 f"  spec      {rule.section}\n  rerun     {rerun}"]
+                 f"  spec      {rule.section}\n  rerun     {printable(rerun)}"]
     total = certification.violation_total(result.rule) or len(result.violations)
     shown = min(SHOWN, len(result.violations))
     if total > shown:
@@ -40,7 +40,8 @@ def explain(certification: Certification, result: RuleResult) -> str:
         kept = len(result.violations)
         paths = certification.report_paths.get("html")
         where = "" if not paths or kept <= shown else (
-            f"; all in {paths}" if kept >= total else f"; the first {kept} in {paths}")
+            f"; all in {printable(paths)}" if kept >= total
+            else f"; the first {kept} in {printable(paths)}")
         texts.append(f"({shown} of {total} violations shown{where})")
     return "\n\n".join(texts)
 

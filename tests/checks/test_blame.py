@@ -77,3 +77,33 @@ def test_an_operators_command_on_a_topic_of_its_own_is_on_its_row(stream, prefix
     assert units["commander op0"].violation_counts.get("TOPIC-002") == 2
     assert not any(u.violation_counts.get("TOPIC-002") for k, u in units.items()
                    if k != "commander op0")
+
+
+def test_the_suites_own_commands_and_probes_are_no_commanders_fault(stream):
+    """A recording made during a certification holds the suite's deliberate probes (its
+    sender 'waraps-conformance'; unreadable payloads once it was seen commanding the unit):
+    no commander row fails for them; the unit's answers are still judged (issue 24, 5)."""
+    from conformance.checks.suite_commands import SENDER, UNREADABLE
+
+    ping = {"com-uuid": str(uuid.uuid4()), "command": "ping", "sender": SENDER}
+    probes = [stream.msg("exec/command", ping, 1.5), stream.response(1.6, ping["com-uuid"])]
+    probes += [stream.msg("exec/command", payload, 2.0 + i * 0.1)
+               for i, (_, payload) in enumerate(UNREADABLE)]
+    bad = str(uuid.uuid4())
+    probes.append(stream.msg("exec/command", orjson.dumps(
+        {"com-uuid": bad, "sender": SENDER, "command": "waraps-conformance-no-such-command"}),
+        3.0))
+    probes.append(stream.msg("exec/command", f'{{"com-uuid": "{bad}x", "sender": "{SENDER}", '
+                                             f'"command": "start-ta'.encode(), 3.1))
+    units = _report(stream, probes)
+    commanders = [k for k, u in units.items() if u.party == "commander"]
+    assert not any(units[k].violation_counts for k in commanders), commanders
+    unit = units[str(stream.address)]
+    assert unit.rules["EXEC-PING-001"].verdict is Verdict.PASS
+    assert unit.rules["EXEC-ROBUST-002"].verdict is Verdict.WARN  # unanswered: the unit's
+    # The same probes from another commander are that commander's faults.
+    others = [stream.msg("exec/command", payload, 2.0 + i * 0.1)
+              for i, (_, payload) in enumerate(UNREADABLE)]
+    units = _report(stream, others)
+    assert sum(sum(u.violation_counts.values()) for u in units.values()
+               if u.party == "commander") >= len(UNREADABLE)

@@ -210,15 +210,33 @@ def test_agent_uuid_change_after_silence_is_a_reboot(stream):
     assert verdict(m, stream, "HB-006").verdict is Verdict.PASS
 
 
-def test_agent_uuid_change_without_silence_fails(stream):
+def test_agent_uuid_changing_again_without_silence_fails(stream):
     stream.levels = []  # heartbeats only: no level claimed (else HB-008 fails too)
     m = Monitor()
     msgs = [stream.heartbeat(i) for i in range(5)]
-    new = str(uuid.uuid4())
+    new, newer = str(uuid.uuid4()), str(uuid.uuid4())
     msgs += [stream.heartbeat(5 + i, agent_uuid=new) for i in range(5)]
+    msgs += [stream.heartbeat(10 + i, agent_uuid=newer) for i in range(5)]
     found = stream.feed(m, msgs)
     assert rules_found(found) == {"HB-006"}
     assert verdict(m, stream, "HB-006").verdict is Verdict.FAIL
+
+
+def test_one_fast_restart_is_a_reboot(stream):
+    """5.1: the agent-uuid 'should change when rebooting'; a process restarted within a
+    heartbeat period (an independently written unit did in 0.56 s) is no fault, and the short
+    silence it leaves is no HB-010 either."""
+    stream.levels = []
+    m = Monitor()
+    new = str(uuid.uuid4())
+    msgs = [stream.heartbeat(i) for i in range(5)]
+    msgs += [stream.heartbeat(4.5 + i, agent_uuid=new) for i in range(5)]
+    assert stream.feed(m, msgs) == []
+    assert verdict(m, stream, "HB-006").verdict is Verdict.PASS
+    slow = Monitor()  # a reboot of 5 periods: a new agent-uuid, no silence warned of
+    msgs = [stream.heartbeat(i) for i in range(5)]
+    msgs += [stream.heartbeat(9 + i, agent_uuid=new) for i in range(5)]
+    assert stream.feed(slow, msgs) == []
 
 
 def test_two_agents_under_one_name(stream):
@@ -326,6 +344,21 @@ def test_declared_level_not_judged_over_a_connection_gap(stream):
 
 
 # -- sensors: SI-003, SI-004, SI-005, SENS-005 -----------------------------------------------------
+
+def test_a_heading_outside_the_decided_range_warns_once_per_unit_not_per_message(stream):
+    """6.1 says 'heading : float': [0, 360) is SENS-002's decision, an interop risk said once
+    per unit (a unit sending headings in (-180, 180] warned at every message: 228 times)."""
+    m = Monitor()
+    msgs = stream.alive(5) + [stream.sensor("heading", -143.0, 0.5 + i) for i in range(5)]
+    msgs += [stream.sensor("course", -10.0, 0.6 + i) for i in range(5)]
+    stream.feed(m, msgs)
+    r = verdict(m, stream, "SENS-002")
+    assert r.verdict is Verdict.WARN and len(r.violations) == 1
+    assert "-143" in r.violations[0].observed and "no range" in r.violations[0].detail
+    good = Monitor()
+    stream.feed(good, stream.alive(5))
+    assert verdict(good, stream, "SENS-002").verdict is Verdict.PASS
+
 
 def test_listed_sensor_not_published_fails(stream):
     m = Monitor()

@@ -201,20 +201,43 @@ def test_an_answer_too_many_fails_exec_009(stream):
 
 
 def test_a_unit_deaf_after_a_malformed_command_fails_robust_001_and_each_command(stream):
-    """It stopped answering after the malformed command (EXEC-ROBUST-001), and that never
-    hides each unanswered command's own finding."""
+    """It stopped answering after the malformed command (EXEC-ROBUST-001): kinds of command it
+    answered before went unanswered. That never hides each unanswered command's own finding."""
     ping0 = stream.command(2.1, "ping")
+    query0 = stream.command(2.3, "query-status", **{"task-uuid": new()})
     bad = stream.msg("exec/command", b'{"com-uuid": "' + new().encode() + b'", signal: $abort}',
                      3.1)
     later = [stream.command(4.1, "ping"), stream.command(5.1, "query-status",
                                                          **{"task-uuid": new()})]
-    rules = judge(stream, [ping0, stream.response(2.2, com_of(ping0)), bad, *later])
+    rules = judge(stream, [ping0, stream.response(2.2, com_of(ping0)), query0,
+                           stream.response(2.4, com_of(query0), "unknown"), bad, *later])
     r = rules["EXEC-ROBUST-001"]
     assert r.verdict is Verdict.FAIL and "a malformed command" in r.violations[0].detail
     assert rules["EXEC-PING-001"].verdict is Verdict.FAIL
     assert com_of(later[0]) in rules["EXEC-PING-001"].violations[0].expected
     assert rules["EXEC-QUERY-001"].verdict is Verdict.FAIL
     assert rules["EXEC-ROBUST-002"].verdict is Verdict.WARN  # the malformed one, unanswered
+
+
+def test_kinds_never_answered_do_not_say_the_unit_stopped_answering(stream):
+    """FIELD-NOTES (real agents, kinds never answered): a unit that answers start-task and
+    signal-task but never ping or query-status, from the first second, did not stop answering
+    after a malformed command; each unanswered kind fails its own rule."""
+    task = new()
+    cmd = start(stream, 2.0, task)
+    sig = stream.command(2.5, "signal-task", **{"task-uuid": task, "signal": "$abort"})
+    bad = stream.msg("exec/command", b'{"com-uuid": "' + new().encode() + b'", signal: $abort}',
+                     3.0)
+    later = [stream.command(4.0 + i, kind, **({"task-uuid": new()} if kind != "ping" else {}))
+             for i, kind in enumerate(("ping", "query-status") * 6)]
+    rules = judge(stream, [cmd, stream.response(2.1, com_of(cmd), "running",
+                                                **{"task-uuid": task}),
+                           stream.feedback(2.2, task, "running"), sig,
+                           stream.response(2.6, com_of(sig), "ok"),
+                           stream.feedback(2.7, task, "aborted"), bad, *later])
+    assert rules["EXEC-ROBUST-001"].verdict is not Verdict.FAIL
+    assert rules["EXEC-PING-001"].verdict is Verdict.FAIL
+    assert rules["EXEC-QUERY-001"].verdict is Verdict.FAIL
 
 
 def test_answers_in_flight_are_credited_not_taken_for_deafness(stream):
@@ -455,3 +478,55 @@ def test_a_command_judged_unanswered_and_answered_later_fails_its_rule_once(stre
                            stream.response(6.0, com_of(ping))])
     assert len(rules["EXEC-PING-001"].violations) == 1
     assert rules["EXEC-010"].verdict is Verdict.WARN
+
+
+def test_a_query_status_answer_failed_reports_a_status_it_refuses_nothing(stream):
+    """12.1: query-status returns 'the status of the task (running, failed, success,
+    unknown)'. A 'failed' with an empty fail-reason answering it is a task's status, not a
+    refused command: no EXEC-007 (a refused start-task still owes its reason)."""
+    task = new()
+    cmd = start(stream, 2.1, task)
+    run = [cmd, stream.response(2.2, com_of(cmd), "running", **{"task-uuid": task}),
+           stream.feedback(2.3, task, "running"), stream.feedback(3.0, task, "failed")]
+    q = stream.command(5.1, "query-status", **{"task-uuid": task})
+    rules = judge(stream, [*run, q, stream.response(5.2, com_of(q), "failed", **{
+        "task-uuid": task, "fail-reason": ""})])
+    assert rules["EXEC-007"].verdict is Verdict.PASS
+    assert rules["EXEC-QUERY-001"].verdict is Verdict.PASS
+    refused = start(stream, 6.1, new())
+    rules = judge(stream, [refused, stream.response(6.2, com_of(refused), "failed", **{
+        "fail-reason": ""})])
+    # still found (fail, or warn where the catalogue's basis makes EXEC-007 a decided rule)
+    assert rules["EXEC-007"].verdict in (Verdict.WARN, Verdict.FAIL)
+    assert len(rules["EXEC-007"].violations) == 1
+
+
+def test_a_resend_refused_is_not_executed_again(stream):
+    """Seen in the field: a resent start-task answered 'failed' ('A task is already
+    running') and nothing else: refusing is not executing (EXEC-RESEND-001 holds)."""
+    task = new()
+    rules = judge(stream, _resent(stream, task, second=lambda c: [stream.response(
+        3.2, c, "failed", **{"task-uuid": task, "fail-reason": "A task is already running"})],
+        feedback=[]))
+    assert rules["EXEC-RESEND-001"].verdict is Verdict.PASS
+    assert rules["EXEC-RESEND-002"].verdict is Verdict.PASS
+
+
+def test_a_death_names_every_command_of_the_burst_the_last_first(stream):
+    """FIELD-NOTES (dying on bytes): a non-UTF-8 payload killed the unit, and an unknown
+    command came in the same burst. Which one killed it the traffic cannot tell: HB-012 names
+    every command it left unanswered in the period before its last heartbeat, the last
+    first, and not one it answered another command after."""
+    survived = stream.command(9.05, "query-status", **{"task-uuid": new()})
+    ping = stream.command(9.1, "ping")
+    bytes_ = stream.msg("exec/command", b'{"com-uuid": "' + new().encode() + b'", "x": "\xff"}',
+                        9.3)
+    unknown = stream.command(9.5, "waraps-conformance-no-such-command")
+    rules = judge(stream, [survived, ping, stream.response(9.2, com_of(ping)), bytes_, unknown],
+                  alive=stream.alive(10.0) + [stream.sensor("speed", 1.0, 30.0)])
+    r = rules["HB-012"]
+    assert r.verdict is Verdict.FAIL
+    said = r.violations[0].observed
+    assert "no-such-command" in said and "a malformed command" in said
+    assert said.index("no-such-command") < said.index("a malformed command")  # the last first
+    assert com_of(survived) not in said  # it answered the ping after it

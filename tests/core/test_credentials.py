@@ -20,15 +20,43 @@ SECRET = "s3cretPW-x9"
 
 @pytest.mark.parametrize(("text", "shown"), [
     ("mqtt://u:pw@h:1", "mqtt://u:***@h:1"),
-    ("u:pw@h", "u:***@h"),
     ("mqtt://u:p@ss@h/x", "mqtt://u:***@h/x"),           # a password holding '@'
     ("see http://a:b@c and mqtts://x:y@z", "see http://a:***@c and mqtts://x:***@z"),
     ("mqtt://h:1883", "mqtt://h:1883"),
     ("mqtt://u@h", "mqtt://u@h"),
-    ("at 12:30@x", "at 12:30@x"),
+    ("at 12:30@x", "at 12:30@x"),                        # text, not a URL
+    ("--broker=mqtt://u:a b@h --seed 1", "--broker=mqtt://u:***@h --seed 1"),
+    ("pytest --broker mqtt://h:1 --reboot-cmd 'ssh root@h'",  # the next option is not a password
+     "pytest --broker mqtt://h:1 --reboot-cmd 'ssh root@h'"),
+    ("ready broker=mqtt://h:1 faults=x@1", "ready broker=mqtt://h:1 faults=x@1"),  # next field
 ])
 def test_mask_password(text, shown):
     assert mask_password(text) == shown
+
+
+HOSTILE_PASSWORDS = ["pw", "p/w", "p#w", "p?w", "p w", "p@w", "p:w", "p@@w", "x://y@z",
+                     "a/b#c?d e@f:g", "@", "/", "p --seed", "p'w\"q"]
+"""Passwords holding what ends a URL's user-info in a careless reading (RFC 3986 3.2.1):
+masking stopped at '/', '#', '?' or ' ' (issue 26 §5)."""
+
+
+@pytest.mark.parametrize("password", HOSTILE_PASSWORDS)
+def test_one_masking_for_every_url_form(password):
+    from conformance.results import redact_broker
+
+    secret = f"SECRET{password}SECRET"
+    for url in (f"mqtt://user:{secret}@127.0.0.1:1883", f"user:{secret}@127.0.0.1",
+                f"mqtts://user:{secret}@broker.example:8883/x?y#z"):
+        texts = [mask_password(url, url=True), redact_broker(url)]
+        # In a message or a command line a URL begins with its scheme and ends at the next
+        # option at the latest (a password holding ' --' is masked whole only in a URL alone).
+        if not url.startswith("user:") and " --" not in password:
+            texts += [mask_password(f"broker URL {url!r}: no"),
+                      mask_password(f"pytest --unit a/unit/air/real/b --broker {url} --seed 1")]
+        for shown in texts:
+            assert "SECRET" not in shown and "user" in shown, shown
+    assert mask_password(f"pytest --broker 'mqtt://u:{secret}@h:1' --seed 1").endswith(
+        "@h:1' --seed 1")  # the rest of a command line is kept
 
 
 @pytest.mark.parametrize("url", [
@@ -161,3 +189,52 @@ def test_a_lint_that_logs_in_prints_and_writes_no_password(tmp_path):
     assert "report:" in done.stdout, out  # it linted and wrote its reports
     assert "mqtt://user@127.0.0.1" in out  # the user is shown, the password never
     assert SECRET not in out and SECRET not in _reports(tmp_path / "reports")
+
+
+PRINTING = {
+    "lint": ["lint", "--duration", "1s", "--reports-dir", "reports"],
+    "record": ["record", "--duration", "1s", "-o", "out.jsonl"],
+    "profile": ["profile", "--unit", "waraps/unit/air/real/dji0", "--observe", "1s"],
+    "sim": ["sim"],
+}
+"""Every subcommand that takes a broker URL, with what else it needs."""
+
+
+@pytest.mark.parametrize("command", sorted(PRINTING))
+@pytest.mark.parametrize("password", HOSTILE_PASSWORDS)
+def test_no_subcommand_prints_a_hostile_password(command, password, tmp_path, monkeypatch,
+                                                 capsys):
+    """In the URL (refused, shown masked) and in WARAPS_BROKER, in process (fast): the
+    password never reaches stdout, stderr or a file."""
+    from conformance.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    secret = f"SECRET{password}SECRET"
+    for env, args in ((None, ["--broker", f"mqtt://user:{secret}@127.0.0.1:1"]),
+                      (None, ["--broker", f"user:{secret}@127.0.0.1:1"]),
+                      (f"user:{secret}@127.0.0.1", [])):
+        if env is None:
+            monkeypatch.delenv("WARAPS_BROKER", raising=False)
+        else:
+            monkeypatch.setenv("WARAPS_BROKER", env)
+        try:
+            status = main([*PRINTING[command], *args])
+        except SystemExit as e:  # argparse's own errors
+            status = e.code
+        out = capsys.readouterr()
+        assert status not in (0, None), out
+        assert "SECRET" not in out.out + out.err and "***" in out.err, out
+    assert "SECRET" not in _reports(tmp_path)
+
+
+@pytest.mark.parametrize("password", ["p/w #x?y", "a@b:c@d"])
+def test_the_certification_never_prints_a_hostile_password(password, pytester, monkeypatch):
+    pytester.makeini("[pytest]\naddopts = -p no:cacheprovider\n")
+    secret = f"SECRET{password}SECRET"
+    for env, args in (("", ["--broker", f"mqtt://user:{secret}@127.0.0.1:1"]),
+                      (f"user:{secret}@127.0.0.1", [])):
+        monkeypatch.setenv("WARAPS_BROKER", env)
+        result = pytester.runpytest_subprocess("--unit", "waraps/unit/air/simulation/dji0", *args)
+        out = result.stdout.str() + result.stderr.str()
+        assert result.ret == pytest.ExitCode.USAGE_ERROR and "***" in out, out
+        assert "SECRET" not in out

@@ -34,7 +34,7 @@ def test_user_file_extends_a_builtin(tmp_path: Path) -> None:
 @pytest.mark.parametrize(("text", "message"), [
     ("rate-tolerence: 0.1\n", "unknown key 'rate-tolerence' (did you mean 'rate-tolerance'?)"),
     ("safe-radius: -3\n", "safe-radius must be a non-negative number"),
-    ("tasks: move-to\n", "tasks must be a list of strings"),
+    ("tasks: move-to\n", "tasks must be a list of task names, or a mapping"),
     ("severity: {HB003: error}\n", "'HB003' matches no rule id (did you mean HB-003?)"),
     ("severity: {HB-003: fatal}\n", "severity.HB-003: 'fatal' is not one of 'error', 'warning'"),
     ("levels: [sensor, direct_execution]\n",
@@ -62,7 +62,9 @@ def test_unknown_profile_name_lists_the_builtins() -> None:
 def test_the_schema_states_exactly_the_profile_keys() -> None:
     """profiles/profile.schema.json is the one statement of the format: a key of Profile
     without a schema entry (or the reverse) would be undocumented or unloadable."""
-    fields = {f.replace("_", "-") for f in profile.Profile.__dataclass_fields__} - {"source"}
+    # task-params and task-scenarios are read from 'tasks' written as a mapping
+    fields = {f.replace("_", "-") for f in profile.Profile.__dataclass_fields__} - {
+        "source", "task-params", "task-scenarios"}
     assert set(profile.schema()["properties"]) == fields | {"extends"}
     for key, prop in profile.schema()["properties"].items():
         assert prop.get("description"), f"{key} has no description"
@@ -91,6 +93,8 @@ def test_each_example_profile_loads_and_names_real_tasks(path: Path) -> None:
 
     p = profile.load(path)
     known = {s.name for s in task_specs()}
-    assert set(p.tasks) <= known and set(p.motion_tasks) <= known
+    # a task outside section 9 only with the parameters to start it (issue 25 §2)
+    assert set(p.tasks) - set(p.task_params) <= known
+    assert set(p.motion_tasks) <= known | set(p.task_params)
     assert set(p.motion_tasks) <= set(p.tasks) or not p.tasks
     assert path.read_text().count("#") >= 5, "an example explains itself in comments"

@@ -3,12 +3,15 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
+import yaml
 
 from conformance import profile
 from conformance.cli import main
+from conformance.profile_draft import Observed, draft
 from conformance.sim import SimUnit
 from conformance.topics import UnitAddress
 
@@ -28,7 +31,8 @@ def test_the_draft_of_the_reference_unit_loads_and_says_what_it_declares(
     text = out.read_text()
     assert "# motion-tasks: [" in text and "move-to" in text.split("# motion-tasks:")[1]
     assert "heartbeat: declares rate 5.0 Hz, measured" in text
-    assert "sensor/position: published at" in text
+    assert "PROBLEM" not in text  # the reference unit keeps its word
+    assert '"sensor/position": published at' in text
     assert f"observing {unit_address}" in capsys.readouterr().err  # says what it waits for
     # an edited profile is never overwritten
     assert main(["profile", "--unit", str(unit_address), "--broker", mosquitto,
@@ -53,3 +57,96 @@ def test_bad_options_say_what_to_fix(argv: list[str], message: str, mosquitto: s
                                      capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["profile", "--broker", mosquitto, *argv]) == 2
     assert message in capsys.readouterr().err
+
+
+HOSTILE = ["cam\u2028severity: {'*': warning}\u2028description",
+           "x\u2029severity: {'*': warning}", "y\x85severity: {'*': warning}",
+           "z\nseverity: {'*': warning}", "w\rseverity: {'*': warning}",
+           "v\x0bseverity: {'*': warning}\x0c", "u\u202e\x1b[2J: &a [*a]", "t' # !!python/x"]
+
+
+def hostile_observation(unit: UnitAddress) -> Observed:
+    """A unit whose every declared word tries to become a key of the drafted profile."""
+    import time as clock
+
+    from conformance.message import Message
+
+    seen = Observed(unit, 3.0)
+    now = clock.time()
+    bodies = {"heartbeat": {"levels": ["sensor", "direct execution", *HOSTILE], "rate": 5.0,
+                            "name": HOSTILE[0]},
+              "sensor_info": {"sensor-data-provided": ["position", *HOSTILE]},
+              "direct_execution_info": {"tasks-available": [
+                  {"name": n} for n in ("look-at-bearing", "go-home", *HOSTILE)]}}
+    for i in range(3):
+        for sub, body in bodies.items():
+            seen.feed(Message(now + i, unit.topic(sub), json.dumps(body).encode(), 0, False))
+        for name in HOSTILE:
+            seen.feed(Message(now + i * 5, unit.topic(f"sensor/{name}"), b"{}", 0, False))
+    return seen
+
+
+def test_nothing_a_unit_publishes_becomes_a_key_of_the_draft(unit_address: UnitAddress) -> None:
+    """Issue 26 §2: every line-breaking code point (\\n, \\r, U+2028, U+2029, U+0085, \\v,
+    \\f), YAML's specials, control and bidi characters in sensor, level and task names are
+    escaped; the draft loads with exactly the keys the drafter writes, and no severity."""
+    text = draft(hostile_observation(unit_address))
+    assert all(ch not in text for ch in "\u2028\u2029\x85\r\x0b\x0c\x1b\u202e")
+    loaded = yaml.safe_load(text)
+    assert set(loaded) == {"extends", "name", "levels", "sensors", "tasks", "motion-tasks",
+                           "safe-radius", "response-timeout", "feedback-timeout",
+                           "reboot-timeout", "rate-tolerance"}
+    drafted = profile.from_dict(loaded, "<draft>")
+    assert drafted.severity == profile.load("default").severity  # none of the unit's making
+    assert drafted.levels == ("sensor", "direct execution")
+    # Section 9 tasks with the spec example's parameters, the others left to fill in.
+    assert drafted.task_params["look-at-bearing"]["bearing"] == 45.0
+    assert "go-home" not in drafted.tasks
+    assert '# "go-home" is not a section 9 task: fill in the parameters' in text
+    assert '#   PROBLEM: declares heartbeat rate 5.0 Hz, measured 1.00 Hz (HB-003)' in text
+
+
+@pytest.mark.slow
+def test_a_hostile_unit_cannot_certify_itself_through_its_drafted_profile(
+        pytester: pytest.Pytester, unit_address: UnitAddress, mosquitto: str,
+        tmp_path: Path) -> None:
+    """Issue 26's scenario: a unit publishes on `.../sensor/cam\\u2028severity: {'*':
+    warning}\\u2028description`; the profile drafted from it has no severity, and the faulty
+    reference unit (topic-uppercase-sensor) certified with it still fails."""
+    from conformance.client import BrokerURL, MqttClient
+
+    out = tmp_path / "drafted.yaml"
+    topic = unit_address.topic(f"sensor/{HOSTILE[0]}")
+    with SimUnit(unit_address, mosquitto, rate=5.0), \
+            MqttClient(BrokerURL.parse(mosquitto), may_publish=lambda t: True
+                       ).connect() as forger:
+        forger.publish(topic, b"{}", qos=1, retain=True)
+        try:
+            assert main(["profile", "--unit", str(unit_address), "--broker", mosquitto,
+                         "--observe", "2s", "-o", str(out)]) == 0
+        finally:
+            forger.publish(topic, b"", qos=1, retain=True)  # the shared broker keeps none
+    assert "cam\\u2028severity" in out.read_text()  # seen, and written escaped
+    assert profile.load(out).severity == profile.load("default").severity
+    run = pytester.runpytest_subprocess(
+        "--unit", "waraps/unit/air/simulation/dji0", "--broker", "embedded",
+        "--sim-fault", "topic-uppercase-sensor", f"--profile={out}", "--explore", "0",
+        "-k", "TOPIC or HB-001", "-p", "no:cacheprovider", timeout=120)
+    assert run.ret != 0, run.stdout.str()
+    assert "downgrades" not in run.stdout.str()  # the header would say a forged downgrade
+    run.stdout.fnmatch_lines(["*TOPIC-* *[[]fail[]]*"])
+
+
+def test_a_unit_slower_than_it_declares_is_a_problem_in_the_draft_and_on_stderr(
+        unit_address: UnitAddress, mosquitto: str, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """FIELD-NOTES: an agent declaring 5 Hz publishes at 0.2 Hz; the draft says so as a
+    problem, not as a neutral note."""
+    out = tmp_path / "slow.yaml"
+    with SimUnit(unit_address, mosquitto, rate=5.0, faults=["heartbeat-rate-drift"]):
+        assert main(["profile", "--unit", str(unit_address), "--broker", mosquitto,
+                     "--observe", "3s", "-o", str(out)]) == 0
+    text = out.read_text()
+    assert "#   PROBLEM: declares heartbeat rate 5.0 Hz, measured" in text, text
+    assert "PROBLEM: declares heartbeat rate 5.0 Hz, measured" in capsys.readouterr().err
+    profile.load(out)

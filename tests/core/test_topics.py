@@ -66,3 +66,22 @@ def test_the_levels_of_5_1_are_the_heartbeat_schemas() -> None:
 
     # The hand-edited schema and the code name the same levels, in 5.1's order.
     assert tuple(schema.load("messages/common.json")["$defs"]["levels"]["enum"]) == LEVELS
+
+
+@pytest.mark.parametrize(("text", "ok"), [
+    ("#", True), ("waraps/#", True), ("+", True), ("+/unit/+/real/#", True), ("a//b", True),
+    ("a/+x/b", False), ("a/x+", False), ("a#", False), ("#/a", False), ("a/#/b", False),
+    ("", False), ("a/\x00", False), ("a/\ud800", False), ("a" * 65536, False),
+])
+def test_a_subscription_filter_is_checked_as_mqtt_does(text: str, ok: bool) -> None:
+    from conformance.topics import filter_problem
+
+    assert (filter_problem(text) is None) is ok
+
+
+@pytest.mark.parametrize("text", ["waraps/unit/air/real/a+b", "waraps/unit/air/real/#",
+                                  "waraps/unit/air/real/a\x00", "waraps/unit/air/real/\udc80",
+                                  "w+/unit/air/real/a"])
+def test_a_unit_address_holds_nothing_a_topic_cannot(text: str) -> None:
+    with pytest.raises(TopicError):
+        UnitAddress.parse(text)

@@ -8,6 +8,7 @@ The inputs are generated into ``tmp_path`` (``hostile.py``); nothing large is co
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -78,6 +79,28 @@ def test_a_mosquitto_v_capture_is_judged_except_what_needs_times(tmp_path: Path)
         assert rules[rule]["reason"].startswith("not judged: no timestamps")
     assert rules["HB-002"]["verdict"] == "fail" and rules["HB-001"]["verdict"] == "pass"
     assert "malformed" not in (tmp_path / "mosquitto-v-capture.out").read_text()
+
+
+def test_a_mosquitto_v_capture_says_it_has_no_times_first_and_shows_no_rate(
+        tmp_path: Path) -> None:
+    """Issue 27 §4: the note comes before the verdicts; no rate, no 'clean for 0 s', no
+    'in 0 s observed', no time of a finding (the reading's times are not the traffic's)."""
+    case = next(c for c in COMMAND_CASES if c.name == "mosquitto-v-capture")
+    case = dataclasses.replace(case, args=(*case.args[:-1], "json,html"))
+    out = _check(case, tmp_path).out
+    lines = out.splitlines()
+    note = next(i for i, ln in enumerate(lines) if ln.startswith("note: a mosquitto_sub -v"))
+    verdict = next(i for i, ln in enumerate(lines) if ln.startswith("verdict: "))
+    assert note < verdict, out
+    assert sum(ln.startswith("note: a mosquitto_sub -v") for ln in lines) == 1, out
+    assert " 0 s" not in out and "msg/s" not in out.lower().replace("msg/s last", ""), out
+    assert "1 rule(s) failed (no times in the capture), never commanded" in out
+    row = next(ln for ln in lines if ln.startswith(UNIT + " ") and "FAIL" in ln)
+    assert row.split()[:5] == [UNIT, "air", "simulation", "sensor", "FAIL"], row
+    assert "HB-002 heartbeat type is 'HeartBeat': 1x\n" in out + "\n", out
+    html = (tmp_path / "reports" / "lint-capture.html").read_text()
+    assert "<th>seen</th><td>no times in the capture</td>" in html
+    assert "clean for" not in html and "0 s observed" not in html
 
 
 def test_a_recording_with_times_is_not_untimed_by_one_line_that_looks_like_v(

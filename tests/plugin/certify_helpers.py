@@ -143,16 +143,6 @@ def certify_stalling(pytester: pytest.Pytester, broker: str | None, prefix: str,
     return run
 
 
-def warm_parameters(tasks: tuple[str, ...], seeds: range) -> None:
-    """Generate (and cache) the task parameters a certification with these seeds will use, so
-    hypothesis does not hold the GIL while an in-process reference unit should publish."""
-    from conformance.scenarios.params import drawn
-
-    for task in tasks:
-        for seed in seeds:
-            drawn(task, seed)
-
-
 class Rebooter:
     """A plugin object that reboots an in-process reference unit (pytest_waraps_reboot)."""
 
@@ -170,9 +160,11 @@ class SilentUnit:
     """A unit that heartbeats and says it executes tasks, but answers no command at all.
 
     Publishes heartbeat, sensor_info, direct_execution_info and the mandatory sensors at
-    ``rate`` Hz from a thread (its own MqttClient, publishing only under its own address)."""
+    ``rate`` Hz from a thread (its own MqttClient, publishing only under its own address);
+    ``levels``: what its heartbeat declares."""
 
-    def __init__(self, unit: str, broker: str, rate: float = 5.0) -> None:
+    def __init__(self, unit: str, broker: str, rate: float = 5.0,
+                 levels: tuple[str, ...] = ("sensor", "direct execution")) -> None:
         import threading
         import uuid
 
@@ -181,6 +173,7 @@ class SilentUnit:
 
         self.unit = UnitAddress.parse(unit)
         self.rate = rate
+        self.levels = list(levels)
         self.agent_uuid = str(uuid.uuid4())
         base = self.unit.base + "/"
         self.client = MqttClient(BrokerURL.parse(broker), may_publish=lambda t: t.startswith(base))
@@ -192,7 +185,7 @@ class SilentUnit:
         info = {"name": u.name, "rate": self.rate, "stamp": now, "agent-uuid": self.agent_uuid}
         return {
             "heartbeat": {**info, "type": "HeartBeat", "agent-type": u.agent_type,
-                          "levels": ["sensor", "direct execution"]},
+                          "levels": self.levels},
             "sensor_info": {**info, "type": "SensorInfo",
                             "sensor-data-provided": ["position", "heading", "course", "speed"]},
             "direct_execution_info": {**info, "type": "DirectExecutionInfo",

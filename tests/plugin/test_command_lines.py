@@ -20,7 +20,7 @@ CRAFTED = [
     "x;touch PWNED",
     "$(touch PWNED)",
     "`touch PWNED`",
-    "a&&touch PWNED #",
+    "a&&touch PWNED ||",  # (no "#": a wildcard, refused in a unit address)
     "it's|touch PWNED",
     "x\ntouch PWNED",
     "*",

@@ -88,7 +88,7 @@ def test_reference_unit_passes_on_mosquitto_and_its_recording_lints_clean(
     """The reference unit passes on Mosquitto, rebooted once through the hook. Lint judges
     conversations the way the suite does: a recording taken while the suite certifies it
     shows every command of the suite matched to its answer, and no failure of the unit (the
-    suite's deliberately broken commands are the commander's)."""
+    suite's deliberately broken commands are its own probes: no commander's row)."""
     import io
     import json
 
@@ -132,6 +132,8 @@ def test_reference_unit_passes_on_mosquitto_and_its_recording_lints_clean(
             elif topic.endswith("/exec/response") and isinstance(body.get("response-to"), str):
                 answered.add(body["response-to"])
     assert len(sent) > 20 and sent <= answered, sorted(sent - answered)
+    # The suite's deliberately broken commands are its own probes, no commander's fault
+    # (issue 24, 5): the recording of a certification lints with the unit's findings only.
     commanders = [u for u in report["units"].values() if u["party"] == "commander"]
-    assert commanders, "the suite's broken commands are on a commander's row"
-    assert code == 1  # that commander sent malformed commands on purpose (robustness)
+    assert commanders == [], commanders
+    assert code == 0, out.getvalue()

@@ -54,6 +54,13 @@ def test_sequence_fault_found_told_and_replayed(pytester: pytest.Pytester) -> No
     assert f"disagree here: {RULE}" in told and "sent  {" not in told  # brief: the steps
     assert "<-- the model and the unit disagree here" in text and RULE in text
     assert "sent  {" in text and "came  exec/response:" in text
+    # the reports tell the story step by step too (issue 27 §2)
+    assert run.report is not None and RULE in run.report["meta"]["explore_story"]
+    (html,) = run.reports_dir.glob("*.html")
+    page = html.read_text()
+    assert "The exploration's story, step by step" in page
+    assert page.index("story, step by step") < page.index('<details class="fold">')
+    assert "disagree here" in page[page.index("story, step by step"):]
     (stored,) = run.reports_dir.glob("*-explore.json")
     story = json.loads(stored.read_text())
     # shrunk to the end by replay: two tasks and the $pause (3 steps; 4 with a wait between)

@@ -20,7 +20,6 @@ from certify_helpers import (
     Rebooter,
     SilentUnit,
     certify,
-    warm_parameters,
 )
 
 from conformance.broker import free_port
@@ -88,6 +87,24 @@ def test_a_unit_by_another_name_is_suggested(pytester: pytest.Pytester, mosquitt
                       mosquitto, f"--profile={FAST}")
     assert run.result.ret == NOT_CERTIFIED_EXIT
     assert f"did you mean --unit {prefix}/unit/air/simulation/dji1?" in run.text
+    # our own line breaks are line breaks (issue 27 §3), not an escaped \x0a
+    assert "\\x0a" not in run.text
+    assert any(line.startswith(f"A unit publishes at {prefix}/unit/air/simulation/dji1")
+               for line in run.result.outlines), run.text
+
+
+def test_the_summary_names_what_could_not_be_tested_and_the_option(
+        pytester: pytest.Pytester, mosquitto: str, prefix: str) -> None:
+    """Issue 27 §2: without --reboot-cmd the summary names the REBOOT rules, why, and the
+    option that would test them (not only '1 could not be tested')."""
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    with SimUnit(unit, mosquitto, rate=3.0):
+        run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={FAST}",
+                      "-k", "REBOOT")
+    summary = run.text[run.text.index("= waraps-conformance ="):]
+    assert ("  could not test REBOOT-001, REBOOT-002: no way to reboot the unit: pass "
+            "--reboot-cmd 'COMMAND'") in summary, summary
+    assert summary.index("could not test REBOOT-001") < summary.index("json report:")
 
 
 class DropBroker:
@@ -193,7 +210,3 @@ def test_the_packaged_suite_runs_from_a_project_with_its_own_testpaths(tmp_path:
     assert "test_passive.py::test_rule[HB-003]" in out.stdout
     assert "test_execution.py::test_ping[EXEC-PING-001]" in out.stdout
 
-
-@pytest.fixture(scope="module", autouse=True)
-def parameters() -> None:
-    warm_parameters(("look-at-bearing", "look-at-position"), range(1, 3))

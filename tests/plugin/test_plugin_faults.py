@@ -32,7 +32,6 @@ from certify_helpers import (
     certify,
     certify_sim,
     certify_virtual,
-    warm_parameters,
 )
 
 from conformance.plugin import NOT_CERTIFIED_EXIT
@@ -153,10 +152,6 @@ def explain(run: Certified, expected: set[str]) -> str:
                      f" ({r.get('verdict')}: {r.get('reason')}; {why.get('observed', '')})")
     return "\n".join(lines)
 
-
-@pytest.fixture(scope="module", autouse=True)
-def parameters() -> None:
-    warm_parameters(("look-at-bearing", "move-to", "navigate"), range(1, 5))
 
 
 # The rerun lines run again against their faults: one rule for each way a rerun selects what it

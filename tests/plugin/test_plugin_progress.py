@@ -56,19 +56,58 @@ def waited(seconds: float, timeout: float = 30.0) -> Wait:
     return Wait("the final feedback of move-to 3f2a1b0c", time.monotonic() - seconds, timeout)
 
 
+class Writer:
+    """The part of pytest's TerminalWriter Progress uses: the text of its current line."""
+
+    def __init__(self, reporter: Reporter, line: str, width: int = 80) -> None:
+        self.reporter, self._current_line, self.fullwidth = reporter, line, width
+
+    def write_raw(self, text: str, flush: bool = False) -> None:
+        self.reporter.calls.append(("raw", text))
+
+
 @pytest.mark.parametrize("verbosity", [0, 1])
-def test_on_a_terminal_a_wait_is_redrawn_and_erased(verbosity: int) -> None:
+def test_on_a_terminal_a_wait_is_drawn_below_pytests_line_and_erased(verbosity: int) -> None:
+    """Issue 27 §3: pytest's line of result letters is never rewritten or split: the wait is
+    drawn on the line below, the cursor put back after the last letter, then erased."""
     tr = Reporter(tty=True)
+    tr._tw = Writer(tr, "test_execution.py ..")  # type: ignore[attr-defined]
     progress = Progress(Config(tr, verbosity))  # type: ignore[arg-type]
     wait = waited(12)
     progress.tick(wait)
     progress.tick(wait)
-    assert tr.calls == [("rewrite", "waiting for the final feedback of move-to 3f2a1b0c: "
-                                    "12 s of 30 s")] * 2
+    text = "waiting for the final feedback of move-to 3f2a1b0c: 12 s of 30 s"
+    back = "\x1b[K\x1b[1A\x1b[21G"  # erase the rest, up to pytest's line, after its letters
+    assert tr.calls == [("raw", f"\n\r{text}{back}"), ("raw", f"\x1b[1B\r{text}{back}")]
     progress.end(wait)
-    # erased, back at column 0, and pytest's result letters go on after the file's name
-    assert tr.calls[2:] == [("rewrite", ""), ("write", "\r"), ("write", "test_execution.py ")]
-    assert tr.currentfspath == Path("/run/test_execution.py")
+    assert tr.calls[2:] == [("raw", f"\x1b[1B\r{back}")]  # erased, the cursor back
+    progress.end(wait)
+    assert len(tr.calls) == 3  # erased once
+
+
+def test_a_short_wait_stays_drawn_until_the_next_draws_or_the_test_ends() -> None:
+    """A stretch of short waits does not flicker: its line is erased when the test ends."""
+    tr = Reporter(tty=True)
+    tr._tw = Writer(tr, "test_execution.py .")  # type: ignore[attr-defined]
+    progress = Progress(Config(tr, 0))  # type: ignore[arg-type]
+    short = waited(0.2)
+    progress.tick(short)
+    progress.end(short)
+    assert len(tr.calls) == 1
+    progress.clear()
+    assert tr.calls[-1] == ("raw", "\x1b[1B\r\x1b[K\x1b[1A\x1b[20G")
+
+
+def test_a_status_is_shown_and_a_wait_during_it_says_both() -> None:
+    tr = Reporter(tty=True)
+    tr._tw = Writer(tr, "test_explore.py ", width=200)  # type: ignore[attr-defined]
+    progress = Progress(Config(tr, 0))  # type: ignore[arg-type]
+    progress.show_status("exploring: 3 s of 50 s, 1 example, 4 steps; ping")
+    progress.tick(waited(2, 6))
+    assert tr.calls[-1][1].startswith("\x1b[1B\rexploring: 3 s of 50 s, 1 example, 4 steps; "
+                                      "ping; waiting for the final feedback")
+    progress.show_status("")
+    assert tr.calls[-1] == ("raw", "\x1b[1B\r\x1b[K\x1b[1A\x1b[17G")
 
 
 def test_off_a_terminal_a_plain_line_every_ten_seconds() -> None:

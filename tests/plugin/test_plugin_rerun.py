@@ -99,3 +99,39 @@ def test_a_selection_is_kept_shell_quoted(pytester: pytest.Pytester) -> None:
     assert (again.keyword, again.markexpr, again.rules) == (s.keyword, s.markexpr, s.rules)
     assert again.rerun_command() == line
     assert s.rerun_command("HB-003").endswith("--seed 3 -k HB-003")
+
+
+@pytest.mark.slow
+def test_a_rule_only_exploration_found_reruns_by_replaying_its_story(
+        pytester: pytest.Pytester) -> None:
+    """Issue 24, 4: a rule found by exploration printed `-k EXEC-SEQ-002`, which sends no
+    such order of commands and passed on the unit that still had the fault. Its rerun line
+    replays the story, and fails again against the same fault. (The other kinds of rerun line,
+    `-k RULE` with or without --observe and the whole run's, run again in
+    test_plugin_faults.py's RERUN.)"""
+    import re
+
+    from certify_helpers import FAST, certify
+
+    embedded = ("--unit", "waraps/unit/air/simulation/dji0", "--broker", "embedded",
+                "--sim-rate", "3", f"--profile={FAST}", "--sim-fault=pause-pauses-all")
+    rule = "EXEC-SEQ-002"
+    run = certify(pytester, *embedded, "--explore=60s", "--seed", "1",
+                  "-k", f"test_explore or {rule}")
+    assert run.result.ret == 1 and run.outcomes.get(rule) == "failed", run.text
+    # The rule's own test's failure (not the story test_explore tells, whose lines replay).
+    section = re.search(rf"^_+ [^\n]*\[{re.escape(rule)}\] _+$(.*?)(?=^_+ |^=+ )", run.text,
+                        re.M | re.S)
+    assert section, run.text
+    found = re.search(r"^\s*rerun\s+(pytest .*)$", section.group(1), re.M)
+    assert found, section.group(1)
+    line = found.group(1)
+    assert "--explore-replay=" in line and f"-k {rule}" not in line, line
+    again = certify(pytester, *shlex.split(line)[1:])
+    assert again.result.ret == 1, again.text
+    assert "disagree again" in again.text and rule in again.text
+    # The replay's exit status, verdict and report agree (issue 24, 4): the rule it judged
+    # failed, not 'not run: not selected (-k test_explore)'.
+    assert again.report is not None
+    assert (again.report["verdict"], again.report["conclusion"]["exit_code"]) == ("fail", 1)
+    assert again.unit_rules()[rule]["verdict"] == "fail"

@@ -107,10 +107,12 @@ def test_a_real_unit_is_not_moved_without_allow_motion(pytester: pytest.Pytester
             SimUnit(unit, mosquitto, rate=3.0, tst_execution=True) as sim, \
             Wire(mosquitto, prefix) as wire:
         # The matrix profile lets the suite start move-to and navigate: only the flag may.
+        # --allow-hostile: the robustness probes go out too, and none of them may move it.
         run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={MATRIX}",
-                      "--seed", "3", plugins=(Rebooter(sim),))
+                      "--allow-hostile", "--seed", "3", plugins=(Rebooter(sim),))
     assert run.result.ret == 0, run.text
-    assert "no task that moves the unit (no --allow-motion)" in run.text
+    assert "no motion (no --allow-motion), hostile payloads allowed (--allow-hostile)" \
+        in run.text
     names = {b["task"].get("name") for _, b in started(wire)}
     assert names and not any(moves(n) for n in names if n != "waraps-conformance-no-such-task")
     commands = [m for m, _ in wire.commands()]
@@ -136,7 +138,8 @@ def test_the_publish_policy_refuses_a_motion_task_whatever_the_scenario_sends(
     unit = f"{prefix}/unit/air/real/dji0"
     with SimUnit(unit, mosquitto, rate=3.0) as sim, Wire(mosquitto, prefix) as wire:
         run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={FAST}",
-                      "--seed", "3", "-k", "EXEC-ROBUST", plugins=(Rebooter(sim),))
+                      "--allow-hostile", "--seed", "3", "-k", "EXEC-ROBUST",
+                      plugins=(Rebooter(sim),))
     assert run.result.ret == 0, run.text
     assert "Traceback" not in run.text and "INTERNALERROR" not in run.text
     rules = run.unit_rules()
@@ -175,7 +178,8 @@ def test_the_motion_gate_decides_by_unit_role_flag_and_profile() -> None:
     def gate(unit: UnitAddress, profile: Profile, allow: bool) -> MotionGate:
         from conformance.scenarios.params import task_moves
 
-        return MotionGate(unit, profile, allow_motion=allow,
+        # (hostile payloads allowed: these bare commands lack com-uuid and params)
+        return MotionGate(unit, profile, allow_motion=allow, allow_hostile=True,
                           listed=lambda: ["look-at-bearing", "fly-circle"], task_moves=task_moves)
     assert gate(sim, Profile(), False).refusal(move) is None  # a simulation may move
     assert "move-to" in (gate(real, Profile(), False).refusal(move) or "")
@@ -187,6 +191,146 @@ def test_the_motion_gate_decides_by_unit_role_flag_and_profile() -> None:
     assert "fly-circle" in (gate(real, drone, True).refusal(fly) or "")
 
 
+ROLES = ("real", "simulation", "playback", "live", "xyz-unknown", "simulated")
+
+
+@pytest.mark.parametrize("role", ROLES)
+def test_only_simulation_and_the_profile_simulated_roles_are_simulations(role: str) -> None:
+    """DESIGN 'Safety' fails closed: every role word but 'simulation' (and a profile's
+    simulated-roles) is a real unit: no motion task without --allow-motion and motion-tasks,
+    no hostile payload without --allow-hostile or robustness: true."""
+    from conformance.scenarios.params import task_moves
+
+    move = b'{"command": "start-task", "task": {"name": "move-to", "params": {}}}'
+    hostile = b"\xff\xfe\xfd{}"
+    unit = UnitAddress.parse(f"waraps/unit/air/{role}/dji0")
+
+    def gate(profile: Profile, *, motion: bool = False, hostile_ok: bool = False) -> MotionGate:
+        return MotionGate(unit, profile, allow_motion=motion, allow_hostile=hostile_ok,
+                          task_moves=task_moves)
+    simulation = role == "simulation"
+    for profile in (Profile(), Profile(motion_tasks=("move-to",))):
+        refused = gate(profile).refusal(move)
+        assert (refused is None) == simulation, refused
+        assert (gate(profile).refusal(hostile) is None) == simulation
+    if not simulation:
+        assert "names the motion task(s) move-to" in (gate(Profile()).refusal(move) or "")
+        assert "--allow-hostile" in (gate(Profile()).refusal(hostile) or "")
+        assert "this payload is not UTF-8" in (gate(Profile()).refusal(hostile) or "")
+        assert "--allow-motion" in (gate(Profile()).decision.sentence())
+        assert f"role {role!r} is treated as real" in gate(Profile()).decision.sentence()
+    # The opt-ins, one by one: motion needs both the flag and motion-tasks (this bare
+    # command, without com-uuid and params, is malformed too: hostile payloads allowed).
+    assert gate(Profile(motion_tasks=("move-to",)), motion=True, hostile_ok=True
+                ).refusal(move) is None
+    if not simulation:
+        assert gate(Profile(motion_tasks=("move-to",)), motion=True).refusal(move) \
+            .startswith("not sent: hostile payloads")
+    assert gate(Profile(), hostile_ok=True).refusal(hostile) is None
+    assert gate(Profile(robustness=True)).refusal(hostile) is None
+    # A profile's simulated-roles make the role a simulation, and only that role.
+    listed = Profile(simulated_roles=(role,))
+    assert gate(listed).refusal(move) is None and gate(listed).refusal(hostile) is None
+    other = Profile(simulated_roles=("something-else",))
+    assert (gate(other).refusal(hostile) is None) == simulation
+
+
+@pytest.mark.parametrize(("payload", "hostile"), [
+    (b'{"command": "ping", "com-uuid": "0f8e6bb0-5b4a-4b2e-9d2b-6a1f5e0e7c11", '
+     b'"sender": "s"}', None),
+    (b'{"command": "start-task", "com-uuid": "0f8e6bb0-5b4a-4b2e-9d2b-6a1f5e0e7c11", '
+     b'"sender": "s", "task": {"name": "no-such-task", "params": {}}}', None),
+    *[(probe, "hostile") for _, probe in robust.UNREADABLE],
+    *[(probe, "hostile") for _, probe in robust.malformed("0f8e6bb0-5b4a-4b2e-9d2b-6a1f5e0e7c11")],
+    (b'{"command": "ping", "x": "' + b"a" * 70_000 + b'"}', "hostile"),  # huge
+    (b'{"command": "ping", "x": ' + b"[" * 40 + b"]" * 40 + b"}", "hostile"),  # deep
+])
+def test_every_robustness_probe_is_hostile_and_the_suite_commands_are_not(
+        payload: bytes, hostile: str | None) -> None:
+    from conformance.scenarios.safety import hostility
+
+    found = hostility("waraps/unit/air/real/dji0/exec/command", payload)
+    assert (found is not None) == (hostile is not None), found
+
+
+def _wire_hostile(wire: Wire) -> list[bytes]:
+    """Commands on the wire that are not a UTF-8 JSON object naming a known command (this
+    test's own reading, not the suite's gate)."""
+    out = []
+    for m, _ in wire.commands():
+        try:
+            body = json.loads(m.payload.decode("utf-8"))
+        except ValueError:
+            out.append(m.payload)
+            continue
+        if not isinstance(body, dict) or body.get("command") not in (
+                "ping", "start-task", "signal-task", "query-status"):
+            out.append(m.payload)
+        elif body.get("command") == "start-task" and not isinstance(body.get("task"), dict):
+            out.append(m.payload)
+    return out
+
+
+@pytest.mark.parametrize(("role", "opt_in", "sent"), [
+    ("real", (), False),
+    ("live", (), False),
+    ("playback", ("--allow-hostile",), True),
+    ("xyz-unknown", ("robustness: true",), True),
+    ("simulated", (), False),  # seen in the wild: real unless the profile lists it
+    ("simulated", ("simulated-roles: [simulated]",), True),
+    ("simulation", (), True),
+])
+def test_hostile_payloads_reach_only_a_simulation_or_an_opted_in_real_unit(
+        pytester: pytest.Pytester, mosquitto: str, prefix: str, tmp_path: Path, role: str,
+        opt_in: tuple[str, ...], sent: bool) -> None:
+    """From the broker's traffic: the robustness probes are published only where the role
+    is a simulation, or the user opted in; elsewhere their rules are could-not-test naming
+    --allow-hostile, and the header says the decision."""
+    profile = tmp_path / "unit.yaml"
+    profile.write_text(f"extends: {FAST}\n" + "".join(
+        f"{line}\n" for line in opt_in if not line.startswith("--")))
+    flags = [o for o in opt_in if o.startswith("--")]
+    unit = f"{prefix}/unit/air/{role}/dji0"
+    with SimUnit(unit, mosquitto, rate=3.0) as sim, Wire(mosquitto, prefix) as wire:
+        run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={profile}",
+                      *flags, "--seed", "3", "-k", "EXEC-ROBUST", plugins=(Rebooter(sim),))
+    assert "Traceback" not in run.text and "INTERNALERROR" not in run.text
+    rules = run.unit_rules()
+    if sent:
+        assert run.result.ret == 0, run.text
+        assert _wire_hostile(wire), "the probes were not sent"
+        assert rules["EXEC-ROBUST-002"]["verdict"] == "pass", rules["EXEC-ROBUST-002"]
+        return
+    assert f"role {role!r} is treated as real" in run.text
+    assert "no hostile payloads (no --allow-hostile)" in run.text
+    assert _wire_hostile(wire) == []
+    for rule in ("EXEC-ROBUST-001", "EXEC-ROBUST-002"):
+        assert rules[rule]["verdict"] == "could-not-test", rules[rule]
+        assert ("not sent: hostile payloads to a real unit need --allow-hostile (or "
+                "robustness: true in the profile)") in rules[rule]["reason"], rules[rule]
+
+
+def test_a_dry_run_shows_the_safety_decision_and_what_it_would_refuse(
+        pytester: pytest.Pytester, mosquitto: str, prefix: str, tmp_path: Path) -> None:
+    """The header says the decision, and a profile's downgrade of errors (forged or not)."""
+    profile = tmp_path / "downgrading.yaml"
+    profile.write_text(f"extends: {MATRIX}\nseverity: {{'HB-01*': warning}}\n")
+    unit = f"{prefix}/unit/air/live/dji0"
+    with SimUnit(unit, mosquitto, rate=3.0) as sim, Wire(mosquitto, prefix) as wire:
+        run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={profile}",
+                      "--dry-run", "--seed", "3", "-k", "EXEC-ROBUST or EXEC-START-001",
+                      plugins=(Rebooter(sim),))
+    assert wire.commands() == []
+    assert ("safety:   role 'live' is treated as real (only 'simulation' or a profile's "
+            "simulated-roles are simulations): no motion (no --allow-motion), no hostile "
+            "payloads (no --allow-hostile)") in run.text
+    assert "dry run: would not publish" in run.text
+    assert "the profile downgrades 'HB-01*': warning (" in run.text
+    assert "would publish" in run.text and '"name":"move-to"' not in run.text
+    rules = run.unit_rules()
+    assert "--allow-hostile" in rules["EXEC-ROBUST-002"]["reason"], rules["EXEC-ROBUST-002"]
+
+
 def test_allow_motion_starts_only_the_profile_motion_tasks_near_the_unit(
         pytester: pytest.Pytester, mosquitto: str, prefix: str, tmp_path: Path) -> None:
     profile = tmp_path / "drone.yaml"
@@ -195,7 +339,8 @@ def test_allow_motion_starts_only_the_profile_motion_tasks_near_the_unit(
     unit = f"{prefix}/unit/air/real/dji0"
     with SimUnit(unit, mosquitto, rate=3.0) as sim, Wire(mosquitto, prefix) as wire:
         run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={profile}",
-                      "--allow-motion", "--seed", "3", plugins=(Rebooter(sim),))
+                      "--allow-motion", "--allow-hostile", "--seed", "3",
+                      plugins=(Rebooter(sim),))
     assert run.result.ret == 0, run.text
     assert "motion tasks: move-to" in run.text
     # (the name EXEC-START-005 sends is certainly not a task: the unit must refuse it)
@@ -252,3 +397,59 @@ def test_a_task_whose_abort_went_unanswered_is_not_aborted_in_every_scenario() -
     assert commander.abort_all(0.2, stuck=False) == [] and aborts() == 1
     assert commander.abort_all(0.2, stuck=False) == [] and aborts() == 1  # not again
     assert commander.abort_all(0.2) == [] and aborts() == 2  # the last teardown: once more
+
+
+def test_the_profile_own_parameters_are_the_user_word_and_a_broken_copy_is_not() -> None:
+    """A profile may give a section 9 task parameters its schema refuses (an agent's own
+    reading of section 9): sent to a real unit as the user wrote them (positions made safe);
+    the refusal probe made from them (one parameter of the wrong type) is still hostile."""
+    from conformance.scenarios.params import invalid_params, task_moves, valid_params
+    from conformance.scenarios.safety import Safety
+    from conformance.scenarios.sender import Sender
+
+    unit = UnitAddress.parse("waraps/unit/air/live/dji0")
+    drone = Profile(tasks=("move-to",), motion_tasks=("move-to",), task_params={"move-to": {
+        "speed": 5.0, "waypoint": {"latitude": 1.0, "longitude": 2.0, "altitude": 9.0,
+                                   "rostype": "GeoPoint"}}})
+    safety = Safety(unit, drone, allow_motion=True, task_moves=task_moves)
+    gate = MotionGate(unit, drone, allow_motion=True, task_moves=task_moves)
+    origin = Position(58.39, 15.56, 2.0)
+
+    def start(params: dict) -> bytes:
+        return Sender.compose({"command": "start-task", "execution-unit": "dji0",
+                               "task-uuid": "9b4c701c-e8a2-4a92-9370-87c8f57e0dc0",
+                               "task": {"name": "move-to", "params": params}})[0]
+    given = start(valid_params("move-to", origin, safety, 3))
+    assert "TASK-001" in (MotionGate(unit, Profile(motion_tasks=("move-to",)),
+                                     allow_motion=True).refusal(given) or "")  # not the user's
+    assert gate.refusal(given) is None
+    broken, _ = invalid_params("move-to", origin, safety, 3)
+    assert "--allow-hostile" in (gate.refusal(start(broken)) or "")
+
+
+def test_a_task_outside_section_9_is_started_only_with_the_profile_parameters(
+        pytester: pytest.Pytester, mosquitto: str, prefix: str, tmp_path: Path) -> None:
+    """Issue 25 §2, from the broker's traffic: a unit offering go-home (variant own-task)
+    is never sent it with invented parameters; without parameters in the profile the rules
+    that needed it say could-not-test naming them; with them it is started with exactly
+    those."""
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    bare, given = tmp_path / "bare.yaml", tmp_path / "given.yaml"
+    bare.write_text(f"extends: {FAST}\ntasks: [go-home]\n")
+    given.write_text(f"extends: {FAST}\ntasks: {{go-home: {{params: {{speed: 3.0}}}}}}\n")
+    runs = {}
+    for path in (bare, given):
+        with SimUnit(unit, mosquitto, rate=3.0, variants=["own-task"]) as sim, \
+                Wire(mosquitto, prefix) as wire:
+            run = certify(pytester, "--unit", unit, "--broker", mosquitto,
+                          f"--profile={path}", "--seed", "3", "-k", "EXEC-START-001",
+                          plugins=(Rebooter(sim),))
+        runs[path] = (run, [b["task"] for _, b in started(wire)])
+    run, tasks = runs[bare]
+    assert tasks == [], tasks
+    reason = run.unit_rules()["EXEC-START-001"]["reason"]
+    assert ("no task to start: go-home has no parameters in the profile and is not a section "
+            "9 task; add tasks: {go-home: {params: ...}} to the profile") in reason, reason
+    run, tasks = runs[given]
+    assert run.result.ret == 0, run.text
+    assert tasks and all(t == {"name": "go-home", "params": {"speed": 3.0}} for t in tasks)

@@ -1,10 +1,10 @@
-"""The scenarios' own building blocks: generated parameters (seeded, valid, safe) and the
-suite's own commands (valid, except the ones broken on purpose)."""
+"""The scenarios' own building blocks: task parameters (never invented: the profile's or the
+spec example's; seeded, valid, safe) and the suite's own commands (valid, except the ones
+broken on purpose)."""
 
 from __future__ import annotations
 
 import random
-import warnings
 
 import pytest
 from certify_helpers import FAST, Rebooter, certify
@@ -12,10 +12,10 @@ from certify_helpers import FAST, Rebooter, certify
 from conformance import taskspec
 from conformance.profile import Profile
 from conformance.scenarios.params import (
-    TAME_NUMBER,
-    draw,
+    NoParams,
     invalid_params,
     task_moves,
+    task_schema,
     valid_params,
 )
 from conformance.scenarios.safety import Position, Safety
@@ -47,11 +47,10 @@ def points(value: object) -> list[dict]:
 
 
 @pytest.mark.parametrize("task", taskspec.task_names())
-def test_generated_parameters_are_valid_seeded_and_near_the_unit(task: str) -> None:
+def test_section_9_parameters_are_the_spec_example_valid_seeded_and_near_the_unit(
+        task: str) -> None:
     safety = Safety(ADDRESS, Profile(safe_radius=40.0), allow_motion=True, task_moves=task_moves)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", RuntimeWarning)  # drawn by hypothesis-jsonschema itself
-        params = valid_params(task, ORIGIN, safety, seed=11)
+    params = valid_params(task, ORIGIN, safety, seed=11)
     assert params == valid_params(task, ORIGIN, safety, seed=11)  # --seed repeats a run
     v = Validator(Profile()).validate(ADDRESS.topic("exec/command"), start_task(task, params))
     assert v.ok, [(x.rule, x.path, x.observed) for x in v.violations]
@@ -60,24 +59,35 @@ def test_generated_parameters_are_valid_seeded_and_near_the_unit(task: str) -> N
         assert p["rostype"] == "GeoPoint" and "type" not in p  # the canonical form (ERR-010)
     for key in ("loop-flag", "hold-flag", "continue-flag", "named-position"):
         assert params.get(key) in (None, False)
-    # Conservative in what is sent: numbers of the magnitudes the spec's examples show, never
-    # 1e19 degrees because a schema leaves a float64 unbounded.
-    assert all(abs(n) <= TAME_NUMBER for n in numbers(params)), params
+    # Never invented: every key is one of the spec's own example (issue 25 §2).
+    example = task_schema(task)["examples"][0]
+    assert set(params) <= set(example), (params, example)
 
 
-def numbers(value: object) -> list[float]:
-    if isinstance(value, dict):
-        return [n for v in value.values() for n in numbers(v)]
-    if isinstance(value, list):
-        return [n for v in value for n in numbers(v)]
-    return [value] if isinstance(value, (int, float)) and not isinstance(value, bool) else []
-
-
-def test_a_schema_hypothesis_jsonschema_cannot_draw_from_falls_back_with_a_warning() -> None:
-    with pytest.warns(RuntimeWarning, match="could not draw from the schema odd.*simple walk"):
-        value = draw({"title": "odd", "type": "object", "properties": {"a": {"const": 1}},
-                      "required": ["a"], "not": {"type": "object"}}, 1)
-    assert value == {"a": 1}  # the walk's plain reading of what it understands
+def test_parameters_come_from_the_profile_else_the_spec_example_else_nowhere() -> None:
+    given = Profile(tasks=("go-home", "look-at-bearing"),
+                    task_params={"go-home": {"speed": 5.0, "home": {
+                        "latitude": 1.0, "longitude": 2.0, "altitude": 0.0,
+                        "rostype": "GeoPoint"}}})
+    safety = Safety(ADDRESS, given, allow_motion=True, task_moves=task_moves)
+    params = valid_params("go-home", ORIGIN, safety, seed=3)
+    assert params["speed"] == 5.0  # the profile's, as given
+    assert ORIGIN.distance(Position(params["home"]["latitude"],
+                                    params["home"]["longitude"])) <= 25.0  # made safe
+    assert valid_params("look-at-bearing", ORIGIN, safety, seed=3) == \
+        task_schema("look-at-bearing")["examples"][0]  # the spec's example
+    bare = Safety(ADDRESS, Profile(), allow_motion=True, task_moves=task_moves)
+    with pytest.raises(NoParams, match=r"no task to start: go-home has no parameters in the "
+                       r"profile and is not a section 9 task; add tasks: \{go-home: "
+                       r"\{params: \.\.\.\}\} to the profile"):
+        valid_params("go-home", ORIGIN, bare, seed=3)
+    ok, why = bare.may_start("go-home")
+    assert not ok and why.startswith("no task to start: go-home has no parameters")
+    assert safety.may_start("go-home")[0] is False  # moves (unknown) on a real unit
+    only = Safety(ADDRESS, Profile(task_scenarios={"look-at-bearing": ("start",)}),
+                  allow_motion=False, task_moves=task_moves)
+    assert only.may_start("look-at-bearing", "start")[0]
+    assert not only.may_start("look-at-bearing", "signal")[0]
 
 
 @pytest.mark.parametrize("task", taskspec.task_names())

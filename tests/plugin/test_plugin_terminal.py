@@ -24,27 +24,14 @@ CSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
 
 
 def screen(raw: str) -> list[str]:
-    """The lines a terminal shows for ``raw``: a carriage return goes back to column 0, text
-    overwrites, ESC[K erases to the end of the line; colours are dropped."""
-    lines: list[list[str]] = [[]]
-    col = 0
-    for token in re.split(r"(\x1b\[[0-9;?]*[A-Za-z]|\r|\n)", raw):
-        if token == "\n":
-            lines.append([])
-            col = 0
-        elif token == "\r":
-            col = 0
-        elif token == "\x1b[K":
-            del lines[-1][col:]
-        elif token and not CSI.fullmatch(token):
-            line = lines[-1]
-            for ch in token:
-                if col >= COLUMNS:  # the terminal wraps
-                    lines.append([])
-                    line, col = lines[-1], 0
-                line[col:col + 1] = [ch]
-                col += 1
-    return ["".join(line).rstrip() for line in lines]
+    """The lines a terminal shows for ``raw`` (pyte, a VT100 emulator: cursor movements,
+    erasing, wrapping; colours dropped), the lines scrolled off the top first."""
+    import pyte
+
+    term = pyte.HistoryScreen(COLUMNS, 40, history=5000)
+    pyte.Stream(term).feed(raw)
+    rows = [row for row in term.history.top] + [term.buffer[y] for y in range(term.lines)]
+    return ["".join(row[x].data for x in range(COLUMNS)).rstrip() for row in rows]
 
 
 def run_on_a_terminal(args: list[str], cwd: Path, budget: float) -> str:
@@ -87,7 +74,12 @@ def test_waits_are_drawn_in_place_and_result_letters_stay_on_their_lines(tmp_pat
          # the ping scenario's rules and a few passive ones: a wait, then more letters after it
          "-k", "EXEC-PING or EXEC-START or HB-00"], tmp_path, budget=100)
     assert "waiting for exec/response of dji0: 1 s of 2 s" in raw  # drawn while it lasted
+    # A stretch of short waits (each task's answers) is shown too: every second says what it
+    # waits for, not only waits that last a second (issue 27 §3).
+    assert re.search(r"waiting for [^\x1b]*: 0 s of \d+ s", raw), raw[:3000]
     shown = screen(raw)
+    # pytest's line of result letters is never split by a wait line (issue 27 §3)
+    assert sum(line.startswith("test_execution.py") for line in shown) == 1, "\n".join(shown)
     assert not any("waiting for" in line for line in shown), "a wait line was left behind"
     letters = r"[.sFE]+( +\[ *\d+%\])?"
     lonely = [line for line in shown if re.fullmatch(r"\s+" + letters, line)]
@@ -100,3 +92,25 @@ def test_waits_are_drawn_in_place_and_result_letters_stay_on_their_lines(tmp_pat
     collected = int(re.search(r"(\d+) selected", raw).group(1))  # type: ignore[union-attr]
     assert sum(len(re.sub(r"^test_\w+\.py|\[.*\]|\s", "", line)) for line in results) \
         == collected
+
+
+@pytest.mark.slow
+def test_exploration_shows_its_progress_and_leaves_nothing_behind(tmp_path: Path) -> None:
+    """Issue 27 §3: elapsed of budget, examples, steps and what it does, redrawn in place."""
+    raw = run_on_a_terminal(
+        ["-p", "no:cacheprovider", "-o", "addopts=", "--unit", "waraps/unit/air/simulation/dji0",
+         "--broker", "embedded", "--sim-rate", "3", f"--profile={FAST}",
+         f"--reports-dir={tmp_path / 'reports'}", "--explore=6s", "-k", "test_explore"],
+        tmp_path, budget=90)
+    drawn = re.findall(r"exploring: (\d+) s of 6 s, (\d+) examples?, (\d+) steps?; ([^\x1b]+)",
+                       raw)
+    assert len(drawn) >= 3, raw[-3000:]
+    assert int(drawn[-1][0]) >= 2 and int(drawn[-1][2]) > int(drawn[0][2])  # it moves on
+    assert any(what.startswith(("start-task", "signal-task", "ping", "query-status", "wait"))
+               for *_, what in drawn), drawn
+    shown = screen(raw)
+    assert not any("exploring: " in line for line in shown), "\n".join(shown)
+    assert sum(line.startswith("test_explore.py") for line in shown) == 1, "\n".join(shown)
+    # the suite's counts and pytest's agree: the rules, and the exploration apart
+    summary = next(line for line in shown if line.startswith("waraps/unit/air/simulation/dji0:"))
+    assert "; exploration: pass (" in " ".join(shown[shown.index(summary):][:3]), summary

@@ -24,7 +24,6 @@ from certify_helpers import (
     certify,
     certify_sim,
     certify_stalling,
-    warm_parameters,
 )
 
 from conformance.plugin import INTERRUPTED_EXIT
@@ -32,10 +31,6 @@ from conformance.plugin import INTERRUPTED_EXIT
 STALLING = {"feedback-status-done": "EXEC-FB-002", "feedback-no-task-uuid": "EXEC-FB-001",
             "task-uuid-ignored": "EXEC-START-002", "no-final-feedback": "EXEC-START-003"}
 
-
-@pytest.fixture(scope="module", autouse=True)
-def parameters() -> None:
-    warm_parameters(("look-at-bearing", "move-to", "navigate"), range(1, 3))
 
 
 @pytest.mark.slow

@@ -30,7 +30,6 @@ from certify_helpers import (
     certify_virtual,
     recorded,
     recorded_virtual,
-    warm_parameters,
 )
 
 from conformance.sim import SimUnit
@@ -44,7 +43,8 @@ EXPLORE = "10s"
 """Exploration is part of every certification: a variant it falsely fails is not certified
 (the orders it sends are judged as the scripted ones are)."""
 GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
-    (("terse", "sensor-rate-edge", "rate-edge", "success-vocabulary", "pretty-json"), False),
+    (("terse", "sensor-rate-edge", "rate-edge", "success-vocabulary", "pretty-json",
+      "own-task", "signed-heading", "silent-unknown-command"), False),
     (("strict", "slow", "verbose", "feedback-first", "starting-feedback", "level-spelling",
       "geopoint-type"), True),
     # info-rates apart from sensor-rate-edge: both set sensor_info's rate.
@@ -56,17 +56,10 @@ AWAITING: dict[tuple[str, ...], tuple[set[str], str]] = {  # variants -> (rules,
     # 'strict' on the TST level waited here for the suite to send common_params on every TST
     # node (as every example of section 11 does); it does now.
     # Behaviours of the public agents (issue 24 part 3), falsely judged as the checks stand:
-    ("silent-unknown-command",): (
-        {"EXEC-ROBUST-002"},
-        "12.1 names four commands and asks nothing of any other: an unknown command left "
-        "unanswered is no deviation"),
     ("respawn",): (
         {"SENS-005"},
         "a position of the life before the reboot compared with one after it (a restarted "
         "agent spawns elsewhere, with its new agent-uuid)"),
-    ("signed-heading",): (
-        {"SENS-002"},
-        "6.1 says 'heading : float' and states no range"),
 }
 
 
@@ -80,10 +73,6 @@ def test_the_groups_cover_every_variant_and_keep_conflicts_apart() -> None:
     assert tst | {v for g in AWAITING for v in g} >= {"strict", "terse", "verbose", "slow",
                                                      "key-order", "feedback-first"}
 
-
-@pytest.fixture(scope="module", autouse=True)
-def parameters() -> None:
-    warm_parameters(("look-at-bearing", "move-to", "navigate"), range(1, 5))
 
 
 def certify_and_record(pytester: pytest.Pytester, broker: str | None, unit: UnitAddress,

@@ -45,7 +45,7 @@ def test_a_person_sees_verdicts_rates_and_escaped_evidence(run_report: RunReport
     slow = next(n for n in run_report.units if n.endswith("piraya0"))
     for seen in ("WARA-PS conformance lint report", slow, "mqtts://alice@127.0.0.1:8883",
                  "heartbeat rate matches its declared rate", "5.1 General Heartbeat Message",
-                 "could-not-test", "no reboot command", "declared 1.00 Hz", "Evidence"):
+                 "could-not-test", "no reboot command", "declared 1.00 Hz", "What failed"):
         assert seen in text, seen
     assert "s3cret" not in dom
     # The hostile payload is shown as text, as it was on the wire.
@@ -108,7 +108,9 @@ def test_hostile_markup_is_shown_as_text_and_never_runs(tmp_path):
     text = visible_text(dom).replace("&lt;", "<").replace("&gt;", ">").replace("&amp;", "&")
     for shown in HOSTILE:  # as it was on the wire, in the unit name, evidence and rate caption
         assert text.count(shown) >= 5, shown
-    assert dom.count("<svg") == 1  # the rate plot, with the hostile kind in its aria-label
+    # the rate plot (with HB-003's evidence and in the unit's rates) and HB-003's small plot
+    # in its scorecard row, the hostile kind in their aria-labels
+    assert dom.count("<svg") == 3
 
 
 def test_the_probe_sees_a_script_that_runs(tmp_path):

@@ -179,9 +179,9 @@ def test_html_opens_with_verdict_levels_and_failing_rules(run_report: RunReport)
     page = render_html(run_report)
     summary = page.index('<table class="summary">')
     assert summary < page.index('<table class="head">')  # before the header facts
-    head = page[summary:page.index('<table class="head">')]
-    assert "fail</span>" in head and "failing rules" in head
-    assert "HB-003" in head  # the failing rule, linked to its evidence
+    head = page[summary:page.index('<details class="fold">')]  # before the folded rule table
+    assert "fail</span>" in head and "What failed" in head
+    assert "HB-003" in head  # the failing rule, with its evidence
     # Each unit as lint observed it, never a certificate (conformance.conclusion).
     assert "3 rule(s) failed in 24 s observed, never commanded" in head
     assert "never commanded; it died at" in head  # dji0 stops at 14 s (HB-012)

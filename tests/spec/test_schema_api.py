@@ -74,8 +74,9 @@ def test_rule_annotations_follow_refs() -> None:
     assert schema.rule_annotations("messages/sensor-position.json",
                                    ("$ref", "properties", "latitude", "maximum")).rule \
         == "SENS-001"
-    err = schema.rule_annotations("messages/sensor-position.json",
-                                  ("$ref", "allOf", 0, "required"))
+    # ERR-010: a task's GeoPoint (every example of one is a task's: 10, 11)
+    err = schema.rule_annotations("generated/params/move-to.json",
+                                  ("properties", "waypoint", "$ref", "allOf", 0, "required"))
     assert err.rule == "ERR-010" and err.expected and "rostype" in err.expected
 
 

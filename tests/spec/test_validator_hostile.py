@@ -117,16 +117,17 @@ def _heartbeat(stamp: object) -> bytes:
                        "agent-uuid": "1b0c5c5e-58f3-4a43-9e77-47b2b8a0e6a1"}).encode()
 
 
-@pytest.mark.parametrize(("stamp", "code", "finding"), [
-    (time.time() * 1000, 1, "looks like milliseconds"),  # judged without --now: MSG-008
-    (time.time() * 1e6, 1, "looks like microseconds"),
+@pytest.mark.parametrize(("scale", "offset", "code", "finding"), [  # stamp = now * scale + offset
+    (1000, 0.0, 1, "looks like milliseconds"),  # judged without --now: MSG-008
+    (1e6, 0.0, 1, "looks like microseconds"),
     # a clock left at 1970: MSG-005, a decided rule (rules.toml), warns by default
-    (12.0, 0, "behind the arrival time"),
-    (time.time() - 3 * 86400, 0, None),                  # a recording from last week: plausible
+    (0, 12.0, 0, "behind the arrival time"),
+    (1, -3 * 86400, 0, None),                   # a recording from last week: plausible
 ], ids=["milliseconds", "microseconds", "1970", "last-week"])  # (ids: the same in each worker)
 def test_validate_without_an_arrival_time_judges_the_stamp_for_plausibility_and_says_so(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str], stamp: float, code: int,
-        finding: str | None) -> None:
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], scale: float, offset: float,
+        code: int, finding: str | None) -> None:
+    stamp = time.time() * scale + offset  # taken now, not at collection (a slow run drifts)
     path = tmp_path / "hb.json"
     path.write_bytes(_heartbeat(stamp))
     assert cli_main(["validate", "waraps/unit/air/simulation/dji0/heartbeat", str(path)]) == code
@@ -138,3 +139,18 @@ def test_validate_without_an_arrival_time_judges_the_stamp_for_plausibility_and_
     assert cli_main(["validate", "--now", "waraps/unit/air/simulation/dji0/heartbeat",
                      str(path)]) == (1 if "looks like" in (finding or "") else 0)
     assert "plausibility" not in capsys.readouterr().out
+
+
+def test_cli_shows_what_the_message_holds_escaped(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A value, a key and the topic holding escape sequences, a bidi override and zero-width
+    characters are shown escaped in validate's text (issue 26 §3), on one line each."""
+    hostile = "\x1b]52;c;cHduZWQ=\x07\x1b[2J\u202e\u200b"
+    path = tmp_path / "hb.json"
+    path.write_bytes(orjson.dumps({"name": "dji0", "rate": hostile, "type": "HeartBeat",
+                                   hostile: 1}))
+    topic = "waraps/unit/air/simulation/dji0\u202e/heartbeat"
+    assert cli_main(["validate", topic, str(path)]) == 1
+    out = capsys.readouterr().out
+    assert "dji0\\u202e/heartbeat" in out and "observed  string" in out
+    assert not any(c in out for c in "\x1b\x07\u202e\u200b"), out

@@ -1,0 +1,58 @@
+"""REBOOT-001 when the unit comes back from the requested reboot under another name (issue 24,
+2; FIELD-NOTES: agents that add a random suffix to their name at every start, `cppl2_9d00`):
+it fails naming the new name, instead of could-not-test; a unit of the same type and role that
+was there before the reboot is not taken for it."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from certify_helpers import FAST, certify
+
+from conformance.sim import SimUnit
+
+pytestmark = [pytest.mark.slow, pytest.mark.mosquitto]
+
+RULES = "REBOOT-001 or REBOOT-002"
+
+
+class Renamer:
+    """A reboot hook: the unit stops, and starts again under ``<name>_9d00`` (or its own name
+    when ``rename`` is false)."""
+
+    def __init__(self, unit: str, broker: str, rename: bool) -> None:
+        self.unit, self.broker, self.rename = unit, broker, rename
+        self.sims: list[Any] = [SimUnit(unit, broker, rate=3.0, seed=1).start()]
+
+    def pytest_waraps_reboot(self, config: pytest.Config, unit: str) -> bool:
+        self.sims[-1].stop()
+        name = unit + "_9d00" if self.rename else unit
+        self.sims.append(SimUnit(name, self.broker, rate=3.0, seed=2).start())
+        return True
+
+    def stop(self) -> None:
+        for sim in self.sims:
+            sim.stop()
+
+
+@pytest.mark.parametrize("rename", [True, False], ids=["renamed", "same-name"])
+def test_a_unit_back_under_another_name_fails_reboot_001_naming_it(
+        pytester: pytest.Pytester, mosquitto: str, prefix: str, rename: bool) -> None:
+    unit = f"{prefix}/unit/air/simulation/cppl2_1a2b"
+    # Another unit of the same type and role, there all along: never taken for the unit.
+    with SimUnit(f"{prefix}/unit/air/simulation/cppl2_77ff", mosquitto, rate=3.0, seed=3):
+        renamer = Renamer(unit, mosquitto, rename)
+        try:
+            run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={FAST}",
+                          "-k", RULES, plugins=(renamer,))
+        finally:
+            renamer.stop()
+    rules = run.unit_rules()
+    if rename:
+        assert rules["REBOOT-001"]["verdict"] == "fail", rules["REBOOT-001"]
+        assert "'cppl2_1a2b_9d00'" in rules["REBOOT-001"]["reason"]
+        assert "cppl2_77ff" not in rules["REBOOT-001"]["reason"]
+        assert run.result.ret == 1
+    else:
+        assert rules["REBOOT-001"]["verdict"] == "pass", rules["REBOOT-001"]
