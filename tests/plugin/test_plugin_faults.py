@@ -6,7 +6,7 @@ what it runs (``RERUN``) is run again against the same faults and fails that rul
 
 The matrix runs in virtual time (``--broker virtual``: the reference unit, the suite and the
 Monitor on one simulated clock, through the in-memory broker double ``conformance.sim.virtual``),
-but for the runs of ``REAL_BROKER``, end to end on Mosquitto and amqtt: one for each kind of
+but for the runs of ``REAL_BROKER``, end to end on Mosquitto: together every kind of
 scenario. To keep the matrix short, faults that touch different spec areas run together, at
 2 Hz with the matrix profile's short windows; faults of the areas that gate others (heartbeat,
 ping, robustness, start-task, signals, reboot, stamps) run alone, but for those that change
