@@ -83,8 +83,8 @@ class BrokerURL:
         """Parse a broker URL; credentials are read from ``env`` (default ``os.environ``)."""
         env = os.environ if env is None else env
         text = text.strip()
-        if text == "embedded":
-            return cls("embedded")
+        if text in ("embedded", "virtual"):  # virtual: the tests' in-memory double (sim/virtual)
+            return cls(text)
         parts = urlsplit(text if "://" in text else f"mqtt://{text}")
         # What an error may say: never a password it wrongly has, a long URL excerpted.
         shown = shorten(mask_password(text, url=True), 200)
@@ -140,11 +140,11 @@ class BrokerURL:
 
     @property
     def is_loopback(self) -> bool:
-        return self.scheme == "embedded" or self.host.startswith(LOOPBACK)
+        return self.scheme in ("embedded", "virtual") or self.host.startswith(LOOPBACK)
 
     def __str__(self) -> str:
-        if self.scheme == "embedded":
-            return "embedded"
+        if self.scheme in ("embedded", "virtual"):
+            return self.scheme
         user = f"{self.username}@" if self.username else ""
         return f"{self.scheme}://{user}{self.host}:{self.port}"
 
@@ -226,7 +226,7 @@ class MqttClient:
                  refuse_payload: PayloadPolicy | None = None,
                  on_connection_change: Callable[[bool, str], None] | None = None,
                  keepalive: int = 30) -> None:
-        if broker.scheme == "embedded":
+        if broker.scheme in ("embedded", "virtual"):
             raise BrokerError("start the embedded broker first (conformance.broker) and pass "
                               "its mqtt:// URL")
         self.broker = broker

@@ -9,7 +9,6 @@ raises ``DryRun``.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from typing import Any
@@ -296,10 +295,11 @@ class Commander(Sender):
                   self.send({"command": "signal-task", "signal": "$abort",
                              "task-uuid": new_uuid()}),
                   self.send({"command": "query-status", "task-uuid": new_uuid()})]
-        end = time.monotonic() + timeout
+        clock = self.traffic.clock
+        end = clock.monotonic() + timeout
         answered = False
         for sent in probes:
-            answer = self.response(sent, max(0.0, end - time.monotonic()))
+            answer = self.response(sent, max(0.0, end - clock.monotonic()))
             command = str(sent.body.get("command"))
             if sent.body.get("command") == "start-task":
                 with self._lock:  # no unit offers it: nothing to abort, answered or not

@@ -9,7 +9,6 @@ reason, or just that the rule was examined and held (``verdict=PASS``).
 from __future__ import annotations
 
 import random
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -215,10 +214,11 @@ class Context:
                     return e.seq > listed.seq and unit_uuid not in self.executing(e)
                 return e.subtopic == "exec/feedback" and e.get("task-uuid") in (
                     unit_uuid, None, "") and meaning(e.get("status")) in FINAL_STATUSES
-            started = time.monotonic()
+            clock = self.traffic.clock
+            started = clock.monotonic()
             self.traffic.wait_for(over, timeout, after=after,
                                   what=f"the end of task {unit_uuid[:8]}")
-            timeout = min(self.timing.response, max(0.0, timeout - (time.monotonic() - started)))
+            timeout = min(self.timing.response, max(0.0, timeout - (clock.monotonic() - started)))
         final = self.commander.feedback(task_uuid, FINAL_STATUSES, timeout, after=after)
         if final is None and not self.commander.blind():
             self.commander.deviations.note(

@@ -18,7 +18,6 @@ left of the budget, and the shortest story so far is the one reported, shrunk or
 from __future__ import annotations
 
 import random
-import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -91,7 +90,9 @@ class Search:
         self.budget = budget
         self.seed = seed
         self.on_story = on_story
-        self.started = time.monotonic()
+        self.clock = explorer.ctx.traffic.clock
+        """The budget is spent in the run's time (virtual in the test suite's matrices)."""
+        self.started = self.clock.monotonic()
         self.outcome = Outcome()
         self.spent = False
         self.failed = False
@@ -102,7 +103,7 @@ class Search:
         terminal shows it with the counts (``suite/exploration.py``)."""
 
     def left(self) -> float:
-        return self.budget - (time.monotonic() - self.started)
+        return self.budget - (self.clock.monotonic() - self.started)
 
     def check(self) -> None:
         if self.spent or self.left() <= 0:
@@ -112,7 +113,7 @@ class Search:
     def begin_example(self) -> None:
         self.check()
         self.outcome.examples += 1
-        self.example_began = time.monotonic()
+        self.example_began = self.clock.monotonic()
         self.explorer.begin()
 
     def run_step(self, action: dict[str, Any]) -> None:
@@ -169,14 +170,14 @@ class Search:
             self.outcome.ended = "budget"
             if not isinstance(e, OutOfBudget):
                 self.outcome.last_error = f"{type(e).__name__}: {str(e)[:200]}"
-        self.outcome.elapsed = time.monotonic() - self.started
+        self.outcome.elapsed = self.clock.monotonic() - self.started
         return self.outcome
 
     def _shrink(self) -> None:
         """Tell the story found at once, then leave out steps while the unit still
         disagrees (``shrink.py``), within the budget."""
         story = Story.of(self.explorer.steps, self.seed)
-        story.found_after = time.monotonic() - self.started
+        story.found_after = self.clock.monotonic() - self.started
         story.found_steps = self.explorer.total_steps
         story.first_length = story.length
         self.outcome.story = story
@@ -191,8 +192,8 @@ class Search:
             return None if found is None else (found.failing, self.explorer.involved(), found)
 
         _, shorter, done = shrink(story.actions(), story.failing, self.explorer.involved(),
-                                  attempt, self.left,
-                                  expected=time.monotonic() - self.example_began)
+                                  attempt, self.left, clock=self.clock.monotonic,
+                                  expected=self.clock.monotonic() - self.example_began)
         if shorter is not None:
             shorter.found_after, shorter.found_steps = story.found_after, story.found_steps
             shorter.first_length = story.first_length

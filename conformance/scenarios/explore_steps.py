@@ -220,8 +220,9 @@ class Explorer:
         self.ctx.commander.abort_all(t.response)
         if self._pending_until:
             until = self._pending_until
+            left = until - self.ctx.traffic.clock.now()
             self.ctx.traffic.wait_for(lambda e: e.time > until,
-                                      until - time.time() + t.periods(2, self._rate()),
+                                      left + t.periods(2, self._rate()),
                                       subtopic="heartbeat", what="the deadlines of the "
                                       "exploration's commands")
         found += ours(self.collector.since(mark), self._uuids())
@@ -231,7 +232,7 @@ class Explorer:
     # --- one step -----------------------------------------------------------------------------
     def do(self, action: dict[str, Any]) -> Step:
         """Run one step; raises ``Disagreement`` when the Monitor found a violation meanwhile."""
-        step = Step(dict(action))
+        step = Step(dict(action), at=self.ctx.traffic.clock.now())
         if len(self.steps) < MAX_STEPS:
             self.steps.append(step)
         self.total_steps += 1
@@ -274,7 +275,7 @@ class Explorer:
         return self.ctx.rate_of("heartbeat")
 
     def _owe(self, seconds: float) -> None:
-        self._pending_until = max(self._pending_until, time.time() + seconds)
+        self._pending_until = max(self._pending_until, self.ctx.traffic.clock.now() + seconds)
 
     def _send(self, step: Step, body: dict[str, Any]) -> tuple[Sent, Entry | None]:
         t = self.ctx.timing

@@ -5,7 +5,6 @@ both rules are could-not-test."""
 
 from __future__ import annotations
 
-import time
 from typing import Any
 
 from conformance.checks.stall import stamp_of
@@ -68,7 +67,7 @@ def _reboot(ctx: Context, names: Any) -> None:
                              subtopic="heartbeat", what="two heartbeats before the reboot")
         known = names.heard()
     heard = {e.get("agent-uuid") for e in ctx.traffic.since(0, "heartbeat")}
-    requested = time.time()
+    requested = ctx.traffic.clock.now()
     error = ctx.reboot()
     if error is not None:
         for rule in RULES:

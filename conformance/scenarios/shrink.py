@@ -93,15 +93,16 @@ Attempt = Callable[[list[Action]], "tuple[int, set[int], Any] | None"]
 
 
 def shrink(actions: list[Action], failing: int, involved: set[int], attempt: Attempt,
-           left: Callable[[], float], expected: float = 0.0
-           ) -> tuple[list[Action], Any, bool]:
+           left: Callable[[], float], expected: float = 0.0,
+           clock: Callable[[], float] = time.monotonic) -> tuple[list[Action], Any, bool]:
     """The shortest story found by leaving steps out of ``actions`` (disagreeing first at
     ``failing``, about the tasks of the slots ``involved``): ``attempt`` replays a candidate
     and gives the same three of it and its story, or None when the unit now answers as the
     model says. Returns the actions, their story (None when no shorter one was found) and
     whether shrinking finished (no single step can be left out) before the budget (``left``
     seconds) ran out. A replay begins only when the budget has room for the longest one so
-    far (``expected`` before the first: the example that found the story)."""
+    far (``expected`` before the first: the example that found the story), timed by ``clock``
+    (the run's: virtual in the test suite's matrices)."""
     best, story = actions, None
     longest: float | None = None
     progress = True
@@ -113,9 +114,9 @@ def shrink(actions: list[Action], failing: int, involved: set[int], attempt: Att
                 continue
             if left() <= (expected if longest is None else longest):
                 return best, story, False
-            began = time.monotonic()
+            began = clock()
             result = attempt(candidate)
-            longest = max(longest or 0.0, time.monotonic() - began)
+            longest = max(longest or 0.0, clock() - began)
             if result is not None:
                 failing, involved, story = result
                 best, progress = candidate, True

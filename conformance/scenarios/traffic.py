@@ -7,7 +7,8 @@ excerpt of its payload, never the payload; its decoded body is kept whole only w
 small and recent (``BODY_BYTES``, ``FULL_BODIES_BYTES``), else only the top-level fields an
 answer is read by (``answer_fields``).
 Every wait says what it waits for: ``Waits`` lets the suite show it while it lasts (progress)
-and end it when the whole run is out of time (``--max-duration``).
+and end it when the whole run is out of time (``--max-duration``). Waits read the time and wait
+through ``clock`` (``conformance.clock``: the real one, or the test suite's virtual time).
 """
 
 from __future__ import annotations
@@ -15,7 +16,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import threading
-import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -24,6 +24,7 @@ from typing import Any
 
 import orjson
 
+from conformance.clock import REAL, Clock
 from conformance.message import Message
 from conformance.topics import UnitAddress
 
@@ -96,10 +97,11 @@ class Wait:
     what: str
     started: float
     timeout: float
+    clock: Clock = REAL
 
     @property
     def elapsed(self) -> float:
-        return time.monotonic() - self.started
+        return self.clock.monotonic() - self.started
 
 
 class Waits:
@@ -107,7 +109,8 @@ class Waits:
     while it lasts (on the waiting thread); past ``deadline`` (monotonic seconds) a wait raises
     ``OutOfTime``, once: the waits of the teardown that follows run to their own deadlines."""
 
-    def __init__(self) -> None:
+    def __init__(self, clock: Clock = REAL) -> None:
+        self.clock = clock
         self.on_tick: Callable[[Wait], None] | None = None
         self.on_end: Callable[[Wait], None] | None = None
         self.deadline: float | None = None
@@ -130,7 +133,7 @@ class Waits:
             self.busy_since = wait.started
 
     def check(self, what: str) -> None:
-        if self.deadline is not None and time.monotonic() >= self.deadline:
+        if self.deadline is not None and self.clock.monotonic() >= self.deadline:
             self.deadline = None
             self.expired = what
             raise OutOfTime(what)
@@ -140,8 +143,10 @@ class Traffic:
     """The unit's messages in arrival order, with the latest of each subtopic at hand."""
 
     def __init__(self, unit: UnitAddress, capacity: int = 20_000, *,
-                 tst_operator: str | None = None) -> None:
+                 tst_operator: str | None = None, clock: Clock = REAL) -> None:
         self.unit = unit
+        self.clock = clock
+        """Where the suite reads the time and waits (``RealClock`` but in virtual time)."""
         self._base = unit.base + "/"
         self._operator = f"{tst_operator}/tst/" if tst_operator else None
         """An operator's topic base whose tst/response and tst/feedback carry this unit's TST
@@ -153,7 +158,7 @@ class Traffic:
         self._whole_bytes = 0
         self._seq = 0
         self._cond = threading.Condition()
-        self.waits = Waits()
+        self.waits = Waits(clock)
 
     def add(self, message: Message) -> Entry | None:
         """Keep a message if it is the unit's; return its entry."""
@@ -229,7 +234,8 @@ class Traffic:
         waits = self.waits
         what = what or (f"{subtopic} of {self.unit.name}" if subtopic else "the unit")
         waits.check(what)
-        wait = Wait(what, time.monotonic(), max(0.0, timeout))
+        clock = self.clock
+        wait = Wait(what, clock.monotonic(), max(0.0, timeout), clock)
         deadline = wait.started + wait.timeout
         checked = after
         waits.began(wait)
@@ -243,7 +249,7 @@ class Traffic:
                         if (subtopic is None or entry.subtopic == subtopic) \
                                 and predicate(entry):
                             return entry
-                    now = time.monotonic()
+                    now = clock.monotonic()
                     left = deadline - now
                     if left <= 0:
                         return None
@@ -253,11 +259,12 @@ class Traffic:
                             waits.on_tick(wait)
                         waits.check(what)
                     stop = waits.deadline
-                    self._cond.wait(min(left, TICK, max(0.0, stop - now) if stop else TICK))
-                    if stop is not None and time.monotonic() >= stop:
+                    clock.wait(self._cond,
+                               min(left, TICK, max(0.0, stop - now) if stop else TICK))
+                    if stop is not None and clock.monotonic() >= stop:
                         waits.check(what)
         finally:
             waits.current = None
-            waits.ended_at = time.monotonic()
+            waits.ended_at = clock.monotonic()
             if waits.on_end is not None:
                 waits.on_end(wait)

@@ -213,7 +213,8 @@ class _Drive:
         ctx = self.ctx
         period = ctx.timing.periods(2, ctx.rate_of("tst_execution_info"))
         since = after_time or 0.0
-        ctx.traffic.wait_for(lambda e: e.time > since, period + max(0.0, since - _now()),
+        ahead = max(0.0, since - ctx.traffic.clock.now())
+        ctx.traffic.wait_for(lambda e: e.time > since, period + ahead,
                              after=ctx.traffic.mark(), subtopic="tst_execution_info")
 
     def info_after_the_ends(self) -> None:
@@ -223,12 +224,6 @@ class _Drive:
         if finals:
             rate = self.ctx.rate_of("tst_execution_info")
             self.wait_info(max(finals) + max(1.0, 1.0 / rate if rate else 1.0))
-
-
-def _now() -> float:
-    import time
-
-    return time.time()
 
 
 def _kind(task: str) -> str:

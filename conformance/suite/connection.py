@@ -9,7 +9,6 @@ passive checks as the linter) and to ``Traffic`` (which the scenarios wait on).
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Callable
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
@@ -29,6 +28,7 @@ from conformance.violation import Violation
 
 if TYPE_CHECKING:
     from conformance.sim.reference import Reference
+    from conformance.sim.virtual import VirtualClient, VirtualReference
 
 Revive = tuple[str, float, Callable[[], "str | None"]]
 """How a unit that is not alive is restarted before the run: (how, in the words of the option;
@@ -45,13 +45,14 @@ class Connection:
     monitor_lock: AbstractContextManager[Any]
     """Held while the Monitor is fed or read (the MQTT network thread feeds it)."""
     events: Events
-    client: MqttClient | None = field(default=None, init=False)
-    reference: Reference | None = field(default=None, init=False)
-    """The bundled reference unit and its broker, under --broker embedded."""
+    client: MqttClient | VirtualClient | None = field(default=None, init=False)
+    reference: Reference | VirtualReference | None = field(default=None, init=False)
+    """The bundled reference unit and its broker, under --broker embedded (or virtual)."""
     listeners: list[Callable[[list[Violation]], None]] = field(default_factory=list,
                                                                 init=False)
     """Told the violations the Monitor finds in each message (the exploration's oracle)."""
-    _alive: threading.Event = field(default_factory=threading.Event, init=False)
+    _alive: bool = field(default=False, init=False)
+    _alive_changed: threading.Condition = field(default_factory=threading.Condition, init=False)
     _gap_start: float | None = field(default=None, init=False)
     _linked: bool = field(default=False, init=False)
     """Whether the broker ever accepted the connection (before that, nothing can be lost)."""
@@ -64,6 +65,8 @@ class Connection:
     """Clear from a reconnect until the unit's second heartbeat after it: it reconnects on its
     own time, and a command sent before it has (or subscribed again: its first heartbeat may
     be one it held, sent before its subscription) is lost."""
+    _signal: threading.Condition = field(default_factory=threading.Condition, init=False)
+    """Notified when ``_echoed`` or ``_heard_again`` is set: waited on the run's clock."""
     _back_at: float = field(default=0.0, init=False)
     _beats_back: int = field(default=0, init=False)
     _last_arrival: float | None = field(default=None, init=False)
@@ -91,7 +94,9 @@ class Connection:
 
         Raises ``BrokerError`` (broker unreachable or refusing) or ``NotAlive``."""
         s = self.settings
-        if s.embedded:
+        if s.virtual:
+            self._open_virtual()
+        elif s.embedded:
             # Imported here: the broker and the simulator load only for --broker embedded.
             from conformance.sim.reference import Reference
 
@@ -100,6 +105,24 @@ class Connection:
                                        seed=s.seed, tst=s.sim_tst,
                                        tst_operator=s.tst_operator).start()
             self.broker_url = BrokerURL.parse(self.reference.url)
+        probe = None if s.virtual else self._open_mqtt()
+        try:
+            if not self._wait_alive(alive_timeout):
+                revived = self._revive(revive, alive_timeout) if revive else None
+                if revived is None or revived[1]:
+                    raise NotAlive(not_alive(
+                        self.unit, s.profile, self.broker_url, waited=alive_timeout,
+                        own_subtopics=self.traffic.subtopics(),
+                        seen=probe.topics() if probe else {},
+                        timing_scale=s.timing_scale,
+                        revived=revived[1] if revived else None))
+        finally:
+            if probe is not None:
+                probe.close()
+
+    def _open_mqtt(self) -> Probe:
+        """Connect the suite's client; returns the probe that notes what else is seen."""
+        s = self.settings
         probe = Probe(self.broker_url, self.unit)
         self.client = MqttClient(self.broker_url, on_message=self._on_message,
                                  may_publish=self.may_publish,
@@ -110,31 +133,49 @@ class Connection:
         if s.tst_operator is not None:  # 14.1: commands and answers there
             self.client.subscribe(s.tst_operator.base + "/tst/#")
         probe.start()
-        try:
-            if not self._alive.wait(alive_timeout):
-                revived = self._revive(revive, alive_timeout) if revive else None
-                if revived is None or revived[1]:
-                    raise NotAlive(not_alive(
-                        self.unit, s.profile, self.broker_url, waited=alive_timeout,
-                        own_subtopics=self.traffic.subtopics(), seen=probe.topics(),
-                        timing_scale=s.timing_scale,
-                        revived=revived[1] if revived else None))
-        finally:
-            probe.close()
+        return probe
+
+    def _open_virtual(self) -> None:
+        """--broker virtual: the reference unit and an in-memory broker on the traffic's
+        virtual clock (the test suite's matrices only: ``conformance.sim.virtual``)."""
+        from conformance.clock import VirtualClock
+        from conformance.sim.virtual import VirtualClient, VirtualReference
+
+        s = self.settings
+        clock = self.traffic.clock
+        assert isinstance(clock, VirtualClock), "--broker virtual runs in virtual time"
+        self.reference = reference = VirtualReference(
+            self.unit, clock, faults=s.sim_faults, variants=s.sim_variants, rate=s.sim_rate,
+            seed=s.seed, tst=s.sim_tst, tst_operator=s.tst_operator).start()
+        self.client = VirtualClient(reference.broker, self._on_message, self.may_publish,
+                                    self.refuse_payload)
+        self.client.subscribe(self.unit.base + "/#")
+        if s.tst_operator is not None:  # 14.1: commands and answers there
+            self.client.subscribe(s.tst_operator.base + "/tst/#")
+
+    def _wait_alive(self, timeout: float) -> bool:
+        """Whether the unit's first live heartbeat came within ``timeout`` seconds."""
+        clock = self.traffic.clock
+        end = clock.monotonic() + timeout
+        with self._alive_changed:
+            while not self._alive and (left := end - clock.monotonic()) > 0:
+                clock.wait(self._alive_changed, left)
+            return self._alive
 
     def _revive(self, revive: Revive, waited: float) -> tuple[str, str]:
         """Restart a unit that is not alive, and wait for its heartbeat: (how, "") when it
         came, else (how, what went wrong)."""
         how, timeout, restart = revive
-        self.events.at(time.time(), f"no heartbeat within {waited:.1f} s: restarting the unit "
-                                    f"before judging it")
+        self.events.at(self.traffic.clock.now(), f"no heartbeat within {waited:.1f} s: "
+                                                 f"restarting the unit before judging it")
         failure = restart()
         if failure is not None:
             return how, f"restarted with {how}, which failed: {failure}"
-        if not self._alive.wait(timeout):
+        if not self._wait_alive(timeout):
             return how, f"restarted with {how}; still no heartbeat {timeout:.0f} s later"
-        self.events.at(time.time(), f"the unit was not alive when the run began (an earlier "
-                                    f"run may have left it dead); restarted with {how}")
+        self.events.at(self.traffic.clock.now(), f"the unit was not alive when the run began "
+                                                 f"(an earlier run may have left it dead); "
+                                                 f"restarted with {how}")
         return how, ""
 
     def _on_message(self, message: Message) -> None:
@@ -142,7 +183,7 @@ class Connection:
         heartbeat = not message.retain and message.topic == self.unit.topic("heartbeat")
         if message.topic == self.unit.topic("exec/command"):
             self._unechoed = None
-            self._echoed.set()
+            self._set(self._echoed)
         with self.monitor_lock:
             self._last_arrival = message.time
             if heartbeat and not self._heard_again.is_set():
@@ -150,7 +191,7 @@ class Connection:
                 self.monitor.connection_gap(self._back_at, message.time)
                 self._beats_back += 1
                 if self._beats_back >= 2:
-                    self._heard_again.set()
+                    self._set(self._heard_again)
             stalls = self.monitor.ctx.stalls.count
             found = self.monitor.feed(message)
             if self.monitor.ctx.stalls.count != stalls:
@@ -160,7 +201,9 @@ class Connection:
                 listener(found)
         self.traffic.add(message)
         if heartbeat:
-            self._alive.set()
+            with self._alive_changed:
+                self._alive = True
+                self._alive_changed.notify_all()
 
     def _say_stall(self, now: float) -> None:
         """A stall of the broker was found in the traffic (``checks/stall.py``)."""
@@ -170,7 +213,7 @@ class Connection:
                             f"it are not judged")
 
     def _on_connection(self, connected: bool, reason: str) -> None:
-        now = time.time()
+        now = self.traffic.clock.now()
         with self.monitor_lock:
             if connected:
                 self._linked = True
@@ -215,7 +258,7 @@ class Connection:
                 and topic == self.unit.topic("exec/command"):
             # Only once an echo was seen: a broker whose ACL hides the command topic from
             # the suite never echoes, and is no stall.
-            self._unechoed = time.time()
+            self._unechoed = self.traffic.clock.now()
             self._echoed.clear()
         self.client.publish(topic, payload, qos=1, timeout=0)
 
@@ -235,11 +278,27 @@ class Connection:
         """Wait up to ``timeout`` seconds for the link (a command sent into a gap is lost),
         and after a reconnect for the unit's next heartbeat within that time (it reconnects
         on its own; a command sent before it has is lost as well)."""
-        deadline = time.monotonic() + timeout
+        clock = self.traffic.clock
+        deadline = clock.monotonic() + timeout
         if not (self.client and self.client.wait_connected(timeout)):
             return False
-        self._heard_again.wait(max(0.0, deadline - time.monotonic()))
+        self._wait(self._heard_again, max(0.0, deadline - clock.monotonic()))
         return True
+
+    def _set(self, event: threading.Event) -> None:
+        event.set()
+        with self._signal:
+            self._signal.notify_all()
+
+    def _wait(self, event: threading.Event, timeout: float) -> bool:
+        """Wait up to ``timeout`` seconds for ``event``, on the run's clock (virtual under
+        --broker virtual: the broker double delivers only while the suite waits)."""
+        clock = self.traffic.clock
+        end = clock.monotonic() + timeout
+        with self._signal:
+            while not event.is_set() and (left := end - clock.monotonic()) > 0:
+                clock.wait(self._signal, left)
+        return event.is_set()
 
     def await_delivery(self, slack: float, budget: float, *, silent_periods: float = 3.0
                        ) -> float | None:
@@ -252,11 +311,12 @@ class Connection:
         whether the broker still delivers."""
         self._probe_silence(silent_periods)
         since = self._unechoed
-        if since is None or self._echoed.wait(max(0.0, since + slack - time.time())):
+        now = self.traffic.clock.now
+        if since is None or self._wait(self._echoed, max(0.0, since + slack - now())):
             return None
         start = min(since, self._last_arrival or since)
-        back = self._echoed.wait(budget)
-        now = time.time()
+        back = self._wait(self._echoed, budget)
+        now = now()
         with self.monitor_lock:
             self.monitor.connection_gap(start, now)
         self.events.at(now, f"the broker delivered nothing from {clock(start)} for "
@@ -273,7 +333,7 @@ class Connection:
         if (latest is None or type(rate) not in (int, float) or rate <= 0
                 or latest.time == self._probed or self._unechoed is not None
                 or not self._echoed.is_set() or self.settings.dry_run
-                or time.time() - latest.time <= periods / rate):
+                or self.traffic.clock.now() - latest.time <= periods / rate):
             return
         from conformance.scenarios.sender import Sender
 

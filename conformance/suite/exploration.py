@@ -7,7 +7,6 @@ folder, and its rerun line replays exactly that story (``--explore-replay``).
 from __future__ import annotations
 
 import shlex
-import time
 from pathlib import Path
 
 import pytest
@@ -43,7 +42,7 @@ def budget(c: Certification) -> float:
         wanted = default_budget(c.context.rate_of("heartbeat"))
     deadline = c.traffic.waits.deadline
     if deadline is not None:
-        wanted = min(wanted, deadline - time.monotonic() - RESERVE)
+        wanted = min(wanted, deadline - c.traffic.clock.monotonic() - RESERVE)
     return max(0.0, wanted)
 
 
@@ -94,7 +93,7 @@ def run(c: Certification, node: pytest.Item) -> None:
     explorer = Explorer(c.context, collector, lambda task_uuid: _model_state(c, task_uuid),
                         dead=c.unit_died)
     c.connection.listeners.append(collector)
-    died, began = "", time.time()
+    died, began = "", c.traffic.clock.now()
     try:
         if actions is not None:
             _replay(c, explorer, actions, node, began)
@@ -182,7 +181,7 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item, began: flo
     def doing(what: str) -> None:  # the terminal shows where it stands (issue 27 §3)
         o = search.outcome
         c.progress.show_status(
-            f"exploring: {time.monotonic() - search.started:.0f} s of {seconds:.0f} s, "
+            f"exploring: {search.clock.monotonic() - search.started:.0f} s of {seconds:.0f} s, "
             f"{o.examples} example{'s' * (o.examples != 1)}, {steps(o.steps)}; {what}")
     search.on_step = doing
     try:

@@ -25,7 +25,8 @@ def header_lines(settings: Settings, *, broker: BrokerURL, heartbeat: dict[str, 
     s, unit, profile = settings, settings.unit, settings.profile
     declared = ", ".join(levels) or "none declared"
     where = str(s.broker) if not s.embedded else \
-        f"embedded {broker} with the bundled reference unit" + (
+        ("virtual time: the in-memory broker double" if s.virtual else f"embedded {broker}") + \
+        " with the bundled reference unit" + (
             f" (faults: {', '.join(s.sim_faults)})" if s.sim_faults else "") + (
             f" (variants: {', '.join(s.sim_variants)})" if s.sim_variants else "")
     safety = [decision.sentence()]

@@ -5,7 +5,6 @@ profile's ``min_intervals``), and the ``--observe`` a rerun needs when evidence 
 
 from __future__ import annotations
 
-import time
 from contextlib import AbstractContextManager
 from typing import Any
 
@@ -29,8 +28,10 @@ class Observation:
         self._lock = monitor_lock
         self.observe = observe
         """--observe: seconds to watch the unit at least before the passive rules are judged."""
-        self.started = time.time()
-        self._started_monotonic = time.monotonic()
+        self.clock = self.traffic.clock
+        """The run's time: real, or virtual in the test suite's matrices."""
+        self.started = self.clock.now()
+        self._started_monotonic = self.clock.monotonic()
 
     def slowest_rate(self) -> float:
         """The slowest declared rate of the unit's periodic messages, Hz (1 when none)."""
@@ -50,9 +51,9 @@ class Observation:
         if latest is None or rate is None:
             return ""
         period = self.timing.scale / rate
-        if not settle and time.time() - latest.time <= SILENCE_PERIODS * period:
+        if not settle and self.clock.now() - latest.time <= SILENCE_PERIODS * period:
             return ""
-        left = latest.time + max(10 * period, self.timing.response) - time.time()
+        left = latest.time + max(10 * period, self.timing.response) - self.clock.now()
         if left > 0 and self.traffic.wait_for(lambda e: True, left, after=latest.seq,
                                               subtopic="heartbeat",
                                               what="the unit's heartbeat") is not None:
@@ -76,7 +77,7 @@ class Observation:
             until = open_until(self.monitor.state(self.unit), self.monitor.ctx)
         if until is None:
             return
-        wait = until - time.time() + self.timing.periods(2, self.context.rate_of("heartbeat"))
+        wait = until - self.clock.now() + self.timing.periods(2, self.context.rate_of("heartbeat"))
         self.traffic.wait_for(lambda e: e.time > until, max(0.0, wait), subtopic="heartbeat")
 
     def wait_passive_window(self) -> None:
@@ -89,26 +90,26 @@ class Observation:
         # --observe: at least that long since the run started (a rerun of a rule whose
         # evidence came late, e.g. a silence).
         observed_until = self._started_monotonic + self.observe
-        deadline = max(time.monotonic() + 2 * (need + 2) / slowest + 5.0, observed_until)
+        deadline = max(self.clock.monotonic() + 2 * (need + 2) / slowest + 5.0, observed_until)
         period = 1.0 / slowest
         rates_ready: list[float] = []
 
         def enough() -> bool:
-            if time.monotonic() < observed_until:
+            if self.clock.monotonic() < observed_until:
                 return False
             if not rates_ready:
                 if not self._rates_judged(need):
                     return False
-                rates_ready.append(time.monotonic())
+                rates_ready.append(self.clock.monotonic())
             # SI-003: a listed sensor gets three more periods to show up, once. The Monitor's
             # view, not the topic's: it also reads 5.2's 'sensor.info' (ERR-001).
             with self._lock:
                 state = self.monitor.state(self.unit)
                 listed, seen = state.sensors_listed, set(state.sensors_seen)
             return listed is None or all(s in seen for s in listed) or \
-                time.monotonic() - rates_ready[0] > 3 * period
+                self.clock.monotonic() - rates_ready[0] > 3 * period
 
-        while not enough() and (left := deadline - time.monotonic()) > 0:
+        while not enough() and (left := deadline - self.clock.monotonic()) > 0:
             # Look again after the next periodic message (at most one period from now).
             self.traffic.wait_for(lambda e: e.subtopic in PERIODIC, min(left, period),
                                   after=self.traffic.mark(),

@@ -24,6 +24,7 @@ import pytest
 from conformance import __version__
 from conformance.checks import Monitor
 from conformance.client import BrokerError, MqttClient
+from conformance.clock import REAL, VirtualClock
 from conformance.conclusion import INTERRUPTED, NOT_CERTIFIED, Conclusion
 from conformance.conclusion import of as conclusion_of
 from conformance.display import LINE_CHARS, shorten, shown
@@ -68,7 +69,10 @@ class Certification:
         self.profile = settings.profile
         self.timing = Timing(self.profile, settings.timing_scale)
         operator = settings.tst_operator
-        self.traffic = Traffic(self.unit, tst_operator=operator.base if operator else None)
+        # --broker virtual (the test suite's matrices): the unit, this suite and the Monitor
+        # on one simulated clock (conformance.clock); every other run in real time.
+        self.traffic = Traffic(self.unit, tst_operator=operator.base if operator else None,
+                               clock=VirtualClock() if settings.virtual else REAL)
         # The Monitor puts what is wrong in the suite's own commands (some broken on purpose:
         # the robustness scenario) on the commander's account, which a certification does not
         # report; it judges the unit's answers with the deadlines the scenarios wait for.
@@ -148,9 +152,11 @@ class Certification:
         """Connect, observe ``<unit>/#`` and wait for the unit's first live heartbeat.
 
         Raises ``BrokerError`` (broker unreachable or refusing) or ``NotAlive``."""
-        self.traffic.waits.deadline = time.monotonic() + self.settings.max_duration
+        self.traffic.waits.deadline = self.traffic.clock.monotonic() + self.settings.max_duration
         if self.config.get_verbosity() >= 0:  # the first seconds: say what is awaited
-            where = ("the embedded broker and the bundled reference unit" if
+            where = ("the in-memory broker double and the bundled reference unit, in virtual "
+                     "time" if self.settings.virtual else
+                     "the embedded broker and the bundled reference unit" if
                      self.settings.embedded else f"{self.settings.broker}")
             self._say(f"waraps-conformance: connecting to {where}, then waiting up to "
                       f"{self.alive_timeout():.0f} s for a heartbeat of {self.unit}")
@@ -183,7 +189,7 @@ class Certification:
 
     def _adapted(self, deviation: Deviation) -> None:
         """A systematic deviation, seen for the first time: say so once (summary and -v)."""
-        self.progress.step(self.events.at(time.time(), f"adapted to {deviation}"))
+        self.progress.step(self.events.at(self.traffic.clock.now(), f"adapted to {deviation}"))
 
     def _reboot_requested(self, t: float) -> None:
         with self._lock:
@@ -224,7 +230,7 @@ class Certification:
                 if lost is None:  # it delivers (a stall that delivers again is a gap)
                     return
             self.broker_lost = lost
-            self.events.at(time.time(), f"the broker has not come back within "
+            self.events.at(self.traffic.clock.now(), f"the broker has not come back within "
                                         f"{self.broker_budget():g} s: the run stops here, "
                                         f"not certified")
         why = self.facts().not_run_reason()[len("not run: "):]
@@ -383,7 +389,7 @@ class Certification:
             self._out_of_time(e)
         except BrokerError as e:
             # The link went down under a publish: the broker's fault, never the unit's.
-            lost = self.connection.lost_since() or time.time()
+            lost = self.connection.lost_since() or self.traffic.clock.now()
             for rule in scenario.rules:
                 self.record(rule, verdict=Verdict.COULD_NOT_TEST,
                             reason=f"{self.outage(lost)} ({e})")
@@ -406,7 +412,7 @@ class Certification:
     def _out_of_time(self, e: OutOfTime) -> None:
         self.out_of_time = (f"--max-duration {self.settings.max_duration:g} s reached while "
                             f"waiting for {e}")
-        self.events.at(time.time(), f"{self.out_of_time}: the run stops here")
+        self.events.at(self.traffic.clock.now(), f"{self.out_of_time}: the run stops here")
 
     def _fail_if_out_of_time(self) -> None:
         if self.out_of_time:
@@ -439,14 +445,14 @@ class Certification:
         self._fail_if_out_of_time()
         self.check_broker()
         with self._lock:
-            self.monitor.finish(time.time())
+            self.monitor.finish(self.traffic.clock.now())
         self._passive_ready = True
 
     # --- reports and the end ---------------------------------------------------------------------
     def write_reports(self, *, force: bool = False, **extra: Any) -> dict[str, Path]:
         """Write reports/<unit>-<time>.json and .html (atomically; at most once a second unless
         ``force``), so they survive a Ctrl-C."""
-        now = time.monotonic()
+        now = self.traffic.clock.monotonic()
         if not force and now - self._last_write < 1.0:
             return self.report_paths
         self._last_write = now
@@ -499,8 +505,8 @@ class Certification:
         try:
             with self._lock:
                 # Lost for good: the observation ended then (an outage is no death).
-                self.monitor.finish(self.broker_lost or time.time())
-            finished = time.time()
+                self.monitor.finish(self.broker_lost or self.traffic.clock.now())
+            finished = self.traffic.clock.now()
             status = exit_status(self.conclusion(self.report(finished=finished)), exitstatus)
             self.write_reports(force=True, finished=finished, exit_status=str(status))
         finally:

@@ -107,7 +107,13 @@ class Settings:
 
     @property
     def embedded(self) -> bool:
-        return self.broker.scheme == "embedded"
+        """The bundled reference unit runs here: --broker embedded, or the test suite's
+        --broker virtual (the same pair in virtual time, ``conformance.sim.virtual``)."""
+        return self.broker.scheme in ("embedded", "virtual")
+
+    @property
+    def virtual(self) -> bool:
+        return self.broker.scheme == "virtual"
 
     def rerun_command(self, rule: str | None = None, observe: float = 0.0) -> str:
         """The pytest command that repeats this run (``rule``: only that rule, observing at
@@ -242,7 +248,7 @@ def read(config: pytest.Config) -> Settings:
             raise pytest.UsageError(f"--seed {seed_text!r}: a whole number is needed "
                                     f"(the header of an earlier run shows its seed)") from None
     faults = tuple(config.getoption("waraps_sim_faults", None) or ())
-    if faults and not broker.scheme == "embedded":
+    if faults and broker.scheme not in ("embedded", "virtual"):
         raise pytest.UsageError("--sim-fault switches a fault of the bundled reference unit, "
                                 "which runs only with --broker embedded")
     if faults:
@@ -254,7 +260,7 @@ def read(config: pytest.Config) -> Settings:
                     f"--sim-fault {name!r} is not a fault of the reference unit"
                     f"{_did_you_mean(name, list(FAULTS))}; valid: {', '.join(sorted(FAULTS))}")
     variants = tuple(config.getoption("waraps_sim_variants", None) or ())
-    if variants and not broker.scheme == "embedded":
+    if variants and broker.scheme not in ("embedded", "virtual"):
         raise pytest.UsageError("--sim-variant switches a variant of the bundled reference "
                                 "unit, which runs only with --broker embedded")
     if variants:
@@ -268,7 +274,7 @@ def read(config: pytest.Config) -> Settings:
     if not sim_rate > 0:
         raise pytest.UsageError(f"--sim-rate {sim_rate!r}: a positive rate in Hz is needed")
     sim_tst = bool(config.getoption("waraps_sim_tst", False))
-    if sim_tst and not broker.scheme == "embedded":
+    if sim_tst and broker.scheme not in ("embedded", "virtual"):
         raise pytest.UsageError("--sim-tst switches on the TST level of the bundled reference "
                                 "unit, which runs only with --broker embedded")
     tst_topic = _tst_command_topic(_value(config, "waraps_tst_command_topic"), unit)

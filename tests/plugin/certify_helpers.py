@@ -95,6 +95,18 @@ def certify_sim(pytester: pytest.Pytester, broker: str, unit: str, *args: str,
                        plugins=(Rebooter(sim),))
 
 
+def certify_virtual(pytester: pytest.Pytester, unit: str, *args: str,
+                    faults: tuple[str, ...] = (), variants: tuple[str, ...] = (),
+                    rate: float = 2.0) -> Certified:
+    """Certify the reference unit (with ``faults``, ``variants``) in virtual time: the unit,
+    the suite and the Monitor on one simulated clock, through the in-memory broker double
+    (``--broker virtual``, ``conformance.sim.virtual``): the same run as ``certify_sim``'s on
+    a real broker, in the CPU time its messages cost."""
+    return certify(pytester, "--unit", unit, "--broker", "virtual", "--sim-rate", f"{rate:g}",
+                   *(f"--sim-fault={f}" for f in faults),
+                   *(f"--sim-variant={v}" for v in variants), *args)
+
+
 STALL = HERE / "profiles" / "stall.yaml"
 DEADLINE = 90.0
 """Seconds: the issue's bound for a 1 Hz unit (i18 4); stalling faults run at 2 Hz with the
@@ -102,18 +114,30 @@ default feedback deadline (30 s), where waiting it out again for a seen deviatio
 each tree) takes 60-150 s or more."""
 
 
-def certify_stalling(pytester: pytest.Pytester, broker: str, prefix: str,
+REAL_STALL = "no-final-feedback"
+"""The stalling fault certified end to end on a real broker (the others in virtual time)."""
+
+
+def certify_stalling(pytester: pytest.Pytester, broker: str | None, prefix: str,
                      fault: str) -> Certified:
     """Certify a reference unit with a fault that stalls a scenario: the run ends within
-    ``DEADLINE`` and fails exactly the fault's rules."""
+    ``DEADLINE`` of the unit's time and fails exactly the fault's rules. On ``broker``, or
+    in virtual time when it is None (the run's time: its report's start to its end)."""
     import time
 
     from conformance.sim import FAULTS
 
+    unit = f"{prefix}/unit/air/simulation/dji0"
     started = time.monotonic()
-    run = certify_sim(pytester, broker, f"{prefix}/unit/air/simulation/dji0",
-                      f"--profile={STALL}", "--seed", "1", "-q", faults=(fault,))
-    took = time.monotonic() - started
+    if broker is None:
+        run = certify_virtual(pytester, unit, f"--profile={STALL}", "--seed", "1", "-q",
+                              faults=(fault,))
+        assert run.report is not None, run.text[-3000:]
+        took = run.report["finished"] - run.report["started"]
+    else:
+        run = certify_sim(pytester, broker, unit, f"--profile={STALL}", "--seed", "1", "-q",
+                          faults=(fault,))
+        took = time.monotonic() - started
     assert took < DEADLINE, f"{fault}: {took:.0f} s"
     assert run.failed == set(FAULTS[fault].rules), run.text[-3000:]
     return run
@@ -218,3 +242,19 @@ def recorded(broker: str, prefix: str, path: Path) -> Iterator[None]:
             yield
         finally:
             recorder.close()
+
+
+@contextmanager
+def recorded_virtual(path: Path) -> Iterator[None]:
+    """Record every message the in-memory broker doubles carry while the block runs (the
+    virtual-time twin of ``recorded``: ``conformance.sim.virtual.TAPS``)."""
+    from conformance.recording import RecordingWriter
+    from conformance.sim.virtual import TAPS
+
+    with path.open("wb") as f:
+        writer = RecordingWriter(f)
+        TAPS.append(writer.write)
+        try:
+            yield
+        finally:
+            TAPS.remove(writer.write)

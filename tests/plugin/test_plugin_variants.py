@@ -4,6 +4,9 @@ of the fault matrix (test_plugin_faults.py). A variant is a conformant reading o
 the variant does not name in ``warns``, makes a false accusation; so does lint failing a rule
 on the recording of that certification.
 
+The runs are in virtual time (``--broker virtual``: the reference unit, the suite, its
+exploration and the Monitor on one simulated clock, recorded from the in-memory broker double),
+but for the group in ``REAL_BROKER``, end to end on Mosquitto with a recorder on the broker.
 To keep the matrix to a few runs, variants that change different things share a run (at 2 Hz,
 with variants.yaml's short windows and the default profile's errata severities). Kept apart:
 terse and verbose (opposites: CONFLICTS); info-rates and sensor-rate-edge (both set sensor_info's
@@ -24,7 +27,9 @@ from certify_helpers import (
     Certified,
     Rebooter,
     certify,
+    certify_virtual,
     recorded,
+    recorded_virtual,
 )
 
 from conformance.sim import SimUnit
@@ -48,6 +53,8 @@ GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
     # one life (issue 24 §2), so it runs with the others now.
     (("respawn",), True),
 ]
+REAL_BROKER = ("terse", "info-rates", "retained-info", "integer-numbers", "key-order")
+"""The group certified end to end on Mosquitto (retained info, the TST level, exploration)."""
 AWAITING: dict[tuple[str, ...], tuple[set[str], str]] = {  # variants -> (rules, why)
     # 'strict' on the TST level waited here for the suite to send common_params on every TST
     # node (as every example of section 11 does); it does now.
@@ -58,6 +65,7 @@ AWAITING: dict[tuple[str, ...], tuple[set[str], str]] = {  # variants -> (rules,
 def test_the_groups_cover_every_variant_and_keep_conflicts_apart() -> None:
     covered = {v for group, _ in GROUPS for v in group} | {v for g in AWAITING for v in g}
     assert covered == set(VARIANTS)
+    assert REAL_BROKER in [group for group, _ in GROUPS], "one group runs on a real broker"
     for group, _ in GROUPS:
         assert not any(pair <= set(group) for pair in CONFLICTS), group
     tst = {v for group, with_tst in GROUPS if with_tst for v in group}
@@ -66,11 +74,16 @@ def test_the_groups_cover_every_variant_and_keep_conflicts_apart() -> None:
 
 
 
-def certify_and_record(pytester: pytest.Pytester, broker: str, unit: UnitAddress,
+def certify_and_record(pytester: pytest.Pytester, broker: str | None, unit: UnitAddress,
                        variants: tuple[str, ...], tst: bool, recording: Path) -> Certified:
     """Certify a reference unit with ``variants`` that this process runs on ``broker``, while
     a recorder keeps every message under the test's prefix (as `waraps-conformance record`
-    would)."""
+    would); in virtual time when ``broker`` is None."""
+    if broker is None:
+        with recorded_virtual(recording):
+            return certify_virtual(pytester, str(unit), f"--profile={PROFILE}", "--seed", "1",
+                                   f"--explore={EXPLORE}", *(["--sim-tst"] if tst else []),
+                                   variants=variants)
     with recorded(broker, unit.prefix, recording), \
             SimUnit(unit, broker, variants=variants, rate=2.0, seed=1, tst_execution=tst) as sim:
         return certify(pytester, "--unit", str(unit), "--broker", broker,
@@ -98,14 +111,16 @@ def accusations(rules: dict[str, dict], allowed: set[str]) -> set[str]:
 @pytest.mark.parametrize("variants,tst", [
     pytest.param(g, t, id="+".join(g) + ("+tst" if t else "")) for g, t in GROUPS] + [
     pytest.param(g, True, id="+".join(g) + "+tst") for g in AWAITING])
-def test_variants_are_certified_and_lint_clean(pytester: pytest.Pytester, mosquitto: str,
+def test_variants_are_certified_and_lint_clean(pytester: pytest.Pytester,
+                                               request: pytest.FixtureRequest,
                                                unit_address: UnitAddress, tmp_path: Path,
                                                variants: tuple[str, ...], tst: bool) -> None:
     from conformance.cli.lint import main as lint_main
 
     allowed = {r for v in variants for r in VARIANTS[v].warns}
     recording = tmp_path / "certification.jsonl"
-    run = certify_and_record(pytester, mosquitto, unit_address, variants, tst, recording)
+    broker = request.getfixturevalue("mosquitto") if variants == REAL_BROKER else None
+    run = certify_and_record(pytester, broker, unit_address, variants, tst, recording)
     rules = run.unit_rules()
     out = io.StringIO()
     lint_main(["--from", str(recording), f"--profile={PROFILE}", "--plain", "--format", "json",

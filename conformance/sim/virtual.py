@@ -1,0 +1,185 @@
+"""The reference pair in virtual time (``--broker virtual``, for the test suite's matrices only):
+an in-memory broker double and the reference unit, both driven by one ``VirtualClock``.
+
+The unit is the same ``UnitCore`` the real runtime drives (``conformance.sim.runtime``): run
+when it is due, handed each command, its stamps read from the clock. The broker delivers each
+message ``LATENCY`` seconds after it was published, in publishing order, keeps retained
+messages for later subscribers, and applies the suite's publish policy as ``MqttClient`` does
+(DESIGN 'Safety'). Nothing here touches a socket or a thread: every real-broker behaviour
+(reconnects, outages, QoS) stays tested on amqtt and Mosquitto.
+"""
+
+from __future__ import annotations
+
+import random
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from conformance.client import PayloadPolicy, PublishPolicy, PublishRefused
+from conformance.clock import VirtualClock
+from conformance.message import Gap, Message
+from conformance.sim.executor import MAX_COMMAND_BYTES
+from conformance.sim.publisher import topic_base
+from conformance.sim.runtime import OVERSIZE_KEEP
+from conformance.sim.unit import UnitCore
+from conformance.topics import UnitAddress
+
+LATENCY = 0.002
+"""Seconds from a publish to its delivery (a loopback broker's order of magnitude)."""
+RETAINED = 10_000
+"""Retained topics the double keeps at most (bounded: the unit's own are a handful)."""
+TAPS: list[Callable[[Message], None]] = []
+"""Handed every message any double carries, at its delivery time, as a recorder subscribed
+to ``#`` would get it (the variant matrix records its certifications to lint them). Whoever
+adds one removes it."""
+
+
+def matches(pattern: str, topic: str) -> bool:
+    """MQTT topic filter matching (``+`` one level, ``#`` the rest)."""
+    want, have = pattern.split("/"), topic.split("/")
+    for i, part in enumerate(want):
+        if part == "#":
+            return True
+        if i >= len(have) or (part != "+" and part != have[i]):
+            return False
+    return len(want) == len(have)
+
+
+@dataclass(eq=False)
+class VirtualBroker:
+    """An in-memory MQTT broker double on a ``VirtualClock``."""
+
+    clock: VirtualClock
+    _subscribers: list[tuple[str, Callable[[Message], None]]] = field(default_factory=list)
+    _retained: dict[str, bytes] = field(default_factory=dict)
+
+    def subscribe(self, pattern: str, deliver: Callable[[Message], None]) -> None:
+        self._subscribers.append((pattern, deliver))
+        for topic, payload in list(self._retained.items()):
+            if matches(pattern, topic):
+                self._later(deliver, topic, payload, retain=True)
+
+    def publish(self, topic: str, payload: bytes, retain: bool = False, qos: int = 0) -> None:
+        if retain:
+            if not payload:
+                self._retained.pop(topic, None)
+            elif topic in self._retained or len(self._retained) < RETAINED:
+                self._retained[topic] = payload
+        for pattern, deliver in list(self._subscribers):
+            if matches(pattern, topic):
+                self._later(deliver, topic, payload, retain=False, qos=qos)
+        for tap in list(TAPS):
+            self._later(tap, topic, payload, retain=False, qos=qos)
+
+    def _later(self, deliver: Callable[[Message], None], topic: str, payload: bytes, *,
+               retain: bool, qos: int = 0) -> None:
+        when = self.clock.now() + LATENCY
+        self.clock.at(when, lambda: deliver(Message(when, topic, payload, qos, retain)))
+
+
+@dataclass(eq=False)
+class VirtualClient:
+    """The suite's side of the double, with ``MqttClient``'s interface as ``Connection`` uses
+    it, and the same publish policy."""
+
+    broker: VirtualBroker
+    on_message: Callable[[Message], None]
+    may_publish: PublishPolicy
+    refuse_payload: PayloadPolicy | None = None
+    gaps: list[Gap] = field(default_factory=list)
+    is_connected: bool = True
+
+    def subscribe(self, topic: str, qos: int = 0, timeout: float = 5.0) -> None:
+        self.broker.subscribe(topic, self.on_message)
+
+    def publish(self, topic: str, payload: bytes | str, qos: int = 1, retain: bool = False,
+                timeout: float = 5.0) -> None:
+        data = payload.encode() if isinstance(payload, str) else bytes(payload)
+        if not self.may_publish(topic):
+            raise PublishRefused(f"refusing to publish to {topic!r}: not a command topic of "
+                                 f"the unit under test (DESIGN: safety)")
+        why = self.refuse_payload(topic, data) if self.refuse_payload is not None else None
+        if why:
+            raise PublishRefused(f"refusing to publish to {topic!r}: {why}")
+        self.broker.publish(topic, data, retain, qos)
+
+    def wait_connected(self, timeout: float) -> bool:
+        return True
+
+    def reconnect_backoff(self, seconds: float) -> None:
+        pass
+
+    def close(self) -> None:
+        self.is_connected = False
+
+
+@dataclass(eq=False)
+class VirtualReference:
+    """The reference unit on a ``VirtualBroker``: ``Reference``'s interface, in virtual time."""
+
+    unit: UnitAddress
+    clock: VirtualClock
+    faults: tuple[str, ...] = ()
+    variants: tuple[str, ...] = ()
+    rate: float = 1.0
+    seed: int | None = None
+    tst: bool = False
+    tst_operator: UnitAddress | None = None
+    broker: VirtualBroker = field(init=False)
+    core: UnitCore = field(init=False)
+    url = "virtual"
+
+    def start(self) -> VirtualReference:
+        self.broker = VirtualBroker(self.clock)
+        # Seeded as SimUnit seeds it: the same uuids as the unit on a real broker.
+        rng = random.Random(f"{self.seed}:{self.unit.name}") if self.seed is not None \
+            else random.Random()
+        self.core = UnitCore(self.unit, self.broker.publish, faults=self.faults,
+                             variants=self.variants, rate=self.rate, rng=rng,
+                             clock=self.clock.now, tst_execution=self.tst,
+                             tst_operator=self.tst_operator)
+        core = self.core
+        for life in core.lives:  # as the runtime listens: every name of every life
+            self.broker.subscribe(f"{topic_base(life, core.faults)}/exec/command", self._command)
+        if core.tst is not None:
+            for topic in core.tst.topics:
+                self.broker.subscribe(topic, self._tst_command)
+        core.start(self.clock.monotonic())
+        self._schedule()
+        return self
+
+    def _schedule(self) -> None:
+        due = self.core.due
+        self.clock.at(due, lambda: self._run(due))
+
+    def _run(self, due: float) -> None:
+        if due != self.core.due:
+            return  # superseded by an earlier wake-up
+        self.core.run(self.clock.monotonic())
+        self._schedule()
+
+    def _command(self, message: Message) -> None:
+        payload, size = message.payload, len(message.payload)
+        if size > MAX_COMMAND_BYTES:  # refused as too large; the head names its com-uuid
+            payload = payload[:OVERSIZE_KEEP]
+        self._deliver(self.core.command, payload, self.clock.monotonic(), size)
+
+    def _tst_command(self, message: Message) -> None:
+        self._deliver(self.core.tst_command, message.payload, self.clock.monotonic(),
+                      message.topic)
+
+    def _deliver(self, handler, *args) -> None:  # type: ignore[no-untyped-def]
+        core, now = self.core, self.clock.monotonic()
+        before = core.due
+        handler(*args)
+        if core.due != before or core.busy():
+            core.due = min(core.due, now)
+            self._schedule()
+
+    def reboot(self) -> None:
+        self.core.request_reboot()
+        self.core.run(self.clock.monotonic())
+        self._schedule()
+
+    def stop(self) -> None:
+        pass
