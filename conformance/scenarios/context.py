@@ -137,9 +137,11 @@ class Context:
         return self.timing.periods(periods, self.rate_of("direct_execution_info"))
 
     def executing(self, entry: Entry) -> list[str]:
-        """The task-uuids a direct_execution_info message lists in tasks-executing."""
+        """The task-uuids a direct_execution_info message lists in tasks-executing; an entry
+        that names its task ``uuid`` (seen in the field; DEI-001 judges the key) is followed by
+        what it says (FIELD-NOTES 'Other keys')."""
         tasks = entry.get("tasks-executing") or []
-        return [t.get("task-uuid") for t in tasks if isinstance(t, dict)] \
+        return [t.get("task-uuid", t.get("uuid")) for t in tasks if isinstance(t, dict)] \
             if isinstance(tasks, list) else []
 
     def wait_listed(self, task_uuid: str, *, after: int) -> Entry | None:
