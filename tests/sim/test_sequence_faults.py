@@ -48,8 +48,10 @@ def _lint(d: Driver, tmp_path: Path, name: str) -> set[str]:
         for m in sorted(d.messages, key=lambda m: m.time):
             writer.write(m)
     profile = tmp_path / "sequence.yaml"  # the answers came within ms: short deadlines
+    # strict: as the fault matrix, the decided rules (EXEC-FB-004: nothing after a final
+    # status) fail when a fault breaks them; by default they would only warn.
     profile.write_text("extends: default\nname: sequence\nresponse_timeout: 1.0\n"
-                       "feedback_timeout: 3.0\n")
+                       "feedback_timeout: 3.0\nstrict: true\n")
     out = io.StringIO()
     reports = tmp_path / f"reports-{name}"
     lint_main(["--from", str(recording), "--profile", str(profile), "--plain", "--format",
