@@ -255,7 +255,9 @@ class Connection:
         # QoS 1 without waiting for the PUBACK: the unit's answer is what the scenario waits
         # for, and paho resends an unacknowledged command after a reconnect.
         if self._unechoed is None and self._echoed.is_set() \
-                and topic == self.unit.topic("exec/command"):
+                and topic == self.unit.topic("exec/command") \
+                and self.refuse_payload(topic, payload) is None:
+            # (a payload the policy refuses is never sent, so never echoed: no stall)
             # Only once an echo was seen: a broker whose ACL hides the command topic from
             # the suite never echoes, and is no stall.
             self._unechoed = self.traffic.clock.now()

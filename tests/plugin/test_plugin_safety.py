@@ -126,6 +126,22 @@ def test_a_real_unit_is_not_moved_without_allow_motion(pytester: pytest.Pytester
     assert {m.topic for m in commands} == {f"{unit}/exec/command", f"{unit}/tst/command"}
 
 
+@pytest.mark.slow
+def test_probes_the_policy_refuses_on_a_real_unit_are_no_broker_stall(
+        pytester: pytest.Pytester, mosquitto: str, prefix: str) -> None:
+    """The public drone operator (role real) ended 'not certified' (exit 6, 'the broker
+    delivered nothing ... the suite's own command did not come back'): the robustness probes
+    the policy refused were awaited as echoes. A refused payload is never sent."""
+    unit = f"{prefix}/unit/air/real/dji0"
+    with SimUnit(unit, mosquitto, rate=3.0) as sim:
+        run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={FAST}",
+                      "--seed", "3", plugins=(Rebooter(sim),))
+    assert run.result.ret == 0, run.text
+    assert "did not come back" not in run.text and "delivered nothing" not in run.text
+    assert "hostile payloads to a real unit need --allow-hostile" in json.dumps(
+        run.unit_rules()["EXEC-ROBUST-002"])
+
+
 def test_the_publish_policy_refuses_a_motion_task_whatever_the_scenario_sends(
         pytester: pytest.Pytester, mosquitto: str, prefix: str,
         monkeypatch: pytest.MonkeyPatch) -> None:
