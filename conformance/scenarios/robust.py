@@ -39,6 +39,10 @@ def malformed(com_uuid: str) -> list[tuple[str, bytes]]:
 
 
 def run(ctx: Context) -> None:
+    # 'Stopped answering' is judged only by a kind of command the unit answered before (issue
+    # 24 §2): a ping, first, when none was answered yet (a rerun of this rule alone).
+    answered_ping = _pong_seen(ctx) or (
+        ctx.commander.ping(ctx.timing.response)[1] is not None or _pong_seen(ctx))
     for _what, payload in UNREADABLE:
         ctx.commander.send_raw(payload)
     pending: list[tuple[str, Sent]] = []
@@ -58,7 +62,14 @@ def run(ctx: Context) -> None:
             observed=describe(answer) if answer is not None else "no response",
             entry=answer, detail=f"command {sent.payload.decode('utf-8', 'replace')}"))
     # Still alive? Any pong after this ping counts (EXEC-PING-002 judges its response-to),
-    # however late: lateness is EXEC-PING-001's and EXEC-010's, not a stopped unit.
+    # however late: lateness is EXEC-PING-001's and EXEC-010's, not a stopped unit. A unit
+    # that never answered a ping cannot show it by one (issue 24 §2: 'stopped answering' is
+    # judged only from kinds of command it answered before; EXEC-PING-001 is its finding).
+    if not answered_ping:
+        ctx.record("EXEC-ROBUST-001", verdict=Verdict.COULD_NOT_TEST, reason=(
+            "the unit answered no ping before the malformed commands: whether it still answers "
+            "after them cannot be told by one (EXEC-PING-001)"))
+        return
     sent = ctx.commander.send({"command": "ping"})
     alive = ALIVE_WAITS * ctx.timing.response
     pong = ctx.traffic.wait_for(lambda e: e.get("response") == "pong", alive,
@@ -66,10 +77,11 @@ def run(ctx: Context) -> None:
     if pong is not None:
         ctx.record("EXEC-ROBUST-001", verdict=Verdict.PASS)
         return
-    before = ctx.traffic.since(0, "exec/response")
     ctx.record("EXEC-ROBUST-001", violation=ctx.violation(
         "EXEC-ROBUST-001", expected="a pong after malformed and unknown commands",
         observed=f"no answer to ping within {alive:.1f} s",
-        detail=f"sent {len(UNREADABLE)} unreadable and {len(pending)} malformed commands"
-        + ("; the unit answered no ping before them either (EXEC-PING-001)"
-           if not any(e.get("response") == "pong" for e in before) else "")))
+        detail=f"sent {len(UNREADABLE)} unreadable and {len(pending)} malformed commands"))
+
+
+def _pong_seen(ctx: Context) -> bool:
+    return any(e.get("response") == "pong" for e in ctx.traffic.since(0, "exec/response"))

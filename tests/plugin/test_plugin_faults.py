@@ -175,7 +175,7 @@ RERUN: dict[str, str] = {  # rule -> the fault whose run reruns it
     "EXEC-QUERY-001": "query-forgets-finished",  # in a combined group
     "EXEC-RESEND-002": "resend-unanswered",  # in a combined group
     "TST-008": "tst-root-flag-everywhere",  # the TST level; in a combined group
-    "EXEC-ROBUST-001": "pong-missing",  # not gated by ping
+    "EXEC-ROBUST-001": "crash-on-malformed",  # robustness
     "REBOOT-002": "reboot-remembers-history",  # runs start first (Scenario.needs)
     "SENS-002": "heading-signed",  # passive, the window alone; in a combined group
     "EXEC-FB-002": "feedback-status-typo",  # passive, after start (EVIDENCE)
