@@ -199,6 +199,10 @@ def death(ctx: CheckContext, unit: UnitState, now: float) -> tuple[float, float]
         # Over a gap of the broker it is unknown whether it fell silent; silent through a
         # reboot the suite requested (a zero-length gap of its own) is a death all the same.
         return None
+    if any(0.0 <= r - last <= 2 * period for r in ctx.reboots):
+        # Its silence began with a reboot the suite requested: whether and how it came back
+        # (under its own name, or another: a random suffix per start) is REBOOT-001's.
+        return None
     return last - period, last
 
 

@@ -47,8 +47,6 @@ AWAITING_SCENARIOS: dict[str, str] = {
                             "periods reads as a silence ('then came back with the same "
                             "agent-uuid', or a death that 'came back only when the suite "
                             "rebooted it')",
-    "reboot-renames": "REBOOT-001 is could-not-test and HB-012 fails 'never came back': the "
-                      "unit came back from the requested reboot under another name",
     "start-no-task-uuid-unanswered": "EXEC-START-002 passes although the start-task without "
                                      "task-uuid was never answered",
 }
