@@ -23,7 +23,7 @@ from urllib.parse import urlsplit
 
 import paho.mqtt.client as paho
 
-from conformance.display import shorten
+from conformance.display import printable, shorten
 from conformance.masking import mask_password  # re-exported: a URL made fit to print
 from conformance.message import Gap, Message  # re-exported: ``from conformance.client import ...``
 
@@ -87,24 +87,25 @@ class BrokerURL:
             return cls(text)
         parts = urlsplit(text if "://" in text else f"mqtt://{text}")
         # What an error may say: never a password it wrongly has, a long URL excerpted.
-        shown = shorten(mask_password(text, url=True), 200)
+        # Escaped first, then cut: an escaped code point may take 10 characters (issue 26 §3).
+        shown = "'" + shorten(printable(mask_password(text, url=True)), 200) + "'"
         if parts.scheme not in ("mqtt", "mqtts"):
             raise ValueError(
-                f"broker URL {shown!r}: scheme {parts.scheme!r} is not one of mqtt, mqtts, "
+                f"broker URL {shown}: scheme {parts.scheme!r} is not one of mqtt, mqtts, "
                 f"embedded (for example mqtt://127.0.0.1:1883)")
         if parts.password:
             raise ValueError(
-                f"broker URL {shown!r} carries a password: put it in WARAPS_PASSWORD instead, "
+                f"broker URL {shown} carries a password: put it in WARAPS_PASSWORD instead, "
                 f"so it never appears on a command line or in a report")
         try:
             port = parts.port or (8883 if parts.scheme == "mqtts" else 1883)
         except ValueError:
             raise ValueError(
-                f"broker URL {shown!r}: the port is not a number from 1 to 65535") from None
+                f"broker URL {shown}: the port is not a number from 1 to 65535") from None
         if not parts.hostname:
-            raise ValueError(f"broker URL {shown!r} has no host (for example mqtt://127.0.0.1:1883)")
+            raise ValueError(f"broker URL {shown} has no host (for example mqtt://127.0.0.1:1883)")
         if not _is_host(parts.hostname):
-            raise ValueError(f"broker URL {shown!r}: {shorten(parts.hostname, 100)!r} is not a "
+            raise ValueError(f"broker URL {shown}: {shorten(parts.hostname, 100)!r} is not a "
                              f"host name or an IP address (for example mqtt://127.0.0.1:1883)")
         return cls(parts.scheme, parts.hostname, port,
                    username=parts.username or env.get("WARAPS_USERNAME") or None,
