@@ -197,6 +197,8 @@ def from_dict(data: Any, source: str = "<dict>", *, _chain: tuple[str, ...] = ()
             hint = f" (did you mean {close[0]!r}?)" if close else ""
             raise ProfileError(f"{source}: unknown key {printable(shorten(repr(key), 80))}{hint}; "
                                f"valid keys: {', '.join(properties)} (see {DOCS})")
+        if canonical == "tasks" and value is None:
+            value = {}  # 'tasks:' with every entry still commented out (a fresh draft)
         _check(canonical, value, properties[canonical], source)
         attr = canonical.replace("-", "_")
         if attr == "tasks":

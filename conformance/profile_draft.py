@@ -223,7 +223,7 @@ def _task_lines(seen: Observed) -> list[str]:
              "# invented): section 9 tasks have the spec example's (positions are moved near",
              "# the unit when sent); fill in the others. Tasks that move the unit are started",
              "# only on a simulation, or with --allow-motion and listed in motion-tasks.",
-             "tasks:" if any(e is not None for _, e in known) else "tasks: {}"]
+             "tasks:"]  # with every entry commented out it reads as none (profile.load)
     for task, example in known:
         if example is not None:
             lines.append(f"  {_q(task)}: {{params: "

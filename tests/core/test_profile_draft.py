@@ -150,3 +150,25 @@ def test_a_unit_slower_than_it_declares_is_a_problem_in_the_draft_and_on_stderr(
     assert "#   PROBLEM: declares heartbeat rate 5.0 Hz, measured" in text, text
     assert "PROBLEM: declares heartbeat rate 5.0 Hz, measured" in capsys.readouterr().err
     profile.load(out)
+
+
+def test_a_draft_whose_only_task_is_not_a_section_9_one_is_filled_in_as_it_says(
+        unit_address: UnitAddress) -> None:
+    """A public agent offering only go-home (not a section 9 task) got 'tasks: {}' and a
+    commented placeholder under it: uncommented as the comment says, the file was not YAML.
+    Now it loads as drafted (no task) and, filled in, with the user's parameters."""
+    import time as clock
+
+    from conformance.message import Message
+
+    seen = Observed(unit_address, 3.0)
+    body = {"tasks-available": [{"name": "go-home"}]}
+    for i in range(3):
+        seen.feed(Message(clock.time() + i, unit_address.topic("direct_execution_info"),
+                          json.dumps(body).encode(), 0, False))
+    text = draft(seen)
+    assert profile.from_dict(yaml.safe_load(text), "<draft>").tasks == ()
+    filled = text.replace('  # "go-home": {params: {}}', '  "go-home": {params: {speed: 5.0}}')
+    assert filled != text
+    drafted = profile.from_dict(yaml.safe_load(filled), "<filled>")
+    assert drafted.task_params["go-home"] == {"speed": 5.0}
