@@ -85,10 +85,14 @@ class BrokerURL:
         text = text.strip()
         if text in ("embedded", "virtual"):  # virtual: the tests' in-memory double (sim/virtual)
             return cls(text)
-        parts = urlsplit(text if "://" in text else f"mqtt://{text}")
         # What an error may say: never a password it wrongly has, a long URL excerpted.
         # Escaped first, then cut: an escaped code point may take 10 characters (issue 26 §3).
         shown = "'" + shorten(printable(mask_password(text, url=True)), 200) + "'"
+        try:
+            parts = urlsplit(text if "://" in text else f"mqtt://{text}")
+        except ValueError:  # urllib's own words quote the whole host (NFKC, brackets)
+            raise ValueError(f"broker URL {shown} is not a URL (for example "
+                             f"mqtt://127.0.0.1:1883)") from None
         if parts.scheme not in ("mqtt", "mqtts"):
             raise ValueError(
                 f"broker URL {shown}: scheme {parts.scheme!r} is not one of mqtt, mqtts, "
