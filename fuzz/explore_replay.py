@@ -38,7 +38,7 @@ def _runnable(action: dict) -> None:
         if value is not None and (type(value) is not int or value < 0):
             raise Broken(f"a step with {key} {value!r} was accepted: {action}")
     for key in ("task", "signal"):
-        if key in action and type(action[key]) is not str:
+        if key in own and key in action and type(action[key]) is not str:
             raise Broken(f"a step with {key} {action[key]!r} was accepted")
     describe(action)
 
