@@ -11,7 +11,7 @@ import orjson
 from conformance.checks.suite_commands import UNREADABLE
 from conformance.scenarios.commander import NO_SUCH_TASK
 from conformance.scenarios.context import Context, describe
-from conformance.scenarios.sender import SENDER, Sent, new_uuid
+from conformance.scenarios.sender import SENDER, NotSent, Sent, new_uuid
 from conformance.violation import Verdict
 
 RULES = ("EXEC-ROBUST-001", "EXEC-ROBUST-002")
@@ -41,8 +41,11 @@ def malformed(com_uuid: str) -> list[tuple[str, bytes]]:
 def run(ctx: Context) -> None:
     # 'Stopped answering' is judged only by a kind of command the unit answered before (issue
     # 24 §2): a ping, first, when none was answered yet (a rerun of this rule alone).
-    answered_ping = _pong_seen(ctx) or (
-        ctx.commander.ping(ctx.timing.response)[1] is not None or _pong_seen(ctx))
+    try:
+        answered_ping = _pong_seen(ctx) or (
+            ctx.commander.ping(ctx.timing.response)[1] is not None or _pong_seen(ctx))
+    except NotSent:  # --dry-run: the probes are still shown, nothing is judged
+        answered_ping = False
     for _what, payload in UNREADABLE:
         ctx.commander.send_raw(payload)
     pending: list[tuple[str, Sent]] = []

@@ -202,8 +202,10 @@ def workout(u: UnitView, reboot: Callable[[], None], malformed: set[str] | None 
     u.send(b'{"com-uuid": "' + bad.encode() + b'", "command": "signal-task", signal: $abort}')
     r = u.answer(bad)
     judge("EXEC-ROBUST-002", r is not None and r.get("response") == "failed")
-    # Still alive after them: a pong, however late (lateness is EXEC-PING-001's and EXEC-010's)
-    judge("EXEC-ROBUST-001", ping(4 * WAIT)[1] is not None)
+    # Still alive after them: a pong, however late (lateness is EXEC-PING-001's and EXEC-010's);
+    # judged only when the unit answered a ping before (issue 24 §2: a kind it answered)
+    if pong is not None:
+        judge("EXEC-ROBUST-001", ping(4 * WAIT)[1] is not None)
 
     # reboot: a new agent-uuid; the earlier task unknown (or still known with the same uuid)
     before = u.heartbeat_uuid()
