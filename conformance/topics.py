@@ -89,8 +89,12 @@ _NOT_IN_TOPIC = re.compile("[\x00\ud800-\udfff]")
 
 
 def _quoted(text: str) -> str:
-    """``text`` quoted for an error message, excerpted when long (a 100 KB option value)."""
-    return repr(text) if len(text) <= 200 else f"{text[:200]!r}... ({len(text)} chars)"
+    """``text`` quoted for an error message, escaped (``display.printable``), then excerpted
+    when long (a 100 KB option value; an escaped code point may take 10 characters)."""
+    from conformance.display import printable
+
+    shown = printable(text)
+    return f"'{shown}'" if len(shown) <= 200 else f"'{shown[:200]}'... ({len(text)} chars)"
 
 
 def _level_problem(text: str, option: str) -> str | None:

@@ -140,7 +140,8 @@ def load(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     actions = []
     for number, step in enumerate(data["steps"], 1):
         action = step.get("action") if isinstance(step, dict) else None
-        if not isinstance(action, dict) or action.get("do") not in FIELDS:
+        if not isinstance(action, dict) or type(action.get("do")) is not str \
+                or action["do"] not in FIELDS:
             raise StoryError(f"{path}: a step that is not an exploration step: "
                              f"{printable(str(action))[:200]}")
         wrong = _wrong_field(action)
