@@ -200,7 +200,7 @@ def _certification_unit(name: str, unit: UnitReport, run_why: list[str],
         unrun = sum(r.rule in not_run and r.verdict is not Verdict.FAIL for r in own)
         why = _counted(failed=failed, untested=untested, unrun=unrun)
         if died is not None:
-            why.append(f"the unit died at {_clock(died)}")
+            why.append(f"the unit died at {iso(died)}")
         why += run_why
         levels.append(LevelStatus(level, not why, "; ".join(why)))
     certified = [lv.level for lv in levels if lv.certified]
@@ -216,7 +216,7 @@ def _certification_unit(name: str, unit: UnitReport, run_why: list[str],
                     for r in unit.rules.values())
         why = _counted(failed=failed, untested=untested, unrun=unrun)
         if died is not None:
-            why.append(f"the unit died at {_clock(died)}")
+            why.append(f"the unit died at {iso(died)}")
         summary = f"{NOT_CERTIFIED}: " + "; ".join(why + run_why or ["see the levels"])
         if certified:
             summary += f" (certified: {', '.join(certified)})"
@@ -283,7 +283,7 @@ def _lint_unit(name: str, unit: UnitReport, *, untimed: bool = False) -> UnitSta
         summary = (f"{found} in {duration(span)} observed" if found
                    else f"{CLEAN} for {duration(span)}") + f", {commanded}"
     if died is not None:
-        summary += f"; it died at {_clock(died)}"
+        summary += f"; it died at {iso(died)}"
     levels = tuple(LevelStatus(lv, False, LINT_NEVER_CERTIFIES)
                    for lv in dict.fromkeys(map(level_name, unit.levels)))
     verdict = worst.value if worst in (Verdict.FAIL, Verdict.WARN) else CLEAN
@@ -328,5 +328,3 @@ def duration(seconds: float) -> str:
         return f"{s // 60} min" + (f" {s % 60} s" if s % 60 else "")
     return f"{s // 3600} h" + (f" {s % 3600 // 60} min" if s % 3600 // 60 else "")
 
-
-_clock = iso

@@ -8,7 +8,7 @@ read only by the judge and the conclusion: never as strings in ``meta``.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, fields
 from datetime import UTC, datetime
 from typing import Any
 
@@ -50,8 +50,6 @@ class RunFacts:
     """Lint of a capture without arrival times (``mosquitto_sub -v``)."""
     not_judged: str = ""
     """Lint: traffic of units past the bound on units was not judged (why, in words)."""
-    outages: tuple[tuple[float, float], ...] = field(default_factory=tuple)
-    """Windows (start, end) in which the observer could not hear the broker."""
 
     @property
     def complete(self) -> bool:
@@ -86,7 +84,6 @@ class RunFacts:
         d = asdict(self)
         for key in ("selected", "ran", "enacted_pass"):
             d[key] = list(d[key])
-        d["outages"] = [list(w) for w in self.outages]
         return d
 
     @classmethod
@@ -96,7 +93,6 @@ class RunFacts:
         kw = {k: v for k, v in d.items() if k in known}
         for key in ("selected", "ran", "enacted_pass"):
             kw[key] = tuple(str(x) for x in kw.get(key, ()))
-        kw["outages"] = tuple((float(a), float(b)) for a, b in kw.get("outages", ()))
         if kw.get("broker_lost") is not None:
             kw["broker_lost"] = float(kw["broker_lost"])
         return cls(**kw)

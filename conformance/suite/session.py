@@ -243,12 +243,12 @@ class Certification:
         """Why the unit counts as dead, or "" while it lives (``Observation.unit_died``)."""
         return self.observation.unit_died(settle=settle)
 
-    def facts(self, *, error: str = "") -> RunFacts:
+    def facts(self) -> RunFacts:
         """What the judge must know of this run so far (``conformance.facts.RunFacts``)."""
         cut = self.out_of_time or (CTRL_C if self.interrupted else "")
         return RunFacts(
             kind="certification", unit=str(self.unit), strict=self.profile.is_strict,
-            error=error or self.error, broker_lost=self.broker_lost,
+            error=self.error, broker_lost=self.broker_lost,
             interrupted=bool(cut), cut_short=cut, selection=self.selection,
             # A rule the exploration (or its replay) judged was judged, selected or not.
             selected=tuple(dict.fromkeys([*self.selected, *self.replays]))
@@ -257,12 +257,12 @@ class Certification:
             enacted_pass=tuple(sorted(r for r, shown in self.enacted.items()
                                       if shown is not Verdict.FAIL)))
 
-    def report(self, *, error: str = "", **extra: Any) -> RunReport:
+    def report(self, **extra: Any) -> RunReport:
         """The run's report, judged (``conformance.judge``) under the run's facts: every rule's
         verdict and the conclusion every output shows."""
         with self._lock:
             report = self.monitor.report(**self.meta(), **extra)
-        return judge(report, self.facts(error=error))
+        return judge(report, self.facts())
 
     def _judged(self) -> RunReport:
         """The report as each rule's test enacts it: judged under the facts known mid-run (a
