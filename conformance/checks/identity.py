@@ -117,7 +117,10 @@ def _silence(ctx: CheckContext, unit: UnitState, msg: Message,
     private = unit.private
     held = private.get("hb010_held")
     if silence <= SILENCE_PERIODS * period:  # the usual case: one dict lookup more
-        if held:  # it keeps its period now: what was held were silences
+        if held and _uuid(v) == unit.agent_uuid:
+            # It keeps its period now, in the same life: what was held were silences. The
+            # first heartbeat of a new life soon after the last of the old one is no period
+            # kept (a unit far slower than it declares restarts as slow, HB-003's).
             private["hb010_held"] = []
             return held
         return None
