@@ -40,8 +40,8 @@ FinishCheck = Callable[[CheckContext, UnitState, float, Any], list[Violation]]
 class SentCommand:
     """One command sent to a unit, known by its com-uuid, and what came back."""
 
-    __slots__ = ("com_uuid", "name", "time", "last_sent", "sends", "answers", "values",
-                 "digest", "excerpt", "life", "judged", "missed")
+    __slots__ = ("com_uuid", "name", "time", "last_sent", "sends", "answers", "owed",
+                 "values", "digest", "excerpt", "life", "judged", "missed")
 
     def __init__(self, com_uuid: str, name: str, t: float, digest: bytes, excerpt: bytes,
                  life: str | None) -> None:
@@ -50,6 +50,10 @@ class SentCommand:
         self.time = self.last_sent = t
         self.sends = 1
         self.answers = 0
+        self.owed = 1
+        """Answers owed: one, and one more for each resend after an answer came (2, 12.1:
+        the commander resends 'until ... a response has arrived'; a resend of a command that
+        was never answered is answered once in all)."""
         self.values: list[tuple[str | None, str | None]] = []
         """(response, the task-uuid or root-uuid it named) of each answer, at most 4."""
         self.digest = digest
@@ -96,18 +100,20 @@ class CommandHistory:
     def resent(self, cmd: SentCommand, t: float) -> None:
         """12.1: a resend (same com-uuid, same content) is answered again, not executed again."""
         cmd.sends += 1
+        if cmd.answers:
+            cmd.owed += 1
         cmd.last_sent = t
         self.commands[cmd.com_uuid] = cmd
         self.await_answer(cmd)
 
     def heard(self, cmd: SentCommand, value: str | None, named: str | None) -> None:
-        """An answer to ``cmd``: once answered as often as sent, it awaits nothing more."""
+        """An answer to ``cmd``: once answered as often as owed, it awaits nothing more."""
         cmd.answers += 1
         if len(self.answered_kinds) < KINDS_KEPT:
             self.answered_kinds.add(cmd.name)
         if len(cmd.values) < VALUES_KEPT:
             cmd.values.append((value, named))
-        if cmd.answers >= cmd.sends:
+        if cmd.answers >= cmd.owed:
             self.pending.pop(cmd.com_uuid, None)
         if cmd in self.unanswered:
             self.unanswered.remove(cmd)
@@ -130,7 +136,7 @@ class CommandHistory:
                 if len(self.unanswered) > UNANSWERED_KEPT:
                     self.unanswered.pop(0)
                     self.dropped += 1
-            elif cmd.answers < cmd.sends:
+            elif cmd.answers < cmd.owed:
                 resent.append(cmd)
         return resent
 

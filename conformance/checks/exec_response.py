@@ -104,6 +104,8 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
     if cmd.answers > 1:
         yield from _judge_resend_answer(unit, c, cmd, msg, value, task_uuid)
         return
+    if cmd.sends > 1:
+        unit.examine("EXEC-RESEND-002")  # resent before any answer, and answered (12.1)
     # The unit answers: commands it left unanswered before now were its own faults, not a
     # sign that it stopped answering.
     if c.unanswered:

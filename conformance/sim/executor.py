@@ -53,6 +53,8 @@ class CommandExecutor:
         self.faults = unit.faults
         self.variants = unit.variants
         self.runner = unit.runner
+        self.subscribed = "late-subscriber" not in self.variants
+        """Variant late-subscriber: False until the first command, which is lost."""
         self.history: Resends[dict[str, Any] | None] = Resends()
         """com-uuid -> the response sent (None: deliberately not answered), for resends."""
         self.delayed: list[tuple[float, dict[str, Any]]] = []
@@ -63,6 +65,9 @@ class CommandExecutor:
 
     def command(self, payload: bytes, now: float, size: int) -> None:
         """Handle one command of ``size`` bytes (``payload`` may be only its head)."""
+        if not self.subscribed:
+            self.subscribed = True
+            return
         if size > MAX_COMMAND_BYTES:
             msg, problem = None, f"a command of {size} bytes is larger than {MAX_COMMAND_BYTES}"
         else:

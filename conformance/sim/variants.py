@@ -102,6 +102,11 @@ _ALL = (
     Variant("respawn", "5, 5.1 (a reboot loses state; nothing ties a position across it)",
             "Comes back from a reboot at a new spawn point, RESPAWN_METRES from where it was "
             "(a restarted simulated agent draws a new random start), with its new agent-uuid."),
+    Variant("late-subscriber", "2, 12.1 ('If a response is not arriving re-send the command "
+            "with the same com-uuid')",
+            "Loses the first command sent to it: it heartbeats before its subscription to "
+            "exec/command is in place (as an independently written unit did); the commander's "
+            "resend is answered."),
     Variant("signed-heading", "6.1 ('heading : float', no range)",
             "Publishes heading in (-180, 180] (atan2's range); it faces west at start, so "
             "its heading is negative.",

@@ -146,6 +146,21 @@ def test_a_resend_left_unanswered_warns(stream):
     assert rules["EXEC-START-001"].verdict is Verdict.PASS  # the first send was answered
 
 
+def test_a_resend_of_a_command_never_answered_is_answered_once_in_all(stream):
+    """2, 12.1: the commander resends 'until ... a response has arrived'. A ping the unit never
+    heard (it subscribed late), resent and answered once, is a complete conversation; a ping
+    answered, resent and not answered again still warns."""
+    ping = stream.command(2.1, "ping")
+    again = stream.command(3.5, "ping", com_uuid=com_of(ping))
+    rules = judge(stream, [ping, again, stream.response(3.6, com_of(ping))])
+    assert verdicts(rules, "EXEC-PING-001", "EXEC-RESEND-002", "EXEC-009", "EXEC-010") == \
+        dict.fromkeys(("EXEC-PING-001", "EXEC-RESEND-002", "EXEC-009", "EXEC-010"), "pass")
+    ping = stream.command(2.1, "ping")
+    again = stream.command(3.5, "ping", com_uuid=com_of(ping))
+    rules = judge(stream, [ping, stream.response(2.2, com_of(ping)), again])
+    assert rules["EXEC-RESEND-002"].verdict is Verdict.WARN
+
+
 def test_a_resend_executed_again_fails_resend_001(stream):
     task = new()
     rules = judge(stream, _resent(stream, task, second=lambda c: [stream.response(
