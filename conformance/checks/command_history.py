@@ -15,9 +15,10 @@ import functools
 from collections import OrderedDict
 from collections.abc import Callable
 from copy import deepcopy
-from typing import Any
+from typing import Any, TypeVar
 
 from conformance.checks.base import BoundedDict, CheckContext, UnitState
+from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.violation import Violation
 
@@ -149,12 +150,15 @@ class CommandHistory:
             del self.lives[:-LIVES_KEPT]
 
 
-def per_unit(unit: UnitState, key: str, make: Any) -> Any:
+H = TypeVar("H", bound=CommandHistory)
+
+
+def per_unit(unit: UnitState, key: StashKey[H], make: Callable[[], H]) -> H:
     """The unit's conversation state under ``key``, made on first use and starting in the
     unit's current life (its agent-uuid): exec and TST conversations alike."""
-    c = unit.private.get(key)
+    c = unit.stash.get(key)
     if c is None:
-        c = unit.private[key] = make()
+        c = unit.stash[key] = make()
         c.life = unit.agent_uuid
         if c.life is not None:
             c.lives.append(c.life)
@@ -223,7 +227,8 @@ def dying_from(c: CommandHistory, last: float, period: float) -> float:
     return min(named.last_sent, last) if named is not None else last
 
 
-def judged_on_a_copy(key: str, dropped: tuple[str, str]) -> Callable[[Judge], FinishCheck]:
+def judged_on_a_copy(key: StashKey[Any], dropped: tuple[str, str]
+                     ) -> Callable[[Judge], FinishCheck]:
     """Make ``judge(ctx, unit, c, now) -> violations``, which judges what is still open in the
     unit's conversations ``c`` (under ``key``) when the observation ends, a finish check
     ``(ctx, unit, now, findings)``. Pure, so that a provisional report changes nothing:
@@ -233,12 +238,12 @@ def judged_on_a_copy(key: str, dropped: tuple[str, str]) -> Callable[[Judge], Fi
         @functools.wraps(judge)
         def at_end(ctx: CheckContext, unit: UnitState, now: float,
                    findings: Any) -> list[Violation]:
-            original = unit.private.get(key)
+            original = unit.stash.get(key)
             if original is None:
                 return []
             c = deepcopy(original)
             copy = dataclasses.replace(unit, examined={}, notes={},
-                                       private={**unit.private, key: c})
+                                       stash=unit.stash.with_item(key, c))
             found = judge(ctx, copy, c, now)
             if c.dropped:
                 rule, what = dropped

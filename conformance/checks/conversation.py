@@ -35,14 +35,15 @@ from conformance.checks.command_history import (
     per_unit,
     str_of,
 )
+from conformance.checks.stash import StashKey
 from conformance.topics import DIRECT_EXECUTION
 
 COMMANDS_KEPT = 1024
 """Commands remembered per unit (resends, late answers, EXEC-006): at one a minute, 17 hours;
 a few hundred bytes each, so a fleet of 200 units stays under about 100 MiB however long."""
 TASKS_KEPT = 1024
-FEEDBACK_WITHOUT_TASK_UUID = "feedback-without-task-uuid"
-"""UnitState.private key: the unit sent feedback without a task-uuid."""
+FEEDBACK_WITHOUT_TASK_UUID: StashKey[bool] = StashKey("feedback-without-task-uuid")
+"""The unit sent feedback without a task-uuid."""
 
 ANSWER_RULE = {"ping": "EXEC-PING-001", "start-task": "EXEC-START-001",
                "signal-task": "EXEC-SIG-001", "query-status": "EXEC-QUERY-001"}
@@ -157,15 +158,19 @@ def task_uuid_sent(m: Any) -> str | None:
     return found
 
 
+CONVERSATIONS: StashKey[Conversations] = StashKey("conversations")
+"""The unit's exec conversations (made by ``conversations``)."""
+
+
 def conversations(unit: UnitState) -> Conversations:
-    return per_unit(unit, "conversations", Conversations)  # type: ignore[no-any-return]
+    return per_unit(unit, CONVERSATIONS, Conversations)
 
 
 def commands_died_on(unit: UnitState, last: float, period: float) -> list[Command]:
     """The commands a unit whose last heartbeat was at ``last`` may have died on, the last
     first (``command_history.died_on_any``), else the last it received before it fell silent
     if it answered none after it: HB-012's finding names them."""
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     if c is None:
         return []
     found = died_on_any(c, last, period)
@@ -181,7 +186,7 @@ def commands_died_on(unit: UnitState, last: float, period: float) -> list[Comman
 
 def dropped(unit: UnitState) -> int:
     """Open expectations dropped for bounded memory (said in the report)."""
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     return c.dropped if c is not None else 0
 
 

@@ -23,6 +23,7 @@ from conformance.checks.command_history import (
 )
 from conformance.checks.conversation import (
     ANSWER_RULE,
+    CONVERSATIONS,
     FEEDBACK_WITHOUT_TASK_UUID,
     MALFORMED,
     Conversations,
@@ -42,7 +43,7 @@ def deadlines_pass(ctx: CheckContext, unit: UnitState, msg: Message,
     feedback a signal implies, final feedback of a task that left tasks-executing. A new
     agent-uuid is a new life: what the old one left open is not judged (the reboot lost it).
     (Runs on every heartbeat: cheap when nothing is open.)"""
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     if c is None:
         return None
     m = v.message
@@ -98,7 +99,7 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
             if ctx.gaps and ctx.in_gap(e.command.last_sent, e.deadline):
                 unit.note(e.rule, OVER_A_GAP)  # the feedback may be what the broker lost
                 continue
-            if unit.private.get(FEEDBACK_WITHOUT_TASK_UUID):
+            if unit.stash.get(FEEDBACK_WITHOUT_TASK_UUID):
                 # The awaited status may have come in feedback naming no task (EXEC-FB-001's
                 # finding): not judged, as a task's end is not (12.4; FIELD-NOTES precision).
                 unit.note(e.rule, "the unit sends feedback without a task-uuid: the status "
@@ -116,7 +117,7 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
     for task in list(c.running.values()):
         if task.left_at is not None and task.left_at + timeout < now:
             c.ended(task, ("left tasks-executing", None, task.left_at))
-            if unit.private.get(FEEDBACK_WITHOUT_TASK_UUID):
+            if unit.stash.get(FEEDBACK_WITHOUT_TASK_UUID):
                 continue  # its final feedback may be one without task-uuid
             if ctx.gaps and ctx.in_gap(task.listed_at or task.left_at, task.left_at + timeout):
                 # It ended while the broker lost or held traffic: its final feedback may have
@@ -177,7 +178,7 @@ def _judge_streak(ctx: CheckContext, unit: UnitState, c: Conversations, *, ended
 
 
 @check("EXEC-ROBUST-001", "EXEC-START-003", finish=True)
-@judged_on_a_copy("conversations", dropped=("EXEC-ROBUST-001", "open expectations"))
+@judged_on_a_copy(CONVERSATIONS, dropped=("EXEC-ROBUST-001", "open expectations"))
 def conversations_at_end(ctx: CheckContext, unit: UnitState, c: Conversations,
                          now: float) -> list[Violation]:
     """At the end: answers still due are judged (a unit that died is HB-012's finding);

@@ -13,6 +13,7 @@ from collections.abc import Iterator
 from conformance.checks.base import CheckContext, UnitState, check, reinterprets
 from conformance.checks.command_history import response_timeout, str_of, violation
 from conformance.checks.conversation import (
+    CONVERSATIONS,
     FEEDBACK_WITHOUT_TASK_UUID,
     Task,
     conversations,
@@ -40,7 +41,7 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
         # finding per message (EXEC-FB-001), never one pseudo-task '' whose feedback follows
         # its own final status (FIELD-NOTES, precision: empty task-uuid).
         if status is not None:
-            unit.private[FEEDBACK_WITHOUT_TASK_UUID] = True
+            unit.stash[FEEDBACK_WITHOUT_TASK_UUID] = True
             unit.note("EXEC-FB-004", "feedback without a task-uuid: its tasks could not be "
                                      "tracked")
         return
@@ -104,7 +105,7 @@ def tasks_executing_follow_tasks(ctx: CheckContext, unit: UnitState, msg: Messag
     """5.3: tasks-executing lists the running tasks: a started task that leaves it has ended,
     and its final feedback is due; one listed twice after a resend was executed twice.
     (Runs on every direct_execution_info: a list or None; nothing to do without open tasks.)"""
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     if c is None or not c.running:
         return None
     m = v.message

@@ -24,6 +24,7 @@ from conformance.checks.command_history import (
 )
 from conformance.checks.conversation import (
     ANSWER_RULE,
+    CONVERSATIONS,
     Command,
     Conversations,
     Expect,
@@ -331,7 +332,7 @@ def signal_task_response_form(ctx: CheckContext, unit: UnitState, msg: Message, 
     and judges a response to a signal-task that misses it by ERR-013 (a warning by default),
     not by EXEC-002. Knowing what a response answers needs the command: stateful."""
     response_to = str_of(v.message, "response-to")
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     if response_to is None or c is None:
         return found
     command = c.commands.get(response_to)
@@ -355,7 +356,7 @@ def no_task_named_no_task_uuid(ctx: CheckContext, unit: UnitState, msg: Message,
     m = v.message
     if not found or str_of(m, "task-uuid") != "":
         return found
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     command = c.commands.get(str_of(m, "response-to") or "") if c is not None else None
     if command is None or command.task_uuid is not None or str_of(m, "response") == "running":
         return found
@@ -372,7 +373,7 @@ def success_answers_query_status(ctx: CheckContext, unit: UnitState, msg: Messag
     response to a command not seen cannot tell: not judged."""
     if not found or str_of(v.message, "response") != "success":
         return found
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     command = c.commands.get(str_of(v.message, "response-to") or "") if c is not None else None
     if command is not None and command.name != "query-status":
         unit.examine("ERR-006")
@@ -393,7 +394,7 @@ def query_status_reports_a_status(ctx: CheckContext, unit: UnitState, msg: Messa
     needs the command: stateful; a response to a command not seen keeps the finding."""
     if not found or str_of(v.message, "response") != "failed":
         return found
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     command = c.commands.get(str_of(v.message, "response-to") or "") if c is not None else None
     if command is None or command.name != "query-status":
         return found

@@ -39,6 +39,7 @@ from operator import add
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.identity import SILENCE_PERIODS
 from conformance.checks.stall import stamp_of
+from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.results import RateStat
 from conformance.topics import TopicKind
@@ -325,18 +326,18 @@ def live_findings(ctx: CheckContext, unit: UnitState) -> list[Violation]:
     return found
 
 
+RATES: StashKey[dict[TopicKind, RateTracker]] = StashKey("rates")
+"""The unit's rate trackers, one per periodic topic kind (read by ``identity`` too)."""
+RATES_CLOSED: StashKey[list[RateStat]] = StashKey("rates-closed")
+"""The windows a change of the declared rate closed (at most MAX_CLOSED_SEGMENTS)."""
+
+
 def _trackers(unit: UnitState) -> dict[TopicKind, RateTracker]:
-    t = unit.private.get("rates")
-    if t is None:
-        t = unit.private["rates"] = {}
-    return t  # type: ignore[no-any-return]
+    return unit.stash.setdefault(RATES, dict)
 
 
 def _closed(unit: UnitState) -> list[RateStat]:
-    c = unit.private.get("rates_closed")
-    if c is None:
-        c = unit.private["rates_closed"] = []
-    return c  # type: ignore[no-any-return]
+    return unit.stash.setdefault(RATES_CLOSED, list)
 
 
 @check("HB-003", "SI-002", "DEI-002", "TEI-002", on=tuple(RATE_RULES))
@@ -352,7 +353,7 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
     rate = m.get("rate") if type(m) is dict else None
     declared = float(rate) if (type(rate) is float or type(rate) is int) and rate > 0 else (
         unit.declared_rates.get(kind))
-    trackers = unit.private.get("rates")
+    trackers = unit.stash.get(RATES)
     if trackers is None:
         trackers = _trackers(unit)
     tracker = trackers.get(kind)

@@ -22,6 +22,7 @@ from conformance.checks.command_history import (
 )
 from conformance.checks.tst_conversation import (
     ANSWER_RULE,
+    TST_CONVERSATIONS,
     TstCommand,
     TstConversations,
     own_deadline,
@@ -40,7 +41,7 @@ def tst_deadlines_pass(ctx: CheckContext, unit: UnitState, msg: Message,
     """Deadlines are checked on each heartbeat of the unit (and at the end). A new agent-uuid
     is a new life: its trees are forgotten (TST-011's decision), and what the old one left open
     is not judged. (Runs on every heartbeat: cheap when nothing is open.)"""
-    c = unit.private.get("tst_conversations")
+    c = unit.stash.get(TST_CONVERSATIONS)
     if c is None:
         return None
     m = v.message
@@ -140,7 +141,7 @@ def _expire(ctx: CheckContext, unit: UnitState, c: TstConversations, now: float,
 
 
 @check("TST-004", "TST-009", "TST-011", finish=True)
-@judged_on_a_copy("tst_conversations", dropped=("TST-012", "open TST expectations"))
+@judged_on_a_copy(TST_CONVERSATIONS, dropped=("TST-012", "open TST expectations"))
 def tst_conversations_at_end(ctx: CheckContext, unit: UnitState, c: TstConversations,
                              now: float) -> list[Violation]:
     """At the end: answers still due are judged, but not those a unit that died left (HB-012's

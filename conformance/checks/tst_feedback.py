@@ -15,7 +15,12 @@ from typing import Any
 
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.command_history import str_of, violation
-from conformance.checks.tst_conversation import TstConversations, TstNode, tst_conversations
+from conformance.checks.tst_conversation import (
+    TST_CONVERSATIONS,
+    TstConversations,
+    TstNode,
+    tst_conversations,
+)
 from conformance.message import Message
 from conformance.topics import TopicKind
 from conformance.tst import FINAL
@@ -202,7 +207,7 @@ def nodes_executing_follow_trees(ctx: CheckContext, unit: UnitState, msg: Messag
     (Runs on every tst_execution_info: cheap when no tree is open.)"""
     m = v.message
     listed_raw = m.get("nodes-executing") if type(m) is dict else None
-    c = unit.private.get("tst_conversations")
+    c = unit.stash.get(TST_CONVERSATIONS)
     if type(listed_raw) is not list:
         if c is not None and c.trees:
             unit.note("TST-013", "tst_execution_info has no nodes-executing: not judged")
