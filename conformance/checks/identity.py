@@ -5,7 +5,7 @@ declared level backed by its info message (HB-008)."""
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.stash import StashKey
@@ -13,6 +13,9 @@ from conformance.message import Message
 from conformance.topics import INFO_KIND_OF_LEVEL, TopicKind, level_name
 from conformance.validator import Validation
 from conformance.violation import Violation
+
+if TYPE_CHECKING:
+    from conformance.checks.rates import RateTracker
 
 HB = TopicKind.HEARTBEAT
 REBOOT_SILENCE_PERIODS = 2.0  # HB-006's decision
@@ -29,7 +32,7 @@ class Identity:
     """What the identity checks keep of a unit between its heartbeats."""
 
     __slots__ = ("fast_change", "silences_pending", "silences_held", "deaths", "levels_since",
-                 "levels_seen")
+                 "levels_seen", "heartbeat_rate")
 
     def __init__(self) -> None:
         self.fast_change: float | None = None
@@ -45,6 +48,9 @@ class Identity:
         """Level -> when it was first declared (HB-008)."""
         self.levels_seen: list[Any] | None = None
         """The latest heartbeat's raw levels (HB-008: unchanged, nothing new)."""
+        self.heartbeat_rate: RateTracker | None = None
+        """The heartbeat's rate tracker, which ``rates`` keeps here too when it makes one:
+        silences are measured in the periods it measured (``heartbeat_period``)."""
 
 
 IDENTITY: StashKey[Identity] = StashKey("identity")
@@ -204,12 +210,10 @@ def heartbeat_period(unit: UnitState) -> float:
     return declared
 
 
-def _heartbeat_tracker(unit: UnitState) -> Any:
+def _heartbeat_tracker(unit: UnitState) -> RateTracker | None:
     """The heartbeat's ``rates.RateTracker``, None before the first live heartbeat."""
-    from conformance.checks.rates import RATES  # rates imports this module's SILENCE_PERIODS
-
-    trackers = unit.stash.get(RATES)
-    return trackers.get(HB) if trackers is not None else None
+    identity = unit.stash.get(IDENTITY)
+    return identity.heartbeat_rate if identity is not None else None
 
 
 def deaths(ctx: CheckContext, unit: UnitState, now: float) -> list[tuple[float, float]]:

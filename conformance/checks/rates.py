@@ -37,7 +37,7 @@ from collections.abc import Iterator
 from operator import add
 
 from conformance.checks.base import CheckContext, UnitState, check
-from conformance.checks.identity import SILENCE_PERIODS
+from conformance.checks.identity import IDENTITY, SILENCE_PERIODS, Identity
 from conformance.checks.stall import stamp_of
 from conformance.checks.stash import StashKey
 from conformance.message import Message
@@ -368,6 +368,8 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
         tracker = None
     if tracker is None:
         tracker = trackers[kind] = RateTracker(kind, msg.topic, declared)
+        if kind is TopicKind.HEARTBEAT:  # identity measures silences in its periods (HB-010)
+            unit.stash.setdefault(IDENTITY, Identity).heartbeat_rate = tracker
     if type(m) is dict:
         tracker.add(ctx, msg.time, m.get("agent-uuid"), stamp_of(m, msg.time))
     else:
