@@ -15,8 +15,9 @@ import orjson
 
 from conformance.checks.base import CheckContext, UnitState, check, reinterprets
 from conformance.checks.command_history import str_of
-from conformance.checks.conversation import MALFORMED, Command, Conversations, Task, conversations
+from conformance.checks.conversation import MALFORMED, Command, Conversations, conversations
 from conformance.message import Message
+from conformance.taskrecord import TaskRecord
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
@@ -91,7 +92,7 @@ def command_opens_conversation(ctx: CheckContext, unit: UnitState, msg: Message,
         c.tasks.pop(cmd.task_uuid, None)  # a start-task naming a task-uuid begins it anew
 
 
-def _task_of(c: Conversations, cmd: Command) -> Task | None:
+def _task_of(c: Conversations, cmd: Command) -> TaskRecord | None:
     for value, task_uuid in cmd.values:
         if value == "running" and task_uuid is not None:
             return c.tasks.get(task_uuid)  # type: ignore[no-any-return]

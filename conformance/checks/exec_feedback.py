@@ -15,12 +15,12 @@ from conformance.checks.command_history import response_timeout, str_of, violati
 from conformance.checks.conversation import (
     CONVERSATIONS,
     FEEDBACK_WITHOUT_TASK_UUID,
-    Task,
     conversations,
     task_uuid_sent,
 )
 from conformance.message import Message
 from conformance.status import FINAL_STATUSES, meaning
+from conformance.taskrecord import State
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
@@ -50,7 +50,7 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
     unit.examine("EXEC-FB-004")
     task = c.tasks.get(task_uuid)
     if task is None:
-        task = c.tasks[task_uuid] = Task(task_uuid, None, None, c.life)
+        task = c.task(task_uuid)
     if task.final is not None:
         end_status, end_com_uuid, end_time = task.final
         if str_of(m, "com-uuid") == end_com_uuid:
@@ -80,9 +80,9 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
                             path="$.status", detail="12.1: a resend is answered from memory, "
                             "not executed again")
         task.running_feedback += 1
-    task.last_status, task.last_time = status, t
+    task.said(status, t)
     if status in ("running", "paused") or status in FINAL_STATUSES:
-        task.state = status
+        task.state = State(status)
     for e in [e for e in c.expects if e.task_uuid == task_uuid]:
         if status in e.wanted:
             unit.examine(e.rule)

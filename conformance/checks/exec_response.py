@@ -28,7 +28,6 @@ from conformance.checks.conversation import (
     Command,
     Conversations,
     Expect,
-    Task,
     conversations,
     expects_answers,
     task_uuid_sent,
@@ -166,11 +165,12 @@ def _judge_first_answer(ctx: CheckContext, unit: UnitState, c: Conversations, cm
             if started is not None:
                 task = c.tasks.get(started)
                 if task is None or task.command is not None:
-                    task = c.tasks[started] = Task(started, cmd.task_name, cmd, c.life)
+                    task = c.task(started, cmd.task_name, cmd)
                 task.command, task.name = cmd, cmd.task_name  # its feedback may come first
                 if task.final is None:
                     c.started(task)
-                    task.state = task.state or "running"  # 12.1: 'running' began it
+                    if task.state is protocol.State.UNKNOWN:
+                        task.state = protocol.State.RUNNING  # 12.1: 'running' began it
         elif value == "failed":
             for r in ("EXEC-START-004", "EXEC-START-005"):
                 if _refusal_due(unit, cmd, r):
