@@ -259,6 +259,42 @@ def judged_on_a_copy(key: StashKey[Any], dropped: tuple[str, str]
     return finish_check
 
 
+def resends_unanswered(ctx: CheckContext, unit: UnitState, c: CommandHistory, now: float,
+                       reboot: bool, rule: str, topic: Callable[[Any], str], detail: str
+                       ) -> list[Violation]:
+    """12.1: a resend is answered again. Each resent command whose second answer is overdue at
+    ``now`` (at a reboot: every one) fails ``rule``, its evidence the command (on
+    ``topic(cmd)``), unless the broker lost or held traffic meanwhile (the first may never have
+    reached the unit): exec and TST conversations alike."""
+    found: list[Violation] = []
+    timeout = response_timeout(ctx)
+    for cmd in c.overdue(now, timeout, reboot):
+        if ctx.gaps and ctx.in_gap(cmd.time, cmd.last_sent + timeout):
+            unit.note(rule, OVER_A_GAP)  # the first may never have reached it
+            continue
+        unit.examine(rule)
+        found.append(late(rule, topic(cmd), cmd, f"a second answer to the resent "
+                          f"{cmd.describe()} within {timeout:.1f} s", "none", cmd.last_sent,
+                          detail))
+    return found
+
+
+def left_unanswered(ctx: CheckContext, unit: UnitState, rule: str, cmd: SentCommand,
+                    topic: str, detail: str) -> list[Violation]:
+    """12.1, 14.4: a command the unit never answered fails ``rule``, its evidence the command
+    (on ``topic``), unless the broker lost or held traffic within its response timeout (its
+    answer may be what was lost, issue 25 §3). Marked ``missed``: an answer after this is
+    only late (EXEC-010). Exec and TST conversations alike."""
+    timeout = response_timeout(ctx)
+    if ctx.gaps and ctx.in_gap(cmd.last_sent, cmd.last_sent + timeout):
+        unit.note(rule, OVER_A_GAP)
+        return []
+    unit.examine(rule)
+    cmd.missed = True
+    return [late(rule, topic, cmd, f"an answer to {cmd.describe()} within {timeout:.1f} s",
+                 "no answer", cmd.last_sent, detail)]
+
+
 def violation(rule: str, msg: Message, *, expected: str, observed: str, path: str,
               detail: str = "") -> Violation:
     """A violation found in ``msg``: it is the evidence."""

@@ -15,12 +15,13 @@ from conformance.checks.command_history import response_timeout, str_of, violati
 from conformance.checks.conversation import (
     CONVERSATIONS,
     FEEDBACK_WITHOUT_TASK_UUID,
+    Conversations,
     conversations,
     task_uuid_sent,
 )
 from conformance.message import Message
 from conformance.status import FINAL_STATUSES, meaning
-from conformance.taskrecord import State
+from conformance.taskrecord import State, TaskRecord
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
@@ -52,17 +53,7 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
     if task is None:
         task = c.task(task_uuid)
     if task.final is not None:
-        end_status, end_com_uuid, end_time = task.final
-        if str_of(m, "com-uuid") == end_com_uuid:
-            return
-        again = task.resent is not None and task.resent > end_time  # resent after it ended
-        rule = "EXEC-RESEND-001" if again else "EXEC-FB-004"
-        yield violation(rule, msg, expected=f"no feedback for task {task_uuid} after its final "
-                        f"status '{end_status}'", observed=f"status '{status}' "
-                        f"{t - end_time:.2f} s later" + (" (after its start-task was resent: "
-                                                         "executed again)" if again else ""),
-                        path="$.status", detail="stop sending feedback once a task is "
-                        "finished, failed or aborted")
+        yield from _after_final(task, task_uuid, msg, m, status)
         return
     if (status == "failed" and task.resend_failed is not None
             and t - task.resend_failed <= response_timeout(ctx)):
@@ -83,6 +74,36 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
     task.said(status, t)
     if status in ("running", "paused") or status in FINAL_STATUSES:
         task.state = State(status)
+    yield from _judge_signalled(unit, c, task_uuid, msg, status)
+    if status in FINAL_STATUSES:
+        c.ended(task, (status, str_of(m, "com-uuid"), t))
+        if task.command is not None:
+            unit.examine("EXEC-START-003")
+
+
+def _after_final(task: TaskRecord, task_uuid: str, msg: Message, m: object, status: str
+                 ) -> Iterator[Violation]:
+    """12.4: nothing follows a task's final status (EXEC-FB-004), but the same final message
+    delivered again; after a resent start-task, it was executed again (EXEC-RESEND-001)."""
+    assert task.final is not None
+    end_status, end_com_uuid, end_time = task.final
+    if str_of(m, "com-uuid") == end_com_uuid:
+        return
+    again = task.resent is not None and task.resent > end_time  # resent after it ended
+    rule = "EXEC-RESEND-001" if again else "EXEC-FB-004"
+    yield violation(rule, msg, expected=f"no feedback for task {task_uuid} after its final "
+                    f"status '{end_status}'", observed=f"status '{status}' "
+                    f"{msg.time - end_time:.2f} s later" + (" (after its start-task was "
+                                                            "resent: executed again)"
+                                                            if again else ""),
+                    path="$.status", detail="stop sending feedback once a task is "
+                    "finished, failed or aborted")
+
+
+def _judge_signalled(unit: UnitState, c: Conversations, task_uuid: str, msg: Message,
+                     status: str) -> Iterator[Violation]:
+    """12.2.2: a signal answered 'ok' is followed by the feedback it asks for: that status
+    proves its rule, a final status other than it breaks it."""
     for e in [e for e in c.expects if e.task_uuid == task_uuid]:
         if status in e.wanted:
             unit.examine(e.rule)
@@ -93,10 +114,6 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
             yield violation(e.rule, msg, expected=f"{' or '.join(sorted(e.wanted))} after "
                             f"{e.command.describe()} was answered 'ok'",
                             observed=f"status '{status}'", path="$.status")
-    if status in FINAL_STATUSES:
-        c.ended(task, (status, str_of(m, "com-uuid"), t))
-        if task.command is not None:
-            unit.examine("EXEC-START-003")
 
 
 @check("EXEC-START-003", "EXEC-RESEND-001", on=(TopicKind.DIRECT_EXECUTION_INFO,))

@@ -15,6 +15,7 @@ from conformance.validator import Validation
 from conformance.violation import Violation
 
 if TYPE_CHECKING:
+    from conformance.checks.command_history import CommandHistory
     from conformance.checks.rates import RateTracker
 
 HB = TopicKind.HEARTBEAT
@@ -156,15 +157,8 @@ def _silence(ctx: CheckContext, unit: UnitState, msg: Message,
             return held
         return None
     tracker = _heartbeat_tracker(unit)
-    if ctx.reboots:
-        revived = next((r for r in ctx.reboots if last < r <= msg.time), None)
-        if revived is not None and revived - last > SILENCE_PERIODS * heartbeat_period(unit) \
-                and not _broker_gap(ctx, last, revived):
-            # Silent for good until the suite rebooted it: a death (HB-012), not a silence.
-            deaths = identity.deaths
-            deaths.append((last, revived))
-            del deaths[:-DEATHS_KEPT]
-            return None
+    if ctx.reboots and _died_until_reboot(ctx, unit, identity, last, msg.time):
+        return None
     if ctx.in_gap(last, msg.time):
         return None
     uuid = _uuid(v)
@@ -197,6 +191,20 @@ def _silence(ctx: CheckContext, unit: UnitState, msg: Message,
     return found
 
 
+def _died_until_reboot(ctx: CheckContext, unit: UnitState, identity: Identity, last: float,
+                       t: float) -> bool:
+    """Whether the unit, silent since ``last``, was silent for good until the suite rebooted
+    it before ``t``: a death (HB-012, kept in ``identity.deaths``), not a silence."""
+    revived = next((r for r in ctx.reboots if last < r <= t), None)
+    if revived is None or revived - last <= SILENCE_PERIODS * heartbeat_period(unit) \
+            or _broker_gap(ctx, last, revived):
+        return False
+    deaths = identity.deaths
+    deaths.append((last, revived))
+    del deaths[:-DEATHS_KEPT]
+    return True
+
+
 def heartbeat_period(unit: UnitState) -> float:
     """The period silences are measured in, seconds: the declared one, or the mean interval
     measured when every one of at least 3 intervals was over 3 declared periods, so that a unit
@@ -225,6 +233,26 @@ def deaths(ctx: CheckContext, unit: UnitState, now: float) -> list[tuple[float, 
     if dead is not None:
         found.append((dead[1], float("inf")))
     return found
+
+
+def dying_before_life(unit: UnitState, c: CommandHistory, t: float
+                      ) -> tuple[float, float] | None:
+    """(dying since, last heartbeat) of a unit whose new life began at ``t`` after a silence
+    of more than SILENCE_PERIODS heartbeat periods (``command_history.dead_since``: what it
+    left unanswered since is the silence's), None after a shorter one. Exec and TST alike."""
+    from conformance.checks.command_history import dead_since
+
+    return dead_since(unit, c, t, heartbeat_period(unit), SILENCE_PERIODS)
+
+
+def dying_at_end(ctx: CheckContext, unit: UnitState, c: CommandHistory, now: float
+                 ) -> tuple[float, float] | None:
+    """(dying since, last heartbeat) of a unit dead at ``now`` (``death``), dying since the
+    command it may have died on (``command_history.dying_from``); None while it lives."""
+    from conformance.checks.command_history import dying_from
+
+    dead = death(ctx, unit, now)
+    return (dying_from(c, dead[1], heartbeat_period(unit)), dead[1]) if dead else None
 
 
 def death(ctx: CheckContext, unit: UnitState, now: float) -> tuple[float, float] | None:

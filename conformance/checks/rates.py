@@ -203,13 +203,7 @@ class RateTracker:
         profile = ctx.profile
         need = profile.min_intervals
         declared = self.declared
-        if self.n >= need:
-            n, total, lo, hi, hi_at = self.n, self.total, self.min, self.max, self.max_at
-            silences_in = 0
-        else:
-            n, total, hi, hi_at = self.all_n, self.all_total, self.all_max, self.all_max_at
-            lo = min(self.min, hi) if n else float("inf")
-            silences_in = self.silences
+        n, total, lo, hi, hi_at, silences_in = self._intervals(need)
         mean = total / n if n else None
         stat = RateStat(
             unit=unit, kind=self.kind.value, topic=self.topic, declared_hz=declared,
@@ -261,6 +255,16 @@ class RateTracker:
         stat.reason = (f"{len(found)} violation{'s' if len(found) > 1 else ''}{how}" if found
                        else f"min {lo:.3f} s, max {hi:.3f} s{silences}{how}")
         return stat, found
+
+    def _intervals(self, need: int) -> tuple[int, float, float, float, float, int]:
+        """(count, total, shortest, longest, when the longest ended, silences counted in) of
+        the intervals judged: those within 3 declared periods once there are ``need``, else
+        every one (silences too: a unit far slower than it declares has no other)."""
+        if self.n >= need:
+            return self.n, self.total, self.min, self.max, self.max_at, 0
+        n, hi = self.all_n, self.all_max
+        return (n, self.all_total, min(self.min, hi) if n else float("inf"), hi,
+                self.all_max_at, self.silences)
 
     def _how(self) -> str:
         """How the intervals were measured, for the rate's note (issue 25 §3)."""
