@@ -15,9 +15,10 @@ import functools
 from collections import OrderedDict
 from collections.abc import Callable
 from copy import deepcopy
-from typing import Any
+from typing import Any, TypeVar
 
 from conformance.checks.base import BoundedDict, CheckContext, UnitState
+from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.violation import Violation
 
@@ -155,12 +156,15 @@ class CommandHistory:
             del self.lives[:-LIVES_KEPT]
 
 
-def per_unit(unit: UnitState, key: str, make: Any) -> Any:
+H = TypeVar("H", bound=CommandHistory)
+
+
+def per_unit(unit: UnitState, key: StashKey[H], make: Callable[[], H]) -> H:
     """The unit's conversation state under ``key``, made on first use and starting in the
     unit's current life (its agent-uuid): exec and TST conversations alike."""
-    c = unit.private.get(key)
+    c = unit.stash.get(key)
     if c is None:
-        c = unit.private[key] = make()
+        c = unit.stash[key] = make()
         c.life = unit.agent_uuid
         if c.life is not None:
             c.lives.append(c.life)
@@ -229,7 +233,8 @@ def dying_from(c: CommandHistory, last: float, period: float) -> float:
     return min(named.last_sent, last) if named is not None else last
 
 
-def judged_on_a_copy(key: str, dropped: tuple[str, str]) -> Callable[[Judge], FinishCheck]:
+def judged_on_a_copy(key: StashKey[Any], dropped: tuple[str, str]
+                     ) -> Callable[[Judge], FinishCheck]:
     """Make ``judge(ctx, unit, c, now) -> violations``, which judges what is still open in the
     unit's conversations ``c`` (under ``key``) when the observation ends, a finish check
     ``(ctx, unit, now, findings)``. Pure, so that a provisional report changes nothing:
@@ -239,12 +244,12 @@ def judged_on_a_copy(key: str, dropped: tuple[str, str]) -> Callable[[Judge], Fi
         @functools.wraps(judge)
         def at_end(ctx: CheckContext, unit: UnitState, now: float,
                    findings: Any) -> list[Violation]:
-            original = unit.private.get(key)
+            original = unit.stash.get(key)
             if original is None:
                 return []
             c = deepcopy(original)
             copy = dataclasses.replace(unit, examined={}, notes={},
-                                       private={**unit.private, key: c})
+                                       stash=unit.stash.with_item(key, c))
             found = judge(ctx, copy, c, now)
             if c.dropped:
                 rule, what = dropped
@@ -258,6 +263,42 @@ def judged_on_a_copy(key: str, dropped: tuple[str, str]) -> Callable[[Judge], Fi
         return at_end
 
     return finish_check
+
+
+def resends_unanswered(ctx: CheckContext, unit: UnitState, c: CommandHistory, now: float,
+                       reboot: bool, rule: str, topic: Callable[[Any], str], detail: str
+                       ) -> list[Violation]:
+    """12.1: a resend is answered again. Each resent command whose second answer is overdue at
+    ``now`` (at a reboot: every one) fails ``rule``, its evidence the command (on
+    ``topic(cmd)``), unless the broker lost or held traffic meanwhile (the first may never have
+    reached the unit): exec and TST conversations alike."""
+    found: list[Violation] = []
+    timeout = response_timeout(ctx)
+    for cmd in c.overdue(now, timeout, reboot):
+        if ctx.gaps and ctx.in_gap(cmd.time, cmd.last_sent + timeout):
+            unit.note(rule, OVER_A_GAP)  # the first may never have reached it
+            continue
+        unit.examine(rule)
+        found.append(late(rule, topic(cmd), cmd, f"a second answer to the resent "
+                          f"{cmd.describe()} within {timeout:.1f} s", "none", cmd.last_sent,
+                          detail))
+    return found
+
+
+def left_unanswered(ctx: CheckContext, unit: UnitState, rule: str, cmd: SentCommand,
+                    topic: str, detail: str) -> list[Violation]:
+    """12.1, 14.4: a command the unit never answered fails ``rule``, its evidence the command
+    (on ``topic``), unless the broker lost or held traffic within its response timeout (its
+    answer may be what was lost, issue 25 §3). Marked ``missed``: an answer after this is
+    only late (EXEC-010). Exec and TST conversations alike."""
+    timeout = response_timeout(ctx)
+    if ctx.gaps and ctx.in_gap(cmd.last_sent, cmd.last_sent + timeout):
+        unit.note(rule, OVER_A_GAP)
+        return []
+    unit.examine(rule)
+    cmd.missed = True
+    return [late(rule, topic, cmd, f"an answer to {cmd.describe()} within {timeout:.1f} s",
+                 "no answer", cmd.last_sent, detail)]
 
 
 def violation(rule: str, msg: Message, *, expected: str, observed: str, path: str,

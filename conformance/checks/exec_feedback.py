@@ -13,13 +13,15 @@ from collections.abc import Iterator
 from conformance.checks.base import CheckContext, UnitState, check, reinterprets
 from conformance.checks.command_history import response_timeout, str_of, violation
 from conformance.checks.conversation import (
+    CONVERSATIONS,
     FEEDBACK_WITHOUT_TASK_UUID,
-    Task,
+    Conversations,
     conversations,
     task_uuid_sent,
 )
 from conformance.message import Message
 from conformance.status import FINAL_STATUSES, meaning
+from conformance.taskrecord import State, TaskRecord
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
@@ -40,7 +42,7 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
         # finding per message (EXEC-FB-001), never one pseudo-task '' whose feedback follows
         # its own final status (FIELD-NOTES, precision: empty task-uuid).
         if status is not None:
-            unit.private[FEEDBACK_WITHOUT_TASK_UUID] = True
+            unit.stash[FEEDBACK_WITHOUT_TASK_UUID] = True
             unit.note("EXEC-FB-004", "feedback without a task-uuid: its tasks could not be "
                                      "tracked")
         return
@@ -49,19 +51,9 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
     unit.examine("EXEC-FB-004")
     task = c.tasks.get(task_uuid)
     if task is None:
-        task = c.tasks[task_uuid] = Task(task_uuid, None, None, c.life)
+        task = c.task(task_uuid)
     if task.final is not None:
-        end_status, end_com_uuid, end_time = task.final
-        if str_of(m, "com-uuid") == end_com_uuid:
-            return
-        again = task.resent is not None and task.resent > end_time  # resent after it ended
-        rule = "EXEC-RESEND-001" if again else "EXEC-FB-004"
-        yield violation(rule, msg, expected=f"no feedback for task {task_uuid} after its final "
-                        f"status '{end_status}'", observed=f"status '{status}' "
-                        f"{t - end_time:.2f} s later" + (" (after its start-task was resent: "
-                                                         "executed again)" if again else ""),
-                        path="$.status", detail="stop sending feedback once a task is "
-                        "finished, failed or aborted")
+        yield from _after_final(task, task_uuid, msg, m, status)
         return
     if (status == "failed" and task.resend_failed is not None
             and t - task.resend_failed <= response_timeout(ctx)):
@@ -79,9 +71,39 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
                             path="$.status", detail="12.1: a resend is answered from memory, "
                             "not executed again")
         task.running_feedback += 1
-    task.last_status, task.last_time = status, t
+    task.said(status, t)
     if status in ("running", "paused") or status in FINAL_STATUSES:
-        task.state = status
+        task.state = State(status)
+    yield from _judge_signalled(unit, c, task_uuid, msg, status)
+    if status in FINAL_STATUSES:
+        c.ended(task, (status, str_of(m, "com-uuid"), t))
+        if task.command is not None:
+            unit.examine("EXEC-START-003")
+
+
+def _after_final(task: TaskRecord, task_uuid: str, msg: Message, m: object, status: str
+                 ) -> Iterator[Violation]:
+    """12.4: nothing follows a task's final status (EXEC-FB-004), but the same final message
+    delivered again; after a resent start-task, it was executed again (EXEC-RESEND-001)."""
+    assert task.final is not None
+    end_status, end_com_uuid, end_time = task.final
+    if str_of(m, "com-uuid") == end_com_uuid:
+        return
+    again = task.resent is not None and task.resent > end_time  # resent after it ended
+    rule = "EXEC-RESEND-001" if again else "EXEC-FB-004"
+    yield violation(rule, msg, expected=f"no feedback for task {task_uuid} after its final "
+                    f"status '{end_status}'", observed=f"status '{status}' "
+                    f"{msg.time - end_time:.2f} s later" + (" (after its start-task was "
+                                                            "resent: executed again)"
+                                                            if again else ""),
+                    path="$.status", detail="stop sending feedback once a task is "
+                    "finished, failed or aborted")
+
+
+def _judge_signalled(unit: UnitState, c: Conversations, task_uuid: str, msg: Message,
+                     status: str) -> Iterator[Violation]:
+    """12.2.2: a signal answered 'ok' is followed by the feedback it asks for: that status
+    proves its rule, a final status other than it breaks it."""
     for e in [e for e in c.expects if e.task_uuid == task_uuid]:
         if status in e.wanted:
             unit.examine(e.rule)
@@ -92,10 +114,6 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
             yield violation(e.rule, msg, expected=f"{' or '.join(sorted(e.wanted))} after "
                             f"{e.command.describe()} was answered 'ok'",
                             observed=f"status '{status}'", path="$.status")
-    if status in FINAL_STATUSES:
-        c.ended(task, (status, str_of(m, "com-uuid"), t))
-        if task.command is not None:
-            unit.examine("EXEC-START-003")
 
 
 @check("EXEC-START-003", "EXEC-RESEND-001", on=(TopicKind.DIRECT_EXECUTION_INFO,))
@@ -104,7 +122,7 @@ def tasks_executing_follow_tasks(ctx: CheckContext, unit: UnitState, msg: Messag
     """5.3: tasks-executing lists the running tasks: a started task that leaves it has ended,
     and its final feedback is due; one listed twice after a resend was executed twice.
     (Runs on every direct_execution_info: a list or None; nothing to do without open tasks.)"""
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     if c is None or not c.running:
         return None
     m = v.message
