@@ -54,7 +54,13 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
         end_status, end_com_uuid, end_time = task.final
         if str_of(m, "com-uuid") == end_com_uuid:
             return
-        again = task.resent is not None and task.resent > end_time  # resent after it ended
+        # Executed again (EXEC-RESEND-001) only when the task runs again after its start-task
+        # was resent: a resend refused ('failed', 'A task is already running') ran nothing
+        # twice, and a 'failed' feedback answering it (or another task's signal) is feedback
+        # after the final status, EXEC-FB-004's decision (12.4 says neither which statuses
+        # end a task nor that feedback stops).
+        again = (task.resent is not None and task.resent > end_time
+                 and status not in FINAL_STATUSES)
         rule = "EXEC-RESEND-001" if again else "EXEC-FB-004"
         yield violation(rule, msg, expected=f"no feedback for task {task_uuid} after its final "
                         f"status '{end_status}'", observed=f"status '{status}' "
@@ -62,15 +68,10 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
                                                          "executed again)" if again else ""),
                         path="$.status", detail="stop sending feedback once a task is "
                         "finished, failed or aborted")
-        return
-    if (status == "failed" and task.resend_failed is not None
-            and t - task.resend_failed <= response_timeout(ctx)):
-        # The unit said the resend 'failed' and fails the task in feedback too, though it runs
-        # on: one fault of resend handling, not the task's end.
-        yield violation("EXEC-RESEND-001", msg, expected=f"no 'failed' feedback for task "
-                        f"{task_uuid}, which runs on", observed="'failed' feedback answering "
-                        "the resent start-task", path="$.status",
-                        detail="12.1: a resend must not touch the running task")
+        if again:  # it runs again: its later feedback is that run's, judged as a live task's
+            task.final, task.resent = None, None
+            c.running[task_uuid] = task
+            task.last_status, task.last_time, task.state = status, t, status
         return
     if status == "running":
         if task.running_feedback and task.last_status == "running" and task.resent is not None:

@@ -47,8 +47,6 @@ AWAITING_SCENARIOS: dict[str, str] = {
                             "periods reads as a silence ('then came back with the same "
                             "agent-uuid', or a death that 'came back only when the suite "
                             "rebooted it')",
-    "start-no-task-uuid-unanswered": "EXEC-START-002 passes although the start-task without "
-                                     "task-uuid was never answered",
 }
 # Areas whose faults change what every scenario sees (levels, identity, timing, answers).
 # Signal faults too (the scenarios end their tasks with signals), and tst_execution_info ones
