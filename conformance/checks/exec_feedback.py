@@ -131,6 +131,48 @@ def tasks_executing_follow_tasks(ctx: CheckContext, unit: UnitState, msg: Messag
     return found
 
 
+ENDED_FOR_GOOD = ("finished", "aborted")
+"""Final statuses after which a task cannot be executing (DEI-004 from traffic). Not 'failed':
+the public agents also answer a refused command (a resend, another task's signal) with a
+'failed' feedback naming a task that runs on, so which of the two messages is false cannot be
+told (EXEC-FB-004's, decided)."""
+LISTED_GRACE_PERIODS = 2.0
+"""An info message composed before the final feedback may still list the task: two declared
+periods of direct_execution_info (or the response timeout, if longer) pass first."""
+
+
+@check("DEI-004", on=(TopicKind.DIRECT_EXECUTION_INFO,))
+def ended_tasks_leave_tasks_executing(ctx: CheckContext, unit: UnitState, msg: Message,
+                                      v: Validation) -> list[Violation] | None:
+    """5.3 'List of tasks currently executing.': a task whose feedback said 'finished' or
+    'aborted' and is listed long after is an entry that never ends (issue 24). Found wherever
+    the traffic shows it, whichever command ended the task. (Runs on every
+    direct_execution_info: a list or None.)"""
+    c = unit.private.get("conversations")
+    m = v.message
+    executing = m.get("tasks-executing") if type(m) is dict else None
+    if c is None or not executing or type(executing) is not list:
+        return None
+    period = unit.period(TopicKind.DIRECT_EXECUTION_INFO) or 0.0
+    grace = max(LISTED_GRACE_PERIODS * period, response_timeout(ctx))
+    found = None
+    for entry in executing[:64]:
+        task = c.tasks.get(task_uuid_sent(entry)) if isinstance(entry, dict) else None
+        if task is None or task.final is None or task.life != c.life:
+            continue
+        status, _, when = task.final
+        if status not in ENDED_FOR_GOOD or msg.time - when <= grace:
+            continue
+        unit.examine("DEI-004")
+        found = found or []
+        found.append(violation("DEI-004", msg, expected=f"task {task.task_uuid} no longer in "
+                               f"tasks-executing once it said '{status}'", observed=f"still "
+                               f"listed {msg.time - when:.1f} s after its '{status}' feedback",
+                               path="$.tasks-executing", detail="5.3: list only the tasks "
+                               "currently executing; remove a task when it ends"))
+    return found
+
+
 @reinterprets("EXEC-FB-001", on=(TopicKind.EXEC_FEEDBACK,))
 def empty_task_uuid_names_no_task(ctx: CheckContext, unit: UnitState, msg: Message,
                                   v: Validation, found: list[Violation]) -> list[Violation]:

@@ -576,3 +576,27 @@ def test_a_death_names_every_command_of_the_burst_the_last_first(stream):
     assert "no-such-command" in said and "a malformed command" in said
     assert said.index("no-such-command") < said.index("a malformed command")  # the last first
     assert com_of(survived) not in said  # it answered the ping after it
+
+
+def test_a_task_still_listed_long_after_it_finished_fails_dei_004_from_traffic(stream):
+    """Issue 24: tasks-executing entries that never end are on the wire; wherever the traffic
+    shows the task's end ('finished', 'aborted'), a listing past two info periods fails DEI-004
+    (5.3 'List of tasks currently executing.'). A listing composed before the end, or after a
+    'failed' (which the public agents also send for a refused command), is no evidence."""
+    def run(status: str, listed_at: float):
+        task = new()
+        cmd = start(stream, 2.1, task)
+        entry = [{"task-name": "move-to", "task-uuid": task}]
+        return judge(stream, [
+            cmd, stream.response(2.2, com_of(cmd), "running", **{"task-uuid": task}),
+            stream.feedback(2.3, task, "running"), stream.direct_execution_info(2.5, executing=entry),
+            stream.feedback(4.0, task, status),
+            stream.direct_execution_info(listed_at, executing=entry)])
+
+    stale = run("finished", 9.0)
+    r = stale["DEI-004"]
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 1, r
+    assert "still listed 5.0 s after its 'finished' feedback" in r.violations[0].observed
+    assert run("aborted", 9.0)["DEI-004"].verdict is Verdict.FAIL
+    assert run("finished", 4.5)["DEI-004"].verdict is Verdict.SKIP  # composed before the end
+    assert run("failed", 9.0)["DEI-004"].verdict is Verdict.SKIP
