@@ -63,8 +63,6 @@ class TaskRecord:
     time) when it left tasks-executing with none."""
     resent: float | None = None
     """When its start-task was last resent."""
-    resend_failed: float | None = None
-    """When a resend of its start-task was answered 'failed' (a contradiction)."""
     running_feedback: int = 0
     """How many 'running' feedbacks it sent (EXEC-RESEND-001: started twice)."""
 

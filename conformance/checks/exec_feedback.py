@@ -53,16 +53,7 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
     if task is None:
         task = c.task(task_uuid)
     if task.final is not None:
-        yield from _after_final(task, task_uuid, msg, m, status)
-        return
-    if (status == "failed" and task.resend_failed is not None
-            and t - task.resend_failed <= response_timeout(ctx)):
-        # The unit said the resend 'failed' and fails the task in feedback too, though it runs
-        # on: one fault of resend handling, not the task's end.
-        yield violation("EXEC-RESEND-001", msg, expected=f"no 'failed' feedback for task "
-                        f"{task_uuid}, which runs on", observed="'failed' feedback answering "
-                        "the resent start-task", path="$.status",
-                        detail="12.1: a resend must not touch the running task")
+        yield from _after_final(c, task, task_uuid, msg, m, status)
         return
     if status == "running":
         if task.running_feedback and task.last_status == "running" and task.resent is not None:
@@ -81,15 +72,20 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
             unit.examine("EXEC-START-003")
 
 
-def _after_final(task: TaskRecord, task_uuid: str, msg: Message, m: object, status: str
-                 ) -> Iterator[Violation]:
+def _after_final(c: Conversations, task: TaskRecord, task_uuid: str, msg: Message, m: object,
+                 status: str) -> Iterator[Violation]:
     """12.4: nothing follows a task's final status (EXEC-FB-004), but the same final message
-    delivered again; after a resent start-task, it was executed again (EXEC-RESEND-001)."""
+    delivered again. Executed again (EXEC-RESEND-001) only when the task runs again after its
+    start-task was resent: a resend refused ('failed', 'A task is already running') ran
+    nothing twice, and a 'failed' feedback answering it (or another task's signal) is feedback
+    after the final status, EXEC-FB-004's decision (12.4 says neither which statuses end a
+    task nor that feedback stops)."""
     assert task.final is not None
     end_status, end_com_uuid, end_time = task.final
     if str_of(m, "com-uuid") == end_com_uuid:
         return
-    again = task.resent is not None and task.resent > end_time  # resent after it ended
+    again = (task.resent is not None and task.resent > end_time
+             and status not in FINAL_STATUSES)
     rule = "EXEC-RESEND-001" if again else "EXEC-FB-004"
     yield violation(rule, msg, expected=f"no feedback for task {task_uuid} after its final "
                     f"status '{end_status}'", observed=f"status '{status}' "
@@ -98,6 +94,12 @@ def _after_final(task: TaskRecord, task_uuid: str, msg: Message, m: object, stat
                                                             if again else ""),
                     path="$.status", detail="stop sending feedback once a task is "
                     "finished, failed or aborted")
+    if again:  # it runs again: its later feedback is that run's, judged as a live task's
+        task.final, task.resent = None, None
+        c.started(task)
+        task.said(status, msg.time)
+        if status in ("running", "paused"):
+            task.state = State(status)
 
 
 def _judge_signalled(unit: UnitState, c: Conversations, task_uuid: str, msg: Message,
@@ -145,6 +147,48 @@ def tasks_executing_follow_tasks(ctx: CheckContext, unit: UnitState, msg: Messag
                                    path="$.tasks-executing")]
         elif task.listed and task.left_at is None:
             task.left_at = msg.time
+    return found
+
+
+ENDED_FOR_GOOD = ("finished", "aborted")
+"""Final statuses after which a task cannot be executing (DEI-004 from traffic). Not 'failed':
+the public agents also answer a refused command (a resend, another task's signal) with a
+'failed' feedback naming a task that runs on, so which of the two messages is false cannot be
+told (EXEC-FB-004's, decided)."""
+LISTED_GRACE_PERIODS = 2.0
+"""An info message composed before the final feedback may still list the task: two declared
+periods of direct_execution_info (or the response timeout, if longer) pass first."""
+
+
+@check("DEI-004", on=(TopicKind.DIRECT_EXECUTION_INFO,))
+def ended_tasks_leave_tasks_executing(ctx: CheckContext, unit: UnitState, msg: Message,
+                                      v: Validation) -> list[Violation] | None:
+    """5.3 'List of tasks currently executing.': a task whose feedback said 'finished' or
+    'aborted' and is listed long after is an entry that never ends (issue 24). Found wherever
+    the traffic shows it, whichever command ended the task. (Runs on every
+    direct_execution_info: a list or None.)"""
+    c = unit.private.get("conversations")
+    m = v.message
+    executing = m.get("tasks-executing") if type(m) is dict else None
+    if c is None or not executing or type(executing) is not list:
+        return None
+    period = unit.period(TopicKind.DIRECT_EXECUTION_INFO) or 0.0
+    grace = max(LISTED_GRACE_PERIODS * period, response_timeout(ctx))
+    found = None
+    for entry in executing[:64]:
+        task = c.tasks.get(task_uuid_sent(entry)) if isinstance(entry, dict) else None
+        if task is None or task.final is None or task.life != c.life:
+            continue
+        status, _, when = task.final
+        if status not in ENDED_FOR_GOOD or msg.time - when <= grace:
+            continue
+        unit.examine("DEI-004")
+        found = found or []
+        found.append(violation("DEI-004", msg, expected=f"task {task.task_uuid} no longer in "
+                               f"tasks-executing once it said '{status}'", observed=f"still "
+                               f"listed {msg.time - when:.1f} s after its '{status}' feedback",
+                               path="$.tasks-executing", detail="5.3: list only the tasks "
+                               "currently executing; remove a task when it ends"))
     return found
 
 

@@ -228,10 +228,14 @@ def _await_signalled(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: 
 
 def _judge_task_uuid(unit: UnitState, cmd: Command, msg: Message, value: str | None,
                      task_uuid: str | None) -> Iterator[Violation]:
-    """12.1: the start-task response carries the task-uuid sent, or one the unit generated."""
+    """12.1: the start-task response carries the task-uuid sent, or one the unit generated.
+    Only the answer to a start-task sent without one shows the generated one (the words the
+    rule quotes): the task-uuid sent, returned, is no pass (issue 24, a rule left could-not-test
+    by a start-task never answered)."""
     if cmd.task_uuid is not None:
         if task_uuid == cmd.task_uuid:
-            unit.examine("EXEC-START-002")
+            unit.note("EXEC-START-002", "no start-task without a task-uuid was answered: "
+                                        "whether the unit generates one was not seen")
         else:
             yield violation("EXEC-START-002", msg, expected=f"task-uuid {cmd.task_uuid} (sent "
                             f"in {cmd.describe()})", observed=f"task-uuid {task_uuid!r}",
@@ -307,13 +311,9 @@ def _judge_resend_answer(unit: UnitState, c: Conversations, cmd: Command, msg: M
                         f"executed once (task {first_task})", observed=f"started again as "
                         f"task {task_uuid}", path="$.task-uuid",
                         detail="12.1: remember com-uuids; answer a resend from memory")
-    elif value == "failed":
-        # Refusing is not executing (EXEC-RESEND-001 is about running it twice): a 'failed'
-        # answer alone ('A task is already running') leaves the task alone. Only a 'failed'
-        # feedback for the task that runs on, right after it, breaks it (exec_feedback).
-        task = c.tasks.get(first_task) if first_task else None
-        if task is not None and task.final is None:
-            task.resend_failed = msg.time
+    # A 'failed' answer ('A task is already running') refuses the resend: nothing ran twice
+    # (12.1). A 'failed' feedback that comes with it ends the task as it says; what the task
+    # sends after that is EXEC-FB-004's (exec_feedback).
 
 
 def judge_unanswered(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: Command

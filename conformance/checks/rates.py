@@ -16,8 +16,9 @@ burst, and the stamps keep the unit's spacing (issue 25 §3). Intervals over a g
 observer (its connection down, or a stall of the broker found in the traffic,
 ``checks/stall.py``) are left out either way; the rate's note says both.
 
-The interval across a reboot (an agent-uuid not seen before, spec 5.1) is left out too: the
-restart's silence is HB-006's and HB-010's to judge, not the rate's. Agent-uuids that take
+The interval across a reboot (an agent-uuid not seen before, spec 5.1; for a message without
+one, the heartbeat's: issue 24 §2) is left out too: the restart's silence is HB-006's and
+HB-010's to judge, not the rate's. Agent-uuids that take
 turns (two agents under one name, HB-011) are no reboot: their doubled rate stays HB-003's.
 
 Memory is bounded: running sums, min and max, and a series of at most 600 points.
@@ -374,10 +375,14 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
         tracker = trackers[kind] = RateTracker(kind, msg.topic, declared)
         if kind is TopicKind.HEARTBEAT:  # identity measures silences in its periods (HB-010)
             unit.stash.setdefault(IDENTITY, Identity).heartbeat_rate = tracker
+    # The life it belongs to: its own agent-uuid, else the heartbeat's (info messages without
+    # one, as the RISE agent's: the interval over a restart is no interval of the rate).
     if type(m) is dict:
-        tracker.add(ctx, msg.time, m.get("agent-uuid"), stamp_of(m, msg.time))
+        agent = m.get("agent-uuid")
+        tracker.add(ctx, msg.time, unit.agent_uuid if agent is None else agent,
+                    stamp_of(m, msg.time))
     else:
-        tracker.add(ctx, msg.time)
+        tracker.add(ctx, msg.time, unit.agent_uuid)
     return found
 
 

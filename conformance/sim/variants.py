@@ -107,6 +107,11 @@ _ALL = (
             "Loses the first command sent to it: it heartbeats before its subscription to "
             "exec/command is in place (as an independently written unit did); the commander's "
             "resend is answered."),
+    Variant("resend-refused", "12.1 (resend 'until we give up or a response has arrived'; "
+            "nothing says what the second answer says)",
+            "Takes a resent start-task for a new one and refuses it: 'failed', 'A task is "
+            "already running' (the official Python agents), with no feedback; the task it "
+            "started runs on, never executed twice."),
     Variant("signed-heading", "6.1 ('heading : float', no range)",
             "Publishes heading in (-180, 180] (atan2's range); it faces west at start, so "
             "its heading is negative.",
