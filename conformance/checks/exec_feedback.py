@@ -167,7 +167,7 @@ def ended_tasks_leave_tasks_executing(ctx: CheckContext, unit: UnitState, msg: M
     'aborted' and is listed long after is an entry that never ends (issue 24). Found wherever
     the traffic shows it, whichever command ended the task. (Runs on every
     direct_execution_info: a list or None.)"""
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     m = v.message
     executing = m.get("tasks-executing") if type(m) is dict else None
     if c is None or not executing or type(executing) is not list:
