@@ -13,6 +13,7 @@ import pytest
 
 from conformance.reporting.text import printable
 from conformance.scenarios.explore import Outcome, Search, Stopped, replay
+from conformance.scenarios.explore_action import Action
 from conformance.scenarios.explore_steps import Collector, Explorer, UnitDied, judged
 from conformance.scenarios.sender import NotSent
 from conformance.scenarios.story import Story, StoryError, load
@@ -234,7 +235,7 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item, began: flo
                 + f"\n\nstory stored: {printable(str(path))}", pytrace=False)
 
 
-def _replay(c: Certification, explorer: Explorer, actions: list[dict[str, object]],
+def _replay(c: Certification, explorer: Explorer, actions: list[Action],
             node: pytest.Item, began: float) -> None:
     path = c.settings.explore_replay
     assert path is not None
