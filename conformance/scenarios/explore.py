@@ -213,15 +213,7 @@ def machine_for(search: Search) -> type:
     lasting = [t for t in tasks if t in RUNS_UNTIL_ENOUGH] or tasks
 
     def pick(data: Any, label: str, options: list[Any]) -> Any:
-        """One of ``options``, ordered by the model's view of the tasks (the most telling
-        first: early examples and shrinking favour it). Drawn as a number of fixed range
-        and mapped onto the options there are, so that the draw does not depend on the
-        unit (hypothesis replays a choice only where its range is the same)."""
-        if not search.guided:
-            options = list(options)
-            random.Random(data.draw(st.integers(0, 2**32 - 1), label=f"{label} order")
-                          ).shuffle(options)
-        return options[data.draw(st.integers(0, PICK), label=label) % len(options)]
+        return _pick(data, label, options, search.guided)
 
     # Hypothesis draws rules by their place in a list sorted by number of arguments (all have
     # one), then name, and early examples favour the first places: the names put the
@@ -269,6 +261,20 @@ def machine_for(search: Search) -> type:
 
     assert set(SIGNALS) == set(BUILTIN_SIGNALS)
     return Exploration
+
+
+def _pick(data: Any, label: str, options: list[Any], guided: bool) -> Any:
+    """One of ``options``, ordered by the model's view of the tasks (the most telling first:
+    early examples and shrinking favour it; shuffled unless ``guided``). Drawn as a number of
+    fixed range and mapped onto the options there are, so that the draw does not depend on
+    the unit (hypothesis replays a choice only where its range is the same)."""
+    from hypothesis import strategies as st
+
+    if not guided:
+        options = list(options)
+        random.Random(data.draw(st.integers(0, 2**32 - 1), label=f"{label} order")
+                      ).shuffle(options)
+    return options[data.draw(st.integers(0, PICK), label=label) % len(options)]
 
 
 def start_order(explorer: Explorer, tasks: list[str], lasting: list[str]) -> list[str]:
