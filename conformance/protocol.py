@@ -46,7 +46,6 @@ Public API (stable):
 
 from __future__ import annotations
 
-import enum
 import hashlib
 from collections import OrderedDict
 from collections.abc import Mapping
@@ -57,6 +56,7 @@ import orjson
 
 from conformance.message import Message
 from conformance.status import FINAL_STATUSES, meaning
+from conformance.taskrecord import State, TaskRecord
 
 BUILTIN_SIGNALS = ("$abort", "$continue", "$enough", "$pause")
 NO_SUCH_TASK = "waraps-conformance-no-such-task"
@@ -67,26 +67,6 @@ NEW_TASK = ""
 """The key, in ``Outcome.states``, of the task a start-task without task-uuid begins."""
 TASKS_KEPT = 1024
 COMMANDS_KEPT = 1024
-STATUSES_KEPT = 16
-
-
-class State(str, enum.Enum):
-    """A task's state (12.4's statuses; 12.1's query-status words)."""
-
-    UNKNOWN = "unknown"
-    RUNNING = "running"
-    PAUSED = "paused"
-    FINISHED = "finished"
-    ABORTED = "aborted"
-    FAILED = "failed"
-
-    @property
-    def live(self) -> bool:
-        return self in (State.RUNNING, State.PAUSED)
-
-    @property
-    def ended(self) -> bool:
-        return self in (State.FINISHED, State.ABORTED, State.FAILED)
 
 
 FINAL = {status: State(status) for status in FINAL_STATUSES}  # 12.4: finished, failed, aborted
@@ -182,34 +162,6 @@ class Expectation:
 
     def outcome(self, response: str | None) -> Outcome | None:
         return next((o for o in self.outcomes if o.response == response), None)
-
-
-@dataclass
-class TaskRecord:
-    """One task as the model knows it."""
-
-    task_uuid: str
-    name: str | None = None
-    state: State = State.RUNNING
-    started_by: str | None = None
-    """The com-uuid of the start-task that began it (None: seen only in feedback)."""
-    refused: bool = False
-    """Its start-task was answered 'failed': it never ran."""
-    statuses: list[tuple[float, str]] = field(default_factory=list)
-    """(time, status) of its latest feedback, at most ``STATUSES_KEPT``."""
-    ended_at: float | None = None
-    acked: list[tuple[float, str, str]] = field(default_factory=list)
-    """(time, signal, com-uuid) of the signals to it answered 'ok', at most 8."""
-    listed: bool = False
-    left_at: float | None = None
-    """When it left tasks-executing while the model held it live (no final status yet)."""
-
-    @property
-    def last_status(self) -> str | None:
-        return self.statuses[-1][1] if self.statuses else None
-
-    def acked_since(self, t: float, signals: tuple[str, ...]) -> tuple[float, str, str] | None:
-        return next((a for a in reversed(self.acked) if a[0] >= t and a[1] in signals), None)
 
 
 @dataclass(frozen=True)
@@ -434,8 +386,7 @@ class Model:
         if task.state.live:
             found += self._keeps_running(task, status, previous, t)
             found += self._touched_by_another(task, status, previous, t)
-        task.statuses.append((t, status))
-        del task.statuses[:-STATUSES_KEPT]
+        task.said(status, t)
         if task.state.ended:
             return found  # after the final status: EXEC-FB-004 / EXEC-RESEND-001's to judge
         if status in FINAL:

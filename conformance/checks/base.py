@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from conformance.checks.stall import StallWatch
+from conformance.checks.stash import Stash, StashKey
 from conformance.message import Message
 from conformance.profile import Profile
 from conformance.topics import TopicKind, UnitAddress, level_name
@@ -132,6 +133,12 @@ class BoundedDict(OrderedDict):  # type: ignore[type-arg]
             self.evicted += 1
 
 
+SENSORS_LISTED_RAW: StashKey[list[Any]] = StashKey("sensors-listed-raw")
+LEVELS_RAW: StashKey[list[Any]] = StashKey("levels-raw")
+TASKS_AVAILABLE_RAW: StashKey[Any] = StashKey("tasks-available-raw")
+"""The latest raw lists of the unit's info messages: one unchanged since (the usual case) is
+not read again."""
+
 MAX_AGENT_UUIDS = 16
 MAX_SENSORS = 256
 MAX_KIND_COUNTS = 64
@@ -200,8 +207,9 @@ class UnitState:
     arrivals_beyond: dict[TopicKind, Arrivals] = field(default_factory=dict, repr=False)
     examined: dict[str, int] = field(default_factory=dict)
     notes: dict[str, str] = field(default_factory=dict)
-    private: dict[str, Any] = field(default_factory=dict)
-    """Check-owned state, keyed by check name (rate trackers, LRUs of com-uuids, ...)."""
+    stash: Stash = field(default_factory=Stash, repr=False)
+    """The unit's typed components, each owned by one module, under its ``StashKey``
+    (conversations, the model, rate trackers, identity, ...: ``checks/stash.py``)."""
 
     def examine(self, rule: str, times: int = 1) -> None:
         """Mark ``rule`` as examined on this unit (it may now pass)."""
@@ -328,8 +336,8 @@ class UnitState:
             self._observe_heartbeat(m)
         elif kind is _SENSOR_INFO:
             listed = m.get("sensor-data-provided")
-            if isinstance(listed, list) and listed != self.private.get("_sensors_listed_raw"):
-                self.private["_sensors_listed_raw"] = listed
+            if isinstance(listed, list) and listed != self.stash.get(SENSORS_LISTED_RAW):
+                self.stash[SENSORS_LISTED_RAW] = listed
                 self.sensors_listed = tuple(s for s in listed if isinstance(s, str))[:MAX_SENSORS]
         elif kind is _DIRECT_EXECUTION_INFO:
             self._observe_direct_execution_info(m)
@@ -346,18 +354,18 @@ class UnitState:
             self.agent_type = agent_type
         levels = m.get("levels")
         if isinstance(levels, list) and (self.levels is None
-                                         or levels != self.private.get("_levels_raw")):
-            self.private["_levels_raw"] = levels  # unchanged since (the usual case): kept
+                                         or levels != self.stash.get(LEVELS_RAW)):
+            self.stash[LEVELS_RAW] = levels  # unchanged since (the usual case): kept
             # ERR-008: 'direct_execution' is read as 'direct execution' (the warning is the
             # validator's); the claim is the same.
             self.levels = tuple(level_name(lv) for lv in levels if isinstance(lv, str))[:8]
 
     def _observe_direct_execution_info(self, m: dict[str, Any]) -> None:
         available = m.get("tasks-available")
-        if available == self.private.get("_tasks_available_raw"):
+        if available == self.stash.get(TASKS_AVAILABLE_RAW):
             available = None  # unchanged since the last one (the usual case): nothing to do
         else:
-            self.private["_tasks_available_raw"] = available
+            self.stash[TASKS_AVAILABLE_RAW] = available
         if isinstance(available, list):
             tasks: dict[str, tuple[str, ...]] = {}
             for task in available[:MAX_TASKS]:

@@ -15,9 +15,10 @@ import functools
 from collections import OrderedDict
 from collections.abc import Callable
 from copy import deepcopy
-from typing import Any
+from typing import Any, TypeVar
 
 from conformance.checks.base import BoundedDict, CheckContext, UnitState
+from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.violation import Violation
 
@@ -40,8 +41,8 @@ FinishCheck = Callable[[CheckContext, UnitState, float, Any], list[Violation]]
 class SentCommand:
     """One command sent to a unit, known by its com-uuid, and what came back."""
 
-    __slots__ = ("com_uuid", "name", "time", "last_sent", "sends", "answers", "values",
-                 "digest", "excerpt", "life", "judged", "missed")
+    __slots__ = ("com_uuid", "name", "time", "last_sent", "sends", "answers", "owed",
+                 "values", "digest", "excerpt", "life", "judged", "missed")
 
     def __init__(self, com_uuid: str, name: str, t: float, digest: bytes, excerpt: bytes,
                  life: str | None) -> None:
@@ -50,6 +51,10 @@ class SentCommand:
         self.time = self.last_sent = t
         self.sends = 1
         self.answers = 0
+        self.owed = 1
+        """Answers owed: one, and one more for each resend after an answer came (2, 12.1:
+        the commander resends 'until ... a response has arrived'; a resend of a command that
+        was never answered is answered once in all)."""
         self.values: list[tuple[str | None, str | None]] = []
         """(response, the task-uuid or root-uuid it named) of each answer, at most 4."""
         self.digest = digest
@@ -96,18 +101,20 @@ class CommandHistory:
     def resent(self, cmd: SentCommand, t: float) -> None:
         """12.1: a resend (same com-uuid, same content) is answered again, not executed again."""
         cmd.sends += 1
+        if cmd.answers:
+            cmd.owed += 1
         cmd.last_sent = t
         self.commands[cmd.com_uuid] = cmd
         self.await_answer(cmd)
 
     def heard(self, cmd: SentCommand, value: str | None, named: str | None) -> None:
-        """An answer to ``cmd``: once answered as often as sent, it awaits nothing more."""
+        """An answer to ``cmd``: once answered as often as owed, it awaits nothing more."""
         cmd.answers += 1
         if len(self.answered_kinds) < KINDS_KEPT:
             self.answered_kinds.add(cmd.name)
         if len(cmd.values) < VALUES_KEPT:
             cmd.values.append((value, named))
-        if cmd.answers >= cmd.sends:
+        if cmd.answers >= cmd.owed:
             self.pending.pop(cmd.com_uuid, None)
         if cmd in self.unanswered:
             self.unanswered.remove(cmd)
@@ -130,7 +137,7 @@ class CommandHistory:
                 if len(self.unanswered) > UNANSWERED_KEPT:
                     self.unanswered.pop(0)
                     self.dropped += 1
-            elif cmd.answers < cmd.sends:
+            elif cmd.answers < cmd.owed:
                 resent.append(cmd)
         return resent
 
@@ -149,12 +156,15 @@ class CommandHistory:
             del self.lives[:-LIVES_KEPT]
 
 
-def per_unit(unit: UnitState, key: str, make: Any) -> Any:
+H = TypeVar("H", bound=CommandHistory)
+
+
+def per_unit(unit: UnitState, key: StashKey[H], make: Callable[[], H]) -> H:
     """The unit's conversation state under ``key``, made on first use and starting in the
     unit's current life (its agent-uuid): exec and TST conversations alike."""
-    c = unit.private.get(key)
+    c = unit.stash.get(key)
     if c is None:
-        c = unit.private[key] = make()
+        c = unit.stash[key] = make()
         c.life = unit.agent_uuid
         if c.life is not None:
             c.lives.append(c.life)
@@ -223,7 +233,8 @@ def dying_from(c: CommandHistory, last: float, period: float) -> float:
     return min(named.last_sent, last) if named is not None else last
 
 
-def judged_on_a_copy(key: str, dropped: tuple[str, str]) -> Callable[[Judge], FinishCheck]:
+def judged_on_a_copy(key: StashKey[Any], dropped: tuple[str, str]
+                     ) -> Callable[[Judge], FinishCheck]:
     """Make ``judge(ctx, unit, c, now) -> violations``, which judges what is still open in the
     unit's conversations ``c`` (under ``key``) when the observation ends, a finish check
     ``(ctx, unit, now, findings)``. Pure, so that a provisional report changes nothing:
@@ -233,12 +244,12 @@ def judged_on_a_copy(key: str, dropped: tuple[str, str]) -> Callable[[Judge], Fi
         @functools.wraps(judge)
         def at_end(ctx: CheckContext, unit: UnitState, now: float,
                    findings: Any) -> list[Violation]:
-            original = unit.private.get(key)
+            original = unit.stash.get(key)
             if original is None:
                 return []
             c = deepcopy(original)
             copy = dataclasses.replace(unit, examined={}, notes={},
-                                       private={**unit.private, key: c})
+                                       stash=unit.stash.with_item(key, c))
             found = judge(ctx, copy, c, now)
             if c.dropped:
                 rule, what = dropped
@@ -252,6 +263,42 @@ def judged_on_a_copy(key: str, dropped: tuple[str, str]) -> Callable[[Judge], Fi
         return at_end
 
     return finish_check
+
+
+def resends_unanswered(ctx: CheckContext, unit: UnitState, c: CommandHistory, now: float,
+                       reboot: bool, rule: str, topic: Callable[[Any], str], detail: str
+                       ) -> list[Violation]:
+    """12.1: a resend is answered again. Each resent command whose second answer is overdue at
+    ``now`` (at a reboot: every one) fails ``rule``, its evidence the command (on
+    ``topic(cmd)``), unless the broker lost or held traffic meanwhile (the first may never have
+    reached the unit): exec and TST conversations alike."""
+    found: list[Violation] = []
+    timeout = response_timeout(ctx)
+    for cmd in c.overdue(now, timeout, reboot):
+        if ctx.gaps and ctx.in_gap(cmd.time, cmd.last_sent + timeout):
+            unit.note(rule, OVER_A_GAP)  # the first may never have reached it
+            continue
+        unit.examine(rule)
+        found.append(late(rule, topic(cmd), cmd, f"a second answer to the resent "
+                          f"{cmd.describe()} within {timeout:.1f} s", "none", cmd.last_sent,
+                          detail))
+    return found
+
+
+def left_unanswered(ctx: CheckContext, unit: UnitState, rule: str, cmd: SentCommand,
+                    topic: str, detail: str) -> list[Violation]:
+    """12.1, 14.4: a command the unit never answered fails ``rule``, its evidence the command
+    (on ``topic``), unless the broker lost or held traffic within its response timeout (its
+    answer may be what was lost, issue 25 §3). Marked ``missed``: an answer after this is
+    only late (EXEC-010). Exec and TST conversations alike."""
+    timeout = response_timeout(ctx)
+    if ctx.gaps and ctx.in_gap(cmd.last_sent, cmd.last_sent + timeout):
+        unit.note(rule, OVER_A_GAP)
+        return []
+    unit.examine(rule)
+    cmd.missed = True
+    return [late(rule, topic, cmd, f"an answer to {cmd.describe()} within {timeout:.1f} s",
+                 "no answer", cmd.last_sent, detail)]
 
 
 def violation(rule: str, msg: Message, *, expected: str, observed: str, path: str,

@@ -35,14 +35,16 @@ from conformance.checks.command_history import (
     per_unit,
     str_of,
 )
+from conformance.checks.stash import StashKey
+from conformance.taskrecord import State, TaskRecord
 from conformance.topics import DIRECT_EXECUTION
 
 COMMANDS_KEPT = 1024
 """Commands remembered per unit (resends, late answers, EXEC-006): at one a minute, 17 hours;
 a few hundred bytes each, so a fleet of 200 units stays under about 100 MiB however long."""
 TASKS_KEPT = 1024
-FEEDBACK_WITHOUT_TASK_UUID = "feedback-without-task-uuid"
-"""UnitState.private key: the unit sent feedback without a task-uuid."""
+FEEDBACK_WITHOUT_TASK_UUID: StashKey[bool] = StashKey("feedback-without-task-uuid")
+"""The unit sent feedback without a task-uuid."""
 
 ANSWER_RULE = {"ping": "EXEC-PING-001", "start-task": "EXEC-START-001",
                "signal-task": "EXEC-SIG-001", "query-status": "EXEC-QUERY-001"}
@@ -76,39 +78,6 @@ class Command(SentCommand):
         return f"{what} (com-uuid {self.com_uuid})"
 
 
-class Task:
-    """One task of a unit as the traffic showed it (12.4)."""
-
-    __slots__ = ("task_uuid", "name", "command", "life", "last_status", "last_time", "state",
-                 "final", "resent", "resend_failed", "listed", "listed_at", "left_at",
-                 "running_feedback")
-
-    def __init__(self, task_uuid: str, name: str | None, command: Command | None,
-                 life: str | None) -> None:
-        self.task_uuid = task_uuid
-        self.name = name
-        self.command = command
-        """The start-task that began it (None: the traffic showed only its feedback)."""
-        self.life = life
-        self.last_status: str | None = None
-        self.last_time: float | None = None
-        self.state: str | None = None
-        """Its latest status of 12.4's own (running, paused, a final one): the words of a
-        task's own (``in-view-center``) change nothing (docs/MODEL.md)."""
-        self.final: tuple[str, str | None, float] | None = None
-        """(status, com-uuid, time) of its final feedback."""
-        self.resent: float | None = None
-        """When its start-task was last resent."""
-        self.resend_failed: float | None = None
-        """When a resend of its start-task was answered 'failed' (a contradiction)."""
-        self.listed = False
-        self.listed_at: float | None = None
-        """When tasks-executing last listed it (5.3)."""
-        self.left_at: float | None = None
-        """When it left tasks-executing (5.3) without a final feedback."""
-        self.running_feedback = 0
-
-
 class Expect:
     """Feedback a signal answered 'ok' implies (12.2.2), due by ``deadline``."""
 
@@ -126,7 +95,7 @@ class Conversations(CommandHistory):
     def __init__(self) -> None:
         super().__init__(COMMANDS_KEPT)
         self.tasks: BoundedDict = BoundedDict(TASKS_KEPT)
-        self.running: dict[str, Task] = {}
+        self.running: dict[str, TaskRecord] = {}
         """Tasks a start-task began in this life that have not ended (at most PENDING_KEPT)."""
         self.expects: list[Expect] = []
         self.stray_pongs: list[tuple[float, str]] = []
@@ -136,13 +105,21 @@ class Conversations(CommandHistory):
         """The end of the latest heartbeat silence over 2 periods: perhaps a reboot that kept
         its agent-uuid, whose history loss is REBOOT-002's to judge, not EXEC-QUERY-001's."""
 
-    def started(self, task: Task) -> None:
+    def task(self, task_uuid: str, name: str | None = None, command: Command | None = None
+             ) -> TaskRecord:
+        """A new record of a task of this life, kept under its task-uuid; no status said
+        yet (``State.UNKNOWN``)."""
+        task = self.tasks[task_uuid] = TaskRecord(task_uuid, name, State.UNKNOWN,
+                                                  command=command, life=self.life)
+        return task
+
+    def started(self, task: TaskRecord) -> None:
         self.running[task.task_uuid] = task
         if len(self.running) > PENDING_KEPT:
             del self.running[next(iter(self.running))]
             self.dropped += 1
 
-    def ended(self, task: Task, final: tuple[str, str | None, float]) -> None:
+    def ended(self, task: TaskRecord, final: tuple[str, str | None, float]) -> None:
         task.final = final
         self.running.pop(task.task_uuid, None)
 
@@ -157,15 +134,19 @@ def task_uuid_sent(m: Any) -> str | None:
     return found
 
 
+CONVERSATIONS: StashKey[Conversations] = StashKey("conversations")
+"""The unit's exec conversations (made by ``conversations``)."""
+
+
 def conversations(unit: UnitState) -> Conversations:
-    return per_unit(unit, "conversations", Conversations)  # type: ignore[no-any-return]
+    return per_unit(unit, CONVERSATIONS, Conversations)
 
 
 def commands_died_on(unit: UnitState, last: float, period: float) -> list[Command]:
     """The commands a unit whose last heartbeat was at ``last`` may have died on, the last
     first (``command_history.died_on_any``), else the last it received before it fell silent
     if it answered none after it: HB-012's finding names them."""
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     if c is None:
         return []
     found = died_on_any(c, last, period)
@@ -181,7 +162,7 @@ def commands_died_on(unit: UnitState, last: float, period: float) -> list[Comman
 
 def dropped(unit: UnitState) -> int:
     """Open expectations dropped for bounded memory (said in the report)."""
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     return c.dropped if c is not None else 0
 
 

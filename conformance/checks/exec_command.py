@@ -15,8 +15,9 @@ import orjson
 
 from conformance.checks.base import CheckContext, UnitState, check, reinterprets
 from conformance.checks.command_history import str_of
-from conformance.checks.conversation import MALFORMED, Command, Conversations, Task, conversations
+from conformance.checks.conversation import MALFORMED, Command, Conversations, conversations
 from conformance.message import Message
+from conformance.taskrecord import TaskRecord
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
@@ -32,15 +33,7 @@ def command_opens_conversation(ctx: CheckContext, unit: UnitState, msg: Message,
     command, so the same com-uuid with other content makes a resend ambiguous (EXEC-008, the
     commander's)."""
     m = v.message
-    com_uuid = str_of(m, "com-uuid")
-    if com_uuid is None and m is None:
-        # A command that is not JSON may still carry a readable com-uuid, and a robust unit
-        # answers it 'failed' (EXEC-ROBUST-002).
-        found = _COM_UUID.search(msg.payload if isinstance(msg.payload, bytes) else b"")
-        com_uuid = found.group(1).decode("utf-8", "replace") if found else None
-        content = bytes(msg.payload)
-    else:
-        content = orjson.dumps(m, option=orjson.OPT_SORT_KEYS) if com_uuid else b""
+    com_uuid, content = _com_uuid_and_content(msg, m)
     if com_uuid is None:
         return
     c = conversations(unit)
@@ -62,18 +55,7 @@ def command_opens_conversation(ctx: CheckContext, unit: UnitState, msg: Message,
         c.last_command = before
         return
     if before is not None:
-        # Ambiguous from here on: an answer with this response-to may be to either command.
-        # The commander's fault (EXEC-008); the unit is not judged on what it cannot tell.
-        before.judged = True
-        before.digest = digest
-        c.pending.pop(com_uuid, None)
-        c.commands[com_uuid] = before
-        yield Violation.of(
-            "EXEC-008", expected=f"com-uuid {com_uuid} reused only to resend the same command",
-            observed=f"other content than the command sent {t - before.time:.2f} s earlier: "
-                     f"{before.excerpt.decode('utf-8', 'replace')}",
-            topic=msg.topic, path="$.com-uuid", time=t, payload=msg.payload,
-            detail="generate a fresh com-uuid for every new command")
+        yield _reused(c, before, digest, msg)
         return
     name = str_of(m, "command")
     # Not a readable command: what remains is to refuse it (EXEC-ROBUST-002). A known command
@@ -91,7 +73,36 @@ def command_opens_conversation(ctx: CheckContext, unit: UnitState, msg: Message,
         c.tasks.pop(cmd.task_uuid, None)  # a start-task naming a task-uuid begins it anew
 
 
-def _task_of(c: Conversations, cmd: Command) -> Task | None:
+def _com_uuid_and_content(msg: Message, m: object) -> tuple[str | None, bytes]:
+    """The command's com-uuid (None: none readable) and the content a resend repeats. A
+    command that is not JSON may still carry a readable com-uuid, and a robust unit answers
+    it 'failed' (EXEC-ROBUST-002)."""
+    com_uuid = str_of(m, "com-uuid")
+    if com_uuid is None and m is None:
+        found = _COM_UUID.search(msg.payload if isinstance(msg.payload, bytes) else b"")
+        return (found.group(1).decode("utf-8", "replace") if found else None,
+                bytes(msg.payload))
+    return com_uuid, orjson.dumps(m, option=orjson.OPT_SORT_KEYS) if com_uuid else b""
+
+
+def _reused(c: Conversations, before: Command, digest: bytes, msg: Message) -> Violation:
+    """2: the same com-uuid with other content (EXEC-008, the commander's fault). Ambiguous
+    from here on: an answer with this response-to may be to either command, so the unit is
+    not judged on it any more."""
+    com_uuid = before.com_uuid
+    before.judged = True
+    before.digest = digest
+    c.pending.pop(com_uuid, None)
+    c.commands[com_uuid] = before
+    return Violation.of(
+        "EXEC-008", expected=f"com-uuid {com_uuid} reused only to resend the same command",
+        observed=f"other content than the command sent {msg.time - before.time:.2f} s "
+                 f"earlier: {before.excerpt.decode('utf-8', 'replace')}",
+        topic=msg.topic, path="$.com-uuid", time=msg.time, payload=msg.payload,
+        detail="generate a fresh com-uuid for every new command")
+
+
+def _task_of(c: Conversations, cmd: Command) -> TaskRecord | None:
     for value, task_uuid in cmd.values:
         if value == "running" and task_uuid is not None:
             return c.tasks.get(task_uuid)  # type: ignore[no-any-return]

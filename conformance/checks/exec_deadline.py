@@ -15,14 +15,14 @@ from __future__ import annotations
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.command_history import (
     OVER_A_GAP,
-    dead_since,
-    dying_from,
     judged_on_a_copy,
     late,
+    resends_unanswered,
     response_timeout,
 )
 from conformance.checks.conversation import (
     ANSWER_RULE,
+    CONVERSATIONS,
     FEEDBACK_WITHOUT_TASK_UUID,
     MALFORMED,
     Conversations,
@@ -42,7 +42,7 @@ def deadlines_pass(ctx: CheckContext, unit: UnitState, msg: Message,
     feedback a signal implies, final feedback of a task that left tasks-executing. A new
     agent-uuid is a new life: what the old one left open is not judged (the reboot lost it).
     (Runs on every heartbeat: cheap when nothing is open.)"""
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     if c is None:
         return None
     m = v.message
@@ -64,9 +64,9 @@ def _new_life(ctx: CheckContext, unit: UnitState, c: Conversations, agent: str, 
               ) -> list[Violation] | None:
     if agent in c.lives:
         return None  # an earlier uuid again: two agents under one name (HB-011), no reboot
-    from conformance.checks.identity import SILENCE_PERIODS, heartbeat_period
+    from conformance.checks.identity import dying_before_life
 
-    dead = dead_since(unit, c, t, heartbeat_period(unit), SILENCE_PERIODS)
+    dead = dying_before_life(unit, c, t)
     found = _expire(ctx, unit, c, float("inf"), reboot=True, dead=dead)
     c.running.clear()  # what the old life ran is not judged (the reboot lost it)
     c.expects.clear()
@@ -77,17 +77,10 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
             reboot: bool = False, dead: tuple[float, float] | None = None) -> list[Violation]:
     """Judge what is overdue at ``now`` (at a reboot: everything; ``dead``: when the unit
     began dying and its last heartbeat before it, see ``dead_since``)."""
-    found: list[Violation] = []
+    topic = unit.address.topic("exec/command")
+    found = resends_unanswered(ctx, unit, c, now, reboot, "EXEC-RESEND-002", lambda _: topic,
+                               "12.1: answer a resend again, with the first answer")
     timeout = response_timeout(ctx)
-    for cmd in c.overdue(now, timeout, reboot):
-        if ctx.gaps and ctx.in_gap(cmd.time, cmd.last_sent + timeout):
-            unit.note("EXEC-RESEND-002", OVER_A_GAP)  # the first may never have reached it
-            continue
-        unit.examine("EXEC-RESEND-002")
-        found.append(late("EXEC-RESEND-002", unit.address.topic("exec/command"), cmd,
-                          f"a second answer to the resent {cmd.describe()} within "
-                          f"{timeout:.1f} s", "none", cmd.last_sent,
-                          "12.1: answer a resend again, with the first answer"))
     if reboot:
         found.extend(_judge_streak(ctx, unit, c, ended_by="a reboot", dead=dead))
     for e in list(c.expects):
@@ -98,7 +91,7 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
             if ctx.gaps and ctx.in_gap(e.command.last_sent, e.deadline):
                 unit.note(e.rule, OVER_A_GAP)  # the feedback may be what the broker lost
                 continue
-            if unit.private.get(FEEDBACK_WITHOUT_TASK_UUID):
+            if unit.stash.get(FEEDBACK_WITHOUT_TASK_UUID):
                 # The awaited status may have come in feedback naming no task (EXEC-FB-001's
                 # finding): not judged, as a task's end is not (12.4; FIELD-NOTES precision).
                 unit.note(e.rule, "the unit sends feedback without a task-uuid: the status "
@@ -116,7 +109,7 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
     for task in list(c.running.values()):
         if task.left_at is not None and task.left_at + timeout < now:
             c.ended(task, ("left tasks-executing", None, task.left_at))
-            if unit.private.get(FEEDBACK_WITHOUT_TASK_UUID):
+            if unit.stash.get(FEEDBACK_WITHOUT_TASK_UUID):
                 continue  # its final feedback may be one without task-uuid
             if ctx.gaps and ctx.in_gap(task.listed_at or task.left_at, task.left_at + timeout):
                 # It ended while the broker lost or held traffic: its final feedback may have
@@ -177,18 +170,16 @@ def _judge_streak(ctx: CheckContext, unit: UnitState, c: Conversations, *, ended
 
 
 @check("EXEC-ROBUST-001", "EXEC-START-003", finish=True)
-@judged_on_a_copy("conversations", dropped=("EXEC-ROBUST-001", "open expectations"))
+@judged_on_a_copy(CONVERSATIONS, dropped=("EXEC-ROBUST-001", "open expectations"))
 def conversations_at_end(ctx: CheckContext, unit: UnitState, c: Conversations,
                          now: float) -> list[Violation]:
     """At the end: answers still due are judged (a unit that died is HB-012's finding);
     tasks still running are not judged; what the bounds dropped is said."""
-    from conformance.checks.identity import death, heartbeat_period
+    from conformance.checks.identity import dying_at_end
 
     found = _expire(ctx, unit, c, now)
-    dead = death(ctx, unit, now)
     found += _judge_streak(ctx, unit, c, ended_by="the end of the observation",
-                           dead=(dying_from(c, dead[1], heartbeat_period(unit)), dead[1])
-                           if dead else None)
+                           dead=dying_at_end(ctx, unit, c, now))
     running = [t for t in c.running.values() if t.left_at is None and t.life == c.life]
     if running:
         unit.note("EXEC-START-003", f"{len(running)} task(s) still running when the "

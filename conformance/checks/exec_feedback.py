@@ -13,13 +13,15 @@ from collections.abc import Iterator
 from conformance.checks.base import CheckContext, UnitState, check, reinterprets
 from conformance.checks.command_history import response_timeout, str_of, violation
 from conformance.checks.conversation import (
+    CONVERSATIONS,
     FEEDBACK_WITHOUT_TASK_UUID,
-    Task,
+    Conversations,
     conversations,
     task_uuid_sent,
 )
 from conformance.message import Message
 from conformance.status import FINAL_STATUSES, meaning
+from conformance.taskrecord import State, TaskRecord
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
@@ -40,7 +42,7 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
         # finding per message (EXEC-FB-001), never one pseudo-task '' whose feedback follows
         # its own final status (FIELD-NOTES, precision: empty task-uuid).
         if status is not None:
-            unit.private[FEEDBACK_WITHOUT_TASK_UUID] = True
+            unit.stash[FEEDBACK_WITHOUT_TASK_UUID] = True
             unit.note("EXEC-FB-004", "feedback without a task-uuid: its tasks could not be "
                                      "tracked")
         return
@@ -49,28 +51,9 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
     unit.examine("EXEC-FB-004")
     task = c.tasks.get(task_uuid)
     if task is None:
-        task = c.tasks[task_uuid] = Task(task_uuid, None, None, c.life)
+        task = c.task(task_uuid)
     if task.final is not None:
-        end_status, end_com_uuid, end_time = task.final
-        if str_of(m, "com-uuid") == end_com_uuid:
-            return
-        again = task.resent is not None and task.resent > end_time  # resent after it ended
-        rule = "EXEC-RESEND-001" if again else "EXEC-FB-004"
-        yield violation(rule, msg, expected=f"no feedback for task {task_uuid} after its final "
-                        f"status '{end_status}'", observed=f"status '{status}' "
-                        f"{t - end_time:.2f} s later" + (" (after its start-task was resent: "
-                                                         "executed again)" if again else ""),
-                        path="$.status", detail="stop sending feedback once a task is "
-                        "finished, failed or aborted")
-        return
-    if (status == "failed" and task.resend_failed is not None
-            and t - task.resend_failed <= response_timeout(ctx)):
-        # The unit said the resend 'failed' and fails the task in feedback too, though it runs
-        # on: one fault of resend handling, not the task's end.
-        yield violation("EXEC-RESEND-001", msg, expected=f"no 'failed' feedback for task "
-                        f"{task_uuid}, which runs on", observed="'failed' feedback answering "
-                        "the resent start-task", path="$.status",
-                        detail="12.1: a resend must not touch the running task")
+        yield from _after_final(c, task, task_uuid, msg, m, status)
         return
     if status == "running":
         if task.running_feedback and task.last_status == "running" and task.resent is not None:
@@ -79,9 +62,50 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
                             path="$.status", detail="12.1: a resend is answered from memory, "
                             "not executed again")
         task.running_feedback += 1
-    task.last_status, task.last_time = status, t
+    task.said(status, t)
     if status in ("running", "paused") or status in FINAL_STATUSES:
-        task.state = status
+        task.state = State(status)
+    yield from _judge_signalled(unit, c, task_uuid, msg, status)
+    if status in FINAL_STATUSES:
+        c.ended(task, (status, str_of(m, "com-uuid"), t))
+        if task.command is not None:
+            unit.examine("EXEC-START-003")
+
+
+def _after_final(c: Conversations, task: TaskRecord, task_uuid: str, msg: Message, m: object,
+                 status: str) -> Iterator[Violation]:
+    """12.4: nothing follows a task's final status (EXEC-FB-004), but the same final message
+    delivered again. Executed again (EXEC-RESEND-001) only when the task runs again after its
+    start-task was resent: a resend refused ('failed', 'A task is already running') ran
+    nothing twice, and a 'failed' feedback answering it (or another task's signal) is feedback
+    after the final status, EXEC-FB-004's decision (12.4 says neither which statuses end a
+    task nor that feedback stops)."""
+    assert task.final is not None
+    end_status, end_com_uuid, end_time = task.final
+    if str_of(m, "com-uuid") == end_com_uuid:
+        return
+    again = (task.resent is not None and task.resent > end_time
+             and status not in FINAL_STATUSES)
+    rule = "EXEC-RESEND-001" if again else "EXEC-FB-004"
+    yield violation(rule, msg, expected=f"no feedback for task {task_uuid} after its final "
+                    f"status '{end_status}'", observed=f"status '{status}' "
+                    f"{msg.time - end_time:.2f} s later" + (" (after its start-task was "
+                                                            "resent: executed again)"
+                                                            if again else ""),
+                    path="$.status", detail="stop sending feedback once a task is "
+                    "finished, failed or aborted")
+    if again:  # it runs again: its later feedback is that run's, judged as a live task's
+        task.final, task.resent = None, None
+        c.started(task)
+        task.said(status, msg.time)
+        if status in ("running", "paused"):
+            task.state = State(status)
+
+
+def _judge_signalled(unit: UnitState, c: Conversations, task_uuid: str, msg: Message,
+                     status: str) -> Iterator[Violation]:
+    """12.2.2: a signal answered 'ok' is followed by the feedback it asks for: that status
+    proves its rule, a final status other than it breaks it."""
     for e in [e for e in c.expects if e.task_uuid == task_uuid]:
         if status in e.wanted:
             unit.examine(e.rule)
@@ -92,10 +116,6 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
             yield violation(e.rule, msg, expected=f"{' or '.join(sorted(e.wanted))} after "
                             f"{e.command.describe()} was answered 'ok'",
                             observed=f"status '{status}'", path="$.status")
-    if status in FINAL_STATUSES:
-        c.ended(task, (status, str_of(m, "com-uuid"), t))
-        if task.command is not None:
-            unit.examine("EXEC-START-003")
 
 
 @check("EXEC-START-003", "EXEC-RESEND-001", on=(TopicKind.DIRECT_EXECUTION_INFO,))
@@ -104,7 +124,7 @@ def tasks_executing_follow_tasks(ctx: CheckContext, unit: UnitState, msg: Messag
     """5.3: tasks-executing lists the running tasks: a started task that leaves it has ended,
     and its final feedback is due; one listed twice after a resend was executed twice.
     (Runs on every direct_execution_info: a list or None; nothing to do without open tasks.)"""
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     if c is None or not c.running:
         return None
     m = v.message
@@ -127,6 +147,48 @@ def tasks_executing_follow_tasks(ctx: CheckContext, unit: UnitState, msg: Messag
                                    path="$.tasks-executing")]
         elif task.listed and task.left_at is None:
             task.left_at = msg.time
+    return found
+
+
+ENDED_FOR_GOOD = ("finished", "aborted")
+"""Final statuses after which a task cannot be executing (DEI-004 from traffic). Not 'failed':
+the public agents also answer a refused command (a resend, another task's signal) with a
+'failed' feedback naming a task that runs on, so which of the two messages is false cannot be
+told (EXEC-FB-004's, decided)."""
+LISTED_GRACE_PERIODS = 2.0
+"""An info message composed before the final feedback may still list the task: two declared
+periods of direct_execution_info (or the response timeout, if longer) pass first."""
+
+
+@check("DEI-004", on=(TopicKind.DIRECT_EXECUTION_INFO,))
+def ended_tasks_leave_tasks_executing(ctx: CheckContext, unit: UnitState, msg: Message,
+                                      v: Validation) -> list[Violation] | None:
+    """5.3 'List of tasks currently executing.': a task whose feedback said 'finished' or
+    'aborted' and is listed long after is an entry that never ends (issue 24). Found wherever
+    the traffic shows it, whichever command ended the task. (Runs on every
+    direct_execution_info: a list or None.)"""
+    c = unit.private.get("conversations")
+    m = v.message
+    executing = m.get("tasks-executing") if type(m) is dict else None
+    if c is None or not executing or type(executing) is not list:
+        return None
+    period = unit.period(TopicKind.DIRECT_EXECUTION_INFO) or 0.0
+    grace = max(LISTED_GRACE_PERIODS * period, response_timeout(ctx))
+    found = None
+    for entry in executing[:64]:
+        task = c.tasks.get(task_uuid_sent(entry)) if isinstance(entry, dict) else None
+        if task is None or task.final is None or task.life != c.life:
+            continue
+        status, _, when = task.final
+        if status not in ENDED_FOR_GOOD or msg.time - when <= grace:
+            continue
+        unit.examine("DEI-004")
+        found = found or []
+        found.append(violation("DEI-004", msg, expected=f"task {task.task_uuid} no longer in "
+                               f"tasks-executing once it said '{status}'", observed=f"still "
+                               f"listed {msg.time - when:.1f} s after its '{status}' feedback",
+                               path="$.tasks-executing", detail="5.3: list only the tasks "
+                               "currently executing; remove a task when it ends"))
     return found
 
 

@@ -18,16 +18,17 @@ from conformance.checks.base import CheckContext, UnitState, check, reinterprets
 from conformance.checks.command_history import (
     OVER_A_GAP,
     late,
+    left_unanswered,
     response_timeout,
     str_of,
     violation,
 )
 from conformance.checks.conversation import (
     ANSWER_RULE,
+    CONVERSATIONS,
     Command,
     Conversations,
     Expect,
-    Task,
     conversations,
     expects_answers,
     task_uuid_sent,
@@ -104,6 +105,8 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
     if cmd.answers > 1:
         yield from _judge_resend_answer(unit, c, cmd, msg, value, task_uuid)
         return
+    if cmd.sends > 1:
+        unit.examine("EXEC-RESEND-002")  # resent before any answer, and answered (12.1)
     # The unit answers: commands it left unanswered before now were its own faults, not a
     # sign that it stopped answering.
     if c.unanswered:
@@ -151,48 +154,10 @@ def _judge_first_answer(ctx: CheckContext, unit: UnitState, c: Conversations, cm
             yield violation(rule, msg, expected=f"'pong' answering {cmd.describe()}",
                             observed=f"response {value!r}", path="$.response")
     elif cmd.name == "start-task":
-        if value in ("running", "failed"):
-            unit.examine(rule)
-        else:
-            yield violation(rule, msg, expected=f"'running' or 'failed' answering "
-                            f"{cmd.describe()}", observed=f"response {value!r}",
-                            path="$.response", detail="12.3.3: a start-task is answered "
-                            "'running', or 'failed' with a fail-reason")
-        yield from _judge_task_uuid(unit, cmd, msg, value, task_uuid)
-        if value == "running":
-            yield from _judge_refusals(unit, cmd, msg)
-            started = task_uuid or cmd.task_uuid or tracked
-            if started is not None:
-                task = c.tasks.get(started)
-                if task is None or task.command is not None:
-                    task = c.tasks[started] = Task(started, cmd.task_name, cmd, c.life)
-                task.command, task.name = cmd, cmd.task_name  # its feedback may come first
-                if task.final is None:
-                    c.started(task)
-                    task.state = task.state or "running"  # 12.1: 'running' began it
-        elif value == "failed":
-            for r in ("EXEC-START-004", "EXEC-START-005"):
-                if _refusal_due(unit, cmd, r):
-                    unit.examine(r)
+        yield from _judge_start_answer(unit, c, cmd, msg, value, task_uuid, tracked)
     elif cmd.name == "signal-task":
         unit.examine(rule)  # answered; its vocabulary is EXEC-003's (or ERR-013's)
-        expected = SIGNAL_FEEDBACK.get(cmd.signal or "")
-        task = c.tasks.get(cmd.task_uuid) if cmd.task_uuid else None
-        # The model's decision (EXEC-SEQ-001, docs/MODEL.md): $continue to a running task
-        # and $pause to a paused one change nothing, so no feedback is owed for them (a
-        # running task that last spoke its own words is running all the same).
-        unchanged = task is not None and (cmd.signal, task.state) in protocol.UNCHANGED
-        if (value == "ok" and expected and task is not None and task.life == c.life
-                and task.last_status in expected[0] and task.last_time is not None
-                and task.last_time >= cmd.time):
-            unit.examine(expected[1])  # its feedback came first: no order between topics (12)
-        elif value == "ok" and expected and task is not None and task.final is None \
-                and task.life == c.life and not unchanged:
-            if len(c.expects) < EXPECTS_KEPT:
-                c.expects.append(Expect(task.task_uuid, expected[0], expected[1],
-                                        t + ctx.profile.feedback_timeout, cmd))
-            else:
-                c.dropped += 1
+        _await_signalled(ctx, unit, c, cmd, value, t)
     elif cmd.name == "query-status":
         yield from _judge_query(unit, c, cmd, msg, value)
     else:  # unknown or malformed: 'failed' with a reason (12.1)
@@ -204,12 +169,73 @@ def _judge_first_answer(ctx: CheckContext, unit: UnitState, c: Conversations, cm
                             detail="refuse what you cannot execute, with a fail-reason")
 
 
+def _judge_start_answer(unit: UnitState, c: Conversations, cmd: Command, msg: Message,
+                        value: str | None, task_uuid: str | None, tracked: str | None
+                        ) -> Iterator[Violation]:
+    """12.1, 12.3.3: a start-task is answered 'running' (the task it began is followed from
+    here, under the task-uuid named) or 'failed' (a refusal, due for invalid parameters or a
+    task not offered)."""
+    rule = ANSWER_RULE["start-task"]
+    if value in ("running", "failed"):
+        unit.examine(rule)
+    else:
+        yield violation(rule, msg, expected=f"'running' or 'failed' answering "
+                        f"{cmd.describe()}", observed=f"response {value!r}",
+                        path="$.response", detail="12.3.3: a start-task is answered "
+                        "'running', or 'failed' with a fail-reason")
+    yield from _judge_task_uuid(unit, cmd, msg, value, task_uuid)
+    if value == "running":
+        yield from _judge_refusals(unit, cmd, msg)
+        started = task_uuid or cmd.task_uuid or tracked
+        if started is not None:
+            task = c.tasks.get(started)
+            if task is None or task.command is not None:
+                task = c.task(started, cmd.task_name, cmd)
+            task.command, task.name = cmd, cmd.task_name  # its feedback may come first
+            if task.final is None:
+                c.started(task)
+                if task.state is protocol.State.UNKNOWN:
+                    task.state = protocol.State.RUNNING  # 12.1: 'running' began it
+    elif value == "failed":
+        for r in ("EXEC-START-004", "EXEC-START-005"):
+            if _refusal_due(unit, cmd, r):
+                unit.examine(r)
+
+
+def _await_signalled(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: Command,
+                     value: str | None, t: float) -> None:
+    """12.2.2: a signal answered 'ok' implies the feedback it asks for, due within the
+    feedback timeout (``Expect``), unless that feedback came first or the signal changes
+    nothing in the task's state."""
+    expected = SIGNAL_FEEDBACK.get(cmd.signal or "")
+    task = c.tasks.get(cmd.task_uuid) if cmd.task_uuid else None
+    # The model's decision (EXEC-SEQ-001, docs/MODEL.md): $continue to a running task
+    # and $pause to a paused one change nothing, so no feedback is owed for them (a
+    # running task that last spoke its own words is running all the same).
+    unchanged = task is not None and (cmd.signal, task.state) in protocol.UNCHANGED
+    if (value == "ok" and expected and task is not None and task.life == c.life
+            and task.last_status in expected[0] and task.last_time is not None
+            and task.last_time >= cmd.time):
+        unit.examine(expected[1])  # its feedback came first: no order between topics (12)
+    elif value == "ok" and expected and task is not None and task.final is None \
+            and task.life == c.life and not unchanged:
+        if len(c.expects) < EXPECTS_KEPT:
+            c.expects.append(Expect(task.task_uuid, expected[0], expected[1],
+                                    t + ctx.profile.feedback_timeout, cmd))
+        else:
+            c.dropped += 1
+
+
 def _judge_task_uuid(unit: UnitState, cmd: Command, msg: Message, value: str | None,
                      task_uuid: str | None) -> Iterator[Violation]:
-    """12.1: the start-task response carries the task-uuid sent, or one the unit generated."""
+    """12.1: the start-task response carries the task-uuid sent, or one the unit generated.
+    Only the answer to a start-task sent without one shows the generated one (the words the
+    rule quotes): the task-uuid sent, returned, is no pass (issue 24, a rule left could-not-test
+    by a start-task never answered)."""
     if cmd.task_uuid is not None:
         if task_uuid == cmd.task_uuid:
-            unit.examine("EXEC-START-002")
+            unit.note("EXEC-START-002", "no start-task without a task-uuid was answered: "
+                                        "whether the unit generates one was not seen")
         else:
             yield violation("EXEC-START-002", msg, expected=f"task-uuid {cmd.task_uuid} (sent "
                             f"in {cmd.describe()})", observed=f"task-uuid {task_uuid!r}",
@@ -285,13 +311,9 @@ def _judge_resend_answer(unit: UnitState, c: Conversations, cmd: Command, msg: M
                         f"executed once (task {first_task})", observed=f"started again as "
                         f"task {task_uuid}", path="$.task-uuid",
                         detail="12.1: remember com-uuids; answer a resend from memory")
-    elif value == "failed":
-        # Refusing is not executing (EXEC-RESEND-001 is about running it twice): a 'failed'
-        # answer alone ('A task is already running') leaves the task alone. Only a 'failed'
-        # feedback for the task that runs on, right after it, breaks it (exec_feedback).
-        task = c.tasks.get(first_task) if first_task else None
-        if task is not None and task.final is None:
-            task.resend_failed = msg.time
+    # A 'failed' answer ('A task is already running') refuses the resend: nothing ran twice
+    # (12.1). A 'failed' feedback that comes with it ends the task as it says; what the task
+    # sends after that is EXEC-FB-004's (exec_feedback).
 
 
 def judge_unanswered(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: Command
@@ -314,14 +336,9 @@ def judge_unanswered(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: 
                        f"a pong with response-to {stray}", cmd.last_sent,
                        "copy the command's com-uuid into response-to, unchanged (12.3)")
             return
-    if ctx.gaps and ctx.in_gap(cmd.last_sent, cmd.last_sent + timeout):
-        unit.note(rule, OVER_A_GAP)  # its answer may be what the broker lost (issue 25 §3)
-        return
-    unit.examine(rule)
-    cmd.missed = True
-    yield late(rule, unit.address.topic("exec/command"), cmd, f"an answer to "
-               f"{cmd.describe()} within {timeout:.1f} s", "no answer", cmd.last_sent,
-               "12.1: answer every command, 'failed' with a reason when it cannot be executed")
+    yield from left_unanswered(ctx, unit, rule, cmd, unit.address.topic("exec/command"),
+                               "12.1: answer every command, 'failed' with a reason when it "
+                               "cannot be executed")
 
 
 @reinterprets("ERR-013", on=(TopicKind.EXEC_RESPONSE,))
@@ -331,7 +348,7 @@ def signal_task_response_form(ctx: CheckContext, unit: UnitState, msg: Message, 
     and judges a response to a signal-task that misses it by ERR-013 (a warning by default),
     not by EXEC-002. Knowing what a response answers needs the command: stateful."""
     response_to = str_of(v.message, "response-to")
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     if response_to is None or c is None:
         return found
     command = c.commands.get(response_to)
@@ -355,7 +372,7 @@ def no_task_named_no_task_uuid(ctx: CheckContext, unit: UnitState, msg: Message,
     m = v.message
     if not found or str_of(m, "task-uuid") != "":
         return found
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     command = c.commands.get(str_of(m, "response-to") or "") if c is not None else None
     if command is None or command.task_uuid is not None or str_of(m, "response") == "running":
         return found
@@ -372,7 +389,7 @@ def success_answers_query_status(ctx: CheckContext, unit: UnitState, msg: Messag
     response to a command not seen cannot tell: not judged."""
     if not found or str_of(v.message, "response") != "success":
         return found
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     command = c.commands.get(str_of(v.message, "response-to") or "") if c is not None else None
     if command is not None and command.name != "query-status":
         unit.examine("ERR-006")
@@ -393,7 +410,7 @@ def query_status_reports_a_status(ctx: CheckContext, unit: UnitState, msg: Messa
     needs the command: stateful; a response to a command not seen keeps the finding."""
     if not found or str_of(v.message, "response") != "failed":
         return found
-    c = unit.private.get("conversations")
+    c = unit.stash.get(CONVERSATIONS)
     command = c.commands.get(str_of(v.message, "response-to") or "") if c is not None else None
     if command is None or command.name != "query-status":
         return found

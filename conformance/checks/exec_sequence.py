@@ -13,14 +13,15 @@ from __future__ import annotations
 
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.command_history import violation
+from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.protocol import BUILTIN_SIGNALS, Command, Model
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
 
-KEY = "protocol"
-"""UnitState.private key of the unit's ``Model``."""
+MODEL: StashKey[Model] = StashKey("model")
+"""The unit's ``Model`` of direct execution (made by ``model_of``)."""
 DETAIL = {
     "EXEC-SEQ-001": "12.2.2: once $abort is acknowledged the task ends; do not resume or "
                     "keep running it (a paused task too)",
@@ -32,11 +33,11 @@ DETAIL = {
 def model_of(ctx: CheckContext, unit: UnitState) -> Model:
     """The unit's model of direct execution, made on first use (public: the explorer's view
     of what the Monitor holds)."""
-    model = unit.private.get(KEY)
+    model = unit.stash.get(MODEL)
     if model is None:
-        model = unit.private[KEY] = Model(response_timeout=ctx.profile.response_timeout,
+        model = unit.stash[MODEL] = Model(response_timeout=ctx.profile.response_timeout,
                                           feedback_timeout=ctx.profile.feedback_timeout)
-    return model  # type: ignore[no-any-return]
+    return model
 
 
 @check("EXEC-SEQ-001", "EXEC-SEQ-002", on=(TopicKind.EXEC_COMMAND, TopicKind.EXEC_RESPONSE,
@@ -47,7 +48,7 @@ def sequence_follows_model(ctx: CheckContext, unit: UnitState, msg: Message,
     """Feed the model; report what it finds. (Runs on every direct_execution_info too: a list
     or None, and nothing made before the unit's first command.)"""
     kind = v.topic.kind
-    if KEY not in unit.private and kind is not TopicKind.EXEC_COMMAND:
+    if MODEL not in unit.stash and kind is not TopicKind.EXEC_COMMAND:
         return None  # no command seen: nothing to judge a sequence against
     model = model_of(ctx, unit)
     if unit.agent_uuid is not None and unit.agent_uuid != model.life:

@@ -8,6 +8,7 @@ from collections.abc import Iterator
 from typing import Any
 
 from conformance.checks.base import BoundedDict, CheckContext, UnitState, check
+from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.topics import TopicKind
 from conformance.validator import Validation
@@ -15,13 +16,11 @@ from conformance.violation import Violation
 
 PENDING_KEPT = 64
 MAX_LIVE_UUIDS = 8  # agent-uuids whose last heartbeat time is kept (twins, reboots)
-
-
-def _lru(unit: UnitState, key: str, limit: int) -> BoundedDict:
-    d = unit.private.get(key)
-    if d is None:
-        d = unit.private[key] = BoundedDict(limit)
-    return d  # type: ignore[no-any-return]
+HEARTBEAT_UUID_TIMES: StashKey[dict[str, float]] = StashKey("heartbeat-uuid-times")
+"""agent-uuid -> arrival of its latest live heartbeat (at most MAX_LIVE_UUIDS)."""
+PENDING_UUID: StashKey[BoundedDict] = StashKey("pending-uuid")
+"""(rule, agent-uuid, time) -> its violation, decided at the next heartbeat (at most
+PENDING_KEPT)."""
 
 
 def _str(m: Any, key: str) -> str | None:
@@ -55,7 +54,8 @@ def _agent_uuid_matches(rule: str, what: str, ctx: CheckContext, unit: UnitState
         unit.examine(rule)
         yield violation
     else:  # perhaps a reboot whose first heartbeat has not arrived yet: decide at the next one
-        _lru(unit, "pending_uuid", PENDING_KEPT)[(rule, agent_uuid, msg.time)] = violation
+        unit.stash.setdefault(PENDING_UUID, lambda: BoundedDict(PENDING_KEPT))[
+            (rule, agent_uuid, msg.time)] = violation
 
 
 @check("EXEC-004", on=(TopicKind.EXEC_RESPONSE,))
@@ -74,7 +74,7 @@ def feedback_agent_uuid_is_heartbeats(ctx: CheckContext, unit: UnitState, msg: M
 
 def _heartbeat_is_live(unit: UnitState, agent_uuid: str, t: float) -> bool:
     """Whether a heartbeat with this agent-uuid arrived within two declared periods of ``t``."""
-    seen = unit.private.get("heartbeat_uuid_times")
+    seen = unit.stash.get(HEARTBEAT_UUID_TIMES)
     period = unit.period(TopicKind.HEARTBEAT)
     last = seen.get(agent_uuid) if seen else None
     return last is not None and period is not None and t - last <= 2 * period
@@ -89,13 +89,13 @@ def pending_agent_uuids_resolved(ctx: CheckContext, unit: UnitState, msg: Messag
     if agent_uuid is not None and not msg.retain:
         # A plain dict, not a BoundedDict: this runs on every heartbeat, and nearly always
         # updates the one uuid there is. Full: the uuid heard from longest ago goes.
-        times = unit.private.get("heartbeat_uuid_times")
+        times = unit.stash.get(HEARTBEAT_UUID_TIMES)
         if times is None:
-            times = unit.private["heartbeat_uuid_times"] = {}
+            times = unit.stash[HEARTBEAT_UUID_TIMES] = {}
         elif agent_uuid not in times and len(times) >= MAX_LIVE_UUIDS:
             del times[min(times, key=times.__getitem__)]
         times[agent_uuid] = msg.time
-    pending = unit.private.get("pending_uuid")
+    pending = unit.stash.get(PENDING_UUID)
     if not pending or msg.retain:
         return None
     found = []
@@ -110,7 +110,7 @@ def pending_agent_uuids_resolved(ctx: CheckContext, unit: UnitState, msg: Messag
 @check("EXEC-004", "EXEC-FB-003", finish=True)
 def pending_agent_uuids_at_end(ctx: CheckContext, unit: UnitState, now: float,
                                findings: Any) -> Iterator[Violation]:
-    pending = unit.private.get("pending_uuid")
+    pending = unit.stash.get(PENDING_UUID)
     for (rule, _uuid, _t), violation in (pending or {}).items():
         findings.examine(rule)
         yield violation

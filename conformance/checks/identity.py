@@ -5,13 +5,18 @@ declared level backed by its info message (HB-008)."""
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.topics import INFO_KIND_OF_LEVEL, TopicKind, level_name
 from conformance.validator import Validation
 from conformance.violation import Violation
+
+if TYPE_CHECKING:
+    from conformance.checks.command_history import CommandHistory
+    from conformance.checks.rates import RateTracker
 
 HB = TopicKind.HEARTBEAT
 REBOOT_SILENCE_PERIODS = 2.0  # HB-006's decision
@@ -21,6 +26,35 @@ FAST_RESTART_PERIODS = 30.0
 once; a second such change within this many declared periods is no reboot."""
 STALE_PERIODS = 3.0  # MSG-007's decision
 LEVEL_INFO_PERIODS = 3.0  # HB-008: wait at least 3 declared heartbeat periods (and info_wait)
+DEATHS_KEPT = 16
+
+
+class Identity:
+    """What the identity checks keep of a unit between its heartbeats."""
+
+    __slots__ = ("fast_change", "silences_pending", "silences_held", "deaths", "levels_since",
+                 "levels_seen", "heartbeat_rate")
+
+    def __init__(self) -> None:
+        self.fast_change: float | None = None
+        """When the agent-uuid last changed without a silence (HB-006)."""
+        self.silences_pending: list[Violation] | None = None
+        """Silences judged at the next heartbeat, once a burst showed whether the broker
+        stalled (HB-010)."""
+        self.silences_held: list[Violation] = []
+        """Silences held until the unit keeps its period once (HB-010; at most 8)."""
+        self.deaths: list[tuple[float, float]] = []
+        """(last heartbeat, the suite's reboot) of each death a reboot ended (HB-012)."""
+        self.levels_since: dict[str, float] = {}
+        """Level -> when it was first declared (HB-008)."""
+        self.levels_seen: list[Any] | None = None
+        """The latest heartbeat's raw levels (HB-008: unchanged, nothing new)."""
+        self.heartbeat_rate: RateTracker | None = None
+        """The heartbeat's rate tracker, which ``rates`` keeps here too when it makes one:
+        silences are measured in the periods it measured (``heartbeat_period``)."""
+
+
+IDENTITY: StashKey[Identity] = StashKey("identity")
 
 
 def _uuid(v: Validation) -> str | None:
@@ -71,8 +105,8 @@ def agent_uuid_changes_only_on_reboot(ctx: CheckContext, unit: UnitState, msg: M
             detail="two agents publish under one unit name; give each its own UNIT name (3.1)")]
     if period is None:
         return None
-    before = unit.private.get("hb006_fast_change")
-    unit.private["hb006_fast_change"] = msg.time
+    identity = unit.stash.setdefault(IDENTITY, Identity)
+    before, identity.fast_change = identity.fast_change, msg.time
     if before is None or msg.time - before > FAST_RESTART_PERIODS * period:
         return None  # one fast restart is a reboot: the new uuid is what 5.1 asks for
     return [Violation.of(
@@ -91,10 +125,11 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
     """5.1: the heartbeat registers availability; a silence over 3 declared periods warns.
     A silence that ended in a burst after a silence of every topic is judged at the next
     heartbeat, once the burst has shown whether the broker stalled (issue 25 §3)."""
-    pending = unit.private.get("hb010_pending")
+    identity = unit.stash.setdefault(IDENTITY, Identity)
+    pending = identity.silences_pending
     if not pending:
         return _silence(ctx, unit, msg, v)
-    unit.private["hb010_pending"] = None
+    identity.silences_pending = None
     found = _silence(ctx, unit, msg, v)
     kept = [f for f in pending if not ctx.in_gap(f.time, msg.time)]
     return [*kept, *(found or ())] or None
@@ -114,23 +149,19 @@ def _silence(ctx: CheckContext, unit: UnitState, msg: Message,
     examined = unit.examined
     examined["HB-010"] = examined.get("HB-010", 0) + 1
     silence = msg.time - last
-    private = unit.private
-    held = private.get("hb010_held")
-    if silence <= SILENCE_PERIODS * period:  # the usual case: one dict lookup more
-        if held:  # it keeps its period now: what was held were silences
-            private["hb010_held"] = []
+    identity = unit.stash.setdefault(IDENTITY, Identity)
+    held = identity.silences_held
+    if silence <= SILENCE_PERIODS * period:  # the usual case: one attribute more
+        if held and _uuid(v) == unit.agent_uuid:
+            # It keeps its period now, in the same life: what was held were silences. The
+            # first heartbeat of a new life soon after the last of the old one is no period
+            # kept (a unit far slower than it declares restarts as slow, HB-003's).
+            identity.silences_held = []
             return held
         return None
-    tracker = private.get("rates", {}).get(HB)
-    if ctx.reboots:
-        revived = next((r for r in ctx.reboots if last < r <= msg.time), None)
-        if revived is not None and revived - last > SILENCE_PERIODS * heartbeat_period(unit) \
-                and not _broker_gap(ctx, last, revived):
-            # Silent for good until the suite rebooted it: a death (HB-012), not a silence.
-            deaths = private.setdefault("deaths", [])
-            deaths.append((last, revived))
-            del deaths[:-16]
-            return None
+    tracker = _heartbeat_tracker(unit)
+    if ctx.reboots and _died_until_reboot(ctx, unit, identity, last, msg.time):
+        return None
     if ctx.in_gap(last, msg.time):
         return None
     uuid = _uuid(v)
@@ -151,16 +182,30 @@ def _silence(ctx: CheckContext, unit: UnitState, msg: Message,
     if tracker is None or not tracker.n:
         # No interval yet within 3 periods: a unit that sends far slower than it declares is
         # HB-003's (its rate), not a string of silences. Held until it keeps its period once.
-        private["hb010_held"] = [*(held or ()), *found][-8:]
+        identity.silences_held = [*held, *found][-8:]
         return None
     if ctx.quiet is not None and ctx.quiet >= last:
         # The whole observer was silent too: perhaps the broker stalled; the burst will say.
-        private["hb010_pending"], private["hb010_held"] = [*(held or ()), *found], []
+        identity.silences_pending, identity.silences_held = [*held, *found], []
         return None
     if held:
-        unit.private["hb010_held"] = []
+        identity.silences_held = []
         return [*held, *found]
     return found
+
+
+def _died_until_reboot(ctx: CheckContext, unit: UnitState, identity: Identity, last: float,
+                       t: float) -> bool:
+    """Whether the unit, silent since ``last``, was silent for good until the suite rebooted
+    it before ``t``: a death (HB-012, kept in ``identity.deaths``), not a silence."""
+    revived = next((r for r in ctx.reboots if last < r <= t), None)
+    if revived is None or revived - last <= SILENCE_PERIODS * heartbeat_period(unit) \
+            or _broker_gap(ctx, last, revived):
+        return False
+    deaths = identity.deaths
+    deaths.append((last, revived))
+    del deaths[:-DEATHS_KEPT]
+    return True
 
 
 def heartbeat_period(unit: UnitState) -> float:
@@ -169,21 +214,48 @@ def heartbeat_period(unit: UnitState) -> float:
     sending far slower than it declares is judged by its rate (HB-003), not as silent again and
     again."""
     declared = unit.period(HB) or 0.0
-    tracker = unit.private.get("rates", {}).get(HB)
+    tracker = _heartbeat_tracker(unit)
     if tracker is not None and tracker.n == 0 and tracker.all_n >= 3:
         # every interval so far was over 3 declared periods: the unit's own period is longer
         return max(declared, tracker.all_total / tracker.all_n)
     return declared
 
 
+def _heartbeat_tracker(unit: UnitState) -> RateTracker | None:
+    """The heartbeat's ``rates.RateTracker``, None before the first live heartbeat."""
+    identity = unit.stash.get(IDENTITY)
+    return identity.heartbeat_rate if identity is not None else None
+
+
 def deaths(ctx: CheckContext, unit: UnitState, now: float) -> list[tuple[float, float]]:
     """(last heartbeat, end) of every death: silent for good until the suite rebooted the unit
     (end: the reboot), or until ``now`` (end: infinity)."""
-    found = list(unit.private.get("deaths", ()))
+    identity = unit.stash.get(IDENTITY)
+    found = list(identity.deaths) if identity is not None else []
     dead = death(ctx, unit, now)
     if dead is not None:
         found.append((dead[1], float("inf")))
     return found
+
+
+def dying_before_life(unit: UnitState, c: CommandHistory, t: float
+                      ) -> tuple[float, float] | None:
+    """(dying since, last heartbeat) of a unit whose new life began at ``t`` after a silence
+    of more than SILENCE_PERIODS heartbeat periods (``command_history.dead_since``: what it
+    left unanswered since is the silence's), None after a shorter one. Exec and TST alike."""
+    from conformance.checks.command_history import dead_since
+
+    return dead_since(unit, c, t, heartbeat_period(unit), SILENCE_PERIODS)
+
+
+def dying_at_end(ctx: CheckContext, unit: UnitState, c: CommandHistory, now: float
+                 ) -> tuple[float, float] | None:
+    """(dying since, last heartbeat) of a unit dead at ``now`` (``death``), dying since the
+    command it may have died on (``command_history.dying_from``); None while it lives."""
+    from conformance.checks.command_history import dying_from
+
+    dead = death(ctx, unit, now)
+    return (dying_from(c, dead[1], heartbeat_period(unit)), dead[1]) if dead else None
 
 
 def death(ctx: CheckContext, unit: UnitState, now: float) -> tuple[float, float] | None:
@@ -290,10 +362,7 @@ def _number(x: Any) -> bool:
 
 
 def _level_since(unit: UnitState) -> dict[str, float]:
-    d = unit.private.get("levels_since")
-    if d is None:
-        d = unit.private["levels_since"] = {}
-    return d  # type: ignore[no-any-return]
+    return unit.stash.setdefault(IDENTITY, Identity).levels_since
 
 
 def _info_seen(unit: UnitState, kind: TopicKind) -> bool:
@@ -308,10 +377,11 @@ def declared_level_has_info(ctx: CheckContext, unit: UnitState, msg: Message,
     update rate than the general HeartBeat', and a lint may join mid-stream)."""
     m = v.message
     levels = m.get("levels") if type(m) is dict else None
-    if type(levels) is not list or levels == unit.private.get("hb008_levels"):
+    identity = unit.stash.setdefault(IDENTITY, Identity)
+    if type(levels) is not list or levels == identity.levels_seen:
         return None  # unchanged since the last heartbeat (the usual case): nothing new
-    unit.private["hb008_levels"] = levels
-    since = _level_since(unit)
+    identity.levels_seen = levels
+    since = identity.levels_since
     for lv in levels:
         if isinstance(lv, str):
             level = level_name(lv)

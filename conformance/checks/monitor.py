@@ -226,14 +226,7 @@ class Monitor:
                 else:
                     found.extend(out)
         state.observe(message, v)
-        if found is None:
-            return []
-        if found:
-            unit = entry.unit
-            found = [f if f.unit or not unit else dataclasses.replace(f, unit=unit) for f in found]
-            for f in found:
-                entry.add(f)
-        return found
+        return entry.add_all(found) if found else []
 
     def _feed_command(self, route: _Route, entry: Row, message: Message, v: Validation,
                       examined: Examined) -> list[Violation]:

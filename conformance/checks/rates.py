@@ -16,8 +16,9 @@ burst, and the stamps keep the unit's spacing (issue 25 §3). Intervals over a g
 observer (its connection down, or a stall of the broker found in the traffic,
 ``checks/stall.py``) are left out either way; the rate's note says both.
 
-The interval across a reboot (an agent-uuid not seen before, spec 5.1) is left out too: the
-restart's silence is HB-006's and HB-010's to judge, not the rate's. Agent-uuids that take
+The interval across a reboot (an agent-uuid not seen before, spec 5.1; for a message without
+one, the heartbeat's: issue 24 §2) is left out too: the restart's silence is HB-006's and
+HB-010's to judge, not the rate's. Agent-uuids that take
 turns (two agents under one name, HB-011) are no reboot: their doubled rate stays HB-003's.
 
 Memory is bounded: running sums, min and max, and a series of at most 600 points.
@@ -37,8 +38,9 @@ from collections.abc import Iterator
 from operator import add
 
 from conformance.checks.base import CheckContext, UnitState, check
-from conformance.checks.identity import SILENCE_PERIODS
+from conformance.checks.identity import IDENTITY, SILENCE_PERIODS, Identity
 from conformance.checks.stall import stamp_of
+from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.results import RateStat
 from conformance.topics import TopicKind
@@ -202,13 +204,7 @@ class RateTracker:
         profile = ctx.profile
         need = profile.min_intervals
         declared = self.declared
-        if self.n >= need:
-            n, total, lo, hi, hi_at = self.n, self.total, self.min, self.max, self.max_at
-            silences_in = 0
-        else:
-            n, total, hi, hi_at = self.all_n, self.all_total, self.all_max, self.all_max_at
-            lo = min(self.min, hi) if n else float("inf")
-            silences_in = self.silences
+        n, total, lo, hi, hi_at, silences_in = self._intervals(need)
         mean = total / n if n else None
         stat = RateStat(
             unit=unit, kind=self.kind.value, topic=self.topic, declared_hz=declared,
@@ -260,6 +256,16 @@ class RateTracker:
         stat.reason = (f"{len(found)} violation{'s' if len(found) > 1 else ''}{how}" if found
                        else f"min {lo:.3f} s, max {hi:.3f} s{silences}{how}")
         return stat, found
+
+    def _intervals(self, need: int) -> tuple[int, float, float, float, float, int]:
+        """(count, total, shortest, longest, when the longest ended, silences counted in) of
+        the intervals judged: those within 3 declared periods once there are ``need``, else
+        every one (silences too: a unit far slower than it declares has no other)."""
+        if self.n >= need:
+            return self.n, self.total, self.min, self.max, self.max_at, 0
+        n, hi = self.all_n, self.all_max
+        return (n, self.all_total, min(self.min, hi) if n else float("inf"), hi,
+                self.all_max_at, self.silences)
 
     def _how(self) -> str:
         """How the intervals were measured, for the rate's note (issue 25 §3)."""
@@ -325,18 +331,18 @@ def live_findings(ctx: CheckContext, unit: UnitState) -> list[Violation]:
     return found
 
 
+RATES: StashKey[dict[TopicKind, RateTracker]] = StashKey("rates")
+"""The unit's rate trackers, one per periodic topic kind (read by ``identity`` too)."""
+RATES_CLOSED: StashKey[list[RateStat]] = StashKey("rates-closed")
+"""The windows a change of the declared rate closed (at most MAX_CLOSED_SEGMENTS)."""
+
+
 def _trackers(unit: UnitState) -> dict[TopicKind, RateTracker]:
-    t = unit.private.get("rates")
-    if t is None:
-        t = unit.private["rates"] = {}
-    return t  # type: ignore[no-any-return]
+    return unit.stash.setdefault(RATES, dict)
 
 
 def _closed(unit: UnitState) -> list[RateStat]:
-    c = unit.private.get("rates_closed")
-    if c is None:
-        c = unit.private["rates_closed"] = []
-    return c  # type: ignore[no-any-return]
+    return unit.stash.setdefault(RATES_CLOSED, list)
 
 
 @check("HB-003", "SI-002", "DEI-002", "TEI-002", on=tuple(RATE_RULES))
@@ -352,7 +358,7 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
     rate = m.get("rate") if type(m) is dict else None
     declared = float(rate) if (type(rate) is float or type(rate) is int) and rate > 0 else (
         unit.declared_rates.get(kind))
-    trackers = unit.private.get("rates")
+    trackers = unit.stash.get(RATES)
     if trackers is None:
         trackers = _trackers(unit)
     tracker = trackers.get(kind)
@@ -367,10 +373,16 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
         tracker = None
     if tracker is None:
         tracker = trackers[kind] = RateTracker(kind, msg.topic, declared)
+        if kind is TopicKind.HEARTBEAT:  # identity measures silences in its periods (HB-010)
+            unit.stash.setdefault(IDENTITY, Identity).heartbeat_rate = tracker
+    # The life it belongs to: its own agent-uuid, else the heartbeat's (info messages without
+    # one, as the RISE agent's: the interval over a restart is no interval of the rate).
     if type(m) is dict:
-        tracker.add(ctx, msg.time, m.get("agent-uuid"), stamp_of(m, msg.time))
+        agent = m.get("agent-uuid")
+        tracker.add(ctx, msg.time, unit.agent_uuid if agent is None else agent,
+                    stamp_of(m, msg.time))
     else:
-        tracker.add(ctx, msg.time)
+        tracker.add(ctx, msg.time, unit.agent_uuid)
     return found
 
 

@@ -7,6 +7,7 @@ into the report's row at report time (examined sets expanded into per-rule count
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 from conformance.checks.base import CheckContext, UnitState
@@ -92,40 +93,35 @@ class Row:
             rec = self.records[v.rule] = RuleRecord()
         rec.add(v)
 
+    def add_all(self, found: list[Violation]) -> list[Violation]:
+        """Record ``found`` on this row, each carrying the row's unit; returns them so."""
+        unit = self.unit
+        found = [f if f.unit or not unit else dataclasses.replace(f, unit=unit) for f in found]
+        for f in found:
+            self.add(f)
+        return found
+
 
 def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddress | None,
            entry: Row, final: Findings, now: float) -> UnitReport:
     """The report's row of ``entry`` (the unit at ``address``, or a commander or the
     unattributed topics when None), with the end-of-run ``final`` findings, at ``now``."""
-    from conformance.checks.conversation import dropped
     from conformance.checks.identity import deaths
     from conformance.checks.rates import rate_stats
 
     state = entry.state
-    examined = dict(state.examined)
-    for group, n in entry.groups.items():
-        for rule in group:
-            examined[rule] = examined.get(rule, 0) + n
-    for rule, n in final.examined.items():
-        examined[rule] = examined.get(rule, 0) + n
+    examined = _examined(entry, final)
     notes = {**state.notes, **final.notes}
     extra: dict[str, list[Violation]] = {}
     for v in final.violations:
         extra.setdefault(v.rule, []).append(v)
     unit = str(address) if address is not None else (entry.unit or UNATTRIBUTED)
-    if entry.party == "commander":  # the commander's rules, and any other it broke
-        rule_ids = [r for r, rule in CATALOGUE.items() if rule.side is Side.COMMANDER
-                    or r in examined or r in entry.records]
-    elif address is None:  # no unit: only the rules that were examined or broken
-        rule_ids = sorted(set(examined) | set(entry.records))
-    else:
-        rule_ids = list(CATALOGUE)
     rules = {}
     counts = {}
     times: dict[str, tuple[float, float]] = {}
     died = deaths(ctx, state, now) if address is not None else []
     held = _broker_gaps(ctx, profile)
-    for rid in rule_ids:
+    for rid in _rule_ids(entry, address, examined):
         rule = CATALOGUE.get(rid)
         if rule is None:
             continue
@@ -134,22 +130,14 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
         count = (rec.count if rec else 0) + len(extra.get(rid, ()))
         explicit, reason = (rec.explicit, rec.reason) if rec else (None, "")
         excused = rec.excused if rec else ""
-        if died and evidence and rule.mode is not Mode.PASSIVE:
+        if rule.mode is not Mode.PASSIVE:
             # A dead unit answers nothing: what a scenario found missing while it was
             # dead is its death's evidence (HB-012), not a fault of its own.
-            kept = [v for v in evidence if not _during(v.time, died)]
-            if len(kept) < len(evidence):
-                count -= len(evidence) - len(kept)
-                evidence = kept
-                excused = excused or "the unit died (HB-012) before it could answer"
-        if held and evidence and rule.mode is not Mode.PASSIVE:
+            evidence, count, excused = _excuse(evidence, count, excused, died,
+                                               "the unit died (HB-012) before it could answer")
             # What a scenario found missing while the broker lost or held the traffic, or
             # in the longest wait before (issue 25 §3): the broker's fault, not the unit's.
-            kept = [v for v in evidence if not _during(v.time, held)]
-            if len(kept) < len(evidence):
-                count -= len(evidence) - len(kept)
-                evidence = kept
-                excused = excused or OVER_A_GAP
+            evidence, count, excused = _excuse(evidence, count, excused, held, OVER_A_GAP)
         if count:
             counts[rid] = count
             when = [t for t in (rec.first if rec else None, rec.last if rec else None,
@@ -163,16 +151,6 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
             default_reason=skip_reason(rule, kind=kind, unit=unit,
                                        levels=state.levels, note=notes.get(rid, ""),
                                        party=entry.party))
-    facts: dict[str, Any] = {
-        "declared_rates": dict(state.declared_rates),
-        "sensors_listed": list(state.sensors_listed or ()),
-        "sensors_seen": dict(state.sensors_seen),
-        "tasks_available": {k: list(v) for k, v in state.tasks_available.items()},
-        "tasks_executing": dict(state.tasks_executing),
-        "position": list(state.position) if state.position else None,
-        "message_counts": dict(state.counts),
-        "conversations_dropped": dropped(state),
-    }
     return UnitReport(
         party=entry.party,
         unit=unit, agent_type=address.agent_type if address else "",
@@ -183,7 +161,59 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
         rates=rate_stats(ctx, state) if address is not None else [],
         examined={k: examined[k] for k in sorted(examined)}, violation_counts=counts,
         violation_times=times,
-        facts=facts)
+        facts=_facts(state))
+
+
+def _examined(entry: Row, final: Findings) -> dict[str, int]:
+    """Rule -> how often it was examined on the row: by its checks, by the validator's
+    shared sets (expanded here), and at the end."""
+    examined = dict(entry.state.examined)
+    for group, n in entry.groups.items():
+        for rule in group:
+            examined[rule] = examined.get(rule, 0) + n
+    for rule, n in final.examined.items():
+        examined[rule] = examined.get(rule, 0) + n
+    return examined
+
+
+def _rule_ids(entry: Row, address: UnitAddress | None, examined: dict[str, int]) -> list[str]:
+    """The rules a row reports: a commander's rules and any other it broke; without a unit
+    only the rules examined or broken; a unit every rule of the catalogue."""
+    if entry.party == "commander":
+        return [r for r, rule in CATALOGUE.items() if rule.side is Side.COMMANDER
+                or r in examined or r in entry.records]
+    if address is None:
+        return sorted(set(examined) | set(entry.records))
+    return list(CATALOGUE)
+
+
+def _excuse(evidence: list[Violation], count: int, excused: str,
+            spans: list[tuple[float, float]], why: str
+            ) -> tuple[list[Violation], int, str]:
+    """A scenario rule's evidence without what fell in ``spans`` (a death, a gap of the
+    broker), its count lessened as much, and the excuse ``why`` when any was left out."""
+    if not spans or not evidence:
+        return evidence, count, excused
+    kept = [v for v in evidence if not _during(v.time, spans)]
+    if len(kept) == len(evidence):
+        return evidence, count, excused
+    return kept, count - (len(evidence) - len(kept)), excused or why
+
+
+def _facts(state: UnitState) -> dict[str, Any]:
+    """What the report tells people of the unit besides the verdicts."""
+    from conformance.checks.conversation import dropped
+
+    return {
+        "declared_rates": dict(state.declared_rates),
+        "sensors_listed": list(state.sensors_listed or ()),
+        "sensors_seen": dict(state.sensors_seen),
+        "tasks_available": {k: list(v) for k, v in state.tasks_available.items()},
+        "tasks_executing": dict(state.tasks_executing),
+        "position": list(state.position) if state.position else None,
+        "message_counts": dict(state.counts),
+        "conversations_dropped": dropped(state),
+    }
 
 
 def _broker_gaps(ctx: CheckContext, profile: Profile) -> list[tuple[float, float]]:

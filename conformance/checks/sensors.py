@@ -10,6 +10,7 @@ from collections.abc import Iterator
 from typing import Any
 
 from conformance.checks.base import CheckContext, UnitState, check, geopoint, reinterprets
+from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.topics import MANDATORY_SENSORS, TopicKind
 from conformance.validator import Validation
@@ -28,6 +29,28 @@ catching up; FIELD-NOTES timing jitter: +-0.7 ms idle, 1-7 ms loaded between mes
 period apart): their arrival times are not when they were sent, so the latest of them is the
 new anchor and none is compared with one from before the burst."""
 EARTH_RADIUS = 6_371_000.0  # metres
+
+
+class SensorsSeen:
+    """What the sensor checks keep of a unit between its messages."""
+
+    __slots__ = ("heading_range_said", "missing_listed", "unlisted_reported", "anchor",
+                 "last_position")
+
+    def __init__(self) -> None:
+        self.heading_range_said = False
+        """SENS-002 was said once for this unit."""
+        self.missing_listed: tuple[Any, ...] | None = None
+        """The latest sensor list SI-004 found wanting (a violation per distinct list)."""
+        self.unlisted_reported: set[str] = set()
+        """Sensors already reported unlisted (SI-005)."""
+        self.anchor: tuple[tuple[float, float, float | None], float, str | None] | None = None
+        """(point, time, life) the next position is compared with (SENS-005)."""
+        self.last_position: float | None = None
+        """Arrival time of the latest live position (SENS-005: bursts)."""
+
+
+SENSORS_SEEN: StashKey[SensorsSeen] = StashKey("sensors-seen")
 _RADIANS = math.pi / 180
 
 
@@ -52,8 +75,8 @@ def angle_range_once(ctx: CheckContext, unit: UnitState, msg: Message, v: Valida
     for f in found:
         if f.rule != "SENS-002":
             kept.append(f)
-        elif not unit.private.get("sens002_said"):
-            unit.private["sens002_said"] = True
+        elif not (seen := unit.stash.setdefault(SENSORS_SEEN, SensorsSeen)).heading_range_said:
+            seen.heading_range_said = True
             kept.append(dataclasses.replace(
                 f, detail="6.1 says 'float' and states no range: [0, 360) is this suite's "
                           "decision; said once per unit, later values are not repeated"))
@@ -71,9 +94,12 @@ def mandatory_sensors_listed(ctx: CheckContext, unit: UnitState, msg: Message,
     unit.examine("SI-004")
     missing = [s for s in MANDATORY_SENSORS if s not in listed]
     key = tuple(listed)
-    if not missing or unit.private.get("si004_last") == key:
+    if not missing:
         return None
-    unit.private["si004_last"] = key
+    seen = unit.stash.setdefault(SENSORS_SEEN, SensorsSeen)
+    if seen.missing_listed == key:
+        return None
+    seen.missing_listed = key
     return [Violation.of(
         "SI-004", expected=f"sensor-data-provided lists {', '.join(MANDATORY_SENSORS)}",
         observed=f"missing {', '.join(missing)}", topic=msg.topic, path="$.sensor-data-provided",
@@ -130,10 +156,7 @@ def listed_sensors_published(ctx: CheckContext, unit: UnitState, now: float,
 
 
 def _reported(unit: UnitState) -> set[str]:
-    s = unit.private.get("si005_reported")
-    if s is None:
-        s = unit.private["si005_reported"] = set()
-    return s  # type: ignore[no-any-return]
+    return unit.stash.setdefault(SENSORS_SEEN, SensorsSeen).unlisted_reported
 
 
 def _unlisted(unit: UnitState, name: str, t: float, topic: str,
@@ -213,10 +236,10 @@ def position_moves_plausibly(ctx: CheckContext, unit: UnitState, msg: Message,
     in km/h, or degrees and radians mixed up). (Runs on every position: a list or None.)"""
     if msg.retain:
         return None
-    private = unit.private
-    anchor = private.get("sens005_anchor")
+    seen = unit.stash.setdefault(SENSORS_SEEN, SensorsSeen)
+    anchor = seen.anchor
     t = msg.time
-    last, private["sens005_last"] = private.get("sens005_last"), t
+    last, seen.last_position = seen.last_position, t
     burst = last is not None and t - last < BURST_GAP
     if anchor is not None and t - anchor[1] < MIN_JUMP_INTERVAL and not burst:
         return None  # too close to the last position compared to judge (a point is not read)
@@ -225,15 +248,15 @@ def position_moves_plausibly(ctx: CheckContext, unit: UnitState, msg: Message,
         return None
     life = unit.agent_uuid
     if burst:  # arrival times of a flushed queue are not the unit's timing: start again here
-        private["sens005_anchor"] = (point, t, life)
+        seen.anchor = (point, t, life)
         return None
     if anchor is None:
-        private["sens005_anchor"] = (point, t, life)
+        seen.anchor = (point, t, life)
         unit.note("SENS-005", "only one position seen")
         return None
     prev, t0, life0 = anchor
     dt = t - t0
-    private["sens005_anchor"] = (point, t, life)
+    seen.anchor = (point, t, life)
     if life != life0 or (ctx.gaps and ctx.in_gap(t0, t)):
         # Another life of the unit (issue 24 §2): a new agent-uuid, a reboot the suite asked
         # for, or a gap of the broker between the two positions. A restarted agent may spawn

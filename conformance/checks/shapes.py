@@ -84,6 +84,15 @@ class Shapes:
             found = route.shapes.get(key)
             if found is not None:
                 return found
+        return self._learn(route, v, key, decided_by)
+
+    def _learn(self, route: Any, v: Validation, key: tuple[Any, ...],
+               decided_by: tuple[str, ...]) -> Examined:
+        """A shape the topic has not cached: another topic's answer (a fleet sends the same
+        shapes), else the validator's; kept for the topic and across topics, and the fields
+        newly seen deciding a branch learnt (what the topic kept is cleared then)."""
+        m = v.message
+        m_type = m.__class__
         # Units of one fleet send the same shapes: another topic's answer serves. Its key
         # says all that decides: the topic kind, whether it names a unit, the shape, and the
         # values of the fields learnt (on any topic) to decide a branch for that shape.

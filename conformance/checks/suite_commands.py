@@ -14,6 +14,7 @@ from typing import Any
 
 from conformance.checks.base import UnitState
 from conformance.checks.rows import UNATTRIBUTED, Row
+from conformance.checks.stash import StashKey
 from conformance.topics import UnitAddress
 
 SENDER = "waraps-conformance"
@@ -32,9 +33,11 @@ expected; the unit must survive them. Known by their exact bytes."""
 
 _PROBES = frozenset(payload for _, payload in UNREADABLE)
 _SENDER = re.compile(rb'"sender"\s*:\s*"' + re.escape(SENDER.encode()) + rb'"')
-SEEN = "suite-commands"
-"""UnitState.private key: the suite has commanded this unit (its sender was seen)."""
+SEEN: StashKey[bool] = StashKey("suite-commands")
+"""The suite has commanded this unit (its sender was seen)."""
 LABEL = "the conformance suite (deliberate probes)"
+SUITE_ROW: StashKey[Row] = StashKey("suite-row")
+"""The row the suite's commands to this unit are judged on (never reported)."""
 
 
 def sent_by_suite(m: Any, payload: Any, unit: UnitState) -> bool:
@@ -48,9 +51,9 @@ def sent_by_suite(m: Any, payload: Any, unit: UnitState) -> bool:
     else:
         ours = False
     if ours:
-        unit.private[SEEN] = True
+        unit.stash[SEEN] = True
         return True
-    return bool(unit.private.get(SEEN)) and isinstance(payload, (bytes, bytearray)) \
+    return bool(unit.stash.get(SEEN)) and isinstance(payload, (bytes, bytearray)) \
         and bytes(payload) in _PROBES
 
 
@@ -60,8 +63,8 @@ def suite_row(unit: UnitState, m: Any, payload: Any) -> Row | None:
     keeps, so no commander is charged with the suite's probes."""
     if not sent_by_suite(m, payload, unit):
         return None
-    row = unit.private.get(LABEL)
+    row = unit.stash.get(SUITE_ROW)
     if row is None:
-        row = unit.private[LABEL] = Row(UnitState(UnitAddress(UNATTRIBUTED, "", "", LABEL)),
-                                        "commander", LABEL)
-    return row  # type: ignore[no-any-return]
+        row = unit.stash[SUITE_ROW] = Row(UnitState(UnitAddress(UNATTRIBUTED, "", "", LABEL)),
+                                          "commander", LABEL)
+    return row

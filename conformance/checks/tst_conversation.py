@@ -41,6 +41,7 @@ from conformance.checks.command_history import (
     response_timeout,
     str_of,
 )
+from conformance.checks.stash import StashKey
 
 COMMANDS_KEPT = 1024
 TREES_KEPT = 512
@@ -173,15 +174,19 @@ class TstConversations(CommandHistory):
             self.watch.popitem(last=False)
 
 
+TST_CONVERSATIONS: StashKey[TstConversations] = StashKey("tst-conversations")
+"""The unit's TST conversations (made by ``tst_conversations``)."""
+
+
 def tst_conversations(unit: UnitState) -> TstConversations:
-    return per_unit(unit, "tst_conversations", TstConversations)  # type: ignore[no-any-return]
+    return per_unit(unit, TST_CONVERSATIONS, TstConversations)
 
 
 def open_until(unit: UnitState, ctx: CheckContext) -> float | None:
     """The latest deadline (Unix seconds) of what is still open in the unit's TST conversations:
     answers due, feedback signals imply, final statuses due; None when nothing is open. An
     active scenario waits for one heartbeat after it, so that the verdicts are in."""
-    c = unit.private.get("tst_conversations")
+    c = unit.stash.get(TST_CONVERSATIONS)
     if c is None:
         return None
     due = [cmd.last_sent + response_timeout(ctx) for cmd in c.pending.values() if not cmd.judged]

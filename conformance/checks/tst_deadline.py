@@ -14,14 +14,13 @@ from collections.abc import Iterator
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.command_history import (
     OVER_A_GAP,
-    dead_since,
-    dying_from,
     judged_on_a_copy,
     late,
-    response_timeout,
+    resends_unanswered,
 )
 from conformance.checks.tst_conversation import (
     ANSWER_RULE,
+    TST_CONVERSATIONS,
     TstCommand,
     TstConversations,
     own_deadline,
@@ -40,7 +39,7 @@ def tst_deadlines_pass(ctx: CheckContext, unit: UnitState, msg: Message,
     """Deadlines are checked on each heartbeat of the unit (and at the end). A new agent-uuid
     is a new life: its trees are forgotten (TST-011's decision), and what the old one left open
     is not judged. (Runs on every heartbeat: cheap when nothing is open.)"""
-    c = unit.private.get("tst_conversations")
+    c = unit.stash.get(TST_CONVERSATIONS)
     if c is None:
         return None
     m = v.message
@@ -57,9 +56,9 @@ def tst_deadlines_pass(ctx: CheckContext, unit: UnitState, msg: Message,
 
 def _new_life(ctx: CheckContext, unit: UnitState, c: TstConversations, t: float
               ) -> list[Violation] | None:
-    from conformance.checks.identity import SILENCE_PERIODS, heartbeat_period
+    from conformance.checks.identity import dying_before_life
 
-    dying = dead_since(unit, c, t, heartbeat_period(unit), SILENCE_PERIODS)
+    dying = dying_before_life(unit, c, t)
     dead = dying[0] if dying is not None else None
     found = _expire(ctx, unit, c, t, reboot=True)
     streak, c.unanswered = c.unanswered, []
@@ -85,16 +84,8 @@ def _judge_left_unanswered(ctx: CheckContext, unit: UnitState, c: TstConversatio
 
 def _expire(ctx: CheckContext, unit: UnitState, c: TstConversations, now: float,
             reboot: bool = False) -> list[Violation]:
-    found: list[Violation] = []
-    timeout = response_timeout(ctx)
-    for cmd in c.overdue(now, timeout, reboot):
-        if ctx.gaps and ctx.in_gap(cmd.time, cmd.last_sent + timeout):
-            unit.note("TST-007", OVER_A_GAP)  # the first may never have reached it
-            continue
-        unit.examine("TST-007")
-        found.append(late("TST-007", cmd.topic, cmd, f"a second answer to the resent "
-                          f"{cmd.describe()} within {timeout:.1f} s", "none",
-                          cmd.last_sent, "12.1: answer a resend again, as the first time"))
+    found = resends_unanswered(ctx, unit, c, now, reboot, "TST-007", lambda cmd: cmd.topic,
+                               "12.1: answer a resend again, as the first time")
     if reboot:
         return found
     for e in list(c.expects):
@@ -140,17 +131,17 @@ def _expire(ctx: CheckContext, unit: UnitState, c: TstConversations, now: float,
 
 
 @check("TST-004", "TST-009", "TST-011", finish=True)
-@judged_on_a_copy("tst_conversations", dropped=("TST-012", "open TST expectations"))
+@judged_on_a_copy(TST_CONVERSATIONS, dropped=("TST-012", "open TST expectations"))
 def tst_conversations_at_end(ctx: CheckContext, unit: UnitState, c: TstConversations,
                              now: float) -> list[Violation]:
     """At the end: answers still due are judged, but not those a unit that died left (HB-012's
     finding); trees still running are not judged; what the bounds dropped is said."""
-    from conformance.checks.identity import death, heartbeat_period
+    from conformance.checks.identity import dying_at_end
 
     found = _expire(ctx, unit, c, now)
-    dead = death(ctx, unit, now)
-    found.extend(_judge_left_unanswered(ctx, unit, c, c.unanswered, dying_from(
-        c, dead[1], heartbeat_period(unit)) if dead is not None else None))
+    dying = dying_at_end(ctx, unit, c, now)
+    found.extend(_judge_left_unanswered(ctx, unit, c, c.unanswered,
+                                        dying[0] if dying is not None else None))
     running = sum(1 for t in c.trees.values() if t.state == "started" and t.life == c.life
                   and t.ended_at is None)
     if running:

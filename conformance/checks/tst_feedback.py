@@ -15,7 +15,12 @@ from typing import Any
 
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.command_history import str_of, violation
-from conformance.checks.tst_conversation import TstConversations, TstNode, tst_conversations
+from conformance.checks.tst_conversation import (
+    TST_CONVERSATIONS,
+    TstConversations,
+    TstNode,
+    tst_conversations,
+)
 from conformance.message import Message
 from conformance.topics import TopicKind
 from conformance.tst import FINAL
@@ -55,30 +60,9 @@ def tst_feedback_follows_tree(ctx: CheckContext, unit: UnitState, msg: Message,
         return  # not a tree the traffic started (or one refused: TST-005's)
     tree = node.tree
     t = msg.time
-    flag = m.get("root-flag") if isinstance(m, dict) else None
-    if isinstance(flag, bool):
-        unit.examine("TST-008")
-        if flag is not node.root:
-            yield violation("TST-008", msg, expected=f"root-flag {str(node.root).lower()} for "
-                            f"{'the root' if node.root else 'a node below the root'} "
-                            f"{node_uuid} ('{node.name}')", observed=f"root-flag "
-                            f"{str(flag).lower()}", path="$.root-flag",
-                            detail="14.5: root-flag marks the feedback of the tree's top node")
+    yield from _judge_root_flag(unit, node, node_uuid, msg, m)
     if node.final is not None:
-        end_status, end_com, end_time = node.final
-        if str_of(m, "com-uuid") == end_com:
-            return  # the final message delivered again
-        again = tree.resent is not None and tree.resent > end_time
-        rule = "TST-006" if again else "TST-009"
-        unit.examine(rule)
-        if rule not in node.judged:
-            node.judged.add(rule)
-            yield violation(rule, msg, expected=f"nothing for node {node_uuid} after its "
-                            f"final status '{end_status}'", observed=f"status '{status}' "
-                            f"{t - end_time:.2f} s later" + (" (after its start-tst was "
-                                                             "resent: started again)"
-                                                             if again else ""),
-                            path="$.status", detail="14.5: a node's final status is its last")
+        yield from _judge_after_final(unit, node, node_uuid, msg, m, status)
         return
     if status == "active":
         node.actives += 1
@@ -102,6 +86,52 @@ def tst_feedback_follows_tree(ctx: CheckContext, unit: UnitState, msg: Message,
     if node.status is None and status != "revoked":
         yield from _judge_order(unit, node, msg, status)
     node.status, node.status_time = status, t
+    yield from _judge_signalled(unit, c, node, msg, status)
+    if status in FINAL:
+        yield from _ended(ctx, unit, c, node, (status, str_of(m, "com-uuid"), t), msg)
+
+
+def _judge_root_flag(unit: UnitState, node: TstNode, node_uuid: str, msg: Message, m: Any
+                     ) -> Iterator[Violation]:
+    """14.5: root-flag is true in the feedback of the tree's top node alone (TST-008)."""
+    flag = m.get("root-flag") if isinstance(m, dict) else None
+    if not isinstance(flag, bool):
+        return
+    unit.examine("TST-008")
+    if flag is not node.root:
+        yield violation("TST-008", msg, expected=f"root-flag {str(node.root).lower()} for "
+                        f"{'the root' if node.root else 'a node below the root'} "
+                        f"{node_uuid} ('{node.name}')", observed=f"root-flag "
+                        f"{str(flag).lower()}", path="$.root-flag",
+                        detail="14.5: root-flag marks the feedback of the tree's top node")
+
+
+def _judge_after_final(unit: UnitState, node: TstNode, node_uuid: str, msg: Message, m: Any,
+                       status: str) -> Iterator[Violation]:
+    """14.5: a node's final status is its last (TST-009); after a resent start-tst, feedback
+    again is a tree started twice (TST-006). Once per node and rule."""
+    assert node.final is not None
+    end_status, end_com, end_time = node.final
+    if str_of(m, "com-uuid") == end_com:
+        return  # the final message delivered again
+    tree = node.tree
+    again = tree.resent is not None and tree.resent > end_time
+    rule = "TST-006" if again else "TST-009"
+    unit.examine(rule)
+    if rule not in node.judged:
+        node.judged.add(rule)
+        yield violation(rule, msg, expected=f"nothing for node {node_uuid} after its "
+                        f"final status '{end_status}'", observed=f"status '{status}' "
+                        f"{msg.time - end_time:.2f} s later" + (" (after its start-tst was "
+                                                                "resent: started again)"
+                                                                if again else ""),
+                        path="$.status", detail="14.5: a node's final status is its last")
+
+
+def _judge_signalled(unit: UnitState, c: TstConversations, node: TstNode, msg: Message,
+                     status: str) -> Iterator[Violation]:
+    """14.3: a signal answered 'ok' is followed by the status it asks for (TST-012): that
+    status settles it, a final status other than it breaks it."""
     for e in [e for e in c.expects if e.node is node]:
         if status == e.wanted:
             unit.examine("TST-012")
@@ -113,8 +143,6 @@ def tst_feedback_follows_tree(ctx: CheckContext, unit: UnitState, msg: Message,
                             f"{e.command.describe()} was answered 'ok'",
                             observed=f"status '{status}'", path="$.status",
                             detail="14.3: do what the signal says, and say so in feedback")
-    if status in FINAL:
-        yield from _ended(ctx, unit, c, node, (status, str_of(m, "com-uuid"), t), msg)
 
 
 def _judge_order(unit: UnitState, node: TstNode, msg: Message, status: str
@@ -202,7 +230,7 @@ def nodes_executing_follow_trees(ctx: CheckContext, unit: UnitState, msg: Messag
     (Runs on every tst_execution_info: cheap when no tree is open.)"""
     m = v.message
     listed_raw = m.get("nodes-executing") if type(m) is dict else None
-    c = unit.private.get("tst_conversations")
+    c = unit.stash.get(TST_CONVERSATIONS)
     if type(listed_raw) is not list:
         if c is not None and c.trees:
             unit.note("TST-013", "tst_execution_info has no nodes-executing: not judged")

@@ -13,13 +13,7 @@ from collections.abc import Iterator
 from typing import Any
 
 from conformance.checks.base import CheckContext, UnitState, check
-from conformance.checks.command_history import (
-    OVER_A_GAP,
-    late,
-    response_timeout,
-    str_of,
-    violation,
-)
+from conformance.checks.command_history import left_unanswered, str_of, violation
 from conformance.checks.tst_conversation import (
     ANSWER_RULE,
     Expect,
@@ -221,10 +215,5 @@ def judge_unanswered(ctx: CheckContext, unit: UnitState, c: TstConversations, cm
         unit.note(rule, "TST commands seen, but the unit declares no 'tst execution' and "
                         "answered none")
         return
-    if ctx.gaps and ctx.in_gap(cmd.last_sent, cmd.last_sent + response_timeout(ctx)):
-        unit.note(rule, OVER_A_GAP)  # its answer may be what the broker lost (issue 25 §3)
-        return
-    unit.examine(rule)
-    yield late(rule, cmd.topic, cmd, f"an answer to {cmd.describe()} within "
-               f"{response_timeout(ctx):.1f} s", "no answer", cmd.last_sent,
-               "14.4: answer every TST command, 'failed' with a reason when it cannot be done")
+    yield from left_unanswered(ctx, unit, rule, cmd, cmd.topic, "14.4: answer every TST "
+                               "command, 'failed' with a reason when it cannot be done")

@@ -23,7 +23,7 @@ from typing import Any
 from conformance.protocol import UNCHANGED
 from conformance.rules import CATALOGUE, Mode, Severity
 from conformance.scenarios.context import Context
-from conformance.scenarios.deviation import FINAL_STATUSES, meaning
+from conformance.scenarios.deviation import FINAL_STATUSES
 from conformance.scenarios.explore_action import (
     Action,
     Ping,
@@ -176,7 +176,7 @@ class Explorer:
     status awaited, so the next example starts from a known state."""
 
     def __init__(self, ctx: Context, collector: Collector,
-                 model_state: Callable[[str], str | None] = lambda task_uuid: None,
+                 model_state: Callable[[str], str | None],
                  dead: Callable[[], str] = lambda: "") -> None:
         self.ctx = ctx
         self.collector = collector
@@ -324,24 +324,16 @@ class Explorer:
         return self.ctx.commander.unit_task_uuid(str(self.slots[slot].task_uuid))
 
     def _refresh(self, slot: Slot) -> None:
-        """The slot's state from the feedback the unit sent for it (12.4)."""
+        """The slot's state as the protocol model holds it (the Monitor's, fed every message
+        before the traffic keeps it: what the unit's feedback and answers showed, 12.4); a
+        task the model knows nothing of keeps the state it had."""
         if slot.task_uuid is None or slot.state == "refused":
             return
-        uuid_ = self.ctx.commander.unit_task_uuid(slot.task_uuid)
-        held = self.model_state(uuid_)
+        held = self.model_state(self.ctx.commander.unit_task_uuid(slot.task_uuid))
         if held in ("running", "paused"):
             slot.state = held
-            return
-        if held in FINAL_STATUSES:
+        elif held in FINAL_STATUSES:
             slot.state = "ended"
-            return
-        for e in self.ctx.traffic.since(slot.mark, "exec/feedback"):  # the model knows none
-            if e.get("task-uuid") == uuid_:
-                status = meaning(e.get("status"))
-                if status in FINAL_STATUSES:
-                    slot.state = "ended"
-                elif status in ("running", "paused"):  # a task's own words change nothing
-                    slot.state = status
 
     def states(self) -> list[str]:
         """Each slot's state as the unit last showed it."""

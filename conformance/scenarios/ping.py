@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from conformance.scenarios.context import Context
+from conformance.scenarios.traffic import Entry
 from conformance.violation import Verdict
 
 RULES = ("EXEC-PING-001", "EXEC-PING-002")
@@ -10,14 +11,24 @@ RULES = ("EXEC-PING-001", "EXEC-PING-002")
 
 def run(ctx: Context) -> None:
     sent = ctx.commander.send({"command": "ping"})
-    # Any pong counts as an answer (PING-001), so a wrong response-to is told apart from none.
-    answer = ctx.traffic.wait_for(
-        lambda e: e.get("response-to") == sent.com_uuid or e.get("response") == "pong",
-        ctx.timing.response, after=sent.mark, subtopic="exec/response")
+
+    def pong(e: Entry) -> bool:
+        # Any pong counts as an answer (PING-001): a wrong response-to is told apart from none.
+        return e.get("response-to") == sent.com_uuid or e.get("response") == "pong"
+
+    answer = ctx.traffic.wait_for(pong, ctx.timing.response, after=sent.mark,
+                                  subtopic="exec/response")
+    if answer is None and not ctx.commander.dry_run:
+        # 12.1: "If a response is not arriving re-send the command with the same com-uuid".
+        # The run's first command may reach a unit that heartbeats before it subscribes.
+        again = ctx.commander.resend(sent)
+        answer = ctx.traffic.wait_for(pong, ctx.timing.response, after=again.mark,
+                                      subtopic="exec/response")
     if answer is None:
         ctx.record("EXEC-PING-001", violation=ctx.violation(
             "EXEC-PING-001", expected=f"a response 'pong' within {ctx.timing.response:.1f} s",
-            observed="no response", detail=f"ping com-uuid {sent.com_uuid}"))
+            observed="no response, to the ping or to its resend",
+            detail=f"ping com-uuid {sent.com_uuid}"))
         ctx.record("EXEC-PING-002", verdict=Verdict.COULD_NOT_TEST,
                    reason="the ping was not answered (EXEC-PING-001)")
         return

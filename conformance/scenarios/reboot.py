@@ -5,6 +5,7 @@ both rules are could-not-test."""
 
 from __future__ import annotations
 
+import statistics
 from typing import Any
 
 from conformance.checks.stall import stamp_of
@@ -25,6 +26,23 @@ def silence(previous: Entry, entry: Entry) -> float:
     if stamps[0] is not None and stamps[1] is not None:
         return stamps[1] - stamps[0]
     return entry.time - previous.time
+
+
+def own_period(ctx: Context) -> float:
+    """The heartbeat period the reboot is read in, seconds: the declared one (5.1), or the
+    median interval between heartbeats of one agent-uuid so far where that is longer: a unit
+    far slower than it declares (HB-003's finding) is not taken for one that never came back
+    because its new life's second heartbeat is not within two declared periods."""
+    declared = ctx.rate_of("heartbeat") or 1.0
+    intervals: list[float] = []
+    previous: Entry | None = None
+    for entry in ctx.traffic.since(0, "heartbeat"):
+        if previous is not None and entry.get("agent-uuid") == previous.get("agent-uuid"):
+            intervals.append(silence(previous, entry))
+        previous = entry
+    if not intervals:
+        return 1.0 / declared
+    return max(1.0 / declared, statistics.median(intervals))
 
 
 def run(ctx: Context) -> None:
@@ -49,7 +67,7 @@ def _reboot(ctx: Context, names: Any) -> None:
     """The reboot and what it shows; ``names``: a ``suite.reboot.Names`` watch, or None."""
     assert ctx.reboot is not None
     old_agent = ctx.agent_uuid
-    rate = ctx.rate_of("heartbeat") or 1.0
+    rate = 1.0 / own_period(ctx)
     ended = ctx.notes.get("ended", [])
     before = ctx.traffic.mark()
     ctx.commander.abort_all(ctx.timing.response)  # tasks die with the reboot anyway
@@ -137,7 +155,9 @@ def _back(ctx: Context, before: int, requested: float, heard: set[Any], old_agen
             return True
         return entry.get("agent-uuid") == old_agent and not soon
 
-    hb = ctx.traffic.wait_for(back, ctx.timing.reboot, after=before, subtopic="heartbeat")
+    # The reboot's budget, and the second heartbeat of the new life on top of it.
+    hb = ctx.traffic.wait_for(back, ctx.timing.reboot + 2.0 / rate, after=before,
+                              subtopic="heartbeat")
     return first[0] or hb
 
 

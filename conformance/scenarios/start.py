@@ -122,8 +122,9 @@ def _cannot_start(ctx: Context, available: dict[str, list[str]], startable: list
 
 def _task_uuid(ctx: Context, task: str, sent: Sent, answer: Entry,
                generate: bool) -> str | None:
-    """EXEC-START-002 judged on the answer: the task-uuid sent, or one generated when none
-    was (12.1). The task-uuid the unit runs the task under, None when it has none."""
+    """EXEC-START-002 judged on the answer: one generated when none was sent (12.1), not
+    another than the one sent. The task-uuid the unit runs the task under, None when it has
+    none."""
     task_uuid = answer.get("task-uuid")
     wanted = sent.body.get("task-uuid")
     if generate:
@@ -136,7 +137,7 @@ def _task_uuid(ctx: Context, task: str, sent: Sent, answer: Entry,
                 "without one, 12.1)", observed=f"task-uuid {task_uuid!r}", entry=answer))
             return None
     elif task_uuid == wanted:
-        ctx.record("EXEC-START-002", verdict=Verdict.PASS)
+        pass  # no pass: only the answer to a start-task without one examines 12.1's words
     else:
         ctx.record("EXEC-START-002", violation=ctx.violation(
             "EXEC-START-002", expected=f"task-uuid {wanted}", observed=f"{task_uuid!r}",

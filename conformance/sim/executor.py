@@ -53,6 +53,8 @@ class CommandExecutor:
         self.faults = unit.faults
         self.variants = unit.variants
         self.runner = unit.runner
+        self.subscribed = "late-subscriber" not in self.variants
+        """Variant late-subscriber: False until the first command, which is lost."""
         self.history: Resends[dict[str, Any] | None] = Resends()
         """com-uuid -> the response sent (None: deliberately not answered), for resends."""
         self.delayed: list[tuple[float, dict[str, Any]]] = []
@@ -63,6 +65,9 @@ class CommandExecutor:
 
     def command(self, payload: bytes, now: float, size: int) -> None:
         """Handle one command of ``size`` bytes (``payload`` may be only its head)."""
+        if not self.subscribed:
+            self.subscribed = True
+            return
         if size > MAX_COMMAND_BYTES:
             msg, problem = None, f"a command of {size} bytes is larger than {MAX_COMMAND_BYTES}"
         else:
@@ -78,8 +83,8 @@ class CommandExecutor:
         assert isinstance(msg, dict)
         com = msg["com-uuid"]
         known = com in self.history and not self._forgets_ended(com)
-        if (known and "resend-answered-failed" in self.faults
-                and msg.get("command") == "start-task"):
+        if (known and ("resend-answered-failed" in self.faults or "resend-refused" in
+                       self.variants) and msg.get("command") == "start-task"):
             self._refuse_resend(com, msg)
             return
         if known and "resend-executes-twice" not in self.faults:
@@ -183,18 +188,19 @@ class CommandExecutor:
             unit.send("exec/response", body)
 
     def _refuse_resend(self, com: str, msg: dict[str, Any]) -> None:
-        """Fault resend-answered-failed (seen in the field): the resent start-task is taken for
-        a new one whose task-uuid is taken, answered 'failed', and the running task gets a
-        'failed' feedback too, although it runs on."""
+        """Variant resend-refused and fault resend-answered-failed (both seen in the field):
+        the resent start-task is taken for a new one and answered 'failed'; with the fault the
+        running task gets a 'failed' feedback too, although it runs on."""
         cached = self.history.get(com)
         task_uuid = cached.get("task-uuid") if cached else msg.get("task-uuid")
         task = self.runner.tasks.get(task_uuid) if isinstance(task_uuid, str) else None
-        reason = f"task-uuid {task_uuid} is already used by another task"
+        reason = ("A task is already running" if "resend-refused" in self.variants else
+                  f"task-uuid {task_uuid} is already used by another task")
         body: dict[str, Any] = {"agent-uuid": self.unit.agent_uuid, "response": "failed",
                                 "response-to": com, "task-uuid": task_uuid,
                                 "fail-reason": reason}
         self._send_response(body, command_com=com)
-        if task is not None and not task.ended:
+        if task is not None and not task.ended and "resend-answered-failed" in self.faults:
             self.runner.feedback(task, "failed")
 
     def _forgets_ended(self, com: str) -> bool:

@@ -192,10 +192,11 @@ _ALL = (
        "(seen in the field): feedback flows, no answer comes."),
     _f("start-no-generated-task-uuid", "EXEC-START-002",
        "Generates a task-uuid for a start-task that has none, but does not return it."),
-    _f("start-no-task-uuid-unanswered", "EXEC-START-001 EXEC-START-002",
+    _f("start-no-task-uuid-unanswered", "EXEC-START-001",
        "Drops a start-task without task-uuid: msg['task-uuid'] raises a KeyError in its "
        "message callback, which the MQTT library survives (no answer, no task; seen in the "
-       "field). A start-task it would refuse anyway (no task object) is still refused."),
+       "field). A start-task it would refuse anyway (no task object) is still refused. "
+       "EXEC-START-002 is then could-not-test: no answer showed a generated task-uuid."),
     _f("dies-on-missing-task-uuid", "HB-012",
        "Its MQTT thread dies on a start-task without task-uuid (a KeyError): from then on it "
        "publishes and answers nothing, while the process lives on (seen in the field).",
@@ -228,9 +229,11 @@ _ALL = (
        "Executes a command resent with the same com-uuid again."),
     _f("resend-unanswered", "EXEC-RESEND-002",
        "Drops a resent command silently (no second answer)."),
-    _f("resend-answered-failed", "EXEC-RESEND-001",
+    _f("resend-answered-failed", "EXEC-FB-004",
        "Takes a resent start-task for a new one: answers it 'failed' (task-uuid in use) and "
-       "sends a 'failed' feedback for the task, which runs on (seen in the field)."),
+       "sends a 'failed' feedback for the task, which runs on (seen in the field): refused, "
+       "not executed twice (EXEC-RESEND-001 holds); the task's feedback after its 'failed' "
+       "is EXEC-FB-004's (decided: it warns)."),
     # --- 12.4 feedback ------------------------------------------------------------------------
     _f("feedback-no-com-uuid", "EXEC-FB-001",
        "Leaves com-uuid out of feedback messages."),

@@ -102,6 +102,16 @@ _ALL = (
     Variant("respawn", "5, 5.1 (a reboot loses state; nothing ties a position across it)",
             "Comes back from a reboot at a new spawn point, RESPAWN_METRES from where it was "
             "(a restarted simulated agent draws a new random start), with its new agent-uuid."),
+    Variant("late-subscriber", "2, 12.1 ('If a response is not arriving re-send the command "
+            "with the same com-uuid')",
+            "Loses the first command sent to it: it heartbeats before its subscription to "
+            "exec/command is in place (as an independently written unit did); the commander's "
+            "resend is answered."),
+    Variant("resend-refused", "12.1 (resend 'until we give up or a response has arrived'; "
+            "nothing says what the second answer says)",
+            "Takes a resent start-task for a new one and refuses it: 'failed', 'A task is "
+            "already running' (the official Python agents), with no feedback; the task it "
+            "started runs on, never executed twice."),
     Variant("signed-heading", "6.1 ('heading : float', no range)",
             "Publishes heading in (-180, 180] (atan2's range); it faces west at start, so "
             "its heading is negative.",

@@ -7,6 +7,7 @@ import uuid
 import orjson
 
 from conformance.checks import Monitor, base, conversation, monitor, rows
+from conformance.checks.conversation import CONVERSATIONS
 from conformance.message import Message
 from conformance.topics import UnitAddress
 
@@ -35,7 +36,7 @@ def test_hostile_variety_is_capped(stream, monkeypatch):
         m.feed(Message(t, u.topic("Bad"), b"{}"))  # TOPIC-002 every time
     s = m.state(u)
     assert len(s.sensors_seen) == 16 and len(s.counts) == 8
-    kept = s.private["conversations"]
+    kept = s.stash[CONVERSATIONS]
     assert len(kept.commands) == 32 and len(kept.tasks) == 32
     assert len(m.units()) == 8
     assert m.topics_cached() == 50
@@ -78,5 +79,5 @@ def test_commands_kept_cost_little_memory_each(stream):
         grown = tracemalloc.get_traced_memory()[0] - before
     finally:
         tracemalloc.stop()
-    assert len(m.state(u).private["conversations"].commands) == 300
+    assert len(m.state(u).stash[CONVERSATIONS].commands) == 300
     assert grown < 300 * 1500, f"{grown / 299:.0f} bytes per command kept"

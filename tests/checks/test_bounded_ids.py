@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from conformance.bounds import ID_CHARS, bound_ids
 from conformance.checks import Monitor
+from conformance.checks.conversation import CONVERSATIONS
 
 
 def test_long_identifiers_get_distinct_bounded_stand_ins():
@@ -34,5 +35,5 @@ def test_commands_with_1_mib_com_uuids_are_matched_and_not_kept_whole(stream):
     unit = monitor.report().units[str(stream.address)]
     assert unit.rules["EXEC-PING-001"].verdict.value == "pass"  # every pong matched its ping
     # TODO(public): checks/conversation.py: the commands a unit keeps (their com-uuids)
-    kept = monitor.state(stream.address).private["conversations"].commands
+    kept = monitor.state(stream.address).stash[CONVERSATIONS].commands
     assert len(kept) == 10 and all(len(k) <= ID_CHARS for k in kept)

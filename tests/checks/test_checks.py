@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import uuid
 
+import orjson
 import pytest
 
 from conformance.checks import Monitor, covered_rules
@@ -141,6 +142,32 @@ def test_rate_counts_the_same_pause_without_a_reboot(stream):
     stream.feed(m, msgs)
     r = verdict(m, stream, "HB-003")
     assert r.verdict is Verdict.FAIL and "2.400 s" in r.violations[0].observed
+
+
+@pytest.mark.parametrize("rule,builder", [
+    ("SI-002", "sensor_info"), ("DEI-002", "direct_execution_info")])
+def test_info_rate_without_agent_uuid_starts_afresh_with_the_heartbeats_new_life(stream, rule,
+                                                                                  builder):
+    """The RISE agent's info messages carry no agent-uuid: its restart (2.4 s at 1 Hz, a new
+    agent-uuid in the heartbeat) is the heartbeat's life boundary for them too (issue 24 §2),
+    while the same pause without a new life stays a stall."""
+    def life(new: str | None) -> list:
+        msgs = []
+        for i in range(16):
+            t = i if i < 8 else 1.4 + i
+            info = getattr(stream, builder)(t)
+            body = orjson.loads(info.payload)
+            del body["agent-uuid"]
+            msgs += [stream.heartbeat(t, agent_uuid=new if i >= 8 else None),
+                     stream.msg(info.topic.rsplit("/", 1)[1], body, t)]
+        return msgs
+    rebooted, stalled = Monitor(), Monitor()
+    stream.feed(rebooted, life(str(uuid.uuid4())))
+    stream.feed(stalled, life(None))
+    r = verdict(rebooted, stream, rule)
+    assert r.verdict is Verdict.PASS, r
+    bad = verdict(stalled, stream, rule)
+    assert bad.verdict is Verdict.FAIL and "2.400 s" in bad.violations[0].observed
 
 
 def test_rate_of_two_agents_taking_turns_under_one_name_is_doubled(stream):

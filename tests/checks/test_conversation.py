@@ -74,8 +74,17 @@ def test_start_task_running_with_feedback_to_the_end_passes(stream):
     rules = judge(stream, [cmd, stream.response(2.2, com_of(cmd), "running", **{
         "task-uuid": task}), stream.feedback(2.3, task, "running"),
         stream.feedback(6.5, task, "finished")])
-    assert set(verdicts(rules, "EXEC-START-001", "EXEC-START-002", "EXEC-START-003",
+    assert set(verdicts(rules, "EXEC-START-001", "EXEC-START-003",
                         "EXEC-FB-004").values()) == {"pass"}
+    # 12.1's words are about a start-task sent without a task-uuid: none was (issue 24)
+    assert rules["EXEC-START-002"].verdict is Verdict.SKIP
+    assert "no start-task without a task-uuid" in rules["EXEC-START-002"].reason
+    generated = new()
+    bare = start(stream, 7.1)
+    rules = judge(stream, [cmd, stream.response(2.2, com_of(cmd), "running", **{
+        "task-uuid": task}), bare, stream.response(7.2, com_of(bare), "running", **{
+            "task-uuid": generated})])
+    assert rules["EXEC-START-002"].verdict is Verdict.PASS
 
 
 def test_start_task_answers_that_do_not_fit(stream):
@@ -146,6 +155,21 @@ def test_a_resend_left_unanswered_warns(stream):
     assert rules["EXEC-START-001"].verdict is Verdict.PASS  # the first send was answered
 
 
+def test_a_resend_of_a_command_never_answered_is_answered_once_in_all(stream):
+    """2, 12.1: the commander resends 'until ... a response has arrived'. A ping the unit never
+    heard (it subscribed late), resent and answered once, is a complete conversation; a ping
+    answered, resent and not answered again still warns."""
+    ping = stream.command(2.1, "ping")
+    again = stream.command(3.5, "ping", com_uuid=com_of(ping))
+    rules = judge(stream, [ping, again, stream.response(3.6, com_of(ping))])
+    assert verdicts(rules, "EXEC-PING-001", "EXEC-RESEND-002", "EXEC-009", "EXEC-010") == \
+        dict.fromkeys(("EXEC-PING-001", "EXEC-RESEND-002", "EXEC-009", "EXEC-010"), "pass")
+    ping = stream.command(2.1, "ping")
+    again = stream.command(3.5, "ping", com_uuid=com_of(ping))
+    rules = judge(stream, [ping, stream.response(2.2, com_of(ping)), again])
+    assert rules["EXEC-RESEND-002"].verdict is Verdict.WARN
+
+
 def test_a_resend_executed_again_fails_resend_001(stream):
     task = new()
     rules = judge(stream, _resent(stream, task, second=lambda c: [stream.response(
@@ -155,16 +179,53 @@ def test_a_resend_executed_again_fails_resend_001(stream):
     assert "new 'running'" in rules["EXEC-RESEND-001"].violations[0].observed
 
 
-def test_a_resend_answered_failed_with_failed_feedback_is_one_fault_of_resends(stream):
-    """Seen in the field: the resend is answered 'failed' with a 'failed' feedback for the task
-    that runs on; its later feedback is the resend's fault, not EXEC-FB-004's."""
+def test_a_resend_refused_with_failed_feedback_is_not_executed_twice(stream):
+    """Seen in the field (the official Python L2 agent): the resend is answered 'failed' ('A
+    task is already running') with a 'failed' feedback for the task, which runs on. Nothing
+    ran twice (12.1): EXEC-RESEND-001 holds; the task's feedback after its 'failed' is
+    EXEC-FB-004's (a decided rule: strict here), never 'executed again'."""
     task = new()
     rules = judge(stream, _resent(stream, task, second=lambda c: [stream.response(
-        3.2, c, "failed", **{"task-uuid": task, "fail-reason": "task exists"})],
+        3.2, c, "failed", **{"task-uuid": task, "fail-reason": "A task is already running"})],
         feedback=[stream.feedback(3.3, task, "failed")]))
-    assert rules["EXEC-RESEND-001"].verdict is Verdict.FAIL
-    assert rules["EXEC-FB-004"].verdict is Verdict.PASS
+    assert rules["EXEC-RESEND-001"].verdict is Verdict.PASS
     assert rules["EXEC-RESEND-002"].verdict is Verdict.PASS
+    fb = rules["EXEC-FB-004"]
+    assert fb.verdict is Verdict.FAIL and len(fb.violations) == 1
+    assert "final status 'failed'" in fb.violations[0].expected
+    assert "executed again" not in fb.violations[0].observed
+    lenient = judge(stream, _resent(stream, task, second=lambda c: [stream.response(
+        3.2, c, "failed", **{"task-uuid": task, "fail-reason": "A task is already running"})],
+        feedback=[stream.feedback(3.3, task, "failed")]), profile=Profile(
+        response_timeout=1.0, feedback_timeout=3.0))
+    assert lenient["EXEC-FB-004"].verdict is Verdict.WARN  # decided: an interop risk
+
+
+def test_failed_feedback_after_a_resend_that_ran_the_ended_task_again(stream):
+    """Seen in the field: a start-task resent after its task was aborted runs it again
+    ('running': EXEC-RESEND-001, executed again); a signal-task $abort for another task then
+    gets a 'failed' feedback naming the task that runs again. That 'failed' is the new run's
+    status, not a second 'executed again'."""
+    task, other = new(), new()
+    cmd = start(stream, 2.1, task)
+    abort = stream.command(3.1, "signal-task", signal="$abort", **{"task-uuid": task})
+    again = start(stream, 4.1, task, com=com_of(cmd))
+    wrong = stream.command(5.1, "signal-task", signal="$abort", **{"task-uuid": other})
+    rules = judge(stream, [
+        cmd, stream.response(2.2, com_of(cmd), "running", **{"task-uuid": task}),
+        stream.feedback(2.3, task, "running"),
+        abort, stream.response(3.2, com_of(abort), "ok", **{"task-uuid": task}),
+        stream.feedback(3.3, task, "aborted"),
+        again, stream.response(4.2, com_of(cmd), "running", **{"task-uuid": task}),
+        stream.feedback(4.3, task, "running"),
+        wrong, stream.response(5.2, com_of(wrong), "failed", **{
+            "task-uuid": task, "fail-reason": "Invalid task-uuid"}),
+        stream.feedback(5.3, task, "failed")])
+    r = rules["EXEC-RESEND-001"]
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 1, r.violations
+    assert "status 'running'" in r.violations[0].observed
+    assert "executed again" in r.violations[0].observed
+    assert rules["EXEC-FB-004"].verdict is Verdict.PASS
 
 
 def test_query_status_agrees_with_the_history(stream):
@@ -530,3 +591,27 @@ def test_a_death_names_every_command_of_the_burst_the_last_first(stream):
     assert "no-such-command" in said and "a malformed command" in said
     assert said.index("no-such-command") < said.index("a malformed command")  # the last first
     assert com_of(survived) not in said  # it answered the ping after it
+
+
+def test_a_task_still_listed_long_after_it_finished_fails_dei_004_from_traffic(stream):
+    """Issue 24: tasks-executing entries that never end are on the wire; wherever the traffic
+    shows the task's end ('finished', 'aborted'), a listing past two info periods fails DEI-004
+    (5.3 'List of tasks currently executing.'). A listing composed before the end, or after a
+    'failed' (which the public agents also send for a refused command), is no evidence."""
+    def run(status: str, listed_at: float):
+        task = new()
+        cmd = start(stream, 2.1, task)
+        entry = [{"task-name": "move-to", "task-uuid": task}]
+        return judge(stream, [
+            cmd, stream.response(2.2, com_of(cmd), "running", **{"task-uuid": task}),
+            stream.feedback(2.3, task, "running"), stream.direct_execution_info(2.5, executing=entry),
+            stream.feedback(4.0, task, status),
+            stream.direct_execution_info(listed_at, executing=entry)])
+
+    stale = run("finished", 9.0)
+    r = stale["DEI-004"]
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 1, r
+    assert "still listed 5.0 s after its 'finished' feedback" in r.violations[0].observed
+    assert run("aborted", 9.0)["DEI-004"].verdict is Verdict.FAIL
+    assert run("finished", 4.5)["DEI-004"].verdict is Verdict.SKIP  # composed before the end
+    assert run("failed", 9.0)["DEI-004"].verdict is Verdict.SKIP

@@ -43,12 +43,8 @@ pytestmark = pytest.mark.slow
 # strict: once they agree, the XPASS fails this test and the entry must go.
 AWAITING_SCENARIOS: dict[str, str] = {
     # Behaviours of the public agents (issue 24 part 3), misjudged as the checks stand:
-    "heartbeat-rate-gross": "HB-010 or HB-012 also fails: each interval of 5 declared "
-                            "periods reads as a silence ('then came back with the same "
-                            "agent-uuid', or a death that 'came back only when the suite "
-                            "rebooted it')",
-    "start-no-task-uuid-unanswered": "EXEC-START-002 passes although the start-task without "
-                                     "task-uuid was never answered",
+    # (heartbeat-rate-gross and start-no-task-uuid-unanswered waited here; both fail exactly
+    # their rules now.)
 }
 # Areas whose faults change what every scenario sees (levels, identity, timing, answers).
 # Signal faults too (the scenarios end their tasks with signals), and tst_execution_info ones
@@ -297,3 +293,19 @@ def test_fault_outside_the_unit_address_stops_with_one_error(pytester: pytest.Py
     assert "is not alive" in run.text
     for rule in FAULTS[fault].rules:
         assert rule in run.text, run.text
+
+
+def test_a_unit_deaf_to_start_task_without_task_uuid_has_its_resend_judged(
+        pytester: pytest.Pytester, prefix: str) -> None:
+    """Public agents answer no start-task without a task-uuid (issue 25): the resend scenario
+    then asks with one, as the spec's examples do, so their resend handling is judged instead
+    of could-not-test, and a unit that runs the resend again still fails EXEC-RESEND-001."""
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    args = (f"--profile={MATRIX}", "--seed", "1", "-k", "RESEND")
+    deaf = certify_virtual(pytester, unit, *args, faults=("start-no-task-uuid-unanswered",))
+    rules = deaf.unit_rules()
+    assert {r: rules[r]["verdict"] for r in ("EXEC-RESEND-001", "EXEC-RESEND-002")} == {
+        "EXEC-RESEND-001": "pass", "EXEC-RESEND-002": "pass"}, deaf.text
+    twice = certify_virtual(pytester, unit, *args,
+                            faults=("start-no-task-uuid-unanswered", "resend-executes-twice"))
+    assert "EXEC-RESEND-001" in twice.failed, twice.text

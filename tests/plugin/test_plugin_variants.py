@@ -44,7 +44,7 @@ EXPLORE = "10s"
 (the orders it sends are judged as the scripted ones are)."""
 GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
     (("terse", "sensor-rate-edge", "rate-edge", "success-vocabulary", "pretty-json",
-      "own-task", "signed-heading", "silent-unknown-command"), False),
+      "own-task", "signed-heading", "silent-unknown-command", "late-subscriber"), False),
     (("strict", "slow", "verbose", "feedback-first", "starting-feedback", "level-spelling",
       "geopoint-type"), True),
     # info-rates apart from sensor-rate-edge: both set sensor_info's rate.
@@ -52,6 +52,9 @@ GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
     # A rebooted unit spawns elsewhere with a new agent-uuid: positions are compared within
     # one life (issue 24 §2), so it runs with the others now.
     (("respawn",), True),
+    # The official Python agents refuse a resent start-task ('A task is already running'):
+    # nothing runs twice (12.1), so no EXEC-RESEND-001 (issue 24).
+    (("resend-refused",), False),
 ]
 REAL_BROKER = ("terse", "info-rates", "retained-info", "integer-numbers", "key-order")
 """The group certified end to end on Mosquitto (retained info, the TST level, exploration)."""

@@ -128,8 +128,6 @@ KNOWN_GAPS: dict[str, tuple[set[str], str]] = {
                            "EXEC-SIG-002", "EXEC-START-003"},
                           "the workout follows the task-uuid it sent, not the unit's"),
     # Behaviours of the public agents (issue 24 part 3), judged as the checks stand:
-    "start-no-task-uuid-unanswered": ({"EXEC-START-001"},
-                                      "EXEC-START-002 is judged only on an answer that came"),
     "reboot-renames": ({"HB-012", "REBOOT-001", "REBOOT-002"},
                        "the workout and the Monitor follow the address it started at: gone "
                        "from there after the reboot, it reads as dead and its old task is "
@@ -188,7 +186,7 @@ LINT_EXPECTED: dict[str, set[str]] = {
     "start-response-unpublished": {"EXEC-START-001"},
     "query-unanswered": {"EXEC-QUERY-001"},
     "resend-executes-twice": {"EXEC-RESEND-001"},
-    "resend-answered-failed": {"EXEC-RESEND-001"},
+    "resend-answered-failed": {"EXEC-FB-004"},
     "start-no-generated-task-uuid": {"EXEC-START-002"},
     "dies-on-missing-task-uuid": {"HB-012"},
     "undeclared-direct-execution": {"HB-013"},

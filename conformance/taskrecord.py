@@ -1,0 +1,84 @@
+"""One task as the traffic showed it (12.4): its state, its statuses, and the evidence the
+conversation checks judge it by. The one task record of the suite: the protocol model's tasks
+(``conformance.protocol``, which re-exports both names) and the exec conversations' tasks
+(``conformance.checks.conversation``) are ``TaskRecord``s. Pure: no MQTT, no clock."""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from typing import Any
+
+STATUSES_KEPT = 16
+
+
+class State(str, enum.Enum):
+    """A task's state (12.4's statuses; 12.1's query-status words)."""
+
+    UNKNOWN = "unknown"
+    RUNNING = "running"
+    PAUSED = "paused"
+    FINISHED = "finished"
+    ABORTED = "aborted"
+    FAILED = "failed"
+
+    @property
+    def live(self) -> bool:
+        return self in (State.RUNNING, State.PAUSED)
+
+    @property
+    def ended(self) -> bool:
+        return self in (State.FINISHED, State.ABORTED, State.FAILED)
+
+
+@dataclass(eq=False, slots=True)
+class TaskRecord:
+    """One task as the traffic showed it: its state and statuses, and the evidence the
+    conversation checks judge it by (the one task record of the suite: the model's and the
+    conversations' tasks alike, ``checks/conversation.py``)."""
+
+    task_uuid: str
+    name: str | None = None
+    state: State = State.RUNNING
+    started_by: str | None = None
+    """The com-uuid of the start-task that began it (None: seen only in feedback)."""
+    refused: bool = False
+    """Its start-task was answered 'failed': it never ran."""
+    statuses: list[tuple[float, str]] = field(default_factory=list)
+    """(time, status) of its latest feedback, at most ``STATUSES_KEPT``."""
+    ended_at: float | None = None
+    acked: list[tuple[float, str, str]] = field(default_factory=list)
+    """(time, signal, com-uuid) of the signals to it answered 'ok', at most 8."""
+    listed: bool = False
+    left_at: float | None = None
+    """When it left tasks-executing while it was held live (no final status yet)."""
+    listed_at: float | None = None
+    """When tasks-executing last listed it (5.3)."""
+    command: Any = None
+    """The start-task that began it, as the conversation checks keep it (its evidence)."""
+    life: str | None = None
+    """The agent-uuid of the life it ran in."""
+    final: tuple[str, str | None, float] | None = None
+    """(status, com-uuid, time) of its final feedback, or ('left tasks-executing', None,
+    time) when it left tasks-executing with none."""
+    resent: float | None = None
+    """When its start-task was last resent."""
+    running_feedback: int = 0
+    """How many 'running' feedbacks it sent (EXEC-RESEND-001: started twice)."""
+
+    @property
+    def last_status(self) -> str | None:
+        return self.statuses[-1][1] if self.statuses else None
+
+    @property
+    def last_time(self) -> float | None:
+        """When its latest status came."""
+        return self.statuses[-1][0] if self.statuses else None
+
+    def said(self, status: str, t: float) -> None:
+        """Its feedback said ``status`` at ``t`` (the latest ``STATUSES_KEPT`` are kept)."""
+        self.statuses.append((t, status))
+        del self.statuses[:-STATUSES_KEPT]
+
+    def acked_since(self, t: float, signals: tuple[str, ...]) -> tuple[float, str, str] | None:
+        return next((a for a in reversed(self.acked) if a[0] >= t and a[1] in signals), None)
