@@ -40,6 +40,14 @@ MAX_COMMANDERS = 256
 """Commanders with a row of their own; the commands of further ones share one row."""
 
 
+def check_time(ts: float, what: str = "ts") -> float:
+    """``ts`` if it is a time within the bounds (1970..2100), else ValueError naming them."""
+    if not MIN_TIME <= ts <= MAX_TIME:  # NaN fails too
+        raise ValueError(f"'{what}' {ts!r} is outside the times a recording may hold "
+                         f"({MIN_TIME:.0f}..{MAX_TIME:.0f} Unix seconds, 1970 to 2100)")
+    return ts
+
+
 def _size(n: int) -> str:
     return f"{n >> 20} MiB" if n >= 1 << 20 and not n & ((1 << 20) - 1) else f"{n} bytes"
 

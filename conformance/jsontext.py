@@ -56,7 +56,7 @@ def dumps(value: Any) -> bytes:
 
 def _scalar(item: Any) -> bytes:
     """A number, string, true, false or null. A string read from a line that was not UTF-8
-    holds surrogate escapes (``recording._loads_not_utf8``): written back as the bytes they
+    holds surrogate escapes (``mosquitto_sub.loads_not_utf8``): written back as the bytes they
     stand for, so the payload is the one received; any other lone surrogate as an escape."""
     try:
         return orjson.dumps(item)

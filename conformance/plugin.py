@@ -43,6 +43,16 @@ EXIT_HELP = ("exit status: 0 no rule failed, 1 a rule failed, 2 interrupted (Ctr
 def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup("waraps-conformance",
                             f"WARA-PS conformance (certify one unit; {EXIT_HELP})")
+    _unit_options(group)
+    _safety_options(group)
+    _run_options(group)
+    _reference_unit_options(group)
+    _ini_options(parser)
+
+
+def _unit_options(group: pytest.OptionGroup) -> None:
+    """The unit, where it is, how it is reached (TLS: the same options as every subcommand
+    that connects, ``conformance.cli.options``), what it claims and how it is rebooted."""
     group.addoption("--unit", dest="waraps_unit", default=None, metavar="ADDRESS",
                     help="certify this unit, e.g. waraps/unit/air/simulation/dji0 (switches the "
                          "plugin on; without test paths, runs the packaged conformance suite)")
@@ -64,6 +74,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group.addoption("--reboot-cmd", dest="waraps_reboot_cmd", default=None, metavar="CMD",
                     help="shell command that reboots the unit (REBOOT-*; without it they are "
                          "could-not-test)")
+
+
+def _safety_options(group: pytest.OptionGroup) -> None:
+    """What the suite may send to a real unit (DESIGN 'Safety'), and how strict it judges."""
     group.addoption("--allow-motion", dest="waraps_allow_motion", action="store_true",
                     default=False, help="let the suite start the profile's motion-tasks on a "
                                         "real unit (every role but 'simulation' and the "
@@ -78,6 +92,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     default=False, help="adopt the suite's decisions as conventions: a rule "
                                         "whose basis is 'decided' (the spec is silent) fails "
                                         "instead of warning (as 'strict: true' in the profile)")
+
+
+def _run_options(group: pytest.OptionGroup) -> None:
+    """The run: its reports, seed, length, observation, exploration and rules selected."""
     group.addoption("--reports-dir", dest="waraps_reports_dir", default=None, metavar="DIR",
                     help="where the JSON and HTML certification reports go (default reports/)")
     group.addoption("--seed", dest="waraps_seed", default=None, metavar="N",
@@ -104,6 +122,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group.addoption("--rule", dest="waraps_rules", action="append", default=None,
                     metavar="ID", help="judge only this rule (repeatable), running the "
                     "scenarios that produce its evidence; like -k ID, but exact")
+
+
+def _reference_unit_options(group: pytest.OptionGroup) -> None:
+    """The bundled reference unit's switches (--broker embedded), and where TST commands go."""
     group.addoption("--sim-fault", dest="waraps_sim_faults", action="append", default=None,
                     metavar="FAULT", help="with --broker embedded: switch on a fault of the "
                                           "bundled reference unit (repeatable)")
@@ -121,6 +143,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     "unit's tst/command, the default) or an operator's address or tst/command "
                     "topic, e.g. waraps/unit/ground/real/op0; the suite publishes there and "
                     "to the unit's exec/command, nowhere else")
+
+
+def _ini_options(parser: pytest.Parser) -> None:
+    """The ini twin of every option a project would set once (DESIGN: every option has one)."""
     for name, help_ in (
             ("waraps_broker", "default for --broker"), ("waraps_profile", "default for --profile"),
             ("waraps_timing_scale", "default for --timing-scale"),

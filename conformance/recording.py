@@ -15,19 +15,9 @@ recording judged later knows what the recorder could not see::
     {"ts": ..., "event": "connected"}
     {"ts": ..., "event": "unexamined", "count": 120}   # dropped by a recorder that fell behind
 
-mosquitto_sub 2.0.11 (measured here, see ``tests/lint/test_recording.py``):
-
-- ``-F %j`` prints ``{"tst": "2026-11-21T07:26:55.807087Z+0100", "topic": ..., "qos": 0,
-  "retain": 0, "payloadlen": 7, "payload": "<text>"}``. ``tst`` is *local* time followed by a
-  stray ``Z`` and then the real UTC offset. The payload is copied into the JSON string byte for
-  byte (bytes that are not UTF-8 included, so the line itself is not UTF-8), and it is cut at
-  the first NUL byte; ``payload`` is null for an empty payload.
-- ``-F %J`` embeds the payload as a JSON value (re-serialised: whitespace is lost) and prints
-  an *empty line* (plus an error on stderr) for a payload that is not JSON: that message, and
-  its topic, are lost to the recording.
-- ``-v`` prints ``TOPIC PAYLOAD`` per message (``(null)`` for an empty payload): no time. Such a line is told from JSON by
-  its content (a topic with a '/', a space, the payload); its message gets the time the line
-  was read, and the rules that need arrival times are not judged (``UNTIMED_RULES``).
+The output of ``mosquitto_sub`` (``-F %j``, ``-F %J``, ``-v``) is undone in
+``conformance/mosquitto_sub.py``; a stream is cut into bounded lines by
+``conformance/recording_lines.py``.
 
 Every line is bounded (``conformance.bounds``): its length, the payload received and declared,
 its nesting, its time. A line past a bound is a problem of that line; reading goes on.
@@ -37,10 +27,7 @@ from __future__ import annotations
 
 import base64
 import binascii
-import json
-import re
 import sys
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -52,16 +39,25 @@ from conformance.bounds import (
     MAX_LINE_BYTES,
     MAX_LINE_VALUES,
     MAX_NESTING,
-    MAX_PAYLOAD_BYTES,
     MAX_TIME,
     MIN_TIME,
+    check_time,
 )
 from conformance.display import shorten
-from conformance.jsontext import dumps as json_text
 from conformance.message import Message
-from conformance.mosquitto_sub import cut_at_nul, parse_tst
+from conformance.mosquitto_sub import (
+    FORMAT_MOSQUITTO_J,
+    FORMAT_MOSQUITTO_JJ,
+    FORMAT_MOSQUITTO_V,
+    VERBOSE,
+    MosquittoLines,
+    loads_not_utf8,
+    parse_tst,
+    utf8,
+    verbose_message,
+)
+from conformance.recording_lines import Lines
 
-CHUNK_BYTES = 1 << 20
 BIG_LINE_BYTES = 1 << 20
 """A line longer than this has its JSON values counted before it is parsed (MAX_LINE_VALUES)."""
 PROBLEM_CHARS = 300
@@ -71,9 +67,6 @@ MAX_PROBLEMS_KEPT = 100
 """Malformed lines kept with their text; beyond this they are only counted (bounded memory)."""
 
 FORMAT_JSONL = "jsonl"
-FORMAT_MOSQUITTO_J = "mosquitto_sub -F %j"
-FORMAT_MOSQUITTO_JJ = "mosquitto_sub -F %J"
-FORMAT_MOSQUITTO_V = "mosquitto_sub -v"
 UNTIMED_RULES = ("HB-003", "SI-002", "DEI-002", "TEI-002", "HB-010", "HB-011", "HB-012",
                  "MSG-005", "MSG-007", "MSG-008", "SENS-005", "EXEC-010", "EXEC-PING-001",
                  "EXEC-ROBUST-001")
@@ -120,16 +113,6 @@ class RecordingError(ValueError):
     """A recording that cannot be opened at all."""
 
 
-def check_time(ts: float, what: str = "ts") -> float:
-    """``ts`` if it is a time within the bounds (1970..2100), else ValueError naming them."""
-    if not MIN_TIME <= ts <= MAX_TIME:  # NaN fails too
-        raise ValueError(f"'{what}' {ts!r} is outside the times a recording may hold "
-                         f"({MIN_TIME:.0f}..{MAX_TIME:.0f} Unix seconds, 1970 to 2100)")
-    return ts
-
-
-# mosquitto_sub -v: TOPIC, one space, PAYLOAD (a topic holds no space and no wildcard).
-_VERBOSE = re.compile(rb"^([^\x00-\x20\x7f{}\[\]\"#+]*/[^\x00-\x20\x7f#+]*) (.*)$", re.DOTALL)
 _BOM = b"\xef\xbb\xbf"
 _UTF16_BOMS = (b"\xff\xfe", b"\xfe\xff")
 
@@ -157,7 +140,7 @@ class RecordingReader:
         self.blank_lines = 0
         self.formats: set[str] = set()
         self.notes: list[str] = []
-        self._truncated = 0
+        self._mosquitto = MosquittoLines(self.formats)
 
     @property
     def unprintable(self) -> int:
@@ -170,68 +153,6 @@ class RecordingReader:
             self.problems.append(LineProblem(line, shorten(problem, PROBLEM_CHARS),
                                              _excerpt(raw) if raw else ""))
 
-    def _batches(self) -> Iterator[tuple[int, list[bytes]]]:
-        """(number of the first line, lines without their newlines), a chunk's worth at a
-        time, read in chunks. ``read1`` returns what is there, so a live pipe from
-        mosquitto_sub is not held back until a chunk fills. A line over ``MAX_LINE_BYTES`` is
-        skipped (a problem) without ever being held whole."""
-        read = getattr(self.stream, "read1", None) or self.stream.read
-        limit = MAX_LINE_BYTES
-        number = 0  # lines numbered so far
-        parts: list[bytes] = []  # the start of a line that has not ended yet
-        size = 0
-        skipping = False
-        while chunk := read(CHUNK_BYTES):
-            start = 0
-            if parts or skipping:
-                end = chunk.find(b"\n")
-                if end < 0:
-                    size += len(chunk)
-                    if not skipping:
-                        parts.append(chunk)
-                        if size > limit:
-                            skipping, parts = True, []
-                    continue
-                number += 1
-                size += end + 1
-                if skipping or size > limit:
-                    self._overlong(number, size)
-                else:
-                    parts.append(chunk[:end])
-                    yield number, [b"".join(parts)]
-                parts, size, skipping = [], 0, False
-                start = end + 1
-            lines = (chunk[start:] if start else chunk).split(b"\n")
-            tail = lines.pop()
-            if len(chunk) > limit:  # only a chunk this long can hold an overlong line
-                done = 0
-                for i, line in enumerate(lines):
-                    if len(line) > limit:
-                        if i > done:
-                            yield number + done + 1, lines[done:i]
-                        self._overlong(number + i + 1, len(line) + 1)
-                        done = i + 1
-                if done < len(lines):
-                    yield number + done + 1, lines[done:]
-            elif lines:
-                yield number + 1, lines
-            number += len(lines)
-            if tail:
-                parts, size = [tail], len(tail)
-                if size > limit:
-                    skipping, parts = True, []
-        if parts or skipping:
-            number += 1
-            if skipping:
-                self._overlong(number, size)
-            else:
-                yield number, [b"".join(parts)]
-        self.lines = number
-
-    def _overlong(self, number: int, size: int) -> None:
-        self.problem(number, f"line of {size} bytes is longer than the {MAX_LINE_BYTES >> 20} "
-                     f"MiB a recorded message may take; skipped")
-
     def __iter__(self) -> Iterator[Message | Event]:
         loads = orjson.loads
         decode_error = orjson.JSONDecodeError
@@ -240,12 +161,10 @@ class RecordingReader:
         count = 0
         timed = False  # a line of our own JSON Lines was read (the fast path)
         try:
-            for first, lines in self._batches():
+            batches = Lines(self.stream, self._overlong, MAX_LINE_BYTES)
+            for first, lines in batches:
                 for number, line in enumerate(lines, first):
-                    if len(line) > BIG_LINE_BYTES and _values(line) > MAX_LINE_VALUES:
-                        self.problem(number, f"line of {len(line)} bytes holds more than the "
-                                     f"{MAX_LINE_VALUES} JSON values a line over 1 MiB may "
-                                     f"take; skipped", line)
+                    if len(line) > BIG_LINE_BYTES and self._too_many_values(number, line):
                         continue
                     try:
                         obj = loads(line)  # JSON whitespace (a trailing CR) is fine
@@ -254,22 +173,13 @@ class RecordingReader:
                             self.blank_lines += 1
                             continue
                         line = line.rstrip(b"\r")
-                        obj = self._loads_not_utf8(line)
+                        obj = loads_not_utf8(line)
                         if obj is None and number == 1 and line.startswith(_BOM):
-                            obj = self._loads_not_utf8(line[3:], strict=False)
+                            obj = loads_not_utf8(line[3:], strict=False)
                         if obj is None:
-                            # mosquitto_sub -v, told from content: only in a capture that has
-                            # shown no line with times (one odd line must not untime it)
-                            verbose = (None if timed or self.formats - {FORMAT_MOSQUITTO_V}
-                                       else self._verbose(line))
-                            if verbose is not None:
-                                if FORMAT_MOSQUITTO_V not in self.formats:
-                                    self.formats.add(FORMAT_MOSQUITTO_V)
-                                    yield Event(verbose.time, UNTIMED)
-                                count += 1
-                                yield verbose
-                                continue
-                            self.problem(number, _not_json(e, line, number), line)
+                            for item in self._verbose_or_problem(number, line, e, timed):
+                                count += isinstance(item, Message)
+                                yield item
                             continue
                     # The common case first: one of our own lines with a text payload.
                     if type(obj) is dict:
@@ -297,14 +207,46 @@ class RecordingReader:
                     yield item
                 self.messages += count  # counted per chunk (a shared counter costs per line)
                 count = 0
+            self.lines = batches.count
         finally:
             self.messages += count
             if timed:
                 self.formats.add(FORMAT_JSONL)
-        if self._truncated:
+        self._add_notes()
+
+    def _too_many_values(self, number: int, line: bytes) -> bool:
+        """Whether a line over 1 MiB holds more JSON values than it may (a problem, skipped)."""
+        if _values(line) <= MAX_LINE_VALUES:
+            return False
+        self.problem(number, f"line of {len(line)} bytes holds more than the {MAX_LINE_VALUES} "
+                     f"JSON values a line over 1 MiB may take; skipped", line)
+        return True
+
+    def _overlong(self, number: int, size: int) -> None:
+        self.problem(number, f"line of {size} bytes is longer than the {MAX_LINE_BYTES >> 20} "
+                     f"MiB a recorded message may take; skipped")
+
+    def _verbose_or_problem(self, number: int, line: bytes, error: Exception,
+                            timed: bool) -> Iterator[Message | Event]:
+        """A line that is not JSON: a ``mosquitto_sub -v`` message, told from its content only
+        in a capture that has shown no line with times (one odd line must not untime it),
+        after an ``UNTIMED`` event the first time; else a problem of the line."""
+        verbose = (None if timed or self.formats - {FORMAT_MOSQUITTO_V}
+                   else verbose_message(line))
+        if verbose is None:
+            self.problem(number, _not_json(error, line, number), line)
+            return
+        if FORMAT_MOSQUITTO_V not in self.formats:
+            self.formats.add(FORMAT_MOSQUITTO_V)
+            yield Event(verbose.time, UNTIMED)
+        yield verbose
+
+    def _add_notes(self) -> None:
+        """What a person must know of the recording as a whole (after the last line)."""
+        if self._mosquitto.truncated:
             self.notes.append(
-                f"{self._truncated} payload(s) were cut at a NUL byte by mosquitto_sub -F %j "
-                f"(payloadlen is longer than the payload); the cut is marked by a NUL byte (a "
+                f"{self._mosquitto.truncated} payload(s) were cut at a NUL byte by mosquitto_sub "
+                f"-F %j (payloadlen is longer than the payload); the cut is marked by a NUL byte (a "
                 f"payload declared over 1 MiB: NUL bytes to that bound). Record with 'waraps-conformance record' for byte-exact payloads.")
         if FORMAT_MOSQUITTO_V in self.formats:
             self.notes.append(
@@ -318,45 +260,6 @@ class RecordingReader:
                 f"not JSON, so their topics are unknown. Record with -F %j or "
                 f"'waraps-conformance record' to have them judged.")
 
-    @staticmethod
-    def _verbose(line: bytes) -> Message | None:
-        """A ``mosquitto_sub -v`` line (``TOPIC PAYLOAD``) as a message read now, else None."""
-        m = _VERBOSE.match(line)
-        if m is None:
-            return None
-        try:
-            topic = m[1].decode("utf-8")  # a topic is UTF-8 text (MQTT 3.1.1, 1.5.3)
-        except UnicodeDecodeError:
-            return None
-        # mosquitto_sub 2.0 prints an empty payload (a retained message cleared) as "(null)"
-        return Message(time.time(), topic, b"" if m[2] == b"(null)" else m[2])
-
-    @staticmethod
-    def _loads_not_utf8(line: bytes, strict: bool = True) -> Any:
-        """mosquitto_sub -F %j copies non-UTF-8 payload bytes into the line as they are; read
-        them back as surrogate escapes, so the payload's bytes are recovered exactly.
-        ``strict`` False: valid UTF-8 too (a first line after its byte order mark)."""
-        try:
-            line.decode("utf-8")
-            if strict:
-                return None  # valid UTF-8: the line is simply not JSON
-        except UnicodeDecodeError:
-            pass
-        try:
-            obj = json.loads(line.decode("utf-8", "surrogateescape"))
-        except (ValueError, RecursionError):
-            return None
-        if type(obj) is dict:
-            if type(obj.get("topic")) is str:
-                obj["topic"] = _utf8(obj["topic"])
-            payload = obj.get("payload")
-            if type(payload) is str:  # the bytes of the line, or a lone surrogate: not a payload
-                try:
-                    payload.encode("utf-8", "surrogateescape")
-                except UnicodeEncodeError:
-                    return None
-        return obj
-
     def _item(self, obj: Any) -> Message | Event:
         """One line's object as a message or event; ValueError says what is wrong."""
         if not isinstance(obj, dict):
@@ -364,7 +267,7 @@ class RecordingReader:
         if "ts" in obj:
             return self._jsonl(obj)
         if "tst" in obj:
-            return self._mosquitto(obj)
+            return self._mosquitto.message(obj)
         raise ValueError("neither 'ts' (JSON Lines, as 'waraps-conformance record' writes) nor "
                          "'tst' (mosquitto_sub -F %j or -F %J)")
 
@@ -381,11 +284,11 @@ class RecordingReader:
             count = obj.get("count", 0)
             if isinstance(count, bool) or not isinstance(count, int) or count < 0:
                 raise ValueError(f"event count {count!r} is not a non-negative whole number")
-            return Event(float(ts), kind, _utf8(str(obj.get("detail", ""))), count)
+            return Event(float(ts), kind, utf8(str(obj.get("detail", ""))), count)
         topic = obj.get("topic")
         if not isinstance(topic, str):
             raise ValueError("'topic' is missing or not a string")
-        topic = _utf8(topic)
+        topic = utf8(topic)
         if isinstance(obj.get("payload"), str):
             payload = obj["payload"].encode("utf-8", "surrogateescape")
         elif isinstance(obj.get("payload_b64"), str):
@@ -402,81 +305,16 @@ class RecordingReader:
             raise ValueError(f"'retain' is {retain!r}, not true or false")
         return Message(float(ts), topic, payload, int(qos), bool(retain))
 
-    def _mosquitto(self, obj: dict[str, Any]) -> Message:
-        tst = obj["tst"]
-        if not isinstance(tst, str):
-            raise ValueError(f"'tst' is {tst!r}, not an ISO 8601 time")
-        ts = check_time(parse_tst(tst), "tst")
-        topic = obj.get("topic")
-        if not isinstance(topic, str):
-            raise ValueError("'topic' is missing or not a string")
-        topic = _utf8(topic)
-        length = obj.get("payloadlen")
-        if isinstance(length, bool) or not isinstance(length, int) or length < 0:
-            raise ValueError(f"'payloadlen' is {length!r}, not a byte count")
-        if length > MAX_PAYLOAD_BYTES:  # declared: nothing of that size is allocated
-            raise ValueError(f"'payloadlen' {length} is over the {MAX_PAYLOAD_BYTES >> 20} MiB "
-                             f"a recorded payload may take; skipped")
-        if "payload" not in obj:
-            raise ValueError("'payload' is missing")
-        value = obj["payload"]
-        if value is None:
-            payload = b"" if length == 0 else b"null"
-            if length:
-                self.formats.add(FORMAT_MOSQUITTO_JJ)
-        elif isinstance(value, str):
-            raw = value.encode("utf-8", "surrogateescape")
-            try:
-                as_json = orjson.dumps(value)
-            except orjson.JSONEncodeError:  # surrogate escapes: raw bytes, so -F %j
-                as_json = b""
-            # Told per line (issue 26 §4: a -F %J line among -F %j lines must not turn them
-            # all into JSON strings): the lengths decide; only a line they leave open follows
-            # the format seen before it.
-            if len(raw) == length:
-                payload = raw  # -F %j: the payload as it was
-                self.formats.add(FORMAT_MOSQUITTO_J)
-            elif len(as_json) == length or (FORMAT_MOSQUITTO_JJ in self.formats
-                                            and FORMAT_MOSQUITTO_J not in self.formats):
-                payload = as_json  # -F %J: the payload was a JSON string
-                self.formats.add(FORMAT_MOSQUITTO_JJ)
-            elif len(raw) < length:
-                payload = cut_at_nul(raw, length)
-                self._truncated += 1
-                self.formats.add(FORMAT_MOSQUITTO_J)
-            else:
-                payload = raw
-                self.formats.add(FORMAT_MOSQUITTO_J)
-        else:
-            payload = json_text(value)  # any depth a line may take, without recursion
-            self.formats.add(FORMAT_MOSQUITTO_JJ)
-        qos, retain = obj.get("qos", 0), obj.get("retain", 0)
-        if qos not in (0, 1, 2) or isinstance(qos, bool):
-            raise ValueError(f"'qos' is {qos!r}, not 0, 1 or 2")
-        return Message(ts, topic, payload, int(qos), bool(retain))
-
-
 def _values(line: bytes) -> int:
     """At least the JSON values a line holds beyond its first (a bound counted without parsing:
     ',' '[' '{' inside strings count too, which only errs towards reading less)."""
     return line.count(b",") + line.count(b"[") + line.count(b"{")
 
 
-def _utf8(text: str) -> str:
-    """``text`` as UTF-8 can carry it: bytes that were not UTF-8 in the line (surrogate escapes)
-    or lone surrogates shown as backslash escapes, which the topic rules then judge (TOPIC-008)
-    and every report can write."""
-    try:
-        text.encode("utf-8")
-        return text
-    except UnicodeEncodeError:
-        return text.encode("utf-8", "backslashreplace").decode("utf-8")
-
-
 def _not_json(e: Exception, line: bytes, number: int) -> str:
     if "recursion" in str(e).lower() or "depth" in str(e).lower():
         return f"not JSON: nested deeper than the {MAX_NESTING} levels a line may take"
-    if _VERBOSE.match(line):
+    if VERBOSE.match(line):
         return ("a mosquitto_sub -v line (TOPIC PAYLOAD) among lines with times: not read "
                 "(a capture is one format)")
     if number == 1 and line.startswith(_UTF16_BOMS):
@@ -542,3 +380,9 @@ class RecordingWriter:
 
     def flush(self) -> None:
         self.stream.flush()
+
+
+__all__ = ["FORMAT_JSONL", "FORMAT_MOSQUITTO_J", "FORMAT_MOSQUITTO_JJ", "FORMAT_MOSQUITTO_V",
+           "UNTIMED", "UNTIMED_NOTE", "UNTIMED_REASON", "UNTIMED_RULES", "Event", "LineProblem",
+           "RecordingError", "RecordingReader", "RecordingWriter", "check_time", "encode_event",
+           "encode_message", "open_recording", "parse_tst"]

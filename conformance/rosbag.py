@@ -21,17 +21,16 @@ spec; a topic whose type is still unknown is skipped and said so in ``notes``.
 
 from __future__ import annotations
 
-import dataclasses
 import re
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import orjson
-
-from conformance.bagmeta import check_metadata, odd_count
+from conformance.bagfile import BagError, bag_format, is_bag, is_ros2, open_bag, reason
+from conformance.bagmeta import odd_count
 from conformance.client import Message
+from conformance.rosvalues import converter, dumps
 from conformance.topics import MANDATORY_SENSORS, TopicKind, UnitAddress, parse_topic
 from conformance.violation import Violation
 
@@ -56,18 +55,11 @@ SENSOR_TYPES = {  # 7.1 mandatory, 7.2 optional
     "camera_url": STRING, "videoserver_url": STRING, "battery_state": BATTERY_STATE,
 }
 
-ROS1_MAGIC = b"#ROSBAG V2.0\n"
-MAX_DIR_ENTRIES = 1000
-"""Entries of a ROS 2 bag directory looked at before opening it."""
 MAX_LISTED = 8
 """Topics named in a note or an error before '... and N more'."""
 
 _SENSOR = re.compile(r"^/?(?:(?P<ns>.*)/)?sensor/(?P<sensor>[^/]+)$")
 _EXEC_COMMAND = re.compile(r"^/?(?:(?P<ns>.*)/)?exec_command$")
-
-
-class BagError(ValueError):
-    """A bag that cannot be linted: the message says what, where and how to fix it."""
 
 
 @dataclass(frozen=True)
@@ -83,23 +75,6 @@ class Finding:
 def ros_type(msgtype: str) -> str:
     """A type as the spec writes it: ``std_msgs/Float32`` (rosbags says std_msgs/msg/Float32)."""
     return msgtype.replace("/msg/", "/")
-
-
-def is_bag(source: str) -> bool:
-    """Whether ``--from SOURCE`` names a ROS bag (or a directory, which only a ROS 2 bag can
-    be) rather than a JSON Lines recording."""
-    if source == "-":
-        return False
-    path = Path(source)
-    if path.is_dir() or path.suffix in (".bag", ".db3", ".mcap"):
-        return True  # BagReader refuses what is not a regular file (a FIFO would block)
-    if path.is_file():  # not a FIFO: reading its head must not block
-        try:
-            with path.open("rb") as f:
-                return f.read(len(ROS1_MAGIC)) == ROS1_MAGIC
-        except OSError:
-            return False
-    return False
 
 
 @dataclass
@@ -134,76 +109,16 @@ class BagReader:
         self.undecodable = 0
         self.not_topic_msg = 0
         self.notes: list[str] = []
-        self.ros2 = not self._is_ros1()
-        self.format = "rosbag1" if not self.ros2 else f"rosbag2 ({self._storage()})"
+        self.ros2 = is_ros2(self.path)
+        self.format = bag_format(self.path)
         self._units: dict[str, UnitAddress] = {}
         self._sensor_units: set[UnitAddress] = set()
         self._topic_msg_topics: set[str] = set()
 
     # --- opening ----------------------------------------------------------------------------
-    def _is_ros1(self) -> bool:
-        return self.path.is_file() and self.path.suffix not in (".db3", ".mcap")
-
-    def _storage(self) -> str:
-        """The ROS 2 storage plugin: sqlite3 (the default before Iron) or mcap."""
-        if self.path.is_dir():
-            files = list(self.path.iterdir())
-        else:
-            files = [self.path]
-        return "mcap" if any(p.suffix == ".mcap" for p in files) else "sqlite3"
-
-    def _open(self) -> Any:
-        """The opened rosbags reader; BagError says how to fix what is wrong."""
-        path = self.path
-        if not path.exists():
-            raise BagError(f"{path}: no such file or directory (pass a ROS 1 .bag file, a ROS 2 "
-                           f"bag directory holding metadata.yaml, or a JSON Lines recording)")
-        for part in ([path] if not path.is_dir() else sorted(path.iterdir())[:MAX_DIR_ENTRIES]):
-            if not part.is_dir() and not part.is_file():  # rosbags seeks: a FIFO would block
-                raise BagError(f"{part} is not a regular file (a FIFO, a socket or a device), "
-                               f"and a bag is read by seeking in it. Fix: copy it to a file "
-                               f"first; a recording can be piped into '--from -'")
-        if self.ros2 and path.is_dir() and not (path / "metadata.yaml").is_file():
-            stores = sorted(p.name for p in path.iterdir() if p.suffix in (".db3", ".mcap"))
-            if stores:
-                raise BagError(
-                    f"{path}: a ROS 2 bag directory without metadata.yaml (a recording that was "
-                    f"cut off?). Fix: 'ros2 bag reindex {path}', or pass its storage file "
-                    f"({path / stores[0]})")
-            raise BagError(
-                f"{path} is a directory but not a ROS 2 bag (no metadata.yaml, no .db3 or .mcap "
-                f"file). Pass the directory 'ros2 bag record -o NAME' made, a ROS 1 .bag file, "
-                f"or a JSON Lines recording")
-        if self.ros2 and path.is_dir() and (why := check_metadata(path / "metadata.yaml")):
-            raise BagError(why)
-        if not self.ros2:
-            with path.open("rb") as f:
-                head = f.read(len(ROS1_MAGIC))
-            if head != ROS1_MAGIC:
-                raise BagError(
-                    f"{path} is not a ROS 1 bag (it does not start with '#ROSBAG V2.0'). Pass a "
-                    f"bag written by 'rosbag record' (format 2.0), or a JSON Lines recording "
-                    f"(name it .jsonl)")
-        try:
-            if self.ros2:
-                from rosbags.rosbag2 import Reader as Reader2
-
-                reader: Any = Reader2(path)
-            else:
-                from rosbags.rosbag1 import Reader as Reader1
-
-                reader = Reader1(path)
-            reader.open()
-        except Exception as e:  # rosbags raises many kinds on damaged input: say which bag
-            hint = (f"'ros2 bag reindex {path.parent if path.is_file() else path}'" if self.ros2
-                    else f"'rosbag reindex {path}' (a recording that was cut off has no index)")
-            raise BagError(f"{path}: cannot read this {self.format} bag: {_reason(e)}. "
-                           f"Fix: {hint}, or record it again") from None
-        return reader
-
     # --- reading ----------------------------------------------------------------------------
     def __iter__(self) -> Iterator[Message | Finding]:
-        reader = self._open()
+        reader = open_bag(self.path)
         try:
             yield from self._items(reader)
         finally:
@@ -263,7 +178,7 @@ class BagReader:
 
     def _damaged(self, e: Exception) -> BagError:
         return BagError(f"{self.path}: the bag is damaged after {self.read} messages "
-                        f"({_reason(e)}), so nothing was judged. Fix: reindex it ('rosbag "
+                        f"({reason(e)}), so nothing was judged. Fix: reindex it ('rosbag "
                         f"reindex' / 'ros2 bag reindex') or record it again")
 
     def _routes(self, connections: list[Connection]) -> dict[int, _Route]:
@@ -445,7 +360,7 @@ class BagReader:
             msg = route.deserialize(raw, conn.msgtype)  # type: ignore[misc]
             convert = route.convert
             if convert is None:  # worked out once per connection, from its first message
-                convert = route.convert = _converter(route.kind, type(msg))
+                convert = route.convert = converter(route.kind, type(msg))
             value = convert(msg)
             assert route.unit is not None
         except Exception:  # a message its connection's type cannot read: skip it
@@ -455,7 +370,7 @@ class BagReader:
             if not isinstance(value, str):
                 return None
             return (Message(t, route.unit.topic("exec/command"), value.encode()),)
-        return (Message(t, route.unit.topic(f"sensor/{route.sensor}"), _dumps(value)),)
+        return (Message(t, route.unit.topic(f"sensor/{route.sensor}"), dumps(value)),)
 
     def _topic_msg(self, route: _Route, raw: bytes, msgtype: str) -> tuple[str, str] | None:
         """(topic, msg) of a TopicMsg, or of any type with those two string fields."""
@@ -501,48 +416,9 @@ class BagReader:
         return tuple(out)
 
 
-def _converter(kind: str, cls: type) -> Callable[[Any], Any]:
-    """The JSON value of a deserialized message of class ``cls``: 7 -> 6, a GeoPoint -> a
-    GeoPoint tagged rostype (ERR-010), a one-field ``data`` wrapper (std_msgs) -> its value,
-    any other message -> an object of its fields without header. exec_command: its ``data``."""
-    if kind == "exec_command":
-        return lambda m: getattr(m, "data", None)
-    names = _field_names(cls)
-    if {"latitude", "longitude", "altitude"} <= set(names):
-        return lambda m: {"latitude": m.latitude, "longitude": m.longitude,
-                          "altitude": m.altitude, "rostype": "GeoPoint"}
-    if names == ["data"]:
-        return lambda m: _json_value(m.data)
-    return _json_value
-
-
-_PLAIN = (float, int, str, bool)
-
-
-def _json_value(m: Any) -> Any:
-    """A deserialized value as JSON: messages as objects of their fields without header,
-    arrays as lists."""
-    if type(m) in _PLAIN:
-        return m
-    if not dataclasses.is_dataclass(m):
-        return m.tolist() if hasattr(m, "tolist") else m
-    return {n: _json_value(getattr(m, n)) for n in _field_names(type(m)) if n != "header"}
-
-
-def _field_names(cls: type) -> list[str]:
-    return [f.name for f in dataclasses.fields(cls) if not f.name.startswith("__")]
-
-
-def _dumps(value: Any) -> bytes:
-    # orjson writes NaN as null: ROS's "not measured" (BatteryState) is not invalid JSON.
-    return orjson.dumps(value, option=orjson.OPT_SERIALIZE_NUMPY)
-
-
 def _listed(items: list[str]) -> str:
     shown = ", ".join(items[:MAX_LISTED])
     return shown + (f" and {len(items) - MAX_LISTED} more" if len(items) > MAX_LISTED else "")
 
 
-def _reason(e: BaseException) -> str:
-    text = " ".join(str(e).split()).rstrip(".") or type(e).__name__
-    return text if len(text) <= 200 else text[:199] + "…"
+__all__ = ["BagError", "BagReader", "Finding", "is_bag", "ros_type"]

@@ -92,15 +92,25 @@ def read_tree(tst: Any, path: str = "$.tst") -> tuple[Node | None, list[Problem]
     (None when the root is not an object). Parameters are not judged here: that is the task
     schemas' (TASK-001) and, for a unit, its own task specifications'.
     """
-    problems: list[Problem] = []
-    seen: dict[str, str] = {}
-    count = 0
+    reader = _TreeReader()
+    return reader.read(tst, path, 0), reader.problems
 
-    def read(value: Any, where: str, depth: int) -> Node | None:
-        nonlocal count
-        count += 1
-        if count > MAX_NODES or depth > MAX_DEPTH:
-            if count == MAX_NODES + 1 or depth == MAX_DEPTH + 1:
+
+class _TreeReader:
+    """The reading of one tree: its problems, where each node-uuid was first seen, the nodes
+    counted (bounded: ``MAX_NODES``, ``MAX_DEPTH``)."""
+
+    def __init__(self) -> None:
+        self.problems: list[Problem] = []
+        self.seen: dict[str, str] = {}
+        self.count = 0
+
+    def read(self, value: Any, where: str, depth: int) -> Node | None:
+        """The node at ``where`` and the nodes below it, as far as they could be read."""
+        problems = self.problems
+        self.count += 1
+        if self.count > MAX_NODES or depth > MAX_DEPTH:
+            if self.count == MAX_NODES + 1 or depth == MAX_DEPTH + 1:
                 problems.append(Problem(where, f"at most {MAX_NODES} nodes, {MAX_DEPTH} deep",
                                         "more"))
             return None
@@ -114,35 +124,44 @@ def read_tree(tst: Any, path: str = "$.tst") -> tuple[Node | None, list[Problem]
                                     "seq or conc)", "missing" if name is None else repr(name),
                                     in_schema=not isinstance(name, str)))
             name = ""
-        common, wrong = common_params(value)
-        key = next((k for k in COMMON_KEYS if k in value), COMMON_KEYS[0])
-        if wrong:
-            problems.append(Problem(f"{where}.{key}", "one set of common parameters", wrong))
-        node_uuid = _str(common.get("node-uuid"))
-        if node_uuid is not None:
-            if node_uuid in seen:
-                problems.append(Problem(f"{where}.{key}.node-uuid",
-                                        f"a node-uuid of its own (also the node-uuid at "
-                                        f"{seen[node_uuid]})", node_uuid))
-            else:
-                seen[node_uuid] = where
-        node = Node(where, name, value.get("params", {}), node_uuid,
-                    _str(common.get("execunit")))
-        children = value.get("children", [])
-        if not isinstance(children, list):
-            problems.append(Problem(f"{where}.children", "a list of nodes",
-                                    type(children).__name__, in_schema=True))
-            children = []
-        if node.composite and not children:
-            problems.append(Problem(f"{where}.children", f"{name} runs its children: at least "
-                                    "one", "none"))
-        elif name and not node.composite and children:
-            problems.append(Problem(f"{where}.children", f"none: {name} is a task, only seq "
-                                    "and conc have children", f"{len(children)} children"))
-        for i, child in enumerate(children):
-            got = read(child, f"{where}.children[{i}]", depth + 1)
+        node_uuid, execunit = self._common(value, where)
+        node = Node(where, name, value.get("params", {}), node_uuid, execunit)
+        for i, child in enumerate(self._children(value, where, node)):
+            got = self.read(child, f"{where}.children[{i}]", depth + 1)
             if got is not None:
                 node.children.append(got)
         return node
 
-    return read(tst, path, 0), problems
+    def _common(self, value: dict[str, Any], where: str) -> tuple[str | None, str | None]:
+        """The node's node-uuid (one of its own in the tree) and execunit, from its one set of
+        common parameters (ERR-009: either spelling)."""
+        common, wrong = common_params(value)
+        key = next((k for k in COMMON_KEYS if k in value), COMMON_KEYS[0])
+        if wrong:
+            self.problems.append(Problem(f"{where}.{key}", "one set of common parameters",
+                                         wrong))
+        node_uuid = _str(common.get("node-uuid"))
+        if node_uuid is not None:
+            if node_uuid in self.seen:
+                self.problems.append(Problem(f"{where}.{key}.node-uuid",
+                                             f"a node-uuid of its own (also the node-uuid at "
+                                             f"{self.seen[node_uuid]})", node_uuid))
+            else:
+                self.seen[node_uuid] = where
+        return node_uuid, _str(common.get("execunit"))
+
+    def _children(self, value: dict[str, Any], where: str, node: Node) -> list[Any]:
+        """The node's children as sent: a composite (seq, conc) has some, a task none (14)."""
+        children = value.get("children", [])
+        if not isinstance(children, list):
+            self.problems.append(Problem(f"{where}.children", "a list of nodes",
+                                         type(children).__name__, in_schema=True))
+            children = []
+        if node.composite and not children:
+            self.problems.append(Problem(f"{where}.children", f"{node.name} runs its "
+                                         "children: at least one", "none"))
+        elif node.name and not node.composite and children:
+            self.problems.append(Problem(f"{where}.children", f"none: {node.name} is a task, "
+                                         "only seq and conc have children",
+                                         f"{len(children)} children"))
+        return children

@@ -12,34 +12,32 @@ from __future__ import annotations
 import atexit
 import shutil
 import tempfile
+from dataclasses import fields
 from pathlib import Path
 
-from conformance.scenarios.story import FIELDS, StoryError, describe, load
+from conformance.scenarios.explore_action import Action
+from conformance.scenarios.story import StoryError, describe, load
 from fuzz.harness import Broken, one_line, within_time
 
 PATH = Path(tempfile.mkdtemp(prefix="fuzz-story-")) / "story.json"
 atexit.register(shutil.rmtree, PATH.parent, True)
-NEEDS = {"start": ("task",), "signal": ("signal",), "resend": ("step",)}
 
 
 def prepare() -> None:
     """Nothing to build."""
 
 
-def _runnable(action: dict) -> None:
-    for key in NEEDS.get(action["do"], ()):
-        if key not in action:
-            raise Broken(f"a {action['do']} step without {key!r} was accepted: {action}")
-    own = FIELDS[action["do"]]  # what the explorer reads of this kind of step; the rest it ignores
-    for key in ("slot", "step", "periods"):
-        if key not in own:
-            continue
-        value = action.get(key)
-        if value is not None and (type(value) is not int or value < 0):
-            raise Broken(f"a step with {key} {value!r} was accepted: {action}")
-    for key in ("task", "signal"):
-        if key in own and key in action and type(action[key]) is not str:
-            raise Broken(f"a step with {key} {action[key]!r} was accepted")
+def _runnable(action: Action) -> None:
+    # Every field of the typed step is what the explorer reads; the rest was ignored.
+    for f in fields(action):
+        value = getattr(action, f.name)
+        if f.name in ("slot", "step", "periods") and value is not None \
+                and (type(value) is not int or value < 0):
+            raise Broken(f"a step with {f.name} {value!r} was accepted: {action}")
+        if f.name in ("task", "signal") and type(value) is not str:
+            raise Broken(f"a step with {f.name} {value!r} was accepted: {action}")
+        if f.name in ("task_uuid", "teardown") and type(value) is not bool:
+            raise Broken(f"a step with {f.name} {value!r} was accepted: {action}")
     describe(action)
 
 

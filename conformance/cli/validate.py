@@ -16,6 +16,7 @@ past ``bounds.MAX_VALIDATE_BYTES``: an endless stream such as /dev/zero is not r
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import json
 import sys
@@ -37,26 +38,7 @@ or microseconds, or a clock that never synchronised, fails MSG-005."""
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = opts.parser("validate",
-                         "Validate one WARA-PS message: print its kind and every violation.",
-                         bounds_help(validate=True))
-    parser.add_argument("topic", nargs="?", default=None,
-                        help="the MQTT topic, e.g. waraps/unit/air/simulation/dji0/heartbeat "
-                             "(not with --tst)")
-    parser.add_argument("file", nargs="?", default="-",
-                        help="file with the raw payload, or - for standard input (default)")
-    parser.add_argument("--tst", action="store_true",
-                        help="the file is a TST plan: a start-tst command or its tree; list "
-                             "every problem of the tree with its JSON path")
-    opts.add_profile_option(parser)
-    when = parser.add_mutually_exclusive_group()
-    when.add_argument("--time", type=float, default=None,
-                      help="arrival time (Unix seconds) to judge the stamp against (MSG-005)")
-    when.add_argument("--now", action="store_true",
-                      help="judge the stamp against the current time (a message just captured); "
-                           "with neither, a stamp is judged for plausibility only (seconds, "
-                           "within a year of now), and the output says so")
-    parser.add_argument("--json", action="store_true", help="print JSON instead of text")
+    parser = _parser()
     args = parser.parse_args(argv)
     if args.tst:
         if args.topic is not None and args.file != "-":
@@ -103,6 +85,31 @@ def main(argv: list[str] | None = None) -> int:
         for note in notes:
             print(f"note      {note}")
     return 1 if overall_verdict(validation, profile) is Verdict.FAIL else 0
+
+
+def _parser() -> argparse.ArgumentParser:
+    """validate's options: a topic and a file, or --tst and a file; the arrival time."""
+    parser = opts.parser("validate",
+                         "Validate one WARA-PS message: print its kind and every violation.",
+                         bounds_help(validate=True))
+    parser.add_argument("topic", nargs="?", default=None,
+                        help="the MQTT topic, e.g. waraps/unit/air/simulation/dji0/heartbeat "
+                             "(not with --tst)")
+    parser.add_argument("file", nargs="?", default="-",
+                        help="file with the raw payload, or - for standard input (default)")
+    parser.add_argument("--tst", action="store_true",
+                        help="the file is a TST plan: a start-tst command or its tree; list "
+                             "every problem of the tree with its JSON path")
+    opts.add_profile_option(parser)
+    when = parser.add_mutually_exclusive_group()
+    when.add_argument("--time", type=float, default=None,
+                      help="arrival time (Unix seconds) to judge the stamp against (MSG-005)")
+    when.add_argument("--now", action="store_true",
+                      help="judge the stamp against the current time (a message just captured); "
+                           "with neither, a stamp is judged for plausibility only (seconds, "
+                           "within a year of now), and the output says so")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of text")
+    return parser
 
 
 def read_bounded(name: str, limit: int = MAX_VALIDATE_BYTES) -> bytes:

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
@@ -43,6 +45,21 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
                      serving=serving)
 
 
+@dataclass
+class _Read:
+    """What one lint read, for its report: the scorecard it drew, when it ended (Unix
+    seconds), the report's meta, notes, the broker (live), the malformed lines kept and
+    their count."""
+
+    scorecard: Any
+    end: float
+    meta: dict[str, str]
+    notes: list[str] = field(default_factory=list)
+    broker: str = ""
+    problems: list[Any] = field(default_factory=list)
+    problem_count: int = 0
+
+
 def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
           reports_dir: Path, formats: tuple[str, ...], gate: str, plain: bool,
           stdout: IO[str] | None, stdin: IO[bytes] | None, serving: Any = None) -> int:
@@ -51,8 +68,6 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
     from conformance.scorecard import Scorecard
 
     out = stdout or sys.stdout
-    err = sys.stderr
-    bag = bool(source) and is_bag(source)
     monitor = _monitor(profile, options.units)
     linter = Linter(monitor, profile)
     if serving:  # /report.json while lint runs: judged as the end will judge it
@@ -61,111 +76,143 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
         serving.view.report_meta(broker=str(options.broker or ""),
                                  facts=RunFacts(kind="lint", gate=gate, strict=profile.is_strict))
     started = time.time()
-    if bag:
-        from conformance.rosbag import BagError, BagReader
 
-        reader_of_bag = BagReader(source, ros_unit)
-        scorecard = Scorecard(out, tty=False if plain else None, title=reader_of_bag.name,
-                              live=False)
-        scorecard = serving.watch(scorecard) if serving else scorecard
-        try:
-            end = run_bag(linter, scorecard, reader_of_bag, options)
-        except BagError as e:
-            print(shown(f"waraps-conformance lint: {e}"), file=err)
-            return EXIT_NOT_RUN
-        meta = {"source": reader_of_bag.name, "recording_formats": reader_of_bag.format,
-                "bag_messages_read": str(reader_of_bag.read)}
-        notes, broker, problems, problem_count = list(reader_of_bag.notes), "", [], 0
+    def scorecard(title: str, live: bool) -> Any:
+        card = Scorecard(out, tty=False if plain else None, title=title, live=live)
+        return serving.watch(card) if serving else card
+
+    if source and is_bag(source):
+        read = _read_bag(linter, scorecard, source, ros_unit, options)
     elif source:
-        from conformance.recording import RecordingError, open_recording
-
-        try:
-            stream, name = open_recording(source, stdin)
-        except RecordingError as e:
-            print(shown(f"waraps-conformance lint: {e}"), file=err)
-            return EXIT_NOT_RUN
-        scorecard = Scorecard(out, tty=False if plain else None, title=name, live=False)
-        scorecard = serving.watch(scorecard) if serving else scorecard
-        with stream if stream is not (stdin or sys.stdin.buffer) else _noop():
-            reader, end = run_recorded(linter, scorecard, stream, name, options)
-        meta = {"source": name, "recording_lines": str(reader.lines),
-                "recording_formats": ", ".join(sorted(reader.formats))}
-        print(shown(f"read {name} as {', '.join(sorted(reader.formats)) or 'no known format'}"
-                    f" ({reader.messages} messages)"), file=out)
-        if reader.problem_count:
-            meta["recording_problems"] = str(reader.problem_count)
-            meta["recording_problem_lines"] = "; ".join(str(p) for p in reader.problems[:20])
-        notes = [*reader.notes]
-        broker = ""
-        problems = reader.problems
-        problem_count = reader.problem_count
+        read = _read_recording(linter, scorecard, source, stdin, options, out)
     else:
-        from conformance.client import BrokerError
-        from conformance.lint.capture import LiveCapture
-
-        assert options.broker is not None
-        capture = LiveCapture(options.broker, options.topics)
-        try:
-            capture.start()
-        except BrokerError as e:
-            print(shown(f"waraps-conformance lint: {e}"), file=err)
-            return EXIT_NOT_RUN
-        scorecard = Scorecard(out, tty=False if plain else None,
-                              title=f"{options.broker} {' '.join(options.topics)}", live=True)
-        if serving:
-            scorecard = serving.watch(scorecard)
-        if not scorecard.tty:
-            print(shown(f"linting {', '.join(options.topics)} on {options.broker} (read-only)"
-                        + (f" for {options.duration:g} s" if options.duration
-                           else " until Ctrl-C")), file=out, flush=True)
-        end = run_live(linter, scorecard, capture, options)
-        meta = {"source": f"live {' '.join(options.topics)}"}
-        if options.broker.tls_arguments():  # the rerun line repeats them (reporting/text.py)
-            meta["tls_options"] = " ".join(options.broker.tls_arguments())
-        if capture.dropped:
-            meta["unexamined_reason"] = "the linter fell behind the broker; oldest dropped"
-        notes, broker, problems, problem_count = [], str(options.broker), [], 0
+        read = _read_live(linter, scorecard, options, out)
+    if read is None:
+        return EXIT_NOT_RUN
+    meta, end = read.meta, read.end
     meta["duration_s"] = f"{(linter.last_time or end) - (linter.first_time or end):.3f}"
     if options.units:
         meta["units"] = " ".join(u.base for u in options.units)
 
     if linter.messages == 0:
-        scorecard.update(linter, force=True)
-        for problem in problems:
-            print(printable(f"malformed {problem}"), file=out)
-        print("waraps-conformance lint: no messages were read, so nothing was judged"
-              + (f" ({problem_count} malformed lines; the formats read are JSON Lines as "
-                 f"'waraps-conformance record' writes, mosquitto_sub -F %j, -F %J and -v "
-                 f"output, and ROS bags)" if problem_count else ""), file=err)
-        return EXIT_NOT_RUN
+        return _nothing_read(out, linter, read)
 
     over, over_units = monitor.not_judged()
     if over:
         meta["not_judged"] = _not_judged(over, over_units)
     from conformance.facts import RunFacts
     from conformance.judge import judge
-    from conformance.recording import UNTIMED_NOTE
-    from conformance.reporting.text import render_verdicts
 
-    report = judge(_report(monitor, linter, kind_meta=meta, broker=broker,
+    report = judge(_report(monitor, linter, kind_meta=meta, broker=read.broker,
                            started=started if not source else (linter.first_time or started),
                            finished=end),
                    RunFacts(kind="lint", gate=gate, strict=profile.is_strict,
                             untimed=untimed(linter), not_judged=meta.get("not_judged", "")))
-    conclusion = report.conclusion
     if serving:  # the fleet page's last snapshot: every verdict final
-        serving.view.finish(linter, report, verdict=conclusion.verdict,
+        serving.view.finish(linter, report, verdict=report.conclusion.verdict,
                             not_judged=meta.get("not_judged", ""))
-    # Each unit's verdict and its most severe findings first (issue 18, 6), then the table;
-    # a capture without times says so before anything else (issue 27, 4).
+    _tell(out, linter, report, read)
+    if formats:
+        paths = write_reports(report, Path(reports_dir), formats, report_stem(source))
+        for path in paths:
+            print(shown(f"report: {path}"), file=out)
+    return _verdict(out, report, gate, meta.get("not_judged", "") if over else "")
+
+
+def _read_bag(linter: Any, scorecard: Callable[[str, bool], Any], source: str, ros_unit: Any,
+              options: Any) -> _Read | None:
+    """Lint a ROS bag (None when it cannot be: said on stderr)."""
+    from conformance.rosbag import BagError, BagReader
+
+    reader = BagReader(source, ros_unit)
+    card = scorecard(reader.name, False)
+    try:
+        end = run_bag(linter, card, reader, options)
+    except BagError as e:
+        print(shown(f"waraps-conformance lint: {e}"), file=sys.stderr)
+        return None
+    return _Read(card, end, {"source": reader.name, "recording_formats": reader.format,
+                             "bag_messages_read": str(reader.read)}, list(reader.notes))
+
+
+def _read_recording(linter: Any, scorecard: Callable[[str, bool], Any], source: str,
+                    stdin: IO[bytes] | None, options: Any, out: IO[str]) -> _Read | None:
+    """Lint a recording, ``-`` for standard input (None when it cannot be opened)."""
+    from conformance.recording import RecordingError, open_recording
+
+    try:
+        stream, name = open_recording(source, stdin)
+    except RecordingError as e:
+        print(shown(f"waraps-conformance lint: {e}"), file=sys.stderr)
+        return None
+    card = scorecard(name, False)
+    with stream if stream is not (stdin or sys.stdin.buffer) else _noop():
+        reader, end = run_recorded(linter, card, stream, name, options)
+    meta = {"source": name, "recording_lines": str(reader.lines),
+            "recording_formats": ", ".join(sorted(reader.formats))}
+    print(shown(f"read {name} as {', '.join(sorted(reader.formats)) or 'no known format'}"
+                f" ({reader.messages} messages)"), file=out)
+    if reader.problem_count:
+        meta["recording_problems"] = str(reader.problem_count)
+        meta["recording_problem_lines"] = "; ".join(str(p) for p in reader.problems[:20])
+    return _Read(card, end, meta, [*reader.notes], "", reader.problems, reader.problem_count)
+
+
+def _read_live(linter: Any, scorecard: Callable[[str, bool], Any], options: Any,
+               out: IO[str]) -> _Read | None:
+    """Lint live traffic, read-only (None when the broker cannot be reached)."""
+    from conformance.client import BrokerError
+    from conformance.lint.capture import LiveCapture
+
+    assert options.broker is not None
+    capture = LiveCapture(options.broker, options.topics)
+    try:
+        capture.start()
+    except BrokerError as e:
+        print(shown(f"waraps-conformance lint: {e}"), file=sys.stderr)
+        return None
+    card = scorecard(f"{options.broker} {' '.join(options.topics)}", True)
+    if not card.tty:
+        print(shown(f"linting {', '.join(options.topics)} on {options.broker} (read-only)"
+                    + (f" for {options.duration:g} s" if options.duration
+                       else " until Ctrl-C")), file=out, flush=True)
+    end = run_live(linter, card, capture, options)
+    meta = {"source": f"live {' '.join(options.topics)}"}
+    if options.broker.tls_arguments():  # the rerun line repeats them (reporting/text.py)
+        meta["tls_options"] = " ".join(options.broker.tls_arguments())
+    if capture.dropped:
+        meta["unexamined_reason"] = "the linter fell behind the broker; oldest dropped"
+    return _Read(card, end, meta, [], str(options.broker))
+
+
+def _nothing_read(out: IO[str], linter: Any, read: _Read) -> int:
+    """No message was read: nothing is judged, and the malformed lines say why."""
+    read.scorecard.update(linter, force=True)
+    for problem in read.problems:
+        print(printable(f"malformed {problem}"), file=out)
+    print("waraps-conformance lint: no messages were read, so nothing was judged"
+          + (f" ({read.problem_count} malformed lines; the formats read are JSON Lines as "
+             f"'waraps-conformance record' writes, mosquitto_sub -F %j, -F %J and -v "
+             f"output, and ROS bags)" if read.problem_count else ""), file=sys.stderr)
+    return EXIT_NOT_RUN
+
+
+def _tell(out: IO[str], linter: Any, report: Any, read: _Read) -> None:
+    """The end of a lint on the terminal: each unit's verdict and its most severe findings
+    first (issue 18, 6), then the table; a capture without times says so before anything
+    else (issue 27, 4); then the malformed lines, notes, gaps and stalls."""
+    from conformance.recording import UNTIMED_NOTE
+    from conformance.reporting.text import render_verdicts
+
+    notes = read.notes
     first = [n for n in notes if n.startswith(UNTIMED_NOTE)] if report.facts.untimed else []
     notes = [n for n in notes if n not in first]
-    scorecard.final(linter, report, opening="\n".join(
+    read.scorecard.final(linter, report, opening="\n".join(
         [*(f"note: {n}" for n in first), render_verdicts(report)]))
-    for problem in problems:
+    for problem in read.problems:
         print(printable(f"malformed {problem}"), file=out)
-    if problem_count > len(problems):
-        print(f"... {problem_count - len(problems)} more malformed lines", file=out)
+    if read.problem_count > len(read.problems):
+        print(f"... {read.problem_count - len(read.problems)} more malformed lines", file=out)
     for note in notes:
         print(printable(f"note: {note}"), file=out)
     for gap in linter.gaps:
@@ -179,25 +226,25 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
     if report.unexamined:
         print(f"not examined: {report.unexamined} messages (rates in those windows not judged)",
               file=out)
-    if formats:
-        paths = write_reports(report, Path(reports_dir), formats, report_stem(source))
-        for path in paths:
-            print(shown(f"report: {path}"), file=out)
+
+
+def _verdict(out: IO[str], report: Any, gate: str, not_judged: str) -> int:
+    """The evidence of the failures, the last line (what was observed, never a certificate:
+    DESIGN 'Semantics', 'clean', not 'pass'), and the exit status."""
     evidence = failures(report)
     if evidence:
         print(f"\n{printable_lines(evidence)}\n", file=out)
     failing = sorted(u for u, rep in report.units.items() if rep.worst().value == "fail"
                      and (gate == "all" or rep.party == "unit"))
     gated = "no unit or commander" if gate == "all" else "no unit"
-    # What was observed, never a certificate (DESIGN 'Semantics'): 'clean', not 'pass'.
-    if failing or not over:
+    if failing or not not_judged:
         print(("FAIL: " + printable(", ".join(shorten(u, NAME_CHARS) for u in failing)))
-              if failing else f"{conclusion.verdict.upper()}: {gated} fails a rule of severity "
-              "error (observed, not certified)", file=out)
-    if over:  # past the bound: never a pass (issue 19)
-        print(f"FAIL: {printable(meta['not_judged'])}", file=out)
+              if failing else f"{report.conclusion.verdict.upper()}: {gated} fails a rule of "
+              "severity error (observed, not certified)", file=out)
+    if not_judged:  # past the bound: never a pass (issue 19)
+        print(f"FAIL: {printable(not_judged)}", file=out)
     out.flush()
-    return EXIT_FAIL if conclusion.exit_code else EXIT_PASS
+    return EXIT_FAIL if report.conclusion.exit_code else EXIT_PASS
 
 
 def _not_judged(over: int, units: list[str]) -> str:

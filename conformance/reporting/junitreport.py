@@ -7,9 +7,11 @@ reason), pass and warn -> passed (a warn says so in its system-out and its ``sta
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable
 from pathlib import Path
 from xml.sax.saxutils import escape, quoteattr
 
+from conformance.conclusion import Conclusion
 from conformance.conclusion import of as conclusion_of
 from conformance.display import printable, shorten
 from conformance.reporting.bounds import bounded
@@ -17,7 +19,7 @@ from conformance.reporting.files import atomic_write
 from conformance.reporting.text import iso_time, render_violation
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE
-from conformance.violation import Verdict
+from conformance.violation import RuleResult, Verdict
 
 
 def _attr(value: object) -> str:
@@ -44,53 +46,14 @@ def _to_junit(report: RunReport) -> str:
     conclusion = conclusion_of(report)
     truncated = report.meta.get("report_truncated")
     for name, unit in report.units.items():
-        status = conclusion.units.get(name)
         stamp = iso_time(unit.first_seen)
         at = f" timestamp={_attr(stamp)}" if stamp else ""
         classname = _attr(name)
-        cases: list[str] = []
-        failures = skipped = 0
-        for rid, result in unit.rules.items():
-            rule = CATALOGUE.get(rid)
-            title = rule.title if rule else rid
-            head = (f"\t\t<testcase name={_attr(f'{rid} {title}')}{at} "
-                    f"classname={classname} status={_attr(result.verdict.value)}")
-            text = "\n\n".join(render_violation(rid, v, name, verdict=result.verdict,
-                                                report=report)
-                               for v in result.violations)
-            if result.verdict is Verdict.FAIL:
-                failures += 1
-                first = result.violations[0] if result.violations else None
-                message = (f"expected {first.expected}; observed {first.observed}"
-                           if first else result.reason)
-                body = (f"\t\t\t<failure type=\"failure\" message={_attr(message)}>"
-                        f"{_text(text or result.reason)}</failure>\n")
-            elif result.verdict in (Verdict.SKIP, Verdict.COULD_NOT_TEST):
-                skipped += 1
-                body = (f"\t\t\t<skipped type=\"skipped\" "
-                        f"message={_attr(f'{result.verdict.value}: {result.reason}')}/>\n")
-            elif result.verdict is Verdict.WARN:
-                body = (f"\t\t\t<system-out>"
-                        f"{_text(f'warn: {shorten(result.reason)}' + chr(10) * 2 + text)}"
-                        f"</system-out>\n")
-            else:
-                body = ""
-            cases.append(f"{head}>\n{body}\t\t</testcase>\n" if body else f"{head}/>\n")
-        properties = {
-            "unit": name,
-            "agent-uuid": ", ".join(unit.agent_uuids),
-            "profile": report.profile,
-            "suite-version": report.suite_version,
-            "schemas-hash": report.schemas_hash,
-            "kind": report.kind,
-            "broker": report.broker,
-            # The verdict model's words (conformance.conclusion), as every output says them.
-            "verdict": conclusion.verdict,
-            "partial": str(conclusion.partial).lower(),
-            "why": "; ".join(conclusion.why),
-            "status": status.summary if status else "",
-            "levels": "; ".join(map(str, status.levels)) if status else "",
-        }
+        cases = [_testcase(report, name, rid, result, at) for rid, result in unit.rules.items()]
+        failures = sum(1 for r in unit.rules.values() if r.verdict is Verdict.FAIL)
+        skipped = sum(1 for r in unit.rules.values()
+                      if r.verdict in (Verdict.SKIP, Verdict.COULD_NOT_TEST))
+        properties = _properties(report, name, unit.agent_uuids, conclusion)
         if truncated:
             properties["report-truncated"] = truncated
         started = iso_time(report.started)
@@ -108,6 +71,54 @@ def _to_junit(report: RunReport) -> str:
     return (f'<?xml version="1.0" encoding="utf-8"?>\n<testsuites disabled="0" errors="0" '
             f'failures="{failures_total}" tests="{tests}" time="0.0">\n{note}'
             + "".join(suites) + "</testsuites>\n")
+
+
+def _testcase(report: RunReport, name: str, rid: str, result: RuleResult, at: str) -> str:
+    """One rule of one unit as a testcase: a failure with every violation rendered, a skip
+    with its reason, a warning's reason and violations as its output."""
+    rule = CATALOGUE.get(rid)
+    title = rule.title if rule else rid
+    head = (f"\t\t<testcase name={_attr(f'{rid} {title}')}{at} "
+            f"classname={_attr(name)} status={_attr(result.verdict.value)}")
+    text = "\n\n".join(render_violation(rid, v, name, verdict=result.verdict, report=report)
+                       for v in result.violations)
+    if result.verdict is Verdict.FAIL:
+        first = result.violations[0] if result.violations else None
+        message = (f"expected {first.expected}; observed {first.observed}"
+                   if first else result.reason)
+        body = (f"\t\t\t<failure type=\"failure\" message={_attr(message)}>"
+                f"{_text(text or result.reason)}</failure>\n")
+    elif result.verdict in (Verdict.SKIP, Verdict.COULD_NOT_TEST):
+        body = (f"\t\t\t<skipped type=\"skipped\" "
+                f"message={_attr(f'{result.verdict.value}: {result.reason}')}/>\n")
+    elif result.verdict is Verdict.WARN:
+        body = (f"\t\t\t<system-out>"
+                f"{_text(f'warn: {shorten(result.reason)}' + chr(10) * 2 + text)}"
+                f"</system-out>\n")
+    else:
+        body = ""
+    return f"{head}>\n{body}\t\t</testcase>\n" if body else f"{head}/>\n"
+
+
+def _properties(report: RunReport, name: str, agent_uuids: Iterable[str],
+                conclusion: Conclusion) -> dict[str, str]:
+    """A unit's testsuite properties: the run, and the verdict model's words
+    (conformance.conclusion), as every output says them."""
+    status = conclusion.units.get(name)
+    return {
+        "unit": name,
+        "agent-uuid": ", ".join(agent_uuids),
+        "profile": report.profile,
+        "suite-version": report.suite_version,
+        "schemas-hash": report.schemas_hash,
+        "kind": report.kind,
+        "broker": report.broker,
+        "verdict": conclusion.verdict,
+        "partial": str(conclusion.partial).lower(),
+        "why": "; ".join(conclusion.why),
+        "status": status.summary if status else "",
+        "levels": "; ".join(map(str, status.levels)) if status else "",
+    }
 
 
 def write_junit(report: RunReport, path: str | os.PathLike[str]) -> Path:

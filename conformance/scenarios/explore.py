@@ -21,10 +21,11 @@ import random
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 from conformance.protocol import BUILTIN_SIGNALS
 from conformance.scenarios.context import RUNS_UNTIL_ENOUGH
+from conformance.scenarios.explore_action import Action, Ping, Query, Resend, Signal, Start, Wait
 from conformance.scenarios.explore_steps import UNCHANGED, Disagreement, Explorer, Step
 from conformance.scenarios.shrink import shrink
 from conformance.scenarios.story import Story, describe
@@ -116,7 +117,7 @@ class Search:
         self.example_began = self.clock.monotonic()
         self.explorer.begin()
 
-    def run_step(self, action: dict[str, Any]) -> None:
+    def run_step(self, action: Action) -> None:
         self.check()
         self.on_step(describe(action))
         try:
@@ -183,7 +184,7 @@ class Search:
         self.outcome.story = story
         self.on_story(story)
 
-        def attempt(actions: list[dict[str, Any]]) -> tuple[int, set[int], Story] | None:
+        def attempt(actions: list[Action]) -> tuple[int, set[int], Story] | None:
             self.outcome.replays += 1
             self.on_step(f"shrinking the story: replay {self.outcome.replays}, "
                          f"{len(actions)} steps")
@@ -212,15 +213,7 @@ def machine_for(search: Search) -> type:
     lasting = [t for t in tasks if t in RUNS_UNTIL_ENOUGH] or tasks
 
     def pick(data: Any, label: str, options: list[Any]) -> Any:
-        """One of ``options``, ordered by the model's view of the tasks (the most telling
-        first: early examples and shrinking favour it). Drawn as a number of fixed range
-        and mapped onto the options there are, so that the draw does not depend on the
-        unit (hypothesis replays a choice only where its range is the same)."""
-        if not search.guided:
-            options = list(options)
-            random.Random(data.draw(st.integers(0, 2**32 - 1), label=f"{label} order")
-                          ).shuffle(options)
-        return options[data.draw(st.integers(0, PICK), label=label) % len(options)]
+        return _pick(data, label, options, search.guided)
 
     # Hypothesis draws rules by their place in a list sorted by number of arguments (all have
     # one), then name, and early examples favour the first places: the names put the
@@ -237,8 +230,7 @@ def machine_for(search: Search) -> type:
         def a_start_task(self, data: Any) -> None:
             task = pick(data, "task", start_order(explorer, tasks, lasting))
             task_uuid = not data.draw(st.booleans(), label="without task-uuid")
-            search.run_step({"do": "start", "task": task, "task_uuid": task_uuid,
-                             "slot": len(explorer.slots)})
+            search.run_step(Start(task, task_uuid, slot=len(explorer.slots)))
 
         @precondition(lambda self: bool(explorer.slots))
         @rule(data=st.data())
@@ -248,27 +240,41 @@ def machine_for(search: Search) -> type:
 
         @rule(data=st.data())
         def c_query_status(self, data: Any) -> None:
-            search.run_step({"do": "query", "slot": pick(data, "task", query_order(explorer))})
+            search.run_step(Query(pick(data, "task", query_order(explorer))))
 
         @precondition(lambda self: bool(explorer.commands))
         @rule(data=st.data())
         def d_resend(self, data: Any) -> None:
             step = pick(data, "command", resend_order(explorer))
-            search.run_step({"do": "resend", "step": step})
+            search.run_step(Resend(step))
 
         @rule(data=st.data())
         def e_ping(self, data: Any) -> None:
-            search.run_step({"do": "ping"})
+            search.run_step(Ping())
 
         @rule(periods=st.integers(1, 3))
         def f_wait(self, periods: int) -> None:
-            search.run_step({"do": "wait", "periods": periods})
+            search.run_step(Wait(periods))
 
         def teardown(self) -> None:
             search.end_example()
 
     assert set(SIGNALS) == set(BUILTIN_SIGNALS)
     return Exploration
+
+
+def _pick(data: Any, label: str, options: list[Any], guided: bool) -> Any:
+    """One of ``options``, ordered by the model's view of the tasks (the most telling first:
+    early examples and shrinking favour it; shuffled unless ``guided``). Drawn as a number of
+    fixed range and mapped onto the options there are, so that the draw does not depend on
+    the unit (hypothesis replays a choice only where its range is the same)."""
+    from hypothesis import strategies as st
+
+    if not guided:
+        options = list(options)
+        random.Random(data.draw(st.integers(0, 2**32 - 1), label=f"{label} order")
+                      ).shuffle(options)
+    return options[data.draw(st.integers(0, PICK), label=label) % len(options)]
 
 
 def start_order(explorer: Explorer, tasks: list[str], lasting: list[str]) -> list[str]:
@@ -285,34 +291,77 @@ def start_order(explorer: Explorer, tasks: list[str], lasting: list[str]) -> lis
     return paused[:1] + fresh + tasks
 
 
-def task_commands(explorer: Explorer, alternate: bool = False) -> list[dict[str, Any]]:
+class Priority(NamedTuple):
+    """How telling a command about the tasks is in the model's view: the options sort by it,
+    smallest first (ties keep the order they were offered in)."""
+
+    unchanged: bool
+    """The model expects it to change nothing: a signal to a task not live, or one that
+    leaves the task's state as it is (``UNCHANGED``); a query of a task neither paused nor
+    ended; a resend of a start-task whose task has not ended."""
+    times_done: int
+    """How often this kind of command was sent in this example (the least done first)."""
+    slot: int
+    """The task it is about (``BEFORE_EVERY_TASK`` for a resend)."""
+    place: float
+    """Its place among the commands to one task: ``QUERY_PLACE``, each signal in the order of
+    ``SIGNALS``, a new start of the task's kind before or after the signals."""
+
+
+BEFORE_EVERY_TASK = -1
+QUERY_PLACE = 0
+
+
+def signal_place(n: int) -> int:
+    """The place of the n-th of ``SIGNALS`` among the commands to one task."""
+    return 1 + n
+
+
+START_BEFORE_SIGNALS = 0.5
+START_AFTER_SIGNALS = signal_place(len(SIGNALS))
+
+
+class Option(NamedTuple):
+    """A command the exploration may choose next, and how telling it is."""
+
+    priority: Priority
+    action: Action
+
+
+def task_commands(explorer: Explorer, alternate: bool = False) -> list[Action]:
     """Commands about the tasks started, the most telling in the model's view first: a
     signal that changes a live task's state, a query of a paused or ended task, a resend of
     a start-task whose task has ended; among those, the kind done least in this example
     first. Then the rest; then signals to a task the unit never saw."""
     states = explorer.states()
-    done = Counter((s.action.get("do"), s.action.get("signal")) for s in explorer.steps)
-    options: list[tuple[bool, int, int, float, dict[str, Any]]] = []
+    done = Counter(_kind(s.action) for s in explorer.steps)
+    options: list[Option] = []
     for i, state in enumerate(states):
         live = state in ("running", "paused")
-        options.append((state not in ("paused", "ended"), done["query", None], i, 0,
-                        {"do": "query", "slot": i}))
+        options.append(Option(Priority(state not in ("paused", "ended"), done["query", None], i,
+                                       QUERY_PLACE), Query(i)))
         for n, signal in enumerate(SIGNALS):
-            options.append((not live or (signal, state) in UNCHANGED, done["signal", signal],
-                            i, 1 + n, {"do": "signal", "signal": signal, "slot": i}))
+            options.append(Option(Priority(not live or (signal, state) in UNCHANGED,
+                                           done["signal", signal], i, signal_place(n)),
+                                  Signal(signal, i)))
     paused = [i for i, state in enumerate(states) if state == "paused"]
     if paused and len(explorer.slots) < TASKS:  # what a new task does to a paused one
         # before or after the signals, every other example: both orders get their turn
-        options.append((False, 0, paused[0], 0.5 if len(explorer.slots) % 2 or alternate
-                        else 9, {
-            "do": "start", "task": explorer.slots[paused[0]].name, "task_uuid": True,
-            "slot": len(explorer.slots)}))
+        place = START_BEFORE_SIGNALS if len(explorer.slots) % 2 or alternate \
+            else START_AFTER_SIGNALS
+        options.append(Option(Priority(False, 0, paused[0], place),
+                              Start(explorer.slots[paused[0]].name, slot=len(explorer.slots))))
     for step in resend_order(explorer)[:1]:
-        options.append((not _ended_start(explorer, states, step), done["resend", None], -1, 0,
-                        {"do": "resend", "step": step}))
-    options.sort(key=lambda o: o[:4])
-    return [o[4] for o in options] + [{"do": "signal", "signal": signal, "slot": None}
-                                      for signal in SIGNALS]
+        options.append(Option(Priority(not _ended_start(explorer, states, step),
+                                       done["resend", None], BEFORE_EVERY_TASK, 0),
+                              Resend(step)))
+    options.sort(key=lambda o: o.priority)
+    return [o.action for o in options] + [Signal(signal, None) for signal in SIGNALS]
+
+
+def _kind(action: Action) -> tuple[str, str | None]:
+    """What counts as the same kind of command: its ``do``, and a signal's name."""
+    return action.do, action.signal if isinstance(action, Signal) else None
 
 
 QUERY_FIRST = {"paused": 0, "ended": 1, "running": 2}
@@ -328,10 +377,9 @@ def query_order(explorer: Explorer) -> list[int | None]:
 
 
 def _ended_start(explorer: Explorer, states: list[str], i: int) -> bool:
-    a = explorer.steps[i].action if i < len(explorer.steps) else {}
-    slot = a.get("slot")
-    return a.get("do") == "start" and isinstance(slot, int) and slot < len(states) \
-        and states[slot] == "ended"
+    a = explorer.steps[i].action if i < len(explorer.steps) else None
+    return isinstance(a, Start) and a.slot is not None and a.slot < len(states) \
+        and states[a.slot] == "ended"
 
 
 def resend_order(explorer: Explorer) -> list[int]:
@@ -341,7 +389,7 @@ def resend_order(explorer: Explorer) -> list[int]:
     return sorted(explorer.commands, key=lambda i: (not _ended_start(explorer, states, i), -i))
 
 
-def run_example(explorer: Explorer, actions: list[dict[str, Any]],
+def run_example(explorer: Explorer, actions: list[Action],
                 seed: int = 0) -> Story | None:
     """Run steps once, in order, and the teardown whatever happens (every task aborted):
     the story of the disagreement they show, or None when the unit answers as the model
@@ -361,7 +409,7 @@ def run_example(explorer: Explorer, actions: list[dict[str, Any]],
     return Story.of(explorer.steps, seed) if failed else None
 
 
-def replay(explorer: Explorer, actions: list[dict[str, Any]], seed: int = 0) -> Story | None:
+def replay(explorer: Explorer, actions: list[Action], seed: int = 0) -> Story | None:
     """Run a stored story's steps once (its teardown as well): the story of the
     disagreement it shows again, or None when the unit now answers as the model says."""
     story = run_example(explorer, actions, seed)

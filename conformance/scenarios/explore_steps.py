@@ -1,11 +1,11 @@
 """The steps of an exploration (spec 12): one command (or a wait) at a time, sent through the
 suite's commander, and after each the unit's answers judged by the Monitor.
 
-A step is data (``{"do": "start", "task": ..., "slot": 0}``): the exploration's state machine
-chooses it, a replay reads it from a stored story, and ``Explorer.do`` runs it the same way
-for both. Tasks are named by their slot (the n-th start-task of the example), commands by the
-step that first sent them (for a resend), so a stored story means the same thing when it is
-run again with fresh uuids.
+A step is typed data (``Start(task, slot=0)``: ``explore_action.py``): the exploration's state
+machine chooses it, a replay reads it from a stored story, and ``Explorer.do`` runs it the
+same way for both. Tasks are named by their slot (the n-th start-task of the example),
+commands by the step that first sent them (for a resend), so a stored story means the same
+thing when it is run again with fresh uuids.
 
 The oracle is the Monitor (DESIGN 'One model of the protocol's states'): every violation it
 finds in the unit's traffic while a step runs, of a conversation rule the profile makes an
@@ -24,6 +24,17 @@ from conformance.protocol import UNCHANGED
 from conformance.rules import CATALOGUE, Mode, Severity
 from conformance.scenarios.context import Context
 from conformance.scenarios.deviation import FINAL_STATUSES
+from conformance.scenarios.explore_action import (
+    Action,
+    Ping,
+    Query,
+    Resend,
+    Signal,
+    Start,
+    Wait,
+    slot_of,
+    to_json,
+)
 from conformance.scenarios.params import valid_params
 from conformance.scenarios.sender import Sent, new_uuid
 from conformance.scenarios.signal import IMPLIED
@@ -61,7 +72,7 @@ class Slot:
 class Step:
     """One step of a story: what was done, what was sent, what came back, what was wrong."""
 
-    action: dict[str, Any]
+    action: Action
     sent: list[str] = field(default_factory=list)
     came: list[str] = field(default_factory=list)
     found: list[Violation] = field(default_factory=list)
@@ -71,7 +82,7 @@ class Step:
     """When the step began (Unix time, the clock of the messages' arrival times)."""
 
     def to_json(self) -> dict[str, Any]:
-        return {"action": self.action, "sent": self.sent, "came": self.came,
+        return {"action": to_json(self.action), "sent": self.sent, "came": self.came,
                 "found": [{"rule": v.rule, "expected": v.expected, "observed": v.observed}
                           for v in self.found]}
 
@@ -208,7 +219,7 @@ class Explorer:
                 # A step of the story too: a unit may break a rule on this very abort, and
                 # every task is aborted all the same.
                 try:
-                    self.do({"do": "signal", "signal": "$abort", "slot": i, "teardown": True})
+                    self.do(Signal("$abort", i, teardown=True))
                 except Disagreement as d:
                     found += d.found
         # A task the unit no longer knows (its abort answered 'failed') that never said its
@@ -230,16 +241,15 @@ class Explorer:
             raise Disagreement(self.steps, found)
 
     # --- one step -----------------------------------------------------------------------------
-    def do(self, action: dict[str, Any]) -> Step:
+    def do(self, action: Action) -> Step:
         """Run one step; raises ``Disagreement`` when the Monitor found a violation meanwhile."""
-        step = Step(dict(action), at=self.ctx.traffic.clock.now())
+        step = Step(action, at=self.ctx.traffic.clock.now())
         if len(self.steps) < MAX_STEPS:
             self.steps.append(step)
         self.total_steps += 1
         mark = self.collector.mark()
         after = self.ctx.traffic.mark()
-        kind = action["do"]
-        getattr(self, "_" + kind)(step, action)
+        getattr(self, "_" + action.do)(step, action)
         step.came += [f"{e.subtopic}: {_text(e.excerpt)}" for e in self._answers(after, step)]
         found = ours(self.collector.since(mark), self._uuids())
         if found:
@@ -261,7 +271,7 @@ class Explorer:
         found = {i for i, s in enumerate(self.slots) if s.task_uuid and (
             s.task_uuid in text or self.ctx.commander.unit_task_uuid(s.task_uuid) in text)}
         found.update(slot for step in self.steps if step.found
-                     for slot in [step.action.get("slot")] if isinstance(slot, int))
+                     for slot in [slot_of(step.action)] if slot is not None)
         return found
 
     def _answers(self, after: int, step: Step) -> list[Entry]:
@@ -332,8 +342,8 @@ class Explorer:
         return [s.state for s in self.slots]
 
     # --- the commands (12.1) ------------------------------------------------------------------
-    def _start(self, step: Step, action: dict[str, Any]) -> None:
-        name = str(action["task"])
+    def _start(self, step: Step, action: Start) -> None:
+        name = action.task
         allowed, why = self.ctx.safety.may_start(name, "explore")
         if not allowed:  # a stored story replayed on a unit it may not move (DESIGN 'Safety')
             self.slots.append(Slot(name, None, self.ctx.traffic.mark(), "refused"))
@@ -346,7 +356,7 @@ class Explorer:
             if origin is not None else {}
         body: dict[str, Any] = {"command": "start-task", "execution-unit": self.ctx.unit.name,
                                 "task": {"name": name, "params": params}}
-        if action.get("task_uuid", True):
+        if action.task_uuid:
             body["task-uuid"] = new_uuid()
         slot = Slot(name, body.get("task-uuid"), self.ctx.traffic.mark())
         self.slots.append(slot)
@@ -381,16 +391,15 @@ class Explorer:
             after=after, subtopic="direct_execution_info",
             what=f"task {uuid_} in tasks-executing (explore)")
 
-    def _signal(self, step: Step, action: dict[str, Any]) -> None:
-        signal = str(action["signal"])
-        slot = action.get("slot")
+    def _signal(self, step: Step, action: Signal) -> None:
+        signal, slot = action.signal, action.slot
         task_uuid = self._uuid(slot)
         state = self.states()[slot] if isinstance(slot, int) and slot < len(self.slots) else ""
         after = self.ctx.traffic.mark()
         _, answer = self._send(step, {"command": "signal-task", "signal": signal,
                                       "task-uuid": task_uuid})
         if answer is not None and answer.get("response") == "failed" \
-                and action.get("teardown") and isinstance(slot, int):
+                and action.teardown and isinstance(slot, int):
             self._refused_aborts.append(self.slots[slot])
         if answer is None or answer.get("response") == "failed" or signal not in IMPLIED \
                 or (signal, state) in UNCHANGED:
@@ -402,19 +411,19 @@ class Explorer:
         wanted = {IMPLIED[signal]} | set(FINAL_STATUSES)
         t = self.ctx.timing
         final = self.ctx.commander.feedback(
-            task_uuid, wanted if not action.get("teardown") else set(FINAL_STATUSES),
+            task_uuid, wanted if not action.teardown else set(FINAL_STATUSES),
             min(t.response, t.feedback), after=after, what=f"the feedback of {signal} (explore)")
-        if final is None and action.get("teardown"):
+        if final is None and action.teardown:
             self._owe(t.feedback - t.response)  # the final status of an abort: its deadline
 
-    def _query(self, step: Step, action: dict[str, Any]) -> None:
-        self._send(step, {"command": "query-status", "task-uuid": self._uuid(action.get("slot"))})
+    def _query(self, step: Step, action: Query) -> None:
+        self._send(step, {"command": "query-status", "task-uuid": self._uuid(action.slot)})
 
-    def _ping(self, step: Step, action: dict[str, Any]) -> None:
+    def _ping(self, step: Step, action: Ping) -> None:
         self._send(step, {"command": "ping"})
 
-    def _resend(self, step: Step, action: dict[str, Any]) -> None:
-        earlier = self.commands.get(int(action["step"]))
+    def _resend(self, step: Step, action: Resend) -> None:
+        earlier = self.commands.get(action.step)
         if earlier is None:  # the step it names sent nothing (a shrunk story): a no-op
             return
         c = self.ctx.commander
@@ -426,5 +435,5 @@ class Explorer:
         if c.response(earlier, self.ctx.timing.response, after=mark) is None:
             self._unanswered()
 
-    def _wait(self, step: Step, action: dict[str, Any]) -> None:
-        self._wait_heartbeat(max(1, min(5, int(action.get("periods", 1)))))
+    def _wait(self, step: Step, action: Wait) -> None:
+        self._wait_heartbeat(max(1, min(5, action.periods)))

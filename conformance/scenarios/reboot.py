@@ -71,19 +71,7 @@ def _reboot(ctx: Context, names: Any) -> None:
     ended = ctx.notes.get("ended", [])
     before = ctx.traffic.mark()
     ctx.commander.abort_all(ctx.timing.response)  # tasks die with the reboot anyway
-    known: set[str] = set()
-    if names is not None:
-        # Two heartbeats of the unit: units of its type and role that were there before the
-        # reboot have been heard by then (unless far slower), and are not taken for it.
-        count = [0]
-
-        def second(_entry: Entry) -> bool:
-            count[0] += 1
-            return count[0] >= 2
-
-        ctx.traffic.wait_for(second, ctx.timing.periods(3, rate), after=ctx.traffic.mark(),
-                             subtopic="heartbeat", what="two heartbeats before the reboot")
-        known = names.heard()
+    known = _names_heard(ctx, names, rate) if names is not None else set()
     heard = {e.get("agent-uuid") for e in ctx.traffic.since(0, "heartbeat")}
     requested = ctx.traffic.clock.now()
     error = ctx.reboot()
@@ -92,28 +80,7 @@ def _reboot(ctx: Context, names: Any) -> None:
             ctx.record(rule, verdict=Verdict.COULD_NOT_TEST,
                        reason=f"the reboot ({ctx.reboot_how}) failed: {error}")
         return
-    # Back when a heartbeat of an agent-uuid never heard before the reboot is followed by
-    # another within two declared periods: the new life is under way, its commands subscribed
-    # (a new uuid alone may be one that changes on its own, HB-006, just as the reboot began).
-    # Or a heartbeat follows a silence of more than two declared periods (HB-006's reboot
-    # silence) with the same one (REBOOT-001 fails on it).
-    last = [ctx.traffic.latest("heartbeat")]
-    first: list[Entry | None] = [None]
-
-    def back(entry) -> bool:
-        previous, last[0] = last[0], entry
-        if previous is None:
-            return False
-        soon = silence(previous, entry) <= 2.0 / rate
-        if previous.time >= requested and previous.get("agent-uuid") not in heard and soon:
-            first[0] = previous  # the new life's first heartbeat: REBOOT-001 reads its uuid
-            return True
-        return entry.get("agent-uuid") == old_agent and not soon
-
-    # The reboot's budget, and the second heartbeat of the new life on top of it.
-    hb = ctx.traffic.wait_for(back, ctx.timing.reboot + 2.0 / rate, after=before,
-                              subtopic="heartbeat")
-    hb = first[0] or hb
+    hb = _back(ctx, before, requested, heard, old_agent, rate)
     renamed = names.new_name(known, requested, 0.0) if hb is None and names else None
     if renamed is not None:
         # 3.1: UNIT is the unit's name; back under another, it is another unit to every
@@ -148,6 +115,55 @@ def _reboot(ctx: Context, names: Any) -> None:
         ctx.record("REBOOT-002", verdict=Verdict.COULD_NOT_TEST,
                    reason="no task ended before the reboot to ask about")
         return
+    _history(ctx, ended[0], old_agent, new_agent)
+
+
+def _names_heard(ctx: Context, names: Any, rate: float) -> set[str]:
+    """The names of units of the unit's type and role heard before the reboot: after two
+    heartbeats of the unit they have been heard (unless far slower), and are not taken for
+    it when it comes back."""
+    count = [0]
+
+    def second(_entry: Entry) -> bool:
+        count[0] += 1
+        return count[0] >= 2
+
+    ctx.traffic.wait_for(second, ctx.timing.periods(3, rate), after=ctx.traffic.mark(),
+                         subtopic="heartbeat", what="two heartbeats before the reboot")
+    return set(names.heard())
+
+
+def _back(ctx: Context, before: int, requested: float, heard: set[Any], old_agent: Any,
+          rate: float) -> Entry | None:
+    """The first heartbeat of the unit back from the reboot, None if it did not come back.
+
+    Back when a heartbeat of an agent-uuid never heard before the reboot is followed by
+    another within two declared periods: the new life is under way, its commands subscribed
+    (a new uuid alone may be one that changes on its own, HB-006, just as the reboot began).
+    Or a heartbeat follows a silence of more than two declared periods (HB-006's reboot
+    silence) with the same one (REBOOT-001 fails on it)."""
+    last = [ctx.traffic.latest("heartbeat")]
+    first: list[Entry | None] = [None]
+
+    def back(entry: Entry) -> bool:
+        previous, last[0] = last[0], entry
+        if previous is None:
+            return False
+        soon = silence(previous, entry) <= 2.0 / rate
+        if previous.time >= requested and previous.get("agent-uuid") not in heard and soon:
+            first[0] = previous  # the new life's first heartbeat: REBOOT-001 reads its uuid
+            return True
+        return entry.get("agent-uuid") == old_agent and not soon
+
+    # The reboot's budget, and the second heartbeat of the new life on top of it.
+    hb = ctx.traffic.wait_for(back, ctx.timing.reboot + 2.0 / rate, after=before,
+                              subtopic="heartbeat")
+    return first[0] or hb
+
+
+def _history(ctx: Context, ended: tuple[str, str, str], old_agent: Any, new_agent: Any) -> None:
+    """REBOOT-002: a task that ended before the reboot is unknown after it when the
+    agent-uuid changed (the history was lost), still known when it did not (5.1)."""
     # Ready for commands again: answer a ping (deadline: the reboot's). A unit that never
     # answered ping (EXEC-PING-001's, judged already) would only let that deadline run out:
     # it is asked the query-status of a task it never saw instead (needed below anyway).
@@ -158,7 +174,7 @@ def _reboot(ctx: Context, names: Any) -> None:
     else:
         _, ghost = ctx.commander.query(new_uuid(), ctx.timing.reboot)
         asked = True
-    task_uuid, name, status = ended[0]
+    task_uuid, name, status = ended
     sent, answer = ctx.commander.query(task_uuid, ctx.timing.response)
     if answer is None:
         # Its history cannot be read off a unit that does not answer query-status at all:

@@ -20,11 +20,12 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterable
+from dataclasses import replace
 from typing import Any
 
-Action = dict[str, Any]
+from conformance.scenarios.explore_action import Action, Ping, Query, Resend, Signal, Start, Wait
 
-LEAST_TELLING = ("wait", "ping", "query", "resend", "signal", "start")
+LEAST_TELLING = (Wait, Ping, Query, Resend, Signal, Start)
 """The order in which steps are tried out: those that change no task's state first."""
 
 
@@ -39,28 +40,25 @@ def without(actions: list[Action], drop: Iterable[int]) -> list[Action]:
     kept: list[Action] = []
     slots = 0
     for i, a in enumerate(actions):
-        do = a.get("do")
-        slot = a.get("slot")
-        if do == "start":
+        if isinstance(a, Start):
             old = slots
             slots += 1
             if i in dropped:
                 gone_slots.add(old)
                 continue
             slot_of[old] = len(slot_of)
-            a = {**a, "slot": slot_of[old]}
+            a = replace(a, slot=slot_of[old])
         elif i in dropped:
             continue
-        elif do in ("signal", "query") and isinstance(slot, int):
-            if slot in gone_slots:
+        elif isinstance(a, (Signal, Query)) and a.slot is not None:
+            if a.slot in gone_slots:
                 continue
-            if slot in slot_of:
-                a = {**a, "slot": slot_of[slot]}
-        elif do == "resend":
-            earlier = a.get("step")
-            if not isinstance(earlier, int) or earlier not in step_of:
+            if a.slot in slot_of:
+                a = replace(a, slot=slot_of[a.slot])
+        elif isinstance(a, Resend):
+            if a.step not in step_of:
                 continue
-            a = {**a, "step": step_of[earlier]}
+            a = replace(a, step=step_of[a.step])
         step_of[i] = len(kept)
         kept.append(a)
     return kept
@@ -68,7 +66,7 @@ def without(actions: list[Action], drop: Iterable[int]) -> list[Action]:
 
 def slots_of(actions: list[Action]) -> dict[int, int]:
     """Step index of each slot's start-task."""
-    starts = [i for i, a in enumerate(actions) if a.get("do") == "start"]
+    starts = [i for i, a in enumerate(actions) if isinstance(a, Start)]
     return dict(enumerate(starts))
 
 
@@ -83,9 +81,7 @@ def trials(actions: list[Action], failing: int, involved: set[int]) -> list[list
     out += [[i] for slot, i in slots_of(actions).items() if slot not in involved]
 
     def key(i: int) -> tuple[bool, bool, int, int]:
-        do = actions[i].get("do")
-        rank = LEAST_TELLING.index(do) if do in LEAST_TELLING else 0
-        return (i == failing, i < failing, rank, -i)
+        return (i == failing, i < failing, LEAST_TELLING.index(type(actions[i])), -i)
     return out + [[i] for i in sorted(range(len(actions)), key=key)]
 
 

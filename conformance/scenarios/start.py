@@ -15,7 +15,7 @@ from conformance.protocol import NO_SUCH_TASK
 from conformance.scenarios.context import Context
 from conformance.scenarios.deviation import meaning
 from conformance.scenarios.params import invalid_params, valid_params
-from conformance.scenarios.sender import Refused
+from conformance.scenarios.sender import Refused, Sent
 from conformance.scenarios.traffic import Entry
 from conformance.violation import Verdict, Violation
 
@@ -59,19 +59,9 @@ def run(ctx: Context) -> None:
     available = ctx.tasks_available()
     origin = ctx.position()
     startable = [n for n in available if ctx.safety.may_start(n, "start")[0]]
-    refused = {n: ctx.safety.may_start(n, "start")[1] for n in available if n not in startable}
-    if not startable:
-        why = "; ".join(refused.values()) or "tasks-available is empty"
-        for rule in RULES:
-            ctx.record(rule, verdict=Verdict.COULD_NOT_TEST,
-                       reason=f"no task the suite may start: {why}")
+    if _cannot_start(ctx, available, startable, origin):
         return
-    if origin is None:
-        for rule in RULES:
-            ctx.record(rule, verdict=Verdict.COULD_NOT_TEST,
-                       reason="the unit reports no sensor/position: task positions are "
-                       "generated near it (DESIGN 'Safety')")
-        return
+    assert origin is not None
     ended: list[tuple[str, int]] = []  # (task-uuid, mark of its final status)
     # 12.4: one task is left to end on its own (a move ends when it arrives), so feedback is
     # seen for a natural end too, not only after signals; the others are ended by a signal.
@@ -94,70 +84,12 @@ def run(ctx: Context) -> None:
                     f"the start-task '{task}' sent without a task-uuid was not answered "
                     f"(EXEC-START-001): whether the unit generates one was not seen"))
             continue
-        task_uuid = answer.get("task-uuid")
-        wanted = sent.body.get("task-uuid")
-        if generate:
-            # A task-uuid that is not in UUID form is ERR-014's; here: is there one at all.
-            if isinstance(task_uuid, str) and task_uuid.strip():
-                ctx.record("EXEC-START-002", verdict=Verdict.PASS)
-            else:
-                ctx.record("EXEC-START-002", violation=ctx.violation(
-                    "EXEC-START-002", expected="a generated task-uuid (start-task sent "
-                    "without one, 12.1)", observed=f"task-uuid {task_uuid!r}", entry=answer))
-                continue
-        elif task_uuid == wanted:
-            pass  # no pass: only the answer to a start-task without one examines 12.1's words
-        else:
-            ctx.record("EXEC-START-002", violation=ctx.violation(
-                "EXEC-START-002", expected=f"task-uuid {wanted}", observed=f"{task_uuid!r}",
-                entry=answer, detail=f"task '{task}'"))
-            # Follow the task-uuid the unit runs the task under (the commander does, too).
-            task_uuid = ctx.commander.unit_task_uuid(wanted)
-        if response != "running" or not isinstance(task_uuid, str):
+        task_uuid = _task_uuid(ctx, task, sent, answer, generate)
+        if response != "running" or task_uuid is None:
             continue
-        # 5.3: a running task is listed in tasks-executing (unless it ended before the next
-        # direct_execution_info: then it cannot be judged here).
-        gaps = ctx.commander.gaps()
-        seen = ctx.wait_listed(task_uuid, after=sent.mark)
-        unlisted: Violation | None = None
-        if seen is not None and seen.subtopic == "direct_execution_info":
-            ctx.record("DEI-004", verdict=Verdict.PASS)
-        elif seen is None and ctx.commander.gaps() != gaps:
-            ctx.record("DEI-004", verdict=Verdict.COULD_NOT_TEST, reason=LINK_LOST)
-        elif seen is None:  # judged once its end is known: it may have ended unannounced
-            unlisted = ctx.violation(
-                "DEI-004", expected=f"task {task_uuid} ('{task}') in tasks-executing while "
-                "it runs", observed=f"not listed within {ctx.info_deadline():.1f} s of "
-                "'running'", subtopic="direct_execution_info",
-                entry=ctx.traffic.latest("direct_execution_info"))
-        judged = False
-        if task == natural:
-            noted = ctx.final_known()
-            final = ctx.wait_final(task_uuid, after=sent.mark, why=f"('{task}', ending on its "
-                                   "own)", listed=seen if seen is not None
-                                   and seen.subtopic == "direct_execution_info" else None)
-            if final is None:
-                judged = True
-                _no_final(ctx, ctx.untestable(noted), violation=ctx.violation(
-                    "EXEC-START-003", expected=f"'{task}' ends on its own with a final status "
-                    f"(finished or failed) within {ctx.timing.feedback:.1f} s",
-                    observed=f"statuses {ctx.commander.statuses(task_uuid, sent.mark) or 'none'}",
-                    subtopic="exec/feedback", detail=f"task-uuid {task_uuid}; params "
-                    f"{sent.body.get('task', {}).get('params')}"))
-        noted = ctx.final_known()
-        final = ctx.end_task(task_uuid, available.get(task, []), after=sent.mark)
-        statuses = ctx.commander.statuses(task_uuid, sent.mark)
-        if final is not None:
-            ctx.record("EXEC-START-003", verdict=Verdict.PASS)
-            ended.append((ctx.commander.unit_task_uuid(task_uuid), ctx.traffic.mark()))
-            ctx.notes.setdefault("ended", []).append(
-                (task_uuid, task, meaning(final.get("status")) or final.get("status")))
-        elif not judged:
-            _no_final(ctx, ctx.untestable(noted), violation=ctx.violation(
-                "EXEC-START-003", expected=f"feedback for task '{task}' until finished, "
-                "failed or aborted (12.4)", observed=f"statuses {statuses or 'none'} within "
-                f"{ctx.timing.feedback:.1f} s", subtopic="exec/feedback",
-                detail=f"task-uuid {task_uuid}"))
+        seen, unlisted = _listed(ctx, task, task_uuid, sent)
+        final = _ended(ctx, task, task_uuid, sent, available.get(task, []),
+                       natural=task == natural, listed=seen, ended=ended)
         if unlisted is not None:
             # Without a final status the task may have ended before the next info: then not
             # being listed is no violation (EXEC-START-003 or EXEC-FB-001 says what is).
@@ -168,6 +100,108 @@ def run(ctx: Context) -> None:
             else:
                 ctx.record("DEI-004", violation=unlisted)
     _check_left(ctx, ended)
+
+
+def _cannot_start(ctx: Context, available: dict[str, list[str]], startable: list[str],
+                  origin: object) -> bool:
+    """Whether no task can be started (no task the suite may start, or no position to place
+    its parameters near): then every rule of the scenario could not be tested."""
+    if not startable:
+        refused = {n: ctx.safety.may_start(n, "start")[1] for n in available}
+        why = "; ".join(refused.values()) or "tasks-available is empty"
+        reason = f"no task the suite may start: {why}"
+    elif origin is None:
+        reason = ("the unit reports no sensor/position: task positions are generated near it "
+                  "(DESIGN 'Safety')")
+    else:
+        return False
+    for rule in RULES:
+        ctx.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=reason)
+    return True
+
+
+def _task_uuid(ctx: Context, task: str, sent: Sent, answer: Entry,
+               generate: bool) -> str | None:
+    """EXEC-START-002 judged on the answer: one generated when none was sent (12.1), not
+    another than the one sent. The task-uuid the unit runs the task under, None when it has
+    none."""
+    task_uuid = answer.get("task-uuid")
+    wanted = sent.body.get("task-uuid")
+    if generate:
+        # A task-uuid that is not in UUID form is ERR-014's; here: is there one at all.
+        if isinstance(task_uuid, str) and task_uuid.strip():
+            ctx.record("EXEC-START-002", verdict=Verdict.PASS)
+        else:
+            ctx.record("EXEC-START-002", violation=ctx.violation(
+                "EXEC-START-002", expected="a generated task-uuid (start-task sent "
+                "without one, 12.1)", observed=f"task-uuid {task_uuid!r}", entry=answer))
+            return None
+    elif task_uuid == wanted:
+        pass  # no pass: only the answer to a start-task without one examines 12.1's words
+    else:
+        ctx.record("EXEC-START-002", violation=ctx.violation(
+            "EXEC-START-002", expected=f"task-uuid {wanted}", observed=f"{task_uuid!r}",
+            entry=answer, detail=f"task '{task}'"))
+        # Follow the task-uuid the unit runs the task under (the commander does, too).
+        task_uuid = ctx.commander.unit_task_uuid(wanted)
+    return task_uuid if isinstance(task_uuid, str) else None
+
+
+def _listed(ctx: Context, task: str, task_uuid: str,
+            sent: Sent) -> tuple[Entry | None, Violation | None]:
+    """5.3: a running task is listed in tasks-executing (unless it ended before the next
+    direct_execution_info: then it cannot be judged here). The listing seen (its
+    direct_execution_info, None if not seen) and, when not listed, the violation to judge
+    once its end is known (it may have ended unannounced)."""
+    gaps = ctx.commander.gaps()
+    seen = ctx.wait_listed(task_uuid, after=sent.mark)
+    listed = seen if seen is not None and seen.subtopic == "direct_execution_info" else None
+    if listed is not None:
+        ctx.record("DEI-004", verdict=Verdict.PASS)
+    elif seen is None and ctx.commander.gaps() != gaps:
+        ctx.record("DEI-004", verdict=Verdict.COULD_NOT_TEST, reason=LINK_LOST)
+    elif seen is None:
+        return None, ctx.violation(
+            "DEI-004", expected=f"task {task_uuid} ('{task}') in tasks-executing while "
+            "it runs", observed=f"not listed within {ctx.info_deadline():.1f} s of "
+            "'running'", subtopic="direct_execution_info",
+            entry=ctx.traffic.latest("direct_execution_info"))
+    return listed, None
+
+
+def _ended(ctx: Context, task: str, task_uuid: str, sent: Sent, signals: list[str], *,
+           natural: bool, listed: Entry | None, ended: list[tuple[str, int]]) -> Entry | None:
+    """EXEC-START-003: the task ends with a final status (12.4), on its own when it is the
+    ``natural`` one, else (and also then, if it did not) after the signals that end it. Its
+    final status, None if none came; an ended task is added to ``ended``."""
+    judged = False
+    if natural:
+        noted = ctx.final_known()
+        final = ctx.wait_final(task_uuid, after=sent.mark, why=f"('{task}', ending on its "
+                               "own)", listed=listed)
+        if final is None:
+            judged = True
+            _no_final(ctx, ctx.untestable(noted), violation=ctx.violation(
+                "EXEC-START-003", expected=f"'{task}' ends on its own with a final status "
+                f"(finished or failed) within {ctx.timing.feedback:.1f} s",
+                observed=f"statuses {ctx.commander.statuses(task_uuid, sent.mark) or 'none'}",
+                subtopic="exec/feedback", detail=f"task-uuid {task_uuid}; params "
+                f"{sent.body.get('task', {}).get('params')}"))
+    noted = ctx.final_known()
+    final = ctx.end_task(task_uuid, signals, after=sent.mark)
+    statuses = ctx.commander.statuses(task_uuid, sent.mark)
+    if final is not None:
+        ctx.record("EXEC-START-003", verdict=Verdict.PASS)
+        ended.append((ctx.commander.unit_task_uuid(task_uuid), ctx.traffic.mark()))
+        ctx.notes.setdefault("ended", []).append(
+            (task_uuid, task, meaning(final.get("status")) or final.get("status")))
+    elif not judged:
+        _no_final(ctx, ctx.untestable(noted), violation=ctx.violation(
+            "EXEC-START-003", expected=f"feedback for task '{task}' until finished, "
+            "failed or aborted (12.4)", observed=f"statuses {statuses or 'none'} within "
+            f"{ctx.timing.feedback:.1f} s", subtopic="exec/feedback",
+            detail=f"task-uuid {task_uuid}"))
+    return final
 
 
 def _no_final(ctx: Context, untestable: str | None, *, violation: Violation) -> None:

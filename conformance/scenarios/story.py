@@ -13,6 +13,16 @@ from typing import Any
 
 from conformance.reporting.text import printable, render_violation
 from conformance.rules import CATALOGUE
+from conformance.scenarios.explore_action import (
+    Action,
+    Query,
+    Resend,
+    Signal,
+    Start,
+    Wait,
+    from_json,
+    is_teardown,
+)
 from conformance.scenarios.explore_steps import Step, first_disagreement
 
 FORMAT = "waraps-conformance explore story 1"
@@ -24,24 +34,23 @@ class StoryError(ValueError):
     """A stored story that cannot be replayed (not one, unreadable, or from another unit)."""
 
 
-def describe(action: dict[str, Any]) -> str:
+def describe(action: Action) -> str:
     """A step in words: ``start-task look-at-bearing as T1``, ``signal-task $pause to T1``."""
-    def task(slot: Any) -> str:
-        return f"T{int(slot) + 1}" if isinstance(slot, int) else "a task-uuid never used"
-    do = action.get("do")
-    if do == "start":
-        how = "" if action.get("task_uuid", True) else ", no task-uuid (the unit makes one)"
-        return f"start-task {action.get('task')} as {task(action.get('slot'))}{how}"
-    if do == "signal":
-        why = " (teardown: every task started is aborted)" if action.get("teardown") else ""
-        return f"signal-task {action.get('signal')} to {task(action.get('slot'))}{why}"
-    if do == "query":
-        return f"query-status of {task(action.get('slot'))}"
-    if do == "resend":
-        return f"resend the command of step {int(action.get('step', 0)) + 1} (same com-uuid)"
-    if do == "wait":
-        return f"wait {action.get('periods', 1)} heartbeat(s)"
-    return str(do)
+    def task(slot: int | None) -> str:
+        return f"T{slot + 1}" if slot is not None else "a task-uuid never used"
+    if isinstance(action, Start):
+        how = "" if action.task_uuid else ", no task-uuid (the unit makes one)"
+        return f"start-task {action.task} as {task(action.slot)}{how}"
+    if isinstance(action, Signal):
+        why = " (teardown: every task started is aborted)" if action.teardown else ""
+        return f"signal-task {action.signal} to {task(action.slot)}{why}"
+    if isinstance(action, Query):
+        return f"query-status of {task(action.slot)}"
+    if isinstance(action, Resend):
+        return f"resend the command of step {action.step + 1} (same com-uuid)"
+    if isinstance(action, Wait):
+        return f"wait {action.periods} heartbeat(s)"
+    return action.do
 
 
 @dataclass
@@ -64,7 +73,7 @@ class Story:
     @property
     def length(self) -> int:
         """Steps the story has, the teardown's aborts not counted."""
-        return sum(1 for s in self.steps if not s.action.get("teardown"))
+        return sum(1 for s in self.steps if not is_teardown(s.action))
 
     @property
     def rules(self) -> list[str]:
@@ -77,9 +86,9 @@ class Story:
         """The story of an example's steps, failing where they first disagree."""
         return cls(list(steps), first_disagreement(steps), seed)
 
-    def actions(self) -> list[dict[str, Any]]:
+    def actions(self) -> list[Action]:
         """The steps to replay (the teardown is the explorer's own, run again anyway)."""
-        return [s.action for s in self.steps if not s.action.get("teardown")]
+        return [s.action for s in self.steps if not is_teardown(s.action)]
 
     def render(self, unit: str, rerun: str, heading: str = "", brief: bool = False) -> str:
         """The story as a person reads it; ``brief``: its steps and the rules broken only
@@ -124,7 +133,7 @@ class Story:
         return path
 
 
-def load(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+def load(path: Path) -> tuple[list[Action], dict[str, Any]]:
     """The actions of a stored story and the story itself; ``StoryError`` when it is none."""
     try:
         with path.open("rb") as f:
@@ -137,7 +146,7 @@ def load(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     if not isinstance(data, dict) or data.get("format") != FORMAT \
             or not isinstance(data.get("steps"), list):
         raise StoryError(f"{path}: not a story written by --explore (format {FORMAT!r})")
-    actions = []
+    actions: list[Action] = []
     for number, step in enumerate(data["steps"], 1):
         action = step.get("action") if isinstance(step, dict) else None
         if not isinstance(action, dict) or type(action.get("do")) is not str \
@@ -148,7 +157,7 @@ def load(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
         if wrong:
             raise StoryError(f"{path}: step {number} ({action['do']}): {wrong}")
         if not action.get("teardown"):
-            actions.append(action)
+            actions.append(from_json(action))
     return actions, data
 
 

@@ -248,20 +248,9 @@ class CommandExecutor:
         name = task_field["name"]
         params = task_field.get("params", {})
         spec = unit.specs.get(name)
-        problems: list[str] = []
-        if spec is None:
-            if "accept-unknown-task" not in self.faults:
-                known = ", ".join(unit.specs)
-                reason = (f"task {name[:64]!r} is not available on this "
-                          f"{unit.address.agent_type} unit; tasks-available: {known}")
-                self._fail_task(com, task_uuid, name, reason)
-                return
-        else:
-            problems = spec.problems(params)
-            if problems and "accept-invalid-params" not in self.faults:
-                self._fail_task(com, task_uuid, name,
-                                f"invalid parameters for {name}: " + "; ".join(problems))
-                return
+        problems = self._refused(com, task_uuid, name, params)
+        if problems is None:
+            return
         task = Task(task_uuid, name, params if isinstance(params, dict) else {}, spec, com,
                     leg_started=now)
         if problems:
@@ -271,6 +260,31 @@ class CommandExecutor:
         if task.spec is not None:
             self.runner.preempt(task, f"pre-empted by task {task_uuid}")
         self.runner.remember(task)
+        self._answer_started(task, com, sent_uuid, now)
+
+    def _refused(self, com: str, task_uuid: str, name: str, params: Any) -> list[str] | None:
+        """None when the task is refused (answered 'failed': not available, or its parameters
+        invalid, 12.2.3), else the problems of its parameters that a fault lets through."""
+        spec = self.unit.specs.get(name)
+        if spec is None:
+            if "accept-unknown-task" not in self.faults:
+                known = ", ".join(self.unit.specs)
+                reason = (f"task {name[:64]!r} is not available on this "
+                          f"{self.unit.address.agent_type} unit; tasks-available: {known}")
+                self._fail_task(com, task_uuid, name, reason)
+                return None
+            return []
+        problems = spec.problems(params)
+        if problems and "accept-invalid-params" not in self.faults:
+            self._fail_task(com, task_uuid, name,
+                            f"invalid parameters for {name}: " + "; ".join(problems))
+            return None
+        return problems
+
+    def _answer_started(self, task: Task, com: str, sent_uuid: Any, now: float) -> None:
+        """Answer a start-task that starts its task ('running', 12.2.3), and run it: its first
+        feedback, then its schedule."""
+        task_uuid = task.uuid
         response = "started" if "start-answered-started" in self.faults else "running"
         shown = None if (sent_uuid is not None and "start-response-no-task-uuid" in self.faults
                          or sent_uuid is None and "start-no-generated-task-uuid" in self.faults

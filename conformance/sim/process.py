@@ -21,11 +21,15 @@ import signal
 import sys
 import threading
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from conformance.client import BrokerError, BrokerURL
 from conformance.display import shown as shown_line
 from conformance.sim.faults import FAULTS, NOT_UNIT_BREAKABLE, FaultError, check_names
 from conformance.topics import UnitAddress
+
+if TYPE_CHECKING:
+    from conformance.sim.fleet import Fleet, SimUnit
 
 
 def list_faults(as_json: bool) -> str:
@@ -107,20 +111,7 @@ def run(address: UnitAddress, broker: BrokerURL | None, *, count: int = 1, rate:
         if embedded is not None:
             embedded.stop()
         return 1
-
-    def reboot(name: str | None = None) -> None:
-        if isinstance(runner, SimUnit):
-            runner.reboot()
-        else:
-            runner.reboot(None if name is None else (
-                int(name) if name.isdigit() else runner.index_of(name)))
-
-    signal.signal(signal.SIGINT, lambda *_: stop.set())
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    if hasattr(signal, "SIGHUP"):
-        signal.signal(signal.SIGHUP, lambda *_: reboot())
-    threading.Thread(target=_read_control, args=(reboot, stop), daemon=True,
-                     name="sim-stdin").start()
+    _listen(runner, stop)
     shown = ",".join(faults) or "none"
     if variants:
         shown += f" variants={','.join(sorted(variant_names))}"
@@ -135,6 +126,26 @@ def run(address: UnitAddress, broker: BrokerURL | None, *, count: int = 1, rate:
         if embedded is not None:
             embedded.stop()
     return 0
+
+
+def _listen(runner: SimUnit | Fleet, stop: threading.Event) -> None:
+    """SIGINT and SIGTERM set ``stop``; SIGHUP reboots the unit (every unit of a fleet); a
+    line on stdin stops or reboots (``_read_control``)."""
+    from conformance.sim.fleet import SimUnit
+
+    def reboot(name: str | None = None) -> None:
+        if isinstance(runner, SimUnit):
+            runner.reboot()
+        else:
+            runner.reboot(None if name is None else (
+                int(name) if name.isdigit() else runner.index_of(name)))
+
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    if hasattr(signal, "SIGHUP"):
+        signal.signal(signal.SIGHUP, lambda *_: reboot())
+    threading.Thread(target=_read_control, args=(reboot, stop), daemon=True,
+                     name="sim-stdin").start()
 
 
 def _read_control(reboot, stop: threading.Event) -> None:  # type: ignore[no-untyped-def]

@@ -281,10 +281,15 @@ class Task:
 
 def plan(task: Task, vehicle: Vehicle, task_seconds: float) -> None:
     """Fill in the task's legs, cruise speed and camera target from its parameters."""
-    p, here, kin = task.params, vehicle.position, vehicle.kin
+    legs = _route(task, vehicle.position)
+    task.legs = legs if legs is not None else _station(task, vehicle, task_seconds)
+    _pace(task, vehicle, task_seconds)
+
+
+def _route(task: Task, here: GeoPoint) -> list[Leg] | None:
+    """The legs of a task that moves along points (9.1-9.3, 9.9-9.11), None for another."""
+    p, name = task.params, task.name
     legs: list[Leg] = []
-    name = task.name
-    alt = here.altitude
 
     def goto(v: dict[str, Any], altitude: float | None = None) -> None:
         legs.append(Leg(_point(v, altitude)))
@@ -322,7 +327,17 @@ def plan(task: Task, vehicle: Vehicle, task_seconds: float) -> None:
         radius = float(p.get("radius") or 20.0)
         ring = circle(center, radius, bearing(center, here) if distance(center, here) > 1 else 0)
         legs.extend(Leg(c) for c in ring + ring[:1])
-    elif name == "observe-position":
+    else:
+        return None
+    return legs
+
+
+def _station(task: Task, vehicle: Vehicle, task_seconds: float) -> list[Leg]:
+    """The legs of a task that goes to one spot or none, and what its camera looks at."""
+    p, here, name = task.params, vehicle.position, task.name
+    alt = here.altitude
+    legs: list[Leg] = []
+    if name == "observe-position":
         target = _point(p["geopoint"])
         height = float(p.get("height") or 0.0)
         dist = float(p.get("distance") or 0.0)
@@ -363,7 +378,12 @@ def plan(task: Task, vehicle: Vehicle, task_seconds: float) -> None:
         legs.append(Leg(seconds=FOREVER))
     else:  # image-object-detection, or a task accepted by a fault: runs until $enough
         legs.append(Leg(seconds=FOREVER if name in TASKS else 1.0))
-    task.legs = legs
+    return legs
+
+
+def _pace(task: Task, vehicle: Vehicle, task_seconds: float) -> None:
+    """The task's cruise and climb speeds."""
+    p, here, kin, legs = task.params, vehicle.position, vehicle.kin, task.legs
     # Time compression: one lap of the plan takes about task_seconds (or less, at the
     # qualitative speed). The vehicle then reports the speed it really flies (SENS-005).
     length, climb, prev = 0.0, 0.0, here

@@ -13,6 +13,7 @@ import pytest
 
 from conformance.reporting.text import printable
 from conformance.scenarios.explore import Outcome, Search, Stopped, replay
+from conformance.scenarios.explore_action import Action
 from conformance.scenarios.explore_steps import Collector, Explorer, UnitDied, judged
 from conformance.scenarios.sender import NotSent
 from conformance.scenarios.story import Story, StoryError, load
@@ -90,7 +91,7 @@ def run(c: Certification, node: pytest.Item) -> None:
     if s.explore == 0 and s.explore_replay is None:
         pytest.skip("could not test: exploration is off (--explore 0): command orders beyond "
                     "the scripted scenarios were not explored")
-    if not c._claims(DIRECT_EXECUTION):
+    if not c.claims(DIRECT_EXECUTION):
         pytest.skip(f"the unit does not declare '{DIRECT_EXECUTION}': nothing to explore")
     dead = c.unit_died()
     if dead:
@@ -104,8 +105,8 @@ def run(c: Certification, node: pytest.Item) -> None:
     try:
         c.observation.wait_execution_info()
     except OutOfTime as e:
-        c._out_of_time(e)
-        c._fail_if_out_of_time()
+        c.out_of_time_reached(e)
+        c.fail_if_out_of_time()
     collector = Collector(str(c.unit), lambda rule: judged(rule, c.profile.severity_of))
     explorer = Explorer(c.context, collector, lambda task_uuid: _model_state(c, task_uuid),
                         dead=c.unit_died)
@@ -124,8 +125,8 @@ def run(c: Certification, node: pytest.Item) -> None:
         elif isinstance(e.cause, NotSent):  # --dry-run, or the publish policy refused it
             pytest.skip(f"could not test: {e.cause}")
         elif isinstance(e.cause, OutOfTime):
-            c._out_of_time(e.cause)
-            c._fail_if_out_of_time()
+            c.out_of_time_reached(e.cause)
+            c.fail_if_out_of_time()
         else:
             raise e.cause from None
     finally:
@@ -234,7 +235,7 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item, began: flo
                 + f"\n\nstory stored: {printable(str(path))}", pytrace=False)
 
 
-def _replay(c: Certification, explorer: Explorer, actions: list[dict[str, object]],
+def _replay(c: Certification, explorer: Explorer, actions: list[Action],
             node: pytest.Item, began: float) -> None:
     path = c.settings.explore_replay
     assert path is not None

@@ -23,7 +23,7 @@ import pytest
 
 from conformance import __version__
 from conformance.checks import Monitor
-from conformance.client import BrokerError, MqttClient
+from conformance.client import MqttClient
 from conformance.clock import REAL, VirtualClock
 from conformance.conclusion import INTERRUPTED, NOT_CERTIFIED, Conclusion
 from conformance.conclusion import of as conclusion_of
@@ -34,10 +34,8 @@ from conformance.reporting.bounds import file_stem
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
 from conformance.scenarios import (
-    SCENARIOS,
     Commander,
     Context,
-    NotSent,
     Safety,
     Timing,
     Traffic,
@@ -53,7 +51,7 @@ from conformance.suite.observation import Observation
 from conformance.suite.probe import NotAlive
 from conformance.suite.reboot import Reboot
 from conformance.suite.settings import Settings
-from conformance.topics import DIRECT_EXECUTION, UnitAddress, level_name
+from conformance.topics import UnitAddress, level_name
 from conformance.violation import RuleResult, Verdict
 
 CERTIFICATION = pytest.StashKey["Certification"]()
@@ -93,16 +91,17 @@ class Certification:
         """--collect-only: nothing is connected, run or written."""
         self.error: str | None = None
         """Why the run stopped before the tests (broker unreachable, unit not alive)."""
-        self._done: dict[str, bool] = {}
+        self.scenarios_done: dict[str, bool] = {}
+        """Scenario -> whether it ran (False: its rules could not be tested)."""
         self._passive_ready = False
         self._last_write = 0.0
         self.selected: list[str] = []
         """The rules whose tests were selected to run (after -k, -m, --rule)."""
         self.ran: set[str] = set()
-        self.enacted: dict[str, Verdict] = {}
-        self._judged_at: tuple[tuple[int, float | None], RunReport] | None = None
-        """The verdict each rule's test showed when it ran (``suite.verdict.enact``)."""
         """The rules whose tests ran (a test that never ran judged nothing)."""
+        self.enacted: dict[str, Verdict] = {}
+        """The verdict each rule's test showed when it ran (``suite.verdict.enact``)."""
+        self._judged_at: tuple[tuple[int, float | None], RunReport] | None = None
         self.out_of_time: str | None = None
         """--max-duration passed: what the run was waiting for then."""
         self.interrupted = False
@@ -111,11 +110,16 @@ class Certification:
         self.broker_lost: float | None = None
         """When the broker was lost for good (it did not come back within the budget)."""
         self.explored = ""
+        """What the exploration did (``suite/exploration.py``), for the report's meta."""
         self.explore_story = ""
         """The story exploration found, as told (the HTML report shows it step by step)."""
-        """What the exploration did (``suite/exploration.py``), for the report's meta."""
         self.replays: dict[str, tuple[float, str]] = {}
         """Rule -> (when exploration began, the replay line of the story that found it)."""
+        self._commanders(config, settings)
+
+    def _commanders(self, config: pytest.Config, settings: Settings) -> None:
+        """What drives the unit: the commanders (12, 14), the safety decision, the scenarios'
+        context and the observation's waits, all reporting on the progress line."""
         from conformance.suite.progress import Progress
 
         self.progress = Progress(config)
@@ -349,88 +353,30 @@ class Certification:
             self.run_scenario(name)
 
     def run_scenario(self, name: str) -> None:
-        """Run a scenario once (later calls return at once); ping first, as the gate, and the
-        scenarios it works on (``Scenario.needs``)."""
-        if name in self._done:
-            return
-        scenario = SCENARIOS[name]
-        self.check_broker(scenario.rules)
-        for needed in scenario.needs:
-            self.run_scenario(needed)
-        silent = self.unit_died() if name != "reboot" else ""
-        if silent:
-            # A dead unit answers nothing: each wait would only run out (HB-012 is the
-            # finding). The reboot scenario may bring it back, so it still runs.
-            for rule in scenario.rules:
-                self.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=silent)
-            self._done[name] = False
-            return
-        if scenario.level is not None:
-            if not self._claims(scenario.level):
-                self._done[name] = False
-                return  # every rule of it: skip, not claimed (the Monitor's reason)
-            # Ping gates the other direct-execution scenarios, except robustness, whose rule
-            # asks exactly whether the unit still pings.
-            if name not in ("ping", "robust") and scenario.level == DIRECT_EXECUTION:
-                self.run_scenario("ping")
-                deaf = self._answers_none()
-                if deaf:
-                    for rule in scenario.rules:
-                        self.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=deaf)
-                    self._done[name] = False
-                    return
-            self.observation.wait_execution_info()
-        try:
-            scenario.run(self.context)
-        except NotSent as e:  # --dry-run, or the publish policy refused it (DESIGN 'Safety')
-            for rule in scenario.rules:
-                self.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=str(e))
-        except OutOfTime as e:
-            self._out_of_time(e)
-        except BrokerError as e:
-            # The link went down under a publish: the broker's fault, never the unit's.
-            lost = self.connection.lost_since() or self.traffic.clock.now()
-            for rule in scenario.rules:
-                self.record(rule, verdict=Verdict.COULD_NOT_TEST,
-                            reason=f"{self.outage(lost)} ({e})")
-        finally:
-            self._done[name] = True
-            # Into a lost link an $abort would be lost too: the teardown sends it (finish).
-            # What ignored an $abort before is left to the last teardown (i20 6).
-            if not self.settings.dry_run and self.connection.is_connected:
-                aborted = self.commander.abort_all(self.timing.response, stuck=False)
-                aborted += self.tst.abort_all(self.timing.response, stuck=False)
-                if aborted and self.out_of_time:
-                    self._say_aborted(aborted)
-            self.write_reports()
-        self._fail_if_out_of_time()
+        """Run a scenario once (later calls return at once): ``scenario_run.run_scenario``."""
+        from conformance.suite.scenario_run import run_scenario
 
-    def _say_aborted(self, aborted: list[str]) -> None:
+        run_scenario(self, name)
+
+    def say_aborted(self, aborted: list[str]) -> None:
         self.events.append(f"aborted {len(aborted)} task(s) or TST tree(s) the suite had "
                            f"started: {', '.join(aborted)}")
 
-    def _out_of_time(self, e: OutOfTime) -> None:
+    def out_of_time_reached(self, e: OutOfTime) -> None:
+        """--max-duration passed while waiting for ``e``: the run stops (the summary says so)."""
         self.out_of_time = (f"--max-duration {self.settings.max_duration:g} s reached while "
                             f"waiting for {e}")
         self.events.at(self.traffic.clock.now(), f"{self.out_of_time}: the run stops here")
 
-    def _fail_if_out_of_time(self) -> None:
+    def fail_if_out_of_time(self) -> None:
+        """The test under way fails, without a traceback, once --max-duration has passed."""
         if self.out_of_time:
             pytest.fail(self.out_of_time, pytrace=False)
 
-    def _claims(self, level: str) -> bool:
+    def claims(self, level: str) -> bool:
+        """Whether the unit claims ``level`` (5.1: its heartbeat's levels)."""
         # ERR-008: a level written with an underscore is the same claim
         return level in map(level_name, self.context.levels())
-
-    def _answers_none(self) -> str:
-        """Why the unit answers no command at all, or "": ping unanswered, then each other
-        kind probed on its own (``Commander.answers_none``)."""
-        if self.settings.dry_run:
-            return ""  # nothing was sent: let every scenario say what it would send
-        if self.result("EXEC-PING-001").verdict is not Verdict.FAIL or \
-                self.traffic.since(0, "exec/response"):
-            return ""
-        return self.commander.answers_none(self.timing.response)
 
     def wait_passive_window(self) -> None:
         """Wait for the passive window (``Observation.wait_passive_window``), then judge the
@@ -441,8 +387,8 @@ class Certification:
         try:
             self.observation.wait_passive_window()
         except OutOfTime as e:
-            self._out_of_time(e)
-        self._fail_if_out_of_time()
+            self.out_of_time_reached(e)
+        self.fail_if_out_of_time()
         self.check_broker()
         with self._lock:
             self.monitor.finish(self.traffic.clock.now())
@@ -501,7 +447,7 @@ class Certification:
         except Exception as e:  # the reports must still be written
             self.events.append(f"aborting the suite's tasks failed: {e}")
         if aborted:
-            self._say_aborted(aborted)
+            self.say_aborted(aborted)
         try:
             with self._lock:
                 # Lost for good: the observation ended then (an outage is no death).

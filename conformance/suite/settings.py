@@ -221,62 +221,11 @@ def read(config: pytest.Config) -> Settings:
     strict_rules = _flag(config, "waraps_strict_rules")
     if strict_rules:
         profile = dataclasses.replace(profile, strict=True)
-    scale_text = _value(config, "waraps_timing_scale")
-    try:
-        scale = float(scale_text) if scale_text not in (None, "") else 1.0
-    except (TypeError, ValueError):
-        scale = -1.0
-    if not scale > 0 or scale != scale or scale == float("inf"):
-        raise pytest.UsageError(f"--timing-scale {scale_text!r}: a positive number is needed "
-                                f"(1 = the profile's deadlines, 3 = three times as long, for a "
-                                f"slow link)")
+    scale = _timing_scale(_value(config, "waraps_timing_scale"))
     reboot = _value(config, "waraps_reboot_cmd")
-    reports = Path(str(_value(config, "waraps_reports_dir") or "reports"))
-    if not reports.is_absolute():
-        reports = Path(config.invocation_params.dir) / reports
-    problem = reports_dir_problem(
-        reports, create=not config.getoption("collectonly", False))  # listing writes nothing
-    if problem:
-        raise pytest.UsageError(problem)
-    seed_text = config.getoption("waraps_seed", None)
-    if seed_text is None:
-        seed = secrets.randbelow(10**9)
-    else:
-        try:
-            seed = int(seed_text)
-        except ValueError:
-            raise pytest.UsageError(f"--seed {seed_text!r}: a whole number is needed "
-                                    f"(the header of an earlier run shows its seed)") from None
-    faults = tuple(config.getoption("waraps_sim_faults", None) or ())
-    if faults and broker.scheme not in ("embedded", "virtual"):
-        raise pytest.UsageError("--sim-fault switches a fault of the bundled reference unit, "
-                                "which runs only with --broker embedded")
-    if faults:
-        from conformance.sim import FAULTS
-
-        for name in faults:
-            if name not in FAULTS:
-                raise pytest.UsageError(
-                    f"--sim-fault {name!r} is not a fault of the reference unit"
-                    f"{_did_you_mean(name, list(FAULTS))}; valid: {', '.join(sorted(FAULTS))}")
-    variants = tuple(config.getoption("waraps_sim_variants", None) or ())
-    if variants and broker.scheme not in ("embedded", "virtual"):
-        raise pytest.UsageError("--sim-variant switches a variant of the bundled reference "
-                                "unit, which runs only with --broker embedded")
-    if variants:
-        from conformance.sim.variants import VariantError, check_variants
-
-        try:
-            check_variants(variants)
-        except VariantError as e:
-            raise pytest.UsageError(f"--sim-variant: {e}") from None
-    sim_rate = config.getoption("waraps_sim_rate", None) or 1.0
-    if not sim_rate > 0:
-        raise pytest.UsageError(f"--sim-rate {sim_rate!r}: a positive rate in Hz is needed")
-    sim_tst = bool(config.getoption("waraps_sim_tst", False))
-    if sim_tst and broker.scheme not in ("embedded", "virtual"):
-        raise pytest.UsageError("--sim-tst switches on the TST level of the bundled reference "
-                                "unit, which runs only with --broker embedded")
+    reports = _reports_dir(config)
+    seed = _seed(config.getoption("waraps_seed", None))
+    faults, variants, sim_rate, sim_tst = _sim_switches(config, broker.scheme)
     tst_topic = _tst_command_topic(_value(config, "waraps_tst_command_topic"), unit)
     return Settings(unit=unit, broker=broker, profile=profile, timing_scale=scale,
                     max_duration=_duration(_value(config, "waraps_max_duration")),
@@ -293,8 +242,81 @@ def read(config: pytest.Config) -> Settings:
                     allow_hostile=_flag(config, "waraps_allow_hostile"),
                     dry_run=_flag(config, "waraps_dry_run"), strict_rules=strict_rules,
                     reports_dir=reports, seed=seed,
-                    sim_faults=faults, sim_variants=variants, sim_rate=float(sim_rate), sim_tst=sim_tst,
+                    sim_faults=faults, sim_variants=variants, sim_rate=sim_rate, sim_tst=sim_tst,
                     tst_command_topic=tst_topic)
+
+
+def _timing_scale(scale_text: object) -> float:
+    """--timing-scale: a positive factor of every deadline (1 when not given)."""
+    try:
+        scale = float(scale_text) if scale_text not in (None, "") else 1.0  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        scale = -1.0
+    if not scale > 0 or scale != scale or scale == float("inf"):
+        raise pytest.UsageError(f"--timing-scale {scale_text!r}: a positive number is needed "
+                                f"(1 = the profile's deadlines, 3 = three times as long, for a "
+                                f"slow link)")
+    return scale
+
+
+def _reports_dir(config: pytest.Config) -> Path:
+    """--reports-dir, relative to where pytest was started, writable (made unless only
+    collecting: listing writes nothing)."""
+    reports = Path(str(_value(config, "waraps_reports_dir") or "reports"))
+    if not reports.is_absolute():
+        reports = Path(config.invocation_params.dir) / reports
+    problem = reports_dir_problem(reports, create=not config.getoption("collectonly", False))
+    if problem:
+        raise pytest.UsageError(problem)
+    return reports
+
+
+def _seed(seed_text: object) -> int:
+    """--seed, or a random one (the header shows it, so the run can be repeated)."""
+    if seed_text is None:
+        return secrets.randbelow(10**9)
+    try:
+        return int(seed_text)  # type: ignore[call-overload]
+    except ValueError:
+        raise pytest.UsageError(f"--seed {seed_text!r}: a whole number is needed "
+                                f"(the header of an earlier run shows its seed)") from None
+
+
+def _sim_switches(config: pytest.Config,
+                  scheme: str) -> tuple[tuple[str, ...], tuple[str, ...], float, bool]:
+    """The reference unit's switches (--sim-fault, --sim-variant, --sim-rate, --sim-tst):
+    only with the bundled reference unit (--broker embedded, or virtual in the tests)."""
+    faults = tuple(config.getoption("waraps_sim_faults", None) or ())
+    if faults and scheme not in ("embedded", "virtual"):
+        raise pytest.UsageError("--sim-fault switches a fault of the bundled reference unit, "
+                                "which runs only with --broker embedded")
+    if faults:
+        from conformance.sim import FAULTS
+
+        for name in faults:
+            if name not in FAULTS:
+                raise pytest.UsageError(
+                    f"--sim-fault {name!r} is not a fault of the reference unit"
+                    f"{_did_you_mean(name, list(FAULTS))}; valid: {', '.join(sorted(FAULTS))}")
+    variants = tuple(config.getoption("waraps_sim_variants", None) or ())
+    if variants and scheme not in ("embedded", "virtual"):
+        raise pytest.UsageError("--sim-variant switches a variant of the bundled reference "
+                                "unit, which runs only with --broker embedded")
+    if variants:
+        from conformance.sim.variants import VariantError, check_variants
+
+        try:
+            check_variants(variants)
+        except VariantError as e:
+            raise pytest.UsageError(f"--sim-variant: {e}") from None
+    sim_rate = config.getoption("waraps_sim_rate", None) or 1.0
+    if not sim_rate > 0:
+        raise pytest.UsageError(f"--sim-rate {sim_rate!r}: a positive rate in Hz is needed")
+    sim_tst = bool(config.getoption("waraps_sim_tst", False))
+    if sim_tst and scheme not in ("embedded", "virtual"):
+        raise pytest.UsageError("--sim-tst switches on the TST level of the bundled reference "
+                                "unit, which runs only with --broker embedded")
+    return faults, variants, float(sim_rate), sim_tst
 
 
 def _tst_command_topic(value: object, unit: UnitAddress) -> str | None:

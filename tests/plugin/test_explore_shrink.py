@@ -8,51 +8,48 @@ The unit here is a function of the steps (no broker): the real replays are exerc
 from __future__ import annotations
 
 from itertools import chain, repeat
-from typing import Any
 
+from conformance.scenarios.explore_action import Action, Ping, Query, Resend, Signal, Start, Wait
 from conformance.scenarios.shrink import shrink, trials, without
 
 
-def start(slot: int, task: str = "look-at-bearing") -> dict[str, Any]:
-    return {"do": "start", "task": task, "task_uuid": True, "slot": slot}
+def start(slot: int, task: str = "look-at-bearing") -> Start:
+    return Start(task, slot=slot)
 
 
-def signal(name: str, slot: int | None) -> dict[str, Any]:
-    return {"do": "signal", "signal": name, "slot": slot}
+def signal(name: str, slot: int | None) -> Signal:
+    return Signal(name, slot)
 
 
-STORY = [start(0), {"do": "ping"}, start(1, "image-object-detection"), signal("$pause", 0),
-         {"do": "query", "slot": 1}, {"do": "wait", "periods": 2}, start(2),
-         {"do": "resend", "step": 3}, signal("$abort", 1)]
+STORY: list[Action] = [start(0), Ping(), start(1, "image-object-detection"),
+                       signal("$pause", 0), Query(1), Wait(2), start(2), Resend(3),
+                       signal("$abort", 1)]
 """Nine steps; the bug (a paused task dropped by a new one of its kind) needs steps 0, 3, 6."""
 
 
-def drops_paused(actions: list[dict[str, Any]]) -> int | None:
+def drops_paused(actions: list[Action]) -> int | None:
     """The step where the faulty unit disagrees: a start of the kind of a task paused before
     it (what ``preempt-paused-silently`` does), or None."""
     paused: set[str] = set()
     slots: list[str] = []
     for i, a in enumerate(actions):
-        if a["do"] == "start":
-            if a["task"] in paused:
+        if isinstance(a, Start):
+            if a.task in paused:
                 return i
-            slots.append(a["task"])
-        elif a["do"] == "signal" and a["signal"] == "$pause" and a["slot"] is not None:
-            paused.add(slots[a["slot"]])
+            slots.append(a.task)
+        elif isinstance(a, Signal) and a.signal == "$pause" and a.slot is not None:
+            paused.add(slots[a.slot])
     return None
 
 
 def test_leaving_out_a_start_takes_what_was_sent_to_its_task_and_renumbers_the_rest() -> None:
     shorter = without(STORY, [2])  # the start of T2 (slot 1): its query and abort go too
-    assert shorter == [start(0), {"do": "ping"}, signal("$pause", 0),
-                       {"do": "wait", "periods": 2}, start(1),
-                       {"do": "resend", "step": 2}]
+    assert shorter == [start(0), Ping(), signal("$pause", 0), Wait(2), start(1), Resend(2)]
     # a resend of a step left out goes with it; the later steps keep their meaning
     assert without(STORY, [3])[-2:] == [start(2), signal("$abort", 1)]
     # the first task gone: its pause, and the resend of that pause, go with it
-    assert without(STORY, [0]) == [{"do": "ping"}, start(0, "image-object-detection"),
-                                   {"do": "query", "slot": 0}, {"do": "wait", "periods": 2},
-                                   start(1), signal("$abort", 0)]
+    assert without(STORY, [0]) == [Ping(), start(0, "image-object-detection"), Query(0),
+                                   Wait(2), start(1), signal("$abort", 0)]
 
 
 def test_trials_put_what_follows_the_disagreement_and_other_tasks_first() -> None:
@@ -67,7 +64,7 @@ def test_trials_put_what_follows_the_disagreement_and_other_tasks_first() -> Non
 def test_shrinks_to_the_steps_the_bug_needs_and_says_it_finished() -> None:
     replays: list[int] = []
 
-    def attempt(actions: list[dict[str, Any]]) -> tuple[int, set[int], str] | None:
+    def attempt(actions: list[Action]) -> tuple[int, set[int], str] | None:
         replays.append(len(actions))
         failing = drops_paused(actions)
         return None if failing is None else (failing, {0}, f"{len(actions)} steps")
@@ -82,7 +79,7 @@ def test_shrinks_to_the_steps_the_bug_needs_and_says_it_finished() -> None:
 def test_shrinking_stops_when_the_budget_has_no_room_for_a_replay() -> None:
     clock = chain([30.0, 30.0], repeat(0.0))  # room for two replays, then none
 
-    def attempt(actions: list[dict[str, Any]]) -> tuple[int, set[int], str] | None:
+    def attempt(actions: list[Action]) -> tuple[int, set[int], str] | None:
         failing = drops_paused(actions)
         return None if failing is None else (failing, {0}, "shorter")
 
