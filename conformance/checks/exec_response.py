@@ -10,7 +10,7 @@ the same way. Commands the unit left unanswered before the one it answers are it
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from typing import Any
 
 from conformance import protocol
@@ -82,26 +82,7 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
                         "again, with the same answer")
         return
     unit.examine("EXEC-009")
-    waited, timeout = t - cmd.last_sent, response_timeout(ctx)
-    in_time = waited <= timeout
-    if in_time:
-        unit.examine("EXEC-010")
-    elif ctx.gaps and ctx.in_gap(cmd.last_sent, t):
-        # The broker held or lost traffic meanwhile (an outage, a stall): when the unit
-        # answered is unknown (issue 25 §3).
-        unit.note("EXEC-010", OVER_A_GAP)
-    else:
-        # Late: how late is EXEC-010's finding; the command's own rule wanted it in time.
-        yield violation("EXEC-010", msg, expected=f"an answer within {timeout:.1f} s (the "
-                        f"profile's response_timeout)", observed=f"answered {waited:.2f} s "
-                        f"after {cmd.describe()}", path="$.response-to",
-                        detail="answer at once; a slow answer makes the commander resend")
-        if cmd.answers == 1 and not cmd.missed:
-            rule = ANSWER_RULE.get(cmd.name, "EXEC-ROBUST-002")
-            unit.examine(rule)
-            yield violation(rule, msg, expected=f"an answer to {cmd.describe()} within "
-                            f"{timeout:.1f} s", observed=f"answered only after {waited:.2f} s",
-                            path="$.response-to")
+    in_time = yield from _judge_timing(ctx, unit, cmd, msg)
     if cmd.answers > 1:
         yield from _judge_resend_answer(unit, c, cmd, msg, value, task_uuid)
         return
@@ -294,6 +275,33 @@ def _judge_query(unit: UnitState, c: Conversations, cmd: Command, msg: Message,
                         f"{task.task_uuid}'s latest feedback was '{task.last_status}'",
                         observed=f"response {value!r}", path="$.response",
                         detail="answer query-status from the task's whole history (12.1)")
+
+
+def _judge_timing(ctx: CheckContext, unit: UnitState, cmd: Command, msg: Message
+                  ) -> Generator[Violation, None, bool]:
+    """12.1: an answer in time (EXEC-010, and the command's own rule for its first answer);
+    returns whether it was in time."""
+    waited, timeout = msg.time - cmd.last_sent, response_timeout(ctx)
+    in_time = waited <= timeout
+    if in_time:
+        unit.examine("EXEC-010")
+    elif ctx.gaps and ctx.in_gap(cmd.last_sent, msg.time):
+        # The broker held or lost traffic meanwhile (an outage, a stall): when the unit
+        # answered is unknown (issue 25 §3).
+        unit.note("EXEC-010", OVER_A_GAP)
+    else:
+        # Late: how late is EXEC-010's finding; the command's own rule wanted it in time.
+        yield violation("EXEC-010", msg, expected=f"an answer within {timeout:.1f} s (the "
+                        f"profile's response_timeout)", observed=f"answered {waited:.2f} s "
+                        f"after {cmd.describe()}", path="$.response-to",
+                        detail="answer at once; a slow answer makes the commander resend")
+        if cmd.answers == 1 and not cmd.missed:
+            rule = ANSWER_RULE.get(cmd.name, "EXEC-ROBUST-002")
+            unit.examine(rule)
+            yield violation(rule, msg, expected=f"an answer to {cmd.describe()} within "
+                            f"{timeout:.1f} s", observed=f"answered only after {waited:.2f} s",
+                            path="$.response-to")
+    return in_time
 
 
 def _judge_resend_answer(unit: UnitState, c: Conversations, cmd: Command, msg: Message,

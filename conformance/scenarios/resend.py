@@ -8,11 +8,25 @@ no start-task without a task-uuid is asked with one (as the spec's examples are)
 
 from __future__ import annotations
 
+from typing import Any
+
 from conformance.scenarios.context import Context, describe
 from conformance.scenarios.params import valid_params
+from conformance.scenarios.sender import Sent
+from conformance.scenarios.traffic import Entry
 from conformance.violation import Verdict
 
 RULES = ("EXEC-RESEND-001", "EXEC-RESEND-002")
+
+
+def _start(ctx: Context, task: str, params: dict[str, Any]) -> tuple[Sent, Entry | None]:
+    """The start-task to resend: without a task-uuid; if that is not answered (EXEC-START-001
+    and -002's finding), as every start-task example of the spec is, with one. A unit that
+    runs the resend again then reports the task 'running' anew or lists it twice."""
+    first, answer = ctx.commander.start_task(task, params, ctx.timing.response, task_uuid=None)
+    if answer is None:
+        first, answer = ctx.commander.start_task(task, params, ctx.timing.response)
+    return first, answer
 
 
 def run(ctx: Context) -> None:
@@ -25,13 +39,7 @@ def run(ctx: Context) -> None:
         for rule in RULES:
             ctx.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=reason)
         return
-    params = valid_params(task, origin, ctx.safety, ctx.seed)
-    first, answer1 = ctx.commander.start_task(task, params, ctx.timing.response, task_uuid=None)
-    if answer1 is None:
-        # Not answered without a task-uuid (EXEC-START-001/002's finding): asked as every
-        # start-task example of the spec asks, with one. A unit that runs the resend again
-        # then reports the task 'running' anew or lists it twice (exec_feedback, below).
-        first, answer1 = ctx.commander.start_task(task, params, ctx.timing.response)
+    first, answer1 = _start(ctx, task, valid_params(task, origin, ctx.safety, ctx.seed))
     if answer1 is None:
         for rule in RULES:
             ctx.record(rule, verdict=Verdict.COULD_NOT_TEST,
