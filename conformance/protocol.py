@@ -369,8 +369,7 @@ class Model:
         elif cmd.name == "signal-task" and value == "ok" and cmd.task_uuid:
             task = self.tasks.get(cmd.task_uuid)
             if task is not None and cmd.signal:
-                task.acked.append((t, cmd.signal, to))
-                del task.acked[:-8]
+                task.acked = (*task.acked, (t, cmd.signal, to))[-8:]
 
     def feedback(self, m: Any, t: float) -> list[Finding]:
         uuid, raw = _str(m, "task-uuid"), _str(m, "status")

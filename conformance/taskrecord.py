@@ -45,10 +45,12 @@ class TaskRecord:
     refused: bool = False
     """Its start-task was answered 'failed': it never ran."""
     statuses: list[tuple[float, str]] = field(default_factory=list)
-    """(time, status) of its latest feedback, at most ``STATUSES_KEPT``."""
+    """(time, status) of its latest feedback: the model keeps ``STATUSES_KEPT``, the
+    conversation checks only the latest (``said``)."""
     ended_at: float | None = None
-    acked: list[tuple[float, str, str]] = field(default_factory=list)
-    """(time, signal, com-uuid) of the signals to it answered 'ok', at most 8."""
+    acked: tuple[tuple[float, str, str], ...] = ()
+    """(time, signal, com-uuid) of the signals to it answered 'ok', at most 8 (a tuple: most
+    tasks get none, and an empty one costs nothing)."""
     listed: bool = False
     left_at: float | None = None
     """When it left tasks-executing while it was held live (no final status yet)."""
@@ -75,10 +77,10 @@ class TaskRecord:
         """When its latest status came."""
         return self.statuses[-1][0] if self.statuses else None
 
-    def said(self, status: str, t: float) -> None:
-        """Its feedback said ``status`` at ``t`` (the latest ``STATUSES_KEPT`` are kept)."""
+    def said(self, status: str, t: float, kept: int = STATUSES_KEPT) -> None:
+        """Its feedback said ``status`` at ``t`` (the latest ``kept`` are kept)."""
         self.statuses.append((t, status))
-        del self.statuses[:-STATUSES_KEPT]
+        del self.statuses[:-kept]
 
     def acked_since(self, t: float, signals: tuple[str, ...]) -> tuple[float, str, str] | None:
         return next((a for a in reversed(self.acked) if a[0] >= t and a[1] in signals), None)

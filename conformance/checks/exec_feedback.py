@@ -62,7 +62,7 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
                             path="$.status", detail="12.1: a resend is answered from memory, "
                             "not executed again")
         task.running_feedback += 1
-    task.said(status, t)
+    task.said(status, t, kept=1)  # the latest is all the conversation checks read
     if status in ("running", "paused") or status in FINAL_STATUSES:
         task.state = State(status)
     yield from _judge_signalled(unit, c, task_uuid, msg, status)
