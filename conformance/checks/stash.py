@@ -26,6 +26,12 @@ class StashKey(Generic[T]):
     def __repr__(self) -> str:
         return f"StashKey({self.name!r})"
 
+    def __copy__(self) -> StashKey[T]:
+        return self  # a key is an identity: a copied stash is found by the same keys
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> StashKey[T]:
+        return self
+
 
 class Stash:
     """A unit's components, each under its ``StashKey[T]``, typed ``T``.
