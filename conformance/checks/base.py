@@ -41,6 +41,9 @@ class Check:
     fn: Callable[..., Any]
     kinds: tuple[TopicKind | str, ...] = ()
     at_finish: bool = False
+    reads: tuple[StashKey[Any], ...] = ()
+    """The unit's components (``UnitState.stash``) it reads or keeps, itself or through what
+    it calls: declared, and held to by ``tests/plugin/test_declared_reads.py``."""
 
     @property
     def name(self) -> str:
@@ -58,9 +61,11 @@ CHECKS: dict[str, list[Check]] = {}
 """Rule id -> the checks implementing it (a message part and a finish part at most)."""
 
 
-def check(*rules: str, on: Iterable[TopicKind | str] = (), finish: bool = False
+def check(*rules: str, on: Iterable[TopicKind | str] = (), finish: bool = False,
+          reads: Iterable[StashKey[Any]] = ()
           ) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """Register a check for ``rules``: on messages of the kinds ``on``, or at ``finish``.
+    """Register a check for ``rules``: on messages of the kinds ``on``, or at ``finish``;
+    ``reads`` declares the unit's components it reads or keeps (``checks/stash.py``).
 
     A message check returns (or yields) the violations it finds: a generator, a list, or None
     for none (the cheapest, for checks on frequent messages).
@@ -71,7 +76,7 @@ def check(*rules: str, on: Iterable[TopicKind | str] = (), finish: bool = False
         get(rule)  # an unknown id is a bug: fail at import, naming close ids
 
     def register(fn: Callable[..., Any]) -> Callable[..., Any]:
-        c = Check(tuple(rules), fn, tuple(on), finish)
+        c = Check(tuple(rules), fn, tuple(on), finish, tuple(reads))
         if finish:
             AT_FINISH.append(c)
         for kind in c.kinds:
@@ -92,16 +97,17 @@ history (``fn(ctx, unit, msg, v, found) -> found``): e.g. a response answering a
 whose form 12.3.2 leaves undefined, is judged by ERR-013 instead of EXEC-002."""
 
 
-def reinterprets(*rules: str, on: Iterable[TopicKind]
+def reinterprets(*rules: str, on: Iterable[TopicKind], reads: Iterable[StashKey[Any]] = ()
                  ) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """Register a check that may replace validator violations by violations of ``rules``."""
+    """Register a check that may replace validator violations by violations of ``rules``
+    (``reads``: as for ``check``)."""
     from conformance.rules import get
 
     for rule in rules:
         get(rule)
 
     def register(fn: Callable[..., Any]) -> Callable[..., Any]:
-        c = Check(tuple(rules), fn, tuple(on))
+        c = Check(tuple(rules), fn, tuple(on), reads=tuple(reads))
         for kind in c.kinds:
             REINTERPRET.setdefault(kind, []).append(c)  # type: ignore[arg-type]
         for rule in rules:

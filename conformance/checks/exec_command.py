@@ -15,7 +15,13 @@ import orjson
 
 from conformance.checks.base import CheckContext, UnitState, check, reinterprets
 from conformance.checks.command_history import str_of
-from conformance.checks.conversation import MALFORMED, Command, Conversations, conversations
+from conformance.checks.conversation import (
+    CONVERSATIONS,
+    MALFORMED,
+    Command,
+    Conversations,
+    conversations,
+)
 from conformance.message import Message
 from conformance.taskrecord import TaskRecord
 from conformance.topics import TopicKind
@@ -25,7 +31,7 @@ from conformance.violation import Violation
 _COM_UUID = re.compile(rb'"com-uuid"\s*:\s*"([^"\\]{1,100})"')
 
 
-@check("EXEC-008", "EXEC-010", on=(TopicKind.EXEC_COMMAND,))
+@check("EXEC-008", "EXEC-010", on=(TopicKind.EXEC_COMMAND,), reads=(CONVERSATIONS,))
 def command_opens_conversation(ctx: CheckContext, unit: UnitState, msg: Message,
                                v: Validation) -> Iterator[Violation]:
     """Every command with a readable com-uuid opens (or, resent, continues) a conversation.

@@ -29,13 +29,15 @@ from conformance.checks.conversation import (
     expects_answers,
 )
 from conformance.checks.exec_response import judge_unanswered
+from conformance.checks.liveness import IDENTITY, dying_at_end, dying_before_life
 from conformance.message import Message
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation, clock
 
 
-@check("EXEC-RESEND-002", "EXEC-START-003", "EXEC-SIG-002", on=(TopicKind.HEARTBEAT,))
+@check("EXEC-RESEND-002", "EXEC-START-003", "EXEC-SIG-002", on=(TopicKind.HEARTBEAT,),
+       reads=(CONVERSATIONS, FEEDBACK_WITHOUT_TASK_UUID, IDENTITY))
 def deadlines_pass(ctx: CheckContext, unit: UnitState, msg: Message,
                    v: Validation) -> list[Violation] | None:
     """Deadlines are checked on each heartbeat of the unit (and at the end): answers due,
@@ -64,8 +66,6 @@ def _new_life(ctx: CheckContext, unit: UnitState, c: Conversations, agent: str, 
               ) -> list[Violation] | None:
     if agent in c.lives:
         return None  # an earlier uuid again: two agents under one name (HB-011), no reboot
-    from conformance.checks.identity import dying_before_life
-
     dead = dying_before_life(unit, c, t)
     found = _expire(ctx, unit, c, float("inf"), reboot=True, dead=dead)
     c.running.clear()  # what the old life ran is not judged (the reboot lost it)
@@ -169,14 +169,13 @@ def _judge_streak(ctx: CheckContext, unit: UnitState, c: Conversations, *, ended
     return found
 
 
-@check("EXEC-ROBUST-001", "EXEC-START-003", finish=True)
+@check("EXEC-ROBUST-001", "EXEC-START-003", finish=True,
+       reads=(CONVERSATIONS, FEEDBACK_WITHOUT_TASK_UUID, IDENTITY))
 @judged_on_a_copy(CONVERSATIONS, dropped=("EXEC-ROBUST-001", "open expectations"))
 def conversations_at_end(ctx: CheckContext, unit: UnitState, c: Conversations,
                          now: float) -> list[Violation]:
     """At the end: answers still due are judged (a unit that died is HB-012's finding);
     tasks still running are not judged; what the bounds dropped is said."""
-    from conformance.checks.identity import dying_at_end
-
     found = _expire(ctx, unit, c, now)
     found += _judge_streak(ctx, unit, c, ended_by="the end of the observation",
                            dead=dying_at_end(ctx, unit, c, now))

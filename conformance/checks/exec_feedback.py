@@ -28,7 +28,8 @@ from conformance.violation import Violation
 
 
 @check("EXEC-FB-004", "EXEC-START-003", "EXEC-SIG-002", "EXEC-SIG-003", "EXEC-SIG-004",
-       "EXEC-RESEND-001", on=(TopicKind.EXEC_FEEDBACK,))
+       "EXEC-RESEND-001", on=(TopicKind.EXEC_FEEDBACK,),
+       reads=(CONVERSATIONS, FEEDBACK_WITHOUT_TASK_UUID))
 def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
                           v: Validation) -> Iterator[Violation]:
     """12.4: feedback follows a task to one final status (finished, failed, aborted), and
@@ -118,7 +119,8 @@ def _judge_signalled(unit: UnitState, c: Conversations, task_uuid: str, msg: Mes
                             observed=f"status '{status}'", path="$.status")
 
 
-@check("EXEC-START-003", "EXEC-RESEND-001", on=(TopicKind.DIRECT_EXECUTION_INFO,))
+@check("EXEC-START-003", "EXEC-RESEND-001", on=(TopicKind.DIRECT_EXECUTION_INFO,),
+       reads=(CONVERSATIONS,))
 def tasks_executing_follow_tasks(ctx: CheckContext, unit: UnitState, msg: Message,
                                  v: Validation) -> list[Violation] | None:
     """5.3: tasks-executing lists the running tasks: a started task that leaves it has ended,

@@ -52,7 +52,8 @@ was this status."""
 
 @check("EXEC-006", "EXEC-009", "EXEC-010", "EXEC-PING-001", "EXEC-PING-002", "EXEC-START-001",
        "EXEC-START-002", "EXEC-START-004", "EXEC-START-005", "EXEC-SIG-001", "EXEC-QUERY-001",
-       "EXEC-RESEND-001", "EXEC-RESEND-002", "EXEC-ROBUST-002", on=(TopicKind.EXEC_RESPONSE,))
+       "EXEC-RESEND-001", "EXEC-RESEND-002", "EXEC-ROBUST-002", on=(TopicKind.EXEC_RESPONSE,),
+       reads=(CONVERSATIONS,))
 def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
                              v: Validation) -> Iterator[Violation]:
     """12.1, 12.3: a response answers a command (response-to = its com-uuid), once, in time,
@@ -349,7 +350,7 @@ def judge_unanswered(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: 
                                "cannot be executed")
 
 
-@reinterprets("ERR-013", on=(TopicKind.EXEC_RESPONSE,))
+@reinterprets("ERR-013", on=(TopicKind.EXEC_RESPONSE,), reads=(CONVERSATIONS,))
 def signal_task_response_form(ctx: CheckContext, unit: UnitState, msg: Message, v: Validation,
                               found: list[Violation]) -> list[Violation]:
     """12.3.2 (signal-task response) is empty: the suite expects a start-task response's form
@@ -370,7 +371,7 @@ def signal_task_response_form(ctx: CheckContext, unit: UnitState, msg: Message, 
             if f.rule == "EXEC-002" else f for f in found]
 
 
-@reinterprets("ERR-014", on=(TopicKind.EXEC_RESPONSE,))
+@reinterprets("ERR-014", on=(TopicKind.EXEC_RESPONSE,), reads=(CONVERSATIONS,))
 def no_task_named_no_task_uuid(ctx: CheckContext, unit: UnitState, msg: Message,
                                v: Validation, found: list[Violation]) -> list[Violation]:
     """12.1: a response names the task of the command it answers. ``task-uuid: ""`` answering
@@ -388,7 +389,7 @@ def no_task_named_no_task_uuid(ctx: CheckContext, unit: UnitState, msg: Message,
     return [f for f in found if not (f.rule == "ERR-014" and f.path == "$.task-uuid")]
 
 
-@reinterprets("ERR-006", on=(TopicKind.EXEC_RESPONSE,))
+@reinterprets("ERR-006", on=(TopicKind.EXEC_RESPONSE,), reads=(CONVERSATIONS,))
 def success_answers_query_status(ctx: CheckContext, unit: UnitState, msg: Message,
                                  v: Validation, found: list[Violation]) -> list[Violation]:
     """12.1 lists query-status's results as 'running, failed, success, unknown': 'success'
@@ -409,7 +410,7 @@ def success_answers_query_status(ctx: CheckContext, unit: UnitState, msg: Messag
     return [f for f in found if f.rule != "ERR-006"]
 
 
-@reinterprets("EXEC-007", on=(TopicKind.EXEC_RESPONSE,))
+@reinterprets("EXEC-007", on=(TopicKind.EXEC_RESPONSE,), reads=(CONVERSATIONS,))
 def query_status_reports_a_status(ctx: CheckContext, unit: UnitState, msg: Message,
                                   v: Validation, found: list[Violation]) -> list[Violation]:
     """12.1: query-status 'return[s] the status of the task (running, failed, success,

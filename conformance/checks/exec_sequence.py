@@ -42,7 +42,7 @@ def model_of(ctx: CheckContext, unit: UnitState) -> Model:
 
 @check("EXEC-SEQ-001", "EXEC-SEQ-002", on=(TopicKind.EXEC_COMMAND, TopicKind.EXEC_RESPONSE,
                                            TopicKind.EXEC_FEEDBACK,
-                                           TopicKind.DIRECT_EXECUTION_INFO))
+                                           TopicKind.DIRECT_EXECUTION_INFO), reads=(MODEL,))
 def sequence_follows_model(ctx: CheckContext, unit: UnitState, msg: Message,
                            v: Validation) -> list[Violation] | None:
     """Feed the model; report what it finds. (Runs on every direct_execution_info too: a list

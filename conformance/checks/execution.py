@@ -58,14 +58,14 @@ def _agent_uuid_matches(rule: str, what: str, ctx: CheckContext, unit: UnitState
             (rule, agent_uuid, msg.time)] = violation
 
 
-@check("EXEC-004", on=(TopicKind.EXEC_RESPONSE,))
+@check("EXEC-004", on=(TopicKind.EXEC_RESPONSE,), reads=(HEARTBEAT_UUID_TIMES, PENDING_UUID))
 def response_agent_uuid_is_heartbeats(ctx: CheckContext, unit: UnitState, msg: Message,
                                       v: Validation) -> Iterator[Violation]:
     """12.1: 'Response message: Returns agent-uuid' (the unit's, as in its heartbeat)."""
     yield from _agent_uuid_matches("EXEC-004", "response", ctx, unit, msg, v)
 
 
-@check("EXEC-FB-003", on=(TopicKind.EXEC_FEEDBACK,))
+@check("EXEC-FB-003", on=(TopicKind.EXEC_FEEDBACK,), reads=(HEARTBEAT_UUID_TIMES, PENDING_UUID))
 def feedback_agent_uuid_is_heartbeats(ctx: CheckContext, unit: UnitState, msg: Message,
                                       v: Validation) -> Iterator[Violation]:
     """12.1: feedback 'should contain agent-uuid' (the unit's, as in its heartbeat)."""
@@ -80,7 +80,8 @@ def _heartbeat_is_live(unit: UnitState, agent_uuid: str, t: float) -> bool:
     return last is not None and period is not None and t - last <= 2 * period
 
 
-@check("EXEC-004", "EXEC-FB-003", on=(TopicKind.HEARTBEAT,))
+@check("EXEC-004", "EXEC-FB-003", on=(TopicKind.HEARTBEAT,),
+       reads=(HEARTBEAT_UUID_TIMES, PENDING_UUID))
 def pending_agent_uuids_resolved(ctx: CheckContext, unit: UnitState, msg: Message,
                                  v: Validation) -> list[Violation] | None:
     """A response with an unknown agent-uuid is right if the next heartbeat carries it.
@@ -107,7 +108,7 @@ def pending_agent_uuids_resolved(ctx: CheckContext, unit: UnitState, msg: Messag
     return found
 
 
-@check("EXEC-004", "EXEC-FB-003", finish=True)
+@check("EXEC-004", "EXEC-FB-003", finish=True, reads=(PENDING_UUID,))
 def pending_agent_uuids_at_end(ctx: CheckContext, unit: UnitState, now: float,
                                findings: Any) -> Iterator[Violation]:
     pending = unit.stash.get(PENDING_UUID)

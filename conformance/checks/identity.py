@@ -5,56 +5,32 @@ declared level backed by its info message (HB-008)."""
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from conformance.checks.base import CheckContext, UnitState, check
-from conformance.checks.stash import StashKey
+from conformance.checks.conversation import CONVERSATIONS
+from conformance.checks.liveness import (
+    DEATHS_KEPT,
+    HB,
+    IDENTITY,
+    SILENCE_PERIODS,
+    Identity,
+    broker_gap,
+    deaths,
+    heartbeat_period,
+    heartbeat_tracker,
+)
 from conformance.message import Message
 from conformance.topics import INFO_KIND_OF_LEVEL, TopicKind, level_name
 from conformance.validator import Validation
 from conformance.violation import Violation
 
-if TYPE_CHECKING:
-    from conformance.checks.command_history import CommandHistory
-    from conformance.checks.rates import RateTracker
-
-HB = TopicKind.HEARTBEAT
 REBOOT_SILENCE_PERIODS = 2.0  # HB-006's decision
-SILENCE_PERIODS = 3.0  # HB-010's decision
 FAST_RESTART_PERIODS = 30.0
 """HB-006: a unit may restart within a heartbeat period (a new agent-uuid without a silence)
 once; a second such change within this many declared periods is no reboot."""
 STALE_PERIODS = 3.0  # MSG-007's decision
 LEVEL_INFO_PERIODS = 3.0  # HB-008: wait at least 3 declared heartbeat periods (and info_wait)
-DEATHS_KEPT = 16
-
-
-class Identity:
-    """What the identity checks keep of a unit between its heartbeats."""
-
-    __slots__ = ("fast_change", "silences_pending", "silences_held", "deaths", "levels_since",
-                 "levels_seen", "heartbeat_rate")
-
-    def __init__(self) -> None:
-        self.fast_change: float | None = None
-        """When the agent-uuid last changed without a silence (HB-006)."""
-        self.silences_pending: list[Violation] | None = None
-        """Silences judged at the next heartbeat, once a burst showed whether the broker
-        stalled (HB-010)."""
-        self.silences_held: list[Violation] = []
-        """Silences held until the unit keeps its period once (HB-010; at most 8)."""
-        self.deaths: list[tuple[float, float]] = []
-        """(last heartbeat, the suite's reboot) of each death a reboot ended (HB-012)."""
-        self.levels_since: dict[str, float] = {}
-        """Level -> when it was first declared (HB-008)."""
-        self.levels_seen: list[Any] | None = None
-        """The latest heartbeat's raw levels (HB-008: unchanged, nothing new)."""
-        self.heartbeat_rate: RateTracker | None = None
-        """The heartbeat's rate tracker, which ``rates`` keeps here too when it makes one:
-        silences are measured in the periods it measured (``heartbeat_period``)."""
-
-
-IDENTITY: StashKey[Identity] = StashKey("identity")
 
 
 def _uuid(v: Validation) -> str | None:
@@ -73,7 +49,7 @@ def _previous_live(unit: UnitState) -> float | None:
 # The heartbeat checks run on every heartbeat: they return a list or None (no generator), and
 # count examinations straight into ``unit.examined`` (what ``unit.examine`` does).
 
-@check("HB-006", "HB-011", on=(HB,))
+@check("HB-006", "HB-011", on=(HB,), reads=(IDENTITY,))
 def agent_uuid_changes_only_on_reboot(ctx: CheckContext, unit: UnitState, msg: Message,
                                       v: Validation) -> list[Violation] | None:
     """5.1: agent-uuid 'should change when rebooting', and only then. Against the previous
@@ -119,7 +95,7 @@ def agent_uuid_changes_only_on_reboot(ctx: CheckContext, unit: UnitState, msg: M
         detail="generate the agent-uuid once per process start, not per thread or message")]
 
 
-@check("HB-010", on=(HB,))
+@check("HB-010", on=(HB,), reads=(IDENTITY,))
 def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
                               v: Validation) -> list[Violation] | None:
     """5.1: the heartbeat registers availability; a silence over 3 declared periods warns.
@@ -159,7 +135,7 @@ def _silence(ctx: CheckContext, unit: UnitState, msg: Message,
             identity.silences_held = []
             return held
         return None
-    tracker = _heartbeat_tracker(unit)
+    tracker = heartbeat_tracker(unit)
     if ctx.reboots and _died_until_reboot(ctx, unit, identity, last, msg.time):
         return None
     if ctx.in_gap(last, msg.time):
@@ -200,7 +176,7 @@ def _died_until_reboot(ctx: CheckContext, unit: UnitState, identity: Identity, l
     it before ``t``: a death (HB-012, kept in ``identity.deaths``), not a silence."""
     revived = next((r for r in ctx.reboots if last < r <= t), None)
     if revived is None or revived - last <= SILENCE_PERIODS * heartbeat_period(unit) \
-            or _broker_gap(ctx, last, revived):
+            or broker_gap(ctx, last, revived):
         return False
     deaths = identity.deaths
     deaths.append((last, revived))
@@ -208,83 +184,7 @@ def _died_until_reboot(ctx: CheckContext, unit: UnitState, identity: Identity, l
     return True
 
 
-def heartbeat_period(unit: UnitState) -> float:
-    """The period silences are measured in, seconds: the declared one, or the mean interval
-    measured when every one of at least 3 intervals was over 3 declared periods, so that a unit
-    sending far slower than it declares is judged by its rate (HB-003), not as silent again and
-    again."""
-    declared = unit.period(HB) or 0.0
-    tracker = _heartbeat_tracker(unit)
-    if tracker is not None and tracker.n == 0 and tracker.all_n >= 3:
-        # every interval so far was over 3 declared periods: the unit's own period is longer
-        return max(declared, tracker.all_total / tracker.all_n)
-    return declared
-
-
-def _heartbeat_tracker(unit: UnitState) -> RateTracker | None:
-    """The heartbeat's ``rates.RateTracker``, None before the first live heartbeat."""
-    identity = unit.stash.get(IDENTITY)
-    return identity.heartbeat_rate if identity is not None else None
-
-
-def deaths(ctx: CheckContext, unit: UnitState, now: float) -> list[tuple[float, float]]:
-    """(last heartbeat, end) of every death: silent for good until the suite rebooted the unit
-    (end: the reboot), or until ``now`` (end: infinity)."""
-    identity = unit.stash.get(IDENTITY)
-    found = list(identity.deaths) if identity is not None else []
-    dead = death(ctx, unit, now)
-    if dead is not None:
-        found.append((dead[1], float("inf")))
-    return found
-
-
-def dying_before_life(unit: UnitState, c: CommandHistory, t: float
-                      ) -> tuple[float, float] | None:
-    """(dying since, last heartbeat) of a unit whose new life began at ``t`` after a silence
-    of more than SILENCE_PERIODS heartbeat periods (``command_history.dead_since``: what it
-    left unanswered since is the silence's), None after a shorter one. Exec and TST alike."""
-    from conformance.checks.command_history import dead_since
-
-    return dead_since(unit, c, t, heartbeat_period(unit), SILENCE_PERIODS)
-
-
-def dying_at_end(ctx: CheckContext, unit: UnitState, c: CommandHistory, now: float
-                 ) -> tuple[float, float] | None:
-    """(dying since, last heartbeat) of a unit dead at ``now`` (``death``), dying since the
-    command it may have died on (``command_history.dying_from``); None while it lives."""
-    from conformance.checks.command_history import dying_from
-
-    dead = death(ctx, unit, now)
-    return (dying_from(c, dead[1], heartbeat_period(unit)), dead[1]) if dead else None
-
-
-def death(ctx: CheckContext, unit: UnitState, now: float) -> tuple[float, float] | None:
-    """(dying since, last heartbeat) when the unit's heartbeat stopped and never resumed before
-    ``now``: silent for more than 3 periods (``heartbeat_period``), the observer connected.
-    'Dying since' is one period before the last heartbeat: a command that killed it was
-    received about then."""
-    last = unit.last_heartbeat
-    if last is None or unit.period(HB) is None:
-        return None
-    period = heartbeat_period(unit)
-    if now - last <= SILENCE_PERIODS * period or _broker_gap(ctx, last, now):
-        # Over a gap of the broker it is unknown whether it fell silent; silent through a
-        # reboot the suite requested (a zero-length gap of its own) is a death all the same.
-        return None
-    if any(0.0 <= r - last <= 2 * period for r in ctx.reboots):
-        # Its silence began with a reboot the suite requested: whether and how it came back
-        # (under its own name, or another: a random suffix per start) is REBOOT-001's.
-        return None
-    return last - period, last
-
-
-def _broker_gap(ctx: CheckContext, t0: float, t1: float) -> bool:
-    """Whether the observer lost or the broker held traffic (a gap of non-zero length, not
-    the instant of a reboot the suite requested) between ``t0`` and ``t1``."""
-    return any(start < end and start <= t1 and end >= t0 for start, end in ctx.gaps)
-
-
-@check("HB-012", finish=True)
+@check("HB-012", finish=True, reads=(IDENTITY, CONVERSATIONS))
 def unit_does_not_die(ctx: CheckContext, unit: UnitState, now: float,
                       findings: Any) -> Iterator[Violation]:
     """5.1: the heartbeat registers availability. One that stops for good is a death (error):
@@ -369,7 +269,7 @@ def _info_seen(unit: UnitState, kind: TopicKind) -> bool:
     return unit.kinds_seen.get(kind, 0) > 0
 
 
-@check("HB-008", on=(HB,))
+@check("HB-008", on=(HB,), reads=(IDENTITY,))
 def declared_level_has_info(ctx: CheckContext, unit: UnitState, msg: Message,
                             v: Validation) -> None:
     """Remembers when each level that has an info message was first declared; HB-008 is
@@ -397,7 +297,7 @@ def info_wait(ctx: CheckContext, unit: UnitState) -> float:
     return max(ctx.profile.info_wait, LEVEL_INFO_PERIODS * period if period else 0.0)
 
 
-@check("HB-008", finish=True)
+@check("HB-008", finish=True, reads=(IDENTITY,))
 def declared_level_has_info_at_end(ctx: CheckContext, unit: UnitState, now: float,
                                    findings: Any) -> Iterator[Violation]:
     """Each level declared in the latest heartbeat is backed by its info message, seen at any

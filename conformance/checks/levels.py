@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.command_history import violation
-from conformance.checks.conversation import conversations
+from conformance.checks.conversation import CONVERSATIONS, conversations
 from conformance.message import Message
 from conformance.topics import DIRECT_EXECUTION, INFO_KIND_OF_LEVEL, TST_EXECUTION, TopicKind
 from conformance.validator import Validation
@@ -18,7 +18,7 @@ _LEVEL_OF_KIND = {
     TopicKind.TST_RESPONSE: TST_EXECUTION, TopicKind.TST_FEEDBACK: TST_EXECUTION}
 
 
-@check("HB-013", on=tuple(_LEVEL_OF_KIND))
+@check("HB-013", on=tuple(_LEVEL_OF_KIND), reads=(CONVERSATIONS,))
 def acted_on_level_is_declared(ctx: CheckContext, unit: UnitState, msg: Message,
                                v: Validation) -> list[Violation] | None:
     """5.1: levels say what a unit does; one that acts on a level it does not declare is

@@ -38,7 +38,7 @@ from collections.abc import Iterator
 from operator import add
 
 from conformance.checks.base import CheckContext, UnitState, check
-from conformance.checks.identity import IDENTITY, SILENCE_PERIODS, Identity
+from conformance.checks.liveness import IDENTITY, SILENCE_PERIODS, Identity
 from conformance.checks.stall import stamp_of
 from conformance.checks.stash import StashKey
 from conformance.message import Message
@@ -345,7 +345,8 @@ def _closed(unit: UnitState) -> list[RateStat]:
     return unit.stash.setdefault(RATES_CLOSED, list)
 
 
-@check("HB-003", "SI-002", "DEI-002", "TEI-002", on=tuple(RATE_RULES))
+@check("HB-003", "SI-002", "DEI-002", "TEI-002", on=tuple(RATE_RULES),
+       reads=(RATES, RATES_CLOSED, IDENTITY))
 def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
                           v: Validation) -> list[Violation] | None:
     """Each periodic message is measured against the rate it declares; a change of the
@@ -386,7 +387,7 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
     return found
 
 
-@check("HB-003", "SI-002", "DEI-002", "TEI-002", finish=True)
+@check("HB-003", "SI-002", "DEI-002", "TEI-002", finish=True, reads=(RATES,))
 def rate_matches_declared_at_end(ctx: CheckContext, unit: UnitState, now: float,
                                  findings) -> Iterator[Violation]:  # type: ignore[no-untyped-def]
     for tracker in _trackers(unit).values():

@@ -106,7 +106,7 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
            entry: Row, final: Findings, now: float) -> UnitReport:
     """The report's row of ``entry`` (the unit at ``address``, or a commander or the
     unattributed topics when None), with the end-of-run ``final`` findings, at ``now``."""
-    from conformance.checks.identity import deaths
+    from conformance.checks.liveness import deaths
     from conformance.checks.rates import rate_stats
 
     state = entry.state

@@ -62,7 +62,7 @@ def _listed(v: Validation) -> list[str] | None:
     return [s for s in listed if isinstance(s, str)]
 
 
-@reinterprets("SENS-002", on=(TopicKind.SENSOR,))
+@reinterprets("SENS-002", on=(TopicKind.SENSOR,), reads=(SENSORS_SEEN,))
 def angle_range_once(ctx: CheckContext, unit: UnitState, msg: Message, v: Validation,
                      found: list[Violation]) -> list[Violation]:
     """6.1 says only 'heading : float' (and course): the range [0, 360) is this suite's
@@ -83,7 +83,7 @@ def angle_range_once(ctx: CheckContext, unit: UnitState, msg: Message, v: Valida
     return kept
 
 
-@check("SI-004", on=(SI,))
+@check("SI-004", on=(SI,), reads=(SENSORS_SEEN,))
 def mandatory_sensors_listed(ctx: CheckContext, unit: UnitState, msg: Message,
                              v: Validation) -> list[Violation] | None:
     """6.1: position, heading, course and speed are mandatory: each sensor_info lists them
@@ -168,7 +168,7 @@ def _unlisted(unit: UnitState, name: str, t: float, topic: str,
         detail="add it to sensor-data-provided (5.2), or stop publishing it")
 
 
-@check("SI-005", on=(TopicKind.SENSOR,))
+@check("SI-005", on=(TopicKind.SENSOR,), reads=(SENSORS_SEEN,))
 def sensor_is_listed(ctx: CheckContext, unit: UnitState, msg: Message,
                      v: Validation) -> list[Violation] | None:
     """5.2: sensor_info lists the sensors provided: an unlisted sensor topic warns (once per
@@ -189,7 +189,7 @@ def sensor_is_listed(ctx: CheckContext, unit: UnitState, msg: Message,
     return [_unlisted(unit, name, msg.time, msg.topic, msg.payload)]
 
 
-@check("SI-005", finish=True)
+@check("SI-005", finish=True, reads=(SENSORS_SEEN,))
 def sensors_seen_before_the_list_are_listed(ctx: CheckContext, unit: UnitState, now: float,
                                             findings: Any) -> Iterator[Violation]:
     listed = unit.sensors_listed
@@ -229,7 +229,7 @@ def distance(a: tuple[float, float, float | None], b: tuple[float, float, float 
     return math.hypot(ground, b[2] - a[2])
 
 
-@check("SENS-005", on=("sensor/position",))
+@check("SENS-005", on=("sensor/position",), reads=(SENSORS_SEEN,))
 def position_moves_plausibly(ctx: CheckContext, unit: UnitState, msg: Message,
                              v: Validation) -> list[Violation] | None:
     """Position jumps faster than 3x the largest reported speed + 5 m/s warn (SENS-005: speed

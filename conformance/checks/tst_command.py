@@ -17,6 +17,7 @@ from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.command_history import str_of
 from conformance.checks.tst_conversation import (
     TST_COMMANDS,
+    TST_CONVERSATIONS,
     TstCommand,
     TstConversations,
     TstNode,
@@ -30,7 +31,7 @@ from conformance.validator import Validation
 from conformance.violation import Violation
 
 
-@check("EXEC-008", on=(TopicKind.TST_COMMAND,))
+@check("EXEC-008", on=(TopicKind.TST_COMMAND,), reads=(TST_CONVERSATIONS,))
 def tst_command_opens_conversation(ctx: CheckContext, unit: UnitState, msg: Message,
                                    v: Validation) -> Iterator[Violation]:
     """A TST command with a com-uuid opens (or, resent, continues) a conversation; a start-tst

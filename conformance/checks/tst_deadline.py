@@ -18,6 +18,7 @@ from conformance.checks.command_history import (
     late,
     resends_unanswered,
 )
+from conformance.checks.liveness import IDENTITY, dying_at_end, dying_before_life
 from conformance.checks.tst_conversation import (
     ANSWER_RULE,
     TST_CONVERSATIONS,
@@ -33,7 +34,8 @@ from conformance.validator import Validation
 from conformance.violation import Violation
 
 
-@check("TST-004", "TST-007", "TST-009", "TST-011", "TST-012", on=(TopicKind.HEARTBEAT,))
+@check("TST-004", "TST-007", "TST-009", "TST-011", "TST-012", on=(TopicKind.HEARTBEAT,),
+       reads=(TST_CONVERSATIONS, IDENTITY))
 def tst_deadlines_pass(ctx: CheckContext, unit: UnitState, msg: Message,
                        v: Validation) -> list[Violation] | None:
     """Deadlines are checked on each heartbeat of the unit (and at the end). A new agent-uuid
@@ -56,8 +58,6 @@ def tst_deadlines_pass(ctx: CheckContext, unit: UnitState, msg: Message,
 
 def _new_life(ctx: CheckContext, unit: UnitState, c: TstConversations, t: float
               ) -> list[Violation] | None:
-    from conformance.checks.identity import dying_before_life
-
     dying = dying_before_life(unit, c, t)
     dead = dying[0] if dying is not None else None
     found = _expire(ctx, unit, c, t, reboot=True)
@@ -130,14 +130,12 @@ def _expire(ctx: CheckContext, unit: UnitState, c: TstConversations, now: float,
     return found
 
 
-@check("TST-004", "TST-009", "TST-011", finish=True)
+@check("TST-004", "TST-009", "TST-011", finish=True, reads=(TST_CONVERSATIONS, IDENTITY))
 @judged_on_a_copy(TST_CONVERSATIONS, dropped=("TST-012", "open TST expectations"))
 def tst_conversations_at_end(ctx: CheckContext, unit: UnitState, c: TstConversations,
                              now: float) -> list[Violation]:
     """At the end: answers still due are judged, but not those a unit that died left (HB-012's
     finding); trees still running are not judged; what the bounds dropped is said."""
-    from conformance.checks.identity import dying_at_end
-
     found = _expire(ctx, unit, c, now)
     dying = dying_at_end(ctx, unit, c, now)
     found.extend(_judge_left_unanswered(ctx, unit, c, c.unanswered,

@@ -45,7 +45,7 @@ def _status(m: Any) -> str | None:
 
 
 @check("TST-006", "TST-008", "TST-009", "TST-010", "TST-012", "TST-013",
-       on=(TopicKind.TST_FEEDBACK,))
+       on=(TopicKind.TST_FEEDBACK,), reads=(TST_CONVERSATIONS,))
 def tst_feedback_follows_tree(ctx: CheckContext, unit: UnitState, msg: Message,
                               v: Validation) -> Iterator[Violation]:
     """14.5: feedback follows every node of a started tree to one final status, root-flag on
@@ -222,7 +222,7 @@ def _judge_outcome(unit: UnitState, node: TstNode, msg: Message) -> Iterator[Vio
 
 # --- tst_execution_info -------------------------------------------------------------------------
 
-@check("TST-013", "TST-009", on=(TopicKind.TST_EXECUTION_INFO,))
+@check("TST-013", "TST-009", on=(TopicKind.TST_EXECUTION_INFO,), reads=(TST_CONVERSATIONS,))
 def nodes_executing_follow_trees(ctx: CheckContext, unit: UnitState, msg: Message,
                                  v: Validation) -> list[Violation] | None:
     """TST-013 (modelled on 5.3's tasks-executing): nodes-executing lists exactly the nodes not

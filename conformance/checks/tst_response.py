@@ -16,6 +16,7 @@ from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.command_history import left_unanswered, str_of, violation
 from conformance.checks.tst_conversation import (
     ANSWER_RULE,
+    TST_CONVERSATIONS,
     Expect,
     TstCommand,
     TstConversations,
@@ -37,7 +38,8 @@ SIGNAL_FEEDBACK = {"$abort": "aborted", "$enough": "succeeded", "$pause": "pause
 """TST-012's decision: the status a node signalled (and answered 'ok') reports next."""
 
 
-@check("TST-004", "TST-006", "TST-007", "TST-011", on=(TopicKind.TST_RESPONSE,))
+@check("TST-004", "TST-006", "TST-007", "TST-011", on=(TopicKind.TST_RESPONSE,),
+       reads=(TST_CONVERSATIONS,))
 def tst_response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
                                  v: Validation) -> Iterator[Violation]:
     """14.4: a response answers a TST command (response-to = its com-uuid), with a value that
