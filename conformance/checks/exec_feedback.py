@@ -162,7 +162,7 @@ LISTED_GRACE_PERIODS = 2.0
 periods of direct_execution_info (or the response timeout, if longer) pass first."""
 
 
-@check("DEI-004", on=(TopicKind.DIRECT_EXECUTION_INFO,))
+@check("DEI-004", on=(TopicKind.DIRECT_EXECUTION_INFO,), reads=(CONVERSATIONS,))
 def ended_tasks_leave_tasks_executing(ctx: CheckContext, unit: UnitState, msg: Message,
                                       v: Validation) -> list[Violation] | None:
     """5.3 'List of tasks currently executing.': a task whose feedback said 'finished' or
