@@ -63,6 +63,10 @@ _ALL = (
             "such period (still inside SI-003's window of three)."),
     Variant("starting-feedback", "12.4",
             "Reports a started task 'starting' (12.4's list) before 'running'."),
+    Variant("announce-nodes", "14.5 (not-active, the first status it lists)",
+            "Reports every node of a tree it starts 'not-active' before it activates the "
+            "root (a unit written elsewhere, issue 24): a seq's later children say so "
+            "while the first runs, and are not listed in nodes-executing until they start."),
     Variant("feedback-first", "12.3, 12.4 (no order between topics)",
             "Publishes the feedback a command causes before the command's response: a "
             "started task's 'running' before the start-task's answer, a signal's effect "

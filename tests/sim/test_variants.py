@@ -341,6 +341,20 @@ def test_feedback_first_sends_the_feedback_a_command_causes_before_its_answer(
     assert same(run) == same(plain)
 
 
+def test_announce_nodes_reports_every_node_not_active_before_the_root_is_active(
+        plain: Run) -> None:
+    run = Run("announce-nodes")
+    statuses = [(m["node-uuid"], m["status"]) for _, m in run.messages("/tst/feedback")]
+    assert statuses[:3] == [(ROOT, "not-active"), (LEAF, "not-active"), (ROOT, "active")]
+    rest = [(t, m) for t, m in run.messages()
+            if not (t == "/tst/feedback" and m["status"] == "not-active")]
+
+    def same(msgs: list) -> list[str]:  # com-uuids are drawn in the order messages go out
+        return sorted(repr((t, without(m, "com-uuid"))) for t, m in msgs)
+
+    assert same(rest) == same(plain.messages())
+
+
 def test_info_rates_halves_the_info_messages_and_declares_it(plain: Run) -> None:
     run = Run("info-rates", script=[], seconds=20.0)
     base = Run(script=[], seconds=20.0)
