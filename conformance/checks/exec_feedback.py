@@ -24,6 +24,11 @@ from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
 
+REPEATS_STATUS = "repeats-status"
+"""UnitState.private key: the unit said a task's 'running' again with nothing between and no
+resend to answer (12.4's 'Update of the status' read as a periodic report): a 'running' after
+a resend is then no sign that it started the task again (EXEC-RESEND-001)."""
+
 
 @check("EXEC-FB-004", "EXEC-START-003", "EXEC-SIG-002", "EXEC-SIG-003", "EXEC-SIG-004",
        "EXEC-RESEND-001", on=(TopicKind.EXEC_FEEDBACK,))
@@ -73,11 +78,14 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
                         detail="12.1: a resend must not touch the running task")
         return
     if status == "running":
-        if task.running_feedback and task.last_status == "running" and task.resent is not None:
-            yield violation("EXEC-RESEND-001", msg, expected=f"task {task_uuid} started once",
-                            observed="a new 'running' after its start-task was resent",
-                            path="$.status", detail="12.1: a resend is answered from memory, "
-                            "not executed again")
+        if task.running_feedback and task.last_status == "running":
+            if task.resent is None:
+                unit.private[REPEATS_STATUS] = True
+            elif not unit.private.get(REPEATS_STATUS):
+                yield violation("EXEC-RESEND-001", msg, expected=f"task {task_uuid} started "
+                                "once", observed="a new 'running' after its start-task was "
+                                "resent", path="$.status", detail="12.1: a resend is answered "
+                                "from memory, not executed again")
         task.running_feedback += 1
     task.last_status, task.last_time = status, t
     if status in ("running", "paused") or status in FINAL_STATUSES:
