@@ -67,6 +67,10 @@ _ALL = (
             "Reports every node of a tree it starts 'not-active' before it activates the "
             "root (a unit written elsewhere, issue 24): a seq's later children say so "
             "while the first runs, and are not listed in nodes-executing until they start."),
+    Variant("periodic-feedback", "12.4 ('Update of the status of the task': how often is not "
+            "said)",
+            "With every heartbeat, sends each running or paused task's status again, as a "
+            "periodic report (a unit written elsewhere, issue 24)."),
     Variant("feedback-first", "12.3, 12.4 (no order between topics)",
             "Publishes the feedback a command causes before the command's response: a "
             "started task's 'running' before the start-task's answer, a signal's effect "

@@ -51,8 +51,8 @@ GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
     (("terse", "info-rates", "retained-info", "integer-numbers", "key-order"), True),
     # A rebooted unit spawns elsewhere with a new agent-uuid: positions are compared within
     # one life (issue 24 §2), so it runs with the others now.
-    # announce-nodes: an independent unit's 'not-active' for every node first (issue 24).
-    (("respawn", "announce-nodes"), True),
+    # announce-nodes, periodic-feedback: readings of an independent unit (issue 24).
+    (("respawn", "announce-nodes", "periodic-feedback"), True),
 ]
 REAL_BROKER = ("terse", "info-rates", "retained-info", "integer-numbers", "key-order")
 """The group certified end to end on Mosquitto (retained info, the TST level, exploration)."""

@@ -355,6 +355,26 @@ def test_announce_nodes_reports_every_node_not_active_before_the_root_is_active(
     assert same(rest) == same(plain.messages())
 
 
+def test_periodic_feedback_repeats_a_live_tasks_status_with_each_heartbeat() -> None:
+    script = [(1.0, "exec", {"com-uuid": com(80), "command": "start-task",
+                             "sender": "commander", "task-uuid": T1,
+                             "task": {"name": "look-at-bearing", "params": {"bearing": 1.0}}}),
+              (4.0, "exec", {"com-uuid": com(81), "command": "signal-task",
+                             "sender": "commander", "signal": "$enough", "task-uuid": T1})]
+    run, plain = Run("periodic-feedback", script=script), Run(script=script)
+    beats = [t for t, sub, _ in run.sent if sub == "/heartbeat" and 1.0 <= t < 4.0]
+    statuses = [m["status"] for _, m in run.messages("/exec/feedback")]
+    assert len(beats) >= 2
+    assert statuses == ["running"] * (1 + len(beats)) + ["finished"]
+    assert [m["status"] for _, m in plain.messages("/exec/feedback")] == ["running", "finished"]
+
+    def others(r: Run) -> list[str]:  # com-uuids are drawn in the order messages go out
+        return sorted(repr((t, without(m, "com-uuid"))) for t, m in r.messages()
+                      if t != "/exec/feedback")
+
+    assert others(run) == others(plain)
+
+
 def test_info_rates_halves_the_info_messages_and_declares_it(plain: Run) -> None:
     run = Run("info-rates", script=[], seconds=20.0)
     base = Run(script=[], seconds=20.0)
