@@ -44,7 +44,7 @@ EXPLORE = "10s"
 (the orders it sends are judged as the scripted ones are)."""
 GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
     (("terse", "sensor-rate-edge", "rate-edge", "success-vocabulary", "pretty-json",
-      "own-task", "signed-heading", "silent-unknown-command"), False),
+      "own-task", "signed-heading", "silent-unknown-command", "silent-start"), False),
     (("strict", "slow", "verbose", "feedback-first", "starting-feedback", "level-spelling",
       "geopoint-type"), True),
     # info-rates apart from sensor-rate-edge: both set sensor_info's rate.

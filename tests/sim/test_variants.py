@@ -375,6 +375,21 @@ def test_periodic_feedback_repeats_a_live_tasks_status_with_each_heartbeat() -> 
     assert others(run) == others(plain)
 
 
+def test_silent_start_leaves_out_only_the_running_feedback_of_a_start(plain: Run) -> None:
+    run = Run("silent-start")
+    assert [(m["task-uuid"], m["status"]) for _, m in run.messages("/exec/feedback")] == [
+        (T1, "finished")]
+    assert run.answer(com(2))["response"] == "running"
+    dropped = [m for t, m in plain.messages("/exec/feedback") if m["status"] == "running"]
+    assert [m["task-uuid"] for m in dropped] == [T1]
+
+    def same(msgs: list) -> list[str]:  # com-uuids are drawn in the order messages go out
+        return sorted(repr((t, without(m, "com-uuid"))) for t, m in msgs)
+
+    assert same(run.messages()) == same([(t, m) for t, m in plain.messages()
+                                         if not (t == "/exec/feedback" and m in dropped)])
+
+
 def test_info_rates_halves_the_info_messages_and_declares_it(plain: Run) -> None:
     run = Run("info-rates", script=[], seconds=20.0)
     base = Run(script=[], seconds=20.0)
