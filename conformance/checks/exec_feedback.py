@@ -19,6 +19,7 @@ from conformance.checks.conversation import (
     conversations,
     task_uuid_sent,
 )
+from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.status import FINAL_STATUSES, meaning
 from conformance.taskrecord import State, TaskRecord
@@ -26,10 +27,15 @@ from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
 
+REPEATS_STATUS: StashKey[bool] = StashKey("repeats-status")
+"""The unit said a task's 'running' again with nothing between and no
+resend to answer (12.4's 'Update of the status' read as a periodic report): a 'running' after
+a resend is then no sign that it started the task again (EXEC-RESEND-001)."""
+
 
 @check("EXEC-FB-004", "EXEC-START-003", "EXEC-SIG-002", "EXEC-SIG-003", "EXEC-SIG-004",
        "EXEC-RESEND-001", on=(TopicKind.EXEC_FEEDBACK,),
-       reads=(CONVERSATIONS, FEEDBACK_WITHOUT_TASK_UUID))
+       reads=(CONVERSATIONS, FEEDBACK_WITHOUT_TASK_UUID, REPEATS_STATUS))
 def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
                           v: Validation) -> Iterator[Violation]:
     """12.4: feedback follows a task to one final status (finished, failed, aborted), and
@@ -57,11 +63,14 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
         yield from _after_final(c, task, task_uuid, msg, m, status)
         return
     if status == "running":
-        if task.running_feedback and task.last_status == "running" and task.resent is not None:
-            yield violation("EXEC-RESEND-001", msg, expected=f"task {task_uuid} started once",
-                            observed="a new 'running' after its start-task was resent",
-                            path="$.status", detail="12.1: a resend is answered from memory, "
-                            "not executed again")
+        if task.running_feedback and task.last_status == "running":
+            if task.resent is None:
+                unit.stash[REPEATS_STATUS] = True
+            elif not unit.stash.get(REPEATS_STATUS):
+                yield violation("EXEC-RESEND-001", msg, expected=f"task {task_uuid} started "
+                                "once", observed="a new 'running' after its start-task was "
+                                "resent", path="$.status", detail="12.1: a resend is answered "
+                                "from memory, not executed again")
         task.running_feedback += 1
     task.said(status, t, kept=1)  # the latest is all the conversation checks read
     if status in ("running", "paused") or status in FINAL_STATUSES:

@@ -29,6 +29,10 @@ from conformance.violation import Violation, clock
 
 READ_AS = {"finished": "succeeded"}
 """A near miss of 14.5's vocabulary (TST-003, the validator's) is read as the status it means."""
+NOT_STARTED = frozenset({"not-active"})
+"""14.5's status of a node that has not started: a unit may announce every node of a tree so
+when the tree starts (14.5's list begins with it). A seq's child so announced has not run
+(TST-010 judges its first status that is not this one)."""
 
 
 def _grace(unit: UnitState) -> float:
@@ -83,7 +87,8 @@ def tst_feedback_follows_tree(ctx: CheckContext, unit: UnitState, msg: Message,
                         f"{t - node.unlisted_at:.2f} s later)", path="$.status",
                         detail="list every node that is not yet in a final status")
     node.unlisted_at = node.left_at = None
-    if node.status is None and status != "revoked":
+    if status != "revoked" and status not in NOT_STARTED \
+            and (node.status is None or node.status in NOT_STARTED):
         yield from _judge_order(unit, node, msg, status)
     node.status, node.status_time = status, t
     yield from _judge_signalled(unit, c, node, msg, status)
@@ -162,7 +167,8 @@ def _judge_order(unit: UnitState, node: TstNode, msg: Message, status: str
     if running or failed:
         parent.judged.add("TST-010")
         s = (running or failed)[0]
-        said = "still runs" if running else f"ended '{s.final[0]}'"  # type: ignore[index]
+        said = ("has not started" if s.status in NOT_STARTED else "still runs") if running \
+            else f"ended '{s.final[0]}'"  # type: ignore[index]
         yield violation("TST-010", msg, expected=f"seq {parent.node_uuid} starts child "
                         f"{node.node_uuid} only after child {s.node_uuid} succeeded",
                         observed=f"'{status}' while child {s.node_uuid} "
@@ -263,8 +269,8 @@ def nodes_executing_follow_trees(ctx: CheckContext, unit: UnitState, msg: Messag
         if tree.state != "started" or tree.life != c.life or tree.ended_at is not None:
             continue
         for node in (n for r in tree.roots for n in r.walk()):
-            if not node.live or node.status_time is None:
-                continue
+            if not node.live or node.status_time is None or node.status in NOT_STARTED:
+                continue  # a node announced 'not-active' is not executing yet
             if node.node_uuid in listed:
                 node.listed = True
                 node.unlisted_at = node.left_at = None

@@ -90,6 +90,9 @@ class Commander(Sender):
         self.deliberately_invalid: set[bytes] = set()
         """Payloads sent broken on purpose (robustness, invalid parameters): not the unit's
         fault, so the passive checks are not fed these."""
+        self.silent_starts = False
+        """A start-task answered 'running' got no feedback within the wait: the unit reports
+        status changes only (12.4 asks for no feedback on a start its answer said runs)."""
 
     # --- publishing ----------------------------------------------------------------------
     def send(self, body: dict[str, Any], *, com_uuid: str | None = None,
@@ -254,6 +257,20 @@ class Commander(Sender):
                 f"the unit sends feedback without a task-uuid ({found.excerpt[:120]!r})",
                 "feedback cannot be told apart by task: what it would show is could-not-test")
             return None
+        return found
+
+    def first_feedback(self, task_uuid: str, timeout: float, *, after: int) -> Entry | None:
+        """A started task's first feedback (12.4), waited for up to ``timeout`` seconds: once
+        a start answered 'running' came without one (``silent_starts``), later starts are not
+        waited for (None at once: the answer's 'running' is the task's status)."""
+        if self.silent_starts:
+            return None
+        found = self.feedback(task_uuid, None, timeout, after=after)
+        if found is None and not self.blind() and not self.silent_starts:
+            self.silent_starts = True
+            if self._step is not None:
+                self._step(f"  no feedback for task {task_uuid[:8]} after its 'running' "
+                           "answer: later starts are not waited for")
         return found
 
     def blind(self) -> str | None:

@@ -371,8 +371,8 @@ class Explorer:
             return
         slot.state = "running"
         if slot.task_uuid is not None:  # its first feedback (12.4), briefly
-            self.ctx.commander.feedback(slot.task_uuid, None, self.ctx.timing.response,
-                                        after=sent.mark)
+            self.ctx.commander.first_feedback(slot.task_uuid, self.ctx.timing.response,
+                                              after=sent.mark)
             self._listed(slot.task_uuid, sent.mark)
 
     def _listed(self, task_uuid: str, after: int) -> None:

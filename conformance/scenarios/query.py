@@ -45,10 +45,13 @@ def run(ctx: Context) -> None:
         sent, answer = ctx.commander.start_task(task, params, ctx.timing.response)
         if answer is not None and answer.get("response") == "running":
             task_uuid = sent.body["task-uuid"]
-            first = ctx.commander.feedback(task_uuid, None, ctx.timing.response, after=sent.mark)
+            first = ctx.commander.first_feedback(task_uuid, ctx.timing.response,
+                                                 after=sent.mark)
             if first is not None and meaning(first.get("status")) not in FINAL_STATUSES:
                 ask(ctx, task_uuid, {"running", str(first.get("status"))},
                     f"running task '{task}'")
+            elif first is None and ctx.commander.silent_starts:  # its answer said 'running'
+                ask(ctx, task_uuid, {"running"}, f"running task '{task}'")
             final = ctx.end_task(task_uuid, available.get(task, []), after=sent.mark)
             if final is not None:
                 ctx.notes.setdefault("ended", []).append(

@@ -43,8 +43,9 @@ def _start(ctx: Context, task: str) -> tuple[str, int] | None:
     if answer is None or answer.get("response") != "running":
         return None
     task_uuid = ctx.commander.unit_task_uuid(sent.body["task-uuid"])
-    # Signals are judged on a task that has started: wait for its first feedback (12.4).
-    ctx.commander.feedback(task_uuid, None, ctx.timing.response, after=sent.mark)
+    # Signals are judged on a task that has started: wait for its first feedback (12.4),
+    # unless the unit sends none for a start (its 'running' answer says it runs).
+    ctx.commander.first_feedback(task_uuid, ctx.timing.response, after=sent.mark)
     return task_uuid, sent.mark
 
 

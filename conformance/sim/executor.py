@@ -297,7 +297,8 @@ class CommandExecutor:
             self.runner.feedback(task, "Starting")
         elif "starting-feedback" in self.variants:
             self.runner.feedback(task, "starting")  # 12.4's word for a task getting ready
-        self.runner.feedback(task, "running")
+        if "silent-start" not in self.variants:  # its answer already said 'running'
+            self.runner.feedback(task, "running")
         self.runner.start(task, now)
 
     def _fail_task(self, com: str, task_uuid: str, name: str, reason: str) -> None:

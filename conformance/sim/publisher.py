@@ -194,6 +194,10 @@ class Publisher:
         unit.send("heartbeat", self.heartbeat_message())
         self.last_heartbeat = now
         self.heartbeats += 1
+        if "periodic-feedback" in unit.variants:  # 12.4 'Update of the status', each period
+            for task in list(unit.runner.tasks.values()):
+                if task.node is None and task.status in ("running", "paused"):
+                    unit.runner.feedback(task, task.status)
         if "twin-agent" in self.faults:
             twin = self.heartbeat_message()
             twin["agent-uuid"] = unit.executor_uuid

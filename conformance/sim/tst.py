@@ -174,6 +174,9 @@ class TstEngine:
         response = "running" if "tst-start-answered-running" in self.faults else "started"
         root_uuid = com if "tst-root-uuid-wrong" in self.faults else tree.root.uuid
         self._answer(com, reply, response, "", **{"root-uuid": root_uuid})
+        if "announce-nodes" in self.variants:  # 14.5's not-active for every node first
+            for node in tree.root.walk():
+                self._feedback(node, "not-active")
         self.trees.activate(tree.root, now)
 
     def _refusal(self, root: Node) -> str | None:

@@ -6,7 +6,7 @@ that a real unit may take (section cited), and the suite must certify it: with a
 a certification fails no rule, and warns only on ``warns``, the errata the catalogue accepts
 with a warning (``rules --errata``). Where a variant is failed anyway, the check or the
 scenario that fails it makes a false accusation. Variants combine freely, but for ``terse``
-and ``verbose`` (``CONFLICTS``).
+and ``verbose``, ``silent-start`` and ``starting-feedback`` (``CONFLICTS``).
 """
 
 from __future__ import annotations
@@ -63,6 +63,18 @@ _ALL = (
             "such period (still inside SI-003's window of three)."),
     Variant("starting-feedback", "12.4",
             "Reports a started task 'starting' (12.4's list) before 'running'."),
+    Variant("announce-nodes", "14.5 (not-active, the first status it lists)",
+            "Reports every node of a tree it starts 'not-active' before it activates the "
+            "root (a unit written elsewhere, issue 24): a seq's later children say so "
+            "while the first runs, and are not listed in nodes-executing until they start."),
+    Variant("periodic-feedback", "12.4 ('Update of the status of the task': how often is not "
+            "said)",
+            "With every heartbeat, sends each running or paused task's status again, as a "
+            "periodic report (a unit written elsewhere, issue 24)."),
+    Variant("silent-start", "12.3.3, 12.4 (feedback is an 'Update of the status')",
+            "Sends no feedback for a task it starts: its start-task answer says 'running', and "
+            "feedback follows only changes ($pause, the end; a unit written elsewhere, issue "
+            "24)."),
     Variant("feedback-first", "12.3, 12.4 (no order between topics)",
             "Publishes the feedback a command causes before the command's response: a "
             "started task's 'running' before the start-task's answer, a signal's effect "
@@ -119,7 +131,7 @@ _ALL = (
 )
 
 VARIANTS: dict[str, Variant] = {v.name: v for v in _ALL}
-CONFLICTS = (frozenset({"terse", "verbose"}),)
+CONFLICTS = (frozenset({"terse", "verbose"}), frozenset({"silent-start", "starting-feedback"}))
 INFO_SLOWER = 2.0
 """Variant info-rates: the info messages run at the heartbeat's rate divided by this."""
 """Variants that cannot be on together (one sends what the other leaves out)."""

@@ -179,6 +179,22 @@ def test_a_resend_executed_again_fails_resend_001(stream):
     assert "new 'running'" in rules["EXEC-RESEND-001"].violations[0].observed
 
 
+def test_a_unit_that_repeats_running_is_not_accused_of_a_second_start_by_it(stream):
+    """12.4's 'Update of the status' read as a periodic report (an independent unit, issue
+    24): every running task's status each second. Once the unit has shown that, a 'running'
+    after a resend is its period, not the task started again."""
+    other, task = new(), new()
+    first = start(stream, 1.0, other)
+    periodic = [stream.feedback(t, other, "running") for t in (1.2, 2.2)]
+    rules = judge(stream, [first, stream.response(1.1, com_of(first), "running", **{
+        "task-uuid": other}), *periodic, stream.feedback(2.25, other, "finished"),
+        *_resent(stream, task, second=lambda c: [stream.response(
+            3.2, c, "running", **{"task-uuid": task})], feedback=[
+            stream.feedback(t, task, "running") for t in (3.3, 4.3, 5.3)])])
+    assert verdicts(rules, "EXEC-RESEND-001", "EXEC-FB-004") == {
+        "EXEC-RESEND-001": "pass", "EXEC-FB-004": "pass"}
+
+
 def test_a_resend_refused_with_failed_feedback_is_not_executed_twice(stream):
     """Seen in the field (the official Python L2 agent): the resend is answered 'failed' ('A
     task is already running') with a 'failed' feedback for the task, which runs on. Nothing

@@ -138,15 +138,19 @@ def test_running_answers_open_the_tree_like_started(stream):
 
 
 def seq_run(x: Tst, t: float, *, root_flags: bool = False, seq_final: str = "aborted",
-            second_runs: bool = False, seq_silent: bool = False) -> tuple[list, str]:
+            second_runs: bool = False, seq_silent: bool = False,
+            announced: bool = False) -> tuple[list, str]:
     """seq [a, b]: a is aborted by a node signal, then b is revoked and the seq ends aborted
-    (or, bent: b runs anyway; the seq says another status, or none)."""
+    (or, bent: b runs anyway; the seq says another status, or none). ``announced``: every
+    node says 'not-active' (14.5) when the tree starts, before the seq is active."""
     s, a, b = new(), new(), new()
     start = x.start(t, composite("seq", s, [leaf("look-at-bearing", a),
                                              leaf("look-at-bearing", b)]))
     sig = x.signal(t + 1.0, "signal-tst-node", a, "$abort")
-    out = [start, x.response(t + 0.1, com_of(start), "started", **{"root-uuid": s}),
-           x.feedback(t + 0.2, s, "active", True), x.feedback(t + 0.21, s, "running", True),
+    out = [start, x.response(t + 0.1, com_of(start), "started", **{"root-uuid": s})]
+    if announced:
+        out += [x.feedback(t + 0.15, n, "not-active", n == s or root_flags) for n in (s, a, b)]
+    out += [x.feedback(t + 0.2, s, "active", True), x.feedback(t + 0.21, s, "running", True),
            x.feedback(t + 0.3, a, "active", root_flags), x.feedback(t + 0.31, a, "running",
                                                                       root_flags),
            sig, x.response(t + 1.1, com_of(sig), "ok"),
@@ -168,6 +172,52 @@ def test_a_seq_that_stops_at_an_aborted_child_passes(stream):
     assert failing(report, str(stream.address)) == set()
     rules = report.units[str(stream.address)].rules
     assert rules["TST-010"].verdict is Verdict.PASS and rules["TST-008"].verdict is Verdict.PASS
+
+
+def test_a_seq_whose_nodes_are_announced_not_active_at_the_start_passes(stream):
+    # An independent unit (issue 24) says 'not-active' for every node before running the
+    # first: b's 'not-active' is not b started while a runs.
+    x = Tst(stream)
+    msgs, _ = seq_run(x, 2.0, announced=True)
+    report = judge(stream, msgs)
+    assert failing(report, str(stream.address)) == set()
+    assert report.units[str(stream.address)].rules["TST-010"].verdict is Verdict.PASS
+
+
+def test_a_node_announced_not_active_need_not_be_in_nodes_executing(stream):
+    # seq [a, b], every node 'not-active' first: b is not executing while a runs, so an info
+    # that lists s and a only is right (TST-013), and b starts once a succeeded (TST-010).
+    x = Tst(stream)
+    s, a, b = new(), new(), new()
+    t = 2.0
+    start = x.start(t, composite("seq", s, [leaf("look-at-bearing", a),
+                                             leaf("look-at-bearing", b)]))
+    enough_a, enough_b = (x.signal(t + 3.0, "signal-tst-node", a, "$enough"),
+                          x.signal(t + 5.0, "signal-tst-node", b, "$enough"))
+    msgs = [start, x.response(t + 0.1, com_of(start), "started", **{"root-uuid": s}),
+            *[x.feedback(t + 0.15, n, "not-active", n == s) for n in (s, a, b)],
+            x.feedback(t + 0.2, s, "active", True), x.feedback(t + 0.21, s, "running", True),
+            x.feedback(t + 0.3, a, "active", False), x.feedback(t + 0.31, a, "running", False),
+            x.info(t + 1.5, [(s, s), (a, s)]), x.info(t + 2.5, [(s, s), (a, s)]),
+            enough_a, x.response(t + 3.05, com_of(enough_a), "ok"),
+            x.feedback(t + 3.1, a, "succeeded", False), x.feedback(t + 3.2, b, "active", False),
+            x.feedback(t + 3.21, b, "running", False), x.info(t + 4.5, [(s, s), (b, s)]),
+            enough_b, x.response(t + 5.05, com_of(enough_b), "ok"),
+            x.feedback(t + 5.1, b, "succeeded", False), x.feedback(t + 5.2, s, "succeeded", True),
+            x.info(t + 7.0, [])]
+    report = judge(stream, msgs)
+    assert failing(report, str(stream.address)) == set()
+    rules = report.units[str(stream.address)].rules
+    assert rules["TST-013"].verdict is Verdict.PASS and rules["TST-010"].verdict is Verdict.PASS
+
+
+def test_an_announced_seq_that_goes_on_after_a_failure_fails_tst_010_alone(stream):
+    x = Tst(stream)
+    msgs, _ = seq_run(x, 2.0, announced=True, second_runs=True, seq_final="succeeded")
+    report = judge(stream, msgs)
+    assert failing(report, str(stream.address)) == {"TST-010"}
+    v = report.units[str(stream.address)].rules["TST-010"].violations[0]
+    assert v.observed.startswith("'active' while child") and "ended 'aborted'" in v.observed
 
 
 def test_root_flag_on_every_node_fails_tst_008_alone(stream):

@@ -44,14 +44,16 @@ EXPLORE = "10s"
 (the orders it sends are judged as the scripted ones are)."""
 GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
     (("terse", "sensor-rate-edge", "rate-edge", "success-vocabulary", "pretty-json",
-      "own-task", "signed-heading", "silent-unknown-command", "late-subscriber"), False),
+      "own-task", "signed-heading", "silent-unknown-command", "late-subscriber",
+      "silent-start"), False),
     (("strict", "slow", "verbose", "feedback-first", "starting-feedback", "level-spelling",
       "geopoint-type"), True),
     # info-rates apart from sensor-rate-edge: both set sensor_info's rate.
     (("terse", "info-rates", "retained-info", "integer-numbers", "key-order"), True),
     # A rebooted unit spawns elsewhere with a new agent-uuid: positions are compared within
     # one life (issue 24 §2), so it runs with the others now.
-    (("respawn",), True),
+    # announce-nodes, periodic-feedback: readings of an independent unit (issue 24).
+    (("respawn", "announce-nodes", "periodic-feedback"), True),
     # The official Python agents refuse a resent start-task ('A task is already running'):
     # nothing runs twice (12.1), so no EXEC-RESEND-001 (issue 24).
     (("resend-refused",), False),

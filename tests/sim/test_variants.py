@@ -341,6 +341,55 @@ def test_feedback_first_sends_the_feedback_a_command_causes_before_its_answer(
     assert same(run) == same(plain)
 
 
+def test_announce_nodes_reports_every_node_not_active_before_the_root_is_active(
+        plain: Run) -> None:
+    run = Run("announce-nodes")
+    statuses = [(m["node-uuid"], m["status"]) for _, m in run.messages("/tst/feedback")]
+    assert statuses[:3] == [(ROOT, "not-active"), (LEAF, "not-active"), (ROOT, "active")]
+    rest = [(t, m) for t, m in run.messages()
+            if not (t == "/tst/feedback" and m["status"] == "not-active")]
+
+    def same(msgs: list) -> list[str]:  # com-uuids are drawn in the order messages go out
+        return sorted(repr((t, without(m, "com-uuid"))) for t, m in msgs)
+
+    assert same(rest) == same(plain.messages())
+
+
+def test_periodic_feedback_repeats_a_live_tasks_status_with_each_heartbeat() -> None:
+    script = [(1.0, "exec", {"com-uuid": com(80), "command": "start-task",
+                             "sender": "commander", "task-uuid": T1,
+                             "task": {"name": "look-at-bearing", "params": {"bearing": 1.0}}}),
+              (4.0, "exec", {"com-uuid": com(81), "command": "signal-task",
+                             "sender": "commander", "signal": "$enough", "task-uuid": T1})]
+    run, plain = Run("periodic-feedback", script=script), Run(script=script)
+    beats = [t for t, sub, _ in run.sent if sub == "/heartbeat" and 1.0 <= t < 4.0]
+    statuses = [m["status"] for _, m in run.messages("/exec/feedback")]
+    assert len(beats) >= 2
+    assert statuses == ["running"] * (1 + len(beats)) + ["finished"]
+    assert [m["status"] for _, m in plain.messages("/exec/feedback")] == ["running", "finished"]
+
+    def others(r: Run) -> list[str]:  # com-uuids are drawn in the order messages go out
+        return sorted(repr((t, without(m, "com-uuid"))) for t, m in r.messages()
+                      if t != "/exec/feedback")
+
+    assert others(run) == others(plain)
+
+
+def test_silent_start_leaves_out_only_the_running_feedback_of_a_start(plain: Run) -> None:
+    run = Run("silent-start")
+    assert [(m["task-uuid"], m["status"]) for _, m in run.messages("/exec/feedback")] == [
+        (T1, "finished")]
+    assert run.answer(com(2))["response"] == "running"
+    dropped = [m for t, m in plain.messages("/exec/feedback") if m["status"] == "running"]
+    assert [m["task-uuid"] for m in dropped] == [T1]
+
+    def same(msgs: list) -> list[str]:  # com-uuids are drawn in the order messages go out
+        return sorted(repr((t, without(m, "com-uuid"))) for t, m in msgs)
+
+    assert same(run.messages()) == same([(t, m) for t, m in plain.messages()
+                                         if not (t == "/exec/feedback" and m in dropped)])
+
+
 def test_info_rates_halves_the_info_messages_and_declares_it(plain: Run) -> None:
     run = Run("info-rates", script=[], seconds=20.0)
     base = Run(script=[], seconds=20.0)
