@@ -135,6 +135,11 @@ def _silence(ctx: CheckContext, unit: UnitState, msg: Message,
             identity.silences_held = []
             return held
         return None
+    if silence <= SILENCE_PERIODS * heartbeat_period(unit):
+        # Far slower than declared all along (HB-003's gross mismatch): its own period it
+        # keeps; what was held were no silences either.
+        identity.silences_held = []
+        return None
     tracker = heartbeat_tracker(unit)
     if ctx.reboots and _died_until_reboot(ctx, unit, identity, last, msg.time):
         return None

@@ -50,14 +50,19 @@ class Identity:
 IDENTITY: StashKey[Identity] = StashKey("identity")
 
 
+GROSS_SLOW_INTERVALS = 2
+"""HB-003's decision (checks/rates.py GROSS_SLOW_MIN_INTERVALS): every one of 2 intervals over
+3 declared periods is a rate far slower than declared, not two silences."""
+
+
 def heartbeat_period(unit: UnitState) -> float:
     """The period silences are measured in, seconds: the declared one, or the mean interval
-    measured when every one of at least 3 intervals was over 3 declared periods, so that a unit
-    sending far slower than it declares is judged by its rate (HB-003), not as silent again and
-    again."""
+    measured when every one of at least 2 intervals was over 3 declared periods, so that a unit
+    sending far slower than it declares (the drone operator: declared 5 Hz, sent every 5 s) is
+    judged by its rate (HB-003), not as silent or dead again and again."""
     declared = unit.period(HB) or 0.0
     tracker = heartbeat_tracker(unit)
-    if tracker is not None and tracker.n == 0 and tracker.all_n >= 3:
+    if tracker is not None and tracker.n == 0 and tracker.all_n >= GROSS_SLOW_INTERVALS:
         # every interval so far was over 3 declared periods: the unit's own period is longer
         return max(declared, tracker.all_total / tracker.all_n)
     return declared

@@ -96,7 +96,7 @@ def _reboot(ctx: Context, names: Any) -> None:
     if hb is None:
         ctx.record("REBOOT-001", violation=ctx.violation(
             "REBOOT-001", expected=f"a heartbeat with a new agent-uuid within "
-            f"{ctx.timing.reboot:.1f} s of the reboot ({ctx.reboot_how})",
+            f"{ctx.timing.reboot + 2.0 / rate:.1f} s of the reboot ({ctx.reboot_how})",
             observed=f"heartbeats went on with agent-uuid {old_agent} and no silence"
             if ctx.traffic.since(before, "heartbeat") else "no heartbeat at all",
             subtopic="heartbeat", entry=ctx.traffic.latest("heartbeat")))

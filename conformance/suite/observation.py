@@ -44,13 +44,15 @@ class Observation:
         deadline, whichever is longer (a dropout of a few periods, HB-010's, is not death).
         A unit that heartbeats answers at once. ``settle``: a unit still within its 3
         periods is waited for too (before a verdict, not before a command)."""
-        from conformance.checks.identity import SILENCE_PERIODS
+        from conformance.checks.identity import SILENCE_PERIODS, heartbeat_period
 
         latest = self.traffic.latest("heartbeat")
         rate = self.context.rate_of("heartbeat")
         if latest is None or rate is None:
             return ""
-        period = self.timing.scale / rate
+        with self._lock:  # far slower than declared (HB-003's): its own period, as HB-012's
+            own = heartbeat_period(self.monitor.state(self.unit))
+        period = self.timing.scale * max(1.0 / rate, own)
         if not settle and self.clock.now() - latest.time <= SILENCE_PERIODS * period:
             return ""
         left = latest.time + max(10 * period, self.timing.response) - self.clock.now()
