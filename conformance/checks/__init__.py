@@ -3,7 +3,7 @@
 ``Monitor`` is the one entry point, shared by the linter and the certification suite. The
 checks are registered by rule id (``conformance.checks.base.CHECKS``), one module per spec
 area: ``rates`` (HB-003, SI-002, DEI-002, TEI-002), ``identity`` (HB-006, HB-008, HB-010,
-HB-011, HB-012, MSG-007), ``sensors`` (SI-003, SI-004, SI-005, SENS-005), ``execution``
+HB-011, HB-012, MSG-007; the liveness they measure in ``liveness``), ``sensors`` (SI-003, SI-004, SI-005, SENS-005), ``execution``
 (EXEC-004, EXEC-FB-003), ``levels`` (HB-013), the conversations of spec 12 (every command, its
 answers, the task it started; EXEC-006, EXEC-008, EXEC-FB-004 and the rest of 12):
 ``exec_command``, ``exec_response``, ``exec_feedback``, ``exec_deadline`` on the state of
