@@ -160,6 +160,10 @@ def _listed(ctx: Context, task: str, task_uuid: str,
         ctx.record("DEI-004", verdict=Verdict.PASS)
     elif seen is None and ctx.commander.gaps() != gaps:
         ctx.record("DEI-004", verdict=Verdict.COULD_NOT_TEST, reason=LINK_LOST)
+    elif seen is None and not _has_tasks_executing(ctx):
+        # No list to be in (DEI-001's finding): one fault, one rule.
+        ctx.record("DEI-004", verdict=Verdict.COULD_NOT_TEST, reason="direct_execution_info "
+                   "has no tasks-executing list (DEI-001)")
     elif seen is None:
         return None, ctx.violation(
             "DEI-004", expected=f"task {task_uuid} ('{task}') in tasks-executing while "
@@ -167,6 +171,12 @@ def _listed(ctx: Context, task: str, task_uuid: str,
             "'running'", subtopic="direct_execution_info",
             entry=ctx.traffic.latest("direct_execution_info"))
     return listed, None
+
+
+def _has_tasks_executing(ctx: Context) -> bool:
+    """Whether the unit's latest direct_execution_info has a tasks-executing list (5.3)."""
+    latest = ctx.traffic.latest("direct_execution_info")
+    return latest is not None and isinstance(latest.get("tasks-executing"), list)
 
 
 def _ended(ctx: Context, task: str, task_uuid: str, sent: Sent, signals: list[str], *,

@@ -149,6 +149,9 @@ _ALL = (
     # --- 5.3 direct_execution_info -----------------------------------------------------------
     _f("dei-type", "DEI-001",
        "Sends direct_execution_info with type 'DirectExecInfo'."),
+    _f("dei-no-tasks-executing", "DEI-001",
+       "Sends direct_execution_info without tasks-executing (the official Python L2 and C++ "
+       "agents): DEI-001's finding alone, not also DEI-004's 'not listed'."),
     _f("dei-rate-drift", "DEI-002",
        "Sends direct_execution_info at 1/1.35 of its declared rate."),
     _f("signal-nonstandard", "DEI-003",

@@ -237,6 +237,8 @@ class Publisher:
             "tasks-available": available,
             "tasks-executing": [{"task-name": t.name, "task-uuid": t.uuid} for t in executing],
         })
+        if "dei-no-tasks-executing" in self.faults:
+            del msg["tasks-executing"]
         unit.send("direct_execution_info", msg, retain=self.retain_info)
 
     def _publish_tei(self, stream: Stream, now: float) -> None:
