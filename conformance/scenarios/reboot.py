@@ -5,6 +5,7 @@ both rules are could-not-test."""
 
 from __future__ import annotations
 
+import dataclasses
 import statistics
 from typing import Any
 
@@ -13,6 +14,7 @@ from conformance.scenarios.context import Context, describe
 from conformance.scenarios.query import status_answer
 from conformance.scenarios.sender import new_uuid
 from conformance.scenarios.traffic import Entry
+from conformance.topics import DIRECT_EXECUTION, level_name
 from conformance.violation import Verdict
 
 RULES = ("REBOOT-001", "REBOOT-002")
@@ -46,6 +48,12 @@ def own_period(ctx: Context) -> float:
 
 
 def run(ctx: Context) -> None:
+    if DIRECT_EXECUTION not in map(level_name, ctx.levels()):
+        # REBOOT-002 is about the history of commands (12.1): a unit that declares no direct
+        # execution does not claim it, and its row says so ('not claimed'), not could-not-test.
+        record = ctx.record
+        ctx = dataclasses.replace(ctx, record=lambda rule, **kw: None if rule == "REBOOT-002"
+                                  else record(rule, **kw))
     if ctx.reboot is None:
         for rule in RULES:
             ctx.record(rule, verdict=Verdict.COULD_NOT_TEST,

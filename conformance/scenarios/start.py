@@ -233,6 +233,8 @@ def _check_left(ctx: Context, ended: list[tuple[str, int]]) -> None:
                                 subtopic="direct_execution_info")
     if info is None:
         return  # no direct_execution_info at all: DEI-002/HB-008 say so
+    if not isinstance(info.get("tasks-executing"), list):
+        return  # no list to leave: DEI-001's finding, DEI-004 could-not-test (_listed)
     still = [u for u, _ in ended if u in ctx.executing(info)]
     if still:
         # Give it one more period: the info may have been composed before the final status.

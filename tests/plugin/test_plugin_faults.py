@@ -309,3 +309,17 @@ def test_a_unit_deaf_to_start_task_without_task_uuid_has_its_resend_judged(
     twice = certify_virtual(pytester, unit, *args,
                             faults=("start-no-task-uuid-unanswered", "resend-executes-twice"))
     assert "EXEC-RESEND-001" in twice.failed, twice.text
+
+
+def test_no_tasks_executing_fails_dei_001_and_leaves_dei_004_untested(
+        pytester: pytest.Pytester, prefix: str) -> None:
+    """The official L2 agents send direct_execution_info without tasks-executing: DEI-001's
+    finding; with no list, whether a task is listed or leaves it cannot be told (DEI-004
+    could-not-test, never a pass)."""
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    run = certify_virtual(pytester, unit, f"--profile={MATRIX}", "--seed", "1", "-k", "DEI",
+                          faults=("dei-no-tasks-executing",))
+    rules = run.unit_rules()
+    assert rules["DEI-001"]["verdict"] == "fail", run.text
+    assert rules["DEI-004"]["verdict"] == "could-not-test", rules["DEI-004"]
+    assert "DEI-001" in rules["DEI-004"]["reason"]

@@ -8,7 +8,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
-from certify_helpers import FAST, certify
+from certify_helpers import FAST, MATRIX, certify, certify_virtual
 
 from conformance.sim import SimUnit
 
@@ -56,3 +56,17 @@ def test_a_unit_back_under_another_name_fails_reboot_001_naming_it(
         assert run.result.ret == 1
     else:
         assert rules["REBOOT-001"]["verdict"] == "pass", rules["REBOOT-001"]
+
+
+def test_reboot_002_is_not_claimed_by_a_unit_without_direct_execution(
+        pytester: pytest.Pytester, prefix: str) -> None:
+    """REBOOT-002 is about the history of commands (12.1): a unit that declares only the
+    sensor level (the official L1 agent, RISE) does not claim it; its reboot is still judged
+    (REBOOT-001)."""
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    run = certify_virtual(pytester, unit, f"--profile={MATRIX}", "--seed", "1", "-k", "REBOOT",
+                          faults=("undeclared-direct-execution",))
+    rules = run.unit_rules()
+    assert rules["REBOOT-001"]["verdict"] == "pass", run.text
+    assert rules["REBOOT-002"]["verdict"] == "skip", rules["REBOOT-002"]
+    assert "not claimed" in rules["REBOOT-002"]["reason"]
