@@ -152,7 +152,7 @@ def test_report_file_names_are_bounded_and_never_shared() -> None:
 def test_a_300_character_unit_name_is_certified_and_reported(pytester: pytest.Pytester) -> None:
     result = pytester.runpytest_subprocess(
         "-p", "no:cacheprovider", "--unit", f"waraps/unit/air/simulation/{LONG}",
-        "--broker", "embedded", "--sim-rate", "3", "-k", "HB-001", "--reports-dir=reports")
+        "--broker", "virtual", "--sim-rate", "3", "-k", "HB-001", "--reports-dir=reports")
     out = result.stdout.str() + result.stderr.str()
     assert result.ret == pytest.ExitCode.OK and "Traceback" not in out, out
     assert {p.suffix for p in (pytester.path / "reports").iterdir()} == {".json", ".html"}

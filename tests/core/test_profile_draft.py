@@ -129,7 +129,7 @@ def test_a_hostile_unit_cannot_certify_itself_through_its_drafted_profile(
     assert "cam\\u2028severity" in out.read_text()  # seen, and written escaped
     assert profile.load(out).severity == profile.load("default").severity
     run = pytester.runpytest_subprocess(
-        "--unit", "waraps/unit/air/simulation/dji0", "--broker", "embedded",
+        "--unit", "waraps/unit/air/simulation/dji0", "--broker", "virtual",
         "--sim-fault", "topic-uppercase-sensor", f"--profile={out}", "--explore", "0",
         "-k", "TOPIC or HB-001", "-p", "no:cacheprovider", timeout=120)
     assert run.ret != 0, run.stdout.str()

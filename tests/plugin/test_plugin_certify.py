@@ -57,7 +57,7 @@ def test_reference_unit_passes_on_the_embedded_broker(pytester: pytest.Pytester)
 
 
 def test_one_rule_by_its_id(pytester: pytest.Pytester) -> None:
-    run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "3",
+    run = certify(pytester, "--unit", UNIT, "--broker", "virtual", "--sim-rate", "3",
                   f"--profile={FAST}", "-k", "EXEC-PING-002")
     assert run.result.ret == 0, run.text
     assert run.outcomes == {"EXEC-PING-002": "passed"}
@@ -68,7 +68,7 @@ def test_warn_is_a_pass_with_a_warning_and_strict_makes_it_a_failure(
     """An erratum reading (ERR-001: 'sensor.info') warns under the default profile: the test
     passes, a ConformanceWarning says why, the JUnit verdict property says 'warn'."""
     junit = pytester.path / "junit.xml"
-    args = ("--unit", UNIT, "--broker", "embedded", "--sim-rate", "3",
+    args = ("--unit", UNIT, "--broker", "virtual", "--sim-rate", "3",
             "--sim-fault=sensor-dot-info", "-k", "ERR-001")
     run = certify(pytester, *args, f"--junitxml={junit}")
     assert run.result.ret == 0, run.text

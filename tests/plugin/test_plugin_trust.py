@@ -84,7 +84,7 @@ class Interrupt:
 
 
 def test_an_interrupted_run_is_never_a_pass(pytester: pytest.Pytester) -> None:
-    run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "3",
+    run = certify(pytester, "--unit", UNIT, "--broker", "virtual", "--sim-rate", "3",
                   f"--profile={MATRIX}", "--seed", "1", "-k", "test_ping or test_signal_task",
                   plugins=(Interrupt(),), no_reraise_ctrlc=True)
     assert run.result.ret == INTERRUPTED_EXIT
@@ -104,7 +104,7 @@ def test_an_interrupted_run_is_never_a_pass(pytester: pytest.Pytester) -> None:
 
 def test_rule_option_runs_the_rule_and_the_scenarios_of_its_evidence(
         pytester: pytest.Pytester) -> None:
-    run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "3",
+    run = certify(pytester, "--unit", UNIT, "--broker", "virtual", "--sim-rate", "3",
                   f"--profile={MATRIX}", "--seed", "1", "--rule", "EXEC-FB-002",
                   "--sim-fault=feedback-status-typo")
     assert run.outcomes == {"EXEC-FB-002": "failed"}

@@ -52,7 +52,7 @@ def assert_no_level_certified(run: Certified, junit: Path) -> None:
 
 
 def test_a_unit_that_dies_on_a_command_is_not_certified(pytester: pytest.Pytester) -> None:
-    run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "3",
+    run = certify(pytester, "--unit", UNIT, "--broker", "virtual", "--sim-rate", "3",
                   "--sim-fault=dies-on-missing-task-uuid", f"--profile={FAST}",
                   "--junitxml=junit.xml")
     assert run.result.ret == pytest.ExitCode.TESTS_FAILED, run.text
@@ -67,7 +67,7 @@ def test_a_unit_that_dies_on_a_command_is_not_certified(pytester: pytest.Pyteste
 def test_a_run_of_selected_rules_is_partial(pytester: pytest.Pytester) -> None:
     """-k HB-003 on a unit that never answers ping: the selected rule passes, the run does
     not (partial, no level certified), and its repeat line keeps the selection."""
-    run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "3",
+    run = certify(pytester, "--unit", UNIT, "--broker", "virtual", "--sim-rate", "3",
                   "--sim-fault=pong-missing", f"--profile={FAST}", "-k", "HB-003 or HB-002",
                   "--junitxml=junit.xml")
     assert run.result.ret == pytest.ExitCode.OK, run.text  # no selected rule failed

@@ -11,7 +11,7 @@ import uuid
 
 import orjson
 import pytest
-from hypothesis import HealthCheck, settings
+from hypothesis import HealthCheck, Phase, settings
 from hypothesis import strategies as st
 from hypothesis.errors import Flaky
 from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
@@ -157,7 +157,11 @@ def test_the_model_agrees_with_the_reference_unit_in_every_order() -> None:
 @pytest.mark.parametrize("fault", ["abort-paused-resumes", "pause-pauses-all"])
 def test_the_same_machine_finds_a_sequence_fault(fault: str) -> None:
     faulty = type(f"Faulty{fault}", (Conversation,), {"faults": (fault,)})
-    faulty.TestCase.settings = SETTINGS
+    # Found is what is asserted, not the shortest order: no shrinking (it took most of the
+    # test's time, 5-110 s on a loaded machine); derandomized, as 60 random examples missed
+    # the fault about once in 15 runs (DID NOT RAISE).
+    faulty.TestCase.settings = settings(SETTINGS, phases=[Phase.explicit, Phase.generate],
+                                        derandomize=True)
     with pytest.raises((AssertionError, Flaky)) as found:
         faulty.TestCase().runTest()
     assert "EXEC-SEQ-00" in str(found.value), str(found.value)[:2000]
