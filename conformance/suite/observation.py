@@ -11,6 +11,7 @@ from typing import Any
 from conformance.checks import Monitor
 from conformance.scenarios import Context, Traffic
 from conformance.suite.events import clock
+from conformance.violation import Verdict
 
 PERIODIC = ("heartbeat", "sensor_info", "direct_execution_info", "tst_execution_info")
 
@@ -123,8 +124,10 @@ class Observation:
         if unit is None:
             return False
         # RateStat.intervals counts silences in while too few others were seen:
-        # more than need + silences means the others alone are enough.
-        return not any(s.declared_hz and s.intervals < need + s.silences for s in unit.rates)
+        # more than need + silences means the others alone are enough. A rate already failed
+        # (a gross mismatch is judged from 2 intervals, HB-003's decision) waits for no more.
+        return not any(s.declared_hz and s.verdict is not Verdict.FAIL
+                       and s.intervals < need + s.silences for s in unit.rates)
 
     def observe_for(self, violation_times: list[float]) -> int:
         """Seconds of observation a rerun needs to see a rule's violations (at
