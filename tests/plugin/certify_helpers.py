@@ -107,6 +107,14 @@ def certify_virtual(pytester: pytest.Pytester, unit: str, *args: str,
                    *(f"--sim-variant={v}" for v in variants), *args)
 
 
+def certify_selected(pytester: pytest.Pytester, prefix: str, selection: str,
+                     *faults: str) -> Certified:
+    """The reference unit with ``faults`` certified in virtual time on the matrix profile, only
+    the rules ``-k selection`` picks (and the scenarios of their evidence)."""
+    return certify_virtual(pytester, f"{prefix}/unit/air/simulation/dji0", f"--profile={MATRIX}",
+                           "--seed", "1", "-k", selection, faults=faults)
+
+
 STALL = HERE / "profiles" / "stall.yaml"
 DEADLINE = 90.0
 """Seconds: the issue's bound for a 1 Hz unit (i18 4); stalling faults run at 2 Hz with the

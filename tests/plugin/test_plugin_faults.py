@@ -30,6 +30,7 @@ from certify_helpers import (
     Certified,
     Rebooter,
     certify,
+    certify_selected,
     certify_sim,
     certify_virtual,
 )
@@ -301,14 +302,12 @@ def test_a_unit_deaf_to_start_task_without_task_uuid_has_its_resend_judged(
     """Public agents answer no start-task without a task-uuid (issue 25): the resend scenario
     then asks with one, as the spec's examples do, so their resend handling is judged instead
     of could-not-test, and a unit that runs the resend again still fails EXEC-RESEND-001."""
-    unit = f"{prefix}/unit/air/simulation/dji0"
-    args = (f"--profile={MATRIX}", "--seed", "1", "-k", "RESEND")
-    deaf = certify_virtual(pytester, unit, *args, faults=("start-no-task-uuid-unanswered",))
+    deaf = certify_selected(pytester, prefix, "RESEND", "start-no-task-uuid-unanswered")
     rules = deaf.unit_rules()
     assert {r: rules[r]["verdict"] for r in ("EXEC-RESEND-001", "EXEC-RESEND-002")} == {
         "EXEC-RESEND-001": "pass", "EXEC-RESEND-002": "pass"}, deaf.text
-    twice = certify_virtual(pytester, unit, *args,
-                            faults=("start-no-task-uuid-unanswered", "resend-executes-twice"))
+    twice = certify_selected(pytester, prefix, "RESEND", "start-no-task-uuid-unanswered",
+                             "resend-executes-twice")
     assert "EXEC-RESEND-001" in twice.failed, twice.text
 
 
@@ -317,9 +316,7 @@ def test_no_tasks_executing_fails_dei_001_and_leaves_dei_004_untested(
     """The official L2 agents send direct_execution_info without tasks-executing: DEI-001's
     finding; with no list, whether a task is listed or leaves it cannot be told (DEI-004
     could-not-test, never a pass)."""
-    unit = f"{prefix}/unit/air/simulation/dji0"
-    run = certify_virtual(pytester, unit, f"--profile={MATRIX}", "--seed", "1", "-k", "DEI",
-                          faults=("dei-no-tasks-executing",))
+    run = certify_selected(pytester, prefix, "DEI", "dei-no-tasks-executing")
     rules = run.unit_rules()
     assert rules["DEI-001"]["verdict"] == "fail", run.text
     assert rules["DEI-004"]["verdict"] == "could-not-test", rules["DEI-004"]

@@ -8,7 +8,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
-from certify_helpers import FAST, MATRIX, certify, certify_virtual
+from certify_helpers import FAST, certify, certify_selected
 
 from conformance.sim import SimUnit
 
@@ -63,9 +63,7 @@ def test_reboot_002_is_not_claimed_by_a_unit_without_direct_execution(
     """REBOOT-002 is about the history of commands (12.1): a unit that declares only the
     sensor level (the official L1 agent, RISE) does not claim it; its reboot is still judged
     (REBOOT-001)."""
-    unit = f"{prefix}/unit/air/simulation/dji0"
-    run = certify_virtual(pytester, unit, f"--profile={MATRIX}", "--seed", "1", "-k", "REBOOT",
-                          faults=("undeclared-direct-execution",))
+    run = certify_selected(pytester, prefix, "REBOOT", "undeclared-direct-execution")
     rules = run.unit_rules()
     assert rules["REBOOT-001"]["verdict"] == "pass", run.text
     assert rules["REBOOT-002"]["verdict"] == "skip", rules["REBOOT-002"]
