@@ -13,6 +13,7 @@ import atexit
 import shutil
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 from conformance.rosbag import BagError, BagReader
@@ -71,3 +72,18 @@ def check(bag: Path, size: int) -> None:
                      f"was judged on the rest")
     for note in reader.notes:
         one_line(note, "a note", shown=True)
+
+
+def target(storage: str) -> tuple[Callable[[], None], Callable[[bytes], None]]:
+    """``prepare`` and ``test_one_input`` of the target of one storage: the good bag written
+    once, then each input in place of its storage file."""
+
+    def prepare() -> None:
+        good_bag(storage)
+
+    def test_one_input(data: bytes) -> None:
+        bag = copy_of(storage)
+        storage_file(bag).write_bytes(data)
+        check(bag, len(data))
+
+    return prepare, test_one_input

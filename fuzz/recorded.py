@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import io
 import time
+from collections.abc import Callable
 
 import atheris
 import orjson
@@ -154,3 +155,17 @@ def check(data: bytes) -> None:
         for note in reader.notes:
             one_line(note, "a note", shown=True)
         monitor.finish(time.time())
+
+
+def target(make: Callable[[atheris.FuzzedDataProvider], bytes]
+           ) -> tuple[Callable[[], None], Callable[[bytes], None]]:
+    """``prepare`` and ``test_one_input`` of the target of one recording format: lines made by
+    ``make`` from the fuzzed fields."""
+
+    def prepare() -> None:
+        """Nothing to build: the recording is made from the input."""
+
+    def test_one_input(data: bytes) -> None:
+        check(lines(atheris.FuzzedDataProvider(data), make))
+
+    return prepare, test_one_input

@@ -8,14 +8,6 @@ the Monitor judges every message without raising; time proportional to the input
 
 from __future__ import annotations
 
-import atheris
+from fuzz.recorded import mosquitto_j_line, target
 
-from fuzz.recorded import check, lines, mosquitto_j_line
-
-
-def prepare() -> None:
-    """Nothing to build: the recording is made from the input."""
-
-
-def test_one_input(data: bytes) -> None:
-    check(lines(atheris.FuzzedDataProvider(data), mosquitto_j_line))
+prepare, test_one_input = target(mosquitto_j_line)

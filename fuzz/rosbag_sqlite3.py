@@ -8,17 +8,6 @@ to the input.
 
 from __future__ import annotations
 
-from fuzz.bags import check, copy_of, good_bag, storage_file
+from fuzz.bags import target
 
-STORAGE = "sqlite3"
-
-
-def prepare() -> None:
-    """Write the good bag once."""
-    good_bag(STORAGE)
-
-
-def test_one_input(data: bytes) -> None:
-    bag = copy_of(STORAGE)
-    storage_file(bag).write_bytes(data)
-    check(bag, len(data))
+prepare, test_one_input = target("sqlite3")
