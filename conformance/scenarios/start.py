@@ -160,7 +160,7 @@ def _listed(ctx: Context, task: str, task_uuid: str,
         ctx.record("DEI-004", verdict=Verdict.PASS)
     elif seen is None and ctx.commander.gaps() != gaps:
         ctx.record("DEI-004", verdict=Verdict.COULD_NOT_TEST, reason=LINK_LOST)
-    elif seen is None and not _has_tasks_executing(ctx):
+    elif seen is None and not _has_tasks_executing(ctx.traffic.latest("direct_execution_info")):
         # No list to be in (DEI-001's finding): one fault, one rule.
         ctx.record("DEI-004", verdict=Verdict.COULD_NOT_TEST, reason="direct_execution_info "
                    "has no tasks-executing list (DEI-001)")
@@ -173,10 +173,10 @@ def _listed(ctx: Context, task: str, task_uuid: str,
     return listed, None
 
 
-def _has_tasks_executing(ctx: Context) -> bool:
-    """Whether the unit's latest direct_execution_info has a tasks-executing list (5.3)."""
-    latest = ctx.traffic.latest("direct_execution_info")
-    return latest is not None and isinstance(latest.get("tasks-executing"), list)
+def _has_tasks_executing(info: Entry | None) -> bool:
+    """Whether a direct_execution_info has a tasks-executing list (5.3): without one, DEI-001
+    is the finding and DEI-004 cannot be told."""
+    return info is not None and isinstance(info.get("tasks-executing"), list)
 
 
 def _ended(ctx: Context, task: str, task_uuid: str, sent: Sent, signals: list[str], *,
@@ -233,8 +233,8 @@ def _check_left(ctx: Context, ended: list[tuple[str, int]]) -> None:
                                 subtopic="direct_execution_info")
     if info is None:
         return  # no direct_execution_info at all: DEI-002/HB-008 say so
-    if not isinstance(info.get("tasks-executing"), list):
-        return  # no list to leave: DEI-001's finding, DEI-004 could-not-test (_listed)
+    if not _has_tasks_executing(info):
+        return  # no list to leave: DEI-004 could-not-test (_listed)
     still = [u for u, _ in ended if u in ctx.executing(info)]
     if still:
         # Give it one more period: the info may have been composed before the final status.
