@@ -125,6 +125,8 @@ class VirtualReference:
     seed: int | None = None
     tst: bool = False
     tst_operator: UnitAddress | None = None
+    task_seconds: float = 3.0
+    """How long a simulated task takes (``UnitCore``'s)."""
     broker: VirtualBroker = field(init=False)
     core: UnitCore = field(init=False)
     url = "virtual"
@@ -137,7 +139,7 @@ class VirtualReference:
         self.core = UnitCore(self.unit, self.broker.publish, faults=self.faults,
                              variants=self.variants, rate=self.rate, rng=rng,
                              clock=self.clock.now, tst_execution=self.tst,
-                             tst_operator=self.tst_operator)
+                             tst_operator=self.tst_operator, task_seconds=self.task_seconds)
         core = self.core
         for life in core.lives:  # as the runtime listens: every name of every life
             self.broker.subscribe(f"{topic_base(life, core.faults)}/exec/command", self._command)

@@ -15,6 +15,8 @@ import orjson
 import pytest
 
 from conformance.client import BrokerURL, Message, MqttClient
+from conformance.clock import VirtualClock
+from conformance.sim.virtual import VirtualBroker, VirtualClient
 from conformance.validator import validate
 
 _UNPARSED = object()
@@ -27,6 +29,13 @@ class Observer:
 
     def __init__(self, broker: str, topic_filter: str, command_topics: tuple[str, ...] = ()
                  ) -> None:
+        self._keep(command_topics)
+        self.client = MqttClient(BrokerURL.parse(broker), on_message=self._on_message,
+                                 may_publish=lambda t: t in self.command_topics)
+        self.client.connect()
+        self.client.subscribe(topic_filter, qos=1)
+
+    def _keep(self, command_topics: tuple[str, ...]) -> None:
         self.messages: list[Message] = []
         self._parsed: list[Any] = []
         self._by_topic: dict[str, list[int]] = {}
@@ -35,10 +44,6 @@ class Observer:
         """Commands published (each should come back to us on the unit's exec/command)."""
         self._cond = threading.Condition()
         self.command_topics = command_topics
-        self.client = MqttClient(BrokerURL.parse(broker), on_message=self._on_message,
-                                 may_publish=lambda t: t in self.command_topics)
-        self.client.connect()
-        self.client.subscribe(topic_filter, qos=1)
 
     def _on_message(self, m: Message) -> None:
         with self._cond:
@@ -189,3 +194,30 @@ class Observer:
         return [(v.rule, m.topic) for m in messages for v in validate(m.topic, m.payload,
                                                                         m.time).violations
                 if v.rule not in ignore]
+
+
+class VirtualObserver(Observer):
+    """The same observer on a ``VirtualBroker`` (``conformance.sim.virtual``): its waits run
+    the virtual clock up to their deadline, so a workout takes no real time (one thread)."""
+
+    def __init__(self, broker: VirtualBroker, clock: VirtualClock, topic_filter: str,
+                 command_topics: tuple[str, ...] = ()) -> None:
+        self._keep(command_topics)
+        self.clock = clock
+        self.client = VirtualClient(broker, self._on_message,  # type: ignore[assignment]
+                                    may_publish=lambda t: t in self.command_topics)
+        self.client.subscribe(topic_filter, qos=1)
+
+    def wait_for(self, predicate: Callable[[list[Message]], Any], timeout: float = 10.0,
+                 what: str = "a condition", fail: bool = True) -> Any:
+        deadline = self.clock.now() + timeout
+        while True:
+            value = predicate(self.messages)
+            if value:
+                return value
+            left = deadline - self.clock.now()
+            if left <= 0:
+                if fail:
+                    pytest.fail(f"timed out after {timeout} s (virtual) waiting for {what}")
+                return None
+            self.clock.wait(None, left)
