@@ -27,6 +27,9 @@ from conformance.topics import UnitAddress
 from conformance.violation import Verdict
 
 RATE = 4.0
+FLEET_RATE = 2.0
+"""The fault fleet's rate: HB-010's silence (3 periods, judged here) is then 1.5 s, past the
+scheduling stalls of 18 units on a shared, loaded 2-core machine (0.75 s at 4 Hz was not)."""
 CORPUS = Path(__file__).parent.parent / "spec" / "corpus"
 COMMANDER = ("/exec/command", "/tst/command")
 """What the tests' own commands break is the commander's fault, not the unit's."""
@@ -240,7 +243,7 @@ def test_each_tst_fault_breaks_exactly_its_rules(observe, mosquitto: str,
     workout's verdicts and the Monitor's judgement of what each unit sent, per unit."""
     faults = sorted(TST_FAULTS)
     plan = {i + 1: (f,) for i, f in enumerate(faults)}
-    with Fleet(address, mosquitto, len(plan) + 1, faults_by_index=plan, rate=RATE,
+    with Fleet(address, mosquitto, len(plan) + 1, faults_by_index=plan, rate=FLEET_RATE,
                task_seconds=1.0, tst_execution=True) as fleet:
         bases = [c.base for c in fleet.cores]
         obs = observe(mosquitto, f"{address.prefix}/#",
