@@ -10,13 +10,10 @@ from conformance.topics import UnitAddress
 
 
 @dataclass(eq=False)
-class Reference:
-    """The embedded broker on a free loopback port with the reference unit at ``unit`` on it,
-    ``faults`` and ``variants`` switched on, heartbeating at ``rate`` Hz.
-
-    >>> with Reference(UnitAddress.parse("waraps/unit/air/simulation/dji0")) as ref:
-    ...     ref.url               # 'mqtt://127.0.0.1:PORT'
-    """
+class ReferenceUnit:
+    """The reference unit as a certification asks for it: at ``unit``, ``faults`` and
+    ``variants`` switched on, heartbeating at ``rate`` Hz (on the embedded broker:
+    ``Reference``; in virtual time: ``conformance.sim.virtual.VirtualReference``)."""
 
     unit: UnitAddress
     faults: tuple[str, ...] = ()
@@ -27,6 +24,16 @@ class Reference:
     """It declares 'tst execution' and runs trees (14), also those sent to
     ``tst_operator``'s tst/command (14.1)."""
     tst_operator: UnitAddress | None = None
+
+
+@dataclass(eq=False)
+class Reference(ReferenceUnit):
+    """The embedded broker on a free loopback port with the reference unit on it.
+
+    >>> with Reference(UnitAddress.parse("waraps/unit/air/simulation/dji0")) as ref:
+    ...     ref.url               # 'mqtt://127.0.0.1:PORT'
+    """
+
     broker: Any = field(default=None, init=False)
     sim: Any = field(default=None, init=False)
 

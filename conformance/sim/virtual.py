@@ -20,9 +20,9 @@ from conformance.clock import VirtualClock
 from conformance.message import Gap, Message
 from conformance.sim.executor import MAX_COMMAND_BYTES
 from conformance.sim.publisher import topic_base
+from conformance.sim.reference import ReferenceUnit
 from conformance.sim.runtime import OVERSIZE_KEEP
 from conformance.sim.unit import UnitCore
-from conformance.topics import UnitAddress
 
 LATENCY = 0.002
 """Seconds from a publish to its delivery (a loopback broker's order of magnitude)."""
@@ -114,17 +114,11 @@ class VirtualClient:
 
 
 @dataclass(eq=False)
-class VirtualReference:
-    """The reference unit on a ``VirtualBroker``: ``Reference``'s interface, in virtual time."""
+class VirtualReference(ReferenceUnit):
+    """The reference unit on a ``VirtualBroker``: ``Reference``'s interface, in virtual time
+    on ``clock``."""
 
-    unit: UnitAddress
-    clock: VirtualClock
-    faults: tuple[str, ...] = ()
-    variants: tuple[str, ...] = ()
-    rate: float = 1.0
-    seed: int | None = None
-    tst: bool = False
-    tst_operator: UnitAddress | None = None
+    clock: VirtualClock = field(kw_only=True)
     task_seconds: float = 3.0
     """How long a simulated task takes (``UnitCore``'s)."""
     broker: VirtualBroker = field(init=False)

@@ -145,7 +145,7 @@ class Connection:
         clock = self.traffic.clock
         assert isinstance(clock, VirtualClock), "--broker virtual runs in virtual time"
         self.reference = reference = VirtualReference(
-            self.unit, clock, faults=s.sim_faults, variants=s.sim_variants, rate=s.sim_rate,
+            self.unit, clock=clock, faults=s.sim_faults, variants=s.sim_variants, rate=s.sim_rate,
             seed=s.seed, tst=s.sim_tst, tst_operator=s.tst_operator).start()
         self.client = VirtualClient(reference.broker, self._on_message, self.may_publish,
                                     self.refuse_payload)

@@ -215,7 +215,7 @@ def _workout_in_virtual_time(address: UnitAddress, faults: tuple[str, ...], star
     """One unit's TST and direct-execution workouts, on its own broker double and clock
     (``conformance.sim.virtual``): the unit, the workout and its waits in virtual time."""
     clock = VirtualClock(start=start)
-    ref = VirtualReference(address, clock, faults=faults, rate=ACTIVE_RATE, seed=1,
+    ref = VirtualReference(address, clock=clock, faults=faults, rate=ACTIVE_RATE, seed=1,
                            tst=True, task_seconds=1.0).start()
     core = ref.core
     obs = VirtualObserver(ref.broker, clock, f"{address.prefix}/#",

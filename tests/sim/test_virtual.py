@@ -45,7 +45,7 @@ def test_the_suite_side_keeps_the_publish_policy() -> None:
 
 def test_the_reference_unit_heartbeats_and_answers_ping_in_virtual_time() -> None:
     clock = VirtualClock(start=1_000_000.0)
-    ref = VirtualReference(UNIT, clock, rate=2.0, seed=1).start()
+    ref = VirtualReference(UNIT, clock=clock, rate=2.0, seed=1).start()
     got: list[Message] = []
     client = VirtualClient(ref.broker, got.append,
                            may_publish=lambda t: t == UNIT.topic("exec/command"))
