@@ -5,11 +5,15 @@ generated from its schema near the unit's own position: the answer is ``running`
 ``failed`` with a reason (EXEC-START-001) and carries the task-uuid sent (EXEC-START-002); a
 running task sends feedback until a final status (EXEC-START-003) and appears in, then leaves,
 ``tasks-executing`` (DEI-004). One start-task goes without a task-uuid: the unit must generate
-one (12.1). Then a start-task with invalid parameters is refused with a reason
+one (12.1); when no task ran yet and that one is not answered, it is asked again with a
+task-uuid, as in every spec example, so that a unit deaf to the first (public agents are) still
+has its tasks followed. Then a start-task with invalid parameters is refused with a reason
 (EXEC-START-004), and so is a task the unit does not list (EXEC-START-005).
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 from conformance.protocol import NO_SUCH_TASK
 from conformance.scenarios.context import Context
@@ -22,6 +26,8 @@ from conformance.violation import Verdict, Violation
 RULES = ("EXEC-START-001", "EXEC-START-002", "EXEC-START-003", "DEI-004")
 LINK_LOST = ("the broker connection was lost while waiting for tasks-executing (an outage of "
              "the observer, not the unit's)")
+FINAL_LOST = ("the broker connection was lost while the task ran: its final status may have "
+              "been published meanwhile (an outage of the observer, not the unit's)")
 REFUSAL_RULES = ("EXEC-START-004", "EXEC-START-005")
 # Tasks that end on their own (9.6, 9.7, 9.15, 9.13): the first one available is let run to
 # its end. move-to first: a target near the unit is reached in seconds.
@@ -63,6 +69,7 @@ def run(ctx: Context) -> None:
         return
     assert origin is not None
     ended: list[tuple[str, int]] = []  # (task-uuid, mark of its final status)
+    ran = False  # whether a task of this scenario ran
     # 12.4: one task is left to end on its own (a move ends when it arrives), so feedback is
     # seen for a natural end too, not only after signals; the others are ended by a signal.
     natural = next((t for t in NATURAL_END if t in startable), None)
@@ -71,22 +78,14 @@ def run(ctx: Context) -> None:
         params = valid_params(task, origin, ctx.safety, ctx.seed + index,
                               radius=NATURAL_RADIUS if task == natural else None)
         generate = index == len(startable) - 1  # the last one without a task-uuid (12.1)
-        sent, answer = ctx.commander.start_task(task, params, ctx.timing.response,
-                                                task_uuid=None if generate else "new")
-        response = _check_answer(ctx, task, answer)
+        sent, answer, generate = _start(ctx, task, params, generate, retry=not ran)
         if answer is None:
-            if generate:
-                # 12.1 'a generated task-uuid will be returned in the response message': no
-                # response, so no task-uuid was seen either way. Not a pass (the answers to
-                # start-tasks that named one say nothing of this), and not a second failure
-                # of the one unanswered command (EXEC-START-001's).
-                ctx.record("EXEC-START-002", verdict=Verdict.COULD_NOT_TEST, reason=(
-                    f"the start-task '{task}' sent without a task-uuid was not answered "
-                    f"(EXEC-START-001): whether the unit generates one was not seen"))
             continue
+        response = _check_answer(ctx, task, answer)
         task_uuid = _task_uuid(ctx, task, sent, answer, generate)
         if response != "running" or task_uuid is None:
             continue
+        ran = True
         seen, unlisted = _listed(ctx, task, task_uuid, sent)
         final = _ended(ctx, task, task_uuid, sent, available.get(task, []),
                        natural=task == natural, listed=seen, ended=ended)
@@ -100,6 +99,34 @@ def run(ctx: Context) -> None:
             else:
                 ctx.record("DEI-004", violation=unlisted)
     _check_left(ctx, ended)
+
+
+def _start(ctx: Context, task: str, params: dict[str, Any], generate: bool, *,
+           retry: bool) -> tuple[Sent, Entry | None, bool]:
+    """Send the start-task (without a task-uuid when ``generate``, 12.1); an unanswered one
+    fails EXEC-START-001. When the one without a task-uuid is not answered and no task ran
+    yet (``retry``), ask again as every start-task example of the spec does, with a
+    task-uuid, so that what follows a start (EXEC-START-003, DEI-004) is still judged.
+    Returns the start to follow, its answer, and whether it was sent without a task-uuid."""
+    sent, answer = ctx.commander.start_task(task, params, ctx.timing.response,
+                                            task_uuid=None if generate else "new")
+    if answer is None:
+        _check_answer(ctx, task, None)
+    if answer is not None or not generate:
+        return sent, answer, generate
+    # 12.1 'a generated task-uuid will be returned in the response message': no response, so
+    # no task-uuid was seen either way. Not a pass (the answers to start-tasks that named one
+    # say nothing of this), and not a second failure of the one unanswered command
+    # (EXEC-START-001's).
+    ctx.record("EXEC-START-002", verdict=Verdict.COULD_NOT_TEST, reason=(
+        f"the start-task '{task}' sent without a task-uuid was not answered "
+        f"(EXEC-START-001): whether the unit generates one was not seen"))
+    if not retry:
+        return sent, None, True
+    sent, answer = ctx.commander.start_task(task, params, ctx.timing.response, task_uuid="new")
+    if answer is None:
+        _check_answer(ctx, task, None)
+    return sent, answer, False
 
 
 def _cannot_start(ctx: Context, available: dict[str, list[str]], startable: list[str],
@@ -191,7 +218,7 @@ def _ended(ctx: Context, task: str, task_uuid: str, sent: Sent, signals: list[st
                                "own)", listed=listed)
         if final is None:
             judged = True
-            _no_final(ctx, ctx.untestable(noted), violation=ctx.violation(
+            _no_final(ctx, ctx.untestable(noted), sent, violation=ctx.violation(
                 "EXEC-START-003", expected=f"'{task}' ends on its own with a final status "
                 f"(finished or failed) within {ctx.timing.feedback:.1f} s",
                 observed=f"statuses {ctx.commander.statuses(task_uuid, sent.mark) or 'none'}",
@@ -206,7 +233,7 @@ def _ended(ctx: Context, task: str, task_uuid: str, sent: Sent, signals: list[st
         ctx.notes.setdefault("ended", []).append(
             (task_uuid, task, meaning(final.get("status")) or final.get("status")))
     elif not judged:
-        _no_final(ctx, ctx.untestable(noted), violation=ctx.violation(
+        _no_final(ctx, ctx.untestable(noted), sent, violation=ctx.violation(
             "EXEC-START-003", expected=f"feedback for task '{task}' until finished, "
             "failed or aborted (12.4)", observed=f"statuses {statuses or 'none'} within "
             f"{ctx.timing.feedback:.1f} s", subtopic="exec/feedback",
@@ -214,9 +241,14 @@ def _ended(ctx: Context, task: str, task_uuid: str, sent: Sent, signals: list[st
     return final
 
 
-def _no_final(ctx: Context, untestable: str | None, *, violation: Violation) -> None:
+def _no_final(ctx: Context, untestable: str | None, sent: Sent, *,
+              violation: Violation) -> None:
     """EXEC-START-003 without a final status: the unit's failure, unless a deviation seen
-    earlier explains it (then could-not-test, with that reason)."""
+    earlier explains it, or the suite's link to the broker was lost since the task's
+    start-task ``sent`` (issue 25: a broker's fault is the broker's; what the unit published
+    meanwhile is unknown): then could-not-test, with that reason."""
+    if not untestable and ctx.commander.gaps() != sent.gaps_before:
+        untestable = FINAL_LOST
     if untestable:
         ctx.record("EXEC-START-003", verdict=Verdict.COULD_NOT_TEST, reason=untestable)
     else:

@@ -97,8 +97,10 @@ def test_reference_unit_passes_on_mosquitto_and_its_recording_lints_clean(
     from conformance.cli.lint import main as lint_main
 
     recording = tmp_path / "certification.jsonl"
+    # 2 Hz: the recorder, the suite and the unit share this process; at 3 Hz a loaded machine
+    # stalled the unit past HB-010's three periods (1 s) once in a -n 4 run.
     with recorded(mosquitto, unit_address.prefix, recording), \
-            SimUnit(unit_address, mosquitto, rate=3.0, seed=3) as sim:
+            SimUnit(unit_address, mosquitto, rate=2.0, seed=3) as sim:
         rebooter = Rebooter(sim)
         run = certify(pytester, "--unit", str(unit_address), "--broker", mosquitto,
                       f"--profile={FAST}", "--seed", "7", plugins=(rebooter,))

@@ -311,6 +311,25 @@ def test_a_unit_deaf_to_start_task_without_task_uuid_has_its_resend_judged(
     assert "EXEC-RESEND-001" in twice.failed, twice.text
 
 
+def test_a_unit_deaf_to_start_task_without_task_uuid_has_its_task_followed(
+        pytester: pytest.Pytester, prefix: str) -> None:
+    """With one task to start (the public L2 agents' case), the start-task without a task-uuid
+    goes unanswered (EXEC-START-001's finding, EXEC-START-002 could-not-test); the scenario
+    then asks with one, as the spec's examples do, so the task's end and listing (EXEC-START-003,
+    DEI-004) are judged instead of 'no message this rule applies to was seen'."""
+    one = pytester.path / "one-task.yaml"
+    one.write_text(f"extends: {MATRIX}\nname: one-task\ntasks: [move-to]\n")
+    run = certify_virtual(pytester, f"{prefix}/unit/air/simulation/dji0", f"--profile={one}",
+                          "--seed", "1", "-k", "EXEC-START or DEI-004",
+                          faults=("start-no-task-uuid-unanswered",))
+    verdicts = {r: v["verdict"] for r, v in run.unit_rules().items()
+                if r.startswith("EXEC-START-00") or r == "DEI-004"}
+    assert {r: verdicts.get(r) for r in ("EXEC-START-001", "EXEC-START-002", "EXEC-START-003",
+                                         "DEI-004")} == {
+        "EXEC-START-001": "fail", "EXEC-START-002": "could-not-test",
+        "EXEC-START-003": "pass", "DEI-004": "pass"}, run.text[-3000:]
+
+
 def test_no_tasks_executing_fails_dei_001_and_leaves_dei_004_untested(
         pytester: pytest.Pytester, prefix: str) -> None:
     """The official L2 agents send direct_execution_info without tasks-executing: DEI-001's
