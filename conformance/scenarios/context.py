@@ -182,7 +182,8 @@ class Context:
         return "no task the suite may start: " + ("; ".join(w for w in why if w)
                                                    or "tasks-available is empty")
 
-    def end_task(self, task_uuid: str, signals: list[str], *, after: int) -> Entry | None:
+    def end_task(self, task_uuid: str, signals: list[str], *, after: int,
+                 gaps_before: int | None = None) -> Entry | None:
         """End a running task: ``$enough`` or ``$abort`` when it lists them, then wait for its
         final status (12.4). Returns the final feedback, or None past the deadline, or at once
         when the unit refuses the signal (the task is no longer running)."""
@@ -196,12 +197,15 @@ class Context:
         _, answer = self.commander.signal(task_uuid, signal, self.timing.response)
         if answer is not None and answer.get("response") == "failed":
             return self.commander.feedback(task_uuid, FINAL_STATUSES, 0, after=after)
-        return self.wait_final(task_uuid, after=after)
+        return self.wait_final(task_uuid, after=after, gaps_before=gaps_before)
 
     def wait_final(self, task_uuid: str, *, after: int, why: str = "",
-                   listed: Entry | None = None) -> Entry | None:
+                   listed: Entry | None = None, gaps_before: int | None = None
+                   ) -> Entry | None:
         """The task's final feedback (12.4), waiting the feedback deadline; once a task's final
-        status has failed to come (a systematic deviation), only the response deadline.
+        status has failed to come (a systematic deviation), only the response deadline. Not
+        noted as the unit's deviation when the suite's link was lost since ``gaps_before``
+        (the task's start-task's ``Sent.gaps_before``): it may have come meanwhile.
 
         ``listed``: a direct_execution_info that listed the task. Then a later one that no
         longer lists it (5.3: the unit says the task ended) ends the wait early: its final
@@ -222,7 +226,8 @@ class Context:
                                   what=f"the end of task {unit_uuid[:8]}")
             timeout = min(self.timing.response, max(0.0, timeout - (clock.monotonic() - started)))
         final = self.commander.feedback(task_uuid, FINAL_STATUSES, timeout, after=after)
-        if final is None and not self.commander.blind():
+        lost = gaps_before is not None and self.commander.gaps() != gaps_before
+        if final is None and not lost and not self.commander.blind():
             self.commander.deviations.note(
                 Kind.NO_FINAL_FEEDBACK,
                 f"no final status for task {self.commander.unit_task_uuid(task_uuid)}"

@@ -52,7 +52,8 @@ def run(ctx: Context) -> None:
                     f"running task '{task}'")
             elif first is None and ctx.commander.silent_starts:  # its answer said 'running'
                 ask(ctx, task_uuid, {"running"}, f"running task '{task}'")
-            final = ctx.end_task(task_uuid, available.get(task, []), after=sent.mark)
+            final = ctx.end_task(task_uuid, available.get(task, []), after=sent.mark,
+                                 gaps_before=sent.gaps_before)
             if final is not None:
                 ctx.notes.setdefault("ended", []).append(
                     (task_uuid, task, meaning(final.get("status")) or final.get("status")))

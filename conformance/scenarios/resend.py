@@ -87,4 +87,5 @@ def run(ctx: Context) -> None:
     else:
         ctx.record("EXEC-RESEND-001", verdict=Verdict.PASS)
     for task_uuid in uuids:
-        ctx.end_task(str(task_uuid), available.get(task, []), after=first.mark)
+        ctx.end_task(str(task_uuid), available.get(task, []), after=first.mark,
+                     gaps_before=first.gaps_before)

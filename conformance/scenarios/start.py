@@ -215,7 +215,7 @@ def _ended(ctx: Context, task: str, task_uuid: str, sent: Sent, signals: list[st
     if natural:
         noted = ctx.final_known()
         final = ctx.wait_final(task_uuid, after=sent.mark, why=f"('{task}', ending on its "
-                               "own)", listed=listed)
+                               "own)", listed=listed, gaps_before=sent.gaps_before)
         if final is None:
             judged = True
             _no_final(ctx, ctx.untestable(noted), sent, violation=ctx.violation(
@@ -225,7 +225,7 @@ def _ended(ctx: Context, task: str, task_uuid: str, sent: Sent, signals: list[st
                 subtopic="exec/feedback", detail=f"task-uuid {task_uuid}; params "
                 f"{sent.body.get('task', {}).get('params')}"))
     noted = ctx.final_known()
-    final = ctx.end_task(task_uuid, signals, after=sent.mark)
+    final = ctx.end_task(task_uuid, signals, after=sent.mark, gaps_before=sent.gaps_before)
     statuses = ctx.commander.statuses(task_uuid, sent.mark)
     if final is not None:
         ctx.record("EXEC-START-003", verdict=Verdict.PASS)

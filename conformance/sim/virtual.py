@@ -5,8 +5,10 @@ The unit is the same ``UnitCore`` the real runtime drives (``conformance.sim.run
 when it is due, handed each command, its stamps read from the clock. The broker delivers each
 message ``LATENCY`` seconds after it was published, in publishing order, keeps retained
 messages for later subscribers, and applies the suite's publish policy as ``MqttClient`` does
-(DESIGN 'Safety'). Nothing here touches a socket or a thread: every real-broker behaviour
-(reconnects, outages, QoS) stays tested on amqtt and Mosquitto.
+(DESIGN 'Safety'), and can stop for a while (``outage``: what is published meanwhile is
+lost, the suite's side is told its link went and came back), so that an outage at an exact
+moment of a conversation is a deterministic test. Nothing here touches a socket or a thread:
+the real-broker behaviours (reconnects, freezes, QoS) stay tested on amqtt and Mosquitto.
 """
 
 from __future__ import annotations
@@ -52,6 +54,24 @@ class VirtualBroker:
     clock: VirtualClock
     _subscribers: list[tuple[str, Callable[[Message], None]]] = field(default_factory=list)
     _retained: dict[str, bytes] = field(default_factory=dict)
+    down: bool = False
+    """Stopped (``outage``): what is published, or due for delivery, meanwhile is lost."""
+    _watchers: list[Callable[[bool], None]] = field(default_factory=list)
+
+    def outage(self, seconds: float) -> None:
+        """Stop now and start again ``seconds`` later, as a broker killed and restarted: every
+        client is told at both ends (its link lost, back), retained messages survive."""
+        self._set_down(True)
+        self.clock.at(self.clock.now() + seconds, lambda: self._set_down(False))
+
+    def _set_down(self, down: bool) -> None:
+        self.down = down
+        for watcher in list(self._watchers):
+            watcher(not down)
+
+    def watch(self, connected: Callable[[bool], None]) -> None:
+        """Call ``connected(False)`` when the broker stops, ``connected(True)`` when back."""
+        self._watchers.append(connected)
 
     def subscribe(self, pattern: str, deliver: Callable[[Message], None]) -> None:
         self._subscribers.append((pattern, deliver))
@@ -60,6 +80,8 @@ class VirtualBroker:
                 self._later(deliver, topic, payload, retain=True)
 
     def publish(self, topic: str, payload: bytes, retain: bool = False, qos: int = 0) -> None:
+        if self.down:
+            return  # lost: nobody is there to take it
         if retain:
             if not payload:
                 self._retained.pop(topic, None)
@@ -74,20 +96,42 @@ class VirtualBroker:
     def _later(self, deliver: Callable[[Message], None], topic: str, payload: bytes, *,
                retain: bool, qos: int = 0) -> None:
         when = self.clock.now() + LATENCY
-        self.clock.at(when, lambda: deliver(Message(when, topic, payload, qos, retain)))
+
+        def delivery() -> None:
+            if not self.down:  # in flight when it stopped: lost
+                deliver(Message(when, topic, payload, qos, retain))
+        self.clock.at(when, delivery)
 
 
 @dataclass(eq=False)
 class VirtualClient:
     """The suite's side of the double, with ``MqttClient``'s interface as ``Connection`` uses
-    it, and the same publish policy."""
+    it, and the same publish policy. ``on_connection_change(connected, reason)`` is told when
+    the broker stops and comes back (``VirtualBroker.outage``), as ``MqttClient`` tells it."""
 
     broker: VirtualBroker
     on_message: Callable[[Message], None]
     may_publish: PublishPolicy
     refuse_payload: PayloadPolicy | None = None
+    on_connection_change: Callable[[bool, str], None] | None = None
     gaps: list[Gap] = field(default_factory=list)
     is_connected: bool = True
+
+    def __post_init__(self) -> None:
+        self.broker.watch(self._connection)
+        if self.on_connection_change is not None:  # connected at once, as MqttClient says
+            self.on_connection_change(True, "connected")
+
+    def _connection(self, connected: bool) -> None:
+        if not self.is_connected and connected and self.gaps and self.gaps[-1].end is None:
+            self.gaps[-1] = Gap(self.gaps[-1].start, self.broker.clock.now(),
+                                self.gaps[-1].reason)
+        elif self.is_connected and not connected:
+            self.gaps.append(Gap(self.broker.clock.now(), None, "the broker stopped"))
+        self.is_connected = connected
+        if self.on_connection_change is not None:
+            self.on_connection_change(connected, "connected" if connected
+                                      else "the broker stopped")
 
     def subscribe(self, topic: str, qos: int = 0, timeout: float = 5.0) -> None:
         self.broker.subscribe(topic, self.on_message)
@@ -104,7 +148,11 @@ class VirtualClient:
         self.broker.publish(topic, data, retain, qos)
 
     def wait_connected(self, timeout: float) -> bool:
-        return True
+        clock = self.broker.clock
+        end = clock.now() + timeout
+        while not self.is_connected and clock.now() < end:
+            clock.wait(None, end - clock.now())
+        return self.is_connected
 
     def reconnect_backoff(self, seconds: float) -> None:
         pass

@@ -148,7 +148,7 @@ class Connection:
             self.unit, clock=clock, faults=s.sim_faults, variants=s.sim_variants, rate=s.sim_rate,
             seed=s.seed, tst=s.sim_tst, tst_operator=s.tst_operator).start()
         self.client = VirtualClient(reference.broker, self._on_message, self.may_publish,
-                                    self.refuse_payload)
+                                    self.refuse_payload, self._on_connection)
         self.client.subscribe(self.unit.base + "/#")
         if s.tst_operator is not None:  # 14.1: commands and answers there
             self.client.subscribe(s.tst_operator.base + "/tst/#")

@@ -97,14 +97,14 @@ def certify_sim(pytester: pytest.Pytester, broker: str, unit: str, *args: str,
 
 def certify_virtual(pytester: pytest.Pytester, unit: str, *args: str,
                     faults: tuple[str, ...] = (), variants: tuple[str, ...] = (),
-                    rate: float = 2.0) -> Certified:
+                    rate: float = 2.0, plugins: tuple[object, ...] = ()) -> Certified:
     """Certify the reference unit (with ``faults``, ``variants``) in virtual time: the unit,
     the suite and the Monitor on one simulated clock, through the in-memory broker double
     (``--broker virtual``, ``conformance.sim.virtual``): the same run as ``certify_sim``'s on
     a real broker, in the CPU time its messages cost."""
     return certify(pytester, "--unit", unit, "--broker", "virtual", "--sim-rate", f"{rate:g}",
                    *(f"--sim-fault={f}" for f in faults),
-                   *(f"--sim-variant={v}" for v in variants), *args)
+                   *(f"--sim-variant={v}" for v in variants), *args, plugins=plugins)
 
 
 def certify_selected(pytester: pytest.Pytester, prefix: str, selection: str,

@@ -1,7 +1,9 @@
 """A broker's fault is the broker's (issue 25 §3): the broker killed mid-certification of the
 conformant reference unit and restarted 5 s later, or frozen 20 s (SIGSTOP, SIGCONT) and then
 delivering what it held in one burst. What the unit published meanwhile is unknown:
-the run certifies, or says could-not-test, and never fails a rule."""
+the run certifies, or says could-not-test, and never fails a rule. The same outage at the
+exact moment a task's end is said, in virtual time (``VirtualBroker.outage``), makes the
+real-broker kill's timing certain."""
 
 from __future__ import annotations
 
@@ -10,7 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from certify_helpers import FAST, PrivateMosquitto, Rebooter, certify
+from certify_helpers import FAST, MATRIX, PrivateMosquitto, Rebooter, certify, certify_virtual
 
 from conformance.sim import SimUnit
 
@@ -112,3 +114,49 @@ def test_a_broker_frozen_mid_run_fails_nothing(
         assert "the broker stalled" in run.text or "the broker delivered nothing" in \
             run.text, run.text[-3000:]
     assert time.monotonic() - started < 600
+
+
+class VirtualOutage:
+    """In virtual time: the broker double stops for ``OUTAGE`` seconds the moment the unit
+    receives the suite's first signal-task (``VirtualBroker.outage``), so the answer to it
+    and the final feedback it asks for are lost, always, not by the luck of a real kill."""
+
+    def __init__(self) -> None:
+        self.broker = None
+        self.stopped = 0
+
+    def pytest_runtest_setup(self, item: pytest.Item) -> None:
+        from conformance.sim import virtual
+        from conformance.suite.session import CERTIFICATION
+
+        if self.broker is None:
+            self.broker = item.config.stash[CERTIFICATION].connection.reference.broker
+            virtual.TAPS.append(self._tap)
+
+    def pytest_unconfigure(self) -> None:
+        from conformance.sim import virtual
+
+        if self._tap in virtual.TAPS:
+            virtual.TAPS.remove(self._tap)
+
+    def _tap(self, message) -> None:  # type: ignore[no-untyped-def]
+        if (not self.stopped and message.topic.endswith("/exec/command")
+                and b'"signal-task"' in message.payload):
+            self.stopped += 1
+            self.broker.outage(OUTAGE)
+
+
+def test_a_final_status_lost_in_an_outage_is_not_the_units_in_virtual_time(
+        pytester: pytest.Pytester) -> None:
+    """The end of a task said while the broker was down (the broker-killed test's luck, made
+    certain): EXEC-START-003 is could-not-test, naming the outage, never a failure."""
+    one = pytester.path / "one-task.yaml"  # one task, ended by a signal: its end is the only
+    one.write_text(f"extends: {MATRIX}\nname: one-task\ntasks: [look-at-bearing]\n")
+    outage = VirtualOutage()
+    run = certify_virtual(pytester, "waraps/unit/air/simulation/dji0", f"--profile={one}",
+                          "--seed", "1", "-k", "EXEC-START-003", plugins=(outage,))
+    assert outage.stopped == 1, run.text[-3000:]
+    assert "broker connection lost" in run.text and "broker connection back" in run.text
+    rule = run.unit_rules()["EXEC-START-003"]
+    assert rule["verdict"] == "could-not-test", run.text[-3000:]
+    assert "broker connection was lost while the task ran" in rule["reason"]
