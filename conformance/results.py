@@ -49,17 +49,18 @@ def skip_reason(rule: Rule, *, kind: str, unit: str, levels: tuple[str, ...] | N
         return note or "no command of this commander that the rule applies to was seen"
     if rule.id.startswith("ROS-") and not note:
         return "judged from ROS bags that hold the topics it is about (lint --from run.bag)"
+    # A level the unit does not claim first: a TST rule of a unit without 'tst execution' is
+    # not claimed, whatever a certification would send it.
+    level = rule.spec_level if note == "" else None
+    if level is not None and levels is not None and level not in levels:
+        return f"not claimed: unit declares no '{level}' level"
     if rule.mode is Mode.ACTIVE and kind == "lint":
         return f"needs a stimulus: run pytest --unit {_unit_word(unit)}"
     if rule.mode is Mode.CONVERSATION and kind == "lint" and not note:
         return (f"no command to this unit that the rule applies to was seen (pytest --unit "
                 f"{_unit_word(unit)} sends them)")
-    level = rule.spec_level
-    if level is not None and note == "":
-        if levels is None:
-            return f"no heartbeat seen: cannot tell whether the unit claims the '{level}' level"
-        if level not in levels:
-            return f"not claimed: unit declares no '{level}' level"
+    if level is not None and levels is None:
+        return f"no heartbeat seen: cannot tell whether the unit claims the '{level}' level"
     if note:
         return note
     if rule.mode is Mode.ACTIVE:

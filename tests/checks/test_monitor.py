@@ -45,6 +45,19 @@ def test_unclaimed_level_is_skip_not_claimed(stream):
     assert rules["DEI-002"].reason == "not claimed: unit declares no 'direct execution' level"
 
 
+def test_a_rule_of_an_unclaimed_level_is_not_claimed_in_lint_too(stream):
+    """TST rules of a unit without 'tst execution' (the public L2 agents) read 'not claimed'
+    in lint, not 'needs a stimulus' or 'no command seen' as if a certification would judge
+    them; a claimed level's conversation rule still says what lint lacked."""
+    m = Monitor()  # lint
+    stream.feed(m, stream.alive(3))
+    rules = rules_of(m, stream.address)
+    for rid in ("TST-004", "TST-005", "TST-010"):
+        assert rules[rid].reason == "not claimed: unit declares no 'tst execution' level", rid
+    assert "no command to this unit" in rules["EXEC-PING-001"].reason
+    assert "needs a stimulus" in rules["EXEC-QUERY-002"].reason
+
+
 def test_active_rule_in_certification_is_skip_until_recorded(stream):
     m = Monitor(kind="certification", units=[stream.address])
     stream.feed(m, [stream.heartbeat(0)])
