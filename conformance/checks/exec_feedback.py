@@ -166,6 +166,8 @@ ENDED_FOR_GOOD = ("finished", "aborted")
 the public agents also answer a refused command (a resend, another task's signal) with a
 'failed' feedback naming a task that runs on, so which of the two messages is false cannot be
 told (EXEC-FB-004's, decided)."""
+NO_LIST = ("direct_execution_info has no tasks-executing list (DEI-001): whether an ended task "
+           "leaves it cannot be told")
 LISTED_GRACE_PERIODS = 2.0
 """An info message composed before the final feedback may still list the task: two declared
 periods of direct_execution_info (or the response timeout, if longer) pass first."""
@@ -181,6 +183,11 @@ def ended_tasks_leave_tasks_executing(ctx: CheckContext, unit: UnitState, msg: M
     c = unit.stash.get(CONVERSATIONS)
     m = v.message
     executing = m.get("tasks-executing") if type(m) is dict else None
+    if type(m) is dict and type(executing) is not list:
+        # The public L2 agents' info: no list to leave (DEI-001's finding), said as the skip
+        unit.note("DEI-004", NO_LIST)
+    elif unit.notes.get("DEI-004") == NO_LIST:
+        del unit.notes["DEI-004"]
     if c is None or not executing or type(executing) is not list:
         return None
     period = unit.period(TopicKind.DIRECT_EXECUTION_INFO) or 0.0

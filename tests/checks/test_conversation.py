@@ -631,3 +631,28 @@ def test_a_task_still_listed_long_after_it_finished_fails_dei_004_from_traffic(s
     assert run("aborted", 9.0)["DEI-004"].verdict is Verdict.FAIL
     assert run("finished", 4.5)["DEI-004"].verdict is Verdict.SKIP  # composed before the end
     assert run("failed", 9.0)["DEI-004"].verdict is Verdict.SKIP
+
+
+def test_info_without_tasks_executing_says_why_dei_004_was_not_judged(stream):
+    """The public L2 agents send direct_execution_info without tasks-executing (DEI-001): lint
+    of their traffic says DEI-004 could not be told for that reason, not that no command was
+    seen; once a list comes, the reason goes."""
+    import orjson
+
+    task = new()
+    cmd = start(stream, 2.1, task)
+    traffic = [cmd, stream.response(2.2, com_of(cmd), "running", **{"task-uuid": task}),
+               stream.feedback(4.0, task, "finished")]
+
+    def info(t: float, listed: bool):
+        m = orjson.loads(stream.direct_execution_info(t).payload)
+        if not listed:
+            del m["tasks-executing"]
+        return stream.msg("direct_execution_info", m, t)
+
+    alive = stream.alive(12.0, info=False) + [stream.sensor_info(t + 0.01) for t in range(13)]
+    bare = judge(stream, traffic, alive=alive + [info(t + 0.02, False) for t in range(13)])
+    assert bare["DEI-004"].verdict is Verdict.SKIP
+    assert "no tasks-executing list (DEI-001)" in bare["DEI-004"].reason, bare["DEI-004"]
+    listed = judge(stream, traffic, alive=alive + [info(t + 0.02, t >= 6) for t in range(13)])
+    assert "DEI-001" not in listed["DEI-004"].reason, listed["DEI-004"]
