@@ -20,16 +20,20 @@ Public API (stable):
 - ``Command``: one command (``com_uuid``, ``name``, ``task_uuid``, ``signal``, ``task_name``,
   ``content``: a digest); ``Command.read(payload)`` from JSON bytes or a dict (None if no
   com-uuid).
-- ``Model(whole_life=False, response_timeout=5.0, feedback_timeout=10.0)``:
+- ``Model(whole_life=False, response_timeout=5.0, feedback_timeout=10.0, tasks_kept=1024)``:
   ``whole_life`` says the observer saw every command of the unit's current life (the suite,
   which commands it; lint of a recording cannot know that).
   - ``expect(command) -> Expectation``: pure, changes nothing.
   - ``observe(message) -> list[Finding]``: feed any ``conformance.message.Message`` (commands,
-    responses, feedback, direct_execution_info, heartbeats; other topics are ignored); the
-    findings are the sequence rules' (EXEC-SEQ-*). Or per kind: ``command``, ``response``,
-    ``feedback``, ``executing_shown``, ``heartbeat`` (a payload dict and a time).
+    responses, feedback, heartbeats; other topics are ignored); the findings are the sequence
+    rules' (EXEC-SEQ-*). Or per kind: ``command``, ``response``, ``feedback``, ``heartbeat``
+    (a payload dict and a time).
   - ``tasks``: task-uuid -> ``TaskRecord`` (``state``, ``name``, ``statuses``, ...), in start
-    order; ``states()``: task-uuid -> State; ``running()``, ``paused()``, ``live()``,
+    order: the unit's one store of tasks, which the exec conversations read and annotate
+    (``checks/conversation.py``); ``follow(task_uuid)``: its record, begun (running) if none;
+    ``hear(task, status, t)``: a status applied without judging it (a task followed by another
+    key, the conversations'); ``forget(life)``: a new life (12.1).
+    ``states()``: task-uuid -> State; ``running()``, ``paused()``, ``live()``,
     ``ended()``: task-uuids;
     ``answered``: com-uuid -> (response, task-uuid) of the first answer;
     ``executing()``: the task-uuids tasks-executing must list (the live ones);
@@ -180,18 +184,18 @@ class Model:
     """Direct execution of one unit (one life at a time), from the traffic."""
 
     def __init__(self, *, whole_life: bool = False, response_timeout: float = 5.0,
-                 feedback_timeout: float = 10.0) -> None:
+                 feedback_timeout: float = 10.0, tasks_kept: int = TASKS_KEPT) -> None:
         self.whole_life = whole_life
         self.response_timeout = response_timeout
         self.feedback_timeout = feedback_timeout
+        self.tasks_kept = tasks_kept
         self.tasks: OrderedDict[str, TaskRecord] = OrderedDict()
+        """The unit's tasks (the one store: the conversation checks read these records)."""
         self.commands: OrderedDict[str, Command] = OrderedDict()
         self.answered: OrderedDict[str, tuple[str | None, str | None]] = OrderedDict()
         self.sent_at: OrderedDict[str, float] = OrderedDict()
         """com-uuid -> when the command last arrived (what may explain a change, EXEC-SEQ-002)."""
         self.life: str | None = None
-        self._live: set[str] = set()
-        """The live tasks' uuids (what tasks-executing is compared with, per info message)."""
 
     # --- what the explorer asks ---------------------------------------------------------------
     def running(self) -> list[str]:
@@ -320,8 +324,6 @@ class Model:
             return []
         if topic.endswith("/exec/feedback"):
             return self.feedback(_load(message.payload), message.time)
-        if topic.endswith("/direct_execution_info"):
-            self.executing_shown(_load(message.payload), message.time)
         return []
 
     def heartbeat(self, m: Any, t: float) -> None:
@@ -330,12 +332,16 @@ class Model:
         if agent is None or agent == self.life:
             return
         if self.life is not None:
-            self.tasks.clear()
-            self._live.clear()
-            self.commands.clear()
-            self.answered.clear()
-            self.sent_at.clear()
+            self.forget(agent)
         self.life = agent
+
+    def forget(self, life: str | None) -> None:
+        """12.1: a new life (agent-uuid ``life``) lost every task and com-uuid."""
+        self.tasks.clear()
+        self.commands.clear()
+        self.answered.clear()
+        self.sent_at.clear()
+        self.life = life
 
     def command(self, cmd: Command, t: float) -> None:
         before = self.commands.get(cmd.com_uuid)
@@ -360,12 +366,13 @@ class Model:
             task = self.tasks.get(uuid)
             if value == "running":
                 if task is None or task.state.ended or task.refused:
-                    self._remember(TaskRecord(uuid, cmd.task_name, State.RUNNING, to))
+                    self._remember(TaskRecord(uuid, cmd.task_name, State.RUNNING, to,
+                                              life=self.life))
                 else:  # its feedback came first
                     task.name, task.started_by = task.name or cmd.task_name, to
             elif value == "failed" and task is None:
                 self._remember(TaskRecord(uuid, cmd.task_name, State.FAILED, to, refused=True,
-                                          ended_at=t))
+                                          ended_at=t, life=self.life))
         elif cmd.name == "signal-task" and value == "ok" and cmd.task_uuid:
             task = self.tasks.get(cmd.task_uuid)
             if task is not None and cmd.signal:
@@ -376,39 +383,37 @@ class Model:
         status = meaning(raw) or raw
         if not uuid or status is None:
             return []
-        task = self.tasks.get(uuid)
-        if task is None:
-            task = TaskRecord(uuid, None, State.RUNNING)
-            self._remember(task)
+        task = self.follow(uuid)
         previous = task.last_status
         found: list[Finding] = []
         if task.state.live:
             found += self._keeps_running(task, status, previous, t)
             found += self._touched_by_another(task, status, previous, t)
+        self.hear(task, status, t)
+        return found
+
+    def follow(self, task_uuid: str) -> TaskRecord:
+        """The record of ``task_uuid``; one begun (running: 12.4 feedback comes from a task
+        that runs) when none is held."""
+        task = self.tasks.get(task_uuid)
+        if task is None:
+            task = TaskRecord(task_uuid, None, State.RUNNING, life=self.life)
+            self._remember(task)
+        return task
+
+    def hear(self, task: TaskRecord, status: str, t: float) -> None:
+        """12.4: its feedback said ``status`` (its meaning, ``conformance.status``): a final
+        status ends it, 'running' and 'paused' move it; after the end nothing moves it
+        (EXEC-FB-004 / EXEC-RESEND-001 are the conversations' to judge)."""
         task.said(status, t)
         if task.state.ended:
-            return found  # after the final status: EXEC-FB-004 / EXEC-RESEND-001's to judge
+            return
         if status in FINAL:
             task.state, task.ended_at = FINAL[status], t
-            self._live.discard(uuid)
         elif status == "running":
             task.state = State.RUNNING
         elif status == "paused":
             task.state = State.PAUSED
-        return found
-
-    def executing_shown(self, m: Any, t: float) -> None:
-        """5.3 tasks-executing: which live tasks it lists, and when one left it."""
-        executing = m.get("tasks-executing") if isinstance(m, dict) else None
-        if not isinstance(executing, list):
-            return
-        listed = {e.get("task-uuid") for e in executing if isinstance(e, dict)}
-        for uuid in self._live:
-            task = self.tasks[uuid]
-            if uuid in listed:
-                task.listed, task.left_at = True, None
-            elif task.listed and task.left_at is None:
-                task.left_at = t
 
     # --- the sequence rules -------------------------------------------------------------------
     def _keeps_running(self, task: TaskRecord, status: str, previous: str | None,
@@ -467,15 +472,10 @@ class Model:
     def _remember(self, task: TaskRecord) -> None:
         self.tasks.pop(task.task_uuid, None)
         self.tasks[task.task_uuid] = task
-        if task.state.live:
-            self._live.add(task.task_uuid)
-        else:
-            self._live.discard(task.task_uuid)
-        if len(self.tasks) > TASKS_KEPT:
+        if len(self.tasks) > self.tasks_kept:  # the oldest ended task goes first
             oldest = next((u for u, x in self.tasks.items() if x.state.ended),
                           next(iter(self.tasks)))
             del self.tasks[oldest]
-            self._live.discard(oldest)
 
 
 def _str(m: Any, key: str) -> str | None:

@@ -15,14 +15,15 @@ What exec and TST conversations share is ``command_history``'s.
 
 from __future__ import annotations
 
-# The order registers the checks, so it is the order they run on one message: a conversation
-# is followed before HB-013 looks at what the unit acted on, both before the other checks.
+# The order registers the checks, so it is the order they run on one message: the model of
+# direct execution is fed first (the conversations read its tasks), a conversation is followed
+# before HB-013 looks at what the unit acted on, both before the other checks.
 # isort: off
 from conformance.checks import (  # noqa: F401  (registers)
+    exec_sequence,
     exec_command,
     exec_response,
     exec_feedback,
-    exec_sequence,
     levels,
     exec_deadline,
     execution,

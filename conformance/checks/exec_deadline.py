@@ -70,6 +70,7 @@ def _new_life(ctx: CheckContext, unit: UnitState, c: Conversations, agent: str, 
     found = _expire(ctx, unit, c, float("inf"), reboot=True, dead=dead)
     c.running.clear()  # what the old life ran is not judged (the reboot lost it)
     c.expects.clear()
+    c.model.forget(agent)  # 12.1: nor are its tasks known any more
     return found
 
 
@@ -98,7 +99,7 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
                                   "a signal awaits could not be tracked")
                 continue
             unit.examine(e.rule)
-            task = c.tasks.get(e.task_uuid)
+            task = c.followed(e.task_uuid)
             said = task.last_status if task is not None else None
             found.append(late(e.rule, unit.address.topic("exec/command"), e.command,
                               f"{' or '.join(sorted(e.wanted))} within "
@@ -106,7 +107,7 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
                               f"{e.command.describe()}", f"latest status {said!r}",
                               e.command.last_sent, "12.2.2: do what the signal says, and "
                               "say so in feedback"))
-    for task in list(c.running.values()):
+    for task in c.open():
         if task.left_at is not None and task.left_at + timeout < now:
             c.ended(task, ("left tasks-executing", None, task.left_at))
             if unit.stash.get(FEEDBACK_WITHOUT_TASK_UUID):
@@ -179,7 +180,7 @@ def conversations_at_end(ctx: CheckContext, unit: UnitState, c: Conversations,
     found = _expire(ctx, unit, c, now)
     found += _judge_streak(ctx, unit, c, ended_by="the end of the observation",
                            dead=dying_at_end(ctx, unit, c, now))
-    running = [t for t in c.running.values() if t.left_at is None and t.life == c.life]
+    running = [t for t in c.open() if t.left_at is None and t.life == c.life]
     if running:
         unit.note("EXEC-START-003", f"{len(running)} task(s) still running when the "
                                     f"observation ended: not judged")
