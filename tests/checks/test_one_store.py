@@ -1,0 +1,83 @@
+"""One task state (issue 28 §2): the unit's protocol.Model keeps every task, and the exec
+conversations read and annotate its records; no second store of TaskRecords exists."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+from test_sequence import TIMEOUTS, new, signal, start
+
+from conformance.checks import Monitor
+from conformance.checks.conversation import CONVERSATIONS, Conversations, conversations
+from conformance.checks.exec_sequence import model_of
+from conformance.protocol import State
+from conformance.taskrecord import TaskRecord
+
+
+def _containers(x: Any, depth: int = 3) -> Iterator[Any]:
+    """Every dict, list, set and tuple reachable from ``x``'s attributes (a few levels)."""
+    attrs = getattr(x, "__dict__", None)
+    values = list(attrs.values()) if attrs is not None else []
+    for v in values:
+        if isinstance(v, dict | list | set | tuple):
+            yield v
+        if depth and hasattr(v, "__dict__") and not isinstance(v, TaskRecord):
+            yield from _containers(v, depth - 1)
+
+
+def _holds_tasks(container: Any) -> bool:
+    items = container.values() if isinstance(container, dict) else container
+    return any(isinstance(v, TaskRecord) for v in items)
+
+
+def test_the_conversations_task_is_the_models_and_there_is_one_store(stream):
+    m = Monitor(TIMEOUTS)
+    a, b = new(), new()
+    stream.feed(m, stream.alive(6.0) + start(stream, 2.0, a) + start(stream, 3.0, b)
+                + signal(stream, 4.0, a, "$pause", (4.2, a, "paused")))
+    unit = m.state(stream.address)
+    c = unit.stash[CONVERSATIONS]
+    model = model_of(m.ctx, unit)
+    assert c.model is model and c.tasks is model.tasks
+    for task_uuid in (a, b):
+        assert c.followed(task_uuid) is model.tasks[task_uuid]
+    assert model.tasks[a].state is State.PAUSED and model.tasks[a].command is not None
+    assert list(c.running) == [a, b] and [t.task_uuid for t in c.open()] == [a, b]
+    stores = [x for x in _containers(c) if _holds_tasks(x)]
+    assert len(stores) == 1 and stores[0] is model.tasks, "a second store of TaskRecords"
+    others = [v for k, v in unit.stash._items.items() if k is not CONVERSATIONS]
+    assert not any(_holds_tasks(x) for v in others for x in _containers(v))
+
+
+def test_the_model_exists_whenever_the_conversations_do(stream):
+    """Feedback before any command (lint joining mid-stream) makes both; the task it shows is
+    the model's record, followed by the conversations."""
+    m = Monitor(TIMEOUTS)
+    a = new()
+    stream.feed(m, stream.alive(2.0) + [stream.feedback(1.5, a, "running")])
+    unit = m.state(stream.address)
+    c = unit.stash[CONVERSATIONS]
+    assert isinstance(c, Conversations) and c.followed(a) is c.model.tasks[a]
+    assert model_of(m.ctx, unit) is c.model and c.model.state(a) is State.RUNNING
+
+
+@pytest.mark.parametrize("by", ["model_of", "conversations"])
+def test_either_way_in_makes_both(stream, by):
+    m = Monitor(TIMEOUTS)
+    unit = m.state(stream.address)
+    made = model_of(m.ctx, unit) if by == "model_of" else conversations(unit, m.ctx).model
+    assert unit.stash[CONVERSATIONS].model is made
+    assert made.response_timeout == TIMEOUTS.response_timeout
+
+
+def test_a_new_life_forgets_the_tasks_of_both(stream):
+    m = Monitor(TIMEOUTS)
+    a = new()
+    stream.feed(m, stream.alive(4.0) + start(stream, 2.0, a))
+    unit = m.state(stream.address)
+    c = unit.stash[CONVERSATIONS]
+    assert a in c.tasks
+    stream.feed(m, [stream.heartbeat(4.5, agent_uuid="another-life")])
+    assert c.tasks == {} and not c.running and c.model.life == "another-life"
