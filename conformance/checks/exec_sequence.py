@@ -20,7 +20,7 @@ from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.command_history import violation
 from conformance.checks.conversation import CONVERSATIONS, conversations
 from conformance.message import Message
-from conformance.protocol import BUILTIN_SIGNALS, Command, Model
+from conformance.protocol import BUILTIN_SIGNALS, Command, Model, State
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
@@ -37,6 +37,14 @@ def model_of(ctx: CheckContext, unit: UnitState) -> Model:
     """The unit's model of direct execution, made with its conversations on first use
     (public: the explorer's view of what the Monitor holds)."""
     return conversations(unit, ctx).model
+
+
+def state_held(unit: UnitState, task_uuid: str) -> State:
+    """The model's state of ``task_uuid``: ``State.UNKNOWN`` where it holds nothing, or where
+    no model was made (a reader makes none). The suite's view of what the Monitor holds (its
+    commander and explorer), read under the lock that feeds the Monitor."""
+    c = unit.stash.get(CONVERSATIONS)
+    return c.model.state(task_uuid) if c is not None else State.UNKNOWN
 
 
 @check("EXEC-SEQ-001", "EXEC-SEQ-002", on=(TopicKind.EXEC_COMMAND, TopicKind.EXEC_RESPONSE,
