@@ -195,6 +195,8 @@ class Model:
         self.answered: OrderedDict[str, tuple[str | None, str | None]] = OrderedDict()
         self.sent_at: OrderedDict[str, float] = OrderedDict()
         """com-uuid -> when the command last arrived (what may explain a change, EXEC-SEQ-002)."""
+        self.first_sent: OrderedDict[str, float] = OrderedDict()
+        """com-uuid -> when the command first arrived (feedback since may be its task's)."""
         self.life: str | None = None
 
     # --- what the explorer asks ---------------------------------------------------------------
@@ -341,12 +343,15 @@ class Model:
         self.commands.clear()
         self.answered.clear()
         self.sent_at.clear()
+        self.first_sent.clear()
         self.life = life
 
     def command(self, cmd: Command, t: float) -> None:
         before = self.commands.get(cmd.com_uuid)
         if before is not None and before.content != cmd.content:
             self.answered.pop(cmd.com_uuid, None)  # another command (EXEC-008, commander's)
+        if before is None or before.content != cmd.content:
+            _put(self.first_sent, cmd.com_uuid, t, COMMANDS_KEPT)
         _put(self.commands, cmd.com_uuid, cmd, COMMANDS_KEPT)
         _put(self.sent_at, cmd.com_uuid, t, COMMANDS_KEPT)
 
@@ -365,18 +370,39 @@ class Model:
                 return
             task = self.tasks.get(uuid)
             if value == "running":
-                if task is None or task.state.ended or task.refused:
-                    self._remember(TaskRecord(uuid, cmd.task_name, State.RUNNING, to,
-                                              life=self.life))
-                else:  # its feedback came first
+                if task is not None and (task.state.live or self._said_since(task, to)):
+                    # its feedback came first (12 orders no topics): a final status too
                     task.name, task.started_by = task.name or cmd.task_name, to
+                elif task is None:
+                    self._remember(TaskRecord(uuid, cmd.task_name, State.RUNNING, to))
+                else:  # ended or refused: a new task under its uuid, in its record
+                    self._begin_anew(task, cmd.task_name, to)
             elif value == "failed" and task is None:
                 self._remember(TaskRecord(uuid, cmd.task_name, State.FAILED, to, refused=True,
-                                          ended_at=t, life=self.life))
+                                          ended_at=t))
         elif cmd.name == "signal-task" and value == "ok" and cmd.task_uuid:
             task = self.tasks.get(cmd.task_uuid)
             if task is not None and cmd.signal:
                 task.acked = (*task.acked, (t, cmd.signal, to))[-8:]
+
+    def _begin_anew(self, task: TaskRecord, name: str | None, com_uuid: str) -> None:
+        """A start-task answered 'running' begins a new task under an ended task's uuid: the
+        record (the one per task-uuid, which the conversations annotate too) starts over,
+        moved by the feedback since the command was sent (the new task's, come before its
+        answer). Its statuses are kept (the uuid's history)."""
+        sent = self.first_sent.get(com_uuid, float("inf"))
+        task.name, task.state, task.started_by, task.refused = name, State.RUNNING, com_uuid, False
+        task.ended_at, task.acked = None, ()
+        for t, status in [x for x in task.statuses if x[0] >= sent]:
+            self._move(task, status, t)
+        self.tasks.move_to_end(task.task_uuid)
+
+    def _said_since(self, task: TaskRecord, com_uuid: str) -> bool:
+        """The task was first seen in feedback after command ``com_uuid`` was sent: that
+        command's task, whose feedback came before its answer."""
+        sent = self.first_sent.get(com_uuid)
+        return (task.started_by is None and not task.refused and sent is not None
+                and bool(task.statuses) and task.statuses[0][0] >= sent)
 
     def feedback(self, m: Any, t: float) -> list[Finding]:
         uuid, raw = _str(m, "task-uuid"), _str(m, "status")
@@ -397,7 +423,7 @@ class Model:
         that runs) when none is held."""
         task = self.tasks.get(task_uuid)
         if task is None:
-            task = TaskRecord(task_uuid, None, State.RUNNING, life=self.life)
+            task = TaskRecord(task_uuid, None, State.RUNNING)
             self._remember(task)
         return task
 
@@ -406,6 +432,10 @@ class Model:
         status ends it, 'running' and 'paused' move it; after the end nothing moves it
         (EXEC-FB-004 / EXEC-RESEND-001 are the conversations' to judge)."""
         task.said(status, t)
+        self._move(task, status, t)
+
+    @staticmethod
+    def _move(task: TaskRecord, status: str, t: float) -> None:
         if task.state.ended:
             return
         if status in FINAL:

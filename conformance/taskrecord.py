@@ -51,12 +51,13 @@ class TaskRecord:
     acked: tuple[tuple[float, str, str], ...] = ()
     """(time, signal, com-uuid) of the signals to it answered 'ok', at most 8 (a tuple: most
     tasks get none, and an empty one costs nothing)."""
-    life: str | None = None
-    """The agent-uuid of the life it ran in."""
     # --- the conversations' evidence (``checks/conversation.py``) ---------------------------
-    followed: bool = False
-    """The conversations follow it: a start-task answered 'running' began it, or its feedback
-    came (not a start-task only refused, nor one a new start-task of its uuid replaces)."""
+    life: str | None = None
+    """The agent-uuid of the life the conversations followed it in."""
+    followed: float | None = None
+    """Since when the conversations follow it (None: not): a start-task answered 'running'
+    began it, or its feedback came (not a start-task only refused, nor one a new start-task
+    of its uuid is to begin anew). They judge it by the statuses said since."""
     listed: bool = False
     left_at: float | None = None
     """When it left tasks-executing while it was held open (no final status yet)."""

@@ -45,7 +45,7 @@ from conformance.checks.command_history import (
 )
 from conformance.checks.stash import StashKey
 from conformance.status import FINAL_STATUSES
-from conformance.taskrecord import State, TaskRecord
+from conformance.taskrecord import STATUSES_KEPT, State, TaskRecord
 from conformance.topics import DIRECT_EXECUTION
 
 COMMANDS_KEPT = 1024
@@ -128,13 +128,13 @@ class Conversations(CommandHistory):
         nothing but a refused start-task showed it (it never ran), or a start-task naming its
         uuid is to begin it anew."""
         task = self.model.tasks.get(task_uuid) if task_uuid else None
-        return task if task is not None and task.followed else None
+        return task if task is not None and task.followed is not None else None
 
-    def task(self, task_uuid: str, command: Command | None = None) -> TaskRecord:
-        """Follow ``task_uuid`` from here, in this life, with no evidence yet (``command``:
+    def task(self, task_uuid: str, t: float, command: Command | None = None) -> TaskRecord:
+        """Follow ``task_uuid`` from ``t``, in this life, with no evidence yet (``command``:
         the start-task that began it): the model's record, begun if it holds none."""
         task = self.model.follow(task_uuid)
-        task.followed, task.command, task.life = True, command, self.life
+        task.followed, task.command, task.life = t, command, self.life
         task.final = task.resent = task.left_at = task.listed_at = None
         task.listed, task.running_feedback = False, 0
         return task
@@ -143,12 +143,13 @@ class Conversations(CommandHistory):
         """12.1: a start-task naming ``task_uuid`` begins a new task under it."""
         task = self.model.tasks.get(task_uuid)
         if task is not None:
-            task.followed = False
+            task.followed = None
 
     def open(self) -> list[TaskRecord]:
-        """The records of the tasks still open (``running``), oldest first."""
+        """The records of the tasks still open (``running``), oldest first: one a start-task
+        naming its uuid is to begin anew stays open until the new one starts or it ends."""
         tasks = self.model.tasks
-        return [t for t in map(tasks.get, self.running) if t is not None and t.followed]
+        return [t for t in map(tasks.get, self.running) if t is not None]
 
     def started(self, task: TaskRecord) -> None:
         self.running[task.task_uuid] = None
@@ -167,20 +168,44 @@ class Conversations(CommandHistory):
         self.model.life = agent
 
 
+def said(task: TaskRecord, last: int = 1) -> list[tuple[float, str]]:
+    """(time, status) of the ``last`` latest statuses (the model's) the task said since the
+    conversations follow it."""
+    since = task.followed if task.followed is not None else float("inf")
+    found = []
+    for heard in reversed(task.statuses):
+        if heard[0] < since or len(found) == last:
+            break
+        found.append(heard)
+    return found
+
+
 def latest(task: TaskRecord) -> tuple[float, str] | None:
     """(time, status) of the latest feedback the conversation judges the task by: its final
-    status once it ended (12.4: nothing follows it), else its latest (the model's)."""
+    status once it ended (12.4: nothing follows it), else its latest since it is followed."""
     if task.final is not None and task.final[0] in FINAL_STATUSES:
         return task.final[2], task.final[0]
-    return task.statuses[-1] if task.statuses else None
+    found = said(task)
+    return found[0] if found else None
+
+
+MOVES = frozenset({"running", "paused", *FINAL_STATUSES})
+"""12.4: the statuses that set a task's state (a task-specific one leaves it as it was)."""
 
 
 def state_of(task: TaskRecord) -> State:
-    """The task's state (the model's); a task running again after its final status, its
-    start-task resent (EXEC-RESEND-001), is in the state its latest feedback says."""
-    if task.final is None and task.state.ended and task.last_status in ("running", "paused"):
-        return State(task.last_status)
-    return task.state
+    """The task's state as the conversations follow it: the latest status since they follow
+    it that sets one (the model's state when its statuses kept go back no further); without
+    one, running when a start-task answered 'running' began it (12.1), else unknown. The
+    model's state but where they follow a task anew or on after its end (a start-task naming
+    its uuid; a resend that ran it again, EXEC-RESEND-001; its start refused)."""
+    heard = said(task, STATUSES_KEPT)
+    status = next((s for _, s in heard if s in MOVES), None)
+    if status is not None:
+        return State(status)
+    if len(heard) == STATUSES_KEPT:
+        return task.state
+    return State.RUNNING if task.command is not None else State.UNKNOWN
 
 
 def task_uuid_sent(m: Any) -> str | None:

@@ -17,6 +17,7 @@ from conformance.checks.conversation import (
     FEEDBACK_WITHOUT_TASK_UUID,
     Conversations,
     conversations,
+    said,
     task_uuid_sent,
 )
 from conformance.checks.stash import StashKey
@@ -56,15 +57,15 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
     c = conversations(unit, ctx)
     t = msg.time
     unit.examine("EXEC-FB-004")
-    task = c.followed(task_uuid) or c.task(task_uuid)
+    task = c.followed(task_uuid) or c.task(task_uuid, t)
     if str_of(m, "task-uuid") != task_uuid:
         c.model.hear(task, status, t)  # by another key: the model did not (exec_sequence)
     if task.final is not None:
         yield from _after_final(c, task, task_uuid, msg, m, status)
         return
     if status == "running":
-        previous = task.statuses[-2][1] if len(task.statuses) > 1 else None
-        if task.running_feedback and previous == "running":
+        before = said(task, 2)[1:]  # this one is the model's latest already
+        if task.running_feedback and before and before[0][1] == "running":
             if task.resent is None:
                 unit.stash[REPEATS_STATUS] = True
             elif not unit.stash.get(REPEATS_STATUS):

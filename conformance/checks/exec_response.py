@@ -174,7 +174,7 @@ def _judge_start_answer(unit: UnitState, c: Conversations, cmd: Command, msg: Me
         if started is not None:  # the model began it ('running', 12.1), or follows it
             task = c.followed(started)
             if task is None or task.command is not None:
-                task = c.task(started, cmd)
+                task = c.task(started, msg.time, cmd)
             task.command = cmd  # its feedback may come first
             if task.final is None:
                 c.started(task)
