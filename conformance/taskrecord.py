@@ -2,7 +2,7 @@
 conversation checks judge it by. The one task record of the suite, in one store: the protocol
 model's (``conformance.protocol.Model.tasks``, which the exec conversations of
 ``conformance.checks.conversation`` read and annotate). The model owns the state and the
-statuses; the conversations own the fields they judge by (``followed`` and below). Pure: no
+statuses; the conversations own the fields they judge by (``life`` and below). Pure: no
 MQTT, no clock."""
 
 from __future__ import annotations
