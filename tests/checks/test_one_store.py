@@ -7,12 +7,13 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
+from conftest import T0
 from test_sequence import TIMEOUTS, new, signal, start
 
 from conformance.checks import Monitor
 from conformance.checks.conversation import CONVERSATIONS, Conversations, conversations
 from conformance.checks.exec_sequence import model_of
-from conformance.protocol import State
+from conformance.protocol import Command, Model, State
 from conformance.taskrecord import TaskRecord
 
 
@@ -81,3 +82,34 @@ def test_a_new_life_forgets_the_tasks_of_both(stream):
     assert a in c.tasks
     stream.feed(m, [stream.heartbeat(4.5, agent_uuid="another-life")])
     assert c.tasks == {} and not c.running and c.model.life == "another-life"
+
+
+def _start(model, t: float, com: str, task: str | None) -> None:
+    body = {"com-uuid": com, "command": "start-task", "task": {"name": "move-to"}}
+    if task is not None:
+        body["task-uuid"] = task
+    model.command(Command.read(body), t)
+
+
+def test_feedback_before_the_answer_is_that_start_tasks_task_even_once_ended():
+    """12 orders no topics: a task first seen in feedback after its start-task was sent is
+    that start-task's, its final status too (it was held running before: a second record)."""
+    model = Model()
+    _start(model, 1.0, "c1", None)
+    model.feedback({"task-uuid": "t1", "status": "finished"}, 1.1)
+    record = model.tasks["t1"]
+    model.response({"response-to": "c1", "response": "running", "task-uuid": "t1"}, 1.2)
+    assert model.tasks["t1"] is record and record.started_by == "c1"
+    assert model.state("t1") is State.FINISHED
+
+
+def test_a_new_task_under_an_ended_uuid_begins_in_its_record(stream):
+    m = Monitor(TIMEOUTS)
+    a = new()
+    stream.feed(m, stream.alive(8.0) + start(stream, 2.0, a)
+                + [stream.feedback(3.0, a, "finished")] + start(stream, 5.0, a))
+    c = m.state(stream.address).stash[CONVERSATIONS]
+    record = c.tasks[a]
+    assert c.followed(a) is record and record.final is None and record.followed == pytest.approx(T0 + 5.1)
+    assert record.state is State.RUNNING and list(c.running) == [a]
+    assert [s for _, s in record.statuses] == ["running", "finished", "running"]
