@@ -189,6 +189,12 @@ def latest(task: TaskRecord) -> tuple[float, str] | None:
     return found[0] if found else None
 
 
+def latest_status(task: TaskRecord) -> str | None:
+    """The status of ``latest`` (None: none said since it is followed)."""
+    last = latest(task)
+    return last[1] if last is not None else None
+
+
 MOVES = frozenset({"running", "paused", *FINAL_STATUSES})
 """12.4: the statuses that set a task's state (a task-specific one leaves it as it was)."""
 

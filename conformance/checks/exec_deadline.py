@@ -27,6 +27,7 @@ from conformance.checks.conversation import (
     MALFORMED,
     Conversations,
     expects_answers,
+    latest_status,
 )
 from conformance.checks.exec_response import judge_unanswered
 from conformance.checks.liveness import IDENTITY, dying_at_end, dying_before_life
@@ -100,7 +101,7 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
                 continue
             unit.examine(e.rule)
             task = c.followed(e.task_uuid)
-            said = task.last_status if task is not None else None
+            said = latest_status(task) if task is not None else None
             found.append(late(e.rule, unit.address.topic("exec/command"), e.command,
                               f"{' or '.join(sorted(e.wanted))} within "
                               f"{ctx.profile.feedback_timeout:.1f} s of the 'ok' to "
@@ -122,7 +123,7 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
                               task.command, f"a final feedback for task {task.task_uuid} "
                               f"(finished, failed or aborted)", f"it left tasks-executing at "
                               f"{clock(task.left_at)} with none (latest status "
-                              f"{task.last_status!r})", task.left_at,
+                              f"{latest_status(task)!r})", task.left_at,
                               "12.4: send feedback with the final status when a task ends"))
     return found
 
