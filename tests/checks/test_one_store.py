@@ -7,7 +7,6 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from conftest import T0
 from test_sequence import TIMEOUTS, new, signal, start
 
 from conformance.checks import Monitor
@@ -15,6 +14,8 @@ from conformance.checks.conversation import CONVERSATIONS, Conversations, conver
 from conformance.checks.exec_sequence import model_of
 from conformance.protocol import Command, Model, State
 from conformance.taskrecord import TaskRecord
+
+T0 = 1_700_000_000.0  # the stream's epoch (tests/checks/conftest.py)
 
 
 def _containers(x: Any, depth: int = 3) -> Iterator[Any]:
