@@ -200,21 +200,33 @@ class Model:
         self.life: str | None = None
 
     # --- what the explorer asks ---------------------------------------------------------------
+    def task(self, task_uuid: str | None) -> TaskRecord | None:
+        """The record of ``task_uuid`` in this life (None: unknown, or of a life before)."""
+        task = self.tasks.get(task_uuid) if task_uuid else None
+        return task if task is not None and not task.lost else None
+
+    def _held(self) -> list[tuple[str, TaskRecord]]:
+        """The tasks of this life, in start order."""
+        return [(u, t) for u, t in self.tasks.items() if not t.lost]
+
+    def _uuids(self) -> frozenset[str]:
+        return frozenset(u for u, _ in self._held())
+
     def running(self) -> list[str]:
-        return [u for u, t in self.tasks.items() if t.state is State.RUNNING]
+        return [u for u, t in self._held() if t.state is State.RUNNING]
 
     def paused(self) -> list[str]:
-        return [u for u, t in self.tasks.items() if t.state is State.PAUSED]
+        return [u for u, t in self._held() if t.state is State.PAUSED]
 
     def live(self) -> list[str]:
-        return [u for u, t in self.tasks.items() if t.state.live]
+        return [u for u, t in self._held() if t.state.live]
 
     def ended(self) -> list[str]:
-        return [u for u, t in self.tasks.items() if t.state.ended]
+        return [u for u, t in self._held() if t.state.ended]
 
     def states(self) -> dict[str, State]:
         """task-uuid -> its state, in start order."""
-        return {u: t.state for u, t in self.tasks.items()}
+        return {u: t.state for u, t in self._held()}
 
     def executing(self) -> frozenset[str]:
         """5.3: tasks-executing lists the tasks that run (paused ones too: they have not
@@ -222,13 +234,13 @@ class Model:
         return frozenset(self.live())
 
     def state(self, task_uuid: str | None) -> State:
-        task = self.tasks.get(task_uuid) if task_uuid else None
+        task = self.task(task_uuid)
         return task.state if task is not None else State.UNKNOWN
 
     def query_answers(self, task_uuid: str | None) -> frozenset[str]:
         """What query-status of ``task_uuid`` may answer now (12.1, over the whole history).
         A task the model never saw: 'unknown' when it saw the whole life, else anything."""
-        task = self.tasks.get(task_uuid) if task_uuid else None
+        task = self.task(task_uuid)
         if task is None:
             return frozenset(QUERY_ANSWERS[State.UNKNOWN]) if self.whole_life else frozenset(
                 {"unknown", "running", "paused", "finished", "success", "failed", "aborted"})
@@ -239,7 +251,7 @@ class Model:
     def expect(self, command: Command) -> Expectation:
         """Which answers ``command`` may get now, and what each leads to (pure)."""
         before = self.commands.get(command.com_uuid)
-        everyone = frozenset(self.tasks)
+        everyone = self._uuids()
         if before is not None and before.content == command.content \
                 and command.com_uuid in self.answered:
             # 12.1: a resend is answered again, as before, and not executed again.
@@ -254,7 +266,7 @@ class Model:
                                untouched=everyone)
         if name == "query-status":
             answers = self.query_answers(command.task_uuid)
-            rule = "EXEC-QUERY-001" if command.task_uuid in self.tasks else "EXEC-QUERY-002"
+            rule = "EXEC-QUERY-001" if self.task(command.task_uuid) else "EXEC-QUERY-002"
             return Expectation(command, resend, tuple(Outcome(a) for a in sorted(answers)),
                                rule, untouched=everyone)
         if name == "start-task":
@@ -267,11 +279,11 @@ class Model:
     def _expect_start(self, command: Command, resend: bool) -> Expectation:
         live = frozenset(self.live())
         uuid = command.task_uuid
-        known = self.tasks.get(uuid) if uuid else None
+        known = self.task(uuid)
         if known is not None and known.state.live:
             # A task-uuid names one task: a start-task naming a live one starts nothing new.
             return Expectation(command, resend, (Outcome("failed"), Outcome("running")),
-                               "EXEC-START-001", untouched=frozenset(self.tasks),
+                               "EXEC-START-001", untouched=self._uuids(),
                                why="task-uuid of a live task: refused, or the same task")
         key = uuid if uuid else NEW_TASK
         running = Outcome("running", {key: State.RUNNING})
@@ -279,21 +291,21 @@ class Model:
         # Spec silent on a second task: the unit may run both or end the first, but only
         # with a final status (EXEC-START-003), never silently (docs/MODEL.md).
         return Expectation(command, resend, (running, failed), "EXEC-START-001",
-                           may_end=live, untouched=frozenset(self.tasks) - live,
+                           may_end=live, untouched=self._uuids() - live,
                            why="a new task; live tasks may end, each with a final status")
 
     def _expect_signal(self, command: Command, resend: bool) -> Expectation:
         uuid, signal = command.task_uuid, command.signal or ""
-        others = frozenset(u for u in self.tasks if u != uuid)
-        task = self.tasks.get(uuid) if uuid else None
+        others = self._uuids() - {uuid}
+        task = self.task(uuid)
         if task is None or task.refused:
             answers = ("failed",) if self.whole_life else ("failed", "ok")
             return Expectation(command, resend, tuple(Outcome(a) for a in answers),
-                               "EXEC-SIG-005", untouched=frozenset(self.tasks),
+                               "EXEC-SIG-005", untouched=self._uuids(),
                                why="a task the unit does not know: refused (12.2.2)")
         if task.state.ended:
             return Expectation(command, resend, (Outcome("failed"), Outcome("ok")),
-                               "EXEC-SIG-001", untouched=frozenset(self.tasks),
+                               "EXEC-SIG-001", untouched=self._uuids(),
                                why="an ended task: nothing follows its final status")
         effect = SIGNAL_EFFECT.get(signal)
         failed = Outcome("failed")
@@ -337,9 +349,15 @@ class Model:
             self.forget(agent)
         self.life = agent
 
-    def forget(self, life: str | None) -> None:
-        """12.1: a new life (agent-uuid ``life``) lost every task and com-uuid."""
-        self.tasks.clear()
+    def forget(self, life: str | None, *, keep: bool = False) -> None:
+        """12.1: a new life (agent-uuid ``life``) lost every task and com-uuid. ``keep``:
+        the records stay, ``lost`` (the Monitor's: the conversations judge the old life's
+        tasks by their own life)."""
+        if keep:
+            for task in self.tasks.values():
+                task.lost = True
+        else:
+            self.tasks.clear()
         self.commands.clear()
         self.answered.clear()
         self.sent_at.clear()
@@ -368,20 +386,19 @@ class Model:
             uuid = named or cmd.task_uuid
             if not uuid:
                 return
-            task = self.tasks.get(uuid)
+            task = self.task(uuid)
             if value == "running":
                 if task is not None and (task.state.live or self._said_since(task, to)):
                     # its feedback came first (12 orders no topics): a final status too
                     task.name, task.started_by = task.name or cmd.task_name, to
                 elif task is None:
-                    self._remember(TaskRecord(uuid, cmd.task_name, State.RUNNING, to))
+                    self._remember(uuid, cmd.task_name, State.RUNNING, to)
                 else:  # ended or refused: a new task under its uuid, in its record
                     self._begin_anew(task, cmd.task_name, to)
             elif value == "failed" and task is None:
-                self._remember(TaskRecord(uuid, cmd.task_name, State.FAILED, to, refused=True,
-                                          ended_at=t))
+                self._remember(uuid, cmd.task_name, State.FAILED, to, refused=True, ended_at=t)
         elif cmd.name == "signal-task" and value == "ok" and cmd.task_uuid:
-            task = self.tasks.get(cmd.task_uuid)
+            task = self.task(cmd.task_uuid)
             if task is not None and cmd.signal:
                 task.acked = (*task.acked, (t, cmd.signal, to))[-8:]
 
@@ -421,11 +438,7 @@ class Model:
     def follow(self, task_uuid: str) -> TaskRecord:
         """The record of ``task_uuid``; one begun (running: 12.4 feedback comes from a task
         that runs) when none is held."""
-        task = self.tasks.get(task_uuid)
-        if task is None:
-            task = TaskRecord(task_uuid, None, State.RUNNING)
-            self._remember(task)
-        return task
+        return self.task(task_uuid) or self._remember(task_uuid, None, State.RUNNING)
 
     def hear(self, task: TaskRecord, status: str, t: float) -> None:
         """12.4: its feedback said ``status`` (its meaning, ``conformance.status``): a final
@@ -499,13 +512,23 @@ class Model:
                         f"task {task.task_uuid} says '{status}' {t - sent:.2f} s after that "
                         f"{wanted} was sent and answered 'ok'", t)]
 
-    def _remember(self, task: TaskRecord) -> None:
-        self.tasks.pop(task.task_uuid, None)
-        self.tasks[task.task_uuid] = task
-        if len(self.tasks) > self.tasks_kept:  # the oldest ended task goes first
-            oldest = next((u for u, x in self.tasks.items() if x.state.ended),
-                          next(iter(self.tasks)))
+    def _remember(self, task_uuid: str, name: str | None, state: State,
+                  started_by: str | None = None, refused: bool = False,
+                  ended_at: float | None = None) -> TaskRecord:
+        """A new task under ``task_uuid``: in the record of a life before if one is kept
+        (one record per task-uuid; what the conversations keep on it is theirs), else new."""
+        task = self.tasks.pop(task_uuid, None)
+        if task is None:
+            task = TaskRecord(task_uuid, name, state, started_by, refused, ended_at=ended_at)
+        else:
+            task.name, task.state, task.started_by, task.refused = name, state, started_by, refused
+            task.ended_at, task.acked, task.lost = ended_at, (), False
+        self.tasks[task_uuid] = task
+        if len(self.tasks) > self.tasks_kept:  # a lost, else the oldest ended task goes first
+            oldest = next((u for u, x in self.tasks.items() if x.lost), None) or next(
+                (u for u, x in self.tasks.items() if x.state.ended), next(iter(self.tasks)))
             del self.tasks[oldest]
+        return task
 
 
 def _str(m: Any, key: str) -> str | None:

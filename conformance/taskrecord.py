@@ -51,6 +51,9 @@ class TaskRecord:
     acked: tuple[tuple[float, str, str], ...] = ()
     """(time, signal, com-uuid) of the signals to it answered 'ok', at most 8 (a tuple: most
     tasks get none, and an empty one costs nothing)."""
+    lost: bool = False
+    """Of a life before the model's current one: unknown to the model (12.1: a new life lost
+    its history), kept for the conversations, which judge it by its ``life``."""
     # --- the conversations' evidence (``checks/conversation.py``) ---------------------------
     life: str | None = None
     """The agent-uuid of the life the conversations followed it in."""

@@ -71,7 +71,7 @@ def _new_life(ctx: CheckContext, unit: UnitState, c: Conversations, agent: str, 
     found = _expire(ctx, unit, c, float("inf"), reboot=True, dead=dead)
     c.running.clear()  # what the old life ran is not judged (the reboot lost it)
     c.expects.clear()
-    c.model.forget(agent)  # 12.1: nor are its tasks known any more
+    c.model.forget(agent, keep=True)  # 12.1: nor are its tasks known to the model
     return found
 
 

@@ -78,7 +78,7 @@ def _examine_signal(unit: UnitState, model: Model, m: object) -> None:
     cmd = model.commands.get(to) if isinstance(to, str) else None
     if cmd is None or cmd.name != "signal-task" or cmd.signal not in BUILTIN_SIGNALS:
         return
-    task = model.tasks.get(cmd.task_uuid) if cmd.task_uuid else None
+    task = model.task(cmd.task_uuid)
     if task is None or not task.acked or task.acked[-1][2] != to:
         return
     unit.examine("EXEC-SEQ-002")

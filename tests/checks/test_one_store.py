@@ -74,15 +74,26 @@ def test_either_way_in_makes_both(stream, by):
     assert made.response_timeout == TIMEOUTS.response_timeout
 
 
-def test_a_new_life_forgets_the_tasks_of_both(stream):
+def test_a_new_life_is_one_the_model_knows_none_of_the_tasks_of(stream):
+    """12.1: after a new agent-uuid the model knows no task of the life before; their records
+    stay (lost), for the conversations, which judge them by their own life."""
     m = Monitor(TIMEOUTS)
     a = new()
     stream.feed(m, stream.alive(4.0) + start(stream, 2.0, a))
     unit = m.state(stream.address)
     c = unit.stash[CONVERSATIONS]
-    assert a in c.tasks
+    record = c.tasks[a]
     stream.feed(m, [stream.heartbeat(4.5, agent_uuid="another-life")])
-    assert c.tasks == {} and not c.running and c.model.life == "another-life"
+    assert c.model.life == "another-life" and not c.running
+    assert c.model.state(a) is State.UNKNOWN and c.model.live() == [] and record.lost
+    assert c.followed(a) is record and record.life != c.life
+    stream.feed(m, [stream.feedback(5.0, a, "running")])  # the new life names it: a new task
+    assert c.tasks[a] is record and not record.lost and c.model.state(a) is State.RUNNING
+    model = Model()  # a model alone forgets the records too
+    model.heartbeat({"agent-uuid": "one"}, 0.0)
+    model.feedback({"task-uuid": "t1", "status": "running"}, 1.0)
+    model.heartbeat({"agent-uuid": "two"}, 2.0)
+    assert model.tasks == {}
 
 
 def _start(model, t: float, com: str, task: str | None) -> None:
