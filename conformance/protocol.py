@@ -32,7 +32,9 @@ Public API (stable):
     order: the unit's one store of tasks, which the exec conversations read and annotate
     (``checks/conversation.py``); ``follow(task_uuid)``: its record, begun (running) if none;
     ``hear(task, status, t)``: a status applied without judging it (a task followed by another
-    key, the conversations'); ``forget(life)``: a new life (12.1).
+    key, the conversations'); ``task(task_uuid)``: its record in this life, or None;
+    ``forget(life, keep=False)``: a new life (12.1), which knows no task of the one before
+    (``keep``: their records stay, ``lost``, for the conversations).
     ``states()``: task-uuid -> State; ``running()``, ``paused()``, ``live()``,
     ``ended()``: task-uuids;
     ``answered``: com-uuid -> (response, task-uuid) of the first answer;
