@@ -355,11 +355,10 @@ class Model:
         """12.1: a new life (agent-uuid ``life``) lost every task and com-uuid. ``keep``:
         the records stay, ``lost`` (the Monitor's: the conversations judge the old life's
         tasks by their own life)."""
-        if keep:
-            for task in self.tasks.values():
-                task.lost = True
-        else:
+        if not keep:
             self.tasks.clear()
+        for task in self.tasks.values():  # kept: unknown to the model from here
+            task.lost = True
         self.commands.clear()
         self.answered.clear()
         self.sent_at.clear()
@@ -405,10 +404,9 @@ class Model:
                 task.acked = (*task.acked, (t, cmd.signal, to))[-8:]
 
     def _begin_anew(self, task: TaskRecord, name: str | None, com_uuid: str) -> None:
-        """A start-task answered 'running' begins a new task under an ended task's uuid: the
-        record (the one per task-uuid, which the conversations annotate too) starts over,
-        moved by the feedback since the command was sent (the new task's, come before its
-        answer). Its statuses are kept (the uuid's history)."""
+        """A start-task answered 'running' begins a new task under an ended task's uuid, in
+        its record (one per task-uuid), moved by the feedback since the command was sent (the
+        new task's, come before its answer); its statuses stay (the uuid's history)."""
         sent = self.first_sent.get(com_uuid, float("inf"))
         task.name, task.state, task.started_by, task.refused = name, State.RUNNING, com_uuid, False
         task.ended_at, task.acked = None, ()
@@ -514,9 +512,8 @@ class Model:
                         f"task {task.task_uuid} says '{status}' {t - sent:.2f} s after that "
                         f"{wanted} was sent and answered 'ok'", t)]
 
-    def _remember(self, task_uuid: str, name: str | None, state: State,
-                  started_by: str | None = None, refused: bool = False,
-                  ended_at: float | None = None) -> TaskRecord:
+    def _remember(self, task_uuid: str, name: str | None, state: State, started_by: str | None
+                  = None, refused: bool = False, ended_at: float | None = None) -> TaskRecord:
         """A new task under ``task_uuid``: in the record of a life before if one is kept
         (one record per task-uuid; what the conversations keep on it is theirs), else new."""
         task = self.tasks.pop(task_uuid, None)
