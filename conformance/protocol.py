@@ -20,16 +20,22 @@ Public API (stable):
 - ``Command``: one command (``com_uuid``, ``name``, ``task_uuid``, ``signal``, ``task_name``,
   ``content``: a digest); ``Command.read(payload)`` from JSON bytes or a dict (None if no
   com-uuid).
-- ``Model(whole_life=False, response_timeout=5.0, feedback_timeout=10.0)``:
+- ``Model(whole_life=False, response_timeout=5.0, feedback_timeout=10.0, tasks_kept=1024)``:
   ``whole_life`` says the observer saw every command of the unit's current life (the suite,
   which commands it; lint of a recording cannot know that).
   - ``expect(command) -> Expectation``: pure, changes nothing.
   - ``observe(message) -> list[Finding]``: feed any ``conformance.message.Message`` (commands,
-    responses, feedback, direct_execution_info, heartbeats; other topics are ignored); the
-    findings are the sequence rules' (EXEC-SEQ-*). Or per kind: ``command``, ``response``,
-    ``feedback``, ``executing_shown``, ``heartbeat`` (a payload dict and a time).
+    responses, feedback, heartbeats; other topics are ignored); the findings are the sequence
+    rules' (EXEC-SEQ-*). Or per kind: ``command``, ``response``, ``feedback``, ``heartbeat``
+    (a payload dict and a time).
   - ``tasks``: task-uuid -> ``TaskRecord`` (``state``, ``name``, ``statuses``, ...), in start
-    order; ``states()``: task-uuid -> State; ``running()``, ``paused()``, ``live()``,
+    order: the unit's one store of tasks, which the exec conversations read and annotate
+    (``checks/conversation.py``); ``follow(task_uuid)``: its record, begun (running) if none;
+    ``hear(task, status, t)``: a status applied without judging it (a task followed by another
+    key, the conversations'); ``task(task_uuid)``: its record in this life, or None;
+    ``forget(life, keep=False)``: a new life (12.1), which knows no task of the one before
+    (``keep``: their records stay, ``lost``, for the conversations).
+    ``states()``: task-uuid -> State; ``running()``, ``paused()``, ``live()``,
     ``ended()``: task-uuids;
     ``answered``: com-uuid -> (response, task-uuid) of the first answer;
     ``executing()``: the task-uuids tasks-executing must list (the live ones);
@@ -180,35 +186,49 @@ class Model:
     """Direct execution of one unit (one life at a time), from the traffic."""
 
     def __init__(self, *, whole_life: bool = False, response_timeout: float = 5.0,
-                 feedback_timeout: float = 10.0) -> None:
+                 feedback_timeout: float = 10.0, tasks_kept: int = TASKS_KEPT) -> None:
         self.whole_life = whole_life
         self.response_timeout = response_timeout
         self.feedback_timeout = feedback_timeout
+        self.tasks_kept = tasks_kept
         self.tasks: OrderedDict[str, TaskRecord] = OrderedDict()
+        """The unit's tasks (the one store: the conversation checks read these records)."""
         self.commands: OrderedDict[str, Command] = OrderedDict()
         self.answered: OrderedDict[str, tuple[str | None, str | None]] = OrderedDict()
         self.sent_at: OrderedDict[str, float] = OrderedDict()
         """com-uuid -> when the command last arrived (what may explain a change, EXEC-SEQ-002)."""
+        self.first_sent: OrderedDict[str, float] = OrderedDict()
+        """com-uuid -> when the command first arrived (feedback since may be its task's)."""
         self.life: str | None = None
-        self._live: set[str] = set()
-        """The live tasks' uuids (what tasks-executing is compared with, per info message)."""
 
     # --- what the explorer asks ---------------------------------------------------------------
+    def task(self, task_uuid: str | None) -> TaskRecord | None:
+        """The record of ``task_uuid`` in this life (None: unknown, or of a life before)."""
+        task = self.tasks.get(task_uuid) if task_uuid else None
+        return task if task is not None and not task.lost else None
+
+    def _held(self) -> list[tuple[str, TaskRecord]]:
+        """The tasks of this life, in start order."""
+        return [(u, t) for u, t in self.tasks.items() if not t.lost]
+
+    def _uuids(self) -> frozenset[str]:
+        return frozenset(u for u, _ in self._held())
+
     def running(self) -> list[str]:
-        return [u for u, t in self.tasks.items() if t.state is State.RUNNING]
+        return [u for u, t in self._held() if t.state is State.RUNNING]
 
     def paused(self) -> list[str]:
-        return [u for u, t in self.tasks.items() if t.state is State.PAUSED]
+        return [u for u, t in self._held() if t.state is State.PAUSED]
 
     def live(self) -> list[str]:
-        return [u for u, t in self.tasks.items() if t.state.live]
+        return [u for u, t in self._held() if t.state.live]
 
     def ended(self) -> list[str]:
-        return [u for u, t in self.tasks.items() if t.state.ended]
+        return [u for u, t in self._held() if t.state.ended]
 
     def states(self) -> dict[str, State]:
         """task-uuid -> its state, in start order."""
-        return {u: t.state for u, t in self.tasks.items()}
+        return {u: t.state for u, t in self._held()}
 
     def executing(self) -> frozenset[str]:
         """5.3: tasks-executing lists the tasks that run (paused ones too: they have not
@@ -216,13 +236,13 @@ class Model:
         return frozenset(self.live())
 
     def state(self, task_uuid: str | None) -> State:
-        task = self.tasks.get(task_uuid) if task_uuid else None
+        task = self.task(task_uuid)
         return task.state if task is not None else State.UNKNOWN
 
     def query_answers(self, task_uuid: str | None) -> frozenset[str]:
         """What query-status of ``task_uuid`` may answer now (12.1, over the whole history).
         A task the model never saw: 'unknown' when it saw the whole life, else anything."""
-        task = self.tasks.get(task_uuid) if task_uuid else None
+        task = self.task(task_uuid)
         if task is None:
             return frozenset(QUERY_ANSWERS[State.UNKNOWN]) if self.whole_life else frozenset(
                 {"unknown", "running", "paused", "finished", "success", "failed", "aborted"})
@@ -233,7 +253,7 @@ class Model:
     def expect(self, command: Command) -> Expectation:
         """Which answers ``command`` may get now, and what each leads to (pure)."""
         before = self.commands.get(command.com_uuid)
-        everyone = frozenset(self.tasks)
+        everyone = self._uuids()
         if before is not None and before.content == command.content \
                 and command.com_uuid in self.answered:
             # 12.1: a resend is answered again, as before, and not executed again.
@@ -248,7 +268,7 @@ class Model:
                                untouched=everyone)
         if name == "query-status":
             answers = self.query_answers(command.task_uuid)
-            rule = "EXEC-QUERY-001" if command.task_uuid in self.tasks else "EXEC-QUERY-002"
+            rule = "EXEC-QUERY-001" if self.task(command.task_uuid) else "EXEC-QUERY-002"
             return Expectation(command, resend, tuple(Outcome(a) for a in sorted(answers)),
                                rule, untouched=everyone)
         if name == "start-task":
@@ -261,11 +281,11 @@ class Model:
     def _expect_start(self, command: Command, resend: bool) -> Expectation:
         live = frozenset(self.live())
         uuid = command.task_uuid
-        known = self.tasks.get(uuid) if uuid else None
+        known = self.task(uuid)
         if known is not None and known.state.live:
             # A task-uuid names one task: a start-task naming a live one starts nothing new.
             return Expectation(command, resend, (Outcome("failed"), Outcome("running")),
-                               "EXEC-START-001", untouched=frozenset(self.tasks),
+                               "EXEC-START-001", untouched=self._uuids(),
                                why="task-uuid of a live task: refused, or the same task")
         key = uuid if uuid else NEW_TASK
         running = Outcome("running", {key: State.RUNNING})
@@ -273,21 +293,21 @@ class Model:
         # Spec silent on a second task: the unit may run both or end the first, but only
         # with a final status (EXEC-START-003), never silently (docs/MODEL.md).
         return Expectation(command, resend, (running, failed), "EXEC-START-001",
-                           may_end=live, untouched=frozenset(self.tasks) - live,
+                           may_end=live, untouched=self._uuids() - live,
                            why="a new task; live tasks may end, each with a final status")
 
     def _expect_signal(self, command: Command, resend: bool) -> Expectation:
         uuid, signal = command.task_uuid, command.signal or ""
-        others = frozenset(u for u in self.tasks if u != uuid)
-        task = self.tasks.get(uuid) if uuid else None
+        others = self._uuids() - {uuid}
+        task = self.task(uuid)
         if task is None or task.refused:
             answers = ("failed",) if self.whole_life else ("failed", "ok")
             return Expectation(command, resend, tuple(Outcome(a) for a in answers),
-                               "EXEC-SIG-005", untouched=frozenset(self.tasks),
+                               "EXEC-SIG-005", untouched=self._uuids(),
                                why="a task the unit does not know: refused (12.2.2)")
         if task.state.ended:
             return Expectation(command, resend, (Outcome("failed"), Outcome("ok")),
-                               "EXEC-SIG-001", untouched=frozenset(self.tasks),
+                               "EXEC-SIG-001", untouched=self._uuids(),
                                why="an ended task: nothing follows its final status")
         effect = SIGNAL_EFFECT.get(signal)
         failed = Outcome("failed")
@@ -320,8 +340,6 @@ class Model:
             return []
         if topic.endswith("/exec/feedback"):
             return self.feedback(_load(message.payload), message.time)
-        if topic.endswith("/direct_execution_info"):
-            self.executing_shown(_load(message.payload), message.time)
         return []
 
     def heartbeat(self, m: Any, t: float) -> None:
@@ -330,17 +348,29 @@ class Model:
         if agent is None or agent == self.life:
             return
         if self.life is not None:
-            self.tasks.clear()
-            self._live.clear()
-            self.commands.clear()
-            self.answered.clear()
-            self.sent_at.clear()
+            self.forget(agent)
         self.life = agent
+
+    def forget(self, life: str | None, *, keep: bool = False) -> None:
+        """12.1: a new life (agent-uuid ``life``) lost every task and com-uuid. ``keep``:
+        the records stay, ``lost`` (the Monitor's: the conversations judge the old life's
+        tasks by their own life)."""
+        if not keep:
+            self.tasks.clear()
+        for task in self.tasks.values():  # kept: unknown to the model from here
+            task.lost = True
+        self.commands.clear()
+        self.answered.clear()
+        self.sent_at.clear()
+        self.first_sent.clear()
+        self.life = life
 
     def command(self, cmd: Command, t: float) -> None:
         before = self.commands.get(cmd.com_uuid)
         if before is not None and before.content != cmd.content:
             self.answered.pop(cmd.com_uuid, None)  # another command (EXEC-008, commander's)
+        if before is None or before.content != cmd.content:
+            _put(self.first_sent, cmd.com_uuid, t, COMMANDS_KEPT)
         _put(self.commands, cmd.com_uuid, cmd, COMMANDS_KEPT)
         _put(self.sent_at, cmd.com_uuid, t, COMMANDS_KEPT)
 
@@ -357,58 +387,76 @@ class Model:
             uuid = named or cmd.task_uuid
             if not uuid:
                 return
-            task = self.tasks.get(uuid)
+            task = self.task(uuid)
             if value == "running":
-                if task is None or task.state.ended or task.refused:
-                    self._remember(TaskRecord(uuid, cmd.task_name, State.RUNNING, to))
-                else:  # its feedback came first
+                if task is not None and (task.state.live or self._said_since(task, to)):
+                    # its feedback came first (12 orders no topics): a final status too
                     task.name, task.started_by = task.name or cmd.task_name, to
+                elif task is None:
+                    self._remember(uuid, cmd.task_name, State.RUNNING, to)
+                else:  # ended or refused: a new task under its uuid, in its record
+                    self._begin_anew(task, cmd.task_name, to)
             elif value == "failed" and task is None:
-                self._remember(TaskRecord(uuid, cmd.task_name, State.FAILED, to, refused=True,
-                                          ended_at=t))
+                self._remember(uuid, cmd.task_name, State.FAILED, to, refused=True, ended_at=t)
         elif cmd.name == "signal-task" and value == "ok" and cmd.task_uuid:
-            task = self.tasks.get(cmd.task_uuid)
+            task = self.task(cmd.task_uuid)
             if task is not None and cmd.signal:
                 task.acked = (*task.acked, (t, cmd.signal, to))[-8:]
+
+    def _begin_anew(self, task: TaskRecord, name: str | None, com_uuid: str) -> None:
+        """A start-task answered 'running' begins a new task under an ended task's uuid, in
+        its record (one per task-uuid), moved by the feedback since the command was sent (the
+        new task's, come before its answer); its statuses stay (the uuid's history)."""
+        sent = self.first_sent.get(com_uuid, float("inf"))
+        task.name, task.state, task.started_by, task.refused = name, State.RUNNING, com_uuid, False
+        task.ended_at, task.acked = None, ()
+        for t, status in [x for x in task.statuses if x[0] >= sent]:
+            self._move(task, status, t)
+        self.tasks.move_to_end(task.task_uuid)
+
+    def _said_since(self, task: TaskRecord, com_uuid: str) -> bool:
+        """The task was first seen in feedback after command ``com_uuid`` was sent: that
+        command's task, whose feedback came before its answer."""
+        sent = self.first_sent.get(com_uuid)
+        return (task.started_by is None and not task.refused and sent is not None
+                and bool(task.statuses) and task.statuses[0][0] >= sent)
 
     def feedback(self, m: Any, t: float) -> list[Finding]:
         uuid, raw = _str(m, "task-uuid"), _str(m, "status")
         status = meaning(raw) or raw
         if not uuid or status is None:
             return []
-        task = self.tasks.get(uuid)
-        if task is None:
-            task = TaskRecord(uuid, None, State.RUNNING)
-            self._remember(task)
+        task = self.follow(uuid)
         previous = task.last_status
         found: list[Finding] = []
         if task.state.live:
             found += self._keeps_running(task, status, previous, t)
             found += self._touched_by_another(task, status, previous, t)
+        self.hear(task, status, t)
+        return found
+
+    def follow(self, task_uuid: str) -> TaskRecord:
+        """The record of ``task_uuid``; one begun (running: 12.4 feedback comes from a task
+        that runs) when none is held."""
+        return self.task(task_uuid) or self._remember(task_uuid, None, State.RUNNING)
+
+    def hear(self, task: TaskRecord, status: str, t: float) -> None:
+        """12.4: its feedback said ``status`` (its meaning, ``conformance.status``): a final
+        status ends it, 'running' and 'paused' move it; after the end nothing moves it
+        (EXEC-FB-004 / EXEC-RESEND-001 are the conversations' to judge)."""
         task.said(status, t)
+        self._move(task, status, t)
+
+    @staticmethod
+    def _move(task: TaskRecord, status: str, t: float) -> None:
         if task.state.ended:
-            return found  # after the final status: EXEC-FB-004 / EXEC-RESEND-001's to judge
+            return
         if status in FINAL:
             task.state, task.ended_at = FINAL[status], t
-            self._live.discard(uuid)
         elif status == "running":
             task.state = State.RUNNING
         elif status == "paused":
             task.state = State.PAUSED
-        return found
-
-    def executing_shown(self, m: Any, t: float) -> None:
-        """5.3 tasks-executing: which live tasks it lists, and when one left it."""
-        executing = m.get("tasks-executing") if isinstance(m, dict) else None
-        if not isinstance(executing, list):
-            return
-        listed = {e.get("task-uuid") for e in executing if isinstance(e, dict)}
-        for uuid in self._live:
-            task = self.tasks[uuid]
-            if uuid in listed:
-                task.listed, task.left_at = True, None
-            elif task.listed and task.left_at is None:
-                task.left_at = t
 
     # --- the sequence rules -------------------------------------------------------------------
     def _keeps_running(self, task: TaskRecord, status: str, previous: str | None,
@@ -464,18 +512,22 @@ class Model:
                         f"task {task.task_uuid} says '{status}' {t - sent:.2f} s after that "
                         f"{wanted} was sent and answered 'ok'", t)]
 
-    def _remember(self, task: TaskRecord) -> None:
-        self.tasks.pop(task.task_uuid, None)
-        self.tasks[task.task_uuid] = task
-        if task.state.live:
-            self._live.add(task.task_uuid)
+    def _remember(self, task_uuid: str, name: str | None, state: State, started_by: str | None
+                  = None, refused: bool = False, ended_at: float | None = None) -> TaskRecord:
+        """A new task under ``task_uuid``: in the record of a life before if one is kept
+        (one record per task-uuid; what the conversations keep on it is theirs), else new."""
+        task = self.tasks.pop(task_uuid, None)
+        if task is None:
+            task = TaskRecord(task_uuid, name, state, started_by, refused, ended_at=ended_at)
         else:
-            self._live.discard(task.task_uuid)
-        if len(self.tasks) > TASKS_KEPT:
-            oldest = next((u for u, x in self.tasks.items() if x.state.ended),
-                          next(iter(self.tasks)))
+            task.name, task.state, task.started_by, task.refused = name, state, started_by, refused
+            task.ended_at, task.acked, task.lost = ended_at, (), False
+        self.tasks[task_uuid] = task
+        if len(self.tasks) > self.tasks_kept:  # a lost, else the oldest ended task goes first
+            oldest = next((u for u, x in self.tasks.items() if x.lost), None) or next(
+                (u for u, x in self.tasks.items() if x.state.ended), next(iter(self.tasks)))
             del self.tasks[oldest]
-            self._live.discard(oldest)
+        return task
 
 
 def _str(m: Any, key: str) -> str | None:

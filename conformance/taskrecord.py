@@ -1,7 +1,9 @@
 """One task as the traffic showed it (12.4): its state, its statuses, and the evidence the
-conversation checks judge it by. The one task record of the suite: the protocol model's tasks
-(``conformance.protocol``, which re-exports both names) and the exec conversations' tasks
-(``conformance.checks.conversation``) are ``TaskRecord``s. Pure: no MQTT, no clock."""
+conversation checks judge it by. The one task record of the suite, in one store: the protocol
+model's (``conformance.protocol.Model.tasks``, which the exec conversations of
+``conformance.checks.conversation`` read and annotate). The model owns the state and the
+statuses; the conversations own the fields they judge by (``life`` and below). Pure: no
+MQTT, no clock."""
 
 from __future__ import annotations
 
@@ -33,9 +35,8 @@ class State(str, enum.Enum):
 
 @dataclass(eq=False, slots=True)
 class TaskRecord:
-    """One task as the traffic showed it: its state and statuses, and the evidence the
-    conversation checks judge it by (the one task record of the suite: the model's and the
-    conversations' tasks alike, ``checks/conversation.py``)."""
+    """One task as the traffic showed it: its state and statuses (the model's), and the
+    evidence the conversation checks judge it by (``checks/conversation.py``)."""
 
     task_uuid: str
     name: str | None = None
@@ -45,21 +46,28 @@ class TaskRecord:
     refused: bool = False
     """Its start-task was answered 'failed': it never ran."""
     statuses: list[tuple[float, str]] = field(default_factory=list)
-    """(time, status) of its latest feedback: the model keeps ``STATUSES_KEPT``, the
-    conversation checks only the latest (``said``)."""
+    """(time, status) of its latest feedback (``STATUSES_KEPT``), every one the model heard."""
     ended_at: float | None = None
     acked: tuple[tuple[float, str, str], ...] = ()
     """(time, signal, com-uuid) of the signals to it answered 'ok', at most 8 (a tuple: most
     tasks get none, and an empty one costs nothing)."""
+    lost: bool = False
+    """Of a life before the model's current one: unknown to the model (12.1: a new life lost
+    its history), kept for the conversations, which judge it by its ``life``."""
+    # --- the conversations' evidence (``checks/conversation.py``) ---------------------------
+    life: str | None = None
+    """The agent-uuid of the life the conversations followed it in."""
+    followed: float | None = None
+    """Since when the conversations follow it (None: not): a start-task answered 'running'
+    began it, or its feedback came (not a start-task only refused, nor one a new start-task
+    of its uuid is to begin anew). They judge it by the statuses said since."""
     listed: bool = False
     left_at: float | None = None
-    """When it left tasks-executing while it was held live (no final status yet)."""
+    """When it left tasks-executing while it was held open (no final status yet)."""
     listed_at: float | None = None
     """When tasks-executing last listed it (5.3)."""
     command: Any = None
     """The start-task that began it, as the conversation checks keep it (its evidence)."""
-    life: str | None = None
-    """The agent-uuid of the life it ran in."""
     final: tuple[str, str | None, float] | None = None
     """(status, com-uuid, time) of its final feedback, or ('left tasks-executing', None,
     time) when it left tasks-executing with none."""

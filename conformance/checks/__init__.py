@@ -7,7 +7,9 @@ HB-011, HB-012, MSG-007; the liveness they measure in ``liveness``), ``sensors``
 (EXEC-004, EXEC-FB-003), ``levels`` (HB-013), the conversations of spec 12 (every command, its
 answers, the task it started; EXEC-006, EXEC-008, EXEC-FB-004 and the rest of 12):
 ``exec_command``, ``exec_response``, ``exec_feedback``, ``exec_deadline`` on the state of
-``conversation``, ``exec_sequence`` on the model of ``conformance.protocol`` (EXEC-SEQ-*), and the same one level up, spec 14 (TST-004, TST-006..TST-013):
+``conversation``, whose tasks are the unit's model of ``conformance.protocol`` (one store),
+which ``exec_sequence`` feeds first and judges by (EXEC-SEQ-*); and the same one level up,
+spec 14 (TST-004, TST-006..TST-013):
 ``tst_command``, ``tst_response``, ``tst_feedback``, ``tst_deadline`` on the state of
 ``tst_conversation`` (commands on an operator's tst/command are attributed by ``tst_routing``).
 What exec and TST conversations share is ``command_history``'s.
@@ -15,14 +17,15 @@ What exec and TST conversations share is ``command_history``'s.
 
 from __future__ import annotations
 
-# The order registers the checks, so it is the order they run on one message: a conversation
-# is followed before HB-013 looks at what the unit acted on, both before the other checks.
+# The order registers the checks, so it is the order they run on one message: the model of
+# direct execution is fed first (the conversations read its tasks), a conversation is followed
+# before HB-013 looks at what the unit acted on, both before the other checks.
 # isort: off
 from conformance.checks import (  # noqa: F401  (registers)
+    exec_sequence,
     exec_command,
     exec_response,
     exec_feedback,
-    exec_sequence,
     levels,
     exec_deadline,
     execution,

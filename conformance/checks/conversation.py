@@ -9,6 +9,12 @@ Deadlines pass on the unit's heartbeats and at the end (``exec_deadline``). The 
 judges a recording in ``lint`` and the suite's own commands in ``pytest --unit``; what exec and
 TST conversations share is ``command_history``'s.
 
+One task state (issue 28 §2): the tasks are the unit's ``protocol.Model``'s (``model``, made
+with the conversations, fed every exec message first by ``exec_sequence``). The model owns a
+task's record, its state and statuses; the conversations read them and keep on the record only
+their evidence (which start-task began it, its final feedback, resends, tasks-executing), and
+here their deadlines (``Expect``), commands and the task-uuids still open (``running``).
+
 Blame goes to the root cause, so that one fault fails one rule:
 - each command left unanswered fails its own rule, judged when the unit next answers or at the
   end; a unit that also answers none of two or more commands of different kinds, kinds it
@@ -24,9 +30,11 @@ was dropped is counted and said in the report (``note``).
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from typing import Any
 
-from conformance.checks.base import BoundedDict, UnitState
+from conformance import protocol
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import (
     PENDING_KEPT,
     CommandHistory,
@@ -36,13 +44,15 @@ from conformance.checks.command_history import (
     str_of,
 )
 from conformance.checks.stash import StashKey
-from conformance.taskrecord import State, TaskRecord
+from conformance.status import FINAL_STATUSES
+from conformance.taskrecord import STATUSES_KEPT, State, TaskRecord
 from conformance.topics import DIRECT_EXECUTION
 
 COMMANDS_KEPT = 1024
 """Commands remembered per unit (resends, late answers, EXEC-006): at one a minute, 17 hours;
 a few hundred bytes each, so a fleet of 200 units stays under about 100 MiB however long."""
-TASKS_KEPT = 1024
+TASKS_KEPT = protocol.TASKS_KEPT
+"""Tasks kept per unit: the bound of the model's store, made with the conversations."""
 FEEDBACK_WITHOUT_TASK_UUID: StashKey[bool] = StashKey("feedback-without-task-uuid")
 """The unit sent feedback without a task-uuid."""
 
@@ -90,13 +100,16 @@ class Expect:
 
 
 class Conversations(CommandHistory):
-    """What one unit was told on exec/command and how it answered (bounded)."""
+    """What one unit was told on exec/command and how it answered (bounded), over the tasks
+    of its ``model``."""
 
-    def __init__(self) -> None:
+    def __init__(self, model: protocol.Model | None = None) -> None:
         super().__init__(COMMANDS_KEPT)
-        self.tasks: BoundedDict = BoundedDict(TASKS_KEPT)
-        self.running: dict[str, TaskRecord] = {}
-        """Tasks a start-task began in this life that have not ended (at most PENDING_KEPT)."""
+        self.model = model if model is not None else protocol.Model(tasks_kept=TASKS_KEPT)
+        """The unit's model of direct execution: the one store of its tasks."""
+        self.running: OrderedDict[str, None] = OrderedDict()
+        """The task-uuids of the tasks a start-task began in this life that have not ended
+        (at most PENDING_KEPT; their records are the model's)."""
         self.expects: list[Expect] = []
         self.stray_pongs: list[tuple[float, str]] = []
         self.last_command: Command | None = None
@@ -105,23 +118,100 @@ class Conversations(CommandHistory):
         """The end of the latest heartbeat silence over 2 periods: perhaps a reboot that kept
         its agent-uuid, whose history loss is REBOOT-002's to judge, not EXEC-QUERY-001's."""
 
-    def task(self, task_uuid: str, name: str | None = None, command: Command | None = None
-             ) -> TaskRecord:
-        """A new record of a task of this life, kept under its task-uuid; no status said
-        yet (``State.UNKNOWN``)."""
-        task = self.tasks[task_uuid] = TaskRecord(task_uuid, name, State.UNKNOWN,
-                                                  command=command, life=self.life)
+    @property
+    def tasks(self) -> OrderedDict[str, TaskRecord]:
+        """The model's tasks (the one store; not a copy)."""
+        return self.model.tasks
+
+    def followed(self, task_uuid: str | None) -> TaskRecord | None:
+        """The task the conversations follow under ``task_uuid``: the model's record, unless
+        nothing but a refused start-task showed it (it never ran), or a start-task naming its
+        uuid is to begin it anew."""
+        task = self.model.tasks.get(task_uuid) if task_uuid else None
+        return task if task is not None and task.followed is not None else None
+
+    def task(self, task_uuid: str, t: float, command: Command | None = None) -> TaskRecord:
+        """Follow ``task_uuid`` from ``t``, in this life, with no evidence yet (``command``:
+        the start-task that began it): the model's record, begun if it holds none."""
+        task = self.model.follow(task_uuid)
+        task.followed, task.command, task.life = t, command, self.life
+        task.final = task.resent = task.left_at = task.listed_at = None
+        task.listed, task.running_feedback = False, 0
         return task
 
+    def unfollow(self, task_uuid: str) -> None:
+        """12.1: a start-task naming ``task_uuid`` begins a new task under it."""
+        task = self.model.tasks.get(task_uuid)
+        if task is not None:
+            task.followed = None
+
+    def open(self) -> list[TaskRecord]:
+        """The records of the tasks still open (``running``), oldest first: one a start-task
+        naming its uuid is to begin anew stays open until the new one starts or it ends."""
+        tasks = self.model.tasks
+        return [t for t in map(tasks.get, self.running) if t is not None]
+
     def started(self, task: TaskRecord) -> None:
-        self.running[task.task_uuid] = task
+        self.running[task.task_uuid] = None
+        self.running.move_to_end(task.task_uuid)
         if len(self.running) > PENDING_KEPT:
-            del self.running[next(iter(self.running))]
+            self.running.popitem(last=False)
             self.dropped += 1
 
     def ended(self, task: TaskRecord, final: tuple[str, str | None, float]) -> None:
         task.final = final
         self.running.pop(task.task_uuid, None)
+
+    def begin_life(self, agent: str) -> None:
+        """12.1: a new agent-uuid; the model's tasks are of this life from here."""
+        super().begin_life(agent)
+        self.model.life = agent
+
+
+def said(task: TaskRecord, last: int = 1) -> list[tuple[float, str]]:
+    """(time, status) of the ``last`` latest statuses (the model's) the task said since the
+    conversations follow it."""
+    since = task.followed if task.followed is not None else float("inf")
+    found = []
+    for heard in reversed(task.statuses):
+        if heard[0] < since or len(found) == last:
+            break
+        found.append(heard)
+    return found
+
+
+def latest(task: TaskRecord) -> tuple[float, str] | None:
+    """(time, status) of the latest feedback the conversation judges the task by: its final
+    status once it ended (12.4: nothing follows it), else its latest since it is followed."""
+    if task.final is not None and task.final[0] in FINAL_STATUSES:
+        return task.final[2], task.final[0]
+    found = said(task)
+    return found[0] if found else None
+
+
+def latest_status(task: TaskRecord) -> str | None:
+    """The status of ``latest`` (None: none said since it is followed)."""
+    last = latest(task)
+    return last[1] if last is not None else None
+
+
+MOVES = frozenset({"running", "paused", *FINAL_STATUSES})
+"""12.4: the statuses that set a task's state (a task-specific one leaves it as it was)."""
+
+
+def state_of(task: TaskRecord) -> State:
+    """The task's state as the conversations follow it: the latest status since they follow
+    it that sets one (the model's state when its statuses kept go back no further); without
+    one, running when a start-task answered 'running' began it (12.1), else unknown. The
+    model's state but where they follow a task anew or on after its end (a start-task naming
+    its uuid; a resend that ran it again, EXEC-RESEND-001; its start refused)."""
+    heard = said(task, STATUSES_KEPT)
+    status = next((s for _, s in heard if s in MOVES), None)
+    if status is not None:
+        return State(status)
+    if len(heard) == STATUSES_KEPT:
+        return task.state
+    return State.RUNNING if task.command is not None else State.UNKNOWN
 
 
 def task_uuid_sent(m: Any) -> str | None:
@@ -138,8 +228,21 @@ CONVERSATIONS: StashKey[Conversations] = StashKey("conversations")
 """The unit's exec conversations (made by ``conversations``)."""
 
 
-def conversations(unit: UnitState) -> Conversations:
-    return per_unit(unit, CONVERSATIONS, Conversations)
+def conversations(unit: UnitState, ctx: CheckContext | None = None) -> Conversations:
+    """The unit's conversations and its model (made together, on first use; the model's
+    timeouts are the profile's)."""
+    c = unit.stash.get(CONVERSATIONS)
+    if c is None:
+        c = per_unit(unit, CONVERSATIONS, lambda: Conversations(_model(ctx)))
+        c.model.life = c.life
+    return c
+
+
+def _model(ctx: CheckContext | None) -> protocol.Model:
+    if ctx is None:
+        return protocol.Model(tasks_kept=TASKS_KEPT)
+    return protocol.Model(response_timeout=ctx.profile.response_timeout,
+                          feedback_timeout=ctx.profile.feedback_timeout, tasks_kept=TASKS_KEPT)
 
 
 def commands_died_on(unit: UnitState, last: float, period: float) -> list[Command]:

@@ -42,7 +42,7 @@ def command_opens_conversation(ctx: CheckContext, unit: UnitState, msg: Message,
     com_uuid, content = _com_uuid_and_content(msg, m)
     if com_uuid is None:
         return
-    c = conversations(unit)
+    c = conversations(unit, ctx)
     t = msg.time
     if c.first_command is None:
         c.first_command = t
@@ -76,7 +76,7 @@ def command_opens_conversation(ctx: CheckContext, unit: UnitState, msg: Message,
     c.last_command = cmd
     c.await_answer(cmd)
     if name == "start-task" and cmd.task_uuid is not None:
-        c.tasks.pop(cmd.task_uuid, None)  # a start-task naming a task-uuid begins it anew
+        c.unfollow(cmd.task_uuid)  # a start-task naming a task-uuid begins it anew
 
 
 def _com_uuid_and_content(msg: Message, m: object) -> tuple[str | None, bytes]:
@@ -111,8 +111,8 @@ def _reused(c: Conversations, before: Command, digest: bytes, msg: Message) -> V
 def _task_of(c: Conversations, cmd: Command) -> TaskRecord | None:
     for value, task_uuid in cmd.values:
         if value == "running" and task_uuid is not None:
-            return c.tasks.get(task_uuid)  # type: ignore[no-any-return]
-    return c.tasks.get(cmd.task_uuid) if cmd.task_uuid else None  # type: ignore[no-any-return]
+            return c.followed(task_uuid)
+    return c.followed(cmd.task_uuid)
 
 
 @reinterprets("TASK-002", on=(TopicKind.EXEC_COMMAND,))

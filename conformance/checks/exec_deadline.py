@@ -27,6 +27,7 @@ from conformance.checks.conversation import (
     MALFORMED,
     Conversations,
     expects_answers,
+    latest_status,
 )
 from conformance.checks.exec_response import judge_unanswered
 from conformance.checks.liveness import IDENTITY, dying_at_end, dying_before_life
@@ -70,6 +71,7 @@ def _new_life(ctx: CheckContext, unit: UnitState, c: Conversations, agent: str, 
     found = _expire(ctx, unit, c, float("inf"), reboot=True, dead=dead)
     c.running.clear()  # what the old life ran is not judged (the reboot lost it)
     c.expects.clear()
+    c.model.forget(agent, keep=True)  # 12.1: nor are its tasks known to the model
     return found
 
 
@@ -98,15 +100,15 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
                                   "a signal awaits could not be tracked")
                 continue
             unit.examine(e.rule)
-            task = c.tasks.get(e.task_uuid)
-            said = task.last_status if task is not None else None
+            task = c.followed(e.task_uuid)
+            said = latest_status(task) if task is not None else None
             found.append(late(e.rule, unit.address.topic("exec/command"), e.command,
                               f"{' or '.join(sorted(e.wanted))} within "
                               f"{ctx.profile.feedback_timeout:.1f} s of the 'ok' to "
                               f"{e.command.describe()}", f"latest status {said!r}",
                               e.command.last_sent, "12.2.2: do what the signal says, and "
                               "say so in feedback"))
-    for task in list(c.running.values()):
+    for task in c.open():
         if task.left_at is not None and task.left_at + timeout < now:
             c.ended(task, ("left tasks-executing", None, task.left_at))
             if unit.stash.get(FEEDBACK_WITHOUT_TASK_UUID):
@@ -121,7 +123,7 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
                               task.command, f"a final feedback for task {task.task_uuid} "
                               f"(finished, failed or aborted)", f"it left tasks-executing at "
                               f"{clock(task.left_at)} with none (latest status "
-                              f"{task.last_status!r})", task.left_at,
+                              f"{latest_status(task)!r})", task.left_at,
                               "12.4: send feedback with the final status when a task ends"))
     return found
 
@@ -179,7 +181,7 @@ def conversations_at_end(ctx: CheckContext, unit: UnitState, c: Conversations,
     found = _expire(ctx, unit, c, now)
     found += _judge_streak(ctx, unit, c, ended_by="the end of the observation",
                            dead=dying_at_end(ctx, unit, c, now))
-    running = [t for t in c.running.values() if t.left_at is None and t.life == c.life]
+    running = [t for t in c.open() if t.left_at is None and t.life == c.life]
     if running:
         unit.note("EXEC-START-003", f"{len(running)} task(s) still running when the "
                                     f"observation ended: not judged")

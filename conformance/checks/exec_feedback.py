@@ -17,12 +17,13 @@ from conformance.checks.conversation import (
     FEEDBACK_WITHOUT_TASK_UUID,
     Conversations,
     conversations,
+    said,
     task_uuid_sent,
 )
 from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.status import FINAL_STATUSES, meaning
-from conformance.taskrecord import State, TaskRecord
+from conformance.taskrecord import TaskRecord
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
@@ -53,17 +54,18 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
             unit.note("EXEC-FB-004", "feedback without a task-uuid: its tasks could not be "
                                      "tracked")
         return
-    c = conversations(unit)
+    c = conversations(unit, ctx)
     t = msg.time
     unit.examine("EXEC-FB-004")
-    task = c.tasks.get(task_uuid)
-    if task is None:
-        task = c.task(task_uuid)
+    task = c.followed(task_uuid) or c.task(task_uuid, t)
+    if str_of(m, "task-uuid") != task_uuid:
+        c.model.hear(task, status, t)  # by another key: the model did not (exec_sequence)
     if task.final is not None:
         yield from _after_final(c, task, task_uuid, msg, m, status)
         return
     if status == "running":
-        if task.running_feedback and task.last_status == "running":
+        before = said(task, 2)[1:]  # this one is the model's latest already
+        if task.running_feedback and before and before[0][1] == "running":
             if task.resent is None:
                 unit.stash[REPEATS_STATUS] = True
             elif not unit.stash.get(REPEATS_STATUS):
@@ -72,9 +74,6 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
                                 "resent", path="$.status", detail="12.1: a resend is answered "
                                 "from memory, not executed again")
         task.running_feedback += 1
-    task.said(status, t, kept=1)  # the latest is all the conversation checks read
-    if status in ("running", "paused") or status in FINAL_STATUSES:
-        task.state = State(status)
     yield from _judge_signalled(unit, c, task_uuid, msg, status)
     if status in FINAL_STATUSES:
         c.ended(task, (status, str_of(m, "com-uuid"), t))
@@ -105,11 +104,8 @@ def _after_final(c: Conversations, task: TaskRecord, task_uuid: str, msg: Messag
                     path="$.status", detail="stop sending feedback once a task is "
                     "finished, failed or aborted")
     if again:  # it runs again: its later feedback is that run's, judged as a live task's
-        task.final, task.resent = None, None
+        task.final, task.resent = None, None  # in the state it says (``state_of``)
         c.started(task)
-        task.said(status, msg.time)
-        if status in ("running", "paused"):
-            task.state = State(status)
 
 
 def _judge_signalled(unit: UnitState, c: Conversations, task_uuid: str, msg: Message,
@@ -142,7 +138,7 @@ def tasks_executing_follow_tasks(ctx: CheckContext, unit: UnitState, msg: Messag
     executing = m.get("tasks-executing") if type(m) is dict else None
     if type(executing) is not list:
         return None
-    open_tasks = list(c.running.values())
+    open_tasks = c.open()
     listed = [e.get("task-uuid") for e in executing if isinstance(e, dict)]
     found = None
     for task in open_tasks:
@@ -194,7 +190,7 @@ def ended_tasks_leave_tasks_executing(ctx: CheckContext, unit: UnitState, msg: M
     grace = max(LISTED_GRACE_PERIODS * period, response_timeout(ctx))
     found = None
     for entry in executing[:64]:
-        task = c.tasks.get(task_uuid_sent(entry)) if isinstance(entry, dict) else None
+        task = c.followed(task_uuid_sent(entry)) if isinstance(entry, dict) else None
         if task is None or task.final is None or task.life != c.life:
             continue
         status, _, when = task.final

@@ -31,6 +31,8 @@ from conformance.checks.conversation import (
     Expect,
     conversations,
     expects_answers,
+    latest,
+    state_of,
     task_uuid_sent,
 )
 from conformance.message import Message
@@ -62,7 +64,7 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
     response_to = str_of(m, "response-to")
     if response_to is None:
         return
-    c = conversations(unit)
+    c = conversations(unit, ctx)
     t = msg.time
     cmd = c.commands.get(response_to)
     if cmd is None:
@@ -169,15 +171,13 @@ def _judge_start_answer(unit: UnitState, c: Conversations, cmd: Command, msg: Me
     if value == "running":
         yield from _judge_refusals(unit, cmd, msg)
         started = task_uuid or cmd.task_uuid or tracked
-        if started is not None:
-            task = c.tasks.get(started)
+        if started is not None:  # the model began it ('running', 12.1), or follows it
+            task = c.followed(started)
             if task is None or task.command is not None:
-                task = c.task(started, cmd.task_name, cmd)
-            task.command, task.name = cmd, cmd.task_name  # its feedback may come first
+                task = c.task(started, msg.time, cmd)
+            task.command = cmd  # its feedback may come first
             if task.final is None:
                 c.started(task)
-                if task.state is protocol.State.UNKNOWN:
-                    task.state = protocol.State.RUNNING  # 12.1: 'running' began it
     elif value == "failed":
         for r in ("EXEC-START-004", "EXEC-START-005"):
             if _refusal_due(unit, cmd, r):
@@ -190,14 +190,14 @@ def _await_signalled(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: 
     feedback timeout (``Expect``), unless that feedback came first or the signal changes
     nothing in the task's state."""
     expected = SIGNAL_FEEDBACK.get(cmd.signal or "")
-    task = c.tasks.get(cmd.task_uuid) if cmd.task_uuid else None
+    task = c.followed(cmd.task_uuid)
     # The model's decision (EXEC-SEQ-001, docs/MODEL.md): $continue to a running task
     # and $pause to a paused one change nothing, so no feedback is owed for them (a
     # running task that last spoke its own words is running all the same).
-    unchanged = task is not None and (cmd.signal, task.state) in protocol.UNCHANGED
+    unchanged = task is not None and (cmd.signal, state_of(task)) in protocol.UNCHANGED
+    last = latest(task) if task is not None else None
     if (value == "ok" and expected and task is not None and task.life == c.life
-            and task.last_status in expected[0] and task.last_time is not None
-            and task.last_time >= cmd.time):
+            and last is not None and last[1] in expected[0] and last[0] >= cmd.time):
         unit.examine(expected[1])  # its feedback came first: no order between topics (12)
     elif value == "ok" and expected and task is not None and task.final is None \
             and task.life == c.life and not unchanged:
@@ -255,25 +255,26 @@ def _judge_refusals(unit: UnitState, cmd: Command, msg: Message) -> Iterator[Vio
 
 def _judge_query(unit: UnitState, c: Conversations, cmd: Command, msg: Message,
                  value: str | None) -> Iterator[Violation]:
-    task = c.tasks.get(cmd.task_uuid) if cmd.task_uuid else None
-    if task is None or task.last_status is None or task.life != c.life:
+    task = c.followed(cmd.task_uuid)
+    last = latest(task) if task is not None else None
+    if task is None or last is None or task.life != c.life:
         unit.note("EXEC-QUERY-001", "query-status only of tasks the traffic did not show")
         return
     if task.left_at is not None or (task.final is not None and task.final[0] not in
                                     QUERY_ANSWERS):
         return  # it ended without saying how: the traffic cannot tell what is right
-    if (value == "unknown" and c.silent_until is not None and task.last_time is not None
-            and task.last_time < c.silent_until):
+    said_at, status = last
+    if value == "unknown" and c.silent_until is not None and said_at < c.silent_until:
         unit.note("EXEC-QUERY-001", "'unknown' for a task from before a silence of the unit "
                                     "(a reboot keeping its agent-uuid is REBOOT-002's)")
         return
-    allowed = QUERY_ANSWERS.get(task.last_status)
+    allowed = QUERY_ANSWERS.get(status)
     if allowed is None:
         return  # a task-specific status: nothing to compare with
     unit.examine("EXEC-QUERY-001")
     if value not in allowed:
         yield violation("EXEC-QUERY-001", msg, expected=f"{' or '.join(allowed)}: task "
-                        f"{task.task_uuid}'s latest feedback was '{task.last_status}'",
+                        f"{task.task_uuid}'s latest feedback was '{status}'",
                         observed=f"response {value!r}", path="$.response",
                         detail="answer query-status from the task's whole history (12.1)")
 

@@ -7,21 +7,24 @@ signal changes only the task it names). The same code runs in ``lint`` and in ``
 the suite cannot disagree about a sequence. What the conversation checks already judge (answers,
 final statuses, resends, query-status) stays theirs: the model adds only what needs the order
 of commands across tasks.
+
+The model is the unit's one store of tasks (issue 28 §2): it is made with the conversations
+(``conversation.conversations``) and this check feeds it first, before the conversation checks
+read what it holds (``checks/__init__.py`` registers it first). Its life is the conversations'
+(``exec_deadline`` tells it a new one).
 """
 
 from __future__ import annotations
 
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.command_history import violation
-from conformance.checks.stash import StashKey
+from conformance.checks.conversation import CONVERSATIONS, conversations
 from conformance.message import Message
-from conformance.protocol import BUILTIN_SIGNALS, Command, Model
+from conformance.protocol import BUILTIN_SIGNALS, Command, Model, State
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
 
-MODEL: StashKey[Model] = StashKey("model")
-"""The unit's ``Model`` of direct execution (made by ``model_of``)."""
 DETAIL = {
     "EXEC-SEQ-001": "12.2.2: once $abort is acknowledged the task ends; do not resume or "
                     "keep running it (a paused task too)",
@@ -31,29 +34,27 @@ DETAIL = {
 
 
 def model_of(ctx: CheckContext, unit: UnitState) -> Model:
-    """The unit's model of direct execution, made on first use (public: the explorer's view
-    of what the Monitor holds)."""
-    model = unit.stash.get(MODEL)
-    if model is None:
-        model = unit.stash[MODEL] = Model(response_timeout=ctx.profile.response_timeout,
-                                          feedback_timeout=ctx.profile.feedback_timeout)
-    return model
+    """The unit's model of direct execution, made with its conversations on first use
+    (public: the explorer's view of what the Monitor holds)."""
+    return conversations(unit, ctx).model
+
+
+def state_held(unit: UnitState, task_uuid: str) -> State:
+    """The model's state of ``task_uuid``: ``State.UNKNOWN`` where it holds nothing, or where
+    no model was made (a reader makes none). The suite's view of what the Monitor holds (its
+    commander and explorer), read under the lock that feeds the Monitor."""
+    c = unit.stash.get(CONVERSATIONS)
+    return c.model.state(task_uuid) if c is not None else State.UNKNOWN
 
 
 @check("EXEC-SEQ-001", "EXEC-SEQ-002", on=(TopicKind.EXEC_COMMAND, TopicKind.EXEC_RESPONSE,
-                                           TopicKind.EXEC_FEEDBACK,
-                                           TopicKind.DIRECT_EXECUTION_INFO), reads=(MODEL,))
+                                           TopicKind.EXEC_FEEDBACK), reads=(CONVERSATIONS,))
 def sequence_follows_model(ctx: CheckContext, unit: UnitState, msg: Message,
                            v: Validation) -> list[Violation] | None:
-    """Feed the model; report what it finds. (Runs on every direct_execution_info too: a list
-    or None, and nothing made before the unit's first command.)"""
-    kind = v.topic.kind
-    if MODEL not in unit.stash and kind is not TopicKind.EXEC_COMMAND:
-        return None  # no command seen: nothing to judge a sequence against
+    """Feed the model (first: the conversation checks read what it holds); report what it
+    finds."""
     model = model_of(ctx, unit)
-    if unit.agent_uuid is not None and unit.agent_uuid != model.life:
-        model.heartbeat({"agent-uuid": unit.agent_uuid}, msg.time)  # 12.1: a new life
-    m, t = v.message, msg.time
+    kind, m, t = v.topic.kind, v.message, msg.time
     if kind is TopicKind.EXEC_COMMAND:
         cmd = Command.read(m) if isinstance(m, dict) else None
         if cmd is not None:
@@ -62,9 +63,6 @@ def sequence_follows_model(ctx: CheckContext, unit: UnitState, msg: Message,
     if kind is TopicKind.EXEC_RESPONSE:
         model.response(m, t)
         _examine_signal(unit, model, m)
-        return None
-    if kind is TopicKind.DIRECT_EXECUTION_INFO:
-        model.executing_shown(m, t)
         return None
     found = model.feedback(m, t)
     if not found:
@@ -80,7 +78,7 @@ def _examine_signal(unit: UnitState, model: Model, m: object) -> None:
     cmd = model.commands.get(to) if isinstance(to, str) else None
     if cmd is None or cmd.name != "signal-task" or cmd.signal not in BUILTIN_SIGNALS:
         return
-    task = model.tasks.get(cmd.task_uuid) if cmd.task_uuid else None
+    task = model.task(cmd.task_uuid)
     if task is None or not task.acked or task.acked[-1][2] != to:
         return
     unit.examine("EXEC-SEQ-002")

@@ -1,9 +1,9 @@
 """A unit's typed components: what each check keeps of a unit between messages (issue 28 §2).
 
 In the spirit of pytest's ``Stash``: a component's key is a ``StashKey[T]`` object defined next
-to the component's owner (``CONVERSATIONS`` beside ``Conversations``, ``MODEL`` beside the
-feeding of ``protocol.Model``), so the checks that read it import it by name and the type checker
-knows what they get; no string names a component. Each check declares the components it
+to the component's owner (``CONVERSATIONS`` beside ``Conversations``, which hold the unit's
+``protocol.Model``), so the checks that read it import it by name and the type checker knows
+what they get; no string names a component. Each check declares the components it
 reads (``@check(..., reads=(CONVERSATIONS,))``; ``tests/plugin/test_declared_reads.py``).
 """
 

@@ -4,7 +4,8 @@ Only the unit's own ``exec/command`` topic is ever published to (the MQTT client
 policy enforces it as well: DESIGN 'Safety'). Every task the commander starts is remembered
 until a final status is seen, so ``abort_all`` can end it at teardown, on failure and on
 Ctrl-C. Under ``--dry-run`` nothing is published: ``send`` prints what it would publish and
-raises ``DryRun``.
+raises ``DryRun``. Whether a task has ended is the Monitor's model's to say (``task_state``,
+the suite's), and read from the raw feedback only without one.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from typing import Any
 
-from conformance.protocol import NO_SUCH_TASK
+from conformance.protocol import NO_SUCH_TASK, State
 from conformance.scenarios.deviation import (
     FINAL_STATUSES,
     SHORT,
@@ -31,10 +32,14 @@ from conformance.topics import UnitAddress
 
 @dataclass
 class OpenTask:
+    """A task this commander started and has not seen end: what it must abort (its state is
+    the model's, ``Commander.task_state``)."""
+
     task_uuid: str
     name: str
     mark: int
-    """Traffic mark from when the task was started: its feedback arrives after this."""
+    """Traffic mark from when the task was started: its feedback arrives after this (read
+    only without the model)."""
     com_uuids: list[str] = field(default_factory=list)
     stuck: bool = False
     """Its $abort went unanswered: teardown between scenarios does not abort it again
@@ -71,10 +76,14 @@ class Commander(Sender):
                  say: Callable[[str], None] = print, gaps: Callable[[], int] = lambda: 0,
                  wait_connected: Callable[[float], bool] = lambda timeout: True,
                  deviations: Deviations | None = None,
-                 step: Callable[[str], None] | None = None) -> None:
+                 step: Callable[[str], None] | None = None,
+                 task_state: Callable[[str], State | None] | None = None) -> None:
         super().__init__(unit, unit.topic("exec/command"), traffic, publish, dry_run=dry_run,
                          say=say, wait_connected=wait_connected, gaps=gaps)
         self._step = step
+        self.task_state = task_state
+        """The state the Monitor's model holds of a task-uuid (``protocol.Model``), None where
+        it holds nothing; without it (no Monitor) a task's end is read from its feedback."""
         self.open_tasks: dict[str, OpenTask] = {}
         self._closed: set[object] = set()
         """task-uuids that need no $abort any more (refused, or their $abort was answered)."""
@@ -290,6 +299,11 @@ class Commander(Sender):
                 if e.get("task-uuid") == uuid_]
 
     def is_final(self, task_uuid: str) -> bool:
+        """Whether the task has ended (12.4: a final status): as the model holds it, else
+        from its feedback since it was started."""
+        held = self.task_state(self.unit_task_uuid(task_uuid)) if self.task_state else None
+        if held is not None:
+            return held.ended
         task = self.open_tasks.get(task_uuid)
         mark = task.mark if task else 0
         return any(meaning(s) in FINAL_STATUSES for s in self.statuses(task_uuid, mark))

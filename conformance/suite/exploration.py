@@ -159,12 +159,8 @@ def _died(c: Certification, explorer: Explorer, why: str, node: pytest.Item,
 def _model_state(c: Certification, task_uuid: str) -> str | None:
     """The protocol model's view of a task (the one the Monitor judges with: lint and the
     suite cannot disagree about a sequence), None when it holds nothing of it."""
-    from conformance.checks.exec_sequence import model_of
-    from conformance.protocol import State
-
-    with c._lock:
-        state = model_of(c.monitor.ctx, c.monitor.state(c.unit)).state(task_uuid)
-    return None if state is State.UNKNOWN else state.value
+    state = c.model_state(task_uuid)
+    return state.value if state is not None else None
 
 
 def _say(c: Certification, text: str) -> None:

@@ -23,6 +23,7 @@ import pytest
 
 from conformance import __version__
 from conformance.checks import Monitor
+from conformance.checks.exec_sequence import state_held
 from conformance.client import MqttClient
 from conformance.clock import REAL, VirtualClock
 from conformance.conclusion import INTERRUPTED, NOT_CERTIFIED, Conclusion
@@ -30,6 +31,7 @@ from conformance.conclusion import of as conclusion_of
 from conformance.display import LINE_CHARS, shorten, shown
 from conformance.facts import CTRL_C, RunFacts
 from conformance.judge import judge, unexamined
+from conformance.protocol import State
 from conformance.reporting.bounds import file_stem
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
@@ -130,7 +132,7 @@ class Certification:
             self.unit, self.traffic, self.connection.publish, dry_run=settings.dry_run,
             say=self._say, gaps=self.connection.gaps,
             wait_connected=self.connection.wait_connected, deviations=self.deviations,
-            step=self.progress.step)
+            step=self.progress.step, task_state=self.model_state)
         self.tst = TstCommander(
             self.unit, settings.tst_topic, self.traffic, self.connection.publish,
             dry_run=settings.dry_run, say=self._say,
@@ -242,6 +244,14 @@ class Certification:
             self.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=why)
         self.write_reports(force=True)
         pytest.skip(f"could not test: {why}")
+
+    def model_state(self, task_uuid: str) -> State | None:
+        """The state of a task as the Monitor's model holds it (``protocol.Model``, fed every
+        message before the traffic keeps it: the one lint and the suite judge a sequence
+        with), None where it holds nothing."""
+        with self._lock:
+            state = state_held(self.monitor.state(self.unit), task_uuid)
+        return None if state is State.UNKNOWN else state
 
     def unit_died(self, *, settle: bool = False) -> str:
         """Why the unit counts as dead, or "" while it lives (``Observation.unit_died``)."""
