@@ -65,9 +65,12 @@ def command_opens_conversation(ctx: CheckContext, unit: UnitState, msg: Message,
         return
     name = str_of(m, "command")
     # Not a readable command: what remains is to refuse it (EXEC-ROBUST-002). A known command
-    # the schema finds fault with (a non-standard signal, a task as a string) keeps its rule.
+    # the schema finds fault with (a non-standard signal, invalid parameters) keeps its rule;
+    # a start-task without a task object (none, or a string) has nothing to start: malformed,
+    # as the robustness scenario sends and judges it (one fault, one rule: not EXEC-START-001).
     if not isinstance(m, dict) or not name or any(
-            f.rule in ("MSG-002", "MSG-003", "MSG-004") for f in v.violations):
+            f.rule in ("MSG-002", "MSG-003", "MSG-004") for f in v.violations) or (
+            name == "start-task" and not isinstance(m.get("task"), dict)):
         name = MALFORMED
     invalid = name == "start-task" and any(f.rule == "TASK-001" for f in v.violations)
     cmd = Command(com_uuid, name, t, m, digest, bytes(memoryview(content)[:120]), invalid,

@@ -232,6 +232,8 @@ class CommandExecutor:
         task_uuid = sent_uuid if sent_uuid is not None else unit.task_uuid()
         if sent_uuid is not None and "task-uuid-ignored" in self.faults:
             task_uuid = unit.task_uuid()
+        if not isinstance(task_field, dict) and "malformed-unanswered" in self.faults:
+            return  # nothing to start: malformed, and dropped as the others are
         if not isinstance(task_field, dict) or not isinstance(task_field.get("name"), str):
             self._answer(com, "failed", task_uuid=task_uuid, fail_reason="start-task needs "
                          "'task': {'name': ..., 'params': {...}} (12.2.3, section 10)")

@@ -258,7 +258,8 @@ _ALL = (
        "Its command thread dies on the first command that is not a JSON object: no command is "
        "answered after that (heartbeats go on; the pings after it go unanswered)."),
     _f("malformed-unanswered", "EXEC-ROBUST-002",
-       "Drops malformed commands silently, even when their com-uuid can be read."),
+       "Drops malformed commands silently, even when their com-uuid can be read (a "
+       "start-task without a task object too)."),
     _f("reboot-keeps-agent-uuid", "REBOOT-001 REBOOT-002",
        "Keeps its agent-uuid across a reboot (read from a config file) but loses its history."),
     _f("reboot-remembers-history", "REBOOT-002",

@@ -65,12 +65,12 @@ SAME_MESSAGES = {"MSG": "SENS", "ERR-010": "SENS", "ERR-006": "EXEC-QUERY", "MSG
 # topic faults that rename that sensor (TOPIC-002/003/004/008) leave nothing to judge.
 ALSO = {"EXEC-FB-001": ("EXEC-QUERY",), "SENS-004": ("TOPIC",)}
 # What the suite's own traffic adds to a fault's rules (the passive matrix of tests/sim sends
-# other commands): after crash-on-malformed's crash the suite probes start-task once (one kind
-# of command unanswered never implies another is), and that probe is unanswered too (12.1).
-# twin-agent: two agents under one name (HB-011) take turns with agent-uuids seen before, so
+# other commands). (crash-on-malformed's unanswered start-task probes without a task object are
+# malformed commands, EXEC-ROBUST-002's alone, no longer also EXEC-START-001: the real agents
+# showed the double count.) twin-agent: two agents under one name (HB-011) take turns with agent-uuids seen before, so
 # after the reboot scenario the query of a task from before it is judged against the life the
 # twin's uuid keeps open: the fault's own ambiguity, shown on its run.
-SUITE_ALSO = {"crash-on-malformed": ("EXEC-START-001",), "twin-agent": ("EXEC-QUERY-001",)}
+SUITE_ALSO = {"twin-agent": ("EXEC-QUERY-001",)}
 # Faults of ALONE areas that only change what their own rule alone judges, and nothing a
 # scenario reads: the heartbeat's type (HB-002), an unknown level besides the known ones
 # (HB-007), stamps (MSG-005, MSG-008; MSG-007 reads them on retained messages only, and its fault runs
