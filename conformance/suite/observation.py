@@ -41,8 +41,11 @@ class Observation:
 
     def unit_died(self, *, settle: bool = False) -> str:
         """Why the unit counts as dead, or "" while it lives: no heartbeat for 3
-        declared periods (HB-012's window) and none within 10 periods or the response
-        deadline, whichever is longer (a dropout of a few periods, HB-010's, is not death).
+        declared periods (HB-012's window) and none within 10 periods, the response
+        deadline, or twice the longest interval it has shown, whichever is longer (a dropout
+        of a few periods, HB-010's, is not death; nor is the next heartbeat of a unit far
+        slower than it declares before 2 intervals tell its own period: the drone operator,
+        5 Hz declared, 5.002 s apart, was called dead 2 ms before each heartbeat).
         A unit that heartbeats answers at once. ``settle``: a unit still within its 3
         periods is waited for too (before a verdict, not before a command)."""
         from conformance.checks.identity import SILENCE_PERIODS, heartbeat_period
@@ -56,13 +59,21 @@ class Observation:
         period = self.timing.scale * max(1.0 / rate, own)
         if not settle and self.clock.now() - latest.time <= SILENCE_PERIODS * period:
             return ""
-        left = latest.time + max(10 * period, self.timing.response) - self.clock.now()
+        window = max(10 * period, self.timing.response, 2 * self._longest_interval())
+        left = latest.time + window - self.clock.now()
         if left > 0 and self.traffic.wait_for(lambda e: True, left, after=latest.seq,
                                               subtopic="heartbeat",
                                               what="the unit's heartbeat") is not None:
             return ""
         return (f"the unit fell silent at {clock(latest.time)} and did not come back "
                 f"(HB-012): no answer could come")
+
+    def _longest_interval(self, kept: int = 16) -> float:
+        """The longest interval between the unit's latest ``kept`` heartbeats of one
+        agent-uuid, seconds (0 before two)."""
+        beats = self.traffic.since(0, "heartbeat")[-kept:]  # asked only during a silence
+        return max((b.time - a.time for a, b in zip(beats, beats[1:], strict=False)
+                    if a.get("agent-uuid") == b.get("agent-uuid")), default=0.0)
 
     def wait_execution_info(self) -> None:
         """Before commanding: the unit's direct_execution_info (its tasks and signals)."""
