@@ -17,7 +17,6 @@ on a terminal and in the plain output alike: a topic cannot drive the terminal. 
 from __future__ import annotations
 
 import atexit
-import dataclasses
 import os
 import sys
 import time
@@ -27,7 +26,7 @@ from typing import IO, TYPE_CHECKING, Any
 from conformance.conclusion import facts_of, triage_rank
 from conformance.display import LINE_CHARS, NAME_CHARS, printable, shorten
 from conformance.lint.linter import Linter
-from conformance.lint.rows import STATUS_ORDER, LintRow, live_rows, report_rows
+from conformance.lint.rows import STATUS_ORDER, LintRow, live_rows, report_rows, seen_fields
 from conformance.recording import Event
 from conformance.rules import CATALOGUE
 from conformance.topics import DELEGATION, DIRECT_EXECUTION, SENSOR_LEVEL, TST_EXECUTION
@@ -154,7 +153,7 @@ class Scorecard:
                     rate = (seen.messages - prev[0]) / (now - prev[1])
                 if now is not None and (prev is None or now - prev[1] >= 5.0):
                     self._prev_counts[seen.unit] = (seen.messages, now)
-            rows.append(UnitRow(**_fields(seen), rate=rate))
+            rows.append(UnitRow(**seen_fields(seen), rate=rate))
         return sorted(rows, key=_order)
 
     # --- rendering ------------------------------------------------------------------------------
@@ -354,10 +353,6 @@ def styled(header: str, table: list[str], statuses: list[tuple[int, int, str]],
     return Group(head, *rows, *map(text, fleet))
 
 
-def _fields(row: LintRow) -> dict[str, Any]:
-    return {f.name: getattr(row, f.name) for f in dataclasses.fields(LintRow)}
-
-
 def _overall_rate(row: LintRow) -> float | None:
     """Messages per second between the first and the latest."""
     first, last = row.first_seen, row.last_seen
@@ -373,7 +368,7 @@ def _order(row: UnitRow) -> tuple[int, bool, str]:
 def rows_from_report(report: Any) -> list[UnitRow]:
     """Scorecard rows from a ``RunReport`` (``lint.rows.report_rows``), rate over the whole
     run. A capture without times shows no rate and no time (issue 27, 4)."""
-    return sorted((UnitRow(**_fields(row), rate=_overall_rate(row) if row.party == "unit"
+    return sorted((UnitRow(**seen_fields(row), rate=_overall_rate(row) if row.party == "unit"
                            else None)  # a commander's commands come in bursts: no rate
                    for row in report_rows(report)), key=_order)
 

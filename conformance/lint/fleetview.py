@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from conformance.lint.linter import FLEET_RULES
-from conformance.lint.rows import STATUS_ORDER, LintRow, live_rows, report_rows
+from conformance.lint.rows import STATUS_ORDER, LintRow, live_rows, report_rows, seen_fields
 from conformance.violation import Verdict, Violation
 
 SNAPSHOT_EVERY = 1.0
@@ -160,7 +160,7 @@ class FleetView:
         """The last snapshot, from the run ``report`` (every verdict final)."""
         self._sample(linter)
         rates = {r.unit: r.rates for r in self._make(linter, None).rows}
-        rows = [Row(**_fields(row), rates=rates.get(row.unit, ())) for row in report_rows(report)]
+        rows = [Row(**seen_fields(row), rates=rates.get(row.unit, ())) for row in report_rows(report)]
         fleet = _fleet_findings(report)
         old = self._snapshot
         with self._report_ready:  # written on the first request (the report is final)
@@ -246,10 +246,10 @@ class FleetView:
         for seen in live_rows(linter, self._evidence):
             state = states.get(seen.unit)
             if state is None:
-                done.append(Row(**_fields(seen)))
+                done.append(Row(**seen_fields(seen)))
                 continue
             kinds = state.kinds_seen
-            done.append(Row(**_fields(seen), rates=self._rates(seen.unit, state, kinds),
+            done.append(Row(**seen_fields(seen), rates=self._rates(seen.unit, state, kinds),
                             by_kind=tuple(sorted((_kind(k), n) for k, n in kinds.items()))))
         fleet = tuple((linter.unit_of(v), v) for v in list(linter.fleet))
         old = self._snapshot
@@ -259,17 +259,12 @@ class FleetView:
                         _sorted(done), fleet)
 
 
-def _fields(row: LintRow) -> dict[str, Any]:
-    return {f.name: getattr(row, f.name) for f in dataclasses.fields(LintRow)}
-
-
 def _kind(kind: Any) -> str:
     """A topic kind's protocol name (``heartbeat``, ``sensor_info``)."""
     return kind if type(kind) is str else str(getattr(kind, "value", kind))
 
 
 def _at(v: Violation, when: float) -> Violation:
-    import dataclasses
 
     return dataclasses.replace(v, time=when)
 

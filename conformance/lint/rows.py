@@ -72,6 +72,11 @@ class LintRow:
         return self.unit in (NOT_A_UNIT, OTHER_UNITS)
 
 
+def seen_fields(row: LintRow) -> dict[str, Any]:
+    """A ``LintRow``'s fields, for a view's row that adds its own to them."""
+    return {f.name: getattr(row, f.name) for f in dataclasses.fields(LintRow)}
+
+
 def severity(f: Finding) -> tuple[int, int, str]:
     """Most severe first (``conclusion.TRIAGE``), then most violations."""
     return (triage_rank(f.rule, Verdict.FAIL if f.verdict == "fail" else Verdict.WARN),
