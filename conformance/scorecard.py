@@ -25,7 +25,8 @@ from typing import IO, TYPE_CHECKING, Any
 
 from conformance.conclusion import facts_of, triage_rank
 from conformance.display import LINE_CHARS, NAME_CHARS, printable, shorten
-from conformance.lint.linter import NOT_A_UNIT, OTHER_UNITS, Linter
+from conformance.lint.linter import Linter
+from conformance.lint.rows import STATUS_ORDER, LintRow, live_rows, report_rows, seen_fields
 from conformance.recording import Event
 from conformance.rules import CATALOGUE
 from conformance.topics import DELEGATION, DIRECT_EXECUTION, SENSOR_LEVEL, TST_EXECUTION
@@ -44,30 +45,18 @@ TTY_REFRESH_EVERY = 1.0
 STATUS_STYLES = {"FAIL": "bold red", "warn": "yellow", "ok": "green"}
 
 
-@dataclass
-class UnitRow:
-    """One unit as the scorecard shows it. Rate in messages per second, times Unix seconds."""
+@dataclass(frozen=True)
+class UnitRow(LintRow):
+    """A row as the scorecard shows it: what lint saw (``lint.rows``) and its message rate
+    (messages per second)."""
 
-    unit: str
-    agent_type: str = ""
-    role: str = ""
-    levels: tuple[str, ...] | None = None
-    messages: int = 0
     rate: float | None = None
-    last_seen: float | None = None
-    errors: int = 0
-    warnings: int = 0
-    violations: tuple[tuple[str, int], ...] = ()
-    live: tuple[str, ...] = ()
-    """Rules off right now that are judged over the whole run (rates: Monitor.live_findings)."""
 
     @property
-    def status(self) -> str:
-        if self.errors or self.live:
-            return "FAIL"
-        if self.warnings:
-            return "warn"
-        return "ok" if self.messages else "-"
+    def violations(self) -> tuple[tuple[str, int], ...]:
+        """(rule, violations) of each finding: failing rules first, then by count."""
+        return tuple((f.rule, f.count) for f in sorted(
+            self.findings, key=lambda f: (f.verdict != "fail", -f.count, f.rule)))
 
 
 def _clock(t: float | None) -> str:
@@ -148,45 +137,24 @@ class Scorecard:
 
     # --- data -----------------------------------------------------------------------------------
     def rows(self, linter: Linter, *, overall: bool = False) -> list[UnitRow]:
-        """Every unit seen, worst first. ``overall``: rates over the whole run, not lately."""
-        rows: dict[str, UnitRow] = {}
-        monitor = linter.monitor
+        """Every unit and commander seen, worst first. ``overall``: rates over the whole run,
+        not lately (and no live findings)."""
         now = linter.last_time
-        for unit in list(monitor.units()):
-            state: Any = monitor.state(unit)
-            key = str(getattr(state, "address", unit))
-            address = getattr(state, "address", None)
-            count = int(getattr(state, "message_count", 0) or 0)
-            first = getattr(state, "first_seen", None)
-            last = getattr(state, "last_seen", None)
+        rows = []
+        for seen in live_rows(linter, live=not overall):
             rate = None
-            if getattr(monitor, "untimed", False):  # a capture without times: no rate
-                pass
+            if seen.party != "unit" or seen.pseudo or getattr(linter.monitor, "untimed", False):
+                pass  # a commander's commands come in bursts; a capture without times
             elif overall:
-                if first is not None and last is not None and last > first and count > 1:
-                    rate = (count - 1) / (last - first)
+                rate = _overall_rate(seen)
             else:
-                prev = self._prev_counts.get(key)
+                prev = self._prev_counts.get(seen.unit)
                 if prev is not None and now is not None and now > prev[1]:
-                    rate = (count - prev[0]) / (now - prev[1])
+                    rate = (seen.messages - prev[0]) / (now - prev[1])
                 if now is not None and (prev is None or now - prev[1] >= 5.0):
-                    self._prev_counts[key] = (count, now)
-            live = () if overall else tuple(
-                v.rule for v in monitor.live_findings(unit) if linter.is_error(v.rule))
-            rows[key] = UnitRow(
-                key, agent_type=str(getattr(state, "agent_type", "") or ""),
-                role=str(getattr(address, "role", "") or ""),
-                levels=getattr(state, "levels", None), messages=count, rate=rate,
-                last_seen=last, live=live)
-        for unit, counts in linter.by_unit.items():
-            row = rows.get(unit) or rows.setdefault(unit, UnitRow(unit))
-            row.violations = tuple(sorted(counts.items(),
-                                          key=lambda rc: (not linter.is_error(rc[0]), -rc[1], rc[0])))
-            row.errors = sum(n for r, n in counts.items() if linter.is_error(r))
-            row.warnings = sum(n for r, n in counts.items() if not linter.is_error(r))
-        order = {"FAIL": 0, "warn": 1, "ok": 2, "-": 3}
-        return sorted(rows.values(), key=lambda r: (order[r.status], r.unit in (NOT_A_UNIT,
-                                                                                 OTHER_UNITS), r.unit))
+                    self._prev_counts[seen.unit] = (seen.messages, now)
+            rows.append(UnitRow(**seen_fields(seen), rate=rate))
+        return sorted(rows, key=_order)
 
     # --- rendering ------------------------------------------------------------------------------
     def header(self, linter: Linter, elapsed: float | None, connected: bool | None) -> str:
@@ -385,32 +353,24 @@ def styled(header: str, table: list[str], statuses: list[tuple[int, int, str]],
     return Group(head, *rows, *map(text, fleet))
 
 
+def _overall_rate(row: LintRow) -> float | None:
+    """Messages per second between the first and the latest."""
+    first, last = row.first_seen, row.last_seen
+    if first is not None and last is not None and last > first and row.messages > 1:
+        return (row.messages - 1) / (last - first)
+    return None
+
+
+def _order(row: UnitRow) -> tuple[int, bool, str]:
+    return (STATUS_ORDER[row.status], row.pseudo, row.unit)
+
+
 def rows_from_report(report: Any) -> list[UnitRow]:
-    """Scorecard rows from a ``RunReport``: status is the worst verdict, violations counted
-    per rule, rate over the whole run (messages per second). A capture without times shows
-    no rate and no time (the reading's times are not the traffic's: issue 27, 4)."""
-    rows = []
-    untimed = facts_of(report).untimed
-    for unit, u in report.units.items():
-        rate = None  # a commander's commands come in bursts: no rate
-        if (not untimed and u.party == "unit" and u.first_seen is not None and u.last_seen is not None
-                and u.last_seen > u.first_seen):
-            rate = (u.message_count - 1) / (u.last_seen - u.first_seen)
-        failed = {r for r, res in u.rules.items() if res.verdict.value == "fail"}
-        warned = {r for r, res in u.rules.items() if res.verdict.value == "warn"}
-        counts = dict(u.violation_counts)
-        for r in failed | warned:  # a fail without a counted violation (an explicit verdict)
-            counts.setdefault(r, 0)
-        order = sorted(counts.items(), key=lambda rc: (rc[0] not in failed, -rc[1], rc[0]))
-        rows.append(UnitRow(unit, "commander" if u.party == "commander" else u.agent_type,
-                            u.role,
-                            tuple(u.levels) if u.levels or u.message_count == 0
-                            or u.party == "commander" else None,
-                            u.message_count, rate, None if untimed else u.last_seen,
-                            errors=len(failed), warnings=len(warned),
-                            violations=tuple((r, n) for r, n in order if r in failed | warned)))
-    order_of = {"FAIL": 0, "warn": 1, "ok": 2, "-": 3}
-    return sorted(rows, key=lambda r: (order_of[r.status], r.unit == NOT_A_UNIT, r.unit))
+    """Scorecard rows from a ``RunReport`` (``lint.rows.report_rows``), rate over the whole
+    run. A capture without times shows no rate and no time (issue 27, 4)."""
+    return sorted((UnitRow(**seen_fields(row), rate=_overall_rate(row) if row.party == "unit"
+                           else None)  # a commander's commands come in bursts: no rate
+                   for row in report_rows(report)), key=_order)
 
 
 MAX_FINDINGS_SHOWN = 40

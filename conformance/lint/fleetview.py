@@ -15,15 +15,15 @@ most ``MAX_EVIDENCE`` of them.
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
-from conformance.conclusion import triage_rank
-from conformance.lint.linter import FLEET_RULES, NOT_A_UNIT, OTHER_UNITS
-from conformance.rules import CATALOGUE
+from conformance.lint.linter import FLEET_RULES
+from conformance.lint.rows import STATUS_ORDER, LintRow, live_rows, report_rows, seen_fields
 from conformance.violation import Verdict, Violation
 
 SNAPSHOT_EVERY = 1.0
@@ -61,37 +61,11 @@ class RateView:
 
 
 @dataclass(frozen=True)
-class Finding:
-    """A rule a row fails or warns: its verdict, how many violations, and the first one."""
+class Row(LintRow):
+    """A unit or a commander as the fleet page shows it: what lint saw (``lint.rows``), its
+    rates and its messages by kind."""
 
-    rule: str
-    verdict: str
-    count: int
-    first: Violation | None = None
-    reason: str = ""
-
-    @property
-    def title(self) -> str:
-        rule = CATALOGUE.get(self.rule)
-        return rule.title if rule else ""
-
-
-@dataclass(frozen=True)
-class Row:
-    """A unit or a commander as the fleet page shows it; ``status`` FAIL, warn, ok or -."""
-
-    unit: str
-    party: str
-    status: str
-    agent_type: str = ""
-    role: str = ""
-    levels: tuple[str, ...] | None = None
-    messages: int = 0
-    last_seen: float | None = None
     rates: tuple[RateView, ...] = ()
-    findings: tuple[Finding, ...] = ()
-    live: tuple[str, ...] = ()
-    """Rules off right now over their latest intervals (judged over the whole run at the end)."""
     by_kind: tuple[tuple[str, int], ...] = ()
     """Messages by topic kind."""
 
@@ -131,12 +105,9 @@ class Snapshot:
         return out
 
 
-ORDER = {"FAIL": 0, "warn": 1, "ok": 2, "-": 3}
-
-
 def _sorted(rows: list[Row]) -> tuple[Row, ...]:
-    return tuple(sorted(rows, key=lambda r: (ORDER[r.status], r.party != "unit",
-                                             r.unit in (NOT_A_UNIT, OTHER_UNITS), r.unit)))
+    return tuple(sorted(rows, key=lambda r: (STATUS_ORDER[r.status], r.party != "unit",
+                                             r.pseudo, r.unit)))
 
 
 class FleetView:
@@ -189,7 +160,7 @@ class FleetView:
         """The last snapshot, from the run ``report`` (every verdict final)."""
         self._sample(linter)
         rates = {r.unit: r.rates for r in self._make(linter, None).rows}
-        rows = [_row_from_report(unit, u, rates.get(unit, ())) for unit, u in report.units.items()]
+        rows = [Row(**seen_fields(row), rates=rates.get(row.unit, ())) for row in report_rows(report)]
         fleet = _fleet_findings(report)
         old = self._snapshot
         with self._report_ready:  # written on the first request (the report is final)
@@ -269,30 +240,17 @@ class FleetView:
 
     def _make(self, linter: Any, connected: bool | None) -> Snapshot:
         monitor = linter.monitor
-        fails = _judged(linter.profile)
-        rows: dict[str, Row] = {}
-        for unit in list(monitor.units()):
-            state: Any = monitor.state(unit)
-            key = str(getattr(state, "address", unit))
-            live = tuple(v.rule for v in monitor.live_findings(unit) if fails(v.rule))
-            seen = state.kinds_seen
-            rows[key] = Row(key, "unit", "", str(state.agent_type or ""),
-                            str(getattr(state.address, "role", "") or ""), state.levels,
-                            sum(seen.values()), state.last_seen, self._rates(key, state, seen),
-                            live=live, by_kind=tuple(sorted(
-                                (_kind(k), n) for k, n in seen.items())))
-        for label in getattr(monitor, "commanders", list)():  # a row each, clean or not
-            rows[label] = Row(label, "commander", "", "commander")
-        for unit, counts in list(linter.by_unit.items()):
-            party = "unit" if unit in (NOT_A_UNIT, OTHER_UNITS) else "commander"
-            row = rows.get(unit) or Row(unit, party, "", "commander" if party == "commander"
-                                        else "")
-            found = tuple(sorted(
-                (Finding(rule, "fail" if fails(rule) else "warn", n,
-                         self._evidence.get((unit, rule))) for rule, n in counts.items()),
-                key=_severity))
-            rows[unit] = _replace(row, findings=found)
-        done = [_replace(r, status=_status(r)) for r in rows.values()]
+        states = {str(getattr(state, "address", unit)): state
+                  for unit, state in ((u, monitor.state(u)) for u in list(monitor.units()))}
+        done = []
+        for seen in live_rows(linter, self._evidence):
+            state = states.get(seen.unit)
+            if state is None:
+                done.append(Row(**seen_fields(seen)))
+                continue
+            kinds = state.kinds_seen
+            done.append(Row(**seen_fields(seen), rates=self._rates(seen.unit, state, kinds),
+                            by_kind=tuple(sorted((_kind(k), n) for k, n in kinds.items()))))
         fleet = tuple((linter.unit_of(v), v) for v in list(linter.fleet))
         old = self._snapshot
         return Snapshot(old.version + 1, time.time(), linter.last_time, self.title, self.live,
@@ -301,53 +259,14 @@ class FleetView:
                         _sorted(done), fleet)
 
 
-def _judged(profile: Any) -> Any:
-    """Whether a violation of a rule fails (else warns) as the judge will say at the end: an
-    error of a stated or implied rule, or of any rule in a strict run
-    (``judge.violation_verdict``)."""
-    from functools import cache
-
-    from conformance.judge import violation_verdict
-
-    @cache
-    def fails(rule_id: str) -> bool:
-        rule = CATALOGUE.get(rule_id)
-        severity = profile.severity_of(rule_id)
-        if rule is None:
-            return severity.value == "error"
-        return violation_verdict(rule, severity, strict=profile.adopts(rule_id)) is Verdict.FAIL
-
-    return fails
-
-
 def _kind(kind: Any) -> str:
     """A topic kind's protocol name (``heartbeat``, ``sensor_info``)."""
     return kind if type(kind) is str else str(getattr(kind, "value", kind))
 
 
 def _at(v: Violation, when: float) -> Violation:
-    import dataclasses
 
     return dataclasses.replace(v, time=when)
-
-
-def _replace(row: Row, **changes: Any) -> Row:
-    import dataclasses
-
-    return dataclasses.replace(row, **changes)
-
-
-def _severity(f: Finding) -> tuple[int, int, str]:
-    verdict = Verdict.FAIL if f.verdict == "fail" else Verdict.WARN
-    return (triage_rank(f.rule, verdict), -f.count, f.rule)
-
-
-def _status(row: Row) -> str:
-    if row.live or any(f.verdict == "fail" for f in row.findings):
-        return "FAIL"
-    if row.findings:
-        return "warn"
-    return "ok" if row.messages or row.party == "commander" else "-"
 
 
 def _recent_rate(samples: list[tuple[float, int]], span: float = 30.0) -> float | None:
@@ -365,20 +284,6 @@ def _overall_rate(first: float | None, last: float | None, n: int) -> float | No
     """Messages per second between the first and the latest live one."""
     return (n - 1) / (last - first) if first is not None and last and last > first and n > 1 \
         else None
-
-
-def _row_from_report(unit: str, u: Any, rates: tuple[RateView, ...]) -> Row:
-    found = []
-    for rule, res in u.rules.items():
-        if res.verdict.value not in ("fail", "warn"):
-            continue
-        found.append(Finding(rule, res.verdict.value,
-                             u.violation_counts.get(rule, len(res.violations)),
-                             res.violations[0] if res.violations else None, res.reason))
-    row = Row(unit, u.party, "", "commander" if u.party == "commander" else u.agent_type,
-              u.role, tuple(u.levels) if u.levels else None, u.message_count, u.last_seen,
-              rates, tuple(sorted(found, key=_severity)))
-    return _replace(row, status=_status(row))
 
 
 def _fleet_findings(report: Any, limit: int = 50) -> tuple[tuple[str, Violation], ...]:

@@ -89,10 +89,11 @@ def test_metrics_cap_the_series_of_invented_unit_names(monkeypatch):
     from prometheus_client.parser import text_string_to_metric_families
 
     from conformance.lint import metrics
-    from conformance.lint.fleetview import Finding, Row, Snapshot
+    from conformance.lint.fleetview import Row, Snapshot
+    from conformance.lint.rows import Finding
 
     monkeypatch.setattr(metrics, "MAX_SERIES", 10)
-    rows = tuple(Row(f"p/unit/air/simulation/u{i}", "unit", "FAIL", messages=5,
+    rows = tuple(Row(f"p/unit/air/simulation/u{i}", "unit", messages=5,
                      findings=(Finding("HB-002", "fail", 2),), by_kind=(("heartbeat", 5),))
                  for i in range(30))
     snap = Snapshot(1, 0.0, None, "", True, False, 150, 0, 0, True, rows)

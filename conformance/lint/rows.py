@@ -1,0 +1,142 @@
+"""What lint saw of each unit and commander: one ``LintRow`` each, made here only, live from
+the ``Linter`` or at the end from the run report, and rendered by the terminal scorecard
+(``conformance.scorecard``) and the fleet page (``lint.fleetview``) alike, so the two cannot
+disagree on a row's type, role, levels, messages, last seen, findings or status (issue 28, 3).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from functools import cache
+from typing import Any
+
+from conformance.conclusion import facts_of, triage_rank
+from conformance.lint.linter import NOT_A_UNIT, OTHER_UNITS
+from conformance.rules import CATALOGUE
+from conformance.violation import Verdict, Violation
+
+STATUS_ORDER = {"FAIL": 0, "warn": 1, "ok": 2, "-": 3}
+"""Rows worst first."""
+
+
+@dataclass(frozen=True)
+class Finding:
+    """A rule a row fails or warns: its verdict (fail, warn), how many violations, and the
+    first one (when it was kept)."""
+
+    rule: str
+    verdict: str
+    count: int
+    first: Violation | None = None
+    reason: str = ""
+
+    @property
+    def title(self) -> str:
+        rule = CATALOGUE.get(self.rule)
+        return rule.title if rule else ""
+
+
+@dataclass(frozen=True)
+class LintRow:
+    """A unit or commander (``party``) as lint saw it; times Unix seconds, None in a capture
+    without times (issue 27, 4). ``levels`` None: a unit sent messages but no levels yet."""
+
+    unit: str
+    party: str = "unit"
+    agent_type: str = ""
+    role: str = ""
+    levels: tuple[str, ...] | None = None
+    messages: int = 0
+    first_seen: float | None = None
+    last_seen: float | None = None
+    findings: tuple[Finding, ...] = ()
+    """Worst first (``severity``)."""
+    live: tuple[str, ...] = ()
+    """Failing rules off right now over their latest intervals (rates:
+    ``Monitor.live_findings``; judged over the whole run at the end)."""
+
+    @property
+    def status(self) -> str:
+        """FAIL, warn, ok (messages seen, or a commander) or - (nothing seen)."""
+        if self.live or any(f.verdict == "fail" for f in self.findings):
+            return "FAIL"
+        if self.findings:
+            return "warn"
+        return "ok" if self.messages or self.party == "commander" else "-"
+
+    @property
+    def pseudo(self) -> bool:
+        """Not a unit of the protocol: what no unit sent, or the units past the bound."""
+        return self.unit in (NOT_A_UNIT, OTHER_UNITS)
+
+
+def seen_fields(row: LintRow) -> dict[str, Any]:
+    """A ``LintRow``'s fields, for a view's row that adds its own to them."""
+    return {f.name: getattr(row, f.name) for f in dataclasses.fields(LintRow)}
+
+
+def severity(f: Finding) -> tuple[int, int, str]:
+    """Most severe first (``conclusion.TRIAGE``), then most violations."""
+    return (triage_rank(f.rule, Verdict.FAIL if f.verdict == "fail" else Verdict.WARN),
+            -f.count, f.rule)
+
+
+def _levels(levels: Any, party: str, messages: int) -> tuple[str, ...] | None:
+    """None only for a unit that sent messages and no levels (no heartbeat yet)."""
+    if levels:
+        return tuple(levels)
+    return None if party == "unit" and messages else ()
+
+
+def live_rows(linter: Any, evidence: Mapping[tuple[str, str], Violation] | None = None,
+              *, live: bool = True) -> list[LintRow]:
+    """Every unit and commander seen so far, from the ``Linter``: a violation fails as the
+    judge will say at the end (``Linter.is_error``). ``evidence``: (unit, rule) -> the first
+    violation; ``live`` False: no live findings (the rates over the whole run)."""
+    monitor = linter.monitor
+    fails: Callable[[str], bool] = cache(linter.is_error)
+    untimed = bool(getattr(monitor, "untimed", False))  # a capture without times
+    rows: dict[str, LintRow] = {}
+    for unit in list(monitor.units()):
+        state: Any = monitor.state(unit)
+        address = getattr(state, "address", None)
+        key = str(address if address is not None else unit)
+        count = int(getattr(state, "message_count", 0) or 0)
+        rows[key] = LintRow(
+            key, "unit", str(getattr(state, "agent_type", "") or ""),
+            str(getattr(address, "role", "") or ""),
+            _levels(getattr(state, "levels", None), "unit", count), count,
+            None if untimed else getattr(state, "first_seen", None),
+            None if untimed else getattr(state, "last_seen", None),
+            live=tuple(v.rule for v in monitor.live_findings(unit) if fails(v.rule))
+            if live else ())
+    for label in getattr(monitor, "commanders", list)():  # a row each, clean or not
+        rows[label] = LintRow(label, "commander", "commander", levels=())
+    for unit, counts in list(linter.by_unit.items()):
+        party = "unit" if unit in (NOT_A_UNIT, OTHER_UNITS) else "commander"
+        row = rows.get(unit) or LintRow(unit, party, "" if party == "unit" else "commander",
+                                        levels=())
+        found = (Finding(rule, "fail" if fails(rule) else "warn", n,
+                         (evidence or {}).get((unit, rule))) for rule, n in counts.items())
+        rows[unit] = dataclasses.replace(row, findings=tuple(sorted(found, key=severity)))
+    return list(rows.values())
+
+
+def report_rows(report: Any) -> list[LintRow]:
+    """Every unit and commander of a ``RunReport``, every verdict final: a finding per rule
+    that fails or warns, with its counted violations (else those the verdict holds)."""
+    untimed = facts_of(report).untimed  # the reading's times are not the traffic's
+    rows = []
+    for unit, u in report.units.items():
+        found = [Finding(rule, res.verdict.value,
+                         u.violation_counts.get(rule, len(res.violations)),
+                         res.violations[0] if res.violations else None, res.reason)
+                 for rule, res in u.rules.items() if res.verdict.value in ("fail", "warn")]
+        rows.append(LintRow(
+            unit, u.party, "commander" if u.party == "commander" else u.agent_type, u.role,
+            _levels(u.levels, u.party, u.message_count), u.message_count,
+            None if untimed else u.first_seen, None if untimed else u.last_seen,
+            tuple(sorted(found, key=severity))))
+    return rows
