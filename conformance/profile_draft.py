@@ -21,7 +21,7 @@ from typing import Any
 from conformance.display import shorten
 from conformance.message import Message
 from conformance.taskspec import task_spec
-from conformance.topics import LEVELS, MANDATORY_SENSORS, TopicKind, UnitAddress, parse_topic
+from conformance.topics import LEVELS, MANDATORY_SENSORS, ROLES, TopicKind, UnitAddress, parse_topic
 
 MAX_OBSERVED = 100_000
 """Messages kept while observing (a unit at 100 Hz for 15 minutes); past it, the rest are
@@ -142,6 +142,9 @@ def problems(seen: Observed, tolerance: float = 0.2) -> list[str]:
     if "direct execution" in levels and seen.dei is None:
         out.append("declares level direct execution, but no direct_execution_info came "
                    "(5.3, HB-008)")
+    if hb and "direct execution" not in levels and seen.dei is not None:
+        out.append("publishes direct_execution_info but its heartbeat does not declare the "
+                   "direct execution level (5.1, HB-013)")
     if seen.sensor_info is not None:
         listed = _names(seen.sensor_info.get("sensor-data-provided"))
         published = {k[len("sensor/"):] for k in seen.arrivals if k.startswith("sensor/")}
@@ -169,6 +172,11 @@ def draft(seen: Observed) -> str:
     if found:
         lines += ["# PROBLEMS measured against what the unit declares (certification will "
                   "fail on these):"] + [f"#   PROBLEM: {p}" for p in found] + [""]
+    if u.role not in ROLES:
+        lines += [f"# Its role {_c(u.role)} is not one of 3.1's ({', '.join(ROLES)}; TOPIC-006 "
+                  "warns): the suite treats it as real (no motion, no hostile payloads",
+                  "# without opt-in). If it is a simulation, say so:",
+                  f"# simulated-roles: [{_q(u.role)}]", ""]
     hb = seen.heartbeat
     if hb is None:
         lines += ["# No heartbeat was seen: is the unit running and the address right?",

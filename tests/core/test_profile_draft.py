@@ -172,3 +172,27 @@ def test_a_draft_whose_only_task_is_not_a_section_9_one_is_filled_in_as_it_says(
     assert filled != text
     drafted = profile.from_dict(yaml.safe_load(filled), "<filled>")
     assert drafted.task_params["go-home"] == {"speed": 5.0}
+
+
+def test_a_draft_says_an_undeclared_level_and_an_unknown_role(tmp_path: Path) -> None:
+    """The RISE agent (certified this session): direct_execution_info without the level in its
+    heartbeat is a PROBLEM (HB-013), and its role 'simulated' (not 3.1's) is said to be
+    treated as real, with the profile line that would make it a simulation, commented out.
+    The draft still loads, and with that line uncommented the role is a simulation."""
+    unit = UnitAddress.parse("waraps/unit/air/simulated/rise0")
+    seen = Observed(unit, 5.0, heartbeat={"levels": ["sensor"], "rate": 1.0},
+                    dei={"tasks-available": [], "tasks-executing": []})
+    text = draft(seen)
+    assert ("#   PROBLEM: publishes direct_execution_info but its heartbeat does not declare "
+            "the direct execution level (5.1, HB-013)") in text, text
+    assert "# Its role \"simulated\" is not one of 3.1's" in text, text
+    assert '# simulated-roles: ["simulated"]' in text
+    path = tmp_path / "rise.yaml"
+    path.write_text(text)
+    assert profile.load(path).simulated_roles == ()
+    path.write_text(text.replace('# simulated-roles: ["simulated"]', 'simulated-roles: ["simulated"]'))
+    assert profile.load(path).simulated_roles == ("simulated",)
+    plain = draft(Observed(UnitAddress.parse("waraps/unit/air/real/dji0"), 5.0,
+                           heartbeat={"levels": ["sensor", "direct execution"], "rate": 1.0},
+                           dei={"tasks-available": []}))
+    assert "HB-013" not in plain and "simulated-roles" not in plain
