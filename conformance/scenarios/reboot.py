@@ -100,6 +100,7 @@ def _reboot(ctx: Context, names: Any) -> None:
             f"only its agent-uuid changes (5.1)"))
         ctx.record("REBOOT-002", verdict=Verdict.COULD_NOT_TEST,
                    reason=f"the unit came back under another name ('{renamed}', REBOOT-001)")
+        ctx.notes["renamed"] = renamed  # what follows reads why its address fell silent
         return
     if hb is None:
         ctx.record("REBOOT-001", violation=ctx.violation(

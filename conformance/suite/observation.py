@@ -65,6 +65,10 @@ class Observation:
                                               subtopic="heartbeat",
                                               what="the unit's heartbeat") is not None:
             return ""
+        renamed = self.context.notes.get("renamed")
+        if renamed:  # after the suite's reboot: it lives, under another name (3.1)
+            return (f"the unit came back under another name ('{renamed}') after the suite's "
+                    f"reboot (REBOOT-001): nothing answers at its address")
         return (f"the unit fell silent at {clock(latest.time)} and did not come back "
                 f"(HB-012): no answer could come")
 

@@ -33,7 +33,7 @@ def test_a_unit_far_slower_than_it_declares_is_not_dead_before_its_next_heartbea
     for t in (1000.0, 1005.002, 1010.004):
         clock.at(t, lambda t=t: beat(t))
     clock.sleep(6.002)  # 1 s after its second heartbeat: 5 declared periods, past HB-012's 3
-    context = SimpleNamespace(unit=UNIT, traffic=traffic,
+    context = SimpleNamespace(unit=UNIT, traffic=traffic, notes={},
                               timing=SimpleNamespace(scale=1.0, response=5.0),
                               rate_of=lambda kind: 5.0 if kind == "heartbeat" else None)
     watch = Observation(context, Monitor(), nullcontext(), observe=0.0)  # type: ignore[arg-type]

@@ -43,9 +43,11 @@ def test_a_unit_back_under_another_name_fails_reboot_001_naming_it(
     # Another unit of the same type and role, there all along: never taken for the unit.
     with SimUnit(f"{prefix}/unit/air/simulation/cppl2_77ff", mosquitto, rate=3.0, seed=3):
         renamer = Renamer(unit, mosquitto, rename)
+        # The exploration comes after the reboot: renamed, it says why nothing answers.
+        explore = ("--explore=2s", "-k", f"{RULES} or test_explore") if rename else ("-k", RULES)
         try:
             run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={FAST}",
-                          "-k", RULES, plugins=(renamer,))
+                          *explore, plugins=(renamer,))
         finally:
             renamer.stop()
     rules = run.unit_rules()
@@ -54,6 +56,9 @@ def test_a_unit_back_under_another_name_fails_reboot_001_naming_it(
         assert "'cppl2_1a2b_9d00'" in rules["REBOOT-001"]["reason"]
         assert "cppl2_77ff" not in rules["REBOOT-001"]["reason"]
         assert run.result.ret == 1
+        assert "came back under another name ('cppl2_1a2b_9d00') after the suite's reboot" \
+            in run.text, run.text[-3000:]
+        assert "did not come back (HB-012)" not in run.text
     else:
         assert rules["REBOOT-001"]["verdict"] == "pass", rules["REBOOT-001"]
 
