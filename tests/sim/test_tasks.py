@@ -25,7 +25,9 @@ def test_the_unit_offers_exactly_the_tasks_of_section_9() -> None:
         assert set(TASKS[name].params) == {p.name for p in taskspec.task_spec(name).parameters}
 
 
-@pytest.mark.parametrize("name", NAMES)
+# search-areas' schema (lists of polygons) takes 17 s under -n 4: run first (tests/README).
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n == "search-areas"
+                                  else n for n in NAMES])
 @settings(settings.get_profile("expensive"), deadline=None,
           suppress_health_check=list(HealthCheck))
 @given(data=st.data())
