@@ -30,21 +30,23 @@ def silence(previous: Entry, entry: Entry) -> float:
     return entry.time - previous.time
 
 
+def intervals(beats: list[Entry]) -> list[float]:
+    """The intervals between consecutive heartbeats of one agent-uuid (``silence``), oldest
+    first: a reboot's silence (a new agent-uuid) is not one of them."""
+    return [silence(a, b) for a, b in zip(beats, beats[1:], strict=False)
+            if a.get("agent-uuid") == b.get("agent-uuid")]
+
+
 def own_period(ctx: Context) -> float:
     """The heartbeat period the reboot is read in, seconds: the declared one (5.1), or the
     median interval between heartbeats of one agent-uuid so far where that is longer: a unit
     far slower than it declares (HB-003's finding) is not taken for one that never came back
     because its new life's second heartbeat is not within two declared periods."""
     declared = ctx.rate_of("heartbeat") or 1.0
-    intervals: list[float] = []
-    previous: Entry | None = None
-    for entry in ctx.traffic.since(0, "heartbeat"):
-        if previous is not None and entry.get("agent-uuid") == previous.get("agent-uuid"):
-            intervals.append(silence(previous, entry))
-        previous = entry
-    if not intervals:
+    seen = intervals(ctx.traffic.since(0, "heartbeat"))
+    if not seen:
         return 1.0 / declared
-    return max(1.0 / declared, statistics.median(intervals))
+    return max(1.0 / declared, statistics.median(seen))
 
 
 def run(ctx: Context) -> None:

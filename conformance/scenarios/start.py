@@ -108,10 +108,14 @@ def _start(ctx: Context, task: str, params: dict[str, Any], generate: bool, *,
     yet (``retry``), ask again as every start-task example of the spec does, with a
     task-uuid, so that what follows a start (EXEC-START-003, DEI-004) is still judged.
     Returns the start to follow, its answer, and whether it was sent without a task-uuid."""
-    sent, answer = ctx.commander.start_task(task, params, ctx.timing.response,
-                                            task_uuid=None if generate else "new")
-    if answer is None:
-        _check_answer(ctx, task, None)
+    def send(task_uuid: str | None) -> tuple[Sent, Entry | None]:
+        sent, answer = ctx.commander.start_task(task, params, ctx.timing.response,
+                                                task_uuid=task_uuid)
+        if answer is None:
+            _check_answer(ctx, task, None)  # EXEC-START-001: not answered
+        return sent, answer
+
+    sent, answer = send(None if generate else "new")
     if answer is not None or not generate:
         return sent, answer, generate
     # 12.1 'a generated task-uuid will be returned in the response message': no response, so
@@ -123,10 +127,7 @@ def _start(ctx: Context, task: str, params: dict[str, Any], generate: bool, *,
         f"(EXEC-START-001): whether the unit generates one was not seen"))
     if not retry:
         return sent, None, True
-    sent, answer = ctx.commander.start_task(task, params, ctx.timing.response, task_uuid="new")
-    if answer is None:
-        _check_answer(ctx, task, None)
-    return sent, answer, False
+    return (*send("new"), False)
 
 
 def _cannot_start(ctx: Context, available: dict[str, list[str]], startable: list[str],

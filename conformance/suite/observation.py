@@ -75,9 +75,10 @@ class Observation:
     def _longest_interval(self, kept: int = 16) -> float:
         """The longest interval between the unit's latest ``kept`` heartbeats of one
         agent-uuid, seconds (0 before two)."""
-        beats = self.traffic.since(0, "heartbeat")[-kept:]  # asked only during a silence
-        return max((b.time - a.time for a, b in zip(beats, beats[1:], strict=False)
-                    if a.get("agent-uuid") == b.get("agent-uuid")), default=0.0)
+        from conformance.scenarios.reboot import intervals
+
+        # (by the unit's stamps, as the reboot reads them; asked only during a silence)
+        return max(intervals(self.traffic.since(0, "heartbeat")[-kept:]), default=0.0)
 
     def wait_execution_info(self) -> None:
         """Before commanding: the unit's direct_execution_info (its tasks and signals)."""
