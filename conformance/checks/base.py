@@ -458,6 +458,13 @@ class CheckContext:
             # Bounded memory: merge the oldest two (they only ever widen an exclusion).
             gaps[0:2] = [(gaps[0][0], gaps[1][1])]
 
+    def close_gap(self, end: float) -> None:
+        """The open gap (``add_gap(start, math.inf)``: the observer is back, but the unit not
+        yet heard again) ends at ``end``."""
+        if self.gaps and self.gaps[-1][1] == math.inf:
+            start = self.gaps[-1][0]
+            self.gaps[-1] = (start, max(start, float(end)))
+
     def in_gap(self, t0: float, t1: float) -> bool:
         """Whether [t0, t1] overlaps a time the observer was disconnected."""
         for start, end in reversed(self.gaps):

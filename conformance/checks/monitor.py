@@ -14,6 +14,7 @@ per-rule counts only when a report is made.
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 import sys
 import time as _time
@@ -371,12 +372,18 @@ class Monitor:
         found = self._entries.get(address)
         return found if found is not None else (self._new_entry(address) or _OVERFLOW)
 
-    def connection_gap(self, start: float, end: float) -> None:
+    def connection_gap(self, start: float, end: float | None) -> None:
         """The observer was disconnected from ``start`` to ``end`` (Unix seconds): intervals
         over that time are not judged (rates, silence, uuid changes). Call it before feeding
-        the messages received after the reconnect."""
+        the messages received after the reconnect. ``end`` None: the gap stays open until
+        ``heard_again`` (what the unit sent before it is back on the broker is unknown too)."""
         self.version += 1
-        self.ctx.add_gap(float(start), float(end))
+        self.ctx.add_gap(float(start), math.inf if end is None else float(end))
+
+    def heard_again(self, t: float) -> None:
+        """The unit is back on the broker at ``t``: an open ``connection_gap`` ends there."""
+        self.version += 1
+        self.ctx.close_gap(float(t))
 
     def reboot_requested(self, t: float) -> None:
         """The observer's side rebooted the unit at ``t`` (Unix seconds): the restart is not
@@ -512,7 +519,7 @@ class Monitor:
             broker=str(meta.pop("broker", "")), profile=self.profile.name,
             suite_version=str(meta.pop("suite_version", "") or suite_version()),
             schemas_hash=str(meta.pop("schemas_hash", "") or schemas_hash()),
-            units=units, gaps=list(self.ctx.gaps), unexamined=self._unexamined,
+            units=units, gaps=[(a, min(b, max(a, now))) for a, b in self.ctx.gaps], unexamined=self._unexamined,
             meta={k: str(v) for k, v in meta.items()},
         )
 

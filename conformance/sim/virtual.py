@@ -13,6 +13,7 @@ the real-broker behaviours (reconnects, freezes, QoS) stay tested on amqtt and M
 
 from __future__ import annotations
 
+import math
 import random
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -169,16 +170,21 @@ class VirtualReference(ReferenceUnit):
     clock: VirtualClock = field(kw_only=True)
     task_seconds: float = 3.0
     """How long a simulated task takes (``UnitCore``'s)."""
+    reconnect_delay: float = field(default=0.0, kw_only=True)
+    """Seconds after the broker double comes back (``outage``) before the unit is back on it
+    too, as a real unit reconnects by its own backoff: until then it hears and says nothing."""
     broker: VirtualBroker = field(init=False)
     core: UnitCore = field(init=False)
+    _away_until: float = field(default=0.0, init=False)
     url = "virtual"
 
     def start(self) -> VirtualReference:
         self.broker = VirtualBroker(self.clock)
+        self.broker.watch(self._connection)
         # Seeded as SimUnit seeds it: the same uuids as the unit on a real broker.
         rng = random.Random(f"{self.seed}:{self.unit.name}") if self.seed is not None \
             else random.Random()
-        self.core = UnitCore(self.unit, self.broker.publish, faults=self.faults,
+        self.core = UnitCore(self.unit, self._publish, faults=self.faults,
                              variants=self.variants, rate=self.rate, rng=rng,
                              clock=self.clock.now, tst_execution=self.tst,
                              tst_operator=self.tst_operator, task_seconds=self.task_seconds)
@@ -202,13 +208,28 @@ class VirtualReference(ReferenceUnit):
         self.core.run(self.clock.monotonic())
         self._schedule()
 
+    def _connection(self, up: bool) -> None:
+        self._away_until = self.clock.now() + self.reconnect_delay if up else math.inf
+
+    def _here(self) -> bool:
+        """Whether the unit is on the broker (not away since an ``outage``)."""
+        return self.clock.now() >= self._away_until
+
+    def _publish(self, topic: str, payload: bytes, retain: bool = False) -> None:
+        if self._here():
+            self.broker.publish(topic, payload, retain)
+
     def _command(self, message: Message) -> None:
+        if not self._here():
+            return
         payload, size = message.payload, len(message.payload)
         if size > MAX_COMMAND_BYTES:  # refused as too large; the head names its com-uuid
             payload = payload[:OVERSIZE_KEEP]
         self._deliver(self.core.command, payload, self.clock.monotonic(), size)
 
     def _tst_command(self, message: Message) -> None:
+        if not self._here():
+            return
         self._deliver(self.core.tst_command, message.payload, self.clock.monotonic(),
                       message.topic)
 

@@ -19,12 +19,16 @@ from conformance.client import BrokerURL, MqttClient
 from conformance.message import Message
 from conformance.scenarios import Traffic
 from conformance.scenarios.params import task_moves
+from conformance.scenarios.reboot import intervals
 from conformance.scenarios.safety import MotionGate
 from conformance.suite.events import Events, clock
 from conformance.suite.probe import NotAlive, Probe, not_alive
 from conformance.suite.settings import Settings
 from conformance.topics import UnitAddress
 from conformance.violation import Violation
+
+MAX_INTERVALS = 20
+"""Heartbeats whose intervals say how long a unit takes to be heard again (the latest)."""
 
 if TYPE_CHECKING:
     from conformance.sim.reference import Reference
@@ -67,8 +71,11 @@ class Connection:
     be one it held, sent before its subscription) is lost."""
     _signal: threading.Condition = field(default_factory=threading.Condition, init=False)
     """Notified when ``_echoed`` or ``_heard_again`` is set: waited on the run's clock."""
-    _back_at: float = field(default=0.0, init=False)
     _beats_back: int = field(default=0, init=False)
+    _mended: int = field(default=0, init=False)
+    """How often the unit was heard again after a reconnect (``gaps``)."""
+    _gave_up: bool = field(default=False, init=False)
+    """Whether a command already waited in vain for the unit since the last reconnect."""
     _last_arrival: float | None = field(default=None, init=False)
     _probed: float | None = field(default=None, init=False)
     """The last heartbeat whose silence was probed with a ping (once per silence)."""
@@ -187,10 +194,11 @@ class Connection:
         with self.monitor_lock:
             self._last_arrival = message.time
             if heartbeat and not self._heard_again.is_set():
-                # Until the unit is back on the broker, what it sent is unknown too.
-                self.monitor.connection_gap(self._back_at, message.time)
                 self._beats_back += 1
                 if self._beats_back >= 2:
+                    # The gap opened at the reconnect ends here: the unit is back.
+                    self.monitor.heard_again(message.time)
+                    self._mended += 1
                     self._set(self._heard_again)
             stalls = self.monitor.ctx.stalls.count
             found = self.monitor.feed(message)
@@ -227,12 +235,14 @@ class Connection:
                 self.events.at(now, f"broker connection lost ({reason})")
             elif self._gap_start is not None:
                 start, self._gap_start = self._gap_start, None
-                self.monitor.connection_gap(start, now)
-                self._back_at, self._beats_back = now, 0
+                # Open until the unit is heard again: it reconnects on its own time, and what
+                # it sent (or was sent) before it is back is unknown too.
+                self.monitor.connection_gap(start, None)
+                self._beats_back, self._gave_up = 0, False
                 self._heard_again.clear()
                 self.events.at(now, f"broker connection back after {now - start:.1f} s: "
-                                    f"rates, silences and uuid changes over the gap are not "
-                                    f"judged")
+                                    f"rates, silences and uuid changes over the gap, and "
+                                    f"until the unit is heard again, are not judged")
 
     def may_publish(self, topic: str) -> bool:
         # DESIGN 'Safety': only the command topic of the unit under test, and the one TST
@@ -273,18 +283,30 @@ class Connection:
         return self.client is not None and self.client.is_connected
 
     def gaps(self) -> int:
-        """How many connection gaps the client has lived through."""
-        return len(self.client.gaps) if self.client else 0
+        """How often the suite's path to the unit broke or mended: each link lost, and each
+        time the unit was heard again after one. A command sent before a change of this count
+        may never have reached the unit (the unit reconnects on its own time)."""
+        return (len(self.client.gaps) if self.client else 0) + self._mended
 
     def wait_connected(self, timeout: float) -> bool:
         """Wait up to ``timeout`` seconds for the link (a command sent into a gap is lost),
-        and after a reconnect for the unit's next heartbeat within that time (it reconnects
-        on its own; a command sent before it has is lost as well)."""
-        clock = self.traffic.clock
-        deadline = clock.monotonic() + timeout
+        and after a reconnect up to ``timeout`` and two of its longest heartbeat intervals
+        more for the unit to be heard again (it reconnects on its own time, by its own
+        backoff; a command sent before it has is lost as well, and its silence is not judged:
+        the gap stays open until then)."""
         if not (self.client and self.client.wait_connected(timeout)):
             return False
-        self._wait(self._heard_again, max(0.0, deadline - clock.monotonic()))
+        if not self._heard_again.is_set() and not self._gave_up:
+            clock = self.traffic.clock
+            beats = self.traffic.since(0, "heartbeat")[-MAX_INTERVALS:]
+            budget = timeout + 2 * max(intervals(beats), default=1.0)
+            self.events.at(clock.now(), f"waiting up to {budget:.0f} s for the unit to be "
+                                        f"heard again (two heartbeats) before the next command")
+            if not self._wait(self._heard_again, budget):
+                self.events.at(clock.now(), "the unit was not heard again: commands may be "
+                                            "lost, and their silence is not judged, until it is")
+                self._gave_up = True  # waited once: the next commands go out at once
+                # (the gap stays open in the Monitor until the unit's heartbeats return)
         return True
 
     def _set(self, event: threading.Event) -> None:

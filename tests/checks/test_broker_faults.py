@@ -118,6 +118,40 @@ def test_a_command_whose_answer_falls_in_an_outage_is_not_failed(stream):
     assert lost.verdict is not Verdict.FAIL and "broker" in lost.reason, lost
 
 
+def _ping_before_heard_again(stream, heard: float):
+    """The observer's link was lost at 10.5 s and is back at 16 s (the gap stays open until
+    the unit is heard again at ``heard``); a ping at 17 s goes unanswered."""
+    m = Monitor(Profile(response_timeout=1.0))
+    alive = [msg for msg in stream.alive(30.0) if not at(stream, 10.5) <= msg.time <= at(
+        stream, heard)]
+    before = [msg for msg in alive if msg.time < at(stream, 10.5)]
+    stream.feed(m, before)
+    m.connection_gap(at(stream, 10.5), None)
+    m.heard_again(at(stream, heard))
+    stream.feed(m, sorted([stream.command(17.0, "ping"), *alive[len(before):]],
+                          key=lambda msg: msg.time))
+    return m, rules_of(m, stream)
+
+
+def test_a_command_sent_before_the_unit_is_heard_again_is_not_failed(stream):
+    """The unit reconnects on its own time, after the observer: a command sent between the
+    observer's reconnect and the unit's return may never have reached it (the CI run of
+    issue 25's broker kill)."""
+    assert _ping_before_heard_again(stream, heard=16.0)[1]["EXEC-PING-001"].verdict is \
+        Verdict.FAIL
+    m, rules = _ping_before_heard_again(stream, heard=19.0)
+    assert rules["EXEC-PING-001"].verdict is not Verdict.FAIL, rules["EXEC-PING-001"]
+    assert m.report().gaps == [(at(stream, 10.5), at(stream, 19.0))]
+
+
+def test_a_gap_the_unit_never_closes_is_reported_to_the_run_s_end(stream):
+    m = Monitor()
+    stream.feed(m, stream.alive(10.0))
+    m.connection_gap(at(stream, 5.0), None)  # back, but the unit never heard again
+    (gap,) = m.report().gaps
+    assert gap[0] == at(stream, 5.0) and at(stream, 5.0) <= gap[1] < float("inf")
+
+
 def _task_ended_in(stream, gap: bool):
     from test_conversation import com_of, new, start
 

@@ -118,19 +118,24 @@ def test_a_broker_frozen_mid_run_fails_nothing(
 
 class VirtualOutage:
     """In virtual time: the broker double stops for ``OUTAGE`` seconds the moment the unit
-    receives the suite's first signal-task (``VirtualBroker.outage``), so the answer to it
-    and the final feedback it asks for are lost, always, not by the luck of a real kill."""
+    receives the suite's first ``when`` command (``VirtualBroker.outage``), so the answer to
+    it (and for a signal-task the final feedback it asks for) is lost, always, not by the luck
+    of a real kill. The unit is back on the broker ``late`` seconds after the suite (its own
+    reconnect backoff: the CI run where a start-task went to a unit not back yet)."""
 
-    def __init__(self) -> None:
+    def __init__(self, when: str = "signal-task", late: float = 0.0) -> None:
         self.broker = None
         self.stopped = 0
+        self.when, self.late = when, late
 
     def pytest_runtest_setup(self, item: pytest.Item) -> None:
         from conformance.sim import virtual
         from conformance.suite.session import CERTIFICATION
 
         if self.broker is None:
-            self.broker = item.config.stash[CERTIFICATION].connection.reference.broker
+            reference = item.config.stash[CERTIFICATION].connection.reference
+            reference.reconnect_delay = self.late
+            self.broker = reference.broker
             virtual.TAPS.append(self._tap)
 
     def pytest_unconfigure(self) -> None:
@@ -141,7 +146,7 @@ class VirtualOutage:
 
     def _tap(self, message) -> None:  # type: ignore[no-untyped-def]
         if (not self.stopped and message.topic.endswith("/exec/command")
-                and b'"signal-task"' in message.payload):
+                and f'"{self.when}"'.encode() in message.payload):
             self.stopped += 1
             self.broker.outage(OUTAGE)
 
@@ -160,3 +165,24 @@ def test_a_final_status_lost_in_an_outage_is_not_the_units_in_virtual_time(
     rule = run.unit_rules()["EXEC-START-003"]
     assert rule["verdict"] == "could-not-test", run.text[-3000:]
     assert "broker connection was lost while the task ran" in rule["reason"]
+
+
+@pytest.mark.parametrize("late", [2.0, 3.5, 30.0])
+def test_commands_wait_for_a_unit_back_later_than_the_suite_in_virtual_time(
+        pytester: pytest.Pytester, late: float) -> None:
+    """The broker stops as the first start-task arrives; the unit is back on it ``late``
+    seconds after the suite. 2 s (a paho backoff after a 5 s outage): the next command waits
+    for its heartbeats and is answered, so the run certifies. 30 s (longer than that wait):
+    what the unit did not answer before it was heard again is the outage's, never a fail."""
+    outage = VirtualOutage("start-task", late=late)
+    run = certify_virtual(pytester, "waraps/unit/air/simulation/dji0", f"--profile={FAST}",
+                          "--seed", "2", "-k", "test_start_task", rate=1.0, plugins=(outage,))
+    assert outage.stopped == 1, run.text[-3000:]
+    assert "for the unit to be heard again" in run.text, run.text[-3000:]
+    assert_never_failed(run)
+    if late < OUTAGE:
+        # The next start-task waited for the unit: answered, not a deviation adapted to.
+        assert run.unit_rules()["EXEC-START-001"]["verdict"] == "pass", run.text[-3000:]
+        assert "adapted to EXEC-START-001" not in run.text, run.text[-3000:]
+    else:
+        assert "the unit was not heard again" in run.text, run.text[-3000:]
