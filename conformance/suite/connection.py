@@ -199,6 +199,7 @@ class Connection:
                     # The gap opened at the reconnect ends here: the unit is back.
                     self.monitor.heard_again(message.time)
                     self._mended += 1
+                    self.events.at(message.time, "the unit is heard again: judging resumes")
                     self._set(self._heard_again)
             stalls = self.monitor.ctx.stalls.count
             found = self.monitor.feed(message)
