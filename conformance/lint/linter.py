@@ -27,6 +27,11 @@ MAX_TALLIED = MAX_UNITS + MAX_COMMANDERS
 """Units and commanders tallied one by one, as many as the Monitor tracks; a flood of invented
 unit names is tallied together beyond this (bounded memory)."""
 MAX_TOPIC_CACHE = 20_000
+RETURN_BUDGET = 10.0
+"""Seconds after the observer's reconnect within which the units it heard before are to be
+heard again (each its second heartbeat: they reconnect on their own time, by their own
+backoff), plus two of their longest declared heartbeat periods; until then, or until all are
+back, the gap stays open (as the suite keeps it open until its unit is back)."""
 
 
 class MonitorLike(Protocol):
@@ -34,7 +39,8 @@ class MonitorLike(Protocol):
 
     def feed(self, message: Message) -> list[Violation]: ...
     def record(self, unit: Any, rule: str, *, violation: Violation | None = None) -> None: ...
-    def connection_gap(self, start: float, end: float) -> None: ...
+    def connection_gap(self, start: float, end: float | None) -> None: ...
+    def heard_again(self, t: float) -> None: ...
     ctx: Any  # checks/base.py's CheckContext (its ``stalls``: checks/stall.py)
     def unexamined(self, n: int) -> None: ...
     def finish(self, now: float) -> Any: ...
@@ -66,6 +72,10 @@ class Linter:
         self.gaps: list[Gap] = []
         self._open_gap: Gap | None = None
         self._unit_of_topic: dict[str, str] = {}
+        self._returning: dict[str, int] | None = None
+        """After a reconnect, until every unit alive before it is heard again: heartbeats
+        seen since, per unit (``_watch_return``)."""
+        self._return_by = 0.0
 
     # --- feeding ----------------------------------------------------------------------------
     def feed(self, messages: list[Message]) -> None:
@@ -74,6 +84,8 @@ class Linter:
             return
         feed = self.monitor.feed
         for m in messages:
+            if self._returning is not None:
+                self._watch_return(m)
             found = feed(m)
             if found:
                 self._tally(found, m.time)
@@ -83,6 +95,8 @@ class Linter:
         self.last_time = messages[-1].time
 
     def feed_one(self, m: Message) -> None:
+        if self._returning is not None:
+            self._watch_return(m)
         found = self.monitor.feed(m)
         if found:
             self._tally(found, m.time)
@@ -116,14 +130,48 @@ class Linter:
         self.events.append(event)
         del self.events[:-100]
 
-    def _close_gap(self, end: float) -> None:
+    def _close_gap(self, end: float, *, final: bool = False) -> None:
         gap = self._open_gap
         assert gap is not None
         self._open_gap = None
         closed = Gap(gap.start, max(end, gap.start), gap.reason)
         self.gaps.append(closed)
-        # Rates over a time we could not see are not judged (the Monitor leaves it out).
-        self.monitor.connection_gap(closed.start, closed.end)  # type: ignore[arg-type]
+        # Rates, silences and deadlines over a time we could not see are not judged (the
+        # Monitor leaves it out), nor until the units alive before are heard again.
+        if final:
+            self.monitor.connection_gap(closed.start, closed.end)  # type: ignore[arg-type]
+            return
+        self.monitor.connection_gap(closed.start, None)
+        units = [u for u in self.monitor.units() if self._alive_at(u, closed.start)]
+        self._returning = {str(u): 0 for u in units}
+        periods = [self.monitor.state(u).period("heartbeat") or 1.0 for u in units]
+        self._return_by = closed.end + RETURN_BUDGET + 2 * max(periods, default=1.0)
+        if not units:
+            self._heard_again(closed.end)
+
+    def _alive_at(self, unit: Any, t: float) -> bool:
+        """Whether ``unit`` was heard within 3 heartbeat periods (at least 3 s) before ``t``."""
+        state = self.monitor.state(unit)
+        last = state.last_seen
+        return last is not None and last >= t - 3 * max(1.0, state.period("heartbeat") or 1.0)
+
+    def _watch_return(self, m: Message) -> None:
+        """Before ``m`` is judged: close the open gap once every unit alive before it has
+        heartbeated twice since the reconnect, or at the budget's end."""
+        assert self._returning is not None
+        if m.time >= self._return_by:
+            self._heard_again(self._return_by)
+        elif not m.retain and m.topic.endswith("/heartbeat"):
+            unit = parse_topic(m.topic).unit
+            key = str(unit) if unit is not None else None
+            if key in self._returning:
+                self._returning[key] += 1
+                if all(n >= 2 for n in self._returning.values()):
+                    self._heard_again(m.time)
+
+    def _heard_again(self, t: float) -> None:
+        self._returning = None
+        self.monitor.heard_again(t)
 
     @property
     def open_gap(self) -> Gap | None:
@@ -133,7 +181,9 @@ class Linter:
         """End of the run at ``now`` (Unix seconds): close an open gap, run the finish checks
         (their findings are in the Monitor's report)."""
         if self._open_gap is not None:
-            self._close_gap(now)
+            self._close_gap(now, final=True)
+        if self._returning is not None:
+            self._heard_again(min(now, self._return_by))
         self.monitor.finish(now)
 
     # --- tallies ----------------------------------------------------------------------------

@@ -159,10 +159,37 @@ def test_a_recorded_connection_gap_is_not_judged_as_silence(tmp_path: Path, repo
     unit = f"{prefix}/unit/air/simulation/dji0"
     assert with_gap.code == 0, with_gap.out
     assert "connection gap:" in with_gap.out and "for 20.0 s" in with_gap.out
-    assert with_gap.report["gaps"] == [[T0 + 19.9, T0 + 39.9]]
+    # Not judged until both units are heard again (their second heartbeat after it: 41 s).
+    assert with_gap.report["gaps"] == [[T0 + 19.9, T0 + 41.0]]
     assert verdicts(with_gap.report, unit)["HB-010"] == "pass"
     assert verdicts(without.report, unit)["HB-010"] == "warn"
     assert "HB-010 the unit does not fall silent" in without.out
+
+
+def test_a_command_sent_before_the_unit_is_back_after_a_gap_is_not_failed(
+        tmp_path: Path, reports_dir: Path, prefix: str) -> None:
+    """The recorder is back at 39.9 s, the unit only at 44 s (it reconnects on its own time):
+    a ping sent at 41 s may never have reached it. The same ping once the unit is back fails
+    EXEC-PING-001 (the test can fail), as the suite judges it (issue 25 §3)."""
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    msgs = unit_traffic(prefix, "dji0", seconds=60, skip=(20.0, 44.0))
+    gap = [Event(T0 + 19.9, "disconnected", "connection lost"), Event(T0 + 39.9, "connected")]
+
+    def ping(t: float) -> Message:
+        return Message(T0 + t, f"{unit}/exec/command", orjson.dumps({
+            "com-uuid": f"00000000-0000-4000-8000-0000000000{int(t):02d}", "command": "ping",
+            "sender": "op0"}))
+
+    early = run_lint(["--from", str(write_recording(tmp_path / "early.jsonl",
+                                                    [*msgs, *gap, ping(41.0)]))],
+                     reports_dir / "a")
+    late = run_lint(["--from", str(write_recording(tmp_path / "late.jsonl",
+                                                   [*msgs, *gap, ping(50.0)]))],
+                    reports_dir / "b")
+    assert verdicts(late.report, unit)["EXEC-PING-001"] == "fail", late.out
+    assert verdicts(early.report, unit)["EXEC-PING-001"] != "fail", early.out
+    assert early.code == 0, early.out
+    assert early.report["gaps"] == [[T0 + 19.9, T0 + 45.0]]
 
 
 def test_recorded_unexamined_messages_are_reported(tmp_path: Path, reports_dir: Path,
