@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import random
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -58,12 +59,24 @@ class VirtualBroker:
     down: bool = False
     """Stopped (``outage``): what is published, or due for delivery, meanwhile is lost."""
     _watchers: list[Callable[[bool], None]] = field(default_factory=list)
+    held_until: float = 0.0
+    """Frozen (``freeze``) until then: deliveries due meanwhile wait for it."""
+    drain: float = 0.0
+    _backlog: deque[Callable[[], None]] = field(default_factory=deque)
+    _releasing: bool = False
 
     def outage(self, seconds: float) -> None:
         """Stop now and start again ``seconds`` later, as a broker killed and restarted: every
         client is told at both ends (its link lost, back), retained messages survive."""
         self._set_down(True)
         self.clock.at(self.clock.now() + seconds, lambda: self._set_down(False))
+
+    def freeze(self, seconds: float, drain: float = 0.0) -> None:
+        """Hold every delivery for ``seconds``, then deliver what was held in order, as a
+        broker stopped (SIGSTOP) and continued: no client is told anything. ``drain``: seconds
+        per held message (0: all at once; more: a loaded broker working off its backlog, with
+        what is published meanwhile queued behind it)."""
+        self.held_until, self.drain = self.clock.now() + seconds, drain
 
     def _set_down(self, down: bool) -> None:
         self.down = down
@@ -98,10 +111,31 @@ class VirtualBroker:
                retain: bool, qos: int = 0) -> None:
         when = self.clock.now() + LATENCY
 
-        def delivery() -> None:
+        def now() -> None:
             if not self.down:  # in flight when it stopped: lost
-                deliver(Message(when, topic, payload, qos, retain))
+                deliver(Message(self.clock.now(), topic, payload, qos, retain))
+
+        def delivery() -> None:
+            if self.clock.now() < self.held_until or self._backlog:
+                self._backlog.append(now)  # frozen, or still working off its backlog
+                self._release_later()
+            else:
+                now()
         self.clock.at(when, delivery)
+
+    def _release_later(self) -> None:
+        if not self._releasing:
+            self._releasing = True
+            self.clock.at(self.held_until, self._release)
+
+    def _release(self) -> None:
+        """Deliver the oldest held message; the next one ``drain`` seconds later."""
+        if self._backlog:
+            self._backlog.popleft()()
+        if self._backlog:
+            self.clock.at(self.clock.now() + self.drain, self._release)
+        else:
+            self._releasing = False
 
 
 @dataclass(eq=False)

@@ -8,13 +8,17 @@ passive checks as the linter) and to ``Traffic`` (which the scenarios wait on).
 
 from __future__ import annotations
 
+import statistics
 import threading
 from collections.abc import Callable
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+import orjson
+
 from conformance.checks import Monitor
+from conformance.checks.stall import LAG_JUMP, stamp_of
 from conformance.client import BrokerURL, MqttClient
 from conformance.message import Message
 from conformance.scenarios import Traffic
@@ -28,6 +32,8 @@ from conformance.topics import UnitAddress
 from conformance.violation import Violation
 
 MAX_INTERVALS = 20
+MAX_HEARTBEAT_BYTES = 64 * 1024
+"""A heartbeat larger than this is not read for its stamp (``_fresh``; the Monitor judges it)."""
 """Heartbeats whose intervals say how long a unit takes to be heard again (the latest)."""
 
 if TYPE_CHECKING:
@@ -72,6 +78,13 @@ class Connection:
     _signal: threading.Condition = field(default_factory=threading.Condition, init=False)
     """Notified when ``_echoed`` or ``_heard_again`` is set: waited on the run's clock."""
     _beats_back: int = field(default=0, init=False)
+    """Paced heartbeats since the last reconnect or stall (``_away``)."""
+    _pace: float = field(default=0.5, init=False)
+    """Seconds between two heartbeats' arrivals for the later one to be paced, not part of
+    a burst of held ones: half the unit's period (for a unit without stamps)."""
+    _lag: float | None = field(default=None, init=False)
+    """How far the unit's last heartbeat stamp before ``_away`` lagged its arrival."""
+    _last_beat: float | None = field(default=None, init=False)
     _mended: int = field(default=0, init=False)
     """How often the unit was heard again after a reconnect (``gaps``)."""
     _gave_up: bool = field(default=False, init=False)
@@ -194,13 +207,16 @@ class Connection:
         with self.monitor_lock:
             self._last_arrival = message.time
             if heartbeat and not self._heard_again.is_set():
-                self._beats_back += 1
+                if self._fresh(message):
+                    self._beats_back += 1
                 if self._beats_back >= 2:
-                    # The gap opened at the reconnect ends here: the unit is back.
+                    # The gap opened at the reconnect (or stall) ends here: the unit is back.
                     self.monitor.heard_again(message.time)
                     self._mended += 1
                     self.events.at(message.time, "the unit is heard again: judging resumes")
                     self._set(self._heard_again)
+            if heartbeat:
+                self._last_beat = message.time
             stalls = self.monitor.ctx.stalls.count
             found = self.monitor.feed(message)
             if self.monitor.ctx.stalls.count != stalls:
@@ -239,11 +255,36 @@ class Connection:
                 # Open until the unit is heard again: it reconnects on its own time, and what
                 # it sent (or was sent) before it is back is unknown too.
                 self.monitor.connection_gap(start, None)
-                self._beats_back, self._gave_up = 0, False
-                self._heard_again.clear()
+                self._away()
                 self.events.at(now, f"broker connection back after {now - start:.1f} s: "
                                     f"rates, silences and uuid changes over the gap, and "
                                     f"until the unit is heard again, are not judged")
+
+    def _away(self) -> None:
+        """The unit is away until heard again (after a reconnect, or a stall of the broker):
+        its next two fresh heartbeats end the open gap (``monitor_lock`` held)."""
+        beats = self.traffic.since(0, "heartbeat")[-MAX_INTERVALS:]
+        self._pace = 0.5 * (statistics.median(intervals(beats) or [1.0]))
+        stamp = stamp_of(beats[-1].body, beats[-1].time) if beats else None
+        self._lag = beats[-1].time - stamp if stamp is not None else None
+        self._beats_back, self._gave_up = 0, False
+        self._heard_again.clear()
+
+    def _fresh(self, message: Message) -> bool:
+        """Whether a heartbeat was sent now, not held by a stalled broker and delivered late
+        (with what it held, at once or as it works off a backlog): its stamp lags its arrival
+        no more than the unit's did before (``checks/stall.py``'s reading); for a unit
+        without stamps, it came half a period or more after the one before."""
+        body = None
+        if len(message.payload) <= MAX_HEARTBEAT_BYTES:  # bounded: a unit's heartbeat is small
+            try:
+                body = orjson.loads(message.payload)
+            except orjson.JSONDecodeError:  # (orjson refuses nesting past 1024 levels too)
+                pass
+        stamp = stamp_of(body, message.time)
+        if stamp is not None and self._lag is not None:
+            return message.time - stamp <= self._lag + LAG_JUMP
+        return self._last_beat is None or message.time - self._last_beat >= self._pace
 
     def may_publish(self, topic: str) -> bool:
         # DESIGN 'Safety': only the command topic of the unit under test, and the one TST
@@ -340,14 +381,17 @@ class Connection:
         if since is None or self._wait(self._echoed, max(0.0, since + slack - now())):
             return None
         start = min(since, self._last_arrival or since)
+        with self.monitor_lock:
+            # Open at once: what the held burst brings is judged inside it; and after it,
+            # until the unit is heard again (the burst may still be draining towards it).
+            self.monitor.connection_gap(start, None)
+            self._away()
         back = self._wait(self._echoed, budget)
         now = now()
-        with self.monitor_lock:
-            self.monitor.connection_gap(start, now)
         self.events.at(now, f"the broker delivered nothing from {clock(start)} for "
                             f"{now - start:.1f} s (the suite's own command did not come back): "
                             f"{'it delivers again; ' if back else ''}what the unit sent "
-                            f"meanwhile is not judged")
+                            f"meanwhile, and until it is heard again, is not judged")
         return None if back else start
 
     def _probe_silence(self, periods: float) -> None:
