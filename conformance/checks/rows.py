@@ -130,7 +130,9 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
         count = (rec.count if rec else 0) + len(extra.get(rid, ()))
         explicit, reason = (rec.explicit, rec.reason) if rec else (None, "")
         excused = rec.excused if rec else ""
+        seen = examined.get(rid, 0)
         if rule.mode is not Mode.PASSIVE:
+            before = count
             # A dead unit answers nothing: what a scenario found missing while it was
             # dead is its death's evidence (HB-012), not a fault of its own.
             evidence, count, excused = _excuse(evidence, count, excused, died,
@@ -138,6 +140,10 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
             # What a scenario found missing while the broker lost or held the traffic, or
             # in the longest wait before (issue 25 §3): the broker's fault, not the unit's.
             evidence, count, excused = _excuse(evidence, count, excused, held, OVER_A_GAP)
+            if not count and before:
+                # The examinations that found what was excused are no passes: a rule judged
+                # only then could not be tested (never a pass the broker's outage made).
+                seen = max(0, seen - before)
         if count:
             counts[rid] = count
             when = [t for t in (rec.first if rec else None, rec.last if rec else None,
@@ -146,7 +152,7 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
                 times[rid] = (min(when), max(when))
         rules[rid] = judge_rule(
             rule, severity=profile.severity_of(rid), strict=profile.adopts(rid),
-            violations=evidence[:MAX_EVIDENCE], count=count, examined=examined.get(rid, 0),
+            violations=evidence[:MAX_EVIDENCE], count=count, examined=seen,
             explicit=explicit, explicit_reason=reason, excused=excused,
             default_reason=skip_reason(rule, kind=kind, unit=unit,
                                        levels=state.levels, note=notes.get(rid, ""),
@@ -218,10 +224,12 @@ def _facts(state: UnitState) -> dict[str, Any]:
 
 def _broker_gaps(ctx: CheckContext, profile: Profile) -> list[tuple[float, float]]:
     """The gaps of the observer (an outage, a stall; not the instant of a reboot the suite
-    requested), each from the longest wait of a scenario before it: an answer due then was
-    due while the broker lost or held it."""
-    slack = max(profile.response_timeout, profile.feedback_timeout, profile.reboot_timeout)
-    return [(start - slack, end) for start, end in ctx.gaps if end > start]
+    requested), each from a response timeout before it: a command sent then (a violation of
+    the conversation checks is stamped with its command) was due to be answered in it. Not
+    longer: a command whose deadline ran out before the outage began was judged on what the
+    broker delivered (the public L2 agent's unanswered ping, 5 s before a broker kill, was
+    excused by a 30 s slack and read as a pass)."""
+    return [(start - profile.response_timeout, end) for start, end in ctx.gaps if end > start]
 
 
 def _during(t: float | None, windows: list[tuple[float, float]]) -> bool:

@@ -115,7 +115,7 @@ def _ping_lost_in(stream, gap: bool):
 def test_a_command_whose_answer_falls_in_an_outage_is_not_failed(stream):
     assert _ping_lost_in(stream, gap=False)["EXEC-PING-001"].verdict is Verdict.FAIL
     lost = _ping_lost_in(stream, gap=True)["EXEC-PING-001"]
-    assert lost.verdict is not Verdict.FAIL and "broker" in lost.reason, lost
+    assert lost.verdict in (Verdict.SKIP, Verdict.COULD_NOT_TEST) and "broker" in lost.reason, lost
 
 
 def _ping_before_heard_again(stream, heard: float):
@@ -140,7 +140,8 @@ def test_a_command_sent_before_the_unit_is_heard_again_is_not_failed(stream):
     assert _ping_before_heard_again(stream, heard=16.0)[1]["EXEC-PING-001"].verdict is \
         Verdict.FAIL
     m, rules = _ping_before_heard_again(stream, heard=19.0)
-    assert rules["EXEC-PING-001"].verdict is not Verdict.FAIL, rules["EXEC-PING-001"]
+    assert rules["EXEC-PING-001"].verdict in (Verdict.SKIP, Verdict.COULD_NOT_TEST), rules[
+        "EXEC-PING-001"]
     assert m.report().gaps == [(at(stream, 10.5), at(stream, 19.0))]
 
 

@@ -208,3 +208,19 @@ def test_a_broker_frozen_as_a_start_task_arrives_fails_nothing_in_virtual_time(
     assert "the broker delivered nothing" in run.text or "the broker stalled" in run.text, \
         run.text[-3000:]
     assert_never_failed(run)
+
+
+def test_a_fault_judged_before_an_outage_stays_failed_in_virtual_time(
+        pytester: pytest.Pytester) -> None:
+    """A unit that never answers ping, and the broker killed seconds after that ping's
+    deadline ran out (as the first start-task arrives): the ping was judged on what the
+    broker delivered. EXEC-PING-001 fails, in the report as in pytest, and is no pass the
+    outage made (the public L2 agent's ping read 'pass, examined 1 time' after a kill)."""
+    outage = VirtualOutage("start-task")
+    run = certify_virtual(pytester, "waraps/unit/air/simulation/dji0", f"--profile={FAST}",
+                          "--seed", "2", "-k", "test_ping or test_start_task", rate=1.0,
+                          faults=("pong-missing",), plugins=(outage,))
+    assert outage.stopped == 1, run.text[-3000:]
+    assert run.outcomes["EXEC-PING-001"] == "failed", run.text[-3000:]
+    assert run.unit_rules()["EXEC-PING-001"]["verdict"] == "fail", run.unit_rules()[
+        "EXEC-PING-001"]
