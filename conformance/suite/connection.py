@@ -32,6 +32,10 @@ from conformance.topics import UnitAddress
 from conformance.violation import Violation
 
 MAX_INTERVALS = 20
+HEARD_AGAIN = 5.0
+"""Seconds a command waits for the unit to be heard again after a reconnect or a stall (and
+two of its longest heartbeat intervals): paho's backoff after a 5 s outage brings a unit back
+within about 2 s of the broker."""
 MAX_HEARTBEAT_BYTES = 64 * 1024
 """A heartbeat larger than this is not read for its stamp (``_fresh``; the Monitor judges it)."""
 """Heartbeats whose intervals say how long a unit takes to be heard again (the latest)."""
@@ -85,6 +89,8 @@ class Connection:
     _lag: float | None = field(default=None, init=False)
     """How far the unit's last heartbeat stamp before ``_away`` lagged its arrival."""
     _last_beat: float | None = field(default=None, init=False)
+    _away_at: float | None = field(default=None, init=False)
+    """Since when the unit is away (``_away``), None once heard again."""
     _mended: int = field(default=0, init=False)
     """How often the unit was heard again after a reconnect (``gaps``)."""
     _gave_up: bool = field(default=False, init=False)
@@ -213,6 +219,7 @@ class Connection:
                     # The gap opened at the reconnect (or stall) ends here: the unit is back.
                     self.monitor.heard_again(message.time)
                     self._mended += 1
+                    self._away_at = None
                     self.events.at(message.time, "the unit is heard again: judging resumes")
                     self._set(self._heard_again)
             if heartbeat:
@@ -249,6 +256,8 @@ class Connection:
                 # Mark the gap at once: rates, silences and uuid changes across it are not
                 # judged (the Monitor merges this with its end when the link comes back).
                 self.monitor.connection_gap(now, now)
+                if reason == "Unspecified error":  # paho's words for a socket that closed
+                    reason = "the broker closed the connection or went away"
                 self.events.at(now, f"broker connection lost ({reason})")
             elif self._gap_start is not None:
                 start, self._gap_start = self._gap_start, None
@@ -268,7 +277,13 @@ class Connection:
         stamp = stamp_of(beats[-1].body, beats[-1].time) if beats else None
         self._lag = beats[-1].time - stamp if stamp is not None else None
         self._beats_back, self._gave_up = 0, False
+        self._away_at = self.traffic.clock.now()
         self._heard_again.clear()
+
+    def away_since(self) -> float | None:
+        """Since when the unit is not heard again after a reconnect or a stall; None while
+        it is (the gap of the observation stays open until then)."""
+        return self._away_at
 
     def _fresh(self, message: Message) -> bool:
         """Whether a heartbeat was sent now, not held by a stalled broker and delivered late
@@ -332,8 +347,8 @@ class Connection:
 
     def wait_connected(self, timeout: float) -> bool:
         """Wait up to ``timeout`` seconds for the link (a command sent into a gap is lost),
-        and after a reconnect up to ``timeout`` and two of its longest heartbeat intervals
-        more for the unit to be heard again (it reconnects on its own time, by its own
+        and after a reconnect (or a stall) up to ``HEARD_AGAIN`` seconds (times the timing
+        scale) and two of its longest heartbeat intervals more for the unit to be heard again (it reconnects on its own time, by its own
         backoff; a command sent before it has is lost as well, and its silence is not judged:
         the gap stays open until then)."""
         if not (self.client and self.client.wait_connected(timeout)):
@@ -341,7 +356,8 @@ class Connection:
         if not self._heard_again.is_set() and not self._gave_up:
             clock = self.traffic.clock
             beats = self.traffic.since(0, "heartbeat")[-MAX_INTERVALS:]
-            budget = timeout + 2 * max(intervals(beats), default=1.0)
+            budget = HEARD_AGAIN * self.settings.timing_scale + 2 * max(intervals(beats),
+                                                                        default=1.0)
             self.events.at(clock.now(), f"waiting up to {budget:.0f} s for the unit to be "
                                         f"heard again (two heartbeats) before the next command")
             if not self._wait(self._heard_again, budget):

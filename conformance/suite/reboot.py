@@ -5,6 +5,7 @@ Around the reboot, ``Names`` watches for the unit coming back under another name
 
 from __future__ import annotations
 
+import os
 import shlex
 import subprocess
 import threading
@@ -131,19 +132,27 @@ class Names:
 
     def new_name(self, known: set[str], since: float, wait: float) -> str | None:
         """A name not in ``known`` first heard at or after ``since`` (Unix seconds), waiting
-        up to ``wait`` seconds for one; None when none came."""
+        up to ``wait`` seconds for one; None when none came. Of several, the one sharing the
+        longest beginning with the unit's own name (an agent that adds a random suffix per
+        start: cppl2_vvhp back as cppl2_4b3f), then the first heard: another unit of the same
+        type and role, slower than the window ``known`` was read in, is not named for it."""
         clock = self._connection.traffic.clock
         deadline = clock.monotonic() + wait
         with self._changed:
             while True:
-                found = sorted((t, n) for n, t in self._first.items()
+                found = sorted((-_shared(n, self._own), t, n) for n, t in self._first.items()
                                if n not in known and t >= since)
                 left = deadline - clock.monotonic()
                 if found or left <= 0:
-                    return found[0][1] if found else None
+                    return found[0][2] if found else None
                 clock.wait(self._changed, left)
 
     def close(self) -> None:
         if self._client is not None:
             self._client.close()
             self._client = None
+
+
+def _shared(name: str, own: str) -> int:
+    """How many leading characters ``name`` shares with ``own``."""
+    return len(os.path.commonprefix([name, own]))

@@ -209,8 +209,9 @@ class Certification:
         is the finding (HB-012), so the rule could not be tested."""
         excused = ""
         if violation is not None and CATALOGUE[rule].mode is not Mode.PASSIVE:
-            lost = self.connection.lost_since()
-            excused = self.outage(lost) if lost is not None else self.unit_died(settle=True)
+            lost, back = self.connection.lost_since(), self.connection.away_since()
+            excused = self.outage(lost) if lost is not None else self.not_back(back) \
+                if back is not None else self.unit_died(settle=True)
         with self._lock:
             self.monitor.record(self.unit, rule, violation=violation, verdict=verdict,
                                 reason=reason, excused=excused)
@@ -219,6 +220,13 @@ class Certification:
     def outage(lost: float) -> str:
         """Why nothing the unit should have sent since ``lost`` is its fault."""
         return f"the broker link was lost at {clock(lost)}: no answer could arrive"
+
+    @staticmethod
+    def not_back(since: float) -> str:
+        """Why nothing the unit should have sent while it was not back on the broker (after
+        a reconnect or a stall at ``since``) is its fault."""
+        return (f"the unit was not heard again after the broker's outage or stall "
+                f"({clock(since)}): the command may never have reached it")
 
     def broker_budget(self) -> float:
         """Seconds a lost broker is waited for before the run stops (and, at teardown, before

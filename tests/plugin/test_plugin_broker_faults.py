@@ -190,6 +190,8 @@ def test_commands_wait_for_a_unit_back_later_than_the_suite_in_virtual_time(
         assert "adapted to EXEC-START-001" not in run.text, run.text[-3000:]
     else:
         assert "the unit was not heard again" in run.text, run.text[-3000:]
+        reasons = [r["reason"] for r in run.unit_rules().values()]
+        assert any("not heard again after the broker's outage" in r for r in reasons), reasons
 
 
 @pytest.mark.parametrize("drain", [0.0, 0.02])

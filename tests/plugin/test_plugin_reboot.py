@@ -73,3 +73,23 @@ def test_reboot_002_is_not_claimed_by_a_unit_without_direct_execution(
     assert rules["REBOOT-001"]["verdict"] == "pass", run.text
     assert rules["REBOOT-002"]["verdict"] == "skip", rules["REBOOT-002"]
     assert "not claimed" in rules["REBOOT-002"]["reason"]
+
+
+def test_of_new_names_the_one_like_the_unit_s_own_is_taken_for_it() -> None:
+    """Another unit of the same type and role first heard after the reboot (slower than the
+    window the names known before were read in: the public agents' pyl1 beside cppl2) is not
+    named for the unit when a name sharing its beginning came too (cppl2_vvhp back as
+    cppl2_4b3f); with none like it, the first heard is."""
+    from types import SimpleNamespace
+
+    from conformance.clock import VirtualClock
+    from conformance.message import Message
+    from conformance.suite.reboot import Names
+
+    clock = VirtualClock(1000.0)
+    names = Names(SimpleNamespace(traffic=SimpleNamespace(clock=clock)),  # type: ignore[arg-type]
+                  "waraps/unit/air/simulation/cppl2_vvhp")
+    for t, name in ((1001.0, "pyl1"), (1002.0, "cppl2_4b3f")):
+        names._seen(Message(t, f"waraps/unit/air/simulation/{name}/heartbeat", b"{}"))
+    assert names.new_name(set(), 1000.5, 0.0) == "cppl2_4b3f"
+    assert names.new_name({"cppl2_4b3f"}, 1000.5, 0.0) == "pyl1"
