@@ -77,10 +77,14 @@ class Commander(Sender):
                  wait_connected: Callable[[float], bool] = lambda timeout: True,
                  deviations: Deviations | None = None,
                  step: Callable[[str], None] | None = None,
-                 task_state: Callable[[str], State | None] | None = None) -> None:
+                 task_state: Callable[[str], State | None] | None = None,
+                 away: Callable[[], object] = lambda: None) -> None:
         super().__init__(unit, unit.topic("exec/command"), traffic, publish, dry_run=dry_run,
                          say=say, wait_connected=wait_connected, gaps=gaps)
         self._step = step
+        self._away = away
+        """Since when the unit is not heard again after a reconnect or stall (None: it is):
+        ``Connection.away_since``."""
         self.task_state = task_state
         """The state the Monitor's model holds of a task-uuid (``protocol.Model``), None where
         it holds nothing; without it (no Monitor) a task's end is read from its feedback."""
@@ -170,7 +174,9 @@ class Commander(Sender):
             if answer is not None:
                 with self._lock:
                     self._answered_kinds.add(str(body.get("command")))
-            elif not self._answered(str(body.get("command"))):
+            elif not self._answered(str(body.get("command"))) and \
+                    self._gaps() == sent.gaps_before and self._away() is None:
+                # (the silence of an outage, or of a unit not back yet, is no habit of it)
                 self.deviations.note(
                     kind, f"the unit answered no {body.get('command')} within "
                     f"{timeout:.1f} s", f"later ones get {SHORT * 100:.0f} % of the response "

@@ -132,7 +132,8 @@ class Certification:
             self.unit, self.traffic, self.connection.publish, dry_run=settings.dry_run,
             say=self._say, gaps=self.connection.gaps,
             wait_connected=self.connection.wait_connected, deviations=self.deviations,
-            step=self.progress.step, task_state=self.model_state)
+            step=self.progress.step, task_state=self.model_state,
+            away=self.connection.away_since)
         self.tst = TstCommander(
             self.unit, settings.tst_topic, self.traffic, self.connection.publish,
             dry_run=settings.dry_run, say=self._say,

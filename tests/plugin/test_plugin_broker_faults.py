@@ -166,6 +166,7 @@ def test_a_final_status_lost_in_an_outage_is_not_the_units_in_virtual_time(
                           "--seed", "1", "-k", "EXEC-START-003", plugins=(outage,))
     assert outage.stopped == 1, run.text[-3000:]
     assert "broker connection lost" in run.text and "broker connection back" in run.text
+    assert "adapted to" not in run.text, run.text[-3000:]  # an outage's silence is no habit
     rule = run.unit_rules()["EXEC-START-003"]
     assert rule["verdict"] == "could-not-test", run.text[-3000:]
     assert "broker connection was lost while the task ran" in rule["reason"]
@@ -192,6 +193,9 @@ def test_commands_wait_for_a_unit_back_later_than_the_suite_in_virtual_time(
         assert "the unit was not heard again" in run.text, run.text[-3000:]
         reasons = [r["reason"] for r in run.unit_rules().values()]
         assert any("not heard again after the broker's outage" in r for r in reasons), reasons
+    # Whatever went unanswered in the outage, or before the unit was back, is no habit of the
+    # unit the suite adapts to (later waits shortened).
+    assert "adapted to" not in run.text, run.text[-3000:]
 
 
 @pytest.mark.parametrize("drain", [0.0, 0.02])
