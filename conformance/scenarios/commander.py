@@ -335,6 +335,7 @@ class Commander(Sender):
         clock = self.traffic.clock
         end = clock.monotonic() + timeout
         answered = False
+        lost = False  # a probe lived through an outage, or the unit was not back: no verdict
         for sent in probes:
             answer = self.response(sent, max(0.0, end - clock.monotonic()))
             command = str(sent.body.get("command"))
@@ -346,11 +347,15 @@ class Commander(Sender):
                 answered = True
                 with self._lock:
                     self._answered_kinds.add(command)
+            elif self._gaps() != sent.gaps_before or self._away() is not None:
+                lost = True
             else:
                 self.deviations.note(
                     UNANSWERED[command], f"the unit answered no {command} within "
                     f"{timeout:.1f} s", f"later ones get {SHORT * 100:.0f} % of the response "
                     "deadline")
+        if lost and not answered:
+            return ""  # asked again later, once the broker delivers
         self._none_answered = "" if answered else (
             f"the unit answers no command: ping, start-task, signal-task and query-status got "
             f"no response within {timeout:.1f} s (EXEC-PING-001)")

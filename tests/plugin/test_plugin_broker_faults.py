@@ -230,3 +230,5 @@ def test_a_fault_judged_before_an_outage_stays_failed_in_virtual_time(
     assert run.outcomes["EXEC-PING-001"] == "failed", run.text[-3000:]
     assert run.unit_rules()["EXEC-PING-001"]["verdict"] == "fail", run.unit_rules()[
         "EXEC-PING-001"]
+    # The other commands probed after the unanswered ping went into the outage: no habit.
+    assert "adapted to" not in run.text, run.text[-3000:]
