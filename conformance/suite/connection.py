@@ -32,13 +32,13 @@ from conformance.topics import UnitAddress
 from conformance.violation import Violation
 
 MAX_INTERVALS = 20
+"""Heartbeats whose intervals say how long a unit takes to be heard again (the latest)."""
 HEARD_AGAIN = 5.0
 """Seconds a command waits for the unit to be heard again after a reconnect or a stall (and
 two of its longest heartbeat intervals): paho's backoff after a 5 s outage brings a unit back
 within about 2 s of the broker."""
 MAX_HEARTBEAT_BYTES = 64 * 1024
 """A heartbeat larger than this is not read for its stamp (``_fresh``; the Monitor judges it)."""
-"""Heartbeats whose intervals say how long a unit takes to be heard again (the latest)."""
 
 if TYPE_CHECKING:
     from conformance.sim.reference import Reference
@@ -76,9 +76,10 @@ class Connection:
     (a stall: issue 25 §3)."""
     _echoed: threading.Event = field(default_factory=threading.Event, init=False)
     _heard_again: threading.Event = field(default_factory=threading.Event, init=False)
-    """Clear from a reconnect until the unit's second heartbeat after it: it reconnects on its
-    own time, and a command sent before it has (or subscribed again: its first heartbeat may
-    be one it held, sent before its subscription) is lost."""
+    """Clear from a reconnect (or a stall) until the unit's second fresh heartbeat after it
+    (``_fresh``): it reconnects on its own time, and a command sent before it has (or
+    subscribed again: its first heartbeat may be one it held, sent before its subscription;
+    or before a stalled broker has worked off what it held) is lost."""
     _signal: threading.Condition = field(default_factory=threading.Condition, init=False)
     """Notified when ``_echoed`` or ``_heard_again`` is set: waited on the run's clock."""
     _beats_back: int = field(default=0, init=False)
@@ -348,9 +349,9 @@ class Connection:
     def wait_connected(self, timeout: float) -> bool:
         """Wait up to ``timeout`` seconds for the link (a command sent into a gap is lost),
         and after a reconnect (or a stall) up to ``HEARD_AGAIN`` seconds (times the timing
-        scale) and two of its longest heartbeat intervals more for the unit to be heard again (it reconnects on its own time, by its own
-        backoff; a command sent before it has is lost as well, and its silence is not judged:
-        the gap stays open until then)."""
+        scale) and two of its longest heartbeat intervals more for the unit to be heard again
+        (it reconnects on its own time, by its own backoff; a command sent before it has is
+        lost as well, and its silence is not judged: the gap stays open until then)."""
         if not (self.client and self.client.wait_connected(timeout)):
             return False
         if not self._heard_again.is_set() and not self._gave_up:
