@@ -16,7 +16,7 @@ pytestmark = pytest.mark.slow
 
 def test_reference_unit_passes_on_the_embedded_broker(pytester: pytest.Pytester) -> None:
     junit = pytester.path / "junit.xml"
-    run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "3",
+    run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "2",
                   "--sim-tst", f"--profile={FAST}", "--seed", "7", f"--junitxml={junit}")
     assert run.result.ret == 0, run.text
     assert not run.failed

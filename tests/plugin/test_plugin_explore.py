@@ -13,7 +13,7 @@ from certify_helpers import FAST, UNIT, certify
 
 pytestmark = pytest.mark.slow
 
-EMBEDDED = ("--unit", UNIT, "--broker", "embedded", "--sim-rate", "3", f"--profile={FAST}")
+EMBEDDED = ("--unit", UNIT, "--broker", "embedded", "--sim-rate", "2", f"--profile={FAST}")
 FAULT, RULE = "pause-pauses-all", "EXEC-SEQ-002"
 """A sequence fault (two tasks, $pause to one) and the rule it breaks."""
 
@@ -176,7 +176,7 @@ def test_replay_never_moves_a_real_unit_without_allow_motion(pytester: pytest.Py
         {"action": {"do": "start", "task": "move-to", "task_uuid": True, "slot": 0}},
         {"action": {"do": "query", "slot": 0}}]}))
     run = certify(pytester, "--unit", "waraps/unit/air/real/dji0", "--broker", "embedded",
-                  "--sim-rate", "3", f"--profile={FAST}", f"--explore-replay={story}",
+                  "--sim-rate", "2", f"--profile={FAST}", f"--explore-replay={story}",
                   "-k", "test_explore", "-v")
     assert run.result.ret == 0, run.text
     assert "sent start-task move-to" not in run.text

@@ -80,7 +80,7 @@ def test_ini_twins_and_the_header(pytester: pytest.Pytester) -> None:
         waraps_timing_scale = 2
         waraps_reports_dir = elsewhere
     """)
-    run = certify(pytester, "--unit", UNIT, "--sim-rate", "3", "--seed", "42", "-k",
+    run = certify(pytester, "--unit", UNIT, "--sim-rate", "2", "--seed", "42", "-k",
                   "EXEC-PING-001")
     assert run.result.ret == 0, run.text
     text = run.text
@@ -118,7 +118,7 @@ def test_password_from_the_environment_never_shows(pytester: pytest.Pytester,
 
 
 def test_dry_run_publishes_nothing_and_prints_what_it_would(pytester: pytest.Pytester) -> None:
-    run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "3",
+    run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "2",
                   f"--profile={FAST}", "--dry-run", "-k", "test_ping or test_start_task")
     assert run.result.ret == 0, run.text
     assert "DRY RUN: nothing is published" in run.text

@@ -116,7 +116,7 @@ def test_tst_commands_go_to_the_chosen_topic_only_and_the_unit_passes(
 
 
 def test_dry_run_prints_the_trees_and_publishes_nothing(pytester: pytest.Pytester) -> None:
-    run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "3",
+    run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "2",
                   "--sim-tst", f"--profile={FAST}", "--dry-run", "-k", "test_tst")
     assert run.result.ret == 0, run.text
     assert f"dry run: would publish to {UNIT}/tst/command: " in run.text

@@ -155,7 +155,7 @@ def test_variants_are_certified_and_lint_clean(pytester: pytest.Pytester,
 
 def test_the_embedded_reference_unit_takes_variants_and_the_rerun_line_keeps_them(
         pytester: pytest.Pytester) -> None:
-    run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "3",
+    run = certify(pytester, "--unit", UNIT, "--broker", "embedded", "--sim-rate", "2",
                   "--sim-variant=key-order", "--sim-variant=pretty-json", "-k", "MSG-002")
     assert run.result.ret == 0, run.text
     assert run.outcomes == {"MSG-002": "passed"}
