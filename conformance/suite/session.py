@@ -137,7 +137,8 @@ class Certification:
         self.tst = TstCommander(
             self.unit, settings.tst_topic, self.traffic, self.connection.publish,
             dry_run=settings.dry_run, say=self._say,
-            wait_connected=self.connection.wait_connected, deviations=self.deviations)
+            wait_connected=self.connection.wait_connected, deviations=self.deviations,
+            gaps=self.connection.gaps, away=self.connection.away_since)
         self.commander.refuse = self.tst.refuse = self.connection.refuse_payload
         self.safety = Safety(self.unit, self.profile, allow_motion=settings.allow_motion,
                              task_moves=task_moves)

@@ -146,7 +146,7 @@ class VirtualOutage:
             virtual.TAPS.remove(self._tap)
 
     def _tap(self, message) -> None:  # type: ignore[no-untyped-def]
-        if (not self.stopped and message.topic.endswith("/exec/command")
+        if (not self.stopped and message.topic.endswith(("/exec/command", "/tst/command"))
                 and f'"{self.when}"'.encode() in message.payload):
             self.stopped += 1
             if self.freeze:
@@ -231,4 +231,17 @@ def test_a_fault_judged_before_an_outage_stays_failed_in_virtual_time(
     assert run.unit_rules()["EXEC-PING-001"]["verdict"] == "fail", run.unit_rules()[
         "EXEC-PING-001"]
     # The other commands probed after the unanswered ping went into the outage: no habit.
+    assert "adapted to" not in run.text, run.text[-3000:]
+
+
+@pytest.mark.parametrize("when", ["signal-tst-node", "signal-tst-tree", "signal-unit"])
+def test_a_broker_outage_at_a_tst_signal_fails_nothing_in_virtual_time(
+        pytester: pytest.Pytester, when: str) -> None:
+    """The broker stops as the first TST signal of each kind arrives (14.3): the tree's
+    conversation over the outage is the broker's, and no habit of the unit is adapted to."""
+    outage = VirtualOutage(when)
+    run = certify_virtual(pytester, "waraps/unit/air/simulation/dji0", f"--profile={FAST}",
+                          "--sim-tst", "--seed", "2", rate=1.0, plugins=(outage,))
+    assert outage.stopped == 1, run.text[-3000:]
+    assert_never_failed(run)
     assert "adapted to" not in run.text, run.text[-3000:]
