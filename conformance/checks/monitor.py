@@ -519,7 +519,9 @@ class Monitor:
             broker=str(meta.pop("broker", "")), profile=self.profile.name,
             suite_version=str(meta.pop("suite_version", "") or suite_version()),
             schemas_hash=str(meta.pop("schemas_hash", "") or schemas_hash()),
-            units=units, gaps=[(a, min(b, max(a, now))) for a, b in self.ctx.gaps], unexamined=self._unexamined,
+            # (a gap still open, the unit not heard again, ends with the report)
+            units=units, gaps=[(a, min(b, max(a, now))) for a, b in self.ctx.gaps],
+            unexamined=self._unexamined,
             meta={k: str(v) for k, v in meta.items()},
         )
 

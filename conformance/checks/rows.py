@@ -138,7 +138,7 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
             evidence, count, excused = _excuse(evidence, count, excused, died,
                                                "the unit died (HB-012) before it could answer")
             # What a scenario found missing while the broker lost or held the traffic, or
-            # in the longest wait before (issue 25 §3): the broker's fault, not the unit's.
+            # was due within a response timeout before (issue 25 §3): the broker's fault.
             evidence, count, excused = _excuse(evidence, count, excused, held, OVER_A_GAP)
             if not count and before:
                 # The examinations that found what was excused are no passes: a rule judged

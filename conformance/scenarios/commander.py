@@ -80,11 +80,8 @@ class Commander(Sender):
                  task_state: Callable[[str], State | None] | None = None,
                  away: Callable[[], object] = lambda: None) -> None:
         super().__init__(unit, unit.topic("exec/command"), traffic, publish, dry_run=dry_run,
-                         say=say, wait_connected=wait_connected, gaps=gaps)
+                         say=say, wait_connected=wait_connected, gaps=gaps, away=away)
         self._step = step
-        self._away = away
-        """Since when the unit is not heard again after a reconnect or stall (None: it is):
-        ``Connection.away_since``."""
         self.task_state = task_state
         """The state the Monitor's model holds of a task-uuid (``protocol.Model``), None where
         it holds nothing; without it (no Monitor) a task's end is read from its feedback."""
@@ -175,8 +172,7 @@ class Commander(Sender):
                 with self._lock:
                     self._answered_kinds.add(str(body.get("command")))
             elif not self._answered(str(body.get("command"))) and \
-                    self._gaps() == sent.gaps_before and self._away() is None:
-                # (the silence of an outage, or of a unit not back yet, is no habit of it)
+                    not self.broken_since(sent.gaps_before):
                 self.deviations.note(
                     kind, f"the unit answered no {body.get('command')} within "
                     f"{timeout:.1f} s", f"later ones get {SHORT * 100:.0f} % of the response "
@@ -347,7 +343,7 @@ class Commander(Sender):
                 answered = True
                 with self._lock:
                     self._answered_kinds.add(command)
-            elif self._gaps() != sent.gaps_before or self._away() is not None:
+            elif self.broken_since(sent.gaps_before):
                 lost = True
             else:
                 self.deviations.note(

@@ -51,7 +51,8 @@ def new_uuid() -> str:
 class Sender:
     """Publishes commands for ``unit`` to ``topic`` and waits for their responses on the
     ``responses`` subtopic. ``publish(topic, payload)`` does the MQTT publish; ``gaps()``
-    counts the connection gaps lived through; ``wait_connected(seconds)`` waits for the link.
+    counts the connection gaps lived through; ``away()`` says since when the unit is not heard
+    again after one (None: it is); ``wait_connected(seconds)`` waits for the link.
     A subclass remembers what it must abort later in ``_remember``, before the publish."""
 
     responses = ""
@@ -63,7 +64,8 @@ class Sender:
     def __init__(self, unit: UnitAddress, topic: str, traffic: Traffic,
                  publish: Callable[[str, bytes], None], *, dry_run: bool,
                  say: Callable[[str], None], wait_connected: Callable[[float], bool],
-                 gaps: Callable[[], int] = lambda: 0) -> None:
+                 gaps: Callable[[], int] = lambda: 0,
+                 away: Callable[[], object] = lambda: None) -> None:
         self.unit = unit
         self.topic = topic
         self.traffic = traffic
@@ -72,6 +74,7 @@ class Sender:
         self._say = say
         self._wait_connected = wait_connected
         self._gaps = gaps
+        self._away = away
         self._lock = threading.Lock()
         self.sent_count = 0
         self.would_publish: list[tuple[str, bytes]] = []
@@ -81,6 +84,12 @@ class Sender:
         """How many connection gaps the client has lived through: a wait across one saw
         nothing of what the unit sent meanwhile (an outage of the observer, not the unit's)."""
         return self._gaps()
+
+    def broken_since(self, gaps_before: int) -> bool:
+        """Whether the path to the unit broke since ``gaps()`` read ``gaps_before`` (a link
+        lost, or mended), or the unit is not back on the broker yet: a silence meanwhile is
+        the broker's, no habit of the unit."""
+        return self._gaps() != gaps_before or self._away() is not None
 
     @staticmethod
     def compose(body: dict[str, Any], com_uuid: str | None = None

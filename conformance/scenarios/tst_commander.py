@@ -63,9 +63,7 @@ class TstCommander(Sender):
                  deviations: Deviations | None = None, gaps: Callable[[], int] = lambda: 0,
                  away: Callable[[], object] = lambda: None) -> None:
         super().__init__(unit, topic, traffic, publish, dry_run=dry_run, say=say,
-                         wait_connected=wait_connected, gaps=gaps)
-        self._away = away
-        """Since when the unit is not heard again after a reconnect or stall (None: it is)."""
+                         wait_connected=wait_connected, gaps=gaps, away=away)
         self.open_trees: dict[str, OpenTree] = {}
         """com-uuid of the start-tst -> the tree, until it ended or its $abort was answered."""
         self.deviations = deviations if deviations is not None else Deviations()
@@ -241,7 +239,7 @@ class TstCommander(Sender):
         whether that status comes is the Monitor's to judge (TST-009), by its own deadline,
         which then runs out while the scenario goes on."""
         known = signal in self._ignored
-        gaps = self._gaps()
+        gaps = self.gaps()
         if self.is_composite(watch) and set(wanted) <= set(FINAL):
             found = self._composite_end(watch, wanted, short if known else timeout,
                                         after=after, short=short)
@@ -254,7 +252,7 @@ class TstCommander(Sender):
         node = target if target is not None and not target.startswith("/") else watch
         if node != watch and any(s in wanted for s in self.statuses(node, after)):
             return None
-        if self._gaps() != gaps or self._away() is not None:
+        if self.broken_since(gaps):
             return None  # the broker lost or held it meanwhile: no habit of the unit
         with self._lock:
             self._ignored.add(signal)

@@ -62,6 +62,7 @@ class VirtualBroker:
     held_until: float = 0.0
     """Frozen (``freeze``) until then: deliveries due meanwhile wait for it."""
     drain: float = 0.0
+    """Seconds per held message as a freeze's backlog is worked off (``freeze``)."""
     _backlog: deque[Callable[[], None]] = field(default_factory=deque)
     _releasing: bool = False
 

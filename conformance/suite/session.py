@@ -212,8 +212,12 @@ class Certification:
         excused = ""
         if violation is not None and CATALOGUE[rule].mode is not Mode.PASSIVE:
             lost, back = self.connection.lost_since(), self.connection.away_since()
-            excused = self.outage(lost) if lost is not None else self.not_back(back) \
-                if back is not None else self.unit_died(settle=True)
+            if lost is not None:
+                excused = self.outage(lost)
+            elif back is not None:
+                excused = self.not_back(back)
+            else:
+                excused = self.unit_died(settle=True)
         with self._lock:
             self.monitor.record(self.unit, rule, violation=violation, verdict=verdict,
                                 reason=reason, excused=excused)
