@@ -31,8 +31,11 @@ def explain(certification: Certification, result: RuleResult) -> str:
     texts = [render_violation(rule, v, str(certification.unit), rerun_hint=rerun,
                               verdict=result.verdict) for v in result.violations[:SHOWN]]
     if not texts:
+        # A verdict a scenario recorded without a violation (REBOOT-001's new name) quotes
+        # the spec's words as every violation does.
         texts = [f"{rule.id} {rule.title}  [{result.verdict.value}]\n  {printable(result.reason)}\n"
-                 f"  spec      {rule.section}\n  rerun     {printable(rerun)}"]
+                 f"  spec      {rule.section}\n  basis     {printable(rule.basis_text())}\n"
+                 f"  rerun     {printable(rerun)}"]
     total = certification.violation_total(result.rule) or len(result.violations)
     shown = min(SHOWN, len(result.violations))
     if total > shown:
