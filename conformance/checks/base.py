@@ -465,6 +465,11 @@ class CheckContext:
             start = self.gaps[-1][0]
             self.gaps[-1] = (start, max(start, float(end)))
 
+    def gaps_until(self, now: float) -> list[tuple[float, float]]:
+        """The gaps as a report shows them: one still open (the unit not heard again) ends
+        at ``now``."""
+        return [(start, min(end, max(start, now))) for start, end in self.gaps]
+
     def in_gap(self, t0: float, t1: float) -> bool:
         """Whether [t0, t1] overlaps a time the observer was disconnected."""
         for start, end in reversed(self.gaps):

@@ -519,9 +519,7 @@ class Monitor:
             broker=str(meta.pop("broker", "")), profile=self.profile.name,
             suite_version=str(meta.pop("suite_version", "") or suite_version()),
             schemas_hash=str(meta.pop("schemas_hash", "") or schemas_hash()),
-            # (a gap still open, the unit not heard again, ends with the report)
-            units=units, gaps=[(a, min(b, max(a, now))) for a, b in self.ctx.gaps],
-            unexamined=self._unexamined,
+            units=units, gaps=self.ctx.gaps_until(now), unexamined=self._unexamined,
             meta={k: str(v) for k, v in meta.items()},
         )
 
