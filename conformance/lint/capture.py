@@ -13,7 +13,6 @@ Shared by ``waraps-conformance lint`` and ``waraps-conformance record``.
 
 from __future__ import annotations
 
-import logging
 import threading
 import time
 from collections import deque
@@ -213,12 +212,4 @@ class LiveCapture:
 
     def stop(self) -> None:
         """Disconnect; what is still queued can be taken afterwards."""
-        # paho logs "Client is not connected" when its loop races the disconnect: harmless
-        # at the end of a run, and alarming on a user's terminal.
-        paho_log = logging.getLogger("paho.mqtt.client")
-        level = paho_log.level
-        paho_log.setLevel(logging.CRITICAL)
-        try:
-            self.client.close()
-        finally:
-            paho_log.setLevel(level)
+        self.client.close()

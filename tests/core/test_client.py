@@ -126,3 +126,26 @@ def test_a_refused_connection_is_reported_at_once_with_the_fix(password_broker: 
     assert time.monotonic() - started < timeout
     ok = BrokerURL.parse(password_broker, {"WARAPS_USERNAME": "alice", "WARAPS_PASSWORD": "right"})
     MqttClient(ok).connect(timeout=timeout).close()
+
+
+def test_a_lost_broker_is_one_gap_not_paho_log_lines(tmp_path, caplog) -> None:
+    """While the broker is gone, paho's loop logs "Client is not connected" at ERROR between
+    reconnect attempts; the gap is the client's to report, and the terminal stays quiet."""
+    import time
+
+    from private_mosquitto import PrivateMosquitto
+
+    broker = PrivateMosquitto(tmp_path).start()
+    client = broker.client()
+    try:
+        broker.stop()
+        deadline = time.monotonic() + 10.0
+        while client.is_connected and time.monotonic() < deadline:
+            time.sleep(0.05)  # the loop sees the socket close: bounded by the deadline
+        assert not client.is_connected
+        time.sleep(2.5)  # paho's backoff (1 s, then 2 s): its loop runs without a socket
+        assert client.gaps and client.gaps[-1].end is None
+    finally:
+        client.close()
+    # Under pytest the records reach caplog; on a user's terminal, logging's last resort.
+    assert not [r for r in caplog.records if "not connected" in r.getMessage()]
