@@ -145,21 +145,9 @@ def _silence(ctx: CheckContext, unit: UnitState, msg: Message,
         return None
     if ctx.in_gap(last, msg.time):
         return None
-    uuid = _uuid(v)
-    if uuid is None:
-        came_back = "came back (its agent-uuid unreadable)"
-    elif uuid == unit.agent_uuid:
-        came_back = "came back with the same agent-uuid (resumed)"
-    else:
-        # A reboot (5.1: a new agent-uuid) is unavailable while it restarts: no silence to
-        # warn of; one that never ends is HB-012's.
+    found = _silent_since(unit, msg, v, last, period)
+    if found is None:
         return None
-    found = [Violation.of(
-        "HB-010", expected=f"a heartbeat at least every {SILENCE_PERIODS * period:.2f} s "
-                           f"({SILENCE_PERIODS:g} declared periods)",
-        observed=f"silent for {silence:.2f} s ({silence / period:.1f} periods), then {came_back}",
-        topic=msg.topic, time=last, payload=msg.payload,
-        detail="a silence makes the unit look gone to every commander")]
     if tracker is None or not tracker.n:
         # No interval yet within 3 periods: a unit that sends far slower than it declares is
         # HB-003's (its rate), not a string of silences. Held until it keeps its period once.
@@ -173,6 +161,27 @@ def _silence(ctx: CheckContext, unit: UnitState, msg: Message,
         identity.silences_held = []
         return [*held, *found]
     return found
+
+
+def _silent_since(unit: UnitState, msg: Message, v: Validation, last: float,
+                  period: float) -> list[Violation] | None:
+    """HB-010's finding for a silence from ``last`` that ``msg`` ended; None when the unit
+    came back with a new agent-uuid (a reboot: 5.1, unavailable while it restarts; one that
+    never ends is HB-012's)."""
+    uuid = _uuid(v)
+    if uuid is None:
+        came_back = "came back (its agent-uuid unreadable)"
+    elif uuid == unit.agent_uuid:
+        came_back = "came back with the same agent-uuid (resumed)"
+    else:
+        return None
+    silence = msg.time - last
+    return [Violation.of(
+        "HB-010", expected=f"a heartbeat at least every {SILENCE_PERIODS * period:.2f} s "
+                           f"({SILENCE_PERIODS:g} declared periods)",
+        observed=f"silent for {silence:.2f} s ({silence / period:.1f} periods), then {came_back}",
+        topic=msg.topic, time=last, payload=msg.payload,
+        detail="a silence makes the unit look gone to every commander")]
 
 
 def _died_until_reboot(ctx: CheckContext, unit: UnitState, identity: Identity, last: float,

@@ -132,18 +132,8 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
         excused = rec.excused if rec else ""
         seen = examined.get(rid, 0)
         if rule.mode is not Mode.PASSIVE:
-            before = count
-            # A dead unit answers nothing: what a scenario found missing while it was
-            # dead is its death's evidence (HB-012), not a fault of its own.
-            evidence, count, excused = _excuse(evidence, count, excused, died,
-                                               "the unit died (HB-012) before it could answer")
-            # What a scenario found missing while the broker lost or held the traffic, or
-            # was due within a response timeout before (issue 25 §3): the broker's fault.
-            evidence, count, excused = _excuse(evidence, count, excused, held, OVER_A_GAP)
-            if not count and before:
-                # The examinations that found what was excused are no passes: a rule judged
-                # only then could not be tested (never a pass the broker's outage made).
-                seen = max(0, seen - before)
+            evidence, count, excused, seen = _excuse_scenario(evidence, count, excused, seen,
+                                                              died, held)
         if count:
             counts[rid] = count
             when = [t for t in (rec.first if rec else None, rec.last if rec else None,
@@ -191,6 +181,26 @@ def _rule_ids(entry: Row, address: UnitAddress | None, examined: dict[str, int])
     if address is None:
         return sorted(set(examined) | set(entry.records))
     return list(CATALOGUE)
+
+
+def _excuse_scenario(evidence: list[Violation], count: int, excused: str, seen: int,
+                     died: list[tuple[float, float]], held: list[tuple[float, float]]
+                     ) -> tuple[list[Violation], int, str, int]:
+    """A scenario rule's evidence, count, excuse and examinations, without what a death or a
+    broker's gap explains."""
+    before = count
+    # A dead unit answers nothing: what a scenario found missing while it was dead is its
+    # death's evidence (HB-012), not a fault of its own.
+    evidence, count, excused = _excuse(evidence, count, excused, died,
+                                       "the unit died (HB-012) before it could answer")
+    # What a scenario found missing while the broker lost or held the traffic, or was due
+    # within a response timeout before (issue 25 §3): the broker's fault.
+    evidence, count, excused = _excuse(evidence, count, excused, held, OVER_A_GAP)
+    if not count and before:
+        # The examinations that found what was excused are no passes: a rule judged only
+        # then could not be tested (never a pass the broker's outage made).
+        seen = max(0, seen - before)
+    return evidence, count, excused, seen
 
 
 def _excuse(evidence: list[Violation], count: int, excused: str,

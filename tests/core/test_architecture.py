@@ -118,3 +118,20 @@ def test_no_module_is_too_long_to_read() -> None:
     long = {str(p.relative_to(PACKAGE.parent)): n for p in PACKAGE.rglob("*.py")
             if (n := len(p.read_text().splitlines())) > MAX_LINES}
     assert long == {}
+
+
+MAX_FUNCTION_LINES = 60
+"""A function longer than this says why in its docstring ("long because ..."; issue 28)."""
+
+
+def test_no_function_is_too_long_without_saying_why() -> None:
+    long = []
+    for p in sorted(PACKAGE.rglob("*.py")):
+        for node in ast.walk(ast.parse(p.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                lines = (node.end_lineno or node.lineno) - node.lineno + 1
+                if lines > MAX_FUNCTION_LINES and \
+                        "long because" not in (ast.get_docstring(node) or ""):
+                    long.append(f"{p.relative_to(PACKAGE.parent)}:{node.lineno} "
+                                f"{node.name} ({lines} lines)")
+    assert long == []
