@@ -84,6 +84,9 @@ TICK = 1.0
 STREAK_GAP = 0.5
 """Seconds between two waits that still belong to one busy stretch: a scenario that waits a
 second in short waits shows them too (issue 27 §3: every second says what it waits for)."""
+LAG_SLACK = 0.1
+"""Seconds the broker may take to deliver the suite's command back before a wait on the unit
+is lengthened by as much (``Traffic.command_lag``)."""
 
 
 class OutOfTime(Exception):
@@ -159,6 +162,9 @@ class Traffic:
         self._seq = 0
         self._cond = threading.Condition()
         self.waits = Waits(clock)
+        self.command_lag = 0.0
+        """How late the broker delivered the suite's latest command back to it (its echo),
+        in seconds: the unit took it as late (``wait_for``)."""
 
     def add(self, message: Message) -> Entry | None:
         """Keep a message if it is the unit's; return its entry."""
@@ -238,6 +244,7 @@ class Traffic:
         wait = Wait(what, clock.monotonic(), max(0.0, timeout), clock)
         deadline = wait.started + wait.timeout
         checked = after
+        lagged = False
         waits.began(wait)
         try:
             with self._cond:
@@ -252,7 +259,17 @@ class Traffic:
                     now = clock.monotonic()
                     left = deadline - now
                     if left <= 0:
-                        return None
+                        late = 0.0 if lagged else min(self.command_lag, wait.timeout)
+                        lagged = True
+                        if late < LAG_SLACK:
+                            return None
+                        # The broker delivered the suite's command late, so the unit took it
+                        # late: what it sends in answer is due as much later (lint measures
+                        # from the command's arrival too). Once, at most the wait's budget.
+                        deadline += late
+                        wait = waits.current = dataclasses.replace(
+                            wait, timeout=wait.timeout + late)
+                        continue
                     if waits.due(wait, now):
                         waits.ticked_at = now
                         if waits.on_tick is not None:

@@ -63,6 +63,8 @@ class VirtualBroker:
     """Frozen (``freeze``) until then: deliveries due meanwhile wait for it."""
     drain: float = 0.0
     """Seconds per held message as a freeze's backlog is worked off (``freeze``)."""
+    delay: float = 0.0
+    """Seconds every delivery takes beyond ``LATENCY``: a loaded broker, late but in order."""
     _backlog: deque[Callable[[], None]] = field(default_factory=deque)
     _releasing: bool = False
 
@@ -110,7 +112,7 @@ class VirtualBroker:
 
     def _later(self, deliver: Callable[[Message], None], topic: str, payload: bytes, *,
                retain: bool, qos: int = 0) -> None:
-        when = self.clock.now() + LATENCY
+        when = self.clock.now() + LATENCY + self.delay
 
         def now() -> None:
             if not self.down:  # in flight when it stopped: lost

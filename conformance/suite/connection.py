@@ -25,6 +25,7 @@ from conformance.scenarios import Traffic
 from conformance.scenarios.params import task_moves
 from conformance.scenarios.reboot import intervals
 from conformance.scenarios.safety import MotionGate
+from conformance.scenarios.traffic import LAG_SLACK
 from conformance.suite.events import Events, clock
 from conformance.suite.probe import NotAlive, Probe, not_alive
 from conformance.suite.settings import Settings
@@ -209,6 +210,8 @@ class Connection:
         """Every message of ``<unit>/#``, on the MQTT network thread: keep it quick."""
         heartbeat = not message.retain and message.topic == self.unit.topic("heartbeat")
         if message.topic == self.unit.topic("exec/command"):
+            if self._unechoed is not None:
+                self._command_lag(max(0.0, message.time - self._unechoed), message.time)
             self._unechoed = None
             self._set(self._echoed)
         with self.monitor_lock:
@@ -317,6 +320,16 @@ class Connection:
         tasks = info.get("tasks-available") if info is not None else None
         return [t.get("name") for t in tasks if isinstance(t, dict)] \
             if isinstance(tasks, list) else []
+
+    def _command_lag(self, lag: float, now: float) -> None:
+        """The broker delivered the suite's command back ``lag`` seconds after it was sent;
+        the terminal hears when it starts and stops being late (``Traffic.wait_for``)."""
+        was, self.traffic.command_lag = self.traffic.command_lag, lag
+        if (lag >= LAG_SLACK) != (was >= LAG_SLACK):
+            self.events.at(now, f"the broker delivered the suite's command {lag:.1f} s after "
+                                f"it was sent: waits for the unit's answers are lengthened as "
+                                f"much" if lag >= LAG_SLACK else
+                                "the broker delivers the suite's commands in time again")
 
     def publish(self, topic: str, payload: bytes) -> None:
         assert self.client is not None

@@ -245,3 +245,34 @@ def test_a_broker_outage_at_a_tst_signal_fails_nothing_in_virtual_time(
     assert outage.stopped == 1, run.text[-3000:]
     assert_never_failed(run)
     assert "adapted to" not in run.text, run.text[-3000:]
+
+
+class VirtualLag:
+    """In virtual time: from the first test on, the broker double delivers everything
+    ``delay`` seconds late (``VirtualBroker.delay``: a loaded broker, in order, nothing lost)."""
+
+    def __init__(self, delay: float) -> None:
+        self.delay = delay
+
+    def pytest_runtest_setup(self, item: pytest.Item) -> None:
+        from conformance.suite.session import CERTIFICATION
+
+        item.config.stash[CERTIFICATION].connection.reference.broker.delay = self.delay
+
+
+def test_a_lagging_broker_delays_the_deadline_as_it_delays_the_command_in_virtual_time(
+        pytester: pytest.Pytester) -> None:
+    """Every delivery 1 s late, under the 1.5 s response timeout: the unit takes each command
+    1 s after the suite sent it and its answer comes back 2 s after. Lint measures the answer
+    from the command as the broker delivered it (its echo); so does the suite: the commands
+    are answered in time, nothing fails, and no later wait is shortened."""
+    run = certify_virtual(pytester, "waraps/unit/air/simulation/dji0", f"--profile={FAST}",
+                          "--seed", "2", "-k", "test_ping or test_start_task or test_query",
+                          rate=1.0, plugins=(VirtualLag(1.0),))
+    assert_never_failed(run)
+    rules = run.unit_rules()
+    for rid in ("EXEC-PING-001", "EXEC-START-001", "EXEC-QUERY-001"):
+        assert rules[rid]["verdict"] == "pass", (rid, rules[rid], run.text[-3000:])
+    assert "adapted to" not in run.text, run.text[-3000:]
+    assert "the broker delivered the suite's command 1.0 s after it was sent" in run.text, \
+        run.text[-3000:]
