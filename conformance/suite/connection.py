@@ -211,7 +211,8 @@ class Connection:
         heartbeat = not message.retain and message.topic == self.unit.topic("heartbeat")
         if message.topic == self.unit.topic("exec/command"):
             if self._unechoed is not None:
-                self._command_lag(max(0.0, message.time - self._unechoed), message.time)
+                now = self.traffic.clock.now()  # the clock _unechoed was read on
+                self._command_lag(max(0.0, now - self._unechoed), now)
             self._unechoed = None
             self._set(self._echoed)
         with self.monitor_lock:

@@ -41,3 +41,24 @@ def test_a_unit_far_slower_than_it_declares_is_not_dead_before_its_next_heartbea
     assert clock.now() < 1010.1  # it returned as the heartbeat came, not at its deadline
     clock.sleep(30.0)  # then silent for good: dead, within twice its longest interval
     assert "fell silent at" in watch.unit_died()
+
+
+def test_a_wait_is_lengthened_once_by_as_much_as_the_broker_delivered_the_command_late() -> None:
+    """``Traffic.command_lag`` (the echo of the suite's last command, ``Connection``): an
+    answer 1.8 s after the wait began, the command 1.0 s late, a 1.5 s wait: found; the same
+    answer with the command in time, or 3 s later with the lag, is not (once, at most the
+    wait's own budget)."""
+    def answer_after(seconds: float, lag: float) -> bool:
+        clock = VirtualClock(start=1000.0)
+        traffic = Traffic(UNIT, clock=clock)
+        traffic.command_lag = lag
+        clock.at(1000.0 + seconds, lambda: traffic.add(Message(
+            clock.now(), UNIT.topic("exec/response"), b'{"response-to": "c1"}', 0, False)))
+        found = traffic.wait_for(lambda e: e.get("response-to") == "c1", 1.5,
+                                 subtopic="exec/response")
+        return found is not None
+
+    assert answer_after(1.8, lag=1.0)
+    assert not answer_after(1.8, lag=0.05)  # under LAG_SLACK: the deadline is the wait's own
+    assert not answer_after(3.1, lag=1.0)
+    assert not answer_after(3.1, lag=5.0)  # lengthened by the wait's budget at most
