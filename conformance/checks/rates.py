@@ -223,7 +223,10 @@ class RateTracker:
             stat.reason = f"only {n} intervals observed; need {need}{how}"
             return stat, []
         found: list[Violation] = []
-        silences = f", {silences_in} silences counted in" if silences_in else ""
+        # Intervals over 3 declared periods, judged because no others were (a unit far slower
+        # than it declares: the drone operator's regular 5 s at 5 Hz are no 'silences').
+        silences = ("" if not silences_in else ", every one over 3 declared periods"
+                    if silences_in == n else f", {silences_in} of them over 3 declared periods")
         window = (f"over {n} intervals (min {lo:.3f} s, max {hi:.3f} s{silences})")
         assert mean is not None
         if gross and n < need:

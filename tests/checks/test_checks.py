@@ -104,7 +104,11 @@ def test_a_gross_rate_mismatch_shows_live_after_two_intervals(stream):
     stream.feed(m, [stream.heartbeat(10.0)])
     (live,) = m.live_findings(stream.address)
     assert "0.20 Hz over the latest 2 intervals" in live.observed and "gross" in live.observed
-    assert verdict(m, stream, "HB-003").verdict is Verdict.FAIL
+    r = verdict(m, stream, "HB-003")
+    assert r.verdict is Verdict.FAIL
+    # Regular, only far slower than declared: said so, not called silences.
+    assert "(min 5.000 s, max 5.000 s, every one over 3 declared periods)" in \
+        r.violations[0].observed, r.violations[0].observed
 
 
 def test_rate_skips_with_too_few_intervals(stream):

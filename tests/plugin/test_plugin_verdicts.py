@@ -62,6 +62,11 @@ def test_a_unit_that_dies_on_a_command_is_not_certified(pytester: pytest.Pyteste
     (unit,) = run.report["conclusion"]["units"].values()
     assert unit["died_at"] is not None
     assert all("the unit died at" in level["why"] for level in unit["levels"])
+    # A level it never claimed stays not claimed when it dies (the public agents' TST rules
+    # read 'fell silent ... no answer could come'): skipped, not could-not-test.
+    tst = {r: v for r, v in run.unit_rules().items() if r.startswith("TST-")}
+    assert tst and all(v["verdict"] == "skip" and v["reason"].startswith(
+        ("not claimed", "commander-side")) for v in tst.values()), tst
 
 
 def test_a_run_of_selected_rules_is_partial(pytester: pytest.Pytester) -> None:
