@@ -7,12 +7,14 @@ its spec section and hint as every finding shows them (STYLE.md); stored as JSON
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from conformance.reporting.text import printable, render_violation
 from conformance.rules import CATALOGUE
+from conformance.scenarios.deviation import Kind
 from conformance.scenarios.explore_action import (
     Action,
     Query,
@@ -117,17 +119,20 @@ class Story:
             lines.append(render_violation(v.rule, v, unit, rerun_hint=rerun))
         return "\n".join(lines)
 
-    def to_json(self, unit: str) -> dict[str, Any]:
+    def to_json(self, unit: str, adapted: Sequence[str] = ()) -> dict[str, Any]:
+        """``adapted``: the rules of the deviations the run had adapted to (``Kind``): its
+        commands of a kind never answered waited a short deadline, and a replay does too."""
         return {"format": FORMAT, "unit": unit, "seed": self.seed, "shrunk": self.shrunk,
+                "adapted": list(adapted),
                 "failing_step": self.failing + 1, "rules": self.rules, "length": self.length,
                 "found_after_s": round(self.found_after, 1), "found_steps": self.found_steps,
                 "first_length": self.first_length,
                 "steps": [s.to_json() for s in self.steps]}
 
-    def save(self, path: Path, unit: str) -> Path:
+    def save(self, path: Path, unit: str, adapted: Sequence[str] = ()) -> Path:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp")
-        tmp.write_text(json.dumps(self.to_json(unit), indent=1), encoding="utf-8")
+        tmp.write_text(json.dumps(self.to_json(unit, adapted), indent=1), encoding="utf-8")
         tmp.replace(path)
         self.path = path
         return path
@@ -146,6 +151,12 @@ def load(path: Path) -> tuple[list[Action], dict[str, Any]]:
     if not isinstance(data, dict) or data.get("format") != FORMAT \
             or not isinstance(data.get("steps"), list):
         raise StoryError(f"{path}: not a story written by --explore (format {FORMAT!r})")
+    adapted = data.setdefault("adapted", [])  # absent in a story stored before it was kept
+    if not isinstance(adapted, list) or len(adapted) > len(ADAPTABLE) \
+            or any(type(rule) is not str or rule not in ADAPTABLE for rule in adapted):
+        raise StoryError(f"{path}: 'adapted' lists the rules of the deviations the run adapted "
+                         f"to, some of {', '.join(sorted(ADAPTABLE))}; it holds "
+                         f"{printable(str(adapted))[:200]}")
     actions: list[Action] = []
     for number, step in enumerate(data["steps"], 1):
         action = step.get("action") if isinstance(step, dict) else None
@@ -160,6 +171,9 @@ def load(path: Path) -> tuple[list[Action], dict[str, Any]]:
             actions.append(from_json(action))
     return actions, data
 
+
+ADAPTABLE = frozenset(kind.rule for kind in Kind)
+"""What a stored story's ``adapted`` may hold."""
 
 _KINDS = {
     "name": (lambda v: type(v) is str and bool(v), "a name"),

@@ -8,10 +8,12 @@ from __future__ import annotations
 
 import shlex
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from conformance.reporting.text import printable
+from conformance.scenarios.deviation import Kind
 from conformance.scenarios.explore import Outcome, Search, Stopped, replay
 from conformance.scenarios.explore_action import Action
 from conformance.scenarios.explore_steps import Collector, Explorer, UnitDied, judged
@@ -78,6 +80,11 @@ def rerun(c: Certification, path: Path) -> str:
     return base if selected else base + " -k test_explore"
 
 
+def _save(c: Certification, story: Story, path: Path) -> Path:
+    """Store ``story`` with the deviations the run had adapted to (a replay adapts alike)."""
+    return story.save(path, str(c.unit), [d.kind.rule for d in c.deviations.all()])
+
+
 def remember(c: Certification, story: Story, path: Path, began: float) -> None:
     """Each rule ``story`` broke is repeated by replaying it (``Certification.rerun_command``),
     unless the rule was also found before exploration ``began`` (Unix seconds)."""
@@ -96,12 +103,15 @@ def run(c: Certification, node: pytest.Item) -> None:
     dead = c.unit_died()
     if dead:
         pytest.skip(f"could not test: {dead}")
-    actions = None
+    actions, stored = None, {}
     if s.explore_replay is not None:
         try:
-            actions, _ = load(s.explore_replay)
+            actions, stored = load(s.explore_replay)
         except StoryError as e:
             pytest.fail(str(e), pytrace=False)
+        for rule in stored["adapted"]:  # replayed as the run that stored it ran it
+            c.deviations.note(Kind(rule), "seen in the run that stored this story",
+                              "the replay adapts to it as that run did")
     try:
         c.observation.wait_execution_info()
     except OutOfTime as e:
@@ -114,7 +124,7 @@ def run(c: Certification, node: pytest.Item) -> None:
     died, began = "", c.traffic.clock.now()
     try:
         if actions is not None:
-            _replay(c, explorer, actions, node, began)
+            _replay(c, explorer, actions, stored, node, began)
         else:
             _explore(c, explorer, node, began)
     except UnitDied as e:  # in a replay (of a stored story, or while shrinking)
@@ -143,7 +153,7 @@ def _died(c: Certification, explorer: Explorer, why: str, node: pytest.Item,
     """The unit died on what the exploration sent (HB-012 fails too, naming the command):
     the steps that led there, stored and replayable; nothing more could be explored."""
     story = Story.of(explorer.steps, c.settings.seed)
-    path = story.save(story_path(c), str(c.unit))
+    path = _save(c, story, story_path(c))
     remember(c, story, path, began)
     c.explored = f"the unit died at step {len(explorer.steps)} of an example"
     c.explore_story = _told(story, f"the unit died during step {len(explorer.steps)} of "
@@ -184,7 +194,7 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item, began: flo
     path = story_path(c)
 
     def tell(story: Story) -> None:  # at once: shrinking may take the rest of the budget
-        story.save(path, str(c.unit))
+        _save(c, story, path)
         remember(c, story, path, began)
         _say(c, story.render(str(c.unit), rerun(c, path), brief=True, heading=(
             f"exploration found a disagreement after {story.found_after:.0f} s "
@@ -219,7 +229,7 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item, began: flo
     if story is None:
         _say(c, f"exploration: {summary}: the unit answered as the model says")
         return
-    story.save(path, str(c.unit))
+    _save(c, story, path)
     remember(c, story, path, began)
     state = "shrunk" if story.shrunk else "not fully shrunk (the budget ran out)"
     heading = (f"exploration: the unit and the model disagree at step {story.failing + 1} of "
@@ -232,7 +242,7 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item, began: flo
 
 
 def _replay(c: Certification, explorer: Explorer, actions: list[Action],
-            node: pytest.Item, began: float) -> None:
+            stored: dict[str, Any], node: pytest.Item, began: float) -> None:
     path = c.settings.explore_replay
     assert path is not None
     _say(c, f"replaying the {steps(len(actions))} of {printable(str(path))}")
@@ -244,8 +254,14 @@ def _replay(c: Certification, explorer: Explorer, actions: list[Action],
                 "step as the model says")
         return
     remember(c, story, path, began)
-    heading = (f"replay of {printable(str(path))}: the unit and the model disagree again, at "
-               f"step {story.failing + 1}")
+    heading = f"replay of {printable(str(path))}: the unit and the model disagree"
+    was, rules = stored.get("failing_step"), stored.get("rules")
+    if was == story.failing + 1 and rules == story.rules:
+        heading += f" again, at step {story.failing + 1}"
+    else:  # the unit answers otherwise now: never told as the stored story's repeat
+        told = printable(", ".join(map(str, rules))[:200]) if isinstance(rules, list) else "?"
+        heading += (f" at step {story.failing + 1} ({', '.join(story.rules)}), not where the "
+                    f"stored story did (step {printable(str(was))[:20]}: {told})")
     c.explore_story = _told(story, heading)
     pytest.fail(story.render(str(c.unit), rerun(c, path), heading=heading), pytrace=False)
 

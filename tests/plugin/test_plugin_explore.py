@@ -65,6 +65,7 @@ def test_sequence_fault_found_told_and_replayed(pytester: pytest.Pytester) -> No
     story = json.loads(stored.read_text())
     # shrunk to the end by replay: two tasks and the $pause (3 steps; 4 with a wait between)
     assert RULE in story["rules"] and story["shrunk"] and story["length"] <= 4, story
+    assert story["adapted"] == [], story  # the conformant unit showed no deviation
     rerun = [line.split("rerun", 1)[1].strip() for line in run.result.outlines
              if line.strip().startswith("rerun") and "--explore-replay=" in line][-1]
     args = shlex.split(rerun)
@@ -168,6 +169,41 @@ def test_replay_of_a_file_that_is_no_story(pytester: pytest.Pytester) -> None:
         assert run.ret == pytest.ExitCode.USAGE_ERROR, (name, errors)
         assert f"--explore-replay: {bad}: {says}" in errors, (name, errors)
         assert "Traceback" not in errors + "\n".join(run.outlines), name
+    bad = pytester.path / "adapted-unknown.json"  # only the deviations the suite adapts to
+    bad.write_text(json.dumps({"format": "waraps-conformance explore story 1", "steps": [],
+                               "adapted": ["HB-003", ["nested"]]}))
+    run = pytester.runpytest_inprocess("-p", "no:cacheprovider", "-o", "addopts=",
+                                       *EMBEDDED, f"--explore-replay={bad}")
+    errors = "\n".join(run.errlines)
+    assert run.ret == pytest.ExitCode.USAGE_ERROR, errors
+    assert f"--explore-replay: {bad}: 'adapted' lists the rules of the deviations" in errors
+    assert "Traceback" not in errors
+
+
+def test_a_replay_adapts_as_the_stored_run_did_and_says_where_it_disagrees_now(
+        pytester: pytest.Pytester) -> None:
+    """The public L2 agent's replay said 'disagree again' at step 4 (EXEC-QUERY-001) of a
+    story stored disagreeing at step 6 (EXEC-RESEND-001): the full run had adapted to its
+    unanswered query-status, and the scripted scenarios had judged it. A replay adapts as
+    the stored run did, and a disagreement elsewhere is never told as the story's own."""
+    story = pytester.path / "story.json"
+    story.write_text(json.dumps({
+        "format": "waraps-conformance explore story 1", "failing_step": 3,
+        "rules": ["EXEC-SEQ-002"], "adapted": ["EXEC-QUERY-001"], "steps": [
+            {"action": {"do": "start", "task": "look-at-bearing", "task_uuid": True,
+                        "slot": 0}},
+            {"action": {"do": "query", "slot": 0}},
+            {"action": {"do": "wait", "periods": 2}}]}))
+    run = certify(pytester, "--unit", UNIT, "--broker", "virtual", "--sim-rate", "1",
+                  "--sim-fault=query-unanswered", f"--profile={FAST}", "--seed", "1",
+                  f"--explore-replay={story}", "-k", "test_explore")
+    assert run.result.ret == 1, run.text
+    assert ("adapted to EXEC-QUERY-001: seen in the run that stored this story; the replay "
+            "adapts to it as that run did") in run.text, run.text
+    assert "the unit answered no query-status" not in run.text  # not found again: restored
+    assert "disagree again" not in run.text, run.text
+    assert ("the unit and the model disagree at step 2 (EXEC-QUERY-001), not where the stored "
+            "story did (step 3: EXEC-SEQ-002)") in run.text, run.text
 
 
 def test_replay_never_moves_a_real_unit_without_allow_motion(pytester: pytest.Pytester) -> None:
