@@ -69,8 +69,9 @@ class Observation:
         if renamed:  # after the suite's reboot: it lives, under another name (3.1)
             return (f"the unit came back under another name ('{renamed}') after the suite's "
                     f"reboot (REBOOT-001): nothing answers at its address")
-        return (f"the unit fell silent at {clock(latest.time)} and did not come back "
-                f"(HB-012): no answer could come")
+        # "had not" (by the end of the wait): the suite's reboot may bring it back later
+        return (f"the unit fell silent at {clock(latest.time)} and had not come back "
+                f"{window:.0f} s later (HB-012): no answer could come")
 
     def _longest_interval(self, kept: int = 16) -> float:
         """The longest interval between the unit's latest ``kept`` heartbeats of one
