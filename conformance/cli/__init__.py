@@ -35,6 +35,19 @@ def usage() -> str:
     return "\n".join(lines)
 
 
+def _terminate_as_ctrl_c() -> None:
+    """SIGTERM (``kill``, ``timeout``, a service manager) ends a command as Ctrl-C does: a
+    recording gets its end and its closing line, lint its reports (``sim`` sets its own)."""
+    import signal
+    import threading
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, interrupt)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if not argv or argv[0] in ("-h", "--help", "help"):
@@ -58,6 +71,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     module = importlib.import_module(f"{__name__}.{name}")
     from conformance.cli.pipe import PipeOut
+
+    _terminate_as_ctrl_c()
 
     stdout, sys.stdout = sys.stdout, PipeOut(sys.stdout)  # type: ignore[assignment]
     try:

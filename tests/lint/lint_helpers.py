@@ -164,12 +164,11 @@ class Process:
                                          f"{self.output}")
                 self._new.wait(min(left, 0.5))
 
-    def interrupt(self, timeout: float = 30.0) -> int:
-        """Ctrl-C, then the exit code."""
-        import signal
-
+    def interrupt(self, timeout: float = 30.0, sig: int = 2) -> int:
+        """Ctrl-C (or signal ``sig``: 15, SIGTERM, as a service manager stops it), then the
+        exit code."""
         if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
+            self.proc.send_signal(sig)
         code = self.proc.wait(timeout)
         self._thread.join(5)
         return code

@@ -144,6 +144,23 @@ def test_record_then_lint_the_recording(broker: PrivateMosquitto, tmp_path: Path
     assert not failed_rules(run.report, f"{prefix}/unit/air/simulation/dji0"), run.out
 
 
+def test_a_recorder_stopped_with_sigterm_ends_its_recording_as_on_ctrl_c(
+        mosquitto: str, tmp_path: Path, prefix: str) -> None:
+    """``kill``, ``timeout`` or a service manager stops a recorder with SIGTERM: its recording
+    gets its end event (lint judges up to there) and the terminal its closing line."""
+    import signal
+
+    out = tmp_path / "stopped.jsonl"
+    rec = Process(["record", "--broker", mosquitto, "--topic", f"{prefix}/#", "-o", str(out)])
+    try:
+        rec.wait_for("recording ")
+        assert rec.interrupt(sig=signal.SIGTERM) in (0, 130), rec.output
+    finally:
+        rec.kill()
+    assert "recorded 0 messages" in rec.output, rec.output
+    assert '"end"' in out.read_text().splitlines()[-1], out.read_text()
+
+
 def test_a_full_buffer_drops_the_oldest_and_says_how_many(mosquitto: str, prefix: str) -> None:
     capture = LiveCapture(BrokerURL.parse(mosquitto), [f"{prefix}/#"], max_messages=10).start()
     try:
