@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import importlib
 import sys
+from collections.abc import Callable
 
 # name -> one-line help; the command is the module conformance.cli.<name>
 COMMANDS: dict[str, str] = {
@@ -35,17 +36,21 @@ def usage() -> str:
     return "\n".join(lines)
 
 
-def _terminate_as_ctrl_c() -> None:
+def _terminate_as_ctrl_c() -> Callable[[], None]:
     """SIGTERM (``kill``, ``timeout``, a service manager) ends a command as Ctrl-C does: a
-    recording gets its end and its closing line, lint its reports (``sim`` sets its own)."""
+    recording gets its end and its closing line, lint its reports (``sim`` sets its own).
+    Returns what puts the previous handler back (a caller in process: the tests)."""
     import signal
     import threading
 
     def interrupt(signum: int, frame: object) -> None:
         raise KeyboardInterrupt
 
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, interrupt)
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    return lambda: signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None
+                                 else previous)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -72,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     module = importlib.import_module(f"{__name__}.{name}")
     from conformance.cli.pipe import PipeOut
 
-    _terminate_as_ctrl_c()
+    restore = _terminate_as_ctrl_c()
 
     stdout, sys.stdout = sys.stdout, PipeOut(sys.stdout)  # type: ignore[assignment]
     try:
@@ -85,3 +90,4 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     finally:
         sys.stdout = stdout
+        restore()
