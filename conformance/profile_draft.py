@@ -224,6 +224,9 @@ def _task_lines(seen: Observed) -> list[str]:
     if seen.dei is None:
         return ["# No direct_execution_info was seen (5.3): no tasks to list.", "tasks: []",
                 "motion-tasks: []"]
+    if not tasks:
+        return ["# direct_execution_info offers no task (5.3): none to start.", "tasks: []",
+                "motion-tasks: []"]
     moving = [t for t in tasks if _moves(t)]
     known = [(t, _example(t)) for t in tasks]
     lines = [f"# direct_execution_info offers {_c(tasks)} (5.3).",

@@ -196,3 +196,6 @@ def test_a_draft_says_an_undeclared_level_and_an_unknown_role(tmp_path: Path) ->
                            heartbeat={"levels": ["sensor", "direct execution"], "rate": 1.0},
                            dei={"tasks-available": []}))
     assert "HB-013" not in plain and "simulated-roles" not in plain
+    # It offers no task: the draft says so and lists none (an empty 'tasks:' read as null).
+    assert "# direct_execution_info offers no task (5.3)" in text and "\ntasks: []\n" in text
+    assert yaml.safe_load(text)["tasks"] == []
