@@ -256,12 +256,15 @@ def _replay(c: Certification, explorer: Explorer, actions: list[Action],
     remember(c, story, path, began)
     heading = f"replay of {printable(str(path))}: the unit and the model disagree"
     was, rules = stored.get("failing_step"), stored.get("rules")
-    if was == story.failing + 1 and rules == story.rules:
+    rules = [str(r) for r in rules] if isinstance(rules, list) else []
+    told = f"step {printable(str(was))[:20]}: {printable(', '.join(rules))[:200] or '?'}"
+    if was == story.failing + 1 and set(rules) & set(story.rules):
         heading += f" again, at step {story.failing + 1}"
+        if set(rules) != set(story.rules):  # a warning the unit gave then, not now
+            heading += f" ({', '.join(story.rules)}; the stored story's {told})"
     else:  # the unit answers otherwise now: never told as the stored story's repeat
-        told = printable(", ".join(map(str, rules))[:200]) if isinstance(rules, list) else "?"
-        heading += (f" at step {story.failing + 1} ({', '.join(story.rules)}), not where the "
-                    f"stored story did (step {printable(str(was))[:20]}: {told})")
+        heading += (f" at step {story.failing + 1} ({', '.join(story.rules)}), unlike the "
+                    f"stored story ({told})")
     c.explore_story = _told(story, heading)
     pytest.fail(story.render(str(c.unit), rerun(c, path), heading=heading), pytrace=False)
 

@@ -202,8 +202,18 @@ def test_a_replay_adapts_as_the_stored_run_did_and_says_where_it_disagrees_now(
             "adapts to it as that run did") in run.text, run.text
     assert "the unit answered no query-status" not in run.text  # not found again: restored
     assert "disagree again" not in run.text, run.text
-    assert ("the unit and the model disagree at step 2 (EXEC-QUERY-001), not where the stored "
-            "story did (step 3: EXEC-SEQ-002)") in run.text, run.text
+    assert ("the unit and the model disagree at step 2 (EXEC-QUERY-001), unlike the stored "
+            "story (step 3: EXEC-SEQ-002)") in run.text, run.text
+    # The same step, a rule in common, a warning the unit gave then and not now (the public
+    # L2 agent's EXEC-FB-004): the story's repeat, told with what differs.
+    data = json.loads(story.read_text())
+    story.write_text(json.dumps({**data, "failing_step": 2,
+                                 "rules": ["EXEC-FB-004", "EXEC-QUERY-001"]}))
+    again = certify(pytester, "--unit", UNIT, "--broker", "virtual", "--sim-rate", "1",
+                    "--sim-fault=query-unanswered", f"--profile={FAST}", "--seed", "1",
+                    f"--explore-replay={story}", "-k", "test_explore")
+    assert ("disagree again, at step 2 (EXEC-QUERY-001; the stored story's step 2: "
+            "EXEC-FB-004, EXEC-QUERY-001)") in again.text, again.text
 
 
 def test_replay_never_moves_a_real_unit_without_allow_motion(pytester: pytest.Pytester) -> None:
