@@ -18,7 +18,7 @@ from conformance.profile import Profile
 from conformance.scenarios.commander import Commander
 from conformance.scenarios.deviation import FINAL_STATUSES, Deviation, Kind, meaning
 from conformance.scenarios.safety import Position, Safety
-from conformance.scenarios.traffic import Entry, Traffic
+from conformance.scenarios.traffic import LAG_SLACK, Entry, Traffic
 from conformance.scenarios.tst_commander import TstCommander
 from conformance.topics import UnitAddress
 from conformance.violation import Verdict, Violation
@@ -161,6 +161,11 @@ class Context:
     # --- helpers for scenarios --------------------------------------------------------------
     def violation(self, rule: str, *, expected: str, observed: str, subtopic: str = "exec/response",
                   entry: Entry | None = None, detail: str = "") -> Violation:
+        lag = self.traffic.command_lag
+        if entry is None and lag >= LAG_SLACK:  # nothing came, though waited for longer
+            late = (f"the broker delivered the suite's command {lag:.1f} s late: the wait "
+                    f"for the answer was lengthened as much")
+            detail = f"{detail}; {late}" if detail else late
         return Violation.of(rule, expected=expected, observed=observed,
                             topic=self.unit.topic(subtopic),
                             time=entry.time if entry else None,

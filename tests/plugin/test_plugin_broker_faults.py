@@ -7,6 +7,7 @@ real-broker kill's timing certain."""
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 from pathlib import Path
@@ -276,3 +277,16 @@ def test_a_lagging_broker_delays_the_deadline_as_it_delays_the_command_in_virtua
     assert "adapted to" not in run.text, run.text[-3000:]
     assert "the broker delivered the suite's command 1.0 s after it was sent" in run.text, \
         run.text[-3000:]
+
+
+def test_a_lagging_broker_does_not_excuse_an_answer_that_never_comes_in_virtual_time(
+        pytester: pytest.Pytester) -> None:
+    """The same lag, and a unit that never answers ping: EXEC-PING-001 fails all the same,
+    and its finding says the wait was lengthened by the broker's lag."""
+    run = certify_virtual(pytester, "waraps/unit/air/simulation/dji0", f"--profile={FAST}",
+                          "--seed", "2", "-k", "test_ping", rate=1.0, faults=("pong-missing",),
+                          plugins=(VirtualLag(1.0),))
+    assert run.outcomes["EXEC-PING-001"] == "failed", run.text[-3000:]
+    (finding,) = run.unit_rules()["EXEC-PING-001"]["violations"][:1]
+    assert "delivered the suite's command 1.0 s late: the wait for the answer was " \
+           "lengthened as much" in json.dumps(finding), finding
