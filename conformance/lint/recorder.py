@@ -20,12 +20,12 @@ def record(options: CaptureOptions, out: IO[bytes], *, name: str, log: IO[str]) 
     writer = RecordingWriter(out)
     capture = LiveCapture(options.broker, options.topics)
     capture.start()
-    print(shown(f"recording {', '.join(options.topics)} from {options.broker} to {name}"
-                + (f" for {options.duration:g} s" if options.duration else " until Ctrl-C")),
-          file=log)
-    writer.write(Event(time.time(), "start", "subscribed"))
-    deadline = None if not options.duration else time.monotonic() + options.duration
-    try:
+    try:  # from here on, Ctrl-C (or SIGTERM) ends the recording with its end event
+        print(shown(f"recording {', '.join(options.topics)} from {options.broker} to {name}"
+                    + (f" for {options.duration:g} s" if options.duration else
+                       " until Ctrl-C")), file=log)
+        writer.write(Event(time.time(), "start", "subscribed"))
+        deadline = None if not options.duration else time.monotonic() + options.duration
         while deadline is None or time.monotonic() < deadline:
             left = 0.5 if deadline is None else max(0.0, min(0.5, deadline - time.monotonic()))
             batch, events = capture.take(timeout=left)

@@ -64,6 +64,9 @@ class Runtime:
         self.errors = 0
         """Exceptions raised by unit code (a bug: the tests require zero)."""
         self.last_error = ""
+        self.held = 0.0
+        """The most seconds a unit's step ran after it was due: how long the host held this
+        thread (a loaded machine), so that a silence it caused is not taken for the unit's."""
 
     def add(self, unit: UnitCore) -> int:
         """Add a unit before ``start``; returns its index."""
@@ -202,6 +205,7 @@ class Runtime:
                 unit = self.units[i]
                 if due != unit.due:
                     continue  # superseded by an earlier entry for this unit
+                self.held = max(self.held, now - due)
                 self._guarded(unit.run, now)
                 self._reschedule(i)
             if self._inbox:

@@ -87,12 +87,21 @@ def certify(pytester: pytest.Pytester, *args: str, plugins: tuple[object, ...] =
 
 def certify_sim(pytester: pytest.Pytester, broker: str, unit: str, *args: str,
                 faults: tuple[str, ...] = (), rate: float = 2.0) -> Certified:
-    """Certify a reference unit (with ``faults``) that this process runs on ``broker``."""
+    """Certify a reference unit (with ``faults``) that this process runs on ``broker``. A run
+    in which the host held the unit's thread a heartbeat period or more past a step (CI's 2
+    shared cores held it 1.6 s at 2 Hz: a true silence, HB-010, of a unit that was then not
+    the one under test) is run once more, and says so."""
     from conformance.sim import SimUnit
 
-    with SimUnit(unit, broker, faults=faults, rate=rate, seed=1) as sim:
-        return certify(pytester, "--unit", unit, "--broker", broker, *args,
-                       plugins=(Rebooter(sim),))
+    for attempt in (1, 2):
+        with SimUnit(unit, broker, faults=faults, rate=rate, seed=1) as sim:
+            run = certify(pytester, "--unit", unit, "--broker", broker, *args,
+                          plugins=(Rebooter(sim),))
+        if sim.runtime.held < 1.0 / rate or attempt == 2:
+            return run
+        print(f"the host held the reference unit {sim.runtime.held:.2f} s past a step "
+              f"(period {1.0 / rate:g} s): certifying again")
+    raise AssertionError("unreachable")
 
 
 def certify_virtual(pytester: pytest.Pytester, unit: str, *args: str,

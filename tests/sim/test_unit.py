@@ -301,3 +301,24 @@ def test_headings_stay_in_degrees_and_speed_non_negative(obs, unit) -> None:
         assert all(0.0 <= v < 360.0 and math.isfinite(v) for v in values)
         assert len(set(values)) > 3  # it turned while circling
     assert all(float(m.payload) >= 0.0 for m in obs.on("/sensor/speed"))
+
+
+@ONE_BROKER
+def test_the_runtime_says_how_long_the_host_held_its_thread(unit) -> None:
+    """``Runtime.held``: a step run late because the host held the unit's thread (here this
+    process holds the GIL for 1.2 s; on CI, busy cores held it 1.6 s) is measured, so a
+    test can tell the host's silence from the unit's (``certify_sim``)."""
+    import sys
+    import time
+
+    assert unit.core.heartbeats  # started: SimUnit waits for its first heartbeat
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(5.0)  # no other thread runs Python while this one computes
+    try:
+        until = time.monotonic() + 1.2
+        while time.monotonic() < until:
+            pass
+    finally:
+        sys.setswitchinterval(interval)
+    time.sleep(2 / RATE)  # the steps that were due run now, late
+    assert unit.runtime.held >= 0.6, unit.runtime.held
