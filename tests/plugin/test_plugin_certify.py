@@ -124,8 +124,8 @@ def test_reference_unit_passes_on_mosquitto_and_its_recording_lints_clean(
                  "EXEC-RESEND-002", "EXEC-ROBUST-002", "EXEC-006", "EXEC-009"):
         assert unit["rules"][rule]["verdict"] == "pass", (rule, unit["rules"][rule])
     # Every command with a com-uuid got an answer with that response-to (12.3).
-    sent, unanswered = _commands(recording), _unanswered(recording)
-    assert len(sent) > 20 and not unanswered, sorted(unanswered)
+    sent, answered = _conversation(recording)
+    assert len(sent) > 20 and sent <= answered, sorted(sent - answered)
     # The suite's deliberately broken commands are its own probes, no commander's fault
     # (issue 24, 5): the recording of a certification lints with the unit's findings only.
     commanders = [u for u in report["units"].values() if u["party"] == "commander"]
@@ -152,10 +152,6 @@ def _conversation(recording) -> tuple[set[str], set[str]]:  # type: ignore[no-un
             elif topic.endswith("/exec/response") and isinstance(body.get("response-to"), str):
                 answered.add(body["response-to"])
     return sent, answered
-
-
-def _commands(recording) -> set[str]:  # type: ignore[no-untyped-def]
-    return _conversation(recording)[0]
 
 
 def _unanswered(recording) -> set[str]:  # type: ignore[no-untyped-def]
