@@ -20,8 +20,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from conformance.judge import violation_verdict
+from conformance.profile import Profile
 from conformance.protocol import UNCHANGED
-from conformance.rules import CATALOGUE, Mode, Severity
+from conformance.rules import CATALOGUE, Mode
 from conformance.scenarios.context import Context
 from conformance.scenarios.deviation import FINAL_STATUSES
 from conformance.scenarios.explore_action import (
@@ -39,7 +41,7 @@ from conformance.scenarios.params import valid_params
 from conformance.scenarios.sender import Sent, new_uuid
 from conformance.scenarios.signal import IMPLIED
 from conformance.scenarios.traffic import Entry
-from conformance.violation import Violation
+from conformance.violation import Verdict, Violation
 
 SHOWN = 300
 """Characters of a message shown in a story (the stored story keeps the same)."""
@@ -47,14 +49,17 @@ MAX_STEPS = 200
 """Steps kept per example (a story longer than the step count never happens)."""
 
 
-def judged(rule: str, severity_of: Callable[[str], Severity]) -> bool:
+def judged(rule: str, profile: Profile) -> bool:
     """Whether a violation of ``rule`` is a disagreement: a rule about commands and their
-    answers (conversation mode, or 12's own: EXEC-*), that the profile makes an error."""
+    answers (conversation mode, or 12's own: EXEC-*) whose violation fails under the profile
+    as the judge fails it (a decided rule only where the profile adopts it: the public L2
+    agent's story told EXEC-FB-004, a decision, as a failure)."""
     r = CATALOGUE.get(rule)
     if r is None:
         return False
     about_commands = r.mode is Mode.CONVERSATION or rule.startswith("EXEC-")
-    return about_commands and severity_of(rule) is Severity.ERROR
+    return about_commands and violation_verdict(
+        r, profile.severity_of(rule), strict=profile.adopts(rule)) is Verdict.FAIL
 
 
 @dataclass

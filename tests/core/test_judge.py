@@ -75,6 +75,21 @@ def test_a_scenario_s_explicit_failure_of_a_decided_rule_warns_too() -> None:
     assert found.verdict is Verdict.WARN and found.reason.startswith("not answered; interop")
 
 
+def test_exploration_counts_as_a_disagreement_only_what_the_judge_fails() -> None:
+    """A decided rule (EXEC-FB-004) is no disagreement of the exploration unless the profile
+    adopts it (the public L2 agent's story showed it as '[fail]' while the run warned it)."""
+    from conformance.profile import from_dict, load
+    from conformance.scenarios.explore_steps import judged
+
+    default = load("default")  # what a unit's drafted profile extends
+    assert not judged("EXEC-FB-004", default)
+    assert judged("EXEC-RESEND-001", default)  # implied: fails
+    assert judged("EXEC-FB-004", load("strict"))
+    assert judged("EXEC-FB-004", from_dict({"extends": "default",
+                                            "severity": {"EXEC-FB-004": "error"}}))
+    assert not judged("HB-003", default)  # no rule about commands
+
+
 def fleet() -> RunReport:
     """A unit that passes and a commander whose command broke a rule (EXEC-001)."""
     unit = UnitReport("waraps/unit/air/simulation/dji0", "air", "simulation", "dji0",
