@@ -40,7 +40,7 @@ def render(validation: Validation, profile: profile_module.Profile) -> str:
     lines = [f"topic     {printable(validation.topic.topic)}", f"kind      {validation.kind}"]
     for v in validation.violations:
         rule = CATALOGUE.get(v.rule)
-        judged = verdict_of(v.rule, profile)
+        judged = verdict_of(v.rule, profile, v.condition)
         title = rule.title if rule else ""
         lines.append("")
         lines.append(f"{v.rule} {title}".ljust(72) + f" [{judged.value}]")
@@ -81,17 +81,19 @@ def validate_tst(validator: Validator, payload: bytes) -> Validation:
     return validation._replace(kind="tst (a tree)", message=message, violations=moved)
 
 
-def verdict_of(rule_id: str, profile: profile_module.Profile) -> Verdict:
-    """The verdict a violation of ``rule_id`` earns under ``profile`` (the judge's)."""
+def verdict_of(rule_id: str, profile: profile_module.Profile, condition: str = "") -> Verdict:
+    """The verdict a violation of ``rule_id`` (finding ``condition``) earns under ``profile``
+    (the judge's)."""
     from conformance.judge import violation_verdict
     from conformance.rules import get
 
     return violation_verdict(get(rule_id), profile.severity_of(rule_id),
-                             strict=profile.adopts(rule_id))
+                             strict=profile.adopts(rule_id), condition=condition)
 
 
 def overall_verdict(validation: Validation, profile: profile_module.Profile) -> Verdict:
-    return Verdict.worst([verdict_of(v.rule, profile) for v in validation.violations])
+    return Verdict.worst([verdict_of(v.rule, profile, v.condition)
+                         for v in validation.violations])
 
 
 def to_dict(validation: Validation, profile: profile_module.Profile) -> dict[str, Any]:
@@ -99,6 +101,6 @@ def to_dict(validation: Validation, profile: profile_module.Profile) -> dict[str
     return {
         "topic": validation.topic.topic, "kind": validation.kind,
         "verdict": overall_verdict(validation, profile).value,
-        "violations": [dict(v.to_dict(), verdict=verdict_of(v.rule, profile).value)
+        "violations": [dict(v.to_dict(), verdict=verdict_of(v.rule, profile, v.condition).value)
                        for v in validation.violations],
     }

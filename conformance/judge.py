@@ -31,36 +31,42 @@ INTEROP_RISK = "interop risk: the spec does not say; this suite decided: "
 def judge_rule(rule: Rule, *, severity: Severity, strict: bool, violations: list[Violation],
                count: int = -1, examined: int = 0, explicit: Verdict | None = None,
                explicit_reason: str = "", default_reason: str = "",
-               excused: str = "") -> RuleResult:
+               excused: str = "", firm: int = -1) -> RuleResult:
     """The verdict of one rule for one row:
 
-    - any violation: fail when the rule's severity (under the profile) is ``error`` and the
-      rule is stated or implied, or decided in a strict run; else warn;
-    - an explicit fail or warn a scenario recorded, under the same basis;
+    - any violation: fail when the rule's severity (under the profile) is ``error`` and a
+      violation found a condition that stands on the spec's words (stated or implied: the
+      condition's basis, ``rules.Condition``), or any condition in a strict run; else warn
+      (each decided condition found says so: an interop risk);
+    - an explicit fail or warn a scenario recorded, under the rule's own basis;
     - examined at least once without a violation: pass;
     - evidence that was all excused (``excused``: the unit had died, the broker was out):
       could-not-test, saying why;
     - an explicit skip or could-not-test, with its reason; else skip (``default_reason``).
 
     ``count`` is the number of violations seen (``violations`` holds the first few as
-    evidence; -1 means ``len(violations)``); a skip never becomes a pass.
+    evidence; -1 means ``len(violations)``), ``firm`` how many of them found a condition
+    that is not decided (-1: counted in ``violations``); a skip never becomes a pass.
     """
     count = len(violations) if count < 0 else count
-    lenient = rule.is_decided and not strict and severity is Severity.ERROR
-    if lenient:
-        severity = Severity.WARNING
-    risk = interop_risk(rule) if lenient else ""
-    if explicit is Verdict.FAIL and lenient:
-        explicit = Verdict.WARN
+    if firm < 0:
+        firm = sum(not _decided(rule, v.condition) for v in violations)
+    lenient = not strict and severity is Severity.ERROR
     if count:
-        verdict = Verdict.FAIL if severity is Severity.ERROR else Verdict.WARN
-        if explicit is not None and explicit.rank > verdict.rank:
+        fails = severity is Severity.ERROR and (strict or firm > 0)
+        verdict = Verdict.FAIL if fails else Verdict.WARN
+        risk = _risks(rule, violations) if lenient and not firm else ""
+        if explicit is not None and explicit.rank > verdict.rank and not (
+                lenient and rule.is_decided):
             verdict = explicit
         noun = "violation" if count == 1 else "violations"
         reason = "; ".join(x for x in (f"{count} {noun}" + (
             f" ({explicit_reason})" if explicit_reason else ""), risk) if x)
         return RuleResult(rule.id, verdict, reason, list(violations))
+    if explicit is Verdict.FAIL and lenient and rule.is_decided:
+        explicit = Verdict.WARN
     if explicit in (Verdict.FAIL, Verdict.WARN):
+        risk = interop_risk(rule) if lenient and rule.is_decided else ""
         return RuleResult(rule.id, explicit, "; ".join(x for x in (explicit_reason, risk) if x),
                           [])
     if examined:
@@ -73,11 +79,35 @@ def judge_rule(rule: Rule, *, severity: Severity, strict: bool, violations: list
     return RuleResult(rule.id, Verdict.SKIP, default_reason or "not examined", [])
 
 
-def violation_verdict(rule: Rule, severity: Severity, *, strict: bool) -> Verdict:
-    """What a violation of ``rule`` earns on its own (``validate`` of one message, a finding
-    shown alone): fail for an error of a stated or implied rule (or any error in a strict
-    run), else warn."""
-    if severity is Severity.ERROR and (strict or not rule.is_decided):
+def _decided(rule: Rule, condition: str) -> bool:
+    """Whether a finding of ``condition`` stands only on this suite's decision (a condition
+    the catalogue does not know is the rule's own)."""
+    try:
+        return rule.decided(condition)
+    except KeyError:
+        return rule.is_decided
+
+
+def _risks(rule: Rule, violations: list[Violation]) -> str:
+    """Why decided findings only warn: each decided condition found, with its decision."""
+    found = dict.fromkeys(v.condition for v in violations) or {"": None}
+    said = []
+    for c in found:
+        try:
+            condition = rule.condition(c)
+        except KeyError:
+            condition = rule.own
+        said.append(f"{INTEROP_RISK}{condition.decision}" if condition.decision
+                    else INTEROP_RISK.rstrip(": "))
+    return "; ".join(dict.fromkeys(said))
+
+
+def violation_verdict(rule: Rule, severity: Severity, *, strict: bool,
+                      condition: str = "") -> Verdict:
+    """What a violation of ``rule`` (finding ``condition``) earns on its own (``validate`` of
+    one message, a finding shown alone): fail for an error whose condition is stated or
+    implied (or any error in a strict run), else warn."""
+    if severity is Severity.ERROR and (strict or not _decided(rule, condition)):
         return Verdict.FAIL
     return Verdict.WARN
 

@@ -154,12 +154,9 @@ class Expectation:
     command: Command
     resend: bool
     outcomes: tuple[Outcome, ...]
-    rule: str
-    """The rule an answer outside ``responses`` breaks."""
-    may_end: frozenset[str] = frozenset()
-    """Live tasks this command may end (each with a final status, never silently)."""
-    untouched: frozenset[str] = frozenset()
-    """Tasks whose state this command must not change."""
+    rule: str  # the rule an answer outside ``responses`` breaks
+    may_end: frozenset[str] = frozenset()  # live tasks it may end, each with a final status
+    untouched: frozenset[str] = frozenset()  # tasks whose state it must not change
     why: str = ""
 
     @property
@@ -289,10 +286,12 @@ class Model:
                                why="task-uuid of a live task: refused, or the same task")
         key = uuid if uuid else NEW_TASK
         running = Outcome("running", {key: State.RUNNING})
-        failed = Outcome("failed", {uuid: State.FAILED} if uuid and known is None else {})
-        # Spec silent on a second task: the unit may run both or end the first, but only
-        # with a final status (EXEC-START-003), never silently (docs/MODEL.md).
-        return Expectation(command, resend, (running, failed), "EXEC-START-001",
+        named = uuid and known is None  # 12.1's 'finished': done at once (already airborne)
+        failed = Outcome("failed", {uuid: State.FAILED} if named else {})
+        finished = Outcome("finished", {uuid: State.FINISHED} if named else {})
+        # Spec silent on a second task: the unit may run both or end the first, only with a
+        # final status (EXEC-START-003), never silently (docs/MODEL.md).
+        return Expectation(command, resend, (running, failed, finished), "EXEC-START-001",
                            may_end=live, untouched=self._uuids() - live,
                            why="a new task; live tasks may end, each with a final status")
 

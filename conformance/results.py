@@ -177,7 +177,19 @@ def _rule_result_to_dict(r: RuleResult) -> dict[str, Any]:
         # A finding carries what its rule stands on (STYLE 'Judging once').
         out["basis"] = {"basis": rule.basis.value, "quote": rule.quote,
                         "because": rule.because, "decision": rule.decision}
+        found = dict.fromkeys(v.condition for v in r.violations if v.condition)
+        if found:  # and each further condition found, on its own basis
+            out["conditions"] = {c: _condition_dict(rule, c) for c in found}
     return out
+
+
+def _condition_dict(rule: Rule, condition: str) -> dict[str, str]:
+    try:
+        c = rule.condition(condition)
+    except KeyError:  # a report of another version of the catalogue
+        return {"title": "", "basis": ""}
+    return {"title": c.title, "basis": c.basis.value, "quote": c.quote, "because": c.because,
+            "decision": c.decision}
 
 
 def _rule_result_from_dict(d: dict[str, Any]) -> RuleResult:

@@ -66,6 +66,34 @@ class Side(str, enum.Enum):
 
 
 @dataclass(frozen=True)
+class Condition:
+    """One condition a rule's checks find (DESIGN 'What a condition stands on'): the unit of
+    judgement. A rule's own words are its default condition (``id`` ""); every threshold,
+    deadline, tolerance, closed list or schema keyword its quote does not contain is a condition
+    of its own, decided, so it warns unless the run adopts it (``[[rule.condition]]`` in
+    ``rules.toml``)."""
+
+    id: str
+    title: str
+    basis: Basis
+    decision: str = ""
+    quote: str = ""
+    because: str = ""
+
+    @property
+    def is_decided(self) -> bool:
+        return self.basis is Basis.DECIDED
+
+    def basis_text(self) -> str:
+        """What the condition stands on, for people: the quote (and why it follows), or the
+        decision (an interop risk: the spec does not say)."""
+        if self.basis is Basis.DECIDED:
+            return f"decided: {self.decision}" if self.decision else "decided"
+        text = f'{self.basis.value}: "{self.quote}"' if self.quote else self.basis.value
+        return text + (f" ({self.because})" if self.because else "")
+
+
+@dataclass(frozen=True)
 class Rule:
     id: str
     title: str
@@ -85,6 +113,9 @@ class Rule:
     """An implied rule: why it follows from ``quote`` necessarily."""
     note: str = ""
     """A clarification of a stated or implied rule that adds no condition."""
+    conditions: tuple[Condition, ...] = ()
+    """The conditions beside the rule's own words, each with its basis (mostly decided: a
+    deadline, a tolerance, a closed list the spec does not give)."""
 
     @property
     def spec_level(self) -> str | None:
@@ -100,24 +131,46 @@ class Rule:
     def is_decided(self) -> bool:
         return self.basis is Basis.DECIDED
 
-    def basis_text(self) -> str:
-        """What the rule stands on, for people: the quote (and why it follows), or the
-        decision (an interop risk: the spec does not say)."""
-        if self.basis is Basis.DECIDED:
-            return f"decided: {self.decision}" if self.decision else "decided"
-        text = f'{self.basis.value}: "{self.quote}"' if self.quote else self.basis.value
-        return text + (f" ({self.because})" if self.because else "")
+    def basis_text(self, condition: str = "") -> str:
+        """What the rule (or one of its conditions) stands on, for people: the quote (and why
+        it follows), or the decision (an interop risk: the spec does not say)."""
+        return self.condition(condition).basis_text()
+
+    @property
+    def own(self) -> Condition:
+        """The rule's own words as its default condition (id "")."""
+        return Condition("", self.title, self.basis, self.decision, self.quote, self.because)
+
+    def condition(self, condition_id: str = "") -> Condition:
+        """The condition ``condition_id`` of this rule ("" : the rule's own words). An id the
+        catalogue does not give is a bug of the check that found it: KeyError."""
+        if not condition_id:
+            return self.own
+        for c in self.conditions:
+            if c.id == condition_id:
+                return c
+        raise KeyError(f"{self.id} has no condition {condition_id!r}")
+
+    def decided(self, condition_id: str = "") -> bool:
+        """Whether a finding of ``condition_id`` stands on this suite's decision only."""
+        return self.condition(condition_id).is_decided
 
 
 def _load(text: str) -> tuple[Rule, ...]:
     """The rules of a catalogue file (``rules.toml``), in its order."""
     out = []
     for entry in tomllib.loads(text)["rule"]:
+        conditions = tuple(
+            Condition(c["id"], c["title"], Basis(c.get("basis", "decided")),
+                      c.get("decision", ""), c.get("quote", ""), c.get("because", ""))
+            for c in entry.get("condition", ()))
+        assert len({c.id for c in conditions}) == len(conditions), entry["id"]
+        assert all(c.id for c in conditions), f"{entry['id']}: a condition without its id"
         out.append(Rule(entry["id"], entry["title"], entry["section"],
                         Severity(entry["severity"]), Level(entry["level"]), Mode(entry["mode"]),
                         entry.get("decision", ""), Side(entry.get("side", "unit")),
                         Basis(entry.get("basis", "stated")), entry.get("quote", ""),
-                        entry.get("because", ""), entry.get("note", "")))
+                        entry.get("because", ""), entry.get("note", ""), conditions))
     return tuple(out)
 
 
@@ -144,6 +197,13 @@ def get(rule_id: str) -> Rule:
 def basis_counts() -> dict[str, int]:
     """How many rules stand on each basis (``stated``, ``implied``, ``decided``)."""
     return {b.value: sum(r.basis is b for r in _CATALOGUE) for b in Basis}
+
+
+def condition_counts() -> dict[str, int]:
+    """How many conditions (each rule's own words and its further conditions) stand on each
+    basis."""
+    every = [c for r in _CATALOGUE for c in (r.own, *r.conditions)]
+    return {b.value: sum(c.basis is b for c in every) for b in Basis}
 
 
 def reading(strict: bool) -> str:

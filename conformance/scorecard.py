@@ -217,12 +217,18 @@ class Scorecard:
             return []
         lines = ["fleet observations (latest):"]
         for v in latest:
-            lines.append("  " + violation_line(v, linter.unit_of(v), self._verdict(linter, v.rule)))
+            unit = linter.unit_of(v)
+            lines.append("  " + violation_line(v, unit, self._verdict(linter, v.rule, unit)))
         return lines
 
     @staticmethod
-    def _verdict(linter: Linter, rule: str) -> str:
-        return "FAIL" if linter.is_error(rule) else "warn"
+    def _verdict(linter: Linter, rule: str, unit: str | None = None) -> str:
+        return "FAIL" if linter.is_error(rule, unit) else "warn"
+
+    @staticmethod
+    def _found(linter: Linter, v: Violation) -> str:
+        """One finding's own verdict: its condition's basis decides."""
+        return "FAIL" if linter.fails(v) else "warn"
 
     # --- output ---------------------------------------------------------------------------------
     def update(self, linter: Linter, *, elapsed: float | None = None,
@@ -248,7 +254,7 @@ class Scorecard:
                 self._gap_start = None
         for v, when in linter.take_fresh():
             if self.live:  # a recording's stream is not replayed: its verdicts come first
-                write(violation_line(v, linter.unit_of(v), self._verdict(linter, v.rule), when)
+                write(violation_line(v, linter.unit_of(v), self._found(linter, v), when)
                       + "\n")
         now = time.monotonic()
         if self.live and (force or now - self._last_live >= TTY_REFRESH_EVERY):
@@ -275,7 +281,7 @@ class Scorecard:
                 now_off[(str(unit), v.rule)] = v
         for key, v in now_off.items():
             if key not in self._live_shown:
-                write(violation_line(v, key[0], self._verdict(linter, v.rule)) + " (live)\n")
+                write(violation_line(v, key[0], self._found(linter, v)) + " (live)\n")
         for key, v in self._live_shown.items():
             if key not in now_off:
                 write(f"{_clock(linter.last_time)} ok   {key[0]} {key[1]} back within "

@@ -79,15 +79,26 @@ class Violation:
     """Free text: a fix hint, the window a rate was measured over, and so on."""
     unit: str = ""
     """The unit's address (``waraps/unit/air/simulation/dji0``) when known."""
+    condition: str = ""
+    """Which condition of the rule was found (``rules.Condition``): "" for the rule's own
+    words, else one of its ``[[rule.condition]]`` ids (``late``, ``tolerance``, ...), each
+    with its own basis."""
+    command: str = ""
+    """The com-uuid of the command a finding of no answer is about."""
+    supersedes: str = ""
+    """A com-uuid: this finding takes the place of the findings of this rule that the command
+    was not answered (it was answered late after all: only late)."""
 
     @classmethod
     def of(cls, rule: str, *, expected: str, observed: str, topic: str = "", path: str = "",
            time: float | None = None, payload: bytes | str | None = None, detail: str = "",
-           unit: str = "") -> Violation:
-        # Kept per unit and rule (evidence): what came from the wire is bounded (issue 19 §3).
+           unit: str = "", condition: str = "", command: str = "",
+           supersedes: str = "") -> Violation:
+        # Kept per unit and rule (evidence): what came from the wire is bounded.
         return cls(rule=rule, expected=shorten(expected), observed=shorten(observed),
                    topic=topic, path=path, time=time, excerpt=excerpt(payload),
-                   detail=shorten(detail), unit=unit)
+                   detail=shorten(detail), unit=unit, condition=condition,
+                   command=command, supersedes=supersedes)
 
     def to_dict(self) -> dict[str, object]:
         return {k: v for k, v in self.__dict__.items() if v not in ("", None)}

@@ -297,8 +297,9 @@ def left_unanswered(ctx: CheckContext, unit: UnitState, rule: str, cmd: SentComm
         return []
     unit.examine(rule)
     cmd.missed = True
-    return [late(rule, topic, cmd, f"an answer to {cmd.describe()} within {timeout:.1f} s",
-                 "no answer", cmd.last_sent, detail)]
+    return [dataclasses.replace(late(rule, topic, cmd, f"an answer to {cmd.describe()} within "
+                                     f"{timeout:.1f} s", "no answer", cmd.last_sent, detail),
+                                command=cmd.com_uuid)]
 
 
 def violation(rule: str, msg: Message, *, expected: str, observed: str, path: str,

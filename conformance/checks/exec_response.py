@@ -41,6 +41,9 @@ from conformance.validator import Validation
 from conformance.violation import Violation
 
 EXPECTS_KEPT = 64
+START_ANSWERS = ("running", "failed", "finished")
+"""12.1's response values ("Possible values: running, failed, finished"), each a fit answer
+to a start-task."""
 STRAY_PONGS_KEPT = 8
 SIGNAL_FEEDBACK = {s: ({status}, protocol.SIGNAL_RULE[s])
                    for s, (status, _) in protocol.SIGNAL_EFFECT.items()}
@@ -157,16 +160,18 @@ def _judge_start_answer(unit: UnitState, c: Conversations, cmd: Command, msg: Me
                         value: str | None, task_uuid: str | None, tracked: str | None
                         ) -> Iterator[Violation]:
     """12.1, 12.3.3: a start-task is answered 'running' (the task it began is followed from
-    here, under the task-uuid named) or 'failed' (a refusal, due for invalid parameters or a
-    task not offered)."""
+    here, under the task-uuid named), 'failed' (a refusal, due for invalid parameters or a
+    task not offered) or 'finished' (12.1's third value: done at once, a take-off of a unit
+    already airborne)."""
     rule = ANSWER_RULE["start-task"]
-    if value in ("running", "failed"):
+    if value in START_ANSWERS:
         unit.examine(rule)
     else:
-        yield violation(rule, msg, expected=f"'running' or 'failed' answering "
+        yield violation(rule, msg, expected=f"'running', 'failed' or 'finished' answering "
                         f"{cmd.describe()}", observed=f"response {value!r}",
-                        path="$.response", detail="12.3.3: a start-task is answered "
-                        "'running', or 'failed' with a fail-reason")
+                        path="$.response", detail="12.1: 'Possible values: running, failed, "
+                        "finished'; a start-task is answered 'running', or 'failed' with a "
+                        "fail-reason")
     yield from _judge_task_uuid(unit, cmd, msg, value, task_uuid)
     if value == "running":
         yield from _judge_refusals(unit, cmd, msg)
@@ -297,12 +302,15 @@ def _judge_timing(ctx: CheckContext, unit: UnitState, cmd: Command, msg: Message
                         f"profile's response_timeout)", observed=f"answered {waited:.2f} s "
                         f"after {cmd.describe()}", path="$.response-to",
                         detail="answer at once; a slow answer makes the commander resend")
-        if cmd.answers == 1 and not cmd.missed:
+        if cmd.answers == 1:
+            # Answered after all: the command's rule found it late (a deadline the spec does
+            # not give: a decided condition), no longer unanswered.
             rule = ANSWER_RULE.get(cmd.name, "EXEC-ROBUST-002")
             unit.examine(rule)
-            yield violation(rule, msg, expected=f"an answer to {cmd.describe()} within "
-                            f"{timeout:.1f} s", observed=f"answered only after {waited:.2f} s",
-                            path="$.response-to")
+            yield dataclasses.replace(violation(
+                rule, msg, expected=f"an answer to {cmd.describe()} within {timeout:.1f} s",
+                observed=f"answered only after {waited:.2f} s", path="$.response-to"),
+                condition="late", supersedes=cmd.com_uuid)
     return in_time
 
 

@@ -200,19 +200,15 @@ class RateTracker:
             self.max, self.max_at = dt, t
 
     def judge(self, ctx: CheckContext, unit: str) -> tuple[RateStat, list[Violation]]:
-        """The rate's statistics and verdict, and its violations (pure: changes nothing)."""
+        """The rate's statistics and verdict, and its violations (pure: changes nothing): off
+        by 3x or more fails the rule's words, past the profile's tolerance or with one long
+        interval its decided conditions ``tolerance`` and ``interval``."""
         profile = ctx.profile
         need = profile.min_intervals
         declared = self.declared
         n, total, lo, hi, hi_at, silences_in = self._intervals(need)
         mean = total / n if n else None
-        stat = RateStat(
-            unit=unit, kind=self.kind.value, topic=self.topic, declared_hz=declared,
-            measured_hz=(1.0 / mean if mean else None), intervals=n, mean_interval=mean,
-            min_interval=(lo if n else None), max_interval=(hi if n else None),
-            verdict=Verdict.SKIP, series=self.series.rates(), rule=self.rule,
-            silences=self.silences, start=self.start, end=self.end,
-            tolerance=profile.rate_tolerance)
+        stat = self._stat(unit, n, mean, lo, hi, profile.rate_tolerance)
         if not declared:
             stat.reason = f"no valid declared rate in {self.kind.value}.rate"
             return stat, []
@@ -240,7 +236,7 @@ class RateTracker:
                        f"rate in Hz? publish at the declared rate, or declare the rate used"))
         elif abs(mean - period) > profile.rate_tolerance * period:
             found.append(Violation.of(
-                self.rule,
+                self.rule, condition="" if gross else "tolerance",
                 expected=f"{declared:.2f} Hz +-{profile.rate_tolerance:.0%} "
                          f"(declared in {self.kind.value}.rate)",
                 observed=f"{1.0 / mean:.2f} Hz {window}" if mean > 0 else f"0 s mean {window}",
@@ -249,7 +245,7 @@ class RateTracker:
                        f"the declared rate, or declare the rate actually used"))
         if n >= need and hi > profile.max_gap_periods * period:
             found.append(Violation.of(
-                self.rule,
+                self.rule, condition="interval",
                 expected=f"no interval over {profile.max_gap_periods:g} declared periods "
                          f"({profile.max_gap_periods * period:.3f} s)",
                 observed=f"an interval of {hi:.3f} s ({hi / period:.1f} periods)",
@@ -259,6 +255,16 @@ class RateTracker:
         stat.reason = (f"{len(found)} violation{'s' if len(found) > 1 else ''}{how}" if found
                        else f"min {lo:.3f} s, max {hi:.3f} s{silences}{how}")
         return stat, found
+
+    def _stat(self, unit: str, n: int, mean: float | None, lo: float, hi: float,
+              tolerance: float) -> RateStat:
+        """The rate's statistics (numbers; its verdict is the judge's)."""
+        return RateStat(
+            unit=unit, kind=self.kind.value, topic=self.topic, declared_hz=self.declared,
+            measured_hz=(1.0 / mean if mean else None), intervals=n, mean_interval=mean,
+            min_interval=(lo if n else None), max_interval=(hi if n else None),
+            verdict=Verdict.SKIP, series=self.series.rates(), rule=self.rule,
+            silences=self.silences, start=self.start, end=self.end, tolerance=tolerance)
 
     def _intervals(self, need: int) -> tuple[int, float, float, float, float, int]:
         """(count, total, shortest, longest, when the longest ended, silences counted in) of
@@ -305,7 +311,7 @@ class RateTracker:
             return None
         since = window[0][0] - window[0][1]
         return Violation.of(
-            self.rule,
+            self.rule, condition="" if gross else "tolerance",
             expected=f"{declared:.2f} Hz +-{profile.rate_tolerance:.0%} "
                      f"(declared in {self.kind.value}.rate)",
             observed=f"{_hz(mean)} over the latest {k} intervals (since "

@@ -15,7 +15,7 @@ from conformance.checks.command_history import OVER_A_GAP
 from conformance.judge import judge_rule
 from conformance.profile import Profile
 from conformance.results import UnitReport, skip_reason
-from conformance.rules import CATALOGUE, Mode, Side
+from conformance.rules import CATALOGUE, Mode, Rule, Side
 from conformance.topics import UnitAddress
 from conformance.validator import Examined
 from conformance.violation import Verdict, Violation
@@ -29,10 +29,13 @@ UNATTRIBUTED = "(unattributed)"
 class RuleRecord:
     """What was recorded for one rule of one unit: a count and the first few violations."""
 
-    __slots__ = ("count", "evidence", "explicit", "reason", "first", "last", "excused")
+    __slots__ = ("count", "firm", "evidence", "explicit", "reason", "first", "last", "excused")
 
     def __init__(self) -> None:
         self.count = 0
+        self.firm = 0
+        """How many of the violations found a condition the spec's words state or imply (the
+        rest are decided: they warn unless the run adopts them)."""
         self.evidence: list[Violation] = []
         self.explicit: Verdict | None = None
         self.reason = ""
@@ -44,7 +47,11 @@ class RuleRecord:
         """Times of the first and the latest violation (of all, not only those kept)."""
 
     def add(self, v: Violation) -> None:
+        rule = CATALOGUE.get(v.rule)
+        if v.supersedes:
+            self._supersede(v.supersedes, rule)
         self.count += 1
+        self.firm += not _decided(rule, v.condition)
         if len(self.evidence) < MAX_EVIDENCE:
             self.evidence.append(v)
         t = v.time
@@ -53,6 +60,26 @@ class RuleRecord:
                 self.first = t
             if self.last is None or t > self.last:
                 self.last = t
+
+
+    def _supersede(self, com_uuid: str, rule: Rule | None) -> None:
+        """Drop the findings that the command ``com_uuid`` was not answered: it was answered
+        late after all, and that finding takes their place."""
+        gone = [v for v in self.evidence if v.command == com_uuid and v.condition == ""]
+        if not gone:
+            return
+        self.evidence = [v for v in self.evidence if v not in gone]
+        self.count -= len(gone)
+        self.firm -= sum(not _decided(rule, v.condition) for v in gone)
+
+
+def _decided(rule: Rule | None, condition: str) -> bool:
+    if rule is None:
+        return False
+    try:
+        return rule.decided(condition)
+    except KeyError:
+        return rule.is_decided
 
 
 class Findings:
@@ -128,12 +155,16 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
         rec = entry.records.get(rid)
         evidence = (rec.evidence if rec else []) + extra.get(rid, [])
         count = (rec.count if rec else 0) + len(extra.get(rid, ()))
+        firm = (rec.firm if rec else 0) + sum(not _decided(rule, v.condition)
+                                              for v in extra.get(rid, ()))
         explicit, reason = (rec.explicit, rec.reason) if rec else (None, "")
         excused = rec.excused if rec else ""
         seen = examined.get(rid, 0)
         if rule.mode is not Mode.PASSIVE:
             evidence, count, excused, seen = _excuse_scenario(evidence, count, excused, seen,
                                                               died, held)
+            firm = min(firm, sum(not _decided(rule, v.condition) for v in evidence)
+                       if len(evidence) < MAX_EVIDENCE else firm)
         if count:
             counts[rid] = count
             when = [t for t in (rec.first if rec else None, rec.last if rec else None,
@@ -142,7 +173,7 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
                 times[rid] = (min(when), max(when))
         rules[rid] = judge_rule(
             rule, severity=profile.severity_of(rid), strict=profile.adopts(rid),
-            violations=evidence[:MAX_EVIDENCE], count=count, examined=seen,
+            violations=evidence[:MAX_EVIDENCE], count=count, firm=firm, examined=seen,
             explicit=explicit, explicit_reason=reason, excused=excused,
             default_reason=skip_reason(rule, kind=kind, unit=unit,
                                        levels=state.levels, note=notes.get(rid, ""),

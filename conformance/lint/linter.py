@@ -65,6 +65,9 @@ class Linter:
         self.first_time: float | None = None
         self.last_time: float | None = None
         self.by_unit: dict[str, Counter[str]] = {}
+        self.firm: dict[str, set[str]] = {}
+        """Per unit, the rules of which a condition the spec's words state was found (the
+        others' findings so far are decided conditions: they warn unless adopted)."""
         self.fresh: list[tuple[Violation, float | None]] = []
         """(violation, the arrival time of the message that showed it)."""
         self.fleet: deque[Violation] = deque(maxlen=50)
@@ -216,6 +219,8 @@ class Linter:
             if v.rule not in counts:
                 self.fresh.append((v, v.time if v.time is not None else when))
             counts[v.rule] += 1
+            if v.condition == "" or not self._decided(v):
+                self.firm.setdefault(unit, set()).add(v.rule)
             if v.rule in FLEET_RULES:
                 self.fleet.append(v)
 
@@ -228,9 +233,20 @@ class Linter:
         events, self.events = self.events, []
         return events
 
-    def is_error(self, rule: str) -> bool:
+    @staticmethod
+    def _decided(v: Violation) -> bool:
+        from conformance.rules import CATALOGUE
+
+        rule = CATALOGUE.get(v.rule)
+        try:
+            return rule is not None and rule.decided(v.condition)
+        except KeyError:
+            return rule.is_decided if rule is not None else False
+
+    def is_error(self, rule: str, unit: str | None = None) -> bool:
         """Whether a violation of ``rule`` fails (else warns), as the judge will say at the
-        end (``judge.violation_verdict``: a decided rule warns unless the profile adopts it)."""
+        end (``judge.violation_verdict``: a decided rule, or a rule of whose ``unit`` only
+        decided conditions were found, warns unless the profile adopts it)."""
         from conformance.judge import violation_verdict
         from conformance.rules import CATALOGUE
         from conformance.violation import Verdict
@@ -239,10 +255,25 @@ class Linter:
         severity = self.profile.severity_of(rule)
         if found is None:
             return severity is Severity.ERROR
-        return violation_verdict(found, severity,
-                                 strict=self.profile.adopts(rule)) is Verdict.FAIL
+        strict = self.profile.adopts(rule)
+        if unit is not None and not strict and rule not in self.firm.get(unit, ()):
+            return False
+        return violation_verdict(found, severity, strict=strict) is Verdict.FAIL
+
+    def fails(self, v: Violation) -> bool:
+        """Whether the finding ``v`` on its own fails (its condition's basis, the profile)."""
+        from conformance.judge import violation_verdict
+        from conformance.rules import CATALOGUE
+        from conformance.violation import Verdict
+
+        rule = CATALOGUE.get(v.rule)
+        if rule is None:
+            return self.profile.severity_of(v.rule) is Severity.ERROR
+        return violation_verdict(rule, self.profile.severity_of(v.rule),
+                                 strict=self.profile.adopts(v.rule),
+                                 condition=v.condition) is Verdict.FAIL
 
     def failing_units(self) -> list[str]:
         """Units with a violation of a rule of severity error so far."""
         return sorted(u for u, counts in self.by_unit.items()
-                      if any(self.is_error(r) for r in counts))
+                      if any(self.is_error(r, u) for r in counts))

@@ -160,7 +160,10 @@ class Context:
 
     # --- helpers for scenarios --------------------------------------------------------------
     def violation(self, rule: str, *, expected: str, observed: str, subtopic: str = "exec/response",
-                  entry: Entry | None = None, detail: str = "") -> Violation:
+                  entry: Entry | None = None, detail: str = "", command: str = ""
+                  ) -> Violation:
+        """A finding of this scenario; ``command`` the com-uuid a finding of no answer is
+        about (a late answer the Monitor sees later takes its place: only late)."""
         lag = self.traffic.command_lag
         if entry is None and lag >= LAG_SLACK:  # nothing came, though waited for longer
             late = (f"the broker delivered the suite's command {lag:.1f} s late: the wait "
@@ -170,7 +173,7 @@ class Context:
                             topic=self.unit.topic(subtopic),
                             time=entry.time if entry else None,
                             payload=entry.excerpt if entry else None, detail=detail,
-                            unit=str(self.unit))
+                            unit=str(self.unit), command=command if entry is None else "")
 
     def startable(self, scenario: str = "", prefer: tuple[str, ...] = RUNS_UNTIL_ENOUGH
                   ) -> list[str]:

@@ -49,17 +49,18 @@ MAX_STEPS = 200
 """Steps kept per example (a story longer than the step count never happens)."""
 
 
-def judged(rule: str, profile: Profile) -> bool:
-    """Whether a violation of ``rule`` is a disagreement: a rule about commands and their
-    answers (conversation mode, or 12's own: EXEC-*) whose violation fails under the profile
-    as the judge fails it (a decided rule only where the profile adopts it: the public L2
-    agent's story told EXEC-FB-004, a decision, as a failure)."""
-    r = CATALOGUE.get(rule)
+def judged(v: Violation, profile: Profile) -> bool:
+    """Whether the finding ``v`` is a disagreement: a rule about commands and their answers
+    (conversation mode, or 12's own: EXEC-*) whose finding fails under the profile as the
+    judge fails it (a decided rule or condition only where the profile adopts it: the public
+    L2 agent's story told EXEC-FB-004, a decision, as a failure)."""
+    r = CATALOGUE.get(v.rule)
     if r is None:
         return False
-    about_commands = r.mode is Mode.CONVERSATION or rule.startswith("EXEC-")
+    about_commands = r.mode is Mode.CONVERSATION or v.rule.startswith("EXEC-")
     return about_commands and violation_verdict(
-        r, profile.severity_of(rule), strict=profile.adopts(rule)) is Verdict.FAIL
+        r, profile.severity_of(v.rule), strict=profile.adopts(v.rule),
+        condition=v.condition) is Verdict.FAIL
 
 
 @dataclass
@@ -146,7 +147,7 @@ class Collector:
     """Violations the Monitor finds for the unit under test, in the order found (given each
     message's violations by the connection, on the MQTT thread)."""
 
-    def __init__(self, unit: str, wanted: Callable[[str], bool]) -> None:
+    def __init__(self, unit: str, wanted: Callable[[Violation], bool]) -> None:
         self._unit = unit
         self._wanted = wanted
         self._lock = threading.Lock()
@@ -154,7 +155,7 @@ class Collector:
         self._count = 0
 
     def __call__(self, violations: list[Violation]) -> None:
-        kept = [v for v in violations if v.unit == self._unit and self._wanted(v.rule)]
+        kept = [v for v in violations if v.unit == self._unit and self._wanted(v)]
         if kept:
             with self._lock:
                 self._count += len(kept)

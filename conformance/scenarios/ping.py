@@ -28,7 +28,7 @@ def run(ctx: Context) -> None:
         ctx.record("EXEC-PING-001", violation=ctx.violation(
             "EXEC-PING-001", expected=f"a response 'pong' within {ctx.timing.response:.1f} s",
             observed="no response, to the ping or to its resend",
-            detail=f"ping com-uuid {sent.com_uuid}"))
+            detail=f"ping com-uuid {sent.com_uuid}", command=sent.com_uuid))
         ctx.record("EXEC-PING-002", verdict=Verdict.COULD_NOT_TEST,
                    reason="the ping was not answered (EXEC-PING-001)")
         return

@@ -32,7 +32,7 @@ def ask(ctx: Context, task_uuid: str, expected: set[str], what: str) -> None:
         "EXEC-QUERY-001", expected=f"{' or '.join(sorted(expected))} for {what}",
         observed=repr(got) if answer is not None else
         f"no response within {ctx.timing.response:.1f} s", entry=answer,
-        detail=f"task-uuid {task_uuid}; answer: {describe(answer)}"))
+        detail=f"task-uuid {task_uuid}; answer: {describe(answer)}", command=sent.com_uuid))
 
 
 def run(ctx: Context) -> None:

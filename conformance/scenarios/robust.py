@@ -63,7 +63,8 @@ def run(ctx: Context) -> None:
         ctx.record("EXEC-ROBUST-002", violation=ctx.violation(
             "EXEC-ROBUST-002", expected=f"'failed' for {what}",
             observed=describe(answer) if answer is not None else "no response",
-            entry=answer, detail=f"command {sent.payload.decode('utf-8', 'replace')}"))
+            entry=answer, detail=f"command {sent.payload.decode('utf-8', 'replace')}",
+            command=sent.com_uuid))
     # Still alive? Any pong after this ping counts (EXEC-PING-002 judges its response-to),
     # however late: lateness is EXEC-PING-001's and EXEC-010's, not a stopped unit. A unit
     # that never answered a ping cannot show it by one (issue 24 §2: 'stopped answering' is

@@ -22,12 +22,14 @@ IMPLIED = {signal: status for signal, (status, _) in SIGNAL_EFFECT.items()}
 RULE_OF = SIGNAL_RULE
 
 
-def _answered(ctx: Context, signal: str, task: str, answer: Entry | None) -> bool:
+def _answered(ctx: Context, signal: str, task: str, answer: Entry | None,
+              com_uuid: str = "") -> bool:
     """EXEC-SIG-001 on one answer (ERR-013: shaped like a start-task response)."""
     if answer is None:
         ctx.record("EXEC-SIG-001", violation=ctx.violation(
             "EXEC-SIG-001", expected=f"a response to signal-task {signal} within "
-            f"{ctx.timing.response:.1f} s", observed="no response", detail=f"task '{task}'"))
+            f"{ctx.timing.response:.1f} s", observed="no response", detail=f"task '{task}'",
+            command=com_uuid))
         return False
     ctx.record("EXEC-SIG-001", verdict=Verdict.PASS)
     return True
@@ -54,7 +56,7 @@ def _signal(ctx: Context, task: str, task_uuid: str, signal: str, mark: int) -> 
     feedback did not come."""
     after = ctx.traffic.mark()
     sent, answer = ctx.commander.signal(task_uuid, signal, ctx.timing.response)
-    if not _answered(ctx, signal, task, answer) or signal not in IMPLIED:
+    if not _answered(ctx, signal, task, answer, sent.com_uuid) or signal not in IMPLIED:
         return answer is not None
     rule, status = RULE_OF[signal], IMPLIED[signal]
     got = ctx.commander.feedback(task_uuid, {status}, ctx.timing.feedback, after=after)

@@ -1,8 +1,8 @@
 """start-task (12.2.3, 12.3.3, 12.4, 5.3): every task the profile lets the suite run.
 
 For each task in tasks-available that may be started (DESIGN 'Safety'), with parameters
-generated from its schema near the unit's own position: the answer is ``running`` or
-``failed`` with a reason (EXEC-START-001) and carries the task-uuid sent (EXEC-START-002); a
+generated from its schema near the unit's own position: the answer is one of 12.1's values
+(EXEC-START-001, judged by the Monitor) and carries the task-uuid sent (EXEC-START-002); a
 running task sends feedback until a final status (EXEC-START-003) and appears in, then leaves,
 ``tasks-executing`` (DEI-004). One start-task goes without a task-uuid: the unit must generate
 one (12.1); when no task ran yet and that one is not answered, it is asked again with a
@@ -35,28 +35,18 @@ NATURAL_END = ("move-to", "take-off", "move-path", "land")
 NATURAL_RADIUS = 3.0  # metres
 
 
-def _check_answer(ctx: Context, task: str, answer: Entry | None) -> str | None:
-    """Judge EXEC-START-001 on one answer; return the response value when usable."""
+def _check_answer(ctx: Context, task: str, answer: Entry | None, com_uuid: str = ""
+                  ) -> str | None:
+    """The response value of one answer to a start-task, when usable. What the answer says is
+    judged by the Monitor's conversation checks, as lint judges it (EXEC-START-001: one of
+    12.1's values; EXEC-007: a failed answer's fail-reason); only no answer at all is this
+    scenario's observation."""
     if answer is None:
         ctx.record("EXEC-START-001", violation=ctx.violation(
             "EXEC-START-001", expected=f"a response to start-task '{task}' within "
-            f"{ctx.timing.response:.1f} s", observed="no response"))
+            f"{ctx.timing.response:.1f} s", observed="no response", command=com_uuid))
         return None
     response = answer.get("response")
-    if response == "running":
-        ctx.record("EXEC-START-001", verdict=Verdict.PASS)
-    elif response == "failed":
-        if isinstance(answer.get("fail-reason"), str) and answer.get("fail-reason").strip():
-            ctx.record("EXEC-START-001", verdict=Verdict.PASS)
-        else:
-            ctx.record("EXEC-START-001", violation=ctx.violation(
-                "EXEC-START-001", expected="'failed' with a non-empty fail-reason",
-                observed=f"fail-reason {answer.get('fail-reason')!r}", entry=answer,
-                detail=f"task '{task}'"))
-    else:
-        ctx.record("EXEC-START-001", violation=ctx.violation(
-            "EXEC-START-001", expected="response 'running' or 'failed'",
-            observed=f"response {response!r}", entry=answer, detail=f"task '{task}'"))
     return response if isinstance(response, str) else None
 
 
@@ -112,7 +102,7 @@ def _start(ctx: Context, task: str, params: dict[str, Any], generate: bool, *,
         sent, answer = ctx.commander.start_task(task, params, ctx.timing.response,
                                                 task_uuid=task_uuid)
         if answer is None:
-            _check_answer(ctx, task, None)  # EXEC-START-001: not answered
+            _check_answer(ctx, task, None, sent.com_uuid)  # EXEC-START-001: not answered
         return sent, answer
 
     sent, answer = send(None if generate else "new")

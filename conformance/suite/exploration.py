@@ -117,7 +117,7 @@ def run(c: Certification, node: pytest.Item) -> None:
     except OutOfTime as e:
         c.out_of_time_reached(e)
         c.fail_if_out_of_time()
-    collector = Collector(str(c.unit), lambda rule: judged(rule, c.profile))
+    collector = Collector(str(c.unit), lambda v: judged(v, c.profile))
     explorer = Explorer(c.context, collector, lambda task_uuid: _model_state(c, task_uuid),
                         dead=c.unit_died)
     c.connection.listeners.append(collector)

@@ -266,8 +266,46 @@ def test_a_late_answer_says_how_late_and_is_not_also_a_missing_one(stream):
     assert rules["EXEC-010"].verdict is Verdict.WARN
     assert "2.40 s after ping" in rules["EXEC-010"].violations[0].observed
     r = rules["EXEC-PING-001"]  # not within the deadline, once: late, not 'no answer'
-    assert r.verdict is Verdict.FAIL and len(r.violations) == 1
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 1  # strict: adopts 'late'
     assert "answered only after 2.40 s" in r.violations[0].observed
+    assert r.violations[0].condition == "late"
+
+
+def test_a_late_answer_is_a_decided_condition_and_no_answer_the_rule_s_words(stream):
+    """The spec gives no deadline: a pong or a start answered after the response timeout
+    warns (the 'late' condition, decided), also when its deadline had already passed;
+    under strict it fails. A command never answered within the observation fails."""
+    default = Profile(response_timeout=1.0, feedback_timeout=3.0)
+    ping = stream.command(2.1, "ping")
+    task = new()
+    go = start(stream, 3.1, task)
+    late = [ping, go, stream.response(8.5, com_of(ping)),  # 6.4 s: its deadline had passed
+            stream.response(8.6, com_of(go), "running", **{"task-uuid": task}),
+            stream.feedback(8.7, task, "finished")]
+    rules = judge(stream, late, profile=default)
+    assert verdicts(rules, "EXEC-PING-001", "EXEC-START-001", "EXEC-010") == {
+        "EXEC-PING-001": "warn", "EXEC-START-001": "warn", "EXEC-010": "warn"}
+    for rule in ("EXEC-PING-001", "EXEC-START-001"):
+        assert [v.condition for v in rules[rule].violations] == ["late"], rules[rule]
+        assert "interop risk" in rules[rule].reason
+    strict = judge(stream, late)
+    assert verdicts(strict, "EXEC-PING-001", "EXEC-START-001") == {
+        "EXEC-PING-001": "fail", "EXEC-START-001": "fail"}
+    never = judge(stream, [stream.command(2.1, "ping")], profile=default)
+    assert never["EXEC-PING-001"].verdict is Verdict.FAIL
+    assert never["EXEC-PING-001"].violations[0].condition == ""
+
+
+def test_a_start_answered_finished_is_one_of_12_1_s_values(stream):
+    """12.1: 'Possible values: running, failed, finished': a take-off answered 'finished'
+    by a unit already airborne fits; an empty fail-reason is EXEC-007's alone (decided)."""
+    default = Profile(response_timeout=1.0, feedback_timeout=3.0)
+    done, refused = start(stream, 2.1, new(), name="take-off"), start(stream, 4.1, new())
+    rules = judge(stream, [done, stream.response(2.2, com_of(done), "finished"),
+                           refused, stream.response(4.2, com_of(refused), "failed",
+                                                    **{"fail-reason": ""})], profile=default)
+    assert rules["EXEC-START-001"].verdict is Verdict.PASS, rules["EXEC-START-001"]
+    assert rules["EXEC-007"].verdict is Verdict.WARN
 
 
 def test_an_answer_too_many_fails_exec_009(stream):

@@ -132,7 +132,7 @@ def test_the_model_says_what_each_command_may_get_in_each_state():
     model = Model(whole_life=True)
     start_new = _cmd(command="start-task", task={"name": "move-to"})
     e = model.expect(start_new)
-    assert e.responses == {"running", "failed"} and e.outcome("running").states == {
+    assert e.responses == {"running", "failed", "finished"} and e.outcome("running").states == {
         NEW_TASK: State.RUNNING}
     assert model.expect(_cmd(command="ping")).responses == {"pong"}
     ghost = _cmd(command="signal-task", signal="$abort", **{"task-uuid": new()})

@@ -81,13 +81,20 @@ def test_exploration_counts_as_a_disagreement_only_what_the_judge_fails() -> Non
     from conformance.profile import from_dict, load
     from conformance.scenarios.explore_steps import judged
 
+    def found(rule: str, condition: str = "") -> Violation:
+        return Violation.of(rule, expected="", observed="", condition=condition)
+
     default = load("default")  # what a unit's drafted profile extends
-    assert not judged("EXEC-FB-004", default)
-    assert judged("EXEC-RESEND-001", default)  # implied: fails
-    assert judged("EXEC-FB-004", load("strict"))
-    assert judged("EXEC-FB-004", from_dict({"extends": "default",
-                                            "severity": {"EXEC-FB-004": "error"}}))
-    assert not judged("HB-003", default)  # no rule about commands
+    assert not judged(found("EXEC-FB-004"), default)
+    assert judged(found("EXEC-RESEND-001"), default)  # implied: fails
+    assert judged(found("EXEC-FB-004"), load("strict"))
+    assert judged(found("EXEC-FB-004"), from_dict({"extends": "default",
+                                                   "severity": {"EXEC-FB-004": "error"}}))
+    assert not judged(found("HB-003"), default)  # no rule about commands
+    # A decided condition of a stated rule (a pong after the response timeout) likewise.
+    assert judged(found("EXEC-PING-001"), default)
+    assert not judged(found("EXEC-PING-001", "late"), default)
+    assert judged(found("EXEC-PING-001", "late"), load("strict"))
 
 
 def fleet() -> RunReport:

@@ -19,7 +19,7 @@ SPEC = ROOT / "docs" / "spec" / "waraps-core-api-0.7.txt"
 ELISION = " [...] "
 """A quote may join verbatim passages with this mark (the spec itself never contains it)."""
 
-COMMON = {"id", "title", "section", "severity", "level", "mode", "side"}
+COMMON = {"id", "title", "section", "severity", "level", "mode", "side", "condition"}
 BASES: dict[str, tuple[set[str], set[str]]] = {
     # basis: (keys it must have, keys it may have besides COMMON)
     "stated": ({"quote"}, {"note"}),
@@ -71,6 +71,22 @@ def spec() -> str:
 def test_every_rule_has_a_basis_and_what_it_needs(rules: list[dict], spec: str) -> None:
     problems = {r["id"]: p for r in rules if (p := basis_problems(r, spec))}
     assert not problems, "\n".join(f"{rid}: {'; '.join(p)}" for rid, p in problems.items())
+
+
+def test_every_condition_has_a_basis_and_what_it_needs(rules: list[dict], spec: str) -> None:
+    """A rule's further conditions (``[[rule.condition]]``: a deadline, a tolerance, a closed
+    list its words do not give) each stand on a basis of their own, checked as a rule's."""
+    problems = {}
+    for r in rules:
+        for c in r.get("condition", ()):
+            keys = {k: v for k, v in c.items() if k not in ("id", "title")}
+            found = basis_problems(keys, spec)
+            if not (isinstance(c.get("id"), str) and c["id"] and c.get("title")):
+                found.append("a condition needs an id and a title")
+            if found:
+                problems[f"{r['id']}/{c.get('id')}"] = found
+    assert not problems, "\n".join(f"{k}: {'; '.join(p)}" for k, p in problems.items())
+    assert any(r.get("condition") for r in rules)
 
 
 def test_every_erratum_is_decided(rules: list[dict]) -> None:

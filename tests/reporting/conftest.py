@@ -32,7 +32,7 @@ def run_report(prefix: str) -> RunReport:
     a, b = str(uuid.uuid4()), str(uuid.uuid4())
     for i in range(15):
         m.feed(heartbeat(good, i, a))
-        m.feed(heartbeat(slow, i * 1.7, b))  # declares 1 Hz, publishes at 0.59 Hz: HB-003 fails
+        m.feed(heartbeat(slow, i * 3.5, b))  # declares 1 Hz, publishes at 0.29 Hz: HB-003 fails
     m.feed(Message(T0 + 3.5, slow.topic("sensor/Camera"), HOSTILE.encode()))  # TOPIC-002 fails
     m.feed(Message(T0 + 4.0, f"{prefix}/unit/air", b"{}"))
     m.record(good, "REBOOT-001", verdict=Verdict.COULD_NOT_TEST, reason="no reboot command")

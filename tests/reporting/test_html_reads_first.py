@@ -56,7 +56,7 @@ def opening(page: str) -> str:
 
 
 def test_a_failing_run_opens_with_the_failing_rule_its_evidence_and_basis(prefix: str) -> None:
-    page = render_html(certification(prefix, period=1.7, reboot=True))
+    page = render_html(certification(prefix, period=3.5, reboot=True))
     top = opening(page)
     assert "What failed" in top and "HB-003" in top
     assert "expected" in top and "observed" in top  # the evidence itself, not a link to it
@@ -100,7 +100,7 @@ def test_screenshots_of_a_failing_a_could_not_test_and_a_passing_run(
     from test_html_browser import chromium  # rootdir-relative import (rootdir conftest)
 
     ARTEFACTS.mkdir(parents=True, exist_ok=True)
-    runs = {"failing": certification(prefix, period=1.7, reboot=True),
+    runs = {"failing": certification(prefix, period=3.5, reboot=True),
             "could-not-test": certification(prefix, period=1.0, reboot=False),
             "passing": certification(prefix, period=1.0, reboot=True)}
     for name, report in runs.items():
