@@ -10,7 +10,10 @@ top-level ``schemas/`` folder), so it works after a non-editable install:
 - ``messages/``: the message schemas of sections 5, 6, 12 and 14 (written by hand).
 
 Schema nodes carry the custom keyword ``"x-rule": "<rule id>"``: a schema error belongs to the
-nearest ``x-rule`` along its evaluation path (``rule_annotations``). ``"x-expected"`` and
+nearest ``x-rule`` along its evaluation path (``rule_annotations``), and to the condition of
+that rule named by the nearest ``"x-condition"`` below it (or, for one keyword of a node,
+``"x-conditions": {"uniqueItems": "unique"}``): a keyword the rule's quote does not state is a
+condition of its own, with its own basis in ``rules.toml``. ``"x-expected"`` and
 ``"x-detail"`` give the words a person reads when the standard error text would say less.
 """
 
@@ -188,6 +191,8 @@ class Annotations:
     rule: str | None
     expected: str | None = None
     detail: str | None = None
+    condition: str = ""
+    """The condition of ``rule`` the error found ("": the rule's own words)."""
 
 
 @lru_cache(maxsize=4096)
@@ -198,6 +203,7 @@ def rule_annotations(path: str, evaluation_path: tuple[str | int, ...]) -> Annot
     node: Any = load(path)
     base = node.get("$id", uri_of(path))
     rule = node.get("x-rule")
+    condition = node.get("x-condition", "")
     for step in evaluation_path[:-1]:
         if step == "$ref" and isinstance(node, dict):
             node, base = resolve(base, node["$ref"])
@@ -212,10 +218,18 @@ def rule_annotations(path: str, evaluation_path: tuple[str | int, ...]) -> Annot
         if isinstance(node, dict):
             if "$id" in node:
                 base = node["$id"]
-            rule = node.get("x-rule", rule)
+            if "x-rule" in node:  # a rule of its own: its own words, unless it says
+                rule, condition = node["x-rule"], ""
+            condition = node.get("x-condition", condition)
     if isinstance(node, dict):
-        return Annotations(rule, node.get("x-expected"), node.get("x-detail"))
-    return Annotations(rule)
+        # ``x-conditions`` names the condition of one keyword of this node (``uniqueItems``:
+        # a keyword the rule's quote does not state is a condition of its own, decided).
+        keyword = evaluation_path[-1] if evaluation_path else ""
+        named = node.get("x-conditions", {})
+        if isinstance(keyword, str) and keyword in named:
+            condition = named[keyword]
+        return Annotations(rule, node.get("x-expected"), node.get("x-detail"), condition)
+    return Annotations(rule, condition=condition)
 
 
 # --- which rules a message reached (jsonschema-rs's evaluation) ----------------------------------

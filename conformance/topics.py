@@ -73,7 +73,9 @@ INFO_KIND_OF_LEVEL = {
     TST_EXECUTION: TopicKind.TST_EXECUTION_INFO,
 }
 
-_NAME = re.compile(r"^[a-z0-9]+(_[a-z0-9]+)*$")  # 3.2: lowercase, words joined by '_'
+# 3.2: words joined by '_'. A word is letters and digits of any script ('båt0'): 3.2 names no
+# character set; refusing non-ASCII is TOPIC-008's decision, not 3.2's words.
+_NAME = re.compile(r"^[^\W_]+(_[^\W_]+)*$")
 _BAD_CHARS = re.compile(r"[#+\s\x00-\x1f\x7f]|[^\x00-\x7f]")
 
 

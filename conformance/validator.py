@@ -411,7 +411,7 @@ def _schema_violations(path: str, validator: jsonschema_rs.Validator, message: A
                 expected = notes.expected
             found[(rule, spot)] = Violation.of(
                 rule, expected=expected, observed=observed, topic=topic, path=spot, time=time,
-                payload=raw, unit=unit, detail=notes.detail or "")
+                payload=raw, unit=unit, detail=notes.detail or "", condition=notes.condition)
     return list(found.values())
 
 

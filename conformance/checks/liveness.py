@@ -105,6 +105,10 @@ def dying_at_end(ctx: CheckContext, unit: UnitState, c: CommandHistory, now: flo
     return (dying_from(c, dead[1], heartbeat_period(unit)), dead[1]) if dead else None
 
 
+DEATH_FLOOR = 1.0
+"""Seconds of silence, at the least, before a heartbeat that stopped is a death."""
+
+
 def death(ctx: CheckContext, unit: UnitState, now: float) -> tuple[float, float] | None:
     """(dying since, last heartbeat) when the unit's heartbeat stopped and never resumed before
     ``now``: silent for more than 3 periods (``heartbeat_period``), the observer connected.
@@ -114,7 +118,9 @@ def death(ctx: CheckContext, unit: UnitState, now: float) -> tuple[float, float]
     if last is None or unit.period(HB) is None:
         return None
     period = heartbeat_period(unit)
-    if now - last <= SILENCE_PERIODS * period or broker_gap(ctx, last, now):
+    # At least DEATH_FLOOR too: a recording cut 0.36 s after a 10 Hz unit's last heartbeat
+    # (3.6 periods) shows where the recorder stopped, not that the unit did.
+    if now - last <= max(SILENCE_PERIODS * period, DEATH_FLOOR) or broker_gap(ctx, last, now):
         # Over a gap of the broker it is unknown whether it fell silent; silent through a
         # reboot the suite requested (a zero-length gap of its own) is a death all the same.
         return None

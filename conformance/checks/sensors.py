@@ -100,8 +100,9 @@ def mandatory_sensors_listed(ctx: CheckContext, unit: UnitState, msg: Message,
     if seen.missing_listed == key:
         return None
     seen.missing_listed = key
-    return [Violation.of(
-        "SI-004", expected=f"sensor-data-provided lists {', '.join(MANDATORY_SENSORS)}",
+    return [Violation.of(  # decided: 5.2's own examples leave heading and course out
+        "SI-004", condition="listed",
+        expected=f"sensor-data-provided lists {', '.join(MANDATORY_SENSORS)}",
         observed=f"missing {', '.join(missing)}", topic=msg.topic, path="$.sensor-data-provided",
         time=msg.time, payload=msg.payload,
         detail="6.1 spells 'positon' once; the topic is sensor/position")]

@@ -1,5 +1,6 @@
 """``waraps-conformance rules``: print the rule catalogue (id, severity, mode, side, basis,
-section, title; with ``--basis`` what each stands on: its quote or its decision)."""
+section, title; with ``--basis`` what each stands on, condition by condition: its quote or its
+decision)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import json
 from conformance import profile as profiles
 from conformance.cli import options as opts
 from conformance.display import printable
-from conformance.rules import CATALOGUE, basis_counts
+from conformance.rules import CATALOGUE, basis_counts, condition_counts
 
 
 def main(argv: list[str]) -> int:
@@ -30,7 +31,11 @@ def main(argv: list[str]) -> int:
                            "severity": profile.severity_of(r.id).value, "level": r.level.value,
                            "mode": r.mode.value, "side": r.side.value,
                            "basis": r.basis.value, "quote": r.quote, "because": r.because,
-                           "decision": r.decision, "note": r.note} for r in rules],
+                           "decision": r.decision, "note": r.note,
+                           "conditions": [{"id": c.id, "title": c.title, "basis": c.basis.value,
+                                           "quote": c.quote, "because": c.because,
+                                           "decision": c.decision} for c in r.conditions]}
+                          for r in rules],
                          indent=2))
         return 0
     w = max(len(r.id) for r in rules)
@@ -38,11 +43,19 @@ def main(argv: list[str]) -> int:
         print(f"{r.id:<{w}}  {profile.severity_of(r.id).value:<7}  {r.mode.value:<12}  "
               f"{r.side.value:<9}  {r.basis.value:<7}  {r.section:<32.32}  {r.title}")
         if args.basis:
-            print(printable(f"{'':<{w}}  {r.basis_text()}") + "\n")
+            # Each condition with its own basis: the rule's words, then what the suite added.
+            print(printable(f"{'':<{w}}  {r.basis_text()}"))
+            for c in r.conditions:
+                print(printable(f"{'':<{w}}  condition '{c.id}' ({c.title}): {c.basis_text()}"))
+            print()
         elif args.errata and r.decision:
             print(f"{'':<{w}}  decision: {r.decision}\n")
-    counts = basis_counts()
+    counts, conditions = basis_counts(), condition_counts()
     print(f"\n{len(CATALOGUE)} rules: {counts['stated']} stated, {counts['implied']} implied, "
           f"{counts['decided']} decided (decided rules warn as interop risks unless the run is "
           f"strict: pytest --strict-rules, lint --strict, or strict: true in the profile)")
+    print(f"{sum(conditions.values())} conditions (each rule's own words and the conditions "
+          f"the suite added to them): {conditions['stated']} stated, {conditions['implied']} "
+          f"implied, {conditions['decided']} decided; a finding is judged on its condition's "
+          f"basis (--basis lists them)")
     return 0

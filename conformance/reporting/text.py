@@ -80,7 +80,15 @@ def render_violation(rule: str | Rule, violation: Violation, unit: str = "",
     line("at", iso_time(violation.time))
     line("payload", violation.excerpt)
     line("spec", r.section if r else "")
-    line("basis", r.basis_text() if r else "")
+    if r is not None and violation.condition:  # the condition found, on its own basis
+        try:
+            found = r.condition(violation.condition)
+            line("condition", found.title)
+            line("basis", found.basis_text())
+        except KeyError:
+            line("basis", r.basis_text())
+    else:
+        line("basis", r.basis_text() if r else "")
     line("hint", violation.detail)
     if rerun_hint is None and unit:
         rerun_hint = rerun_command(report, unit, rule_id, violation.topic or "")

@@ -308,16 +308,39 @@ def test_silence_warns_and_says_how_the_unit_came_back(stream):
 
 
 def test_a_heartbeat_that_stops_for_good_is_a_death_at_finish(stream):
+    """With no command before it, a unit that stops is switched off or gone (the decided
+    'no-command' condition: warns; strict fails); after a command, it died on it (fails)."""
     m = Monitor()
     stream.feed(m, [stream.heartbeat(i) for i in range(3)])
     m.finish(now=stream.heartbeat(10).time)
     rules = m.report().units[str(stream.address)].rules
     r = rules["HB-012"]
-    assert r.verdict is Verdict.FAIL and "never came back" in r.violations[0].observed
+    assert r.verdict is Verdict.WARN and "never came back" in r.violations[0].observed
+    assert r.violations[0].condition == "no-command"
+    strict = Monitor(STRICT)
+    stream.feed(strict, [stream.heartbeat(i) for i in range(3)])
+    strict.finish(now=stream.heartbeat(10).time)
+    assert strict.report().units[str(stream.address)].rules["HB-012"].verdict is Verdict.FAIL
+    commanded = Monitor(Profile(response_timeout=1.0))
+    stream.feed(commanded, [stream.heartbeat(i) for i in range(3)]
+                + [stream.command(2.5, "ping")])
+    commanded.finish(now=stream.heartbeat(10).time)
+    died = commanded.report().units[str(stream.address)].rules["HB-012"]
+    assert died.verdict is Verdict.FAIL and died.violations[0].condition == "", died
     assert "it had received no command" in r.violations[0].observed
     assert rules["HB-010"].verdict is Verdict.PASS  # a silence that resumed is HB-010's
     m.finish(now=stream.heartbeat(3).time)  # finish again: re-judged, not counted twice
     assert m.report().units[str(stream.address)].rules["HB-012"].verdict is Verdict.PASS
+
+
+def test_a_recording_cut_just_after_a_fast_unit_s_heartbeat_is_no_death(stream):
+    """A 10 Hz unit whose recording stops 0.36 s (3.6 periods) after its last heartbeat: the
+    recorder stopped, not the unit (a death needs DEATH_FLOOR seconds of silence too)."""
+    fast = type(stream)(stream.address, rate=10.0)
+    m = Monitor()
+    stream.feed(m, fast.alive(5, info=False, sensors=False))
+    m.finish(now=fast.heartbeat(5.0).time + 0.36)
+    assert verdict(m, stream, "HB-012").verdict is Verdict.PASS
 
 
 def test_stale_retained_heartbeat_warns(stream):
@@ -437,6 +460,19 @@ def test_mandatory_sensors_listed_and_published(stream):
     r = verdict(m, stream, "SI-004")
     assert r.verdict is Verdict.FAIL
     assert any("heading" in v.observed and "nothing on" in v.observed for v in r.violations)
+
+
+def test_mandatory_sensors_published_but_not_listed_warn_as_5_2_s_examples_do(stream):
+    """Both 5.2 examples list position and speed only: a unit that publishes all four
+    mandatory sensors with such a list warns (SI-004's decided 'listed'), fails only strict."""
+    msgs = stream.alive(8, info=False)
+    msgs += [stream.sensor_info(i + 0.01, sensors=["position", "speed"]) for i in range(9)]
+    for profile, expected in ((Profile(), Verdict.WARN), (STRICT, Verdict.FAIL)):
+        m = Monitor(profile)
+        stream.feed(m, msgs)
+        r = verdict(m, stream, "SI-004")
+        assert r.verdict is expected, r
+        assert [v.condition for v in r.violations] == ["listed"]
 
 
 def test_unlisted_sensor_warns_once(stream):

@@ -85,3 +85,21 @@ def test_a_subscription_filter_is_checked_as_mqtt_does(text: str, ok: bool) -> N
 def test_a_unit_address_holds_nothing_a_topic_cannot(text: str) -> None:
     with pytest.raises(TopicError):
         UnitAddress.parse(text)
+
+
+def test_a_name_in_another_script_is_lowercase_words_and_only_topic_008_s_decision():
+    """3.2 asks for lowercase words joined by '_' and names no character set: 'båt0' breaks
+    no stated naming rule (TOPIC-003 passes); refusing non-ASCII is TOPIC-008's decision."""
+    from conformance.judge import violation_verdict
+    from conformance.profile import Profile
+    from conformance.rules import CATALOGUE
+    from conformance.violation import Verdict
+
+    found = naming_violations("waraps/unit/surface/real/båt0/heartbeat")
+    assert [v.rule for v in found] == ["TOPIC-008"]
+    rule = CATALOGUE["TOPIC-008"]
+    default, strict = Profile(), Profile(strict=True)
+    assert violation_verdict(rule, default.severity_of(rule.id), strict=False) is Verdict.WARN
+    assert violation_verdict(rule, strict.severity_of(rule.id), strict=True) is Verdict.FAIL
+    assert [v.rule for v in naming_violations("waraps/unit/surface/real/bat-0/heartbeat")] == [
+        "TOPIC-003"]
