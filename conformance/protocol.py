@@ -177,6 +177,7 @@ class Finding:
     expected: str
     observed: str
     time: float
+    condition: str = ""  # which condition of ``rule`` (rules.toml), "" its own words
 
 
 class Model:
@@ -509,7 +510,8 @@ class Model:
         return [Finding("EXEC-SEQ-002", task.task_uuid, cmd.com_uuid,
                         f"only task {cmd.task_uuid} changed by {wanted} (its task-uuid)",
                         f"task {task.task_uuid} says '{status}' {t - sent:.2f} s after that "
-                        f"{wanted} was sent and answered 'ok'", t)]
+                        f"{wanted} was sent and answered 'ok'", t,
+                        "also-aborted" if wanted == "$abort" else "")]
 
     def _remember(self, task_uuid: str, name: str | None, state: State, started_by: str | None
                   = None, refused: bool = False, ended_at: float | None = None) -> TaskRecord:

@@ -16,6 +16,8 @@ read what it holds (``checks/__init__.py`` registers it first). Its life is the 
 
 from __future__ import annotations
 
+import dataclasses
+
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.command_history import violation
 from conformance.checks.conversation import CONVERSATIONS, conversations
@@ -67,8 +69,9 @@ def sequence_follows_model(ctx: CheckContext, unit: UnitState, msg: Message,
     found = model.feedback(m, t)
     if not found:
         return None
-    return [violation(f.rule, msg, expected=f.expected, observed=f.observed, path="$.status",
-                      detail=DETAIL.get(f.rule, "")) for f in found]
+    return [dataclasses.replace(violation(f.rule, msg, expected=f.expected, observed=f.observed,
+                                          path="$.status", detail=DETAIL.get(f.rule, "")),
+                                condition=f.condition) for f in found]
 
 
 def _examine_signal(unit: UnitState, model: Model, m: object) -> None:

@@ -94,12 +94,15 @@ def _reboot(ctx: Context, names: Any) -> None:
     renamed = names.new_name(known, requested, 0.0) if hb is None and names else None
     if renamed is not None:
         # 3.1: UNIT is the unit's name; back under another, it is another unit to every
-        # commander. A failure of its own (not could-not-test: it did not die).
-        ctx.record("REBOOT-001", verdict=Verdict.FAIL, reason=(
-            f"after the reboot ({ctx.reboot_how}) the unit came back as "
-            f"'{renamed}' (a unit of the same type and role first heard "
-            f"after the reboot), not as '{ctx.unit.name}': it must keep its name (3.1), and "
-            f"only its agent-uuid changes (5.1)"))
+        # commander. Not could-not-test (it did not die); no words of the spec say a name
+        # outlives a reboot, so it is REBOOT-001's decided condition 'renamed' (warns).
+        ctx.record("REBOOT-001", violation=dataclasses.replace(ctx.violation(
+            "REBOOT-001", expected=f"back as '{ctx.unit.name}' with a new agent-uuid (its "
+            f"name is its address, 3.1)", observed=f"after the reboot ({ctx.reboot_how}) the "
+            f"unit came back as '{renamed}' (a unit of the same type and role first heard "
+            f"after the reboot)", subtopic="heartbeat",
+            detail="keep the unit's name across a reboot: only its agent-uuid changes (5.1)"),
+            condition="renamed"))
         ctx.record("REBOOT-002", verdict=Verdict.COULD_NOT_TEST,
                    reason=f"the unit came back under another name ('{renamed}', REBOOT-001)")
         ctx.notes["renamed"] = renamed  # what follows reads why its address fell silent

@@ -13,6 +13,7 @@ has its tasks followed. Then a start-task with invalid parameters is refused wit
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 from conformance.protocol import NO_SUCH_TASK
@@ -209,12 +210,12 @@ def _ended(ctx: Context, task: str, task_uuid: str, sent: Sent, signals: list[st
                                "own)", listed=listed, gaps_before=sent.gaps_before)
         if final is None:
             judged = True
-            _no_final(ctx, ctx.untestable(noted), sent, violation=ctx.violation(
+            _no_final(ctx, ctx.untestable(noted), sent, violation=dataclasses.replace(ctx.violation(
                 "EXEC-START-003", expected=f"'{task}' ends on its own with a final status "
                 f"(finished or failed) within {ctx.timing.feedback:.1f} s",
                 observed=f"statuses {ctx.commander.statuses(task_uuid, sent.mark) or 'none'}",
                 subtopic="exec/feedback", detail=f"task-uuid {task_uuid}; params "
-                f"{sent.body.get('task', {}).get('params')}"))
+                f"{sent.body.get('task', {}).get('params')}"), condition="own-end"))
     noted = ctx.final_known()
     final = ctx.end_task(task_uuid, signals, after=sent.mark, gaps_before=sent.gaps_before)
     statuses = ctx.commander.statuses(task_uuid, sent.mark)

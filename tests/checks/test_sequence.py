@@ -120,6 +120,22 @@ def test_a_task_pre_empted_by_a_new_start_is_no_other_tasks_abort(stream):
     assert rules["EXEC-SEQ-002"].verdict is Verdict.PASS and not failing(rules)
 
 
+def test_an_abort_that_also_ends_a_dependent_task_warns(stream):
+    """The spec says nothing of tasks that depend on each other: another task 'aborted'
+    right after an $abort answered 'ok' is EXEC-SEQ-002's decided condition 'also-aborted'
+    (warns by default, fails strict); pausing another stays the rule's own words."""
+    a, b = new(), new()
+    traffic = (start(stream, 2.0, a) + start(stream, 3.0, b)
+               + signal(stream, 5.0, b, "$abort", (5.2, b, "aborted"), (5.25, a, "aborted")))
+    rule = judge(stream, traffic)["EXEC-SEQ-002"]
+    assert rule.verdict is Verdict.WARN, rule
+    assert [v.condition for v in rule.violations] == ["also-aborted"]
+    m = Monitor(Profile(response_timeout=1.0, feedback_timeout=3.0, strict=True))
+    stream.feed(m, stream.alive(20.0) + traffic)
+    m.finish()
+    assert m.report().units[str(stream.address)].rules["EXEC-SEQ-002"].verdict is Verdict.FAIL
+
+
 # --- the model itself ---------------------------------------------------------------------------
 
 def _cmd(**m) -> Command:
