@@ -54,6 +54,10 @@ RATE_RULES = {
     TopicKind.TST_EXECUTION_INFO: "TEI-002",
 }
 GROSS_FACTOR = 3.0  # HB-003's decision: a mean this far off fails early
+WRONG_FACTOR = 2.0
+"""A mean interval off by this factor or more (half or twice the declared rate): the declared
+rate is not the rate the unit sends at (the rule's words); less, past the profile's tolerance,
+is the suite's bound (the decided condition ``tolerance``)."""
 GROSS_MIN_INTERVALS = 3
 GROSS_SLOW_MIN_INTERVALS = 2
 """HB-003's decision (issue 24 §2): when every interval is at least GROSS_FACTOR declared
@@ -201,7 +205,7 @@ class RateTracker:
 
     def judge(self, ctx: CheckContext, unit: str) -> tuple[RateStat, list[Violation]]:
         """The rate's statistics and verdict, and its violations (pure: changes nothing): off
-        by 3x or more fails the rule's words, past the profile's tolerance or with one long
+        by 2x or more fails the rule's words, past the profile's tolerance or with one long
         interval its decided conditions ``tolerance`` and ``interval``."""
         profile = ctx.profile
         need = profile.min_intervals
@@ -236,7 +240,7 @@ class RateTracker:
                        f"rate in Hz? publish at the declared rate, or declare the rate used"))
         elif abs(mean - period) > profile.rate_tolerance * period:
             found.append(Violation.of(
-                self.rule, condition="" if gross else "tolerance",
+                self.rule, condition="" if gross or _wrong(mean, period) else "tolerance",
                 expected=f"{declared:.2f} Hz +-{profile.rate_tolerance:.0%} "
                          f"(declared in {self.kind.value}.rate)",
                 observed=f"{1.0 / mean:.2f} Hz {window}" if mean > 0 else f"0 s mean {window}",
@@ -311,13 +315,18 @@ class RateTracker:
             return None
         since = window[0][0] - window[0][1]
         return Violation.of(
-            self.rule, condition="" if gross else "tolerance",
+            self.rule, condition="" if gross or _wrong(mean, period) else "tolerance",
             expected=f"{declared:.2f} Hz +-{profile.rate_tolerance:.0%} "
                      f"(declared in {self.kind.value}.rate)",
             observed=f"{_hz(mean)} over the latest {k} intervals (since "
                      f"{clock(since)}){', a gross mismatch' if gross else ''}",
             topic=self.topic, time=window[-1][0], unit=unit,
             detail="live: judged over the whole observation when the run ends")
+
+
+def _wrong(mean: float, period: float) -> bool:
+    """Whether a mean interval is off the declared period by WRONG_FACTOR or more."""
+    return mean >= WRONG_FACTOR * period or mean <= period / WRONG_FACTOR
 
 
 def _gross(n: int, mean: float, shortest: float, period: float) -> bool:

@@ -231,14 +231,17 @@ def test_payload_b64_lines_are_judged(tmp_path: Path, reports_dir: Path, prefix:
 def test_a_unit_silent_until_the_recording_ends_has_died(tmp_path: Path, reports_dir: Path,
                                                          prefix: str) -> None:
     """The recorder writes when it stopped listening: a unit silent from its last message
-    until then has died (HB-012). Without that mark the silence was not observed."""
+    until then has stopped for good (HB-012; with no command before it, it may have been
+    switched off: the decided 'no-command' condition, a warning). Without that mark the
+    silence was not observed."""
     traffic = unit_traffic(prefix, "dji0", seconds=12)
     unit = f"{prefix}/unit/air/simulation/dji0"
     ended = write_recording(tmp_path / "ended.jsonl", [
         Event(T0 - 0.5, "start", "subscribed"), *traffic, Event(T0 + 30, "end", "stopped")])
     run = run_lint(["--from", str(ended)], reports_dir / "ended")
     hb012 = run.report["units"][unit]["rules"]["HB-012"]
-    assert hb012["verdict"] == "fail" and "never came back" in hb012["violations"][0]["observed"]
+    assert hb012["verdict"] == "warn" and "never came back" in hb012["violations"][0]["observed"]
+    assert hb012["violations"][0]["condition"] == "no-command"
     cut = write_recording(tmp_path / "cut.jsonl", traffic)  # no end mark (mosquitto_sub)
     run = run_lint(["--from", str(cut)], reports_dir / "cut")
     assert run.report["units"][unit]["rules"]["HB-012"]["verdict"] == "pass"

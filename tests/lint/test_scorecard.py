@@ -132,13 +132,13 @@ def test_recorded_duration_limits_what_is_judged(tmp_path: Path, reports_dir: Pa
 
 
 def test_plain_view_says_when_a_rate_goes_off_and_when_it_is_back(prefix: str) -> None:
-    """Issue 20: a unit at 0.74 Hz declaring 1 Hz is shown failing while lint runs (within
-    10 intervals), not only on the final screen; the row shows it too."""
+    """A unit at 0.45 Hz declaring 1 Hz (off by 2x: the rule's words) is shown failing while
+    lint runs (within 10 intervals), not only on the final screen; the row shows it too."""
     out = io.StringIO()
     card = Scorecard(out, tty=False)
     linter = Linter(Monitor(Profile(), kind="lint"), Profile())
-    slow = unit_traffic(prefix, "slow0", seconds=15, rate=1 / 1.35, agent_uuid=DJI0)
-    for m in slow:  # declares 0.74 Hz: re-declare 1 Hz while sending at 0.74
+    slow = unit_traffic(prefix, "slow0", seconds=30, rate=1 / 2.2, agent_uuid=DJI0)
+    for m in slow:  # declares 0.45 Hz: re-declare 1 Hz while sending at 0.45
         if m.topic.endswith("/heartbeat"):
             hb = orjson.loads(m.payload)
             hb["rate"] = 1.0
@@ -148,7 +148,7 @@ def test_plain_view_says_when_a_rate_goes_off_and_when_it_is_back(prefix: str) -
     unit = f"{prefix}/unit/air/simulation/slow0"
     lines = [ln for ln in out.getvalue().splitlines() if ln.endswith("(live)")]
     assert len(lines) == 1 and f"FAIL {unit} HB-003" in lines[0], out.getvalue()
-    assert "0.74 Hz over the latest 10 intervals" in lines[0]
+    assert "0.45 Hz over the latest 10 intervals" in lines[0]
     (row,) = [r for r in card.rows(linter) if r.unit == unit]
     assert row.status == "FAIL" and row.live == ("HB-003",)
     assert "HB-003(live)" in card.table([row], None)[1]
@@ -208,7 +208,9 @@ def test_recorded_lint_opens_with_verdicts_most_severe_first_and_counts_agree(
                + unit_traffic(prefix, "zzz0", seconds=12))  # dies at 12 s: HB-012
     rec = write_recording(tmp_path / "r.jsonl", [Event(T0 - 0.5, "start", "subscribed"),
                                                  *traffic, Event(T0 + 30, "end", "stopped")])
-    run = run_lint(["--from", str(rec)], reports_dir)
+    # Strict: a unit that received no command and stops may have been switched off (HB-012's
+    # decided 'no-command'); adopted, it is the death this ordering is about.
+    run = run_lint(["--from", str(rec), "--strict"], reports_dir)
     assert run.code == 1 and run.report is not None
     lines = run.out.splitlines()
     first_finding = next(i for i, ln in enumerate(lines) if " HB-0" in ln)
@@ -229,11 +231,12 @@ def test_recorded_lint_opens_with_verdicts_most_severe_first_and_counts_agree(
 
 
 def test_the_evidence_cap_never_cuts_a_death_for_a_rate(prefix: str) -> None:
-    """Units named before the dead one fail a rate: capped at 2, the death is still shown."""
+    """Units named before the dead one fail a rate: capped at 2, the death is still shown
+    (strict: with no command before it, a stop is HB-012's decided 'no-command')."""
     from conformance.lint.runner import failures
     from conformance.reporting.text import render_verdicts
 
-    m = Monitor(Profile(), kind="lint")
+    m = Monitor(Profile(strict=True), kind="lint")
     msgs = [*unit_traffic(prefix, "zzz0", seconds=10)]
     for name in ("aaa0", "aaa1", "aaa2"):
         msgs += unit_traffic(prefix, name, seconds=30, heartbeat_every=2)
