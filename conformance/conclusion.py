@@ -171,10 +171,12 @@ def counts(report: RunReport) -> dict[str, int]:
     return found
 
 
-def died_at(unit: UnitReport) -> float | None:
-    """When the unit died (its last heartbeat before HB-012's silence), None if it did not."""
+def died_at(unit: UnitReport, verdict: Verdict = Verdict.FAIL) -> float | None:
+    """When the unit died (its last heartbeat before HB-012's silence), None if it did not;
+    with ``verdict`` WARN, when its heartbeat stopped for good with no command before it
+    (HB-012's decided 'no-command': switched off, or gone)."""
     result = unit.rules.get("HB-012")
-    if result is None or result.verdict is not Verdict.FAIL:
+    if result is None or result.verdict is not verdict:
         return None
     times = [v.time for v in result.violations if v.time is not None]
     if times:
@@ -284,6 +286,8 @@ def _lint_unit(name: str, unit: UnitReport, *, untimed: bool = False) -> UnitSta
                    else f"{CLEAN} for {duration(span)}") + f", {commanded}"
     if died is not None:
         summary += f"; it died at {iso(died)}"
+    elif (stopped := died_at(unit, Verdict.WARN)) is not None:
+        summary += f"; its heartbeat stopped at {iso(stopped)} (no command before it)"
     levels = tuple(LevelStatus(lv, False, LINT_NEVER_CERTIFIES)
                    for lv in dict.fromkeys(map(level_name, unit.levels)))
     verdict = worst.value if worst in (Verdict.FAIL, Verdict.WARN) else CLEAN

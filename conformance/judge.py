@@ -16,20 +16,20 @@ No other module decides or changes a verdict: ``tests/core/test_judge.py`` greps
 
 from __future__ import annotations
 
-from collections.abc import Collection, Iterable
+from collections.abc import Collection, Iterable, Mapping
 from types import MappingProxyType
 
 from conformance.facts import RunFacts, iso
-from conformance.results import COMMANDER_REASON, RunReport, UnitReport
+from conformance.results import COMMANDER_REASON, RateStat, RunReport, UnitReport
 from conformance.rules import CATALOGUE, Rule, Severity, Side
-from conformance.violation import RuleResult, Verdict, Violation
+from conformance.violation import Observed, RuleResult, Verdict, Violation
 
 INTEROP_RISK = "interop risk: the spec does not say; this suite decided: "
 """What a decided rule's warning says (DESIGN 'What a rule stands on')."""
 
 
 def judge_rule(rule: Rule, *, severity: Severity, strict: bool, violations: list[Violation],
-               count: int = -1, examined: int = 0, explicit: Verdict | None = None,
+               count: int = -1, examined: int = 0, explicit: Observed | None = None,
                explicit_reason: str = "", default_reason: str = "",
                excused: str = "", firm: int = -1) -> RuleResult:
     """The verdict of one rule for one row:
@@ -38,11 +38,11 @@ def judge_rule(rule: Rule, *, severity: Severity, strict: bool, violations: list
       violation found a condition that stands on the spec's words (stated or implied: the
       condition's basis, ``rules.Condition``), or any condition in a strict run; else warn
       (each decided condition found says so: an interop risk);
-    - an explicit fail or warn a scenario recorded, under the rule's own basis;
     - examined at least once without a violation: pass;
     - evidence that was all excused (``excused``: the unit had died, the broker was out):
       could-not-test, saying why;
-    - an explicit skip or could-not-test, with its reason; else skip (``default_reason``).
+    - what a scenario saw (``explicit``): not applicable, skip; untestable, could-not-test;
+      with its reason; else skip (``default_reason``).
 
     ``count`` is the number of violations seen (``violations`` holds the first few as
     evidence; -1 means ``len(violations)``), ``firm`` how many of them found a condition
@@ -56,27 +56,31 @@ def judge_rule(rule: Rule, *, severity: Severity, strict: bool, violations: list
         fails = severity is Severity.ERROR and (strict or firm > 0)
         verdict = Verdict.FAIL if fails else Verdict.WARN
         risk = _risks(rule, violations) if lenient and not firm else ""
-        if explicit is not None and explicit.rank > verdict.rank and not (
-                lenient and rule.is_decided):
-            verdict = explicit
         noun = "violation" if count == 1 else "violations"
-        reason = "; ".join(x for x in (f"{count} {noun}" + (
-            f" ({explicit_reason})" if explicit_reason else ""), risk) if x)
-        return RuleResult(rule.id, verdict, reason, list(violations))
-    if explicit is Verdict.FAIL and lenient and rule.is_decided:
-        explicit = Verdict.WARN
-    if explicit in (Verdict.FAIL, Verdict.WARN):
-        risk = interop_risk(rule) if lenient and rule.is_decided else ""
-        return RuleResult(rule.id, explicit, "; ".join(x for x in (explicit_reason, risk) if x),
-                          [])
+        return RuleResult(rule.id, verdict, "; ".join(x for x in (f"{count} {noun}", risk) if x),
+                          list(violations))
     if examined:
         noun = "time" if examined == 1 else "times"
         return RuleResult(rule.id, Verdict.PASS, f"examined {examined} {noun}", [])
     if excused and explicit is None:
         return RuleResult(rule.id, Verdict.COULD_NOT_TEST, excused, [])
-    if explicit in (Verdict.SKIP, Verdict.COULD_NOT_TEST):
-        return RuleResult(rule.id, explicit, explicit_reason or default_reason, [])
+    if explicit is not None:
+        verdict = Verdict.COULD_NOT_TEST if explicit is Observed.UNTESTABLE else Verdict.SKIP
+        return RuleResult(rule.id, verdict, explicit_reason or default_reason, [])
     return RuleResult(rule.id, Verdict.SKIP, default_reason or "not examined", [])
+
+
+def judge_rates(stats: Iterable[RateStat], rules: Mapping[str, RuleResult]) -> None:
+    """Each rate statistic's verdict from its numbers: skip while it could not be judged,
+    pass without a finding, else as its rule was judged (a decided condition warns)."""
+    for stat in stats:
+        if not stat.judged:
+            stat.verdict = Verdict.SKIP
+        elif not stat.findings:
+            stat.verdict = Verdict.PASS
+        else:
+            judged = rules.get(stat.rule)
+            stat.verdict = judged.verdict if judged is not None else Verdict.FAIL
 
 
 def _decided(rule: Rule, condition: str) -> bool:
@@ -145,9 +149,7 @@ def judge(report: RunReport, facts: RunFacts) -> RunReport:
     if facts.untimed:
         _untimed(report)
     for row in report.units.values():
-        for stat in row.rates:  # a rate shown as its rule was judged (a decided one warns)
-            if stat.verdict is Verdict.FAIL and stat.rule in row.rules:
-                stat.verdict = row.rules[stat.rule].verdict
+        judge_rates(row.rates, row.rules)
     report.facts = facts
     report.conclusion = conclude(report)
     for row in report.units.values():

@@ -81,8 +81,9 @@ class RateStat:
     """The measured rate of one periodic message of one unit against the rate it declares.
 
     Intervals are in seconds, rates in Hz. ``series`` is (arrival time, rate in Hz) at most
-    600 points, downsampled for plots. ``verdict`` is skip with ``reason`` while fewer than the
-    profile's minimum number of intervals were observed.
+    600 points, downsampled for plots. Numbers, with ``judged`` (enough intervals to judge)
+    and ``findings`` (the violations it showed); ``verdict`` is the judge's
+    (``judge.judge_rates``), skip with ``reason`` while it could not be judged.
     """
 
     unit: str
@@ -105,6 +106,8 @@ class RateStat:
     end: float | None = None
     tolerance: float | None = None
     """The profile's rate tolerance (0.2 = 20 % of the declared period)."""
+    judged: bool = False
+    findings: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         d = dict(self.__dict__)

@@ -32,6 +32,18 @@ class Verdict(str, enum.Enum):
         return cls.SKIP if verdicts else cls.PASS
 
 
+class Observed(str, enum.Enum):
+    """What a scenario saw of a rule besides its violations: evidence the judge reads
+    (``judge.judge_rule``), never a verdict of its own."""
+
+    EXAMINED = "examined"
+    """The stimulus was answered as the rule asks (the judge: pass, unless a violation)."""
+    NOT_APPLICABLE = "not-applicable"
+    """The unit's own declarations leave the rule out (the judge: skip, with the reason)."""
+    UNTESTABLE = "untestable"
+    """A precondition was missing (the judge: could-not-test, with the reason)."""
+
+
 _RANK = {Verdict.PASS: 0, Verdict.SKIP: 1, Verdict.COULD_NOT_TEST: 2, Verdict.WARN: 3,
          Verdict.FAIL: 4}
 

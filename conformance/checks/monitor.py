@@ -51,7 +51,7 @@ from conformance.results import RunReport, UnitReport
 from conformance.rules import CATALOGUE, Side
 from conformance.topics import TST_EXECUTION, TopicKind, UnitAddress, parse_topic
 from conformance.validator import Examined, Validation, Validator
-from conformance.violation import Verdict, Violation
+from conformance.violation import Observed, Violation
 
 MAX_UNITS = bounds.MAX_UNITS
 """Units tracked at once; further units' messages are unexamined: lint fails (``not_judged``)."""
@@ -450,9 +450,9 @@ class Monitor:
         return entry.state
 
     def record(self, unit: UnitAddress | None, rule: str, *, violation: Violation | None = None,
-               verdict: Verdict | None = None, reason: str = "", excused: str = "") -> None:
-        """Record an active scenario's outcome for ``rule``: a violation; or an explicit
-        skip / could-not-test / fail / warn with its reason; or ``verdict=PASS``: examined.
+               seen: Observed | None = None, reason: str = "", excused: str = "") -> None:
+        """Record what an active scenario saw of ``rule`` (evidence for the judge): a violation,
+        or ``seen`` (examined; not applicable or untestable, with its reason).
         ``excused``: a violation that is no evidence, and why (the unit had died, the link was
         down): the judge says could-not-test. ``unit`` None: a finding that names no unit (a
         ROS bag's, reported unattributed)."""
@@ -478,17 +478,17 @@ class Monitor:
             if not violation.unit and unit is not None:
                 violation = dataclasses.replace(violation, unit=str(unit))
             entry.add(violation)
-        if verdict is Verdict.PASS:
+        if seen is Observed.EXAMINED:
             entry.state.examine(rule)
-        elif verdict is not None:
+        elif seen is not None:
             rec = entry.records.get(rule)
             if rec is None:
                 rec = entry.records[rule] = RuleRecord()
-            if rec.explicit is None or verdict.rank >= rec.explicit.rank:
-                rec.explicit, rec.reason = verdict, reason
+            if rec.explicit is None or seen is Observed.UNTESTABLE:
+                rec.explicit, rec.reason = seen, reason
         elif violation is None:
             entry.state.examine(rule)
-        if reason and verdict in (None, Verdict.PASS):
+        if reason and seen in (None, Observed.EXAMINED):
             entry.state.note(rule, reason)
 
     def report(self, **meta: Any) -> RunReport:

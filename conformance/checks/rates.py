@@ -255,7 +255,7 @@ class RateTracker:
                 observed=f"an interval of {hi:.3f} s ({hi / period:.1f} periods)",
                 topic=self.topic, time=hi_at, unit=unit,
                 detail=f"{window}; a single late message means the publisher stalls"))
-        stat.verdict = Verdict.FAIL if found else Verdict.PASS
+        stat.judged, stat.findings = True, len(found)
         stat.reason = (f"{len(found)} violation{'s' if len(found) > 1 else ''}{how}" if found
                        else f"min {lo:.3f} s, max {hi:.3f} s{silences}{how}")
         return stat, found
@@ -384,7 +384,7 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
     found = None
     if tracker is not None and declared is not None and tracker.declared != declared:
         stat, found = tracker.judge(ctx, str(unit.address))
-        if stat.verdict is not Verdict.SKIP:
+        if stat.judged:
             unit.examine(tracker.rule)
         closed = _closed(unit)
         closed.append(stat)
@@ -410,7 +410,7 @@ def rate_matches_declared_at_end(ctx: CheckContext, unit: UnitState, now: float,
                                  findings) -> Iterator[Violation]:  # type: ignore[no-untyped-def]
     for tracker in _trackers(unit).values():
         stat, found = tracker.judge(ctx, str(unit.address))
-        if stat.verdict is Verdict.SKIP:
+        if not stat.judged:
             findings.note(tracker.rule, stat.reason)
         else:
             findings.examine(tracker.rule)

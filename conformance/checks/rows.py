@@ -12,13 +12,13 @@ from typing import Any
 
 from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import OVER_A_GAP
-from conformance.judge import judge_rule
+from conformance.judge import judge_rates, judge_rule
 from conformance.profile import Profile
 from conformance.results import UnitReport, skip_reason
 from conformance.rules import CATALOGUE, Mode, Rule, Side
 from conformance.topics import UnitAddress
 from conformance.validator import Examined
-from conformance.violation import Verdict, Violation
+from conformance.violation import Observed, Violation
 
 MAX_EVIDENCE = 20
 """Violations kept as evidence per rule and unit; the rest are only counted (bounded memory)."""
@@ -37,7 +37,7 @@ class RuleRecord:
         """How many of the violations found a condition the spec's words state or imply (the
         rest are decided: they warn unless the run adopts them)."""
         self.evidence: list[Violation] = []
-        self.explicit: Verdict | None = None
+        self.explicit: Observed | None = None
         self.reason = ""
         self.excused = ""
         """Why what a scenario found missing is not evidence (the unit had died, the link
@@ -71,6 +71,13 @@ class RuleRecord:
         self.evidence = [v for v in self.evidence if v not in gone]
         self.count -= len(gone)
         self.firm -= sum(not _decided(rule, v.condition) for v in gone)
+
+
+def _firm(rule: Rule, evidence: list[Violation], count: int, recorded: int) -> int:
+    """How many of ``count`` violations found a condition the spec's words state or imply:
+    counted in ``evidence`` when it holds them all, else as recorded (the first few kept)."""
+    held = sum(not _decided(rule, v.condition) for v in evidence)
+    return held if len(evidence) >= count else max(held, recorded)
 
 
 def _decided(rule: Rule | None, condition: str) -> bool:
@@ -155,16 +162,13 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
         rec = entry.records.get(rid)
         evidence = (rec.evidence if rec else []) + extra.get(rid, [])
         count = (rec.count if rec else 0) + len(extra.get(rid, ()))
-        firm = (rec.firm if rec else 0) + sum(not _decided(rule, v.condition)
-                                              for v in extra.get(rid, ()))
         explicit, reason = (rec.explicit, rec.reason) if rec else (None, "")
         excused = rec.excused if rec else ""
         seen = examined.get(rid, 0)
         if rule.mode is not Mode.PASSIVE:
             evidence, count, excused, seen = _excuse_scenario(evidence, count, excused, seen,
                                                               died, held)
-            firm = min(firm, sum(not _decided(rule, v.condition) for v in evidence)
-                       if len(evidence) < MAX_EVIDENCE else firm)
+        firm = _firm(rule, evidence, count, rec.firm if rec else 0)
         if count:
             counts[rid] = count
             when = [t for t in (rec.first if rec else None, rec.last if rec else None,
@@ -178,6 +182,8 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
             default_reason=skip_reason(rule, kind=kind, unit=unit,
                                        levels=state.levels, note=notes.get(rid, ""),
                                        party=entry.party))
+    rates = rate_stats(ctx, state) if address is not None else []
+    judge_rates(rates, rules)
     return UnitReport(
         party=entry.party,
         unit=unit, agent_type=address.agent_type if address else "",
@@ -185,7 +191,7 @@ def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddr
         agent_uuids=list(state.agent_uuids), levels=list(state.levels or ()),
         message_count=state.message_count, first_seen=state.first_seen,
         last_seen=state.last_seen, rules=rules,
-        rates=rate_stats(ctx, state) if address is not None else [],
+        rates=rates,
         examined={k: examined[k] for k in sorted(examined)}, violation_counts=counts,
         violation_times=times,
         facts=_facts(state))

@@ -281,7 +281,7 @@ def failures(report: Any, limit: int = MAX_FAILURES_SHOWN) -> str:
             more += 1
             continue
         text = render_violation(rule, result.violations[0], unit, report=report,
-                                verdict=Verdict.FAIL)
+                                verdict=result.verdict)
         extra = rep.violation_counts.get(rule, len(result.violations)) - 1  # a total
         shown.append(f"{unit}\n{text}" + (f"\n  (and {extra} more violations of {rule})"
                                             if extra else ""))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from conformance.scenarios.context import Context
 from conformance.scenarios.traffic import Entry
-from conformance.violation import Verdict
+from conformance.violation import Observed
 
 RULES = ("EXEC-PING-001", "EXEC-PING-002")
 
@@ -29,17 +29,17 @@ def run(ctx: Context) -> None:
             "EXEC-PING-001", expected=f"a response 'pong' within {ctx.timing.response:.1f} s",
             observed="no response, to the ping or to its resend",
             detail=f"ping com-uuid {sent.com_uuid}", command=sent.com_uuid))
-        ctx.record("EXEC-PING-002", verdict=Verdict.COULD_NOT_TEST,
+        ctx.record("EXEC-PING-002", seen=Observed.UNTESTABLE,
                    reason="the ping was not answered (EXEC-PING-001)")
         return
     if answer.get("response") == "pong":
-        ctx.record("EXEC-PING-001", verdict=Verdict.PASS)
+        ctx.record("EXEC-PING-001", seen=Observed.EXAMINED)
     else:
         ctx.record("EXEC-PING-001", violation=ctx.violation(
             "EXEC-PING-001", expected="response 'pong'", observed=repr(answer.get("response")),
             entry=answer))
     if answer.get("response-to") == sent.com_uuid:
-        ctx.record("EXEC-PING-002", verdict=Verdict.PASS)
+        ctx.record("EXEC-PING-002", seen=Observed.EXAMINED)
     else:
         ctx.record("EXEC-PING-002", violation=ctx.violation(
             "EXEC-PING-002", expected=f"response-to {sent.com_uuid} (the ping's com-uuid)",

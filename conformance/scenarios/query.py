@@ -8,7 +8,7 @@ from conformance.scenarios.context import Context, describe
 from conformance.scenarios.deviation import FINAL_STATUSES, meaning
 from conformance.scenarios.params import valid_params
 from conformance.scenarios.sender import new_uuid
-from conformance.violation import Verdict
+from conformance.violation import Observed
 
 RULES = ("EXEC-QUERY-001", "EXEC-QUERY-002")
 # What query-status may answer for a task whose last feedback was this status (12.1, the
@@ -26,7 +26,7 @@ def ask(ctx: Context, task_uuid: str, expected: set[str], what: str) -> None:
     sent, answer = ctx.commander.query(task_uuid, ctx.timing.response)
     got = status_answer(answer)
     if got in expected:
-        ctx.record("EXEC-QUERY-001", verdict=Verdict.PASS)
+        ctx.record("EXEC-QUERY-001", seen=Observed.EXAMINED)
         return
     ctx.record("EXEC-QUERY-001", violation=ctx.violation(
         "EXEC-QUERY-001", expected=f"{' or '.join(sorted(expected))} for {what}",
@@ -62,13 +62,13 @@ def run(ctx: Context) -> None:
         ask(ctx, task_uuid, ACCEPTED.get(str(status), {str(status)}),
             f"task '{name}' that ended '{status}'")
     if not ctx.notes.get("ended"):
-        ctx.record("EXEC-QUERY-001", verdict=Verdict.COULD_NOT_TEST,
+        ctx.record("EXEC-QUERY-001", seen=Observed.UNTESTABLE,
                    reason="no task could be started and ended to ask about" + (
                        f" ({ctx.none_startable('query')})" if task is None else ""))
     ghost = new_uuid()
     sent, answer = ctx.commander.query(ghost, ctx.timing.response)
     if status_answer(answer) == "unknown":
-        ctx.record("EXEC-QUERY-002", verdict=Verdict.PASS)
+        ctx.record("EXEC-QUERY-002", seen=Observed.EXAMINED)
     else:
         ctx.record("EXEC-QUERY-002", violation=ctx.violation(
             "EXEC-QUERY-002", expected=f"'unknown' for task-uuid {ghost} (never sent)",

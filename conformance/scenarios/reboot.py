@@ -15,7 +15,7 @@ from conformance.scenarios.query import status_answer
 from conformance.scenarios.sender import new_uuid
 from conformance.scenarios.traffic import Entry
 from conformance.topics import DIRECT_EXECUTION, level_name
-from conformance.violation import Verdict
+from conformance.violation import Observed
 
 RULES = ("REBOOT-001", "REBOOT-002")
 
@@ -58,7 +58,7 @@ def run(ctx: Context) -> None:
                                   else record(rule, **kw))
     if ctx.reboot is None:
         for rule in RULES:
-            ctx.record(rule, verdict=Verdict.COULD_NOT_TEST,
+            ctx.record(rule, seen=Observed.UNTESTABLE,
                        reason="no way to reboot the unit: pass --reboot-cmd 'COMMAND' (a shell "
                        "command that restarts it)")
         return
@@ -87,7 +87,7 @@ def _reboot(ctx: Context, names: Any) -> None:
     error = ctx.reboot()
     if error is not None:
         for rule in RULES:
-            ctx.record(rule, verdict=Verdict.COULD_NOT_TEST,
+            ctx.record(rule, seen=Observed.UNTESTABLE,
                        reason=f"the reboot ({ctx.reboot_how}) failed: {error}")
         return
     hb = _back(ctx, before, requested, heard, old_agent, rate)
@@ -103,7 +103,7 @@ def _reboot(ctx: Context, names: Any) -> None:
             f"after the reboot)", subtopic="heartbeat",
             detail="keep the unit's name across a reboot: only its agent-uuid changes (5.1)"),
             condition="renamed"))
-        ctx.record("REBOOT-002", verdict=Verdict.COULD_NOT_TEST,
+        ctx.record("REBOOT-002", seen=Observed.UNTESTABLE,
                    reason=f"the unit came back under another name ('{renamed}', REBOOT-001)")
         ctx.notes["renamed"] = renamed  # what follows reads why its address fell silent
         return
@@ -114,19 +114,19 @@ def _reboot(ctx: Context, names: Any) -> None:
             observed=f"heartbeats went on with agent-uuid {old_agent} and no silence"
             if ctx.traffic.since(before, "heartbeat") else "no heartbeat at all",
             subtopic="heartbeat", entry=ctx.traffic.latest("heartbeat")))
-        ctx.record("REBOOT-002", verdict=Verdict.COULD_NOT_TEST,
+        ctx.record("REBOOT-002", seen=Observed.UNTESTABLE,
                    reason="the unit did not visibly reboot (REBOOT-001)")
         return
     new_agent = hb.get("agent-uuid")
     if new_agent != old_agent:
-        ctx.record("REBOOT-001", verdict=Verdict.PASS)
+        ctx.record("REBOOT-001", seen=Observed.EXAMINED)
     else:
         ctx.record("REBOOT-001", violation=ctx.violation(
             "REBOOT-001", expected=f"a new agent-uuid after the reboot (was {old_agent})",
             observed=f"the same agent-uuid {new_agent} after a silence", subtopic="heartbeat",
             entry=hb))
     if not ended:
-        ctx.record("REBOOT-002", verdict=Verdict.COULD_NOT_TEST,
+        ctx.record("REBOOT-002", seen=Observed.UNTESTABLE,
                    reason="no task ended before the reboot to ask about")
         return
     _history(ctx, ended[0], old_agent, new_agent)
@@ -193,7 +193,7 @@ def _history(ctx: Context, ended: tuple[str, str, str], old_agent: Any, new_agen
     if answer is None:
         # Its history cannot be read off a unit that does not answer query-status at all:
         # that is EXEC-QUERY-001's finding, not a history kept or lost.
-        ctx.record("REBOOT-002", verdict=Verdict.COULD_NOT_TEST,
+        ctx.record("REBOOT-002", seen=Observed.UNTESTABLE,
                    reason=f"query-status was not answered within {ctx.timing.response:.1f} s "
                           f"(EXEC-QUERY-001)")
         return
@@ -212,7 +212,7 @@ def _history(ctx: Context, ended: tuple[str, str, str], old_agent: Any, new_agen
         expected = (f"task '{name}' still known ('{status}'): the agent-uuid did not change, "
                     f"so the history must be kept")
     if ok:
-        ctx.record("REBOOT-002", verdict=Verdict.PASS)
+        ctx.record("REBOOT-002", seen=Observed.EXAMINED)
     else:
         ctx.record("REBOOT-002", violation=ctx.violation(
             "REBOOT-002", expected=expected, observed=repr(got) if answer is not None else

@@ -14,7 +14,7 @@ from conformance.scenarios.context import Context, describe
 from conformance.scenarios.params import valid_params
 from conformance.scenarios.sender import Sent
 from conformance.scenarios.traffic import Entry
-from conformance.violation import Verdict
+from conformance.violation import Observed
 
 RULES = ("EXEC-RESEND-001", "EXEC-RESEND-002")
 
@@ -37,12 +37,12 @@ def run(ctx: Context) -> None:
         reason = ("the unit reports no sensor/position" if origin is None
                   else ctx.none_startable("resend"))
         for rule in RULES:
-            ctx.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=reason)
+            ctx.record(rule, seen=Observed.UNTESTABLE, reason=reason)
         return
     first, answer1 = _start(ctx, task, valid_params(task, origin, ctx.safety, ctx.seed))
     if answer1 is None:
         for rule in RULES:
-            ctx.record(rule, verdict=Verdict.COULD_NOT_TEST,
+            ctx.record(rule, seen=Observed.UNTESTABLE,
                        reason=f"start-task '{task}' was not answered, with a task-uuid or "
                               f"without (EXEC-START-001)")
         return
@@ -57,7 +57,7 @@ def run(ctx: Context) -> None:
         answer2 = ctx.commander.response(first, ctx.timing.response, after=copy.seq) or copy
     ctx.commander.track_response(again, answer2)
     if answer2 is not None:
-        ctx.record("EXEC-RESEND-002", verdict=Verdict.PASS)
+        ctx.record("EXEC-RESEND-002", seen=Observed.EXAMINED)
     else:
         ctx.record("EXEC-RESEND-002", violation=ctx.violation(
             "EXEC-RESEND-002", expected=f"a second response to com-uuid {first.com_uuid}",
@@ -85,7 +85,7 @@ def run(ctx: Context) -> None:
             entry=evidence,
             subtopic="exec/response" if evidence is answer2 else "direct_execution_info"))
     else:
-        ctx.record("EXEC-RESEND-001", verdict=Verdict.PASS)
+        ctx.record("EXEC-RESEND-001", seen=Observed.EXAMINED)
     for task_uuid in uuids:
         ctx.end_task(str(task_uuid), available.get(task, []), after=first.mark,
                      gaps_before=first.gaps_before)

@@ -12,7 +12,7 @@ from conformance.checks.suite_commands import UNREADABLE
 from conformance.scenarios.commander import NO_SUCH_TASK
 from conformance.scenarios.context import Context, describe
 from conformance.scenarios.sender import SENDER, NotSent, Sent, new_uuid
-from conformance.violation import Verdict
+from conformance.violation import Observed
 
 RULES = ("EXEC-ROBUST-001", "EXEC-ROBUST-002")
 ALIVE_WAITS = 3
@@ -57,7 +57,7 @@ def run(ctx: Context) -> None:
     for what, sent in pending:  # one deadline for all: they were sent together
         answer = ctx.commander.response(sent, ctx.timing.response if not unanswered else 0.2)
         if answer is not None and answer.get("response") == "failed":
-            ctx.record("EXEC-ROBUST-002", verdict=Verdict.PASS)
+            ctx.record("EXEC-ROBUST-002", seen=Observed.EXAMINED)
             continue
         unanswered += answer is None
         ctx.record("EXEC-ROBUST-002", violation=ctx.violation(
@@ -70,7 +70,7 @@ def run(ctx: Context) -> None:
     # that never answered a ping cannot show it by one (issue 24 §2: 'stopped answering' is
     # judged only from kinds of command it answered before; EXEC-PING-001 is its finding).
     if not answered_ping:
-        ctx.record("EXEC-ROBUST-001", verdict=Verdict.COULD_NOT_TEST, reason=(
+        ctx.record("EXEC-ROBUST-001", seen=Observed.UNTESTABLE, reason=(
             "the unit answered no ping before the malformed commands: whether it still answers "
             "after them cannot be told by one (EXEC-PING-001)"))
         return
@@ -79,7 +79,7 @@ def run(ctx: Context) -> None:
     pong = ctx.traffic.wait_for(lambda e: e.get("response") == "pong", alive,
                                 after=sent.mark, subtopic="exec/response")
     if pong is not None:
-        ctx.record("EXEC-ROBUST-001", verdict=Verdict.PASS)
+        ctx.record("EXEC-ROBUST-001", seen=Observed.EXAMINED)
         return
     ctx.record("EXEC-ROBUST-001", violation=ctx.violation(
         "EXEC-ROBUST-001", expected="a pong after malformed and unknown commands",

@@ -14,7 +14,7 @@ from conformance.scenarios.context import Context, describe
 from conformance.scenarios.params import valid_params
 from conformance.scenarios.sender import new_uuid
 from conformance.scenarios.traffic import Entry
-from conformance.violation import Verdict
+from conformance.violation import Observed, Verdict
 
 RULES = ("EXEC-SIG-001", "EXEC-SIG-002", "EXEC-SIG-003", "EXEC-SIG-004", "EXEC-SIG-005")
 # The feedback status each built-in signal implies and the rule it proves (12.2.2, the model's).
@@ -31,7 +31,7 @@ def _answered(ctx: Context, signal: str, task: str, answer: Entry | None,
             f"{ctx.timing.response:.1f} s", observed="no response", detail=f"task '{task}'",
             command=com_uuid))
         return False
-    ctx.record("EXEC-SIG-001", verdict=Verdict.PASS)
+    ctx.record("EXEC-SIG-001", seen=Observed.EXAMINED)
     return True
 
 
@@ -61,11 +61,11 @@ def _signal(ctx: Context, task: str, task_uuid: str, signal: str, mark: int) -> 
     rule, status = RULE_OF[signal], IMPLIED[signal]
     got = ctx.commander.feedback(task_uuid, {status}, ctx.timing.feedback, after=after)
     if got is not None:
-        ctx.record(rule, verdict=Verdict.PASS)
+        ctx.record(rule, seen=Observed.EXAMINED)
         return True
     blind = ctx.commander.blind()
     if blind:
-        ctx.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=blind)
+        ctx.record(rule, seen=Observed.UNTESTABLE, reason=blind)
         return False
     statuses = ctx.commander.statuses(task_uuid, after)
     ctx.record(rule, violation=ctx.violation(
@@ -115,17 +115,17 @@ def run(ctx: Context) -> None:
                       else f"no task listing {' or '.join(listed)} could be started"
                       + (f" ({'; '.join(blocked)})" if blocked and not any(
                           any(s in available[t] for s in listed) for t in startable) else ""))
-            ctx.record(rule, verdict=Verdict.SKIP if not listed else Verdict.COULD_NOT_TEST,
+            ctx.record(rule, seen=Observed.NOT_APPLICABLE if not listed else Verdict.COULD_NOT_TEST,
                        reason=reason)
     if not done:
-        ctx.record("EXEC-SIG-001", verdict=Verdict.COULD_NOT_TEST,
+        ctx.record("EXEC-SIG-001", seen=Observed.UNTESTABLE,
                    reason="no task with signals could be started" + (
                        f" ({ctx.none_startable('signal')})" if not startable else ""))
     # EXEC-SIG-005: a task-uuid this unit has never seen.
     ghost = new_uuid()
     sent, answer = ctx.commander.signal(ghost, "$abort", ctx.timing.response)
     if answer is not None and answer.get("response") == "failed":
-        ctx.record("EXEC-SIG-005", verdict=Verdict.PASS)
+        ctx.record("EXEC-SIG-005", seen=Observed.EXAMINED)
     else:
         ctx.record("EXEC-SIG-005", violation=ctx.violation(
             "EXEC-SIG-005", expected=f"'failed' for a signal to unknown task-uuid {ghost}",

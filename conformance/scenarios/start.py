@@ -22,7 +22,7 @@ from conformance.scenarios.deviation import meaning
 from conformance.scenarios.params import invalid_params, valid_params
 from conformance.scenarios.sender import Refused, Sent
 from conformance.scenarios.traffic import Entry
-from conformance.violation import Verdict, Violation
+from conformance.violation import Observed, Violation
 
 RULES = ("EXEC-START-001", "EXEC-START-002", "EXEC-START-003", "DEI-004")
 LINK_LOST = ("the broker connection was lost while waiting for tasks-executing (an outage of "
@@ -85,7 +85,7 @@ def run(ctx: Context) -> None:
             # being listed is no violation (EXEC-START-003 or EXEC-FB-001 says what is).
             unknown = ctx.untestable(ctx.final_known()) if final is None else None
             if unknown:
-                ctx.record("DEI-004", verdict=Verdict.COULD_NOT_TEST,
+                ctx.record("DEI-004", seen=Observed.UNTESTABLE,
                            reason=f"whether the task was listed before it ended: {unknown}")
             else:
                 ctx.record("DEI-004", violation=unlisted)
@@ -113,7 +113,7 @@ def _start(ctx: Context, task: str, params: dict[str, Any], generate: bool, *,
     # no task-uuid was seen either way. Not a pass (the answers to start-tasks that named one
     # say nothing of this), and not a second failure of the one unanswered command
     # (EXEC-START-001's).
-    ctx.record("EXEC-START-002", verdict=Verdict.COULD_NOT_TEST, reason=(
+    ctx.record("EXEC-START-002", seen=Observed.UNTESTABLE, reason=(
         f"the start-task '{task}' sent without a task-uuid was not answered "
         f"(EXEC-START-001): whether the unit generates one was not seen"))
     if not retry:
@@ -135,7 +135,7 @@ def _cannot_start(ctx: Context, available: dict[str, list[str]], startable: list
     else:
         return False
     for rule in RULES:
-        ctx.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=reason)
+        ctx.record(rule, seen=Observed.UNTESTABLE, reason=reason)
     return True
 
 
@@ -149,7 +149,7 @@ def _task_uuid(ctx: Context, task: str, sent: Sent, answer: Entry,
     if generate:
         # A task-uuid that is not in UUID form is ERR-014's; here: is there one at all.
         if isinstance(task_uuid, str) and task_uuid.strip():
-            ctx.record("EXEC-START-002", verdict=Verdict.PASS)
+            ctx.record("EXEC-START-002", seen=Observed.EXAMINED)
         else:
             ctx.record("EXEC-START-002", violation=ctx.violation(
                 "EXEC-START-002", expected="a generated task-uuid (start-task sent "
@@ -176,12 +176,12 @@ def _listed(ctx: Context, task: str, task_uuid: str,
     seen = ctx.wait_listed(task_uuid, after=sent.mark)
     listed = seen if seen is not None and seen.subtopic == "direct_execution_info" else None
     if listed is not None:
-        ctx.record("DEI-004", verdict=Verdict.PASS)
+        ctx.record("DEI-004", seen=Observed.EXAMINED)
     elif seen is None and ctx.commander.gaps() != gaps:
-        ctx.record("DEI-004", verdict=Verdict.COULD_NOT_TEST, reason=LINK_LOST)
+        ctx.record("DEI-004", seen=Observed.UNTESTABLE, reason=LINK_LOST)
     elif seen is None and not _has_tasks_executing(ctx.traffic.latest("direct_execution_info")):
         # No list to be in (DEI-001's finding): one fault, one rule.
-        ctx.record("DEI-004", verdict=Verdict.COULD_NOT_TEST, reason="direct_execution_info "
+        ctx.record("DEI-004", seen=Observed.UNTESTABLE, reason="direct_execution_info "
                    "has no tasks-executing list (DEI-001)")
     elif seen is None:
         return None, ctx.violation(
@@ -220,7 +220,7 @@ def _ended(ctx: Context, task: str, task_uuid: str, sent: Sent, signals: list[st
     final = ctx.end_task(task_uuid, signals, after=sent.mark, gaps_before=sent.gaps_before)
     statuses = ctx.commander.statuses(task_uuid, sent.mark)
     if final is not None:
-        ctx.record("EXEC-START-003", verdict=Verdict.PASS)
+        ctx.record("EXEC-START-003", seen=Observed.EXAMINED)
         ended.append((ctx.commander.unit_task_uuid(task_uuid), ctx.traffic.mark()))
         ctx.notes.setdefault("ended", []).append(
             (task_uuid, task, meaning(final.get("status")) or final.get("status")))
@@ -242,7 +242,7 @@ def _no_final(ctx: Context, untestable: str | None, sent: Sent, *,
     if not untestable and ctx.commander.gaps() != sent.gaps_before:
         untestable = FINAL_LOST
     if untestable:
-        ctx.record("EXEC-START-003", verdict=Verdict.COULD_NOT_TEST, reason=untestable)
+        ctx.record("EXEC-START-003", seen=Observed.UNTESTABLE, reason=untestable)
     else:
         ctx.record("EXEC-START-003", violation=violation)
 
@@ -266,14 +266,14 @@ def _check_left(ctx: Context, ended: list[tuple[str, int]]) -> None:
                                     subtopic="direct_execution_info") or info
         still = [u for u, _ in ended if u in ctx.executing(info)]
     if still and ctx.commander.gaps() != gaps:
-        ctx.record("DEI-004", verdict=Verdict.COULD_NOT_TEST, reason=LINK_LOST)
+        ctx.record("DEI-004", seen=Observed.UNTESTABLE, reason=LINK_LOST)
     elif still:
         ctx.record("DEI-004", violation=ctx.violation(
             "DEI-004", expected="tasks that ended are no longer in tasks-executing",
             observed=f"{len(still)} ended task(s) still listed: {', '.join(still[:3])}",
             subtopic="direct_execution_info", entry=info))
     else:
-        ctx.record("DEI-004", verdict=Verdict.PASS)
+        ctx.record("DEI-004", seen=Observed.EXAMINED)
 
 
 def run_refusals(ctx: Context) -> None:
@@ -290,14 +290,14 @@ def run_refusals(ctx: Context) -> None:
     if chosen is None:
         reason = ("the unit reports no sensor/position" if origin is None else
                   "no startable task has a parameter schema to break")
-        ctx.record("EXEC-START-004", verdict=Verdict.COULD_NOT_TEST, reason=reason)
+        ctx.record("EXEC-START-004", seen=Observed.UNTESTABLE, reason=reason)
     else:
         task, params, what = chosen
         try:
             sent, answer = ctx.commander.start_task(task, params, ctx.timing.response,
                                                     invalid=True)
         except Refused as e:  # malformed on purpose: a real unit gets it only by opt-in
-            ctx.record("EXEC-START-004", verdict=Verdict.COULD_NOT_TEST, reason=str(e))
+            ctx.record("EXEC-START-004", seen=Observed.UNTESTABLE, reason=str(e))
         else:
             _expect_refusal(ctx, "EXEC-START-004", answer, f"start-task '{task}' whose {what}",
                             with_reason=True)
@@ -321,7 +321,7 @@ def _expect_refusal(ctx: Context, rule: str, answer: Entry | None, what: str, *,
     reason = answer.get("fail-reason")
     if answer.get("response") == "failed" and (
             not with_reason or isinstance(reason, str) and reason.strip()):
-        ctx.record(rule, verdict=Verdict.PASS)
+        ctx.record(rule, seen=Observed.EXAMINED)
         return
     if answer.get("response") == "running" and isinstance(answer.get("task-uuid"), str):
         # Accepted what it should have refused: end it at once (DESIGN 'Safety').

@@ -35,7 +35,7 @@ from conformance.scenarios.sender import new_uuid
 from conformance.scenarios.traffic import Entry
 from conformance.scenarios.tst_commander import TstCommander, node
 from conformance.tst import FINAL
-from conformance.violation import Verdict
+from conformance.violation import Observed
 
 RULES = ("TST-004", "TST-005", "TST-006", "TST-007", "TST-008", "TST-009", "TST-010",
          "TST-011", "TST-012", "TST-013")
@@ -191,7 +191,7 @@ class _Drive:
                     observed=f"feedback for node {ran[0]}: {self.tc.statuses(ran[0], mark)}",
                     subtopic="tst/feedback"))
             else:
-                self.ctx.record("TST-005", verdict=Verdict.PASS)
+                self.ctx.record("TST-005", seen=Observed.EXAMINED)
 
     def resend(self, task: str) -> None:
         """12.1 for start-tst: answered again (TST-007), started once (TST-006)."""
@@ -240,7 +240,7 @@ def run(ctx: Context) -> None:
                   "(DESIGN 'Safety')" if origin is None else
                   ctx.none_startable("tst"))
         for rule in RULES:
-            ctx.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=reason)
+            ctx.record(rule, seen=Observed.UNTESTABLE, reason=reason)
         return
     drive = _Drive(ctx, tc, origin)
     safe = [t for t in tasks if not ctx.safety.moves(t)] or tasks

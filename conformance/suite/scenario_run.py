@@ -13,7 +13,7 @@ from conformance.client import BrokerError
 from conformance.scenarios import SCENARIOS, NotSent, Scenario
 from conformance.scenarios.traffic import OutOfTime
 from conformance.topics import DIRECT_EXECUTION
-from conformance.violation import Verdict
+from conformance.violation import Observed, Verdict
 
 if TYPE_CHECKING:
     from conformance.suite.session import Certification
@@ -31,21 +31,21 @@ def run_scenario(c: Certification, name: str) -> None:
     why_not = _why_not_run(c, name, scenario)
     if why_not is not None:
         for rule in scenario.rules if why_not else ():  # "": not claimed, the Monitor's reason
-            c.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=why_not)
+            c.record(rule, seen=Observed.UNTESTABLE, reason=why_not)
         c.scenarios_done[name] = False
         return
     try:
         scenario.run(c.context)
     except NotSent as e:  # --dry-run, or the publish policy refused it (DESIGN 'Safety')
         for rule in scenario.rules:
-            c.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=str(e))
+            c.record(rule, seen=Observed.UNTESTABLE, reason=str(e))
     except OutOfTime as e:
         c.out_of_time_reached(e)
     except BrokerError as e:
         # The link went down under a publish: the broker's fault, never the unit's.
         lost = c.connection.lost_since() or c.traffic.clock.now()
         for rule in scenario.rules:
-            c.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=f"{c.outage(lost)} ({e})")
+            c.record(rule, seen=Observed.UNTESTABLE, reason=f"{c.outage(lost)} ({e})")
     finally:
         c.scenarios_done[name] = True
         # Into a lost link an $abort would be lost too: the teardown sends it (finish).

@@ -54,7 +54,7 @@ from conformance.suite.probe import NotAlive
 from conformance.suite.reboot import Reboot
 from conformance.suite.settings import Settings
 from conformance.topics import UnitAddress, level_name
-from conformance.violation import RuleResult, Verdict
+from conformance.violation import Observed, RuleResult, Verdict
 
 CERTIFICATION = pytest.StashKey["Certification"]()
 
@@ -255,7 +255,7 @@ class Certification:
                                         f"not certified")
         why = self.facts().not_run_reason()[len("not run: "):]
         for rule in rules:
-            self.record(rule, verdict=Verdict.COULD_NOT_TEST, reason=why)
+            self.record(rule, seen=Observed.UNTESTABLE, reason=why)
         self.write_reports(force=True)
         pytest.skip(f"could not test: {why}")
 

@@ -7,7 +7,7 @@ from conformance.conclusion import conclude
 from conformance.message import Message
 from conformance.profile import Profile
 from conformance.topics import UnitAddress
-from conformance.violation import Verdict, Violation
+from conformance.violation import Observed, Verdict, Violation
 
 
 def rules_of(monitor: Monitor, address: UnitAddress):
@@ -62,9 +62,9 @@ def test_active_rule_in_certification_is_skip_until_recorded(stream):
     m = Monitor(kind="certification", units=[stream.address])
     stream.feed(m, [stream.heartbeat(0)])
     assert rules_of(m, stream.address)["EXEC-PING-001"].verdict is Verdict.SKIP
-    m.record(stream.address, "EXEC-PING-001", verdict=Verdict.PASS)
+    m.record(stream.address, "EXEC-PING-001", seen=Observed.EXAMINED)
     assert rules_of(m, stream.address)["EXEC-PING-001"].verdict is Verdict.PASS
-    m.record(stream.address, "REBOOT-001", verdict=Verdict.COULD_NOT_TEST,
+    m.record(stream.address, "REBOOT-001", seen=Observed.UNTESTABLE,
              reason="the profile names no reboot command")
     r = rules_of(m, stream.address)["REBOOT-001"]
     assert (r.verdict, r.reason) == (Verdict.COULD_NOT_TEST, "the profile names no reboot command")

@@ -16,7 +16,7 @@ from conformance.judge import judge, judge_rule, violation_verdict
 from conformance.reporting.jsonreport import dumps
 from conformance.results import RunReport, UnitReport
 from conformance.rules import CATALOGUE, Basis, Severity
-from conformance.violation import RuleResult, Verdict, Violation
+from conformance.violation import Observed, RuleResult, Verdict, Violation
 
 PACKAGE = Path(__file__).resolve().parents[2] / "conformance"
 JUDGE = PACKAGE / "judge.py"
@@ -69,10 +69,34 @@ def test_a_decided_rule_warns_as_an_interop_risk_unless_strict(strict: bool,
     assert violation_verdict(decided(), Severity.ERROR, strict=strict) is verdict  # type: ignore[arg-type]
 
 
-def test_a_scenario_s_explicit_failure_of_a_decided_rule_warns_too() -> None:
-    found = judge_rule(decided(), severity=Severity.ERROR, strict=False,  # type: ignore[arg-type]
-                       violations=[], explicit=Verdict.FAIL, explicit_reason="not answered")
-    assert found.verdict is Verdict.WARN and found.reason.startswith("not answered; interop")
+def test_what_a_scenario_saw_is_evidence_the_judge_reads() -> None:
+    """A scenario records what it saw (examined, not applicable, untestable), never a
+    verdict: the judge makes it one."""
+    rule = CATALOGUE["EXEC-PING-001"]
+
+    def judged(**kw: object) -> RuleResult:
+        return judge_rule(rule, severity=Severity.ERROR, strict=False, violations=[],
+                          **kw)  # type: ignore[arg-type]
+
+    assert judged(examined=1).verdict is Verdict.PASS
+    assert judged(explicit=Observed.UNTESTABLE, explicit_reason="no task").verdict is \
+        Verdict.COULD_NOT_TEST
+    assert judged(explicit=Observed.NOT_APPLICABLE, explicit_reason="not claimed").reason == \
+        "not claimed"
+
+
+def test_no_scenario_or_statistic_sets_a_verdict() -> None:
+    """Scenarios and rate statistics carry evidence and numbers: no ``verdict=Verdict.``
+    passed or assigned outside the judge (report rendering names a verdict it was given)."""
+    offenders = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        if path == JUDGE or path.is_relative_to(PACKAGE / "reporting"):
+            continue
+        for n, line in enumerate(path.read_text("utf-8").splitlines(), 1):
+            code = line.split("#", 1)[0]
+            if re.search(r"\bverdict\s*=\s*Verdict\.(PASS|FAIL|WARN|COULD_NOT_TEST)", code):
+                offenders.append(f"{path.relative_to(PACKAGE.parent)}:{n}: {line.strip()}")
+    assert not offenders, "\n".join(offenders)
 
 
 def test_exploration_counts_as_a_disagreement_only_what_the_judge_fails() -> None:

@@ -12,7 +12,7 @@ from conformance.checks import Monitor
 from conformance.client import Message
 from conformance.results import RunReport
 from conformance.topics import UnitAddress
-from conformance.violation import Verdict
+from conformance.violation import Observed
 
 T0 = 1_700_000_000.0
 HOSTILE = '<script>alert("x")</script></pre><img src=x onerror=alert(1)>\x00\x1b[31m&amp;'
@@ -35,6 +35,6 @@ def run_report(prefix: str) -> RunReport:
         m.feed(heartbeat(slow, i * 3.5, b))  # declares 1 Hz, publishes at 0.29 Hz: HB-003 fails
     m.feed(Message(T0 + 3.5, slow.topic("sensor/Camera"), HOSTILE.encode()))  # TOPIC-002 fails
     m.feed(Message(T0 + 4.0, f"{prefix}/unit/air", b"{}"))
-    m.record(good, "REBOOT-001", verdict=Verdict.COULD_NOT_TEST, reason="no reboot command")
+    m.record(good, "REBOOT-001", seen=Observed.UNTESTABLE, reason="no reboot command")
     m.finish()
     return m.report(broker="mqtts://alice:s3cret@127.0.0.1:8883", operator="test")

@@ -20,7 +20,7 @@ from conformance.judge import judge
 from conformance.reporting.htmlreport import render_html
 from conformance.results import RunReport
 from conformance.topics import UnitAddress
-from conformance.violation import Verdict
+from conformance.violation import Observed
 
 T0 = 1_700_000_000.0
 REBOOT_REASON = ("no way to reboot the unit: pass --reboot-cmd 'COMMAND' (a shell command "
@@ -41,7 +41,7 @@ def certification(prefix: str, *, period: float, reboot: bool, gap: bool = False
             "agent-type": "air", "agent-uuid": agent, "levels": ["sensor"], "name": "dji0",
             "rate": 1.0, "stamp": t, "type": "HeartBeat"})))
     for rule in ("REBOOT-001", "REBOOT-002"):
-        m.record(unit, rule, verdict=Verdict.PASS if reboot else Verdict.COULD_NOT_TEST,
+        m.record(unit, rule, seen=Observed.EXAMINED if reboot else Observed.UNTESTABLE,
                  reason="rebooted" if reboot else REBOOT_REASON)
     m.finish()
     report = m.report()

@@ -184,7 +184,8 @@ def test_html_opens_with_verdict_levels_and_failing_rules(run_report: RunReport)
     assert "HB-003" in head  # the failing rule, with its evidence
     # Each unit as lint observed it, never a certificate (conformance.conclusion).
     assert "rule(s) failed in 49 s observed, never commanded" in head
-    assert "never commanded; it died at" in head  # dji0 stops at 14 s (HB-012)
+    # dji0 stops at 14 s with no command before it (HB-012's decided 'no-command')
+    assert "never commanded; its heartbeat stopped at" in head
     assert "certified" not in head.replace("not certified", "")
     slow = next(n for n in run_report.units if n.endswith("piraya0"))
     assert f'id="u-{slow.replace("/", "-")}-HB-003"' in page
