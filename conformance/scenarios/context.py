@@ -1,9 +1,9 @@
 """What every active scenario works with: the unit, its traffic, the commander, deadlines.
 
 Deadlines come from the profile and the unit's declared rates, times ``--timing-scale`` for slow
-links (DESIGN: 'no fixed sleeps'). Scenarios report what they found with ``record``, in the same
-form as the passive checks (``Monitor.record``): a violation, or an explicit verdict with its
-reason, or just that the rule was examined and held (``verdict=PASS``).
+links (DESIGN: 'no fixed sleeps'). Scenarios report what they saw with ``record``, as evidence
+for the judge (``Monitor.record``): a violation, or ``seen`` (``violation.Observed``: examined;
+not applicable or untestable, with the reason). They make no verdict.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from conformance.scenarios.safety import Position, Safety
 from conformance.scenarios.traffic import LAG_SLACK, Entry, Traffic
 from conformance.scenarios.tst_commander import TstCommander
 from conformance.topics import UnitAddress
-from conformance.violation import Verdict, Violation
+from conformance.violation import Observed, Violation
 
 # 9: tasks that run until they get $enough (look-at-*, observe-position, detection): the best
 # subjects for signals and queries, because they do not end on their own mid-test.
@@ -31,7 +31,7 @@ RUNS_UNTIL_ENOUGH = ("look-at-bearing", "look-at-position", "look-at-positions",
 
 class Recorder(Protocol):
     def __call__(self, rule: str, *, violation: Violation | None = None,
-                 verdict: Verdict | None = None, reason: str = "") -> None: ...
+                 seen: Observed | None = None, reason: str = "") -> None: ...
 
 
 @dataclass(frozen=True)

@@ -204,9 +204,10 @@ class Certification:
             self.monitor.reboot_requested(t)
 
     # --- verdicts ------------------------------------------------------------------------------
-    def record(self, rule: str, *, violation: Any = None, verdict: Verdict | None = None,
+    def record(self, rule: str, *, violation: Any = None, seen: Observed | None = None,
                reason: str = "") -> None:
-        """Where scenarios report (``Context.record``): into the Monitor's results. What a
+        """Where scenarios report what they saw (``Context.record``): into the Monitor, for the
+        judge. What a
         scenario found missing from a unit that has died is not a fault of its own: the death
         is the finding (HB-012), so the rule could not be tested."""
         excused = ""
@@ -219,7 +220,7 @@ class Certification:
             else:
                 excused = self.unit_died(settle=True)
         with self._lock:
-            self.monitor.record(self.unit, rule, violation=violation, verdict=verdict,
+            self.monitor.record(self.unit, rule, violation=violation, seen=seen,
                                 reason=reason, excused=excused)
 
     @staticmethod
