@@ -120,7 +120,11 @@ def _judge_after_final(unit: UnitState, node: TstNode, node_uuid: str, msg: Mess
     if str_of(m, "com-uuid") == end_com:
         return  # the final message delivered again
     tree = node.tree
-    again = tree.resent is not None and tree.resent > end_time
+    # A node active or running again after a resent start-tst was started twice (TST-006's
+    # words); any other status after the final one is TST-009's (decided: 14.5 names no
+    # final status).
+    again = (tree.resent is not None and tree.resent > end_time
+             and status in ("active", "running"))
     rule = "TST-006" if again else "TST-009"
     unit.examine(rule)
     if rule not in node.judged:

@@ -309,6 +309,24 @@ def test_resends_answered_again_and_started_once(stream):
     assert failing(judge(stream, twice), str(stream.address)) == {"TST-006"}
 
 
+def test_a_final_status_said_again_after_a_resend_is_tst_009_not_a_second_start(stream):
+    """After a resent start-tst, a node running again was started twice (TST-006's words);
+    its final status said once more is only TST-009's (decided: 14.5 names no final)."""
+    x = Tst(stream)
+    node, com = new(), new()
+    start = x.start(2.0, leaf("look-at-bearing", node), com)
+    end = x.signal(4.0, "signal-tst-node", node, "$abort")
+    done = [start, x.response(2.1, com, "started", **{"root-uuid": node}),
+            x.feedback(2.2, node, "active", True), x.feedback(2.3, node, "running", True),
+            end, x.response(4.1, com_of(end), "ok"), x.feedback(4.2, node, "aborted", True),
+            x.start(6.0, leaf("look-at-bearing", node), com),
+            x.response(6.1, com, "started", **{"root-uuid": node})]
+    said_again = judge(stream, done + [x.feedback(6.2, node, "aborted", True)])
+    assert failing(said_again, str(stream.address)) == {"TST-009"}
+    restarted = judge(stream, done + [x.feedback(6.2, node, "running", True)])
+    assert "TST-006" in failing(restarted, str(stream.address))
+
+
 def test_nodes_executing_that_lists_ended_nodes_or_misses_running_ones_fails_tst_013(stream):
     x = Tst(stream)
     node = new()
