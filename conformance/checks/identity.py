@@ -84,9 +84,14 @@ def agent_uuid_changes_only_on_reboot(ctx: CheckContext, unit: UnitState, msg: M
     identity = unit.stash.setdefault(IDENTITY, Identity)
     before, identity.fast_change = identity.fast_change, msg.time
     if before is None or msg.time - before > FAST_RESTART_PERIODS * period:
+        identity.fast_changes = 1
         return None  # one fast restart is a reboot: the new uuid is what 5.1 asks for
+    identity.fast_changes += 1
+    # Two restarts in a row without a silence may be two restarts (the suite's bound: a
+    # decided condition); a third says the uuid is made per thread or message (5.1's words).
     return [Violation.of(
-        "HB-006", expected=f"agent-uuid {prev} until a reboot (a silence over "
+        "HB-006", condition="" if identity.fast_changes > 2 else "restarts",
+        expected=f"agent-uuid {prev} until a reboot (a silence over "
                            f"{REBOOT_SILENCE_PERIODS:g} declared periods, "
                            f"{REBOOT_SILENCE_PERIODS * period:.2f} s, or one fast restart)",
         observed=f"agent-uuid {uuid} after only {silence:.3f} s, the second change without a "

@@ -25,12 +25,14 @@ DEATHS_KEPT = 16
 class Identity:
     """What the identity checks keep of a unit between its heartbeats."""
 
-    __slots__ = ("fast_change", "silences_pending", "silences_held", "deaths", "levels_since",
-                 "levels_seen", "heartbeat_rate")
+    __slots__ = ("fast_change", "fast_changes", "silences_pending", "silences_held", "deaths",
+                 "levels_since", "levels_seen", "heartbeat_rate")
 
     def __init__(self) -> None:
         self.fast_change: float | None = None
         """When the agent-uuid last changed without a silence (HB-006)."""
+        self.fast_changes = 0
+        """Changes without a silence in a row, each soon after the one before (HB-006)."""
         self.silences_pending: list[Violation] | None = None
         """Silences judged at the next heartbeat, once a burst showed whether the broker
         stalled (HB-010)."""

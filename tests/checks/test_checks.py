@@ -258,15 +258,22 @@ def test_agent_uuid_change_after_silence_is_a_reboot(stream):
 
 
 def test_agent_uuid_changing_again_without_silence_fails(stream):
+    """A second change soon after a first may be a second restart (HB-006's decided
+    'restarts': warns, strict fails); a third in a row is a uuid made per thread or message."""
     stream.levels = []  # heartbeats only: no level claimed (else HB-008 fails too)
-    m = Monitor()
     msgs = [stream.heartbeat(i) for i in range(5)]
-    new, newer = str(uuid.uuid4()), str(uuid.uuid4())
+    new, newer, newest = str(uuid.uuid4()), str(uuid.uuid4()), str(uuid.uuid4())
     msgs += [stream.heartbeat(5 + i, agent_uuid=new) for i in range(5)]
     msgs += [stream.heartbeat(10 + i, agent_uuid=newer) for i in range(5)]
-    found = stream.feed(m, msgs)
-    assert rules_found(found) == {"HB-006"}
-    assert verdict(m, stream, "HB-006").verdict is Verdict.FAIL
+    for profile, expected in ((Profile(), Verdict.WARN), (STRICT, Verdict.FAIL)):
+        m = Monitor(profile)
+        found = stream.feed(m, msgs)
+        assert rules_found(found) == {"HB-006"}
+        assert verdict(m, stream, "HB-006").verdict is expected
+    m = Monitor()
+    stream.feed(m, msgs + [stream.heartbeat(15 + i, agent_uuid=newest) for i in range(5)])
+    r = verdict(m, stream, "HB-006")
+    assert r.verdict is Verdict.FAIL and [v.condition for v in r.violations] == ["restarts", ""]
 
 
 def test_one_fast_restart_is_a_reboot(stream):
