@@ -31,7 +31,8 @@ RUNS_UNTIL_ENOUGH = ("look-at-bearing", "look-at-position", "look-at-positions",
 
 class Recorder(Protocol):
     def __call__(self, rule: str, *, violation: Violation | None = None,
-                 seen: Observed | None = None, reason: str = "") -> None: ...
+                 seen: Observed | None = None, reason: str = "",
+                 missing: bool = True) -> None: ...
 
 
 @dataclass(frozen=True)

@@ -102,7 +102,7 @@ def _reboot(ctx: Context, names: Any) -> None:
             f"unit came back as '{renamed}' (a unit of the same type and role first heard "
             f"after the reboot)", subtopic="heartbeat",
             detail="keep the unit's name across a reboot: only its agent-uuid changes (5.1)"),
-            condition="renamed"))
+            condition="renamed"), missing=False)
         ctx.record("REBOOT-002", seen=Observed.UNTESTABLE,
                    reason=f"the unit came back under another name ('{renamed}', REBOOT-001)")
         ctx.notes["renamed"] = renamed  # what follows reads why its address fell silent

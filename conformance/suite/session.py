@@ -205,13 +205,13 @@ class Certification:
 
     # --- verdicts ------------------------------------------------------------------------------
     def record(self, rule: str, *, violation: Any = None, seen: Observed | None = None,
-               reason: str = "") -> None:
+               reason: str = "", missing: bool = True) -> None:
         """Where scenarios report what they saw (``Context.record``): into the Monitor, for the
         judge. What a
         scenario found missing from a unit that has died is not a fault of its own: the death
         is the finding (HB-012), so the rule could not be tested."""
-        excused = ""
-        if violation is not None and CATALOGUE[rule].mode is not Mode.PASSIVE:
+        excused = ""  # ``missing`` False: a finding of what came (a new name), not of silence
+        if violation is not None and missing and CATALOGUE[rule].mode is not Mode.PASSIVE:
             lost, back = self.connection.lost_since(), self.connection.away_since()
             if lost is not None:
                 excused = self.outage(lost)
