@@ -299,6 +299,8 @@ class CommandExecutor:
             self.runner.feedback(task, "Starting")
         elif "starting-feedback" in self.variants:
             self.runner.feedback(task, "starting")  # 12.4's word for a task getting ready
+        if "preparing-status" in self.variants:
+            self.runner.feedback(task, "preparing")  # 12.4: a task specific string
         if "silent-start" not in self.variants:  # its answer already said 'running'
             self.runner.feedback(task, "running")
         self.runner.start(task, now)
