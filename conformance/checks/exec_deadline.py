@@ -28,10 +28,12 @@ from conformance.checks.conversation import (
     Conversations,
     expects_answers,
     latest_status,
+    state_of,
 )
 from conformance.checks.exec_response import judge_unanswered
 from conformance.checks.liveness import IDENTITY, dying_at_end, dying_before_life
 from conformance.message import Message
+from conformance.taskrecord import State
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation, clock
@@ -109,7 +111,8 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
                               e.command.last_sent, "12.2.2: do what the signal says, and "
                               "say so in feedback"))
     for task in c.open():
-        if task.left_at is not None and task.left_at + timeout < now:
+        if task.left_at is not None and task.left_at + timeout < now and \
+                state_of(task) is not State.PAUSED:  # paused since: not ended (5.3)
             c.ended(task, ("left tasks-executing", None, task.left_at))
             if unit.stash.get(FEEDBACK_WITHOUT_TASK_UUID):
                 continue  # its final feedback may be one without task-uuid
