@@ -157,6 +157,14 @@ def test_a_paused_task_left_out_of_tasks_executing_has_not_ended(stream):
     rules = judge(stream, [*began, *never], 30.0, alive=quiet)
     r = rules["EXEC-START-003"]
     assert r.verdict is Verdict.FAIL and "left tasks-executing" in r.violations[0].observed
+    # A unit that lists its paused task, then drops it while still paused, ended it unsaid
+    # (the fault preempt-paused-silently).
+    dropped = [*began[:8], *[stream.direct_execution_info(t + 0.5, executing=entry)
+                             for t in (5, 6, 7)],
+               *[stream.direct_execution_info(t + 0.5) for t in range(8, 30)]]
+    rules = judge(stream, dropped, 30.0, alive=quiet)
+    r = rules["EXEC-START-003"]
+    assert r.verdict is Verdict.FAIL and "left tasks-executing" in r.violations[0].observed
 
 
 def _resent(stream, task, *, second, feedback):
