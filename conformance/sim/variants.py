@@ -138,7 +138,8 @@ _ALL = (
             "rate: two streams, not one at twice the rate.",
             warns=("ERR-001",)),
     Variant("preparing-status", "12.4 ('task specific strings')",
-            "Reports a started task 'preparing', a status of its own, before 'running'.",
+            "Reports a started task 'preparing', a status of its own, for PREPARING_SECONDS "
+            "(its answer already said 'running'), then 'running'.",
             warns=("EXEC-FB-002",)),
     Variant("paused-not-executing", "5.3 ('List of tasks currently executing')",
             "Leaves a paused task out of tasks-executing while it is paused (it is not "
@@ -159,6 +160,8 @@ SLOW_PERIODS = 0.8
 response_timeout a profile of this project gives is 2 periods (tests' matrix.yaml: 1 s at 2 Hz;
 the default profile's is 5 s at 1 Hz): 0.8 periods stays under half of every one
 (tests/sim/test_variants.py checks each profile), leaving the rest to a loaded machine."""
+PREPARING_SECONDS = 1.0
+"""Variant preparing-status: how long a started task says 'preparing' before 'running'."""
 REBOOT_AWAY = 4.0
 """Variant reboot-away: seconds a rebooted unit is away (a unit written elsewhere took 4 s)."""
 RESPAWN_METRES = 400.0

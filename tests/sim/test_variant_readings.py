@@ -7,11 +7,11 @@ from __future__ import annotations
 
 import orjson
 import pytest
-from test_variants import T1, Run, com, without
+from test_variants import T1, Run, com
 
 from conformance.client import BrokerURL, MqttClient
 from conformance.sim import SimUnit
-from conformance.sim.variants import REBOOT_AWAY
+from conformance.sim.variants import PREPARING_SECONDS, REBOOT_AWAY
 from conformance.topics import UnitAddress
 
 START = (1.0, "exec", {"com-uuid": com(60), "command": "start-task", "execution-unit": "dji0",
@@ -32,15 +32,28 @@ def test_both_sensor_info_sends_each_sensor_info_again_on_5_2s_spelling(plain: R
     assert [(t, m) for t, m in run.messages() if t != "/sensor.info"] == plain.messages()
 
 
-def test_preparing_status_adds_one_preparing_before_running(plain: Run) -> None:
-    run = Run("preparing-status")
-    extra = [m for _, m in run.messages("/exec/feedback") if m["status"] == "preparing"]
-    assert [m["task-uuid"] for m in extra] == [T1]
-    statuses = [m["status"] for _, m in run.messages("/exec/feedback") if m["task-uuid"] == T1]
-    assert statuses[:2] == ["preparing", "running"]
-    rest = [(t, m) for t, m in run.messages() if m not in extra]
-    assert [(t, without(m, "com-uuid")) for t, m in rest] == [
-        (t, without(m, "com-uuid")) for t, m in plain.messages()]
+def test_preparing_status_says_preparing_for_its_seconds_then_running(plain: Run) -> None:
+    script = [START]
+    base, run = (Run(script=script, seconds=4.0),
+                 Run("preparing-status", script=script, seconds=4.0))
+
+    def statuses(r: Run) -> list[tuple[float, str]]:
+        return [(when, orjson.loads(p)["status"]) for when, t, p in r.sent
+                if t == "/exec/feedback"]
+
+    assert [s for _, s in statuses(base)][:1] == ["running"]
+    (prepared, first), (ready, second) = statuses(run)[:2]
+    assert (first, second) == ("preparing", "running")
+    assert prepared == START[0] and ready - prepared == pytest.approx(PREPARING_SECONDS, abs=0.1)
+    assert [s for _, s in statuses(run)[2:]] == [s for _, s in statuses(base)[1:]]
+    assert [(t, m) for t, m in run.messages() if t != "/exec/feedback"] == [
+        (t, m) for t, m in base.messages() if t != "/exec/feedback"]
+    # Ended while preparing ($enough 0.8 s after the start): no 'running' after its end.
+    ended = [m["status"] for _, m in Run("preparing-status").messages("/exec/feedback")
+             if m["task-uuid"] == T1]
+    assert ended == ["preparing", "finished"]
+    assert [m["status"] for _, m in plain.messages("/exec/feedback")
+            if m["task-uuid"] == T1] == ["running", "finished"]
 
 
 def test_paused_not_executing_lists_a_task_only_while_it_is_not_paused() -> None:
