@@ -1,10 +1,9 @@
 """Two units served by one process on one MQTT connection (``conformance.sim.Fleet``), as a
 unit written elsewhere may serve several vehicles through one client: each is certified on its
-own while the other runs beside it, and the lint of the recording of both certifications finds
-no fault in either. On Mosquitto: what is tested is the shared connection, which the virtual
-double does not have.
+own while the other runs beside it (and reboots with it: the suite's reboot restarts the
+process), and the lint of the recording of both certifications finds no fault in either. On
+Mosquitto: what is tested is the shared connection, which the virtual double does not have.
 """
-
 from __future__ import annotations
 
 import io
@@ -21,14 +20,17 @@ from conformance.topics import UnitAddress
 pytestmark = pytest.mark.slow
 
 
-class FleetRebooter:
-    """Reboots one unit of a fleet (pytest_waraps_reboot): the other runs on."""
+class ProcessRebooter:
+    """Reboots the process that serves the fleet (pytest_waraps_reboot), as a --reboot-cmd
+    that restarts it would: every unit it serves reboots, not only the one certified."""
 
-    def __init__(self, fleet: Fleet, index: int) -> None:
-        self.fleet, self.index = fleet, index
+    def __init__(self, fleet: Fleet) -> None:
+        self.fleet = fleet
+        self.calls = 0
 
     def pytest_waraps_reboot(self, config: pytest.Config, unit: str) -> bool:
-        self.fleet.reboot(self.index)
+        self.calls += 1
+        self.fleet.reboot()
         return True
 
 
@@ -39,10 +41,11 @@ def certify_both(pytester: pytest.Pytester, broker: str, base: UnitAddress,
     for _attempt in range(2):
         with recorded(broker, base.prefix, recording), \
                 Fleet(base, broker, 2, rate=2.0, seed=1) as fleet:
+            rebooter = ProcessRebooter(fleet)
             runs = [certify(pytester, "--unit", str(address), "--broker", broker,
-                            f"--profile={PROFILE}", "--seed", "1",
-                            plugins=(FleetRebooter(fleet, i),))
-                    for i, address in enumerate(fleet.addresses)]
+                            f"--profile={PROFILE}", "--seed", "1", plugins=(rebooter,))
+                    for address in fleet.addresses]
+            assert rebooter.calls == len(runs)
             if fleet.runtime.held < 0.5:
                 return fleet.addresses, runs
         print(f"the host held the fleet {fleet.runtime.held:.2f} s past a step: again")
