@@ -4,6 +4,7 @@ own while the other runs beside it (and reboots with it: the suite's reboot rest
 process), and the lint of the recording of both certifications finds no fault in either. On
 Mosquitto: what is tested is the shared connection, which the virtual double does not have.
 """
+
 from __future__ import annotations
 
 import io
