@@ -7,9 +7,12 @@ from __future__ import annotations
 
 import orjson
 import pytest
-from test_variants import T1, Run, com
+from test_variants import ADDRESS, T1, Run, com
 
+from conformance.checks import Monitor
 from conformance.client import BrokerURL, MqttClient
+from conformance.message import Message
+from conformance.profile import Profile
 from conformance.sim import SimUnit
 from conformance.sim.variants import PREPARING_SECONDS, REBOOT_AWAY
 from conformance.topics import UnitAddress
@@ -78,6 +81,53 @@ def test_paused_not_executing_lists_a_task_only_while_it_is_not_paused() -> None
     assert any(paused(when) for when, _ in listed(run))
     assert [(t, m) for t, m in run.messages() if t != "/direct_execution_info"] == [
         (t, m) for t, m in plain.messages() if t != "/direct_execution_info"]
+
+
+def judged(run: Run, script: list) -> dict[str, str]:
+    """Every rule's verdict by a Monitor (the default profile) on ``run``'s traffic and the
+    script's exec commands, as lint would judge their recording: rule -> verdict."""
+    at = 1.7e9  # Run's clock: stamps are 1.7e9 + its time
+    messages = [Message(at + when, ADDRESS.base + sub, payload, 0, False)
+                for when, sub, payload in run.sent]
+    messages += [Message(at + when - 0.001, f"{ADDRESS.base}/exec/command", orjson.dumps(body),
+                         0, False) for when, _, body in script]
+    monitor = Monitor(Profile())
+    for m in sorted(messages, key=lambda m: m.time):
+        monitor.feed(m)
+    monitor.finish(at + run.now)
+    rules = monitor.report().units[str(ADDRESS)].rules
+    return {r: res.verdict.value for r, res in rules.items()}
+
+
+def accused(verdicts: dict[str, str]) -> dict[str, str]:
+    """The rules failed or warned."""
+    return {r: v for r, v in verdicts.items() if v in ("fail", "warn")}
+
+
+def test_a_long_pause_of_a_task_left_out_of_tasks_executing_is_no_end() -> None:
+    """Paused for 10 s (past every deadline of the default profile) while left out of
+    tasks-executing, then continued and aborted: judged clean, as the plain unit's run."""
+    script = [START, *[(when, "exec", {"com-uuid": com(i), "command": "signal-task",
+                                       "sender": "commander", "signal": signal,
+                                       "task-uuid": T1})
+                       for i, (when, signal) in enumerate(
+                           [(2.0, "$pause"), (12.0, "$continue"), (14.0, "$abort")], 70)]]
+    assert accused(judged(Run(script=script, seconds=16.0), script)) == {}
+    assert accused(judged(Run("paused-not-executing", script=script, seconds=16.0),
+                          script)) == {}
+
+
+@pytest.mark.parametrize("variant,warns", [
+    ("both-sensor-info", {"ERR-001": "warn"}), ("preparing-status", {"EXEC-FB-002": "warn"})])
+def test_judged_on_its_traffic_a_variant_warns_only_on_its_reading(variant: str,
+                                                                  warns: dict[str, str]) -> None:
+    """Each stream of SensorInfo at its rate (SI-002 judged, and passed); 'preparing' a
+    task-specific status the unit did not declare (EXEC-FB-002, decided)."""
+    script = [START]
+    verdicts = judged(Run(variant, script=script, seconds=12.0), script)
+    assert accused(verdicts) == warns
+    assert verdicts["SI-002"] == "pass"
+    assert accused(judged(Run(script=script, seconds=12.0), script)) == {}
 
 
 def test_reboot_away_is_silent_for_its_seconds_then_back_with_a_new_agent_uuid() -> None:
