@@ -145,16 +145,16 @@ _ALL = (
             "Leaves a paused task out of tasks-executing while it is paused (it is not "
             "executing), and lists it again once continued."),
     Variant("reboot-away", "5, 5.1 (how long a reboot takes is not said)",
-            "Is away REBOOT_AWAY seconds on a reboot (4 s: many heartbeat periods), then "
-            "comes back with its new agent-uuid."),
+            "Is away REBOOT_AWAY seconds on a reboot (4 s, where the plain unit is away 2.5 "
+            "heartbeat periods), then comes back with its new agent-uuid."),
 )
 
 VARIANTS: dict[str, Variant] = {v.name: v for v in _ALL}
 CONFLICTS = (frozenset({"terse", "verbose"}), frozenset({"silent-start", "starting-feedback"}),
              frozenset({"silent-start", "preparing-status"}))
+"""Variants that cannot be on together (one sends what the other leaves out)."""
 INFO_SLOWER = 2.0
 """Variant info-rates: the info messages run at the heartbeat's rate divided by this."""
-"""Variants that cannot be on together (one sends what the other leaves out)."""
 SLOW_PERIODS = 0.8
 """Variant slow: answers and feedback are held back this many periods. The shortest
 response_timeout a profile of this project gives is 2 periods (tests' matrix.yaml: 1 s at 2 Hz;
@@ -163,7 +163,8 @@ the default profile's is 5 s at 1 Hz): 0.8 periods stays under half of every one
 PREPARING_SECONDS = 1.0
 """Variant preparing-status: how long a started task says 'preparing' before 'running'."""
 REBOOT_AWAY = 4.0
-"""Variant reboot-away: seconds a rebooted unit is away (a unit written elsewhere took 4 s)."""
+"""Variant reboot-away: seconds a rebooted unit is away (8 heartbeat periods at the matrix's
+2 Hz, where the plain unit is away 2.5 periods: REBOOT_SILENCE)."""
 RESPAWN_METRES = 400.0
 """Variant respawn: how far from its last position a rebooted unit comes back (the public
 agents were seen 57-520 m away, 2 s after the restart)."""
