@@ -65,7 +65,8 @@ GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
 ]
 REAL_BROKER = ("terse", "info-rates", "retained-info", "integer-numbers", "key-order",
                "mqtt5-qos1")
-"""The group certified end to end on Mosquitto (retained info, the TST level, exploration)."""
+"""The group certified end to end on Mosquitto (retained info, MQTT 5 at QoS 1, the TST level,
+exploration)."""
 AWAITING: dict[tuple[str, ...], tuple[set[str], str]] = {  # variants -> (rules, why)
     # 'strict' on the TST level waited here for the suite to send common_params on every TST
     # node (as every example of section 11 does); it does now.
