@@ -233,7 +233,8 @@ CHUNKED_READS = _Paho is _ChunkedPaho
 
 
 class MqttClient:
-    """A connected MQTT 3.1.1 client (amqtt refuses MQTT 5).
+    """A connected MQTT 3.1.1 client (amqtt refuses MQTT 5), or MQTT 5 with ``mqtt5`` (the
+    reference unit's variant mqtt5-qos1, on a broker that speaks it).
 
     ``on_message`` runs on paho's network thread and must be quick; without it, messages are
     queued and read with ``messages()`` / ``get()``. Every wait takes a timeout in seconds.
@@ -244,7 +245,7 @@ class MqttClient:
                  may_publish: PublishPolicy = publish_nowhere,
                  refuse_payload: PayloadPolicy | None = None,
                  on_connection_change: Callable[[bool, str], None] | None = None,
-                 keepalive: int = 30) -> None:
+                 keepalive: int = 30, mqtt5: bool = False) -> None:
         if broker.scheme in ("embedded", "virtual"):
             raise BrokerError("start the embedded broker first (conformance.broker) and pass "
                               "its mqtt:// URL")
@@ -266,9 +267,13 @@ class MqttClient:
         self._mono_to_unix = time.time() - time.monotonic()
         self._keepalive = keepalive
         self._closing = False
+        self.mqtt5 = mqtt5
+        """Whether it speaks MQTT 5 (else 3.1.1)."""
 
-        c = _Paho(paho.CallbackAPIVersion.VERSION2, client_id=self.client_id,
-                        protocol=paho.MQTTv311, clean_session=True)
+        # MQTT 5 has no clean_session: its clean start is paho's default.
+        session = {"protocol": paho.MQTTv5} if mqtt5 else {"protocol": paho.MQTTv311,
+                                                             "clean_session": True}
+        c = _Paho(paho.CallbackAPIVersion.VERSION2, client_id=self.client_id, **session)
         c.enable_logger(PAHO_LOG)
         if broker.username:
             c.username_pw_set(broker.username, broker.password)
@@ -412,8 +417,9 @@ class MqttClient:
                 yield m
 
     def publish(self, topic: str, payload: bytes | str, qos: int = 1, retain: bool = False,
-                timeout: float = 5.0) -> None:
-        """Publish where the policy allows; with QoS > 0 wait for the broker's ack."""
+                timeout: float = 5.0, wait: bool = True) -> None:
+        """Publish where the policy allows; with QoS > 0 (and ``wait``) wait for the broker's
+        ack (paho resends an unacknowledged one either way)."""
         if not self.may_publish(topic):
             raise PublishRefused(f"refusing to publish to {topic!r}: not a command topic of "
                                  f"the unit under test (DESIGN: safety)")
@@ -425,7 +431,7 @@ class MqttClient:
         info = self._paho.publish(topic, payload, qos=qos, retain=retain)
         if info.rc != paho.MQTT_ERR_SUCCESS and info.rc != paho.MQTT_ERR_NO_CONN:
             raise BrokerError(f"publish to {topic!r} failed: {paho.error_string(info.rc)}")
-        if qos > 0:
+        if qos > 0 and wait:
             try:
                 info.wait_for_publish(timeout)
             except (RuntimeError, ValueError) as e:

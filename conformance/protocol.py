@@ -229,8 +229,8 @@ class Model:
         return {u: t.state for u, t in self._held()}
 
     def executing(self) -> frozenset[str]:
-        """5.3: tasks-executing lists the tasks that run (paused ones too: they have not
-        ended)."""
+        """5.3: the tasks tasks-executing may list, those that have not ended (a paused one
+        may also be left out while paused: 5.3 says 'currently executing')."""
         return frozenset(self.live())
 
     def state(self, task_uuid: str | None) -> State:

@@ -66,6 +66,10 @@ class TaskRecord:
     """When it left tasks-executing while it was held open (no final status yet)."""
     listed_at: float | None = None
     """When tasks-executing last listed it (5.3)."""
+    listed_paused: bool = False
+    """Whether tasks-executing listed it while it was paused: then its unit lists paused
+    tasks, and its leaving while paused is an end too (5.3 'currently executing' allows
+    either reading; a unit keeps to one)."""
     command: Any = None
     """The start-task that began it, as the conversation checks keep it (its evidence)."""
     final: tuple[str, str | None, float] | None = None

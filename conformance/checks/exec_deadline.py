@@ -28,10 +28,12 @@ from conformance.checks.conversation import (
     Conversations,
     expects_answers,
     latest_status,
+    state_of,
 )
 from conformance.checks.exec_response import judge_unanswered
 from conformance.checks.liveness import IDENTITY, dying_at_end, dying_before_life
 from conformance.message import Message
+from conformance.taskrecord import State
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation, clock
@@ -109,7 +111,10 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
                               e.command.last_sent, "12.2.2: do what the signal says, and "
                               "say so in feedback"))
     for task in c.open():
-        if task.left_at is not None and task.left_at + timeout < now:
+        # Left while paused is no end, unless it was listed paused (5.3; exec_feedback's
+        # tasks_executing_follow_tasks).
+        if task.left_at is not None and task.left_at + timeout < now and (
+                task.listed_paused or state_of(task) is not State.PAUSED):
             c.ended(task, ("left tasks-executing", None, task.left_at))
             if unit.stash.get(FEEDBACK_WITHOUT_TASK_UUID):
                 continue  # its final feedback may be one without task-uuid

@@ -18,12 +18,13 @@ from conformance.checks.conversation import (
     Conversations,
     conversations,
     said,
+    state_of,
     task_uuid_sent,
 )
 from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.status import FINAL_STATUSES, meaning
-from conformance.taskrecord import TaskRecord
+from conformance.taskrecord import State, TaskRecord
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
@@ -129,7 +130,8 @@ def _judge_signalled(unit: UnitState, c: Conversations, task_uuid: str, msg: Mes
 def tasks_executing_follow_tasks(ctx: CheckContext, unit: UnitState, msg: Message,
                                  v: Validation) -> list[Violation] | None:
     """5.3: tasks-executing lists the running tasks: a started task that leaves it has ended,
-    and its final feedback is due; one listed twice after a resend was executed twice.
+    and its final feedback is due (not while it is paused, unless it was listed paused); one
+    listed twice after a resend was executed twice.
     (Runs on every direct_execution_info: a list or None; nothing to do without open tasks.)"""
     c = unit.stash.get(CONVERSATIONS)
     if c is None or not c.running:
@@ -143,8 +145,10 @@ def tasks_executing_follow_tasks(ctx: CheckContext, unit: UnitState, msg: Messag
     found = None
     for task in open_tasks:
         n = listed.count(task.task_uuid)
+        paused = state_of(task) is State.PAUSED
         if n:
             task.listed, task.listed_at, task.left_at = True, msg.time, None
+            task.listed_paused = task.listed_paused or paused
             if n > 1 and task.resent is not None:
                 unit.examine("EXEC-RESEND-001")
                 task.resent = None  # said once
@@ -152,6 +156,11 @@ def tasks_executing_follow_tasks(ctx: CheckContext, unit: UnitState, msg: Messag
                                    f"once in tasks-executing", observed=f"listed {n} times "
                                    f"after its start-task was resent",
                                    path="$.tasks-executing")]
+        elif paused and not task.listed_paused:
+            # 5.3 lists the tasks 'currently executing': a unit may leave a paused one out
+            # while it is paused, so its leaving is no end (listed again, or ended, once
+            # continued); a unit seen listing it paused has no such reading.
+            task.left_at = None
         elif task.listed and task.left_at is None:
             task.left_at = msg.time
     return found

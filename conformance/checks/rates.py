@@ -21,6 +21,10 @@ one, the heartbeat's: issue 24 §2) is left out too: the restart's silence is HB
 HB-010's to judge, not the rate's. Agent-uuids that take
 turns (two agents under one name, HB-011) are no reboot: their doubled rate stays HB-003's.
 
+Each periodic topic is its own stream, measured at its own rate: SensorInfo on both of the
+spec's spellings (3.1 sensor_info, 5.2 sensor.info) is two streams at the declared rate, not
+one at twice it (SI-002's note).
+
 Memory is bounded: running sums, min and max, and a series of at most 600 points.
 
 Live (``live_findings``, what lint's scorecard shows while it runs): the same judgement over
@@ -349,13 +353,14 @@ def live_findings(ctx: CheckContext, unit: UnitState) -> list[Violation]:
     return found
 
 
-RATES: StashKey[dict[TopicKind, RateTracker]] = StashKey("rates")
-"""The unit's rate trackers, one per periodic topic kind (read by ``identity`` too)."""
+RATES: StashKey[dict[str, RateTracker]] = StashKey("rates")
+"""The unit's rate trackers, one per periodic topic by its subtopic (read by ``identity``
+too): sensor_info (3.1) and sensor.info (5.2, ERR-001) are two streams, each at its rate."""
 RATES_CLOSED: StashKey[list[RateStat]] = StashKey("rates-closed")
 """The windows a change of the declared rate closed (at most MAX_CLOSED_SEGMENTS)."""
 
 
-def _trackers(unit: UnitState) -> dict[TopicKind, RateTracker]:
+def _trackers(unit: UnitState) -> dict[str, RateTracker]:
     return unit.stash.setdefault(RATES, dict)
 
 
@@ -380,7 +385,10 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
     trackers = unit.stash.get(RATES)
     if trackers is None:
         trackers = _trackers(unit)
-    tracker = trackers.get(kind)
+    # By the topic's spelling, not its kind: a unit that publishes SensorInfo on both of the
+    # spec's topics (3.1 sensor_info, 5.2 sensor.info) sends each at the declared rate.
+    stream = v.topic.subtopic
+    tracker = trackers.get(stream)
     found = None
     if tracker is not None and declared is not None and tracker.declared != declared:
         stat, found = tracker.judge(ctx, str(unit.address))
@@ -391,7 +399,7 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
         del closed[:-MAX_CLOSED_SEGMENTS]
         tracker = None
     if tracker is None:
-        tracker = trackers[kind] = RateTracker(kind, msg.topic, declared)
+        tracker = trackers[stream] = RateTracker(kind, msg.topic, declared)
         if kind is TopicKind.HEARTBEAT:  # identity measures silences in its periods (HB-010)
             unit.stash.setdefault(IDENTITY, Identity).heartbeat_rate = tracker
     # The life it belongs to: its own agent-uuid, else the heartbeat's (info messages without

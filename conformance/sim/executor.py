@@ -17,6 +17,7 @@ import orjson
 from conformance.sim.memory import Resends
 from conformance.sim.tasks import BUILTIN_SIGNALS, SKIP_WAYPOINT, Task, plan
 from conformance.sim.tst import misdirected
+from conformance.sim.variants import PREPARING_SECONDS
 
 if TYPE_CHECKING:
     from conformance.sim.unit import UnitCore
@@ -299,7 +300,10 @@ class CommandExecutor:
             self.runner.feedback(task, "Starting")
         elif "starting-feedback" in self.variants:
             self.runner.feedback(task, "starting")  # 12.4's word for a task getting ready
-        if "silent-start" not in self.variants:  # its answer already said 'running'
+        if "preparing-status" in self.variants:  # 12.4: a task specific string, for a while
+            self.runner.feedback(task, "preparing")
+            task.prepared_at = now + PREPARING_SECONDS
+        elif "silent-start" not in self.variants:  # its answer already said 'running'
             self.runner.feedback(task, "running")
         self.runner.start(task, now)
 

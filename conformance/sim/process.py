@@ -78,9 +78,12 @@ def run(address: UnitAddress, broker: BrokerURL | None, *, count: int = 1, rate:
     ``variants`` apply to every unit (VariantError).
     Returns 0, or 1 when the units could not start."""
     common, by_index = parse_faults(faults, count)
-    from conformance.sim.variants import check_variants
+    from conformance.sim.variants import VariantError, check_variants
 
     variant_names = check_variants(list(variants))
+    if broker is None and "mqtt5-qos1" in variant_names:
+        raise VariantError("variant mqtt5-qos1 needs a broker that speaks MQTT 5: the "
+                           "embedded amqtt broker refuses it (pass --broker mqtt://HOST:PORT)")
     embedded = None
     if broker is None:
         from conformance.broker import EmbeddedBroker

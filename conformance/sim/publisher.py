@@ -221,6 +221,8 @@ class Publisher:
         msg = self._info(type_, self.info_rate, **{"sensor-data-provided": self.sensors_listed()})
         self.unit.send("sensor.info" if "sensor-dot-info" in self.faults else "sensor_info", msg,
                        retain=self.retain_info)
+        if "both-sensor-info" in self.variants:  # 5.2's spelling too, a stream of its own
+            self.unit.send("sensor.info", msg, retain=self.retain_info)
 
     def _publish_dei(self, stream: Stream, now: float) -> None:
         unit = self.unit
@@ -231,6 +233,8 @@ class Publisher:
         tasks = unit.runner.tasks.values()
         if "tasks-executing-stale" in self.faults:
             executing = [t for t in tasks if t.spec is not None]
+        elif "paused-not-executing" in self.variants:  # 5.3: 'currently executing'
+            executing = [t for t in tasks if not t.ended and t.status != "paused"]
         else:
             executing = [t for t in tasks if not t.ended]
         msg = self._info(type_, self.info_rate, **{

@@ -73,6 +73,8 @@ class TaskRunner:
         for task in list(self.tasks.values()):
             if task.status != "running":
                 continue
+            if task.prepared_at is not None and now >= task.prepared_at:
+                self.feedback(task, "running")  # variant preparing-status: ready now
             if task.fail_at is not None and now >= task.fail_at:
                 self.end(task, "failed", "the task crashed on its parameters")
                 continue
@@ -183,6 +185,8 @@ class TaskRunner:
         if task.node is not None:  # a TST leaf: its node reports
             task.node(status, "")
             return
+        if status != "preparing":  # any other status ends its preparing (preparing-status)
+            task.prepared_at = None
         unit = self.unit
         agent = unit.executor_uuid if "feedback-stale-agent-uuid" in self.faults \
             else unit.agent_uuid

@@ -64,6 +64,7 @@ class Runtime:
         self.errors = 0
         """Exceptions raised by unit code (a bug: the tests require zero)."""
         self.last_error = ""
+        self._qos = 0
         self.held = 0.0
         """The most seconds a unit's step ran after it was due: how long the host held this
         thread (a loaded machine), so that a silence it caused is not taken for the unit's."""
@@ -85,11 +86,18 @@ class Runtime:
                 self._bases.add(unit.tst.operator)
         return index
 
+    @property
+    def mqtt5_qos1(self) -> bool:
+        """Variant mqtt5-qos1 on any of its units: MQTT 5, every message at QoS 1 (2)."""
+        return any("mqtt5-qos1" in unit.variants for unit in self.units)
+
     def publish(self, topic: str, payload: bytes, retain: bool) -> None:
-        """What a unit emits, at QoS 0 while connected (the ``emit`` of each ``UnitCore``)."""
+        """What a unit emits, at QoS 0 while connected (the ``emit`` of each ``UnitCore``);
+        at QoS 1 with variant mqtt5-qos1, never waiting on the broker's ack (this thread
+        keeps every unit's schedule)."""
         client = self.client
         if client is not None:
-            client.publish(topic, payload, qos=0, retain=retain)
+            client.publish(topic, payload, qos=self._qos, retain=retain, wait=False)
 
     # --- safety -------------------------------------------------------------------------------
     def may_publish(self, topic: str) -> bool:
@@ -113,8 +121,9 @@ class Runtime:
         heartbeat (a fleet spreads its units over one period)."""
         if not self.units:
             raise ValueError("no units to run")
-        client = MqttClient(self.broker, client_id=self._client_id,
-                            on_message=self.receive, may_publish=self.may_publish)
+        self._qos = 1 if self.mqtt5_qos1 else 0
+        client = MqttClient(self.broker, client_id=self._client_id, on_message=self.receive,
+                            may_publish=self.may_publish, mqtt5=self.mqtt5_qos1)
         client.connect(timeout=min(timeout, 5.0))
         self.client = client
         try:

@@ -258,6 +258,9 @@ class Task:
     in_view_sent: bool = False
     fail_at: float | None = None
     """When a task accepted despite bad parameters fails (fault accept-invalid-params)."""
+    prepared_at: float | None = None
+    """Variant preparing-status: when it says 'running' after its 'preparing' (None: said,
+    or another status came first)."""
     node: Callable[[str, str], None] | None = None
     """For a leaf of a TST tree (``conformance.sim.tst``): told each status change (status,
     reason) instead of sending exec/feedback."""

@@ -33,7 +33,12 @@ from conformance.sim.publisher import CAMERA_URL_EVERY, Publisher, topic_base
 from conformance.sim.runner import STEP, TaskRunner
 from conformance.sim.tasks import GO_HOME, Task, TaskSpec, tasks_for
 from conformance.sim.tst import TstEngine
-from conformance.sim.variants import RESPAWN_METRES, SLOW_PERIODS, check_variants
+from conformance.sim.variants import (
+    REBOOT_AWAY,
+    RESPAWN_METRES,
+    SLOW_PERIODS,
+    check_variants,
+)
 from conformance.sim.vehicle import LINKOPING, GeoPoint, Vehicle, destination
 from conformance.topics import UnitAddress
 
@@ -257,6 +262,8 @@ class UnitCore:
         last = self.publisher.last_heartbeat
         last = now if last is None else last
         self.back_at = max(now + 0.1 * self.period, last + REBOOT_SILENCE * self.period)
+        if "reboot-away" in self.variants:  # a reboot as long as a real unit's
+            self.back_at = now + REBOOT_AWAY
         self.vehicle.stop()
         self.vehicle.speed = 0.0
         self.vehicle.look_at = None

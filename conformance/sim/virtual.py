@@ -253,8 +253,9 @@ class VirtualReference(ReferenceUnit):
         return self.clock.now() >= self._away_until
 
     def _publish(self, topic: str, payload: bytes, retain: bool = False) -> None:
-        if self._here():
-            self.broker.publish(topic, payload, retain)
+        if self._here():  # variant mqtt5-qos1: the double carries its QoS (not MQTT 5)
+            qos = 1 if "mqtt5-qos1" in self.core.variants else 0
+            self.broker.publish(topic, payload, retain, qos)
 
     def _command(self, message: Message) -> None:
         if not self._here():

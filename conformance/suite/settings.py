@@ -309,6 +309,11 @@ def _sim_switches(config: pytest.Config,
             check_variants(variants)
         except VariantError as e:
             raise pytest.UsageError(f"--sim-variant: {e}") from None
+        if scheme == "embedded" and "mqtt5-qos1" in variants:
+            raise pytest.UsageError(
+                "--sim-variant mqtt5-qos1: the embedded amqtt broker refuses MQTT 5; run the "
+                "reference unit on a broker that speaks it (waraps-conformance sim --variant "
+                "mqtt5-qos1 --broker mqtt://HOST:PORT) and certify it there")
     sim_rate = config.getoption("waraps_sim_rate", None) or 1.0
     if not sim_rate > 0:
         raise pytest.UsageError(f"--sim-rate {sim_rate!r}: a positive rate in Hz is needed")

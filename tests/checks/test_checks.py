@@ -216,6 +216,26 @@ def test_info_rates(stream, rule, builder):
     assert verdict(bad, stream, rule).verdict is Verdict.FAIL
 
 
+def test_sensor_info_on_both_spellings_is_two_streams_each_at_its_rate(stream):
+    """3.1 names sensor_info, 5.2 'UNIT/sensor.info': a unit that publishes on both, each at
+    the declared 1 Hz, sends two streams at 1 Hz, not one at 2 Hz (the spelling warns,
+    ERR-001). The same spelling twice a period is one stream at twice the rate (its
+    tolerance condition: decided, so judged strictly here)."""
+    def dotted(t: float):
+        info = stream.sensor_info(t)
+        return stream.msg("sensor.info", orjson.loads(info.payload), t)
+
+    both = [m for i in range(12) for m in (stream.sensor_info(i), dotted(i + 0.01))]
+    default, strict, doubled = Monitor(), Monitor(STRICT), Monitor(STRICT)
+    stream.feed(default, both)
+    stream.feed(strict, both)
+    stream.feed(doubled, [stream.sensor_info(i * 0.5) for i in range(24)])
+    assert verdict(default, stream, "SI-002").verdict is Verdict.PASS
+    assert verdict(default, stream, "ERR-001").verdict is Verdict.WARN
+    assert verdict(strict, stream, "SI-002").verdict is Verdict.PASS
+    assert verdict(doubled, stream, "SI-002").verdict is Verdict.FAIL
+
+
 def test_tst_execution_info_rate(stream):
     def tei(t):
         return stream.msg("tst_execution_info", {"name": "dji0", "rate": 2.0, "stamp": t,

@@ -131,6 +131,42 @@ def test_a_task_that_leaves_tasks_executing_without_final_feedback_fails(stream)
     assert "still running" in rules["EXEC-START-003"].reason
 
 
+def test_a_paused_task_left_out_of_tasks_executing_has_not_ended(stream):
+    """5.3 lists the tasks 'currently executing': a unit may leave a paused task out while it
+    is paused (it is not executing) and list it again once continued. Its leaving is then no
+    end awaiting a final feedback (EXEC-START-003); continued and never listed again, it is."""
+    quiet = stream.alive(30.0, info=False)  # its direct_execution_info is this test's
+    task = new()
+    entry = [{"task-uuid": task, "task-name": "move-to"}]
+    cmd, pause = start(stream, 2.1, task), stream.command(5.1, "signal-task", **{
+        "signal": "$pause", "task-uuid": task})
+    resume = stream.command(15.1, "signal-task", **{"signal": "$continue", "task-uuid": task})
+    began = [cmd, stream.response(2.2, com_of(cmd), "running", **{"task-uuid": task}),
+             stream.feedback(2.3, task, "running"),
+             *[stream.direct_execution_info(t + 0.5, executing=entry) for t in (3, 4)],
+             pause, stream.response(5.2, com_of(pause), "ok", **{"task-uuid": task}),
+             stream.feedback(5.3, task, "paused"),
+             *[stream.direct_execution_info(t + 0.5) for t in range(5, 15)],
+             resume, stream.response(15.2, com_of(resume), "ok", **{"task-uuid": task}),
+             stream.feedback(15.3, task, "running")]
+    relisted = [stream.direct_execution_info(t + 0.5, executing=entry) for t in range(15, 30)]
+    rules = judge(stream, [*began, *relisted], 30.0, alive=quiet)
+    assert rules["EXEC-START-003"].verdict is Verdict.SKIP, rules["EXEC-START-003"]
+    assert "still running" in rules["EXEC-START-003"].reason
+    never = [stream.direct_execution_info(t + 0.5) for t in range(15, 30)]
+    rules = judge(stream, [*began, *never], 30.0, alive=quiet)
+    r = rules["EXEC-START-003"]
+    assert r.verdict is Verdict.FAIL and "left tasks-executing" in r.violations[0].observed
+    # A unit that lists its paused task, then drops it while still paused, ended it unsaid
+    # (the fault preempt-paused-silently).
+    dropped = [*began[:8], *[stream.direct_execution_info(t + 0.5, executing=entry)
+                             for t in (5, 6, 7)],
+               *[stream.direct_execution_info(t + 0.5) for t in range(8, 30)]]
+    rules = judge(stream, dropped, 30.0, alive=quiet)
+    r = rules["EXEC-START-003"]
+    assert r.verdict is Verdict.FAIL and "left tasks-executing" in r.violations[0].observed
+
+
 def _resent(stream, task, *, second, feedback):
     cmd = start(stream, 2.1, task)
     again = start(stream, 3.1, task, com=com_of(cmd))

@@ -46,6 +46,7 @@ def test_importing_the_plugin_is_cheap() -> None:
     (["--sim-variant", "terse", "--sim-variant", "verbose"], "cannot be combined"),
     (["--broker", "mqtt://127.0.0.1:1883", "--sim-variant", "strict"],
      "runs only with --broker embedded"),
+    (["--sim-variant", "mqtt5-qos1"], "the embedded amqtt broker refuses MQTT 5"),
     (["--broker", "mqtt://127.0.0.1:1883", "--ca-file", "/no/such.pem"], "no such file"),
     (["--broker", "mqtt://127.0.0.1:1883", "--tls-insecure"], "need an mqtts:// broker"),
     (["--seed", "abc"], "a whole number is needed"),

@@ -88,6 +88,7 @@ def test_fleet_with_a_fault_on_one_unit_on_its_own_embedded_broker(observe) -> N
     (["--fault", "dropouts@7", "--count", "2"], "not a unit index from 0 to 1"),
     (["--variant", "strikt"], "did you mean strict"),
     (["--variant", "terse", "--variant", "verbose"], "cannot be combined"),
+    (["--variant", "mqtt5-qos1", "--broker", "embedded"], "amqtt broker refuses it"),
     (["--unit", "waraps/unit/boat/real/x"], "agent type 'boat'"),
     (["--rate", "0"], "positive number of Hz"),
     (["--broker", "http://example"], "scheme 'http'"),
