@@ -35,21 +35,21 @@ def test_monitor_judges_real_traffic(broker_url: str, unit_address: UnitAddress)
     subscriber = MqttClient(url, on_message=on_message).connect()
     try:
         # A stale retained heartbeat (MSG-007), then a burst: 12 heartbeats declaring 1 Hz
-        # arrive within milliseconds (HB-003), and the agent-uuid changes twice without a
-        # silence (HB-006: once is a fast restart).
+        # arrive within milliseconds (HB-003), and the agent-uuid changes three times without
+        # a silence (HB-006: once is a fast restart, twice may be two restarts: a warning).
         publisher.publish(topic, heartbeat(unit_address, str(uuid.uuid4()), time.time() - 600),
                           retain=True)
         subscriber.subscribe(f"{unit_address.prefix}/#")
-        first, second, third = str(uuid.uuid4()), str(uuid.uuid4()), str(uuid.uuid4())
-        for i in range(13):
+        first, *later = (str(uuid.uuid4()) for _ in range(4))
+        for i in range(14):
             publisher.publish(topic, heartbeat(
-                unit_address, first if i < 11 else second if i < 12 else third, time.time()))
+                unit_address, first if i < 11 else later[i - 11], time.time()))
         deadline = time.monotonic() + 10
         with arrived:
-            while len(received) < 14 and time.monotonic() < deadline:
+            while len(received) < 15 and time.monotonic() < deadline:
                 arrived.wait(deadline - time.monotonic())
             got = list(received)
-        assert len(got) == 14, f"only {len(got)} of 14 messages arrived"
+        assert len(got) == 15, f"only {len(got)} of 15 messages arrived"
     finally:
         subscriber.close()
         publisher.publish(topic, b"", retain=True)  # clear the retained message
