@@ -153,6 +153,8 @@ class Rule:
 
     def decided(self, condition_id: str = "") -> bool:
         """Whether a finding of ``condition_id`` stands on this suite's decision only."""
+        if not condition_id:  # the rule's own words (the usual case: no Condition made)
+            return self.basis is Basis.DECIDED
         return self.condition(condition_id).is_decided
 
 

@@ -47,11 +47,10 @@ class RuleRecord:
         """Times of the first and the latest violation (of all, not only those kept)."""
 
     def add(self, v: Violation) -> None:
-        rule = CATALOGUE.get(v.rule)
         if v.supersedes:
-            self._supersede(v.supersedes, rule)
+            self._supersede(v.supersedes, CATALOGUE.get(v.rule))
         self.count += 1
-        self.firm += not _decided(rule, v.condition)
+        self.firm += not _decided(CATALOGUE.get(v.rule), v.condition)
         if len(self.evidence) < MAX_EVIDENCE:
             self.evidence.append(v)
         t = v.time
