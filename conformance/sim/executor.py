@@ -342,13 +342,14 @@ class CommandExecutor:
             refuse(f"task {task.name} does not understand {signal[:64]!r}; it understands "
                    f"{', '.join(signals)}")
             return
-        self._answer(com, "ok", task_uuid=task_uuid, fail_reason="", kind="signal")
+        self._answer(com, self._accepts(signal), task_uuid=task_uuid, fail_reason="",
+                     kind="signal")
         runner.step(now)
         paused = task.status == "paused"
         if paused and signal == "$abort" and "abort-paused-resumes" in self.faults:
             runner.resume(task, now)  # continue() before cancel(): it runs again, then ends
         if signal == "$abort":
-            if "abort-ignored" not in self.faults:
+            if "abort-ignored" not in self.faults and "abort-running-goes-on" not in self.faults:
                 runner.end(task, "aborted", "aborted by $abort")
                 if paused and "feedback-after-abort-paused" in self.faults:
                     runner.feedback(task, "paused")  # its pause timer fires after the end
@@ -373,6 +374,14 @@ class CommandExecutor:
                     runner.start_leg(task)
         if task.status == "running":
             runner.advance(task, now)
+
+    def _accepts(self, signal: str) -> str:
+        """The word a signal is accepted with: 'ok', or 12.1's 'running' (variant
+        signal-running; fault abort-running-goes-on for $abort)."""
+        if "signal-running" in self.variants or (
+                signal == "$abort" and "abort-running-goes-on" in self.faults):
+            return "running"
+        return "ok"
 
     # --- query-status ---------------------------------------------------------------------------
     def _query_status(self, com: str, msg: dict[str, Any]) -> None:

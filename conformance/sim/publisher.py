@@ -194,7 +194,8 @@ class Publisher:
         unit.send("heartbeat", self.heartbeat_message())
         self.last_heartbeat = now
         self.heartbeats += 1
-        if "periodic-feedback" in unit.variants:  # 12.4 'Update of the status', each period
+        if "periodic-feedback" in unit.variants or "abort-running-goes-on" in self.faults:
+            # 12.4 'Update of the status', each period
             for task in list(unit.runner.tasks.values()):
                 if task.node is None and task.status in ("running", "paused"):
                     unit.runner.feedback(task, task.status)
