@@ -10,7 +10,8 @@ and every rule of that level (the catalogue's ``level``) was judged on evidence:
 none could not be tested; a rule that holds for every level (no ``level``: topics,
 heartbeat, death, reboot) failing or not tested denies every level (REBOOT-* without
 --reboot-cmd: no level is certified). Skips (not claimed, not applicable) do not count
-against a level. A run that selected rules or was cut short is **partial**: its verdict is never
+against a level; a rule of a claimed level that needs a command and saw none it applies to
+is no skip but could-not-test (the judge's: the suite did not provoke its evidence). A run that selected rules or was cut short is **partial**: its verdict is never
 ``pass``. Lint observes traffic it never caused: it says what it saw ("clean for 10 min,
 never commanded"), never "certified".
 """
