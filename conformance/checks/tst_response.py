@@ -138,6 +138,9 @@ def _judge_signal(ctx: CheckContext, unit: UnitState, c: TstConversations, cmd: 
         wanted = SIGNAL_FEEDBACK.get(cmd.signal or "")
         if wanted is None:
             return
+        if not targets and known is not None and known.final is not None \
+                and known.final[0] == wanted and known.final[2] >= cmd.time:
+            unit.examine("TST-012")  # it ended so before the answer came (no topic order, 12)
         for node in targets:
             if node.status == wanted and wanted not in FINAL:
                 unit.examine("TST-012")  # already so: nothing to report

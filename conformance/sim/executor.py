@@ -58,6 +58,8 @@ class CommandExecutor:
         """Variant late-subscriber: False until the first command, which is lost."""
         self.history: Resends[dict[str, Any] | None] = Resends()
         """com-uuid -> the response sent (None: deliberately not answered), for resends."""
+        self.went_on: set[str] = set()
+        """Fault abort-running-goes-on: the task-uuids whose $abort it accepted and ignored."""
         self.delayed: list[tuple[float, dict[str, Any]]] = []
         """Fault pong-late: (when, response) of answers held back."""
         self.deferred: list[tuple[dict[str, Any], str | None, float]] | None = None
@@ -349,7 +351,9 @@ class CommandExecutor:
         if paused and signal == "$abort" and "abort-paused-resumes" in self.faults:
             runner.resume(task, now)  # continue() before cancel(): it runs again, then ends
         if signal == "$abort":
-            if "abort-ignored" not in self.faults and "abort-running-goes-on" not in self.faults:
+            if "abort-running-goes-on" in self.faults:
+                self.went_on.add(task.uuid)
+            elif "abort-ignored" not in self.faults:
                 runner.end(task, "aborted", "aborted by $abort")
                 if paused and "feedback-after-abort-paused" in self.faults:
                     runner.feedback(task, "paused")  # its pause timer fires after the end

@@ -184,7 +184,8 @@ class UnitCore:
     def send(self, sub: str, body: Any, *, retain: bool = False, base: str | None = None) -> None:
         """Publish ``body`` as JSON; sorted keys, like the spec's examples (variant key-order:
         reversed). Variant slow holds answers and feedback back (``send_held``)."""
-        if sub in HELD and ("slow" in self.variants or "slow-answers" in self.variants):
+        if sub in HELD and ("slow" in self.variants or (
+                "slow-answers" in self.variants and sub.endswith("/response"))):
             hold = SLOW_PERIODS * self.period if "slow" in self.variants else \
                 self.rng.uniform(*SLOW_ANSWERS)
             when = max(self.runner.now + hold, self.held[-1][0] if self.held else 0.0)

@@ -36,8 +36,10 @@ _READINGS = (
             "Answers a signal it accepts 'running', in 12.1's words, not 'ok'; a refusal is "
             "'failed' as before."),
     Variant("slow-answers", "12.1; the profile's response_timeout (5 s by default)",
-            "Holds each response and the feedback after it back 1-3 s (SLOW_ANSWERS, drawn "
-            "per message, never overtaking one held before), as a ground unit at 0.5 Hz did."),
+            "Answers each command 1-3 s after it came (SLOW_ANSWERS, drawn per answer, never "
+            "overtaking one held before), as a ground unit at 0.5 Hz did; its feedback is not "
+            "held, so what a command causes may be told before its answer (12: no order "
+            "between topics)."),
     Variant("two-signals", "5.3 ('for each task a list of signals it understands')",
             "Lists only $abort and $enough for its look-at tasks (9.2-9.4 end on $enough), and "
             "refuses any other signal to them, in direct execution and as TST leaves."),
@@ -181,7 +183,7 @@ REBOOT_AWAY = 4.0
 """Variant reboot-away: seconds a rebooted unit is away (8 heartbeat periods at the matrix's
 2 Hz, where the plain unit is away 2.5 periods: REBOOT_SILENCE)."""
 SLOW_ANSWERS = (1.0, 3.0)
-"""Variant slow-answers: the shortest and longest hold of a response or feedback, seconds
+"""Variant slow-answers: the shortest and longest hold of a response, seconds
 (inside the 5 s response_timeout every profile but the tests' short ones has)."""
 TWO_SIGNALS = ("$abort", "$enough")
 """Variant two-signals: what its look-at tasks list (5.3)."""
