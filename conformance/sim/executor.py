@@ -351,12 +351,7 @@ class CommandExecutor:
         if paused and signal == "$abort" and "abort-paused-resumes" in self.faults:
             runner.resume(task, now)  # continue() before cancel(): it runs again, then ends
         if signal == "$abort":
-            if "abort-running-goes-on" in self.faults:
-                self.went_on.add(task.uuid)
-            elif "abort-ignored" not in self.faults:
-                runner.end(task, "aborted", "aborted by $abort")
-                if paused and "feedback-after-abort-paused" in self.faults:
-                    runner.feedback(task, "paused")  # its pause timer fires after the end
+            self._abort(task, paused)
         elif signal == "$enough":
             runner.end(task, "aborted" if "enough-aborts" in self.faults else "finished",
                        "ended by $enough")
@@ -378,6 +373,15 @@ class CommandExecutor:
                     runner.start_leg(task)
         if task.status == "running":
             runner.advance(task, now)
+
+    def _abort(self, task: Task, paused: bool) -> None:
+        """$abort accepted: the task ends 'aborted' (faults: it goes on)."""
+        if "abort-running-goes-on" in self.faults:
+            self.went_on.add(task.uuid)
+        elif "abort-ignored" not in self.faults:
+            self.runner.end(task, "aborted", "aborted by $abort")
+            if paused and "feedback-after-abort-paused" in self.faults:
+                self.runner.feedback(task, "paused")  # its pause timer fires after the end
 
     def _accepts(self, signal: str) -> str:
         """The word a signal is accepted with: 'ok', or 12.1's 'running' (variant
