@@ -64,13 +64,14 @@ def budget(c: Certification) -> float:
 
 def pace(c: Certification) -> float:
     """How much slower than ``RUN_BUDGET`` is made for the unit goes, at least 1: its
-    heartbeat period in seconds (a 0.5 Hz unit: 2) or its median answer time over
-    ``ANSWER_PACE`` (answers after 1-3 s: 2), whichever is more. Only answers that came
-    count: a unit that answers nothing is no slower, and its run no longer."""
+    heartbeat period in seconds (the scripted waits for info messages and feedback go by
+    it) plus its median answer time over ``ANSWER_PACE`` (every command waits for it): 1 for
+    a 1 Hz unit that answers at once, 4 for a 0.5 Hz unit answering after 1-3 s. Only
+    answers that came count: a unit that answers nothing is no slower, nor its run longer."""
     rate = c.context.rate_of("heartbeat")
     answers = c.commander.answer_time()
-    return max(1.0, 1.0 / rate if rate and rate > 0 else 1.0,
-               (answers or 0.0) / ANSWER_PACE)
+    return max(1.0, (1.0 / rate if rate and rate > 0 else 1.0)
+               + (answers or 0.0) / ANSWER_PACE)
 
 
 def run_budget(c: Certification) -> float:

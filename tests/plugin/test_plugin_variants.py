@@ -66,9 +66,10 @@ GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
     # tasks that list only $abort and $enough (5.3), on both levels (TST too).
     (("signal-running", "two-signals"), True),
 ]
-PACED: dict[tuple[str, ...], float] = {  # variants -> heartbeat rate (Hz), paced.yaml
-    # The same unit as a ground unit at 0.5 Hz answering after 1-3 s: the default deadlines,
-    # and its default exploration (a budget scaled to its pace), in virtual time.
+PACED: dict[tuple[str, ...], float] = {  # variants -> heartbeat rate (Hz)
+    # The same unit as a ground unit at 0.5 Hz answering after 1-3 s, under the default
+    # profile (every task, its deadlines) with the TST level, and its default exploration
+    # (a budget scaled to its pace), in virtual time.
     ("slow-answers", "signal-running", "two-signals"): 0.5,
 }
 """Variants certified at their own pace (test_a_unit_at_its_own_pace_is_certified_...)."""
@@ -183,27 +184,26 @@ def test_a_unit_at_its_own_pace_is_certified_with_its_exploration(
     pace (it once found no time left, silently); its recording lints clean."""
     from conformance.cli.lint import main as lint_main
 
-    profile = HERE / "profiles" / "paced.yaml"
+    unit = UnitAddress(unit_address.prefix, "ground", "simulation", "ugv0")
     recording = tmp_path / "certification.jsonl"
     with recorded_virtual(recording):
-        run = certify_virtual(pytester, str(unit_address), f"--profile={profile}", "--seed",
-                              "1", "-o", "waraps_explore=", "--sim-tst", variants=variants,
-                              rate=PACED[variants])
+        run = certify_virtual(pytester, str(unit), "--seed", "1", "-o", "waraps_explore=",
+                              "--sim-tst", variants=variants, rate=PACED[variants])
     rules = run.unit_rules()
     assert not accusations(rules, set()), first_violations(rules, accusations(rules, set()))
     assert run.result.ret == 0, run.text
     assert run.report is not None
-    levels = run.report["conclusion"]["units"][str(unit_address)]["levels"]
+    levels = run.report["conclusion"]["units"][str(unit)]["levels"]
     assert len(levels) == 3 and all(lv["certified"] for lv in levels), levels
     assert {rules[r]["verdict"] for r in ("EXEC-SEQ-001", "EXEC-SEQ-002", "EXEC-SIG-003",
                                           "TST-012")} == {"pass"}
     explored = run.report["meta"]["explore"]
     assert "examples" in explored and "not run" not in explored, explored
     out = io.StringIO()
-    lint_main(["--from", str(recording), f"--profile={profile}", "--plain", "--format",
-               "json", "--reports-dir", str(tmp_path / "lint")], stdout=out)
+    lint_main(["--from", str(recording), "--plain", "--format", "json", "--reports-dir",
+               str(tmp_path / "lint")], stdout=out)
     report = json.loads(next((tmp_path / "lint").glob("*.json")).read_text())
-    linted = report["units"][str(unit_address)]["rules"]
+    linted = report["units"][str(unit)]["rules"]
     assert not accusations(linted, set()), first_violations(linted, accusations(linted, set()))
 
 
