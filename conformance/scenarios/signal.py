@@ -141,7 +141,10 @@ def _unexamined(ctx: Context, todo: list[str], done: set[str], available: dict[s
         if not any(s in todo for s in wanted):
             ctx.record(rule, seen=Observed.NOT_APPLICABLE, reason=f"no task in tasks-available "
                        f"lists {' or '.join(wanted)} (5.3)")
-    if not done:
+    if not todo:
+        ctx.record("EXEC-SIG-001", seen=Observed.NOT_APPLICABLE,
+                   reason="no task in tasks-available lists a signal (5.3)")
+    elif not done:
         ctx.record("EXEC-SIG-001", seen=Observed.UNTESTABLE,
                    reason="no task with signals could be started" + (
                        f" ({ctx.none_startable('signal')})" if not startable else ""))
