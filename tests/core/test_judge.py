@@ -81,8 +81,9 @@ def test_what_a_scenario_saw_is_evidence_the_judge_reads() -> None:
     assert judged(examined=1).verdict is Verdict.PASS
     assert judged(explicit=Observed.UNTESTABLE, explicit_reason="no task").verdict is \
         Verdict.COULD_NOT_TEST
+    # said so: a skip the unit's declarations explain keeps a claimed level certified
     assert judged(explicit=Observed.NOT_APPLICABLE, explicit_reason="not claimed").reason == \
-        "not claimed"
+        "not applicable: not claimed"
 
 
 def test_no_scenario_or_statistic_sets_a_verdict() -> None:
