@@ -10,7 +10,8 @@ and every rule of that level (the catalogue's ``level``) was judged on evidence:
 none could not be tested; a rule that holds for every level (no ``level``: topics,
 heartbeat, death, reboot) failing or not tested denies every level (REBOOT-* without
 --reboot-cmd: no level is certified). Skips (not claimed, not applicable) do not count
-against a level. A run that selected rules or was cut short is **partial**: its verdict is never
+against a level; a rule of a claimed level that needs a command and saw none it applies to
+is no skip but could-not-test (the judge's: the suite did not provoke its evidence). A run that selected rules or was cut short is **partial**: its verdict is never
 ``pass``. Lint observes traffic it never caused: it says what it saw ("clean for 10 min,
 never commanded"), never "certified".
 """
@@ -144,7 +145,7 @@ def conclude(report: RunReport) -> Conclusion:
     else:
         verdict, code = worst.value, EXIT_CERTIFIED
     not_run = set(report.not_run)
-    units = {name: _certification_unit(name, u, why, not_run)
+    units = {name: _certification_unit(name, u, why, not_run, facts.unexplored)
              for name, u in report.units.items()}
     return Conclusion(report.kind, verdict, bool(why), tuple(why), code, units, counts(report),
                       facts.strict, _judged_after_test(report, facts))
@@ -186,7 +187,7 @@ def died_at(unit: UnitReport, verdict: Verdict = Verdict.FAIL) -> float | None:
 
 
 def _certification_unit(name: str, unit: UnitReport, run_why: list[str],
-                        not_run: set[str]) -> UnitStatus:
+                        not_run: set[str], unexplored: str = "") -> UnitStatus:
     worst = unit.worst().value
     if unit.party != "unit":
         return UnitStatus(name, unit.party, worst, worst)
@@ -222,6 +223,8 @@ def _certification_unit(name: str, unit: UnitReport, run_why: list[str],
         summary = f"{NOT_CERTIFIED}: " + "; ".join(why + run_why or ["see the levels"])
         if certified:
             summary += f" (certified: {', '.join(certified)})"
+    if unexplored:  # never silent: its orders of commands were not explored
+        summary += f"; exploration not run: {unexplored}"
     return UnitStatus(name, unit.party, worst, summary, tuple(levels), died)
 
 

@@ -48,6 +48,9 @@ class RunFacts:
     traffic that came after its test (``Conclusion.judged_after_test``)."""
     untimed: bool = False
     """Lint of a capture without arrival times (``mosquitto_sub -v``)."""
+    unexplored: str = ""
+    """Why a certification's exploration of command orders did not run (no time left): said
+    beside the verdict, never a silent skip."""
     not_judged: str = ""
     """Lint: traffic of units past the bound on units was not judged (why, in words)."""
 

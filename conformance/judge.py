@@ -20,8 +20,15 @@ from collections.abc import Collection, Iterable, Mapping
 from types import MappingProxyType
 
 from conformance.facts import RunFacts, iso
-from conformance.results import COMMANDER_REASON, RateStat, RunReport, UnitReport
-from conformance.rules import CATALOGUE, Rule, Severity, Side
+from conformance.results import (
+    COMMANDER_REASON,
+    NOT_APPLICABLE,
+    UNPROVOKED,
+    RateStat,
+    RunReport,
+    UnitReport,
+)
+from conformance.rules import CATALOGUE, Mode, Rule, Severity, Side
 from conformance.violation import Observed, RuleResult, Verdict, Violation
 
 INTEROP_RISK = "interop risk: the spec does not say; this suite decided: "
@@ -66,7 +73,10 @@ def judge_rule(rule: Rule, *, severity: Severity, strict: bool, violations: list
         return RuleResult(rule.id, Verdict.COULD_NOT_TEST, excused, [])
     if explicit is not None:
         verdict = Verdict.COULD_NOT_TEST if explicit is Observed.UNTESTABLE else Verdict.SKIP
-        return RuleResult(rule.id, verdict, explicit_reason or default_reason, [])
+        reason = explicit_reason or default_reason
+        if explicit is Observed.NOT_APPLICABLE and not reason.startswith(NOT_APPLICABLE):
+            reason = NOT_APPLICABLE + reason  # what keeps a claimed level certified
+        return RuleResult(rule.id, verdict, reason, [])
     return RuleResult(rule.id, Verdict.SKIP, default_reason or "not examined", [])
 
 
@@ -146,6 +156,7 @@ def judge(report: RunReport, facts: RunFacts) -> RunReport:
             not_run += _not_run(unit, facts.selected or list(CATALOGUE), facts.ran,
                                 facts.not_run_reason())
         report.not_run = list(dict.fromkeys(not_run))
+        _unprovoked(unit)
     if facts.untimed:
         _untimed(report)
     for row in report.units.values():
@@ -176,6 +187,26 @@ def _commander_rules_aside(unit: UnitReport) -> None:
     for rule, result in list(unit.rules.items()):
         if CATALOGUE[rule].side is Side.COMMANDER and result.verdict is not Verdict.FAIL:
             unit.rules[rule] = RuleResult(rule, Verdict.SKIP, COMMANDER_REASON)
+
+
+def _unprovoked(unit: UnitReport) -> None:
+    """A claimed level is certified only on evidence (DESIGN 'Semantics'): a rule of it that
+    needs a command (a conversation or active rule of the unit's side) and was skipped
+    because nothing it applies to was seen was not provoked by the suite: could-not-test,
+    saying so. A level the unit does not claim, and a skip for a reason its own declarations
+    or messages give (``NOT_APPLICABLE``: no task lists $pause, no root-flag sent), stay
+    skips."""
+    from conformance.topics import level_name
+
+    claimed = {level_name(level) for level in unit.levels}
+    for rule, result in list(unit.rules.items()):
+        found = CATALOGUE.get(rule)
+        if (found is None or result.verdict is not Verdict.SKIP or found.mode is Mode.PASSIVE
+                or found.side is not Side.UNIT or result.reason.startswith(NOT_APPLICABLE)
+                or (found.spec_level is not None and found.spec_level not in claimed)):
+            continue
+        unit.rules[rule] = RuleResult(rule, Verdict.COULD_NOT_TEST,
+                                      UNPROVOKED + (result.reason or "not examined"))
 
 
 def _excuse_outage(unit: UnitReport, lost: float) -> None:

@@ -35,15 +35,14 @@ Public API (stable):
     key, the conversations'); ``task(task_uuid)``: its record in this life, or None;
     ``forget(life, keep=False)``: a new life (12.1), which knows no task of the one before
     (``keep``: their records stay, ``lost``, for the conversations).
-    ``states()``: task-uuid -> State; ``running()``, ``paused()``, ``live()``,
-    ``ended()``: task-uuids;
-    ``answered``: com-uuid -> (response, task-uuid) of the first answer;
+    ``states()``: task-uuid -> State; ``running()``, ``paused()``, ``live()``, ``ended()``:
+    task-uuids; ``answered``: com-uuid -> (response, task-uuid) of the first answer;
     ``executing()``: the task-uuids tasks-executing must list (the live ones);
     ``query_answers(task_uuid)``: what query-status may answer for it now.
 - ``Expectation``: ``command``, ``resend`` (an earlier command with the same com-uuid and
-  content), ``responses`` (the allowed response words), ``outcome(response) -> Outcome``,
-  ``may_end`` (live tasks this command may end, with a final status), ``untouched`` (tasks it
-  must leave as they are), ``rule`` (the rule an answer outside ``responses`` breaks).
+  content), ``responses`` (the allowed words), ``outcome(response) -> Outcome`` (a signal
+  accepted in a word but 'ok' has the 'ok' one), ``may_end`` (live tasks it may end, each with
+  a final status), ``untouched`` (tasks it must leave), ``rule`` (broken by other answers).
 - ``Outcome``: ``response``, ``states`` (task-uuid -> State after it; ``NEW_TASK`` for the
   task a start-task without task-uuid begins, whose uuid the response names), ``implies``
   (task-uuid -> the feedback statuses of which one must follow within ``feedback_timeout``).
@@ -61,25 +60,23 @@ from typing import Any
 import orjson
 
 from conformance.message import Message
-from conformance.status import FINAL_STATUSES, meaning
+from conformance.status import FINAL_STATUSES, accepts_signal, meaning
 from conformance.taskrecord import State, TaskRecord
 
 BUILTIN_SIGNALS = ("$abort", "$continue", "$enough", "$pause")
+"""12.2.2: 'The buildtin signals are $enough, $pause, $continue and $abort.'"""
 NO_SUCH_TASK = "waraps-conformance-no-such-task"
 """A task name no unit offers: what the suite starts to see a refusal (12.2.1, TST-011)."""
-"""12.2.2: 'The buildtin signals are $enough, $pause, $continue and $abort.'"""
 COMMANDS = ("ping", "start-task", "signal-task", "query-status")  # 12.1
 NEW_TASK = ""
 """The key, in ``Outcome.states``, of the task a start-task without task-uuid begins."""
-TASKS_KEPT = 1024
-COMMANDS_KEPT = 1024
-
+TASKS_KEPT = COMMANDS_KEPT = 1024
 
 FINAL = {status: State(status) for status in FINAL_STATUSES}  # 12.4: finished, failed, aborted
 SIGNAL_EFFECT: dict[str, tuple[str, State]] = {
     "$abort": ("aborted", State.ABORTED), "$enough": ("finished", State.FINISHED),
     "$pause": ("paused", State.PAUSED), "$continue": ("running", State.RUNNING)}
-"""12.2.2: the feedback a signal answered 'ok' implies, and the state it leads to."""
+"""12.2.2: the feedback an accepted signal implies, and the state it leads to."""
 SIGNAL_RULE = {"$abort": "EXEC-SIG-002", "$enough": "EXEC-SIG-004", "$pause": "EXEC-SIG-003",
                "$continue": "EXEC-SIG-003"}
 """The rule that feedback proves (12.2.2)."""
@@ -87,7 +84,7 @@ UNCHANGED = frozenset({("$pause", State.PAUSED), ("$continue", State.RUNNING)})
 """(signal, state) pairs that change nothing: no feedback is owed (EXEC-SEQ-001's decision,
 docs/MODEL.md). A State is its str: ``("$pause", "paused")`` is in it too."""
 STOP_SIGNALS = ("$abort", "$enough")
-"""The signals that end a task (12.2.2); after an 'ok' to $abort nothing may run it on
+"""The signals that end a task (12.2.2); once $abort is accepted nothing may run it on
 (EXEC-SEQ-001), $enough lets it wind down its own way until 'finished' (EXEC-SIG-004)."""
 QUERY_ANSWERS: dict[State, tuple[str, ...]] = {
     State.RUNNING: ("running",), State.PAUSED: ("running", "paused"),
@@ -164,6 +161,9 @@ class Expectation:
         return frozenset(o.response for o in self.outcomes)
 
     def outcome(self, response: str | None) -> Outcome | None:
+        if self.command.name == "signal-task" and response not in self.responses \
+                and accepts_signal(response):
+            response = "ok"
         return next((o for o in self.outcomes if o.response == response), None)
 
 
@@ -398,7 +398,7 @@ class Model:
                     self._begin_anew(task, cmd.task_name, to)
             elif value == "failed" and task is None:
                 self._remember(uuid, cmd.task_name, State.FAILED, to, refused=True, ended_at=t)
-        elif cmd.name == "signal-task" and value == "ok" and cmd.task_uuid:
+        elif cmd.name == "signal-task" and accepts_signal(value) and cmd.task_uuid:
             task = self.task(cmd.task_uuid)
             if task is not None and cmd.signal:
                 task.acked = (*task.acked, (t, cmd.signal, to))[-8:]
@@ -461,9 +461,8 @@ class Model:
     # --- the sequence rules -------------------------------------------------------------------
     def _keeps_running(self, task: TaskRecord, status: str, previous: str | None,
                        t: float) -> list[Finding]:
-        """EXEC-SEQ-001 (12.2.2): once $abort is answered 'ok' the task stops. It says
-        'running' again (from 'paused', or still, a response timeout after the answer): it
-        went on. One in-flight 'running' right after the answer is no evidence."""
+        """EXEC-SEQ-001 (12.2.2): once $abort is accepted the task stops; 'running' again (from
+        'paused', or a response timeout after the answer) says it went on; one in flight not."""
         stop = task.acked_since(float("-inf"), ("$abort",))
         if stop is None or status != "running":
             return []
@@ -472,16 +471,17 @@ class Model:
             return []
         how = "resumed from 'paused'" if previous == "paused" else \
             f"still 'running' {t - when:.2f} s later"
+        word = self.answered.get(com, ("ok",))[0]
         return [Finding("EXEC-SEQ-001", task.task_uuid, com,
-                        f"task {task.task_uuid} stops after {signal} was answered 'ok'",
-                        f"feedback 'running' after the 'ok' ({how})", t)]
+                        f"task {task.task_uuid} stops after {signal} was answered {word!r}",
+                        f"feedback 'running' after the {word!r} ({how})", t)]
 
     def _touched_by_another(self, task: TaskRecord, status: str, previous: str | None,
                             t: float) -> list[Finding]:
         """EXEC-SEQ-002 (12.2.2): a signal names one task-uuid and changes only that task.
         A task says what another task's signal asked for ('paused' for $pause, 'running' again
         after 'paused' for $continue, 'aborted' for $abort), within the response timeout of
-        that signal (answered 'ok'), with no such signal sent to it in that time (answered or
+        that signal (accepted), with no such signal sent to it in that time (answered or
         not), and, for 'aborted', no start-task or $continue in that time (either may pre-empt
         it)."""
         wanted = {"paused": "$pause", "aborted": "$abort"}.get(status)
@@ -500,7 +500,7 @@ class Model:
             if cmd.name == "signal-task" and cmd.signal == wanted:
                 if cmd.task_uuid == task.task_uuid:
                     return []  # its own (perhaps answered after its feedback)
-                if culprit is None and self.answered.get(com, (None,))[0] == "ok":
+                if culprit is None and accepts_signal(self.answered.get(com, (None,))[0]):
                     culprit = (sent, cmd)
             elif wanted == "$abort" and (cmd.name == "start-task" or cmd.signal == "$continue"):
                 return []  # pre-empted: a second task may end the first (EXEC-START-003)
@@ -510,7 +510,7 @@ class Model:
         return [Finding("EXEC-SEQ-002", task.task_uuid, cmd.com_uuid,
                         f"only task {cmd.task_uuid} changed by {wanted} (its task-uuid)",
                         f"task {task.task_uuid} says '{status}' {t - sent:.2f} s after that "
-                        f"{wanted} was sent and answered 'ok'", t,
+                        f"{wanted} was sent and accepted", t,
                         "also-aborted" if wanted == "$abort" else "")]
 
     def _remember(self, task_uuid: str, name: str | None, state: State, started_by: str | None

@@ -23,6 +23,15 @@ COMMANDER_REASON = ("commander-side rule: in a certification the suite itself is
                     "(waraps-conformance lint judges commanders)")
 
 
+NOT_APPLICABLE = "not applicable: "
+"""How a skip reason starts when the unit's own declarations or messages make the rule
+inapplicable (no task lists the signal, an optional field it never sends): in a certification
+that skip does not keep a claimed level from being certified; any other skip of a rule that
+needs a command does (``judge``: the suite did not provoke the evidence)."""
+UNPROVOKED = "the suite did not provoke the evidence: "
+"""How a certification's could-not-test of an unexamined rule of a claimed level begins."""
+
+
 UNIT_WORD_CHARS = 200
 """A unit address longer than this is not repeated in each rule's reason: the reasons of 800
 units with 100 KB names took gigabytes (issue 26 §4: names stored once)."""

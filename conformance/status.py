@@ -33,3 +33,10 @@ def meaning(status: object) -> str | None:
     if word in STANDARD_STATUSES:
         return word
     return FINAL_LOOKING.get(word)
+
+
+def accepts_signal(response: object) -> bool:
+    """Whether an answer to signal-task accepts the signal: any answer but 'failed'. 12.3.2
+    (the signal-task response) is empty and 12.1 gives a response's values as 'running,
+    failed, finished'; 'ok', which many units send, accepts it too."""
+    return isinstance(response, str) and response != "failed"

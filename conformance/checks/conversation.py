@@ -89,7 +89,7 @@ class Command(SentCommand):
 
 
 class Expect:
-    """Feedback a signal answered 'ok' implies (12.2.2), due by ``deadline``."""
+    """Feedback an accepted signal implies (12.2.2), due by ``deadline``."""
 
     __slots__ = ("task_uuid", "wanted", "rule", "deadline", "command")
 

@@ -1,6 +1,6 @@
 """Deadlines of exec conversations, judged on the unit's heartbeats and at the end (12.1-12.4).
 
-Answers due (a resend left unanswered: EXEC-RESEND-002), feedback a signal's 'ok' implies
+Answers due (a resend left unanswered: EXEC-RESEND-002), feedback an accepted signal implies
 (12.2.2), the final feedback of a task that left tasks-executing (EXEC-START-003). A new
 agent-uuid is a new life: what the old one left open is not judged (the reboot lost it).
 Commands still unanswered when a life or the observation ends are judged here, each by its
@@ -106,7 +106,7 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
             said = latest_status(task) if task is not None else None
             found.append(late(e.rule, unit.address.topic("exec/command"), e.command,
                               f"{' or '.join(sorted(e.wanted))} within "
-                              f"{ctx.profile.feedback_timeout:.1f} s of the 'ok' to "
+                              f"{ctx.profile.feedback_timeout:.1f} s of accepting "
                               f"{e.command.describe()}", f"latest status {said!r}",
                               e.command.last_sent, "12.2.2: do what the signal says, and "
                               "say so in feedback"))

@@ -1,7 +1,7 @@
 """A task's lifecycle as its feedback and tasks-executing show it (12.4, 5.3).
 
 Feedback follows a task to one final status (finished, failed, aborted) and nothing follows it;
-a signal answered 'ok' implies the feedback it asks for (12.2.2); a task that leaves
+an accepted signal implies the feedback it asks for (12.2.2); a task that leaves
 tasks-executing has ended, and its final feedback is due (judged by ``exec_deadline``). Feedback
 after the end that a resend caused is EXEC-RESEND-001's, not EXEC-FB-004's.
 """
@@ -111,7 +111,7 @@ def _after_final(c: Conversations, task: TaskRecord, task_uuid: str, msg: Messag
 
 def _judge_signalled(unit: UnitState, c: Conversations, task_uuid: str, msg: Message,
                      status: str) -> Iterator[Violation]:
-    """12.2.2: a signal answered 'ok' is followed by the feedback it asks for: that status
+    """12.2.2: an accepted signal is followed by the feedback it asks for: that status
     proves its rule, a final status other than it breaks it."""
     for e in [e for e in c.expects if e.task_uuid == task_uuid]:
         if status in e.wanted:
@@ -121,7 +121,7 @@ def _judge_signalled(unit: UnitState, c: Conversations, task_uuid: str, msg: Mes
             c.expects.remove(e)
             unit.examine(e.rule)
             yield violation(e.rule, msg, expected=f"{' or '.join(sorted(e.wanted))} after "
-                            f"{e.command.describe()} was answered 'ok'",
+                            f"{e.command.describe()} was accepted",
                             observed=f"status '{status}'", path="$.status")
 
 

@@ -2,7 +2,7 @@
 
 A response answers a command once per time it was sent, in time, with a value that fits the
 command: 'pong' to a ping, 'running' or 'failed' (refusing invalid or unoffered tasks) to a
-start-task, an 'ok' to a signal-task implies feedback (checked by ``exec_feedback`` and
+start-task, a signal-task accepted (any answer but 'failed') implies feedback (checked by ``exec_feedback`` and
 ``exec_deadline``), query-status agrees with the task's history, a resend is answered again
 the same way. Commands the unit left unanswered before the one it answers are its own faults.
 """
@@ -36,6 +36,7 @@ from conformance.checks.conversation import (
     task_uuid_sent,
 )
 from conformance.message import Message
+from conformance.status import accepts_signal
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
@@ -47,7 +48,7 @@ to a start-task."""
 STRAY_PONGS_KEPT = 8
 SIGNAL_FEEDBACK = {s: ({status}, protocol.SIGNAL_RULE[s])
                    for s, (status, _) in protocol.SIGNAL_EFFECT.items()}
-"""12.2.2 (the model's tables): the feedback a signal answered 'ok' implies, and the rule it
+"""12.2.2 (the model's tables): the feedback an accepted signal implies, and the rule it
 proves."""
 QUERY_ANSWERS = {state.value: answers for state, answers in protocol.QUERY_ANSWERS.items()
                  if state is not protocol.State.UNKNOWN}
@@ -191,8 +192,8 @@ def _judge_start_answer(unit: UnitState, c: Conversations, cmd: Command, msg: Me
 
 def _await_signalled(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: Command,
                      value: str | None, t: float) -> None:
-    """12.2.2: a signal answered 'ok' implies the feedback it asks for, due within the
-    feedback timeout (``Expect``), unless that feedback came first or the signal changes
+    """12.2.2: an accepted signal (any answer but 'failed': ``status.accepts_signal``; 12.3.2
+    is empty) implies the feedback it asks for, due within the feedback timeout (``Expect``), unless that feedback came first or the signal changes
     nothing in the task's state."""
     expected = SIGNAL_FEEDBACK.get(cmd.signal or "")
     task = c.followed(cmd.task_uuid)
@@ -201,10 +202,11 @@ def _await_signalled(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: 
     # running task that last spoke its own words is running all the same).
     unchanged = task is not None and (cmd.signal, state_of(task)) in protocol.UNCHANGED
     last = latest(task) if task is not None else None
-    if (value == "ok" and expected and task is not None and task.life == c.life
+    accepted = accepts_signal(value)
+    if (accepted and expected and task is not None and task.life == c.life
             and last is not None and last[1] in expected[0] and last[0] >= cmd.time):
         unit.examine(expected[1])  # its feedback came first: no order between topics (12)
-    elif value == "ok" and expected and task is not None and task.final is None \
+    elif accepted and expected and task is not None and task.final is None \
             and task.life == c.life and not unchanged:
         if len(c.expects) < EXPECTS_KEPT:
             c.expects.append(Expect(task.task_uuid, expected[0], expected[1],

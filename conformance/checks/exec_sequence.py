@@ -1,7 +1,7 @@
 """What the model of direct execution judges across steps (12.2.2; ``conformance.protocol``).
 
 Every exec message of a unit is fed to its ``Model``; the findings it returns are the sequence
-rules' (EXEC-SEQ-001: a task stops once $abort is answered 'ok'; EXEC-SEQ-002: a
+rules' (EXEC-SEQ-001: a task stops once $abort is accepted; EXEC-SEQ-002: a
 signal changes only the task it names). The same code runs in ``lint`` and in ``pytest
 --unit`` (and the exploration asks the same model what to expect), so lint of a recording and
 the suite cannot disagree about a sequence. What the conversation checks already judge (answers,
@@ -75,7 +75,7 @@ def sequence_follows_model(ctx: CheckContext, unit: UnitState, msg: Message,
 
 
 def _examine_signal(unit: UnitState, model: Model, m: object) -> None:
-    """A builtin signal answered 'ok' for a task the model knows is judged from here on:
+    """A builtin signal accepted (any answer but 'failed') for a task the model knows is judged from here on:
     EXEC-SEQ-001 for $abort, EXEC-SEQ-002 for every one."""
     to = m.get("response-to") if isinstance(m, dict) else None
     cmd = model.commands.get(to) if isinstance(to, str) else None

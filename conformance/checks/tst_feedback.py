@@ -22,6 +22,7 @@ from conformance.checks.tst_conversation import (
     tst_conversations,
 )
 from conformance.message import Message
+from conformance.results import NOT_APPLICABLE
 from conformance.topics import TopicKind
 from conformance.tst import FINAL
 from conformance.validator import Validation
@@ -101,6 +102,8 @@ def _judge_root_flag(unit: UnitState, node: TstNode, node_uuid: str, msg: Messag
     """14.5: root-flag is true in the feedback of the tree's top node alone (TST-008)."""
     flag = m.get("root-flag") if isinstance(m, dict) else None
     if not isinstance(flag, bool):
+        if isinstance(m, dict) and "root-flag" not in m:
+            unit.note("TST-008", f"{NOT_APPLICABLE}its TST feedback carries no root-flag")
         return
     unit.examine("TST-008")
     if flag is not node.root:
@@ -243,7 +246,8 @@ def nodes_executing_follow_trees(ctx: CheckContext, unit: UnitState, msg: Messag
     c = unit.stash.get(TST_CONVERSATIONS)
     if type(listed_raw) is not list:
         if c is not None and c.trees:
-            unit.note("TST-013", "tst_execution_info has no nodes-executing: not judged")
+            unit.note("TST-013", f"{NOT_APPLICABLE}tst_execution_info has no "
+                                 f"nodes-executing (TST-013's list is optional)")
         return None
     listed = {e.get("node-uuid") for e in listed_raw if isinstance(e, dict)}
     roots = {e.get("root-uuid") for e in listed_raw if isinstance(e, dict)}

@@ -138,6 +138,9 @@ def _judge_signal(ctx: CheckContext, unit: UnitState, c: TstConversations, cmd: 
         wanted = SIGNAL_FEEDBACK.get(cmd.signal or "")
         if wanted is None:
             return
+        if not targets and known is not None and known.final is not None \
+                and known.final[0] == wanted and known.final[2] >= cmd.time:
+            unit.examine("TST-012")  # it ended so before the answer came (no topic order, 12)
         for node in targets:
             if node.status == wanted and wanted not in FINAL:
                 unit.examine("TST-012")  # already so: nothing to report
@@ -148,8 +151,13 @@ def _judge_signal(ctx: CheckContext, unit: UnitState, c: TstConversations, cmd: 
             else:
                 c.dropped += 1
     elif targets and cmd.signal in SIGNALS and cmd.name != "signal-unit":
-        # 'failed' for a node that runs, in a tree that runs: it should have been done.
+        # 'failed' for a node that runs, in a tree that runs: it should have been done,
+        # unless the node is a task that does not list the signal (5.3: 'for each task a
+        # list of signals it understands'), as at the exec level.
         node = targets[0]
+        listed = unit.tasks_available.get(node.name)
+        if not node.children and listed is not None and cmd.signal not in listed:
+            return
         yield violation("TST-011", msg, expected=f"'ok' answering {cmd.describe()}: node "
                         f"{node.node_uuid} ('{node.name}') runs (latest status "
                         f"'{node.status}')", observed=f"'failed': {reason}",

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import threading
 import uuid
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -15,6 +16,9 @@ import orjson
 from conformance.checks.suite_commands import SENDER  # the suite's name: lint knows it too
 from conformance.scenarios.traffic import Entry, Traffic
 from conformance.topics import UnitAddress
+
+ANSWER_TIMES_KEPT = 32
+"""Answer times kept per sender (the latest: a unit's pace, bounded memory)."""
 
 
 class NotSent(Exception):
@@ -41,6 +45,8 @@ class Sent:
     payload: bytes
     mark: int
     gaps_before: int = 0
+    time: float = 0.0
+    """When it went out, Unix seconds (the traffic clock's)."""
 
 
 def new_uuid() -> str:
@@ -79,6 +85,8 @@ class Sender:
         self.sent_count = 0
         self.would_publish: list[tuple[str, bytes]] = []
         """Under --dry-run: what would have been published."""
+        self.answer_times: deque[float] = deque(maxlen=ANSWER_TIMES_KEPT)
+        """Seconds the latest answers took, from the publish to the response's arrival."""
 
     def gaps(self) -> int:
         """How many connection gaps the client has lived through: a wait across one saw
@@ -116,7 +124,7 @@ class Sender:
             raise DryRun(f"dry run: would publish to {self.topic}: {shown[:200]}")
         self._wait_connected(5.0)  # a command sent into a gap is lost; wait for the link
         sent = Sent(str(body.get("com-uuid", com_uuid)), body, payload, self.traffic.mark(),
-                    self._gaps())
+                    self._gaps(), self.traffic.clock.now())
         # Remembered before it goes out: a Ctrl-C between publish and answer must not leave
         # a task or tree running that abort_all does not know about.
         self._remember(sent)
@@ -141,6 +149,15 @@ class Sender:
         """The response whose response-to is the command's com-uuid (12.3, 14.4), after
         ``after`` (default: the command's mark), waiting up to ``timeout`` seconds."""
         com_uuid = sent.com_uuid
-        return self.traffic.wait_for(
+        answer = self.traffic.wait_for(
             lambda e: e.get("response-to") == com_uuid, timeout,
             after=sent.mark if after is None else after, subtopic=self.responses, what=what)
+        if answer is not None and after is None and sent.time:
+            self.answer_times.append(max(0.0, answer.time - sent.time))
+        return answer
+
+    def answer_time(self) -> float | None:
+        """The median of the latest answer times, seconds (None before any answer): the
+        unit's pace, which the default exploration budget scales with."""
+        times = sorted(self.answer_times)
+        return times[len(times) // 2] if times else None

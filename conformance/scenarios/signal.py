@@ -9,12 +9,12 @@ answered 'failed' (EXEC-SIG-005).
 
 from __future__ import annotations
 
-from conformance.protocol import SIGNAL_EFFECT, SIGNAL_RULE
+from conformance.protocol import BUILTIN_SIGNALS, SIGNAL_EFFECT, SIGNAL_RULE
 from conformance.scenarios.context import Context, describe
 from conformance.scenarios.params import valid_params
 from conformance.scenarios.sender import new_uuid
 from conformance.scenarios.traffic import Entry
-from conformance.violation import Observed, Verdict
+from conformance.violation import Observed
 
 RULES = ("EXEC-SIG-001", "EXEC-SIG-002", "EXEC-SIG-003", "EXEC-SIG-004", "EXEC-SIG-005")
 # The feedback status each built-in signal implies and the rule it proves (12.2.2, the model's).
@@ -105,22 +105,7 @@ def run(ctx: Context) -> None:
                 break  # 'paused' never came: nothing to continue from (no second timeout)
         if signal not in ("$enough", "$abort"):
             ctx.end_task(task_uuid, available[task], after=mark)
-    for rule in RULES[:-1]:
-        wanted = [s for s, r in RULE_OF.items() if r == rule]
-        if not any(s in done for s in wanted) and rule != "EXEC-SIG-001":
-            listed = [s for s in wanted if s in todo]
-            blocked = [ctx.safety.may_start(t, "signal")[1] for t in available
-                       if t not in startable and any(s in available[t] for s in listed)]
-            reason = (f"no task the suite may start lists {' or '.join(wanted)}" if not listed
-                      else f"no task listing {' or '.join(listed)} could be started"
-                      + (f" ({'; '.join(blocked)})" if blocked and not any(
-                          any(s in available[t] for s in listed) for t in startable) else ""))
-            ctx.record(rule, seen=Observed.NOT_APPLICABLE if not listed else Verdict.COULD_NOT_TEST,
-                       reason=reason)
-    if not done:
-        ctx.record("EXEC-SIG-001", seen=Observed.UNTESTABLE,
-                   reason="no task with signals could be started" + (
-                       f" ({ctx.none_startable('signal')})" if not startable else ""))
+    _unexamined(ctx, todo, done, available, startable)
     # EXEC-SIG-005: a task-uuid this unit has never seen.
     ghost = new_uuid()
     sent, answer = ctx.commander.signal(ghost, "$abort", ctx.timing.response)
@@ -131,4 +116,36 @@ def run(ctx: Context) -> None:
             "EXEC-SIG-005", expected=f"'failed' for a signal to unknown task-uuid {ghost}",
             observed=describe(answer) if answer else
             f"no response within {ctx.timing.response:.1f} s", entry=answer))
+
+
+def _unexamined(ctx: Context, todo: list[str], done: set[str], available: dict[str, list[str]],
+                startable: list[str]) -> None:
+    """Why the rules of signals never sent were not examined: no task lists the signal
+    (inapplicable, 5.3), or none that lists it could be started (could not test)."""
+    for rule in RULES[:-1]:
+        wanted = [s for s, r in RULE_OF.items() if r == rule]
+        if not any(s in done for s in wanted) and rule != "EXEC-SIG-001":
+            listed = [s for s in wanted if s in todo]
+            blocked = [ctx.safety.may_start(t, "signal")[1] for t in available
+                       if t not in startable and any(s in available[t] for s in listed)]
+            reason = (f"no task in tasks-available lists {' or '.join(wanted)} (5.3)"
+                      if not listed
+                      else f"no task listing {' or '.join(listed)} could be started"
+                      + (f" ({'; '.join(blocked)})" if blocked and not any(
+                          any(s in available[t] for s in listed) for t in startable) else ""))
+            ctx.record(rule, seen=Observed.UNTESTABLE if listed else Observed.NOT_APPLICABLE,
+                       reason=reason)
+    # What an accepted $abort (EXEC-SEQ-001) or any built-in signal (EXEC-SEQ-002) does:
+    # inapplicable where no task lists one (the Monitor's examination, if any, passes).
+    for rule, wanted in (("EXEC-SEQ-001", ("$abort",)), ("EXEC-SEQ-002", BUILTIN_SIGNALS)):
+        if not any(s in todo for s in wanted):
+            ctx.record(rule, seen=Observed.NOT_APPLICABLE, reason=f"no task in tasks-available "
+                       f"lists {' or '.join(wanted)} (5.3)")
+    if not todo:
+        ctx.record("EXEC-SIG-001", seen=Observed.NOT_APPLICABLE,
+                   reason="no task in tasks-available lists a signal (5.3)")
+    elif not done:
+        ctx.record("EXEC-SIG-001", seen=Observed.UNTESTABLE,
+                   reason="no task with signals could be started" + (
+                       f" ({ctx.none_startable('signal')})" if not startable else ""))
 

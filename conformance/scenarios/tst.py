@@ -40,6 +40,7 @@ from conformance.violation import Observed
 RULES = ("TST-004", "TST-005", "TST-006", "TST-007", "TST-008", "TST-009", "TST-010",
          "TST-011", "TST-012", "TST-013")
 LIVE = ("active", "running", "waiting")
+PAUSE = ("$pause", "$continue")
 LEAF_ENDINGS = (("signal-tst-tree", "$abort"), ("signal-tst-tree", "$enough"),
                 ("signal-unit", "$enough"), ("signal-unit", "$abort"))
 """The signals the leaf trees end with: those the seq and conc trees do not send."""
@@ -56,6 +57,12 @@ class _Drive:
         self.misread = False
         """A tree came back under a root-uuid of the unit's own: it did not read the nodes'
         common_params (TST-004's finding), so it cannot see an execunit either."""
+
+    def takes(self, *tasks: str) -> bool:
+        """Whether each of ``tasks`` lists $pause and $continue (5.3: 'for each task a list of
+        signals it understands'; a task the unit does not describe is taken to)."""
+        available = self.ctx.tasks_available()
+        return all(s in available.get(t, PAUSE) for t in tasks for s in PAUSE)
 
     def params(self, task: str) -> dict[str, object]:
         self.salt += 1
@@ -123,13 +130,15 @@ class _Drive:
             root, _ = tc.follow(s, root, None, ctx.timing.response, after=sent.mark)
         if root == s and tc.feedback(na, ("running",), ctx.timing.response,
                                      after=sent.mark) is not None:
-            self.signal("signal-tst-node", na, "$pause", na, ("paused",))
-            self.signal("signal-tst-node", na, "$continue", na, ("running",))
+            if self.takes(a):  # pause and resume only what lists them (5.3)
+                self.signal("signal-tst-node", na, "$pause", na, ("paused",))
+                self.signal("signal-tst-node", na, "$continue", na, ("running",))
             self.wait_info()  # nodes-executing while they run (TST-013)
             if self.signal("signal-tst-node", na, "$enough", na, FINAL):
                 tc.feedback(nb, ("running",), ctx.timing.response, after=sent.mark)
-            self.signal("signal-tst-tree", s, "$pause", s, ("paused",))
-            self.signal("signal-tst-tree", s, "$continue", s, ("running",))
+            if self.takes(b):  # the node the tree runs now
+                self.signal("signal-tst-tree", s, "$pause", s, ("paused",))
+                self.signal("signal-tst-tree", s, "$continue", s, ("running",))
             self.signal("signal-tst-node", nb, "$abort", s, FINAL)
         if not tc.over(root, sent.mark):
             self.end(root, "signal-tst-tree", "$enough")
@@ -147,8 +156,9 @@ class _Drive:
             root, _ = tc.follow(c, root, None, ctx.timing.response, after=sent.mark)
         if root == c and all(tc.feedback(n, ("running",), ctx.timing.response, after=sent.mark)
                              for n in (na, nb)):
-            self.signal("signal-unit", tc.me, "$pause", c, ("paused",))
-            self.signal("signal-unit", tc.me, "$continue", c, ("running",))
+            if self.takes(a, b):
+                self.signal("signal-unit", tc.me, "$pause", c, ("paused",))
+                self.signal("signal-unit", tc.me, "$continue", c, ("running",))
             self.signal("signal-tst-node", nb, "$abort", c, FINAL)
         if not tc.over(root, sent.mark):
             self.end(root, "signal-tst-tree", "$enough")
@@ -243,6 +253,8 @@ def run(ctx: Context) -> None:
             ctx.record(rule, seen=Observed.UNTESTABLE, reason=reason)
         return
     drive = _Drive(ctx, tc, origin)
+    # Tasks that list $pause and $continue first: the composite trees pause and resume them.
+    tasks = sorted(tasks, key=lambda t: not drive.takes(t))
     safe = [t for t in tasks if not ctx.safety.moves(t)] or tasks
     a = safe[0]
     b = next((t for t in safe if _kind(t) != _kind(a)), next(

@@ -58,6 +58,8 @@ class CommandExecutor:
         """Variant late-subscriber: False until the first command, which is lost."""
         self.history: Resends[dict[str, Any] | None] = Resends()
         """com-uuid -> the response sent (None: deliberately not answered), for resends."""
+        self.went_on: set[str] = set()
+        """Fault abort-running-goes-on: the task-uuids whose $abort it accepted and ignored."""
         self.delayed: list[tuple[float, dict[str, Any]]] = []
         """Fault pong-late: (when, response) of answers held back."""
         self.deferred: list[tuple[dict[str, Any], str | None, float]] | None = None
@@ -342,16 +344,14 @@ class CommandExecutor:
             refuse(f"task {task.name} does not understand {signal[:64]!r}; it understands "
                    f"{', '.join(signals)}")
             return
-        self._answer(com, "ok", task_uuid=task_uuid, fail_reason="", kind="signal")
+        self._answer(com, self._accepts(signal), task_uuid=task_uuid, fail_reason="",
+                     kind="signal")
         runner.step(now)
         paused = task.status == "paused"
         if paused and signal == "$abort" and "abort-paused-resumes" in self.faults:
             runner.resume(task, now)  # continue() before cancel(): it runs again, then ends
         if signal == "$abort":
-            if "abort-ignored" not in self.faults:
-                runner.end(task, "aborted", "aborted by $abort")
-                if paused and "feedback-after-abort-paused" in self.faults:
-                    runner.feedback(task, "paused")  # its pause timer fires after the end
+            self._abort(task, paused)
         elif signal == "$enough":
             runner.end(task, "aborted" if "enough-aborts" in self.faults else "finished",
                        "ended by $enough")
@@ -373,6 +373,23 @@ class CommandExecutor:
                     runner.start_leg(task)
         if task.status == "running":
             runner.advance(task, now)
+
+    def _abort(self, task: Task, paused: bool) -> None:
+        """$abort accepted: the task ends 'aborted' (faults: it goes on)."""
+        if "abort-running-goes-on" in self.faults:
+            self.went_on.add(task.uuid)
+        elif "abort-ignored" not in self.faults:
+            self.runner.end(task, "aborted", "aborted by $abort")
+            if paused and "feedback-after-abort-paused" in self.faults:
+                self.runner.feedback(task, "paused")  # its pause timer fires after the end
+
+    def _accepts(self, signal: str) -> str:
+        """The word a signal is accepted with: 'ok', or 12.1's 'running' (variant
+        signal-running; fault abort-running-goes-on for $abort)."""
+        if "signal-running" in self.variants or (
+                signal == "$abort" and "abort-running-goes-on" in self.faults):
+            return "running"
+        return "ok"
 
     # --- query-status ---------------------------------------------------------------------------
     def _query_status(self, com: str, msg: dict[str, Any]) -> None:

@@ -215,6 +215,9 @@ _ALL = (
        "Executes signal-task but never answers it."),
     _f("abort-ignored", "EXEC-SIG-002",
        "Acknowledges $abort ('ok') and goes on."),
+    _f("abort-running-goes-on", "EXEC-SIG-002 EXEC-SEQ-001",
+       "Accepts $abort in 12.1's word ('running') and goes on: that task runs on, and says "
+       "'running' again with every heartbeat (as a periodic report does)."),
     _f("pause-ignored", "EXEC-SIG-003",
        "Acknowledges $pause ('ok') but neither pauses nor says 'paused'."),
     _f("enough-aborts", "EXEC-SIG-004",

@@ -194,9 +194,11 @@ class Publisher:
         unit.send("heartbeat", self.heartbeat_message())
         self.last_heartbeat = now
         self.heartbeats += 1
-        if "periodic-feedback" in unit.variants:  # 12.4 'Update of the status', each period
+        went_on = unit.executor.went_on  # fault abort-running-goes-on: those it still runs
+        if "periodic-feedback" in unit.variants or went_on:  # 12.4 'Update of the status'
             for task in list(unit.runner.tasks.values()):
-                if task.node is None and task.status in ("running", "paused"):
+                if task.node is None and task.status in ("running", "paused") and (
+                        "periodic-feedback" in unit.variants or task.uuid in went_on):
                     unit.runner.feedback(task, task.status)
         if "twin-agent" in self.faults:
             twin = self.heartbeat_message()

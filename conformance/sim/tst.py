@@ -249,6 +249,12 @@ class TstEngine:
             refuse(f"unknown signal {str(signal)[:64]!r}: TST nodes understand "
                    f"{', '.join(SIGNALS)}")
             return
+        spec = self.unit.specs.get(targets[0].name) if len(targets) == 1 else None
+        if spec is not None and not targets[0].composite and signal not in spec.signals:
+            # 5.3: a leaf runs a task, which understands the signals its task lists.
+            refuse(f"task {spec.name} does not understand {signal}; it understands "
+                   f"{', '.join(spec.signals)}")
+            return
         self._answer(com, reply, "ok")
         self.unit.runner.step(now)
         for target in targets:

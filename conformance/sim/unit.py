@@ -16,6 +16,7 @@ Times: ``now`` is ``time.monotonic()`` seconds; stamps are Unix seconds (5.1).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import random
 import time
@@ -36,7 +37,9 @@ from conformance.sim.tst import TstEngine
 from conformance.sim.variants import (
     REBOOT_AWAY,
     RESPAWN_METRES,
+    SLOW_ANSWERS,
     SLOW_PERIODS,
+    TWO_SIGNALS,
     check_variants,
 )
 from conformance.sim.vehicle import LINKOPING, GeoPoint, Vehicle, destination
@@ -95,6 +98,9 @@ class UnitCore:
         """The addresses of its lives: its own, then the names it takes after each reboot."""
         if "own-task" in self.variants:  # 5.3: a task beyond section 9
             self.specs[GO_HOME.name] = GO_HOME
+        if "two-signals" in self.variants:  # 5.3: the signals each task understands
+            for name in [n for n in self.specs if n.startswith("look-at-")]:
+                self.specs[name] = dataclasses.replace(self.specs[name], signals=TWO_SIGNALS)
         self.base = topic_base(address, self.faults)
         self.command_topic = f"{self.base}/exec/command"
         # Identity of one life (12.1: history is lost with a reboot).
@@ -178,8 +184,11 @@ class UnitCore:
     def send(self, sub: str, body: Any, *, retain: bool = False, base: str | None = None) -> None:
         """Publish ``body`` as JSON; sorted keys, like the spec's examples (variant key-order:
         reversed). Variant slow holds answers and feedback back (``send_held``)."""
-        if "slow" in self.variants and sub in HELD:
-            when = self.runner.now + SLOW_PERIODS * self.period
+        if sub in HELD and ("slow" in self.variants or (
+                "slow-answers" in self.variants and sub.endswith("/response"))):
+            hold = SLOW_PERIODS * self.period if "slow" in self.variants else \
+                self.rng.uniform(*SLOW_ANSWERS)
+            when = max(self.runner.now + hold, self.held[-1][0] if self.held else 0.0)
             self.held.append((when, sub, body, base))
             self.due = min(self.due, when)
             return

@@ -28,7 +28,24 @@ class Variant:
     warns: tuple[str, ...] = ()
 
 
-_ALL = (
+# Readings of a unit written from the spec alone: it accepts a signal in 12.1's words, keeps a
+# ground unit's pace, and lists per task only the signals it understands (5.3).
+_READINGS = (
+    Variant("signal-running", "12.1 (response values 'running, failed, finished'); 12.3.2 "
+            "(the signal-task response) is empty",
+            "Answers a signal it accepts 'running', in 12.1's words, not 'ok'; a refusal is "
+            "'failed' as before."),
+    Variant("slow-answers", "12.1; the profile's response_timeout (5 s by default)",
+            "Answers each command 1-3 s after it came (SLOW_ANSWERS, drawn per answer, never "
+            "overtaking one held before), as a ground unit at 0.5 Hz did; its feedback is not "
+            "held, so what a command causes may be told before its answer (12: no order "
+            "between topics)."),
+    Variant("two-signals", "5.3 ('for each task a list of signals it understands')",
+            "Lists only $abort and $enough for its look-at tasks (9.2-9.4 end on $enough), and "
+            "refuses any other signal to them, in direct execution and as TST leaves."),
+)
+
+_ALL = _READINGS + (
     Variant("strict", "10, 11, 12.2, 14.3",
             "Refuses ('failed', with a fail-reason) any command the spec's examples do not "
             "show: a field none of 12.2/10/11/14.3's examples has; a start-task without "
@@ -165,6 +182,11 @@ PREPARING_SECONDS = 1.0
 REBOOT_AWAY = 4.0
 """Variant reboot-away: seconds a rebooted unit is away (8 heartbeat periods at the matrix's
 2 Hz, where the plain unit is away 2.5 periods: REBOOT_SILENCE)."""
+SLOW_ANSWERS = (1.0, 3.0)
+"""Variant slow-answers: the shortest and longest hold of a response, seconds
+(inside the 5 s response_timeout every profile but the tests' short ones has)."""
+TWO_SIGNALS = ("$abort", "$enough")
+"""Variant two-signals: what its look-at tasks list (5.3)."""
 RESPAWN_METRES = 400.0
 """Variant respawn: how far from its last position a rebooted unit comes back (the public
 agents were seen 57-520 m away, 2 s after the restart)."""

@@ -35,6 +35,9 @@ RUN_BUDGET = 80.0
 90 s whatever single fault it has: issue 25 §4): the default exploration takes what the
 scripted scenarios left of it, after ``RESERVE`` for the passive rules; ``--explore`` asks for
 an exact budget instead."""
+ANSWER_PACE = 1.0
+"""Seconds: the answer time ``RUN_BUDGET`` is made for (the reference unit answers at once;
+a unit whose median answer takes longer gets a run budget that much longer: ``pace``)."""
 LEAST_WORTH = 5.0
 """Seconds below which the default exploration is not begun (it would not finish an example)."""
 
@@ -59,11 +62,29 @@ def budget(c: Certification) -> float:
     return max(0.0, wanted)
 
 
+def pace(c: Certification) -> float:
+    """How much slower than ``RUN_BUDGET`` is made for the unit goes, at least 1: its
+    heartbeat period in seconds (the scripted waits for info messages and feedback go by
+    it) plus its median answer time over ``ANSWER_PACE`` (every command waits for it): 1 for
+    a 1 Hz unit that answers at once, 4 for a 0.5 Hz unit answering after 1-3 s. Only
+    answers that came count: a unit that answers nothing is no slower, nor its run longer."""
+    rate = c.context.rate_of("heartbeat")
+    answers = c.commander.answer_time()
+    return max(1.0, (1.0 / rate if rate and rate > 0 else 1.0)
+               + (answers or 0.0) / ANSWER_PACE)
+
+
+def run_budget(c: Certification) -> float:
+    """Seconds a default run aims to end within: ``RUN_BUDGET`` times --timing-scale, times
+    the unit's ``pace``."""
+    return RUN_BUDGET * c.settings.timing_scale * pace(c)
+
+
 def run_budget_left(c: Certification) -> float:
-    """Seconds of ``RUN_BUDGET`` (times --timing-scale) the scripted scenarios left to the
-    exploration, the passive rules' ``RESERVE`` kept."""
+    """Seconds of ``run_budget`` the scripted scenarios left to the exploration, the passive
+    rules' ``RESERVE`` kept."""
     spent = c.traffic.clock.now() - c.started
-    return RUN_BUDGET * c.settings.timing_scale - spent - RESERVE
+    return run_budget(c) - spent - RESERVE
 
 
 def story_path(c: Certification) -> Path:
@@ -181,16 +202,26 @@ def _say(c: Certification, text: str) -> None:
             c.progress.line(line)
 
 
+def _skip_without_time(c: Certification, seconds: float) -> None:
+    """No time left to explore: could not test, said beside the verdict too (the run's facts:
+    ``RunFacts.unexplored``), never a silent skip."""
+    if seconds > 0:
+        return
+    if c.settings.explore is None:
+        spent = c.traffic.clock.now() - c.started
+        c.unexplored = (f"the scripted scenarios took {spent:.0f} s of the {run_budget(c):.0f} "
+                        f"s a default run aims for at this unit's pace: no time left to "
+                        f"explore command orders (--explore 50s explores anyway)")
+    else:
+        c.unexplored = ("no time left for exploration within --max-duration "
+                        f"{c.settings.max_duration:g} s")
+    c.explored = f"not run: {c.unexplored}"
+    pytest.skip(f"could not test: {c.unexplored}")
+
+
 def _explore(c: Certification, explorer: Explorer, node: pytest.Item, began: float) -> None:
     seconds = budget(c)
-    if seconds <= 0 and c.settings.explore is None:
-        spent = c.traffic.clock.now() - c.started
-        pytest.skip(f"could not test: the scripted scenarios took {spent:.0f} s of the "
-                    f"{RUN_BUDGET * c.settings.timing_scale:.0f} s a default run aims for: no "
-                    f"time left to explore command orders (--explore 50s explores anyway)")
-    if seconds <= 0:
-        pytest.skip("could not test: no time left for exploration within --max-duration "
-                    f"{c.settings.max_duration:g} s")
+    _skip_without_time(c, seconds)
     path = story_path(c)
 
     def tell(story: Story) -> None:  # at once: shrinking may take the rest of the budget
@@ -202,7 +233,7 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item, began: flo
             f"(stored: {path}):")))
 
     order = "" if c.settings.explore_order == "model" else ", in random order"
-    share = (f", what the scripted scenarios left of the {RUN_BUDGET * c.settings.timing_scale:.0f}"
+    share = (f", what the scripted scenarios left of the {run_budget(c):.0f}"
              f" s a default run aims for" if c.settings.explore is None
              and seconds < default_budget(c.context.rate_of("heartbeat")) - 0.5 else "")
     _say(c, f"exploring command orders for {seconds:.0f} s{share} (hypothesis, seed "

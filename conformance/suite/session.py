@@ -115,6 +115,8 @@ class Certification:
         """What the exploration did (``suite/exploration.py``), for the report's meta."""
         self.explore_story = ""
         """The story exploration found, as told (the HTML report shows it step by step)."""
+        self.unexplored = ""
+        """Why the exploration did not run for want of time (``RunFacts.unexplored``)."""
         self.replays: dict[str, tuple[float, str]] = {}
         """Rule -> (when exploration began, the replay line of the story that found it)."""
         self._commanders(config, settings)
@@ -284,7 +286,8 @@ class Certification:
             if self.selected or self.selection else (),
             ran=tuple(sorted(self.ran | set(self.replays))),
             enacted_pass=tuple(sorted(r for r, shown in self.enacted.items()
-                                      if shown is not Verdict.FAIL)))
+                                      if shown is not Verdict.FAIL)),
+            unexplored=self.unexplored)
 
     def report(self, **extra: Any) -> RunReport:
         """The run's report, judged (``conformance.judge``) under the run's facts: every rule's

@@ -45,11 +45,13 @@ def start(stream, t: float, task: str) -> list:
             stream.feedback(t + 0.2, task, "running")]
 
 
-def signal(stream, t: float, task: str, sig: str, *then: tuple[float, str, str]) -> list:
-    """A signal answered 'ok' at t + 0.1, then feedback (time, task, status)."""
+def signal(stream, t: float, task: str, sig: str, *then: tuple[float, str, str],
+           answer: str = "ok") -> list:
+    """A signal answered ``answer`` at t + 0.1, then feedback (time, task, status)."""
     cmd = stream.command(t, "signal-task", signal=sig, **{"task-uuid": task})
     com = orjson.loads(cmd.payload)["com-uuid"]
-    out = [cmd, stream.response(t + 0.1, com, "ok", **{"task-uuid": task, "fail-reason": ""})]
+    out = [cmd, stream.response(t + 0.1, com, answer, **{"task-uuid": task,
+                                                        "fail-reason": ""})]
     return out + [stream.feedback(tt, task_uuid, status) for tt, task_uuid, status in then]
 
 
@@ -83,6 +85,36 @@ def test_running_long_after_abort_fails_but_in_flight_or_winding_down_on_enough_
     wind_down = judge(stream, before + signal(stream, 5.0, a, "$enough", (6.5, a, "running"),
                                               (7.0, a, "finished")))
     assert not failing(wind_down) and wind_down["EXEC-SIG-004"].verdict is Verdict.PASS
+
+
+def test_abort_accepted_in_12_1s_words_is_judged_as_an_ok(stream):
+    """12.3.2 is empty and 12.1 gives 'running, failed, finished': a signal answered
+    'running' (or 'finished') is accepted, and what an accepted $abort does applies."""
+    a = new()
+    before = start(stream, 2.0, a)
+    for word in ("running", "finished"):
+        ok = judge(stream, before + signal(stream, 5.0, a, "$abort", (5.2, a, "aborted"),
+                                           answer=word))
+        assert {r: ok[r].verdict for r in SEQ + ("EXEC-SIG-002",)} == dict.fromkeys(
+            SEQ + ("EXEC-SIG-002",), Verdict.PASS), word
+        assert not failing(ok)
+    goes_on = judge(stream, before + signal(stream, 5.0, a, "$abort", (6.5, a, "running"),
+                                            answer="running"))
+    assert failing(goes_on) == {"EXEC-SEQ-001", "EXEC-SIG-002"}
+    v = goes_on["EXEC-SEQ-001"].violations[0]
+    assert "answered 'running'" in v.expected and "still 'running'" in v.observed
+    # A refusal accepts nothing: no feedback is owed, and the task runs on.
+    refused = judge(stream, before + signal(stream, 5.0, a, "$abort", (6.5, a, "running"),
+                                            answer="failed"))
+    assert not failing(refused) and refused["EXEC-SEQ-001"].verdict is Verdict.SKIP
+
+
+def test_a_pause_accepted_with_running_that_pauses_another_task_fails(stream):
+    a, b = new(), new()
+    both = start(stream, 2.0, a) + start(stream, 3.0, b)
+    bad = judge(stream, both + signal(stream, 5.0, b, "$pause", (5.2, b, "paused"),
+                                      (5.25, a, "paused"), answer="running"))
+    assert failing(bad) == {"EXEC-SEQ-002"}
 
 
 # --- EXEC-SEQ-002: a signal changes only the task it names -----------------------------------

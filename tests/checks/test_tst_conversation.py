@@ -273,6 +273,40 @@ def test_signals_answered_wrongly_fail_tst_011(stream):
     assert failing(judge(stream, right), str(stream.address)) == set()
 
 
+def test_a_leaf_refusing_a_signal_its_task_does_not_list_is_not_faulted(stream):
+    """5.3: 'for each task a list of signals it understands': the stream's move-to lists
+    $abort and $enough only, so a running move-to node may refuse $pause; a node of a task
+    that lists $pause (or one the unit does not describe) may not."""
+    x = Tst(stream)
+
+    def refused(task: str) -> list:
+        node = new()
+        start = x.start(2.0, {**leaf(task, node), "params": {}})
+        sig = x.signal(3.0, "signal-tst-node", node, "$pause")
+        return [start, x.response(2.1, com_of(start), "started", **{"root-uuid": node}),
+                x.feedback(2.2, node, "active", True), x.feedback(2.3, node, "running", True),
+                sig, x.response(3.1, com_of(sig), "failed", "move-to does not understand $pause")]
+
+    unlisted = judge(stream, refused("move-to")).units[str(stream.address)].rules
+    assert unlisted["TST-011"].verdict is Verdict.PASS
+    listed = judge(stream, refused("look-at-bearing")).units[str(stream.address)].rules
+    assert listed["TST-011"].verdict is Verdict.WARN  # decided: warns by default
+
+
+def test_a_signal_whose_final_feedback_came_before_its_answer_examines_tst_012(stream):
+    """12 orders no topics: a node that ends as its signal asks before the (slow) answer
+    came is evidence of TST-012, not nothing to judge."""
+    x = Tst(stream)
+    node = new()
+    start = x.start(2.0, leaf("look-at-bearing", node))
+    sig = x.signal(3.0, "signal-tst-node", node, "$abort")
+    msgs = [start, x.response(2.1, com_of(start), "started", **{"root-uuid": node}),
+            x.feedback(2.2, node, "active", True), x.feedback(2.3, node, "running", True),
+            sig, x.feedback(3.2, node, "aborted", True), x.response(5.0, com_of(sig), "ok")]
+    rules = judge(stream, msgs).units[str(stream.address)].rules
+    assert rules["TST-012"].verdict is Verdict.PASS
+
+
 def test_an_abort_answered_ok_and_ignored_fails_tst_012_at_its_deadline(stream):
     x = Tst(stream)
     node = new()

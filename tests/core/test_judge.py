@@ -81,8 +81,9 @@ def test_what_a_scenario_saw_is_evidence_the_judge_reads() -> None:
     assert judged(examined=1).verdict is Verdict.PASS
     assert judged(explicit=Observed.UNTESTABLE, explicit_reason="no task").verdict is \
         Verdict.COULD_NOT_TEST
+    # said so: a skip the unit's declarations explain keeps a claimed level certified
     assert judged(explicit=Observed.NOT_APPLICABLE, explicit_reason="not claimed").reason == \
-        "not claimed"
+        "not applicable: not claimed"
 
 
 def test_no_scenario_or_statistic_sets_a_verdict() -> None:
@@ -147,3 +148,51 @@ def test_a_judged_report_s_verdicts_are_frozen() -> None:
     with pytest.raises(TypeError):
         report.units["op0 (commander)"].rules["EXEC-001"] = RuleResult(
             "EXEC-001", Verdict.PASS)
+
+
+def claimed(**rules: RuleResult) -> RunReport:
+    """A certification's report of a unit on the sensor and direct execution levels."""
+    unit = UnitReport(UNIT, "air", "simulation", "dji0", levels=["sensor", "direct execution"],
+                      rules={"HB-001": RuleResult("HB-001", Verdict.PASS, "examined 3 times"),
+                             **{r.rule: r for r in rules.values()}})
+    return RunReport("certification", 1.0, 2.0, units={UNIT: unit})
+
+
+UNIT = "waraps/unit/air/simulation/dji0"
+UNSEEN = "no message this rule applies to was seen"
+
+
+def test_a_rule_of_a_claimed_level_never_provoked_is_could_not_test_and_the_level_is_not_certified(
+        ) -> None:
+    """DESIGN 'Semantics': a level is certified only when every rule of it was judged on
+    evidence. A conversation rule skipped for want of its messages means the suite did not
+    provoke them (a signal accepted in words the suite did not read as acceptance)."""
+    report = judge(claimed(a=RuleResult("EXEC-SEQ-001", Verdict.SKIP, UNSEEN)),
+                   RunFacts(kind="certification", unit=UNIT))
+    result = report.units[UNIT].rules["EXEC-SEQ-001"]
+    assert result.verdict is Verdict.COULD_NOT_TEST
+    assert result.reason == f"the suite did not provoke the evidence: {UNSEEN}"
+    status = report.conclusion.units[UNIT]
+    assert [(lv.level, lv.certified) for lv in status.levels] == [
+        ("sensor", True), ("direct execution", False)]
+    assert "1 could not be tested" in status.levels[1].why
+
+
+@pytest.mark.parametrize("skipped", [
+    RuleResult("EXEC-SEQ-001", Verdict.SKIP, "not applicable: no task in tasks-available "
+                                             "lists $abort (5.3)"),  # its declarations
+    RuleResult("TST-008", Verdict.SKIP, UNSEEN),  # a level it does not claim
+    RuleResult("MSG-007", Verdict.SKIP, UNSEEN),  # passive: nothing retained, nothing to judge
+    RuleResult("EXEC-001", Verdict.SKIP, UNSEEN),  # the commander's side
+])
+def test_skips_the_unit_s_declarations_explain_leave_its_levels_certified(
+        skipped: RuleResult) -> None:
+    report = judge(claimed(a=skipped), RunFacts(kind="certification", unit=UNIT))
+    assert report.units[UNIT].rules[skipped.rule].verdict is Verdict.SKIP
+    assert all(lv.certified for lv in report.conclusion.units[UNIT].levels)
+
+
+def test_lint_never_turns_a_skip_into_could_not_test() -> None:
+    report = judge(claimed(a=RuleResult("EXEC-SEQ-001", Verdict.SKIP, UNSEEN)),
+                   RunFacts(kind="lint"))
+    assert report.units[UNIT].rules["EXEC-SEQ-001"].verdict is Verdict.SKIP

@@ -247,3 +247,19 @@ def test_a_unit_silent_on_start_is_explored_as_briskly_as_one_that_reports_it(
         assert found is not None, run.text
         steps[variants] = int(found.group(1))
     assert steps[("silent-start",)] >= 0.8 * steps[()], steps
+
+
+def test_an_exploration_left_no_time_is_said_beside_the_verdict(
+        pytester: pytest.Pytester) -> None:
+    """Never a silent skip: the scripted scenarios leave --max-duration no time to explore,
+    and the unit's verdict (every report's) says the exploration was not run, and why."""
+    from certify_helpers import MATRIX, certify_virtual
+
+    run = certify_virtual(pytester, UNIT, f"--profile={MATRIX}", "--seed", "1",
+                          "--explore=10s", "--max-duration", "12s")
+    assert run.report is not None, run.text
+    why = "no time left for exploration within --max-duration 12 s"
+    assert f"exploration: could-not-test ({why})" in run.text
+    summary = run.report["conclusion"]["units"][UNIT]["summary"]
+    assert summary.endswith(f"; exploration not run: {why}"), summary
+    assert run.report["facts"]["unexplored"] == why

@@ -62,7 +62,17 @@ GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
     (("resend-refused",), False),
     # Readings of units written elsewhere from the spec alone.
     (("both-sensor-info", "preparing-status", "paused-not-executing", "reboot-away"), True),
+    # A unit written from the spec alone: signals accepted 'running' (12.1's word), look-at
+    # tasks that list only $abort and $enough (5.3), on both levels (TST too).
+    (("signal-running", "two-signals"), True),
 ]
+PACED: dict[tuple[str, ...], float] = {  # variants -> heartbeat rate (Hz)
+    # The same unit as a ground unit at 0.5 Hz answering after 1-3 s, under the default
+    # profile (every task, its deadlines) with the TST level, and its default exploration
+    # (a budget scaled to its pace), in virtual time.
+    ("slow-answers", "signal-running", "two-signals"): 0.5,
+}
+"""Variants certified at their own pace (test_a_unit_at_its_own_pace_is_certified_...)."""
 REAL_BROKER = ("terse", "info-rates", "retained-info", "integer-numbers", "key-order",
                "mqtt5-qos1")
 """The group certified end to end on Mosquitto (retained info, MQTT 5 at QoS 1, the TST level,
@@ -75,7 +85,8 @@ AWAITING: dict[tuple[str, ...], tuple[set[str], str]] = {  # variants -> (rules,
 
 
 def test_the_groups_cover_every_variant_and_keep_conflicts_apart() -> None:
-    covered = {v for group, _ in GROUPS for v in group} | {v for g in AWAITING for v in g}
+    covered = {v for group, _ in GROUPS for v in group} | {v for g in AWAITING for v in g} | {
+        v for g in PACED for v in g}
     assert covered == set(VARIANTS)
     assert REAL_BROKER in [group for group, _ in GROUPS], "one group runs on a real broker"
     for group, _ in GROUPS:
@@ -157,7 +168,43 @@ def test_variants_are_certified_and_lint_clean(pytester: pytest.Pytester,
     if tst:
         assert {"TST-004", "TST-008", "TST-010"} & verdicts(rules).get("pass", set()), \
             "the TST level was judged"
+    # ... on evidence: what an accepted signal does was examined, in whatever word it was
+    # accepted (12.3.2 is empty)
+    assert {rules[r]["verdict"] for r in ("EXEC-SEQ-001", "EXEC-SEQ-002")} == {"pass"}, \
+        first_violations(rules, {"EXEC-SEQ-001", "EXEC-SEQ-002"})
     assert not lint, f"lint, {' + '.join(variants)}: {first_violations(linted, lint)}"
+
+
+@pytest.mark.parametrize("variants", [pytest.param(g, id="+".join(g)) for g in PACED])
+def test_a_unit_at_its_own_pace_is_certified_with_its_exploration(
+        pytester: pytest.Pytester, unit_address: UnitAddress, tmp_path: Path,
+        variants: tuple[str, ...]) -> None:
+    """A slow unit is certified on evidence: every rule of its levels examined, what an
+    accepted signal does too, and its default exploration runs on a budget scaled to its
+    pace (it once found no time left, silently); its recording lints clean."""
+    from conformance.cli.lint import main as lint_main
+
+    unit = UnitAddress(unit_address.prefix, "ground", "simulation", "ugv0")
+    recording = tmp_path / "certification.jsonl"
+    with recorded_virtual(recording):
+        run = certify_virtual(pytester, str(unit), "--seed", "1", "-o", "waraps_explore=",
+                              "--sim-tst", variants=variants, rate=PACED[variants])
+    rules = run.unit_rules()
+    assert not accusations(rules, set()), first_violations(rules, accusations(rules, set()))
+    assert run.result.ret == 0, run.text
+    assert run.report is not None
+    levels = run.report["conclusion"]["units"][str(unit)]["levels"]
+    assert len(levels) == 3 and all(lv["certified"] for lv in levels), levels
+    assert {rules[r]["verdict"] for r in ("EXEC-SEQ-001", "EXEC-SEQ-002", "EXEC-SIG-003",
+                                          "TST-012")} == {"pass"}
+    explored = run.report["meta"]["explore"]
+    assert "examples" in explored and "not run" not in explored, explored
+    out = io.StringIO()
+    lint_main(["--from", str(recording), "--plain", "--format", "json", "--reports-dir",
+               str(tmp_path / "lint")], stdout=out)
+    report = json.loads(next((tmp_path / "lint").glob("*.json")).read_text())
+    linted = report["units"][str(unit)]["rules"]
+    assert not accusations(linted, set()), first_violations(linted, accusations(linted, set()))
 
 
 def test_the_embedded_reference_unit_takes_variants_and_the_rerun_line_keeps_them(

@@ -67,6 +67,18 @@ def test_a_skipped_rule_is_not_applicable_and_does_not_deny() -> None:
     assert conclude(report(SENS_004=Verdict.SKIP)).certified_levels(UNIT) == LEVELS
 
 
+def test_an_exploration_cut_for_time_is_said_beside_the_verdict() -> None:
+    """A slow unit's exploration that found no time left is never a silent skip: the unit's
+    verdict says so (its levels stand on the rules judged)."""
+    run = report()
+    why = "the scripted scenarios took 87 s of the 80 s a default run aims for"
+    run.facts = RunFacts(unit=UNIT, unexplored=why)
+    found = conclude(run)
+    assert found.units[UNIT].summary == (f"certified: sensor, direct execution; exploration "
+                                         f"not run: {why}")
+    assert found.certified_levels(UNIT) == LEVELS
+
+
 @pytest.mark.parametrize(("facts", "verdict", "code", "why"), [
     ({"error": "cannot reach the broker"}, "not certified", EXIT_NOT_CERTIFIED,
      "cannot reach the broker"),

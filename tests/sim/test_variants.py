@@ -550,3 +550,73 @@ def test_own_task_adds_go_home_to_tasks_available_and_needs_its_speed(plain: Run
     assert refused["response"] == "failed" and "speed" in refused["fail-reason"]
     assert own.answer(com(2))["response"] == "running"
     assert bare.answer(com(2))["response"] == "failed"  # the plain unit has no go-home
+
+
+def test_signal_running_accepts_signals_in_12_1s_word_and_changes_nothing_else(
+        plain: Run) -> None:
+    run = Run("signal-running")
+    assert plain.answer(com(3))["response"] == "ok"
+    assert run.answer(com(3)) == {**plain.answer(com(3)), "response": "running",
+                                  "com-uuid": run.answer(com(3))["com-uuid"]}
+    refused = Run("signal-running", script=SCRIPT + [
+        (4.0, "exec", {"com-uuid": com(90), "command": "signal-task", "sender": "commander",
+                       "signal": "$abort", "task-uuid": T1})])
+    assert refused.answer(com(90))["response"] == "failed"  # ended: refused as before
+
+    def same(r: Run) -> list[str]:
+        return sorted(repr((t, without(m, "com-uuid", "response"))) for t, m in r.messages())
+
+    assert same(run) == same(plain)
+
+
+def test_slow_answers_holds_only_the_answers_one_to_three_seconds_in_order(
+        plain: Run) -> None:
+    from conformance.sim.variants import SLOW_ANSWERS
+
+    run = Run("slow-answers")
+    sent_at = {body["com-uuid"]: t for t, _, body in SCRIPT if isinstance(body, dict)}
+    answers = [(t, orjson.loads(p)) for t, sub, p in run.sent if sub.endswith("/response")]
+    low, high = SLOW_ANSWERS
+    for t, m in answers:
+        if m["response-to"] in sent_at:
+            assert low - STEP <= t - sent_at[m["response-to"]] <= high + STEP, (t, m)
+    assert [t for t, _ in answers] == sorted(t for t, _ in answers)
+    assert [m["response-to"] for _, m in answers] == [
+        m["response-to"] for _, m in plain.messages("/exec/response", "/tst/response")]
+
+    def feedback(r: Run) -> list[tuple[float, str, Any]]:  # not held (a step of the unit's)
+        return [(t, sub, without(orjson.loads(p), "com-uuid")) for t, sub, p in r.sent
+                if sub.endswith("/feedback")]
+
+    assert [f[1:] for f in feedback(run)] == [f[1:] for f in feedback(plain)]
+    assert all(abs(a[0] - b[0]) <= STEP + 1e-9 for a, b in zip(feedback(run), feedback(plain),
+                                                            strict=True))
+
+    def same(r: Run) -> list[str]:
+        return sorted(repr((t, without(m, "com-uuid"))) for t, m in r.messages())
+
+    assert same(run) == same(plain)
+
+
+def test_two_signals_lists_and_takes_only_abort_and_enough_for_look_at_tasks(
+        plain: Run) -> None:
+    from conformance.sim.variants import TWO_SIGNALS
+
+    script = SCRIPT[:2] + [(1.5, "exec", {"com-uuid": com(91), "command": "signal-task",
+                                          "sender": "commander", "signal": "$pause",
+                                          "task-uuid": T1})] + SCRIPT[2:]
+    run, before = Run("two-signals", script=script), Run(script=script)
+    (_, info), *_ = run.messages("/direct_execution_info")
+    (_, usual), *_ = before.messages("/direct_execution_info")
+    lists = {t["name"]: t["signals"] for t in info["tasks-available"]}
+    assert {n for n, s in lists.items() if tuple(s) == tuple(sorted(TWO_SIGNALS))} == {
+        n for n in lists if n.startswith("look-at-")} != set()
+    assert {n: s for n, s in lists.items() if not n.startswith("look-at-")} == {
+        t["name"]: t["signals"] for t in usual["tasks-available"]
+        if not t["name"].startswith("look-at-")}
+    assert before.answer(com(91))["response"] == "ok"
+    refusal = run.answer(com(91))
+    assert refusal["response"] == "failed" and "$pause" in refusal["fail-reason"]
+    # the rest of the script as before: $enough ends the look-at task, 'finished'
+    assert run.answer(com(3))["response"] == "ok"
+    assert [m["status"] for _, m in run.messages("/exec/feedback")] == ["running", "finished"]
