@@ -82,21 +82,22 @@ def test_sequence_fault_found_told_and_replayed(pytester: pytest.Pytester) -> No
 
 def test_a_task_dropped_silently_is_shrunk_to_the_steps_that_drop_it(
         pytester: pytest.Pytester) -> None:
-    """preempt-paused-silently: the first story shows it through a query (EXEC-QUERY-001:
-    'unknown' for the dropped task) or a longer order; shrinking by replay leaves out what is
-    not needed and ends at its own rule: start, $pause, start another of its kind, and the
-    task leaves tasks-executing with no final status (EXEC-START-003, seen at the teardown)."""
+    """preempt-paused-silently: shrinking by replay leaves out what is not needed and ends
+    at start, $pause, start another of its kind, and a query that finds the paused task gone
+    (EXEC-QUERY-001: the unit forgot it). A paused task may be left out of tasks-executing
+    (5.3 does not say), so its leaving the list is no end (EXEC-START-003) unless the unit
+    listed it while paused: the query is what shows the drop."""
     run = certify(pytester, *EMBEDDED, "--sim-fault=preempt-paused-silently", "--explore=60s",
                   "--seed", "2", "-k", "test_explore")
     assert run.result.ret == 1, run.text
     (stored,) = run.reports_dir.glob("*-explore.json")
     story = json.loads(stored.read_text())
-    assert story["rules"] == ["EXEC-START-003"] and story["shrunk"], story
+    assert story["rules"] == ["EXEC-QUERY-001"] and story["shrunk"], story
     actions = [s["action"] for s in story["steps"] if not s["action"].get("teardown")]
     assert [(a["do"], a.get("signal")) for a in actions] == [
-        ("start", None), ("signal", "$pause"), ("start", None)], actions
+        ("start", None), ("signal", "$pause"), ("start", None), ("query", None)], actions
     assert actions[0]["task"] == actions[2]["task"]
-    assert story["failing_step"] == 3  # the start that dropped it, not the start of T1
+    assert story["failing_step"] == 4  # the query that finds it gone
     assert "replays to shrink it" in run.report["meta"]["explore"]  # type: ignore[index]
 
 
