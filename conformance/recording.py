@@ -44,6 +44,7 @@ from conformance.bounds import (
     check_time,
 )
 from conformance.display import shorten
+from conformance.jsontext import dumps
 from conformance.message import Message
 from conformance.mosquitto_sub import (
     FORMAT_MOSQUITTO_J,
@@ -138,6 +139,8 @@ class RecordingReader:
         self.problems: list[LineProblem] = []
         self.problem_count = 0
         self.blank_lines = 0
+        self.bom_lines = 0
+        """Lines after the first that began with a UTF-8 byte order mark (read without it)."""
         self.formats: set[str] = set()
         self.notes: list[str] = []
         self._mosquitto = MosquittoLines(self.formats)
@@ -174,8 +177,11 @@ class RecordingReader:
                             continue
                         line = line.rstrip(b"\r")
                         obj = loads_not_utf8(line)
-                        if obj is None and number == 1 and line.startswith(_BOM):
+                        if obj is None and line.startswith(_BOM):
+                            # A byte order mark on a line (an editor's, a Windows tool's):
+                            # read without it, never dropped (nor its unit with it).
                             obj = loads_not_utf8(line[3:], strict=False)
+                            self.bom_lines += obj is not None and number > 1
                         if obj is None:
                             for item in self._verbose_or_problem(number, line, e, timed):
                                 count += isinstance(item, Message)
@@ -243,6 +249,11 @@ class RecordingReader:
 
     def _add_notes(self) -> None:
         """What a person must know of the recording as a whole (after the last line)."""
+        if self.bom_lines:
+            self.notes.append(
+                f"{self.bom_lines} line(s) after the first began with a UTF-8 byte order mark: "
+                f"read without it (a file was joined from pieces, or written by a tool that "
+                f"marks every line)")
         if self._mosquitto.truncated:
             self.notes.append(
                 f"{self._mosquitto.truncated} payload(s) were cut at a NUL byte by mosquitto_sub "
@@ -284,7 +295,10 @@ class RecordingReader:
             count = obj.get("count", 0)
             if isinstance(count, bool) or not isinstance(count, int) or count < 0:
                 raise ValueError(f"event count {count!r} is not a non-negative whole number")
-            return Event(float(ts), kind, utf8(str(obj.get("detail", ""))), count)
+            detail = obj.get("detail", "")
+            if type(detail) is not str:  # any depth (a line nests up to 1024): no str()
+                detail = shorten(dumps(detail).decode("utf-8", "replace"), PROBLEM_CHARS)
+            return Event(float(ts), kind, utf8(detail), count)
         topic = obj.get("topic")
         if not isinstance(topic, str):
             raise ValueError("'topic' is missing or not a string")

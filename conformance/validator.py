@@ -41,6 +41,7 @@ from orjson import loads as _loads
 
 from conformance import schema
 from conformance.content import CONTENT_CHECKS, statuses_allowed, unit_of
+from conformance.jsontext import shallow_members
 from conformance.profile import Profile
 from conformance.topics import (
     ParsedTopic,
@@ -78,6 +79,12 @@ class Validation(NamedTuple):
     @property
     def decoded(self) -> bool:
         return self.message is not None
+
+
+def read_in_part(v: Validation) -> bool:
+    """Whether ``v``'s message holds only the top-level fields of a payload nested past
+    MSG-004's bound (its schema and content rules were not examined)."""
+    return bool(v.violations) and v.violations[-1].rule == "MSG-004" and v.message is not None
 
 
 _validation = partial(tuple.__new__, Validation)
@@ -181,6 +188,18 @@ def _depth_exceeds(payload: bytes, limit: int) -> bool:
     return False
 
 
+_DEEPER = "deeper"
+
+
+def _shallow(raw: bytes) -> tuple[dict[str, Any], int] | None:
+    """The top-level fields of an object nested deeper than MAX_DEPTH that nest less, and how
+    many fields were left out; None when it is no object of readable fields. Only what can be
+    read safely is judged: a field nested 65 deep must not hide the rest of a message (a rate,
+    a stamp) from the rules."""
+    found = shallow_members(raw, MAX_DEPTH)
+    return found if found is not None and found[0] else None
+
+
 def _decode(raw: bytes) -> Any:
     """The JSON value of a payload; ``Unreadable`` names the first rule that keeps it from
     being read: MSG-004 (size), MSG-001 (UTF-8), MSG-004 (depth), MSG-002 (JSON). The checks
@@ -196,13 +215,23 @@ def _decode(raw: bytes) -> Any:
                              "JSON messages are UTF-8 text; binary payloads belong "
                              "elsewhere") from None
     if len(raw) > _SHALLOW_BYTES and _depth_exceeds(raw, MAX_DEPTH):
-        raise Unreadable("MSG-004", f"nesting depth at most {MAX_DEPTH}", "deeper")
+        raise Unreadable("MSG-004", f"nesting depth at most {MAX_DEPTH}", _DEEPER,
+                         "what nests deeper was not examined: the message is judged on its "
+                         "shallower top-level fields alone")
     try:
         return _loads(raw)
     except _JSONDecodeError as e:
         raise Unreadable("MSG-002", "valid JSON (RFC 8259)", str(e),
                          "NaN/Infinity, trailing commas, single quotes and unquoted strings "
                          "are not JSON (see ERR-002)") from None
+
+
+def decode(raw: bytes) -> Any:
+    """The JSON value of a payload read within MSG-004's bounds (1 MiB, 64 levels), as UTF-8
+    and as JSON with finite numbers (1 followed by 400 zeros is refused, not an int Python
+    cannot turn into a float); ``Unreadable`` says why not. Every reader of a payload outside
+    the validator (the profile drafter) reads through this."""
+    return _decode(raw)
 
 
 class Validator:
@@ -231,8 +260,14 @@ class Validator:
         try:
             message = _decode(raw)
         except Unreadable as e:
-            return _validation((parsed, parsed.kind.value, None, plan.naming + (Violation.of(
-                e.rule, expected=e.expected, observed=e.observed, topic=topic, time=time,
+            shallow = _shallow(raw) if e.observed == _DEEPER else None
+            observed = e.observed if shallow is None else (
+                f"deeper in {shallow[1]} top-level field(s); judged on the other "
+                f"{len(shallow[0])}")
+            kind = (parsed.kind.value if shallow is None
+                    else plan.kind or self._kind(parsed, shallow[0]))
+            return _validation((parsed, kind, shallow and shallow[0], plan.naming + (Violation.of(
+                e.rule, expected=e.expected, observed=observed, topic=topic, time=time,
                 payload=raw, detail=e.detail, unit=plan.unit),)))
         kind = plan.kind
         if kind is None:  # a command: its kind and schema follow its 'command'
@@ -273,8 +308,8 @@ class Validator:
         """
         rules = {*naming_rules(v.topic), "MSG-004"}
         message = v.message
-        if message is None:
-            return _examined(rules)
+        if message is None or read_in_part(v):
+            return _examined(rules)  # what was read in part was not examined as a message
         rules.update(DECODING_RULES)
         path = schema.schema_path_for_kind(v.kind)
         if path is None:

@@ -69,6 +69,21 @@ def test_a_unit_that_dies_on_a_command_is_not_certified(pytester: pytest.Pyteste
         ("not claimed", "commander-side")) for v in tst.values()), tst
 
 
+def test_a_unit_whose_messages_could_not_be_examined_is_not_certified(
+        pytester: pytest.Pytester) -> None:
+    """Camera frames over the 1 MiB a message is examined up to (MSG-004, decided: a warn):
+    what they held is no evidence, so the run is never a pass, a warn or a could-not-test
+    with exit 0."""
+    run = certify(pytester, "--unit", UNIT, "--broker", "virtual", "--sim-rate", "3",
+                  "--sim-fault=camera-data-url", "--explore", "0", "--junitxml=junit.xml")
+    assert run.result.ret == NOT_CERTIFIED_EXIT, run.text
+    assert run.report is not None and run.report["verdict"] == "not certified"
+    assert_no_level_certified(run, pytester.path / "junit.xml")
+    (unit,) = run.report["conclusion"]["units"].values()
+    assert all("could not be examined whole (MSG-004)" in level["why"]
+               for level in unit["levels"])
+
+
 def test_a_run_of_selected_rules_is_partial(pytester: pytest.Pytester) -> None:
     """-k HB-003 on a unit that never answers ping: the selected rule passes, the run does
     not (partial, no level certified), and its repeat line keeps the selection."""
