@@ -74,18 +74,32 @@ def parse_address(text: str) -> Address:
     if not sep:
         host = LOOPBACK
     host = host.strip("[]") or LOOPBACK
-    if not port.isdigit() or not 0 <= int(port) <= 65535:
-        raise ServeError(f"--serve {text!r}: use PORT (on 127.0.0.1), or HOST:PORT to serve "
-                         f"on another address, e.g. --serve 8080")
+    # ASCII digits only: '²' is a digit to str.isdigit and no number to int().
+    if not (port.isascii() and port.isdigit() and len(port) <= 5) or int(port) > 65535:
+        raise ServeError(f"--serve {shorten(printable(text), 80)!r}: use PORT (on 127.0.0.1), "
+                         f"or HOST:PORT to serve on another address, e.g. --serve 8080")
     return Address(host, int(port))
 
 
-def warnings(address: Address) -> list[str]:
-    """What the header of every page (and the terminal) says about where it is served."""
-    if address.loopback:
+def warnings(address: Address, loopback: bool | None = None) -> list[str]:
+    """What the header of every page (and the terminal) says about where it is served;
+    ``loopback``: what the bound socket says (else the address's spelling)."""
+    if address.loopback if loopback is None else loopback:
         return []
-    return [f"served on {address.host}: anyone who can reach this address can read this page "
-            f"(--serve PORT serves on loopback only)"]
+    return [f"served on {printable(address.host)}: anyone who can reach this address can read "
+            f"this page (--serve PORT serves on loopback only)"]
+
+
+def bound_loopback(listening: list[tuple[str, int]]) -> bool:
+    """Whether every address the server is bound to is a loopback one: decided from the bound
+    sockets, not from how the host was spelt ('127.1', 'LOCALHOST', '0x7f000001' all bind
+    127.0.0.1, and must keep the Host guard on)."""
+    try:
+        return bool(listening) and all(
+            ipaddress.ip_address(str(host).partition("%")[0]).is_loopback
+            for host, _ in listening)
+    except ValueError:
+        return False
 
 
 LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
@@ -255,16 +269,24 @@ class Server:
         # terminal, whose scorecard it would break into.
         logging.getLogger("waitress.queue").setLevel(logging.ERROR)
         self.address = address
-        self.app = App(view, warnings(address),
-                       LOOPBACK_NAMES | {address.host.lower()} if address.loopback else None)
+        self.app = App(view)  # its header and Host guard once bound: from what was bound
         try:
             self._server = create_server(self.app, host=address.host, port=address.port,
                                          **LIMITS)
         except OSError as e:
-            raise ServeError(f"--serve {address.host}:{address.port}: {e.strerror or e}") from e
+            raise ServeError(f"--serve {printable(address.host)}:{address.port}: "
+                             f"{e.strerror or e}") from e
         except ValueError as e:  # waitress: a host that resolves to nothing
-            raise ServeError(f"--serve {address.host}:{address.port}: {e}") from e
-        self.port = int(self._server.effective_port)  # type: ignore[union-attr]
+            raise ServeError(f"--serve {printable(address.host)}:{address.port}: "
+                             f"{printable(str(e))}") from e
+        server: Any = self._server
+        listening = list(getattr(server, "effective_listen", None)
+                         or [(server.effective_host, server.effective_port)])
+        self.loopback = bound_loopback(listening)
+        self.app.header = tuple(warnings(address, self.loopback))
+        self.app.hosts = (LOOPBACK_NAMES | {address.host.lower()} | {
+            str(h).lower() for h, _ in listening}) if self.loopback else None
+        self.port = int(listening[0][1])
         self._thread = threading.Thread(target=self._server.run, name="lint-serve", daemon=True)
 
     @property

@@ -79,7 +79,8 @@ def test_serve_takes_a_port_for_loopback_or_an_explicit_host():
     assert parse_address("[::1]:0").loopback
     assert not parse_address("0.0.0.0:8080").loopback
     assert parse_address("192.0.2.7:9").host == "192.0.2.7"
-    for bad in ("", "http", "8080x", "host:", "1:99999"):
+    for bad in ("", "http", "8080x", "host:", "1:99999", "\u00b2", "127.0.0.1:\u0661\u0662",
+                "9" * 5000):  # digits to str.isdigit, no number to int()
         with pytest.raises(ServeError, match="--serve"):
             parse_address(bad)
 
@@ -111,6 +112,23 @@ def test_only_a_host_named_on_purpose_is_warned_about():
     assert warnings(parse_address("localhost:8080")) == []
     (line,) = warnings(parse_address("0.0.0.0:8080"))
     assert "anyone who can reach" in line and "--serve PORT" in line
+
+
+@pytest.mark.parametrize("host", ["127.1", "LOCALHOST", "0x7f000001", "127.0.0.1"])
+def test_the_host_guard_follows_the_bound_address_not_its_spelling(host):
+    """'127.1', 'LOCALHOST' and '0x7f000001' bind 127.0.0.1: the DNS-rebinding guard stays
+    on (a foreign Host gets 421) and no page warns that anyone can read it."""
+    server = Server(FleetView("nothing yet", live=True), parse_address(f"{host}:0")).start()
+    try:
+        assert server.loopback and server.app.header == ()
+        url = f"http://127.0.0.1:{server.port}/"
+        rebound = urllib.request.Request(url, headers={"Host": f"evil.example:{server.port}"})
+        with pytest.raises(urllib.error.HTTPError) as refused:
+            urllib.request.urlopen(rebound, timeout=10)
+        assert refused.value.code == 421
+        assert get(url)[0] == 200
+    finally:
+        server.stop()
 
 
 def test_the_server_answers_gets_only_within_its_bounds_and_stops():
