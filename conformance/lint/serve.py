@@ -12,8 +12,9 @@ loop), never the Monitor: nothing it does changes the run, and nothing publishes
 
 Loopback unless a host is named (and then only asked for by a loopback name: a page elsewhere
 cannot read it through DNS rebinding, 421); every method but GET and HEAD is refused (405);
-requests are bounded by waitress's limits (headers 8 KiB, no body, 32 connections, idle ones
-closed after 30 s).
+requests are bounded by waitress's limits (headers 8 KiB, no body, 128 connections) and by
+deadlines no trickle renews (a request whole within 5 s of its first part, a connection
+without a request closed after 30 s).
 """
 
 from __future__ import annotations
@@ -33,10 +34,20 @@ from conformance.lint.fleetview import FleetView, Snapshot
 LOOPBACK = "127.0.0.1"
 MAX_PATH = 2048
 """The longest request path answered (a unit address is at most a few hundred characters)."""
-LIMITS = {"threads": 4, "connection_limit": 32, "max_request_header_size": 8192,
-          "max_request_body_size": 0, "channel_timeout": 30, "cleanup_interval": 10,
+LIMITS = {"threads": 4, "connection_limit": 128, "max_request_header_size": 8192,
+          "max_request_body_size": 0, "channel_timeout": 30, "cleanup_interval": 1,
           "ident": "waraps-conformance", "asyncore_loop_timeout": 1}
-"""waitress's bounds (its adjustments): the page, its fragments and scrapes are small GETs."""
+"""waitress's bounds (its adjustments): the page, its fragments and scrapes are small GETs.
+Room for 128 connections, the deadlines below checked every second: a few dozen slow clients
+leave room for a scrape."""
+HEADER_SECONDS = 5.0
+"""A request must arrive whole within this many seconds of when it was first seen in part
+(a GET is one packet): a connection that trickles a header line every 10 s is closed however
+often it sends (slowloris), where waitress's idle timeout is renewed by every byte."""
+IDLE_SECONDS = 30.0
+"""A connection that holds no request is closed this long after it was last seen holding one
+(or opened), whatever it sends that is not a whole request."""
+_WAITING = "_waraps_waiting"
 MAX_ROWS_SHOWN = 500
 """Rows on the fleet page, worst first (a page of 4096 units would be some 6 MB a second)."""
 MAX_CACHED = 16
@@ -287,6 +298,9 @@ class Server:
         self.app.hosts = (LOOPBACK_NAMES | {address.host.lower()} | {
             str(h).lower() for h, _ in listening}) if self.loopback else None
         self.port = int(listening[0][1])
+        for one in getattr(server, "map", {}).values() or [server]:
+            if hasattr(one, "active_channels"):  # each listening socket's server
+                one.maintenance = functools.partial(_close_the_slow, one)
         self._thread = threading.Thread(target=self._server.run, name="lint-serve", daemon=True)
 
     @property
@@ -310,6 +324,23 @@ class Server:
         except OSError:  # already closed
             pass
         self._thread.join(timeout)
+
+
+def _close_the_slow(server: Any, now: float) -> None:
+    """waitress's maintenance (every ``cleanup_interval``), with deadlines a trickle cannot
+    renew: a request seen in part for ``HEADER_SECONDS``, or no request for ``IDLE_SECONDS``,
+    closes its connection; one being answered is left alone."""
+    for channel in list(server.active_channels.values()):
+        if channel.requests:  # being answered: its time is the answer's
+            channel.__dict__.pop(_WAITING, None)
+            continue
+        partial = channel.request
+        state = id(partial) if partial is not None else None
+        seen = channel.__dict__.get(_WAITING)
+        if seen is None or seen[0] != state:
+            seen = channel.__dict__[_WAITING] = (state, now)
+        if now - seen[1] > (HEADER_SECONDS if partial is not None else IDLE_SECONDS):
+            channel.will_close = True
 
 
 class Watched:

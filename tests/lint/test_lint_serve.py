@@ -131,6 +131,47 @@ def test_the_host_guard_follows_the_bound_address_not_its_spelling(host):
         server.stop()
 
 
+@pytest.mark.slow
+def test_slow_clients_cannot_starve_a_scrape():
+    """Slowloris: 40 connections, each trickling a header line (every 2 s here, faster than
+    the 10 s that once starved /metrics for as long as they lasted: each line renewed
+    waitress's idle timeout, and 32 connections filled it). A scrape is answered while they
+    trickle, and each of them is closed within the header deadline, however often it sends."""
+    from conformance.lint.serve import HEADER_SECONDS
+
+    server = Server(FleetView("nothing yet", live=True), parse_address("0")).start()
+    slow: list[socket.socket] = []
+    try:
+        for _ in range(40):
+            conn = socket.create_connection(("127.0.0.1", server.port), timeout=10)
+            conn.sendall(b"GET /metrics HTTP/1.1\r\nHost: 127.0.0.1\r\n")
+            slow.append(conn)
+        opened = time.monotonic()
+        assert get(f"{server.url}metrics")[0] == 200  # within urlopen's 10 s
+        closed: set[int] = set()
+        deadline = opened + HEADER_SECONDS + 6  # the deadline, checked every second
+        while len(closed) < len(slow) and time.monotonic() < deadline:
+            for i, conn in enumerate(slow):
+                if i in closed:
+                    continue
+                try:
+                    conn.sendall(b"X-Trickle: 1\r\n")
+                    conn.settimeout(0.05)
+                    if conn.recv(1) == b"":
+                        closed.add(i)
+                except TimeoutError:
+                    pass
+                except OSError:  # reset by the server: closed
+                    closed.add(i)
+            time.sleep(0.5)
+        assert len(closed) == len(slow), f"{len(slow) - len(closed)} trickling connections open"
+        assert get(f"{server.url}metrics")[0] == 200
+    finally:
+        for conn in slow:
+            conn.close()
+        server.stop()
+
+
 def test_the_server_answers_gets_only_within_its_bounds_and_stops():
     """No lint run: an empty fleet view served on a free loopback port."""
     server = Server(FleetView("nothing yet", live=True), parse_address("0")).start()
