@@ -107,6 +107,27 @@ def test_metrics_cap_the_series_of_invented_unit_names(monkeypatch):
     assert len(families["waraps_lint_unit_failing"].samples) == 11
 
 
+def test_metrics_give_each_unit_its_own_series():
+    """Names that differ only past 200 characters, or as an ESC and its escape written out,
+    once shared one label value (duplicate series)."""
+    from prometheus_client.parser import text_string_to_metric_families
+
+    from conformance.lint import metrics
+    from conformance.lint.fleetview import Row, Snapshot
+
+    base = "p/unit/air/simulation/"
+    names = [base + "u" * 300 + "a", base + "u" * 300 + "b", base + "v\x1b",
+             base + "v\\x1b", base + "w"]
+    rows = tuple(Row(name, "unit", messages=5, by_kind=(("heartbeat", 5),)) for name in names)
+    snap = Snapshot(1, 0.0, None, "", True, False, 25, 0, 0, True, rows)
+    families = {f.name: f for f in text_string_to_metric_families(
+        metrics.exposition(lambda: snap).decode())}
+    units = [s.labels["unit"] for s in families["waraps_lint_unit_failing"].samples]
+    assert len(units) == len(set(units)) == len(names), units
+    assert base + "w" in units and base + "v\\x1b" in units  # unaltered names as they are
+    assert all(len(u) < 250 and "\x1b" not in u for u in units)
+
+
 def test_only_a_host_named_on_purpose_is_warned_about():
     assert warnings(parse_address("8080")) == []
     assert warnings(parse_address("localhost:8080")) == []
