@@ -114,7 +114,12 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
                             not_judged=meta.get("not_judged", ""))
     _tell(out, linter, report, read)
     if formats:
-        paths = write_reports(report, Path(reports_dir), formats, report_stem(source))
+        try:
+            paths = write_reports(report, Path(reports_dir), formats, report_stem(source))
+        except OSError as e:  # checked before the run; removed or filled since: said, no traceback
+            paths = []
+            print(shown(f"waraps-conformance lint: could not write the reports into "
+                        f"{reports_dir}: {e.strerror or e}"), file=sys.stderr)
         for path in paths:
             print(shown(f"report: {path}"), file=out)
     return _verdict(out, report, gate, meta.get("not_judged", "") if over else "")

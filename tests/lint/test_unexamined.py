@@ -3,6 +3,7 @@ line, a line marked as UTF-8 by a byte order mark, a declared rate that is no ra
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 from typing import Any
 
@@ -11,6 +12,7 @@ import pytest
 from lint_helpers import failed_rules, run_lint, unit_traffic, verdicts, write_recording
 
 from conformance.checks.base import usable_rate
+from conformance.cli.lint import main as lint_main
 from conformance.client import Message
 from conformance.lint import EXIT_FAIL, EXIT_PARTIAL, EXIT_PASS
 from conformance.recording import RecordingReader
@@ -126,3 +128,33 @@ def test_an_event_detail_nested_1000_deep_is_read(tmp_path: Path) -> None:
     events = list(reader)
     assert not reader.problems and len(events) == 1
     assert events[0].detail.startswith("[[[[")
+
+
+UNWRITABLE = "/proc"
+"""A folder that exists and takes no file, whoever runs the tests (root too)."""
+
+
+def test_a_reports_folder_that_takes_no_file_is_refused_before_the_run(
+        tmp_path: Path, prefix: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """Once 'verdict: clean', then a traceback, exit 1: now said before anything runs."""
+    rec = write_recording(tmp_path / "r.jsonl", unit_traffic(prefix, "u0", seconds=5))
+    run = run_lint(["--from", str(rec)], Path(UNWRITABLE))
+    err = capsys.readouterr().err
+    assert run.code == 2, run.out
+    assert f"--reports-dir '{UNWRITABLE}': cannot write a report into it" in err
+    assert "verdict:" not in run.out and "Traceback" not in err
+
+
+def test_reports_that_cannot_be_written_at_the_end_keep_the_run_s_status(
+        tmp_path: Path, reports_dir: Path, prefix: str,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    rec = write_recording(tmp_path / "r.jsonl", unit_traffic(prefix, "u0", seconds=30,
+                                                             heartbeat_every=2))
+    (reports_dir / "lint-r.json").mkdir(parents=True)  # a folder where the report goes
+    out = io.StringIO()
+    code = lint_main(["--from", str(rec), "--plain", "--reports-dir", str(reports_dir)],
+                     stdout=out)
+    err = capsys.readouterr().err
+    assert code == EXIT_FAIL, out.getvalue()  # the unit's HB-003: the run's own status
+    assert f"could not write the reports into {reports_dir}" in err, err
+    assert "Traceback" not in err
