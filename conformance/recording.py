@@ -178,10 +178,7 @@ class RecordingReader:
                         line = line.rstrip(b"\r")
                         obj = loads_not_utf8(line)
                         if obj is None and line.startswith(_BOM):
-                            # A byte order mark on a line (an editor's, a Windows tool's):
-                            # read without it, never dropped (nor its unit with it).
-                            obj = loads_not_utf8(line[3:], strict=False)
-                            self.bom_lines += obj is not None and number > 1
+                            obj = self._without_bom(line, number)
                         if obj is None:
                             for item in self._verbose_or_problem(number, line, e, timed):
                                 count += isinstance(item, Message)
@@ -219,6 +216,13 @@ class RecordingReader:
             if timed:
                 self.formats.add(FORMAT_JSONL)
         self._add_notes()
+
+    def _without_bom(self, line: bytes, number: int) -> Any:
+        """A line that begins with a byte order mark (an editor's, a Windows tool's) read
+        without it, never dropped (nor its unit with it); None when it is no JSON even so."""
+        obj = loads_not_utf8(line[3:], strict=False)
+        self.bom_lines += obj is not None and number > 1
+        return obj
 
     def _too_many_values(self, number: int, line: bytes) -> bool:
         """Whether a line over 1 MiB holds more JSON values than it may (a problem, skipped)."""

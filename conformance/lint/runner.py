@@ -114,15 +114,22 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
                             not_judged=meta.get("not_judged", ""))
     _tell(out, linter, report, read)
     if formats:
-        try:
-            paths = write_reports(report, Path(reports_dir), formats, report_stem(source))
-        except OSError as e:  # checked before the run; removed or filled since: said, no traceback
-            paths = []
-            print(shown(f"waraps-conformance lint: could not write the reports into "
-                        f"{reports_dir}: {e.strerror or e}"), file=sys.stderr)
-        for path in paths:
-            print(shown(f"report: {path}"), file=out)
+        _write(out, report, Path(reports_dir), formats, report_stem(source))
     return _verdict(out, report, gate, meta.get("not_judged", "") if over else "")
+
+
+def _write(out: IO[str], report: Any, reports_dir: Path, formats: tuple[str, ...],
+           stem: str) -> None:
+    """The reports, and where they went; a folder removed or filled since it was checked
+    (before the run) is said, never a traceback: the run keeps its exit status."""
+    try:
+        paths = write_reports(report, reports_dir, formats, stem)
+    except OSError as e:
+        paths = []
+        print(shown(f"waraps-conformance lint: could not write the reports into "
+                    f"{reports_dir}: {e.strerror or e}"), file=sys.stderr)
+    for path in paths:
+        print(shown(f"report: {path}"), file=out)
 
 
 def _read_bag(linter: Any, scorecard: Callable[[str, bool], Any], source: str, ros_unit: Any,
