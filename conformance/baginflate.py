@@ -46,7 +46,7 @@ def _inflate(make: Callable[[], Any], data: bytes, declared: int | None, what: s
         raise InflateError(f"a {what} chunk inflates past "
                            + (f"the {declared} bytes it declares" if declared is not None
                               else f"the {MAX_INFLATED >> 20} MiB a chunk may take"))
-    return bytes(out)
+    return out if type(out) is bytes else bytes(out)  # no second copy of a chunk
 
 
 def bz2_bounded(data: bytes, declared: int | None = None) -> bytes:
