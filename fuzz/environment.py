@@ -31,7 +31,9 @@ def test_one_input(data: bytes) -> None:
         except ValueError as e:
             text = one_line(e, "environment error", shown=True)
             password = env.get("WARAPS_PASSWORD", "")
-            if len(password) >= 4 and password in str(e):
+            quoted = [env.get(n, "") for n in NAMES[:3]]  # what an error may quote
+            if len(password) >= 4 and password in str(e) and not any(
+                    password in value for value in quoted):
                 raise Broken("an error shows the password") from None
             del text
             return

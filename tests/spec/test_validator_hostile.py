@@ -154,3 +154,27 @@ def test_cli_shows_what_the_message_holds_escaped(
     out = capsys.readouterr().out
     assert "dji0\\u202e/heartbeat" in out and "observed  string" in out
     assert not any(c in out for c in "\x1b\x07\u202e\u200b"), out
+
+
+def test_a_field_past_the_nesting_bound_leaves_the_top_level_fields_judged(
+        tmp_path, capsys: pytest.CaptureFixture[str]) -> None:  # type: ignore[no-untyped-def]
+    """One field nested 65 levels once hid the whole heartbeat (rate, stamp) from every rule:
+    now the other top-level fields are read, the schema is not examined on a part, and the
+    message is could-not-test (validate: exit 1), never a pass or a warn."""
+    from conformance.cli.validate import main
+    from conformance.validator import Validator
+
+    payload = json.loads(_heartbeat(1_763_700_000.0))
+    payload["extra"] = json.loads("[" * 65 + "]" * 65)
+    raw = json.dumps(payload).encode()
+    topic = "waraps/unit/air/simulation/dji0/heartbeat"
+    v = validate(topic, raw, 1_763_700_000.0)
+    assert v.kind == "heartbeat" and v.message["rate"] == 1.0 and "extra" not in v.message
+    assert [x.rule for x in v.violations] == ["MSG-004"]
+    assert "deeper in 1 top-level field(s); judged on the other 7" in v.violations[0].observed
+    examined = set(Validator().examined(v))
+    assert "MSG-004" in examined and "HB-001" not in examined
+    path = tmp_path / "deep.json"
+    path.write_bytes(raw)
+    assert main([topic, str(path)]) == 1
+    assert "verdict   could-not-test" in capsys.readouterr().out
