@@ -13,7 +13,7 @@ import ipaddress
 
 import atheris
 
-from conformance.display import printable
+from conformance.display import NAME_CHARS, printable
 from conformance.lint.metrics import label
 from conformance.lint.serve import ServeError, bound_loopback, parse_address
 from fuzz.harness import Broken, one_line, within_time
@@ -44,7 +44,7 @@ def _labels(a: str, b: str) -> None:
     if a != b and la == lb:
         raise Broken(f"two names share the label value {la[:80]!r}")
     for value in (la, lb):
-        if printable(value) != value or len(value) > 300:
+        if printable(value) != value or len(value) > NAME_CHARS + 20:  # and '#' and digest
             raise Broken(f"a label value that is not printable or bounded: {value[:80]!r}")
 
 

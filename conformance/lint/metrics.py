@@ -31,7 +31,8 @@ def label(text: str) -> str:
     name, so two names never share a series (past 200 characters, 'u\\x1b' written out and
     'u' with an ESC). A topic name holds no '#' (MQTT 4.7.1), so no name reads as one
     altered."""
-    shown = printable(shorten(text, NAME_CHARS))
+    # Cut after escaping: 200 control characters escape to 800 (the digest tells them apart).
+    shown = shorten(printable(text), NAME_CHARS)
     if shown == text:
         return shown
     digest = hashlib.blake2b(text.encode("utf-8", "surrogatepass"), digest_size=6).hexdigest()
