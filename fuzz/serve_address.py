@@ -44,7 +44,7 @@ def _labels(a: str, b: str) -> None:
     if a != b and la == lb:
         raise Broken(f"two names share the label value {la[:80]!r}")
     for value in (la, lb):
-        if printable(value) != value or len(value) > NAME_CHARS + 20:  # and '#' and digest
+        if printable(value) != value or len(value) > NAME_CHARS + 48:  # its length, a digest
             raise Broken(f"a label value that is not printable or bounded: {value[:80]!r}")
 
 
