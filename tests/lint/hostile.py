@@ -309,7 +309,7 @@ RECORDING_CASES = [
         b'{"ts": 1e17, "ts": 1763700000.5, "topic": "' + UNIT.encode() + b'/sensor/speed", '
         b'"payload": "0.1"}',
         line(T0 + 0.6, f"{UNIT}/sensor/speed", b'{"x": 1, "x": 2}')]), codes=frozenset({0}),
-         says=("SENS-003",)),  # decided (rules.toml): warns by default
+         says=("SENS-003", "MSG-002")),  # decided (rules.toml): each warns by default
     Case("overlong-line", _recording(b"x" * ((64 << 20) + 10)),
          says=("malformed line 7: line of 67108875 bytes is longer than the 64 MiB",)),
     Case("empty", b"", codes=frozenset({3}), says=("no messages were read",)),

@@ -178,3 +178,27 @@ def test_a_field_past_the_nesting_bound_leaves_the_top_level_fields_judged(
     path.write_bytes(raw)
     assert main([topic, str(path)]) == 1
     assert "verdict   could-not-test" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("payload", "named"), [
+    (b'{"name": "dji0", "rate": 1.0, "rate": 0.5}', '"rate"'),
+    (b'{"name" : "a", "name" : "b"}', '"name"'),
+    (b'{"a": {"x": 1, "x": 2}, "b": [{"y": 1, "y": 1}]}', '"x", "y"'),
+])
+def test_a_member_named_twice_is_named(payload: bytes, named: str) -> None:
+    """A parser differential (one reader takes the last value, another the first): named, a
+    decided condition of MSG-002 that warns by default."""
+    from conformance.explanation import verdict_of
+    from conformance.profile import Profile
+
+    v = validate("waraps/unit/air/simulation/dji0/heartbeat", payload, 1.0)
+    (twice,) = [x for x in v.violations if x.condition == "duplicate-names"]
+    assert twice.rule == "MSG-002" and twice.observed == f"named twice: {named}"
+    assert verdict_of("MSG-002", Profile(), "duplicate-names").value == "warn"
+
+
+@pytest.mark.parametrize("payload", [b'{"a": "\\":", "b": 1}', b'{"a": "x\\" :", "b": {"c": 1}}',
+                                     b'{"a": 1, "b": 2}', b'[{"a": 1}, {"a": 1}]'])
+def test_names_in_strings_or_in_other_objects_are_not_twice(payload: bytes) -> None:
+    v = validate("waraps/unit/air/simulation/dji0/heartbeat", payload, 1.0)
+    assert not [x for x in v.violations if x.condition == "duplicate-names"]
