@@ -26,6 +26,11 @@ MAX_INFLATED = MAX_PAYLOAD_BYTES
 recorded message may take; rosbag's chunks are 768 KiB, MCAP's 4 MiB)."""
 
 
+MAX_STORE_BYTES = 2 << 30
+"""What a ROS 2 store compressed whole ('file' mode) may inflate to: rosbags copies it into a
+temporary file (disk, not memory); past it a few KB cannot fill a disk."""
+
+
 class InflateError(ValueError):
     """A compressed part of a bag past the bounds (rosbags reports it as a damaged bag)."""
 
@@ -84,19 +89,19 @@ class _BoundedZstd:
 
 
 class _BoundedReader:
-    """A compressed store read at most ``MAX_INFLATED`` bytes (rosbags copies it to a file)."""
+    """A compressed store read at most ``MAX_STORE_BYTES`` bytes (rosbags copies it to a
+    temporary file)."""
 
     def __init__(self, inner: Any) -> None:
         self.inner, self.read_so_far = inner, 0
 
     def read(self, size: int = -1) -> bytes:
-        want = MAX_INFLATED + 1 - self.read_so_far if size < 0 else min(
-            size, MAX_INFLATED + 1 - self.read_so_far)
-        data = self.inner.read(max(want, 1))
+        left = MAX_STORE_BYTES + 1 - self.read_so_far
+        data = self.inner.read(max(min(size, left) if size >= 0 else min(left, 1 << 20), 1))
         self.read_so_far += len(data)
-        if self.read_so_far > MAX_INFLATED:
+        if self.read_so_far > MAX_STORE_BYTES:
             raise InflateError(f"a zstd-compressed store inflates past the "
-                               f"{MAX_INFLATED >> 20} MiB a store may take")
+                               f"{MAX_STORE_BYTES >> 30} GiB a store may take")
         return bytes(data)
 
     def __enter__(self) -> _BoundedReader:

@@ -181,8 +181,8 @@ def write_bag(path: Path, entries: Iterable[Entry], *, ros2: bool = False,
 
     ``undefined``: types written without their definition (as older ROS 2 recorders do, or a
     ROS 1 recorder that lost them), so the reader must know them from elsewhere.
-    ``compression``: ROS 1 ``bz2`` or ``lz4`` chunks; ROS 2 ``storage`` (MCAP's zstd chunks)
-    or ``message`` (each message zstd-compressed).
+    ``compression``: ROS 1 ``bz2`` or ``lz4`` chunks; ROS 2 ``storage`` (MCAP's zstd chunks),
+    ``message`` (each message zstd-compressed) or ``file`` (the store compressed whole).
     """
     store = typestore(ros2)
     undefined = set(undefined)

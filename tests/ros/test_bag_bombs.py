@@ -153,7 +153,9 @@ def test_a_compressed_bag_within_the_bounds_is_read(tmp_path: Path) -> None:
             write_bag(tmp_path / "m", unit_entries(seconds=3, ros2=True), ros2=True,
                       storage="mcap", compression="storage"),
             write_bag(tmp_path / "s", unit_entries(seconds=3, ros2=True), ros2=True,
-                      compression="message")]
+                      compression="message"),
+            write_bag(tmp_path / "f", unit_entries(seconds=3, ros2=True), ros2=True,
+                      compression="file")]
     for i, bag in enumerate(bags):
         run = run_bounded(f"good{i}", ["lint", "--from", str(bag), "--plain", "--format",
                                        "none"], tmp_path)
