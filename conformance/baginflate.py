@@ -42,16 +42,33 @@ def _limit(declared: int | None) -> int:
     return MAX_INFLATED if declared is None else declared
 
 
+STEP = 1 << 20
+"""Bytes inflated at a time: a bomb is stopped within a step of the bound, never past it."""
+
+
 def _inflate(make: Callable[[], Any], data: bytes, declared: int | None, what: str) -> bytes:
-    """``data`` inflated by a fresh decompressor of ``make``, at most ``limit`` bytes: one
-    byte more, or output still pending at the limit, is refused without producing it."""
+    """``data`` inflated by a fresh decompressor of ``make``, a step at a time, at most the
+    declared size (or ``MAX_INFLATED``): one byte more is refused without producing the rest;
+    data that ends before its stream does is refused as the decompressor's own would."""
     limit = _limit(declared)
-    out = make().decompress(data, max_length=limit + 1)
-    if len(out) > limit:
-        raise InflateError(f"a {what} chunk inflates past "
-                           + (f"the {declared} bytes it declares" if declared is not None
-                              else f"the {MAX_INFLATED >> 20} MiB a chunk may take"))
-    return out if type(out) is bytes else bytes(out)  # no second copy of a chunk
+    inflater = make()
+    pieces: list[bytes] = []
+    total = 0
+    rest = data
+    while True:
+        piece = inflater.decompress(rest, max_length=STEP)
+        rest = b""
+        total += len(piece)
+        if total > limit:
+            raise InflateError(f"a {what} chunk inflates past "
+                               + (f"the {declared} bytes it declares" if declared is not None
+                                  else f"the {MAX_INFLATED >> 20} MiB a chunk may take"))
+        pieces.append(piece)
+        if inflater.eof:
+            break
+        if inflater.needs_input:
+            raise EOFError(f"a {what} chunk ends before its compressed stream does")
+    return pieces[0] if len(pieces) == 1 else b"".join(pieces)
 
 
 def bz2_bounded(data: bytes, declared: int | None = None) -> bytes:
