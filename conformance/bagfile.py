@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from conformance.baginflate import check_sqlite, install
 from conformance.bagmeta import check_metadata
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
@@ -83,6 +84,10 @@ def open_bag(path: Path) -> Any:
                 f"{path} is not a ROS 1 bag (it does not start with '#ROSBAG V2.0'). Pass a "
                 f"bag written by 'rosbag record' (format 2.0), or a JSON Lines recording "
                 f"(name it .jsonl)")
+    for store in ([path] if path.is_file() else sorted(path.glob("*.db3"))[:MAX_DIR_ENTRIES]):
+        if ros2 and store.suffix == ".db3" and (why := check_sqlite(store)):
+            raise BagError(f"{why}. Fix: record it again with 'ros2 bag record'")
+    install()  # rosbags inflates with our bounds (baginflate.py)
     try:
         if ros2:
             from rosbags.rosbag2 import Reader as Reader2

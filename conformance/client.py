@@ -73,6 +73,35 @@ def _is_host(host: str) -> bool:
     return len(name) <= 253 and all(_LABEL.fullmatch(label) for label in labels)
 
 
+TLS_ON = ("1", "true", "yes", "on")
+TLS_OFF = ("", "0", "false", "no", "off")
+
+
+def tls_connection(value: str) -> bool:
+    """``WARAPS_TLS_CONNECTION`` read (any case, spaces around): on, off, or a ValueError
+    naming the accepted values. Never a guess: 'ture' or 'required' read as off would connect
+    in plaintext and send the password."""
+    word = value.strip().lower()
+    if word in TLS_ON or word in TLS_OFF:
+        return word in TLS_ON
+    raise ValueError(f"WARAPS_TLS_CONNECTION={shorten(printable(value), 40)!r} is neither on "
+                     f"({', '.join(TLS_ON)}) nor off ({', '.join(w for w in TLS_OFF if w)}, or "
+                     f"unset)")
+
+
+def _credential(value: str | None, name: str) -> str | None:
+    """A user name or password, None when unset or empty; ValueError when it is not UTF-8
+    text (MQTT strings are UTF-8, 3.1.3.5), which never shows the value."""
+    value = value or None
+    if value is not None:
+        try:
+            value.encode("utf-8")
+        except UnicodeEncodeError:  # bytes that are not UTF-8 (os.environ's surrogate escapes)
+            raise ValueError(f"{name} is not UTF-8 text (its value is not shown): MQTT sends "
+                             f"user names and passwords as UTF-8; set it again as UTF-8") from None
+    return value
+
+
 @dataclass(frozen=True)
 class BrokerURL:
     """Where the broker is: ``mqtt://host:port``, ``mqtts://host:port`` or ``embedded``.
@@ -126,8 +155,10 @@ class BrokerURL:
             raise ValueError(f"broker URL {shown}: {shorten(parts.hostname, 100)!r} is not a "
                              f"host name or an IP address (for example mqtt://127.0.0.1:1883)")
         return cls(parts.scheme, parts.hostname, port,
-                   username=parts.username or env.get("WARAPS_USERNAME") or None,
-                   password=env.get("WARAPS_PASSWORD") or None)
+                   username=_credential(parts.username or env.get("WARAPS_USERNAME"),
+                                        "the URL's user name" if parts.username
+                                        else "WARAPS_USERNAME"),
+                   password=_credential(env.get("WARAPS_PASSWORD"), "WARAPS_PASSWORD"))
 
     @classmethod
     def from_env(cls, env: dict[str, str] | None = None) -> BrokerURL | None:
@@ -136,10 +167,11 @@ class BrokerURL:
         host = env.get("WARAPS_BROKER")
         if not host:
             return None
-        tls = env.get("WARAPS_TLS_CONNECTION", "").strip().lower() in ("1", "true", "yes", "on")
+        tls = tls_connection(env.get("WARAPS_TLS_CONNECTION", ""))
         port = env.get("WARAPS_PORT") or ("8883" if tls else "1883")
-        if not port.isdigit():
-            raise ValueError(f"WARAPS_PORT={port!r} is not a port number")
+        if not (port.isascii() and port.isdigit()):
+            raise ValueError(f"WARAPS_PORT={shorten(printable(port), 40)!r} is not a port "
+                             f"number")
         return cls.parse(f"{'mqtts' if tls else 'mqtt'}://{host}:{port}", env)
 
     def with_tls_files(self, ca_file: str | None = None, cert_file: str | None = None,

@@ -25,6 +25,7 @@ from conformance.exits import (  # noqa: F401 (their one home; read here by the 
     EXIT_CERTIFIED,
     EXIT_FAILED,
     EXIT_INTERRUPTED,
+    EXIT_LINT_PARTIAL,
     EXIT_NOT_CERTIFIED,
 )
 from conformance.facts import RunFacts, iso
@@ -134,12 +135,15 @@ def conclude(report: RunReport) -> Conclusion:
         return _conclude_lint(report, facts)
     why = facts.reasons()
     worst = report.worst()
+    unread = _not_examined([u for u in report.units.values() if u.party == "unit"])
     if facts.error or facts.broker_lost is not None:
         verdict, code = NOT_CERTIFIED, EXIT_NOT_CERTIFIED
     elif facts.interrupted:
         verdict, code = INTERRUPTED, EXIT_INTERRUPTED
     elif worst is Verdict.FAIL:
         verdict, code = Verdict.FAIL.value, EXIT_FAILED
+    elif unread:  # never a pass, a warn or a could-not-test with exit 0 (bounds.py)
+        verdict, code = NOT_CERTIFIED, EXIT_NOT_CERTIFIED
     elif why:
         verdict, code = PARTIAL, EXIT_CERTIFIED  # no selected rule failed; not a certificate
     else:
@@ -147,7 +151,8 @@ def conclude(report: RunReport) -> Conclusion:
     not_run = set(report.not_run)
     units = {name: _certification_unit(name, u, why, not_run, facts.unexplored)
              for name, u in report.units.items()}
-    return Conclusion(report.kind, verdict, bool(why), tuple(why), code, units, counts(report),
+    told = (*why, unread) if unread and verdict == NOT_CERTIFIED else tuple(why)
+    return Conclusion(report.kind, verdict, bool(why), told, code, units, counts(report),
                       facts.strict, _judged_after_test(report, facts))
 
 
@@ -204,6 +209,9 @@ def _certification_unit(name: str, unit: UnitReport, run_why: list[str],
         why = _counted(failed=failed, untested=untested, unrun=unrun)
         if died is not None:
             why.append(f"the unit died at {iso(died)}")
+        if not_examined(unit):
+            why.append(f"{not_examined(unit)} message(s) could not be examined whole "
+                       f"({NOT_EXAMINED_RULE})")
         why += run_why
         levels.append(LevelStatus(level, not why, "; ".join(why)))
     certified = [lv.level for lv in levels if lv.certified]
@@ -220,6 +228,9 @@ def _certification_unit(name: str, unit: UnitReport, run_why: list[str],
         why = _counted(failed=failed, untested=untested, unrun=unrun)
         if died is not None:
             why.append(f"the unit died at {iso(died)}")
+        if not_examined(unit):
+            why.append(f"{not_examined(unit)} message(s) could not be examined whole "
+                       f"({NOT_EXAMINED_RULE})")
         summary = f"{NOT_CERTIFIED}: " + "; ".join(why + run_why or ["see the levels"])
         if certified:
             summary += f" (certified: {', '.join(certified)})"
@@ -247,12 +258,31 @@ def _conclude_lint(report: RunReport, facts: RunFacts) -> Conclusion:
     rows = [u for u in report.units.values() if facts.gate == "all" or u.party == "unit"]
     worst = Verdict.worst([u.worst() for u in rows])
     failed = worst is Verdict.FAIL or bool(facts.not_judged)
-    verdict = (Verdict.FAIL.value if failed else
+    unread = [why for why in (facts.not_examined, _not_examined(rows)) if why]
+    verdict = (Verdict.FAIL.value if failed else PARTIAL if unread else
                Verdict.WARN.value if worst is Verdict.WARN else CLEAN)
-    why = (facts.not_judged,) if facts.not_judged else ()
+    why = ((facts.not_judged,) if facts.not_judged else ()) + tuple(unread)
     units = {name: _lint_unit(name, u, untimed=facts.untimed) for name, u in report.units.items()}
-    return Conclusion(report.kind, verdict, False, why, 1 if failed else 0,
+    code = EXIT_FAILED if failed else EXIT_LINT_PARTIAL if unread else EXIT_CERTIFIED
+    return Conclusion(report.kind, verdict, bool(unread), why, code,
                       units, counts(report), facts.strict)
+
+
+NOT_EXAMINED_RULE = "MSG-004"
+"""A message past the examinable size or nesting (MSG-004) was not examined whole: what it
+held is no evidence of anything, so its unit is never clean (bounds.py)."""
+
+
+def not_examined(unit: UnitReport) -> int:
+    """How many of the unit's messages could not be examined whole (MSG-004)."""
+    return int(unit.violation_counts.get(NOT_EXAMINED_RULE, 0))
+
+
+def _not_examined(rows: list[UnitReport]) -> str:
+    found = [n for n in map(not_examined, rows) if n]
+    return (f"{sum(found)} message(s) of {len(found)} unit(s) or commander(s) could not be "
+            f"examined whole (past the size or nesting bound, {NOT_EXAMINED_RULE})"
+            if found else "")
 
 
 def commands_seen(unit: UnitReport) -> int:
@@ -273,10 +303,16 @@ def _lint_unit(name: str, unit: UnitReport, *, untimed: bool = False) -> UnitSta
     failed = sum(r.verdict is Verdict.FAIL for r in unit.rules.values())
     warned = sum(r.verdict is Verdict.WARN for r in unit.rules.values())
     span = ((unit.last_seen or 0.0) - (unit.first_seen or 0.0)) if unit.first_seen else 0.0
+    unread = not_examined(unit)
+    verdict = (worst.value if worst is Verdict.FAIL else Verdict.COULD_NOT_TEST.value if unread
+               else worst.value if worst is Verdict.WARN else CLEAN)
+    unread_said = (f"; {unread} message(s) could not be examined whole ({NOT_EXAMINED_RULE})"
+                   if unread else "")
     if unit.party != "unit":
         said = (f"{failed} rule(s) failed" if failed else
                 f"{warned} rule(s) warned" if warned else CLEAN)
-        return UnitStatus(name, unit.party, worst.value, f"{said}: what it sent, observed")
+        return UnitStatus(name, unit.party, worst.value if verdict == CLEAN else verdict,
+                          f"{said}: what it sent, observed{unread_said}")
     n = commands_seen(unit)
     commanded = "never commanded" if not n else f"{n} command{'s' * (n != 1)} seen"
     died = died_at(unit)
@@ -291,9 +327,9 @@ def _lint_unit(name: str, unit: UnitReport, *, untimed: bool = False) -> UnitSta
         summary += f"; it died at {iso(died)}"
     elif (stopped := died_at(unit, Verdict.WARN)) is not None:
         summary += f"; its heartbeat stopped at {iso(stopped)} (no command before it)"
+    summary += unread_said
     levels = tuple(LevelStatus(lv, False, LINT_NEVER_CERTIFIES)
                    for lv in dict.fromkeys(map(level_name, unit.levels)))
-    verdict = worst.value if worst in (Verdict.FAIL, Verdict.WARN) else CLEAN
     return UnitStatus(name, unit.party, verdict, summary, levels, died)
 
 

@@ -3,3 +3,7 @@ meaning. Their one home: the verdict model (``conclusion.py``) and the plugin re
 and the plugin stays cheap to import."""
 
 EXIT_CERTIFIED, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_NOT_CERTIFIED = 0, 1, 2, 6
+
+EXIT_LINT_PARTIAL = 4
+"""Lint: no row fails, but part of the evidence could not be examined (lines malformed,
+payloads past MSG-004's bounds): never clean (README 'Bounds')."""

@@ -92,8 +92,13 @@ def verdict_of(rule_id: str, profile: profile_module.Profile, condition: str = "
 
 
 def overall_verdict(validation: Validation, profile: profile_module.Profile) -> Verdict:
-    return Verdict.worst([verdict_of(v.rule, profile, v.condition)
-                         for v in validation.violations])
+    """The message's verdict: its worst violation's; a message past MSG-004's bounds was not
+    examined whole, so at best could-not-test, never a pass or a warn."""
+    worst = Verdict.worst([verdict_of(v.rule, profile, v.condition)
+                           for v in validation.violations])
+    if worst is not Verdict.FAIL and any(v.rule == "MSG-004" for v in validation.violations):
+        return Verdict.COULD_NOT_TEST
+    return worst
 
 
 def to_dict(validation: Validation, profile: profile_module.Profile) -> dict[str, Any]:

@@ -53,6 +53,9 @@ class RunFacts:
     beside the verdict, never a silent skip."""
     not_judged: str = ""
     """Lint: traffic of units past the bound on units was not judged (why, in words)."""
+    not_examined: str = ""
+    """Lint: lines of the recording that could not be read (why, in words): what they held
+    was never examined, so the run is never clean."""
 
     @property
     def complete(self) -> bool:

@@ -10,6 +10,7 @@ orjson writes it, so both give the same bytes where both can.
 from __future__ import annotations
 
 import json
+import re
 from typing import Any
 
 import orjson
@@ -68,3 +69,46 @@ def _scalar(item: Any) -> bytes:
         return text.encode("utf-8", "surrogateescape")
     except UnicodeEncodeError:
         return json.dumps(item).encode()
+
+
+_TOKEN = re.compile(rb'"(?:[^"\\]|\\.)*"|[\[\]{},]', re.S)
+"""What decides nesting: strings (skipped whole: they may hold brackets), brackets and the
+commas between members."""
+
+
+def shallow_members(raw: bytes, max_depth: int) -> tuple[dict[str, Any], int] | None:
+    """The members of the JSON object ``raw`` whose values nest at most ``max_depth - 1``
+    levels, parsed, and how many members were left out for nesting deeper; None when ``raw``
+    is not an object or a member cannot be read. Without recursion and without parsing what
+    nests too deep: a message over the nesting bound is still judged on its top-level fields
+    (what a reader can take from it safely)."""
+    start = len(raw) - len(raw.lstrip())
+    if raw[start:start + 1] != b"{":
+        return None
+    members: dict[str, Any] = {}
+    left_out = 0
+    depth = deepest = 0
+    begin = start + 1
+    for token in _TOKEN.finditer(raw, start):
+        kind = token.group()[:1]
+        if kind in (b"[", b"{"):
+            depth += 1
+            deepest = max(deepest, depth)
+        elif kind in (b"]", b"}"):
+            depth -= 1
+        if depth == 1 and kind == b"," or depth == 0:
+            member = raw[begin:token.start()]
+            if not member.strip():
+                if kind != b"}" or begin != start + 1:  # only '{}' has an empty member
+                    return None
+            elif deepest - 1 < max_depth:
+                try:
+                    members.update(orjson.loads(b"{" + member + b"}"))
+                except orjson.JSONDecodeError:
+                    return None
+            else:
+                left_out += 1
+            begin, deepest = token.end(), 1
+            if depth == 0:
+                return (members, left_out) if not raw[token.end():].strip() else None
+    return None

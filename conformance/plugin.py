@@ -373,6 +373,8 @@ class _CertificationPlugin:
                     line(render_violation(rule, v, str(c.unit), rerun_hint=c.rerun_command()))
         for kind, path in sorted(c.report_paths.items()):
             line(f"{kind} report: {printable(path)}")
+        if c.report_error:
+            line(c.report_error, red=True)
         if not c.report_paths:
             line("no report was written")
         line(f"repeat this run: {printable(c.rerun_command())}")

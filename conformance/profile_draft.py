@@ -22,6 +22,7 @@ from conformance.display import shorten
 from conformance.message import Message
 from conformance.taskspec import task_spec
 from conformance.topics import LEVELS, MANDATORY_SENSORS, ROLES, TopicKind, UnitAddress, parse_topic
+from conformance.validator import Unreadable, decode
 
 MAX_OBSERVED = 100_000
 """Messages kept while observing (a unit at 100 Hz for 15 minutes); past it, the rest are
@@ -52,9 +53,9 @@ class Observed:
         slot = {TopicKind.HEARTBEAT: "heartbeat", TopicKind.SENSOR_INFO: "sensor_info",
                 TopicKind.DIRECT_EXECUTION_INFO: "dei"}.get(parsed.kind)
         if slot and len(msg.payload) <= MAX_PAYLOAD:
-            try:
-                body = json.loads(msg.payload)
-            except (ValueError, UnicodeDecodeError):
+            try:  # bounded (size, nesting, finite numbers): what the validator reads
+                body = decode(msg.payload)
+            except Unreadable:
                 return
             if isinstance(body, dict):
                 setattr(self, slot, body)

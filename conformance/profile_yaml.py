@@ -25,6 +25,13 @@ MAX_NUMBER = 1e15
 larger integer may overflow."""
 
 
+MAX_NUMBER_CHARS = 40
+"""A number written in more characters than this is refused before it is converted: Python
+refuses an int of over 4300 digits with words of its own, and a base-60 integer of 3000 parts
+('1:2:3:...') converts into one it cannot even print."""
+_NUMBER_TAGS = ("tag:yaml.org,2002:int", "tag:yaml.org,2002:float")
+
+
 class YamlRefused(ValueError):
     """What a profile's text may not contain, and how to fix it (without the file's name)."""
 
@@ -51,6 +58,7 @@ def _scan(text: str) -> None:
     """Refuse anchors, aliases, tags and deep nesting, from the parser's events (streamed:
     nothing is composed or expanded yet)."""
     depth = 0
+    resolver = yaml.resolver.Resolver()  # what the loader will read a plain scalar as
     for event in yaml.parse(text, Loader=yaml.SafeLoader):
         if isinstance(event, yaml.AliasEvent):
             raise YamlRefused(f"line {_line(event)}: an alias (*{event.anchor}); write the "
@@ -62,6 +70,12 @@ def _scan(text: str) -> None:
                 and event.tag is not None:
             raise YamlRefused(f"line {_line(event)}: a tag ({event.tag}); remove it (a "
                               f"profile takes plain values only)")
+        if isinstance(event, yaml.ScalarEvent) and len(event.value) > MAX_NUMBER_CHARS \
+                and event.implicit[0] and resolver.resolve(
+                    yaml.ScalarNode, event.value, event.implicit) in _NUMBER_TAGS:
+            raise YamlRefused(f"line {_line(event)}: a number written in {len(event.value)} "
+                              f"characters; a profile's numbers are short (at most "
+                              f"{MAX_NUMBER:g})")
         if isinstance(event, yaml.CollectionStartEvent):
             depth += 1
             if depth > MAX_DEPTH:

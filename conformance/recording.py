@@ -44,6 +44,7 @@ from conformance.bounds import (
     check_time,
 )
 from conformance.display import shorten
+from conformance.jsontext import dumps
 from conformance.message import Message
 from conformance.mosquitto_sub import (
     FORMAT_MOSQUITTO_J,
@@ -138,6 +139,8 @@ class RecordingReader:
         self.problems: list[LineProblem] = []
         self.problem_count = 0
         self.blank_lines = 0
+        self.bom_lines = 0
+        """Lines after the first that began with a UTF-8 byte order mark (read without it)."""
         self.formats: set[str] = set()
         self.notes: list[str] = []
         self._mosquitto = MosquittoLines(self.formats)
@@ -174,8 +177,8 @@ class RecordingReader:
                             continue
                         line = line.rstrip(b"\r")
                         obj = loads_not_utf8(line)
-                        if obj is None and number == 1 and line.startswith(_BOM):
-                            obj = loads_not_utf8(line[3:], strict=False)
+                        if obj is None and line.startswith(_BOM):
+                            obj = self._without_bom(line, number)
                         if obj is None:
                             for item in self._verbose_or_problem(number, line, e, timed):
                                 count += isinstance(item, Message)
@@ -214,6 +217,13 @@ class RecordingReader:
                 self.formats.add(FORMAT_JSONL)
         self._add_notes()
 
+    def _without_bom(self, line: bytes, number: int) -> Any:
+        """A line that begins with a byte order mark (an editor's, a Windows tool's) read
+        without it, never dropped (nor its unit with it); None when it is no JSON even so."""
+        obj = loads_not_utf8(line[3:], strict=False)
+        self.bom_lines += obj is not None and number > 1
+        return obj
+
     def _too_many_values(self, number: int, line: bytes) -> bool:
         """Whether a line over 1 MiB holds more JSON values than it may (a problem, skipped)."""
         if _values(line) <= MAX_LINE_VALUES:
@@ -243,6 +253,11 @@ class RecordingReader:
 
     def _add_notes(self) -> None:
         """What a person must know of the recording as a whole (after the last line)."""
+        if self.bom_lines:
+            self.notes.append(
+                f"{self.bom_lines} line(s) after the first began with a UTF-8 byte order mark: "
+                f"read without it (a file was joined from pieces, or written by a tool that "
+                f"marks every line)")
         if self._mosquitto.truncated:
             self.notes.append(
                 f"{self._mosquitto.truncated} payload(s) were cut at a NUL byte by mosquitto_sub "
@@ -284,7 +299,10 @@ class RecordingReader:
             count = obj.get("count", 0)
             if isinstance(count, bool) or not isinstance(count, int) or count < 0:
                 raise ValueError(f"event count {count!r} is not a non-negative whole number")
-            return Event(float(ts), kind, utf8(str(obj.get("detail", ""))), count)
+            detail = obj.get("detail", "")
+            if type(detail) is not str:  # any depth (a line nests up to 1024): no str()
+                detail = shorten(dumps(detail).decode("utf-8", "replace"), PROBLEM_CHARS)
+            return Event(float(ts), kind, utf8(detail), count)
         topic = obj.get("topic")
         if not isinstance(topic, str):
             raise ValueError("'topic' is missing or not a string")

@@ -41,6 +41,7 @@ from orjson import loads as _loads
 
 from conformance import schema
 from conformance.content import CONTENT_CHECKS, statuses_allowed, unit_of
+from conformance.jsontext import shallow_members
 from conformance.profile import Profile
 from conformance.topics import (
     ParsedTopic,
@@ -78,6 +79,12 @@ class Validation(NamedTuple):
     @property
     def decoded(self) -> bool:
         return self.message is not None
+
+
+def read_in_part(v: Validation) -> bool:
+    """Whether ``v``'s message holds only the top-level fields of a payload nested past
+    MSG-004's bound (its schema and content rules were not examined)."""
+    return bool(v.violations) and v.violations[-1].rule == "MSG-004" and v.message is not None
 
 
 _validation = partial(tuple.__new__, Validation)
@@ -132,12 +139,13 @@ class _TopicPlan:
     parsed topic, its naming violations, the message kind, schema and content check (kind
     and schema None where the kind depends on the content: commands)."""
 
-    __slots__ = ("parsed", "naming", "kind", "path", "schema", "content", "unit")
+    __slots__ = ("parsed", "naming", "kind", "path", "schema", "content", "unit", "messages")
 
     def __init__(self, topic: str) -> None:
         parsed = self.parsed = parse_topic(topic)
         self.naming = tuple(naming_violations(topic))
         self.unit = unit_of(parsed)
+        self.messages = 0
         self.content = CONTENT_CHECKS.get(parsed.kind)
         kind: str | None
         if parsed.kind is TopicKind.SENSOR:
@@ -181,6 +189,58 @@ def _depth_exceeds(payload: bytes, limit: int) -> bool:
     return False
 
 
+_DEEPER = "deeper"
+
+
+def _shallow(raw: bytes) -> tuple[dict[str, Any], int] | None:
+    """The top-level fields of an object nested deeper than MAX_DEPTH that nest less, and how
+    many fields were left out; None when it is no object of readable fields. Only what can be
+    read safely is judged: a field nested 65 deep must not hide the rest of a message (a rate,
+    a stamp) from the rules."""
+    found = shallow_members(raw, MAX_DEPTH)
+    return found if found is not None and found[0] else None
+
+
+NAMES_CHECKED = 64
+NAMES_SAMPLED = 16
+"""Member names counted on a topic's first 64 messages, then on every 16th: a serializer
+that names a member twice does it in every message of a shape, and counting costs a tenth of
+lint's speed (bench/bench_lint.py) where sampling costs nothing measurable."""
+
+
+def _names_lost(raw: bytes, message: Any) -> bool:
+    """Whether reading ``raw`` lost member names: an object naming a member twice keeps one
+    (RFC 8259 4). Counted, not parsed: names in the text (a closing quote before a colon, or
+    one space and a colon) against names in orjson's compact writing of what was read (a quote
+    inside a string is escaped, and written alike by both); names written with other
+    whitespace before their colon are not counted. Four C scans and a write (sampled:
+    ``NAMES_SAMPLED``)."""
+    found = raw.count(b'":') + raw.count(b'" :')
+    if found < 2:
+        return False
+    written = orjson.dumps(message)
+    return found > written.count(b'":') + written.count(b'" :')
+
+
+def _twice(raw: bytes) -> str:
+    """The member names an object of ``raw`` holds twice, for a person (at most five)."""
+    import json
+
+    twice: list[str] = []
+
+    def pairs(items: list[tuple[str, Any]]) -> dict[str, Any]:
+        seen: set[str] = set()
+        for name, _ in items:
+            if name in seen and name not in twice:
+                twice.append(name)
+            seen.add(name)
+        return dict(items)
+
+    json.loads(raw, object_pairs_hook=pairs)  # nesting at most MAX_DEPTH: no deep recursion
+    shown = ", ".join(_short(name, 40) for name in twice[:5])
+    return f"named twice: {shown}" + (f" and {len(twice) - 5} more" if len(twice) > 5 else "")
+
+
 def _decode(raw: bytes) -> Any:
     """The JSON value of a payload; ``Unreadable`` names the first rule that keeps it from
     being read: MSG-004 (size), MSG-001 (UTF-8), MSG-004 (depth), MSG-002 (JSON). The checks
@@ -196,13 +256,23 @@ def _decode(raw: bytes) -> Any:
                              "JSON messages are UTF-8 text; binary payloads belong "
                              "elsewhere") from None
     if len(raw) > _SHALLOW_BYTES and _depth_exceeds(raw, MAX_DEPTH):
-        raise Unreadable("MSG-004", f"nesting depth at most {MAX_DEPTH}", "deeper")
+        raise Unreadable("MSG-004", f"nesting depth at most {MAX_DEPTH}", _DEEPER,
+                         "what nests deeper was not examined: the message is judged on its "
+                         "shallower top-level fields alone")
     try:
         return _loads(raw)
     except _JSONDecodeError as e:
         raise Unreadable("MSG-002", "valid JSON (RFC 8259)", str(e),
                          "NaN/Infinity, trailing commas, single quotes and unquoted strings "
                          "are not JSON (see ERR-002)") from None
+
+
+def decode(raw: bytes) -> Any:
+    """The JSON value of a payload read within MSG-004's bounds (1 MiB, 64 levels), as UTF-8
+    and as JSON with finite numbers (1 followed by 400 zeros is refused, not an int Python
+    cannot turn into a float); ``Unreadable`` says why not. Every reader of a payload outside
+    the validator (the profile drafter) reads through this."""
+    return _decode(raw)
 
 
 class Validator:
@@ -231,9 +301,26 @@ class Validator:
         try:
             message = _decode(raw)
         except Unreadable as e:
-            return _validation((parsed, parsed.kind.value, None, plan.naming + (Violation.of(
-                e.rule, expected=e.expected, observed=e.observed, topic=topic, time=time,
+            shallow = _shallow(raw) if e.observed == _DEEPER else None
+            observed = e.observed if shallow is None else (
+                f"deeper in {shallow[1]} top-level field(s); judged on the other "
+                f"{len(shallow[0])}")
+            kind = (parsed.kind.value if shallow is None
+                    else plan.kind or self._kind(parsed, shallow[0]))
+            return _validation((parsed, kind, shallow and shallow[0], plan.naming + (Violation.of(
+                e.rule, expected=e.expected, observed=observed, topic=topic, time=time,
                 payload=raw, detail=e.detail, unit=plan.unit),)))
+        plan.messages += 1
+        if type(message) is dict and (plan.messages <= NAMES_CHECKED or not plan.messages
+                                      % NAMES_SAMPLED) and _names_lost(raw, message):
+            twice = Violation.of(
+                "MSG-002", condition="duplicate-names", expected="each member name once in "
+                "an object (RFC 8259 4: names SHOULD be unique)", observed=_twice(raw),
+                topic=topic, time=time, payload=raw, unit=plan.unit,
+                detail="this suite read the last value; another reader may take the first")
+            plan_naming = plan.naming + (twice,)
+        else:
+            plan_naming = plan.naming
         kind = plan.kind
         if kind is None:  # a command: its kind and schema follow its 'command'
             kind = self._kind(parsed, message)
@@ -242,7 +329,7 @@ class Validator:
         else:
             path, validator = plan.path, plan.schema
         if path is None or validator is None:  # an optional sensor, an unknown subtopic
-            return _validation((parsed, kind, message, plan.naming))
+            return _validation((parsed, kind, message, plan_naming))
         found: list[Violation] | None
         if type(message) is not dict and _expects_object(path):
             found = [Violation.of(
@@ -260,7 +347,7 @@ class Validator:
                 if out:
                     found = out if found is None else found + out
         return _validation((parsed, kind, message,
-                            plan.naming + tuple(found) if found else plan.naming))
+                            plan_naming + tuple(found) if found else plan_naming))
 
     def examined(self, v: Validation) -> Examined:
         """The rules examined in validating ``v``: the topic's naming rules and MSG-004 on
@@ -273,8 +360,8 @@ class Validator:
         """
         rules = {*naming_rules(v.topic), "MSG-004"}
         message = v.message
-        if message is None:
-            return _examined(rules)
+        if message is None or read_in_part(v):
+            return _examined(rules)  # what was read in part was not examined as a message
         rules.update(DECODING_RULES)
         path = schema.schema_path_for_kind(v.kind)
         if path is None:

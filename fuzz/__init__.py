@@ -16,5 +16,6 @@ TARGETS = (
     "recording_jsonl", "recording_mosquitto_j", "recording_mosquitto_jj", "recording_mosquitto_v",
     "recording_mixed", "rosbag_ros1", "rosbag_sqlite3", "rosbag_mcap", "rosbag_metadata",
     "profile_loader", "explore_replay", "validate_input", "option_parsers", "message_path",
+    "profile_draft", "environment", "serve_address", "bag_inflate",
 )
 """Every target, by module name."""

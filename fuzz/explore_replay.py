@@ -1,9 +1,10 @@
 """Fuzz target: an ``--explore-replay`` file (``conformance.scenarios.story.load``), the story an
 earlier exploration stored, as JSON text.
 
-Invariant: ``load`` returns actions or raises ``StoryError`` with a one-line message; every
-action it returns is one the explorer can run: its fields of the right types (a task name, a
-slot and a step that are whole numbers from 0, a signal name), and it is described
+Invariant: ``load`` returns at most ``MAX_STEPS`` actions or raises ``StoryError`` with a
+one-line message; every action it returns is one the explorer can run: its fields of the right
+types (a task name and a signal name in UTF-8, a slot and a step that are whole numbers from
+0), and it is described
 (``story.describe``) without raising. Time proportional to the input.
 """
 
@@ -16,6 +17,7 @@ from dataclasses import fields
 from pathlib import Path
 
 from conformance.scenarios.explore_action import Action
+from conformance.scenarios.explore_steps import MAX_STEPS
 from conformance.scenarios.story import StoryError, describe, load
 from fuzz.harness import Broken, one_line, within_time
 
@@ -36,6 +38,11 @@ def _runnable(action: Action) -> None:
             raise Broken(f"a step with {f.name} {value!r} was accepted: {action}")
         if f.name in ("task", "signal") and type(value) is not str:
             raise Broken(f"a step with {f.name} {value!r} was accepted: {action}")
+        if f.name in ("task", "signal"):
+            try:  # a name is sent in a command: UTF-8 (a lone surrogate once a TypeError)
+                value.encode("utf-8")
+            except UnicodeEncodeError:
+                raise Broken(f"a step with a {f.name} that is not UTF-8 was accepted") from None
         if f.name in ("task_uuid", "teardown") and type(value) is not bool:
             raise Broken(f"a step with {f.name} {value!r} was accepted: {action}")
     describe(action)
@@ -49,6 +56,8 @@ def test_one_input(data: bytes) -> None:
         except StoryError as e:
             one_line(e, "story error", shown=True)
             return
+        if len(actions) > MAX_STEPS:
+            raise Broken(f"a story of {len(actions)} steps was accepted (at most {MAX_STEPS})")
         for action in actions:
             _runnable(action)
 

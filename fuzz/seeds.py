@@ -56,6 +56,25 @@ def _story() -> bytes:
     return json.dumps({"format": FORMAT, "unit": UNIT, "seed": 1, "steps": steps}).encode()
 
 
+def _compressed() -> list[bytes]:
+    """A chunk's worth of a recording compressed by each of bz2, lz4 and zstd, with its
+    true size declared and with none."""
+    import bz2
+    import struct
+
+    import lz4.frame  # type: ignore[import-untyped]
+
+    from conformance.baginflate import _zstd
+
+    raw = b"\n".join(good_lines(seconds=3))
+    out = []
+    for i, packed in enumerate((bz2.compress(raw), lz4.frame.compress(raw),
+                                _zstd().compress(raw))):
+        out += [bytes([i]) + struct.pack("<I", len(raw)) + packed,
+                bytes([i]) + b"\xff\xff\xff\xff" + packed]
+    return out
+
+
 def seeds() -> dict[str, list[bytes]]:
     """Each target's seeds."""
     from fuzz.bags import good_bag, storage_file
@@ -73,6 +92,12 @@ def seeds() -> dict[str, list[bytes]]:
         "explore_replay": [_story()],
         "profile_loader": [p.read_bytes() for p in (ROOT / "profiles").glob("*.yaml")],
     }
+    out["profile_draft"] = [b"heartbeat " + heartbeat(1.0) + b"\x00sensor/speed 0.1",
+                            b"\x00".join([b"heartbeat " + heartbeat(float(i)) for i in range(4)])]
+    out["environment"] = [b"127.0.0.1\x001883\x00true\x00user\x00pw",
+                          b"broker.example\x00\x00off", b"127.0.0.1\x00\x00ture"]
+    out["serve_address"] = [b"\x01" + s.encode() for s in ("8080", "127.1:0", "[::1]:9")]
+    out["bag_inflate"] = _compressed()
     for name in ("recording_jsonl", "recording_mosquitto_j", "recording_mosquitto_jj",
                  "recording_mosquitto_v"):
         out[name] = [bytes(range(i, i + 64)) for i in range(0, 192, 32)]

@@ -335,9 +335,9 @@ class UnitState:
         periodic = _PERIODIC.get(kind)
         if periodic is None:
             return
-        rate = m.get("rate")
-        if _is_number(rate) and rate > 0:
-            self.declared_rates[periodic] = float(rate)
+        rate = usable_rate(m.get("rate"))
+        if rate is not None:
+            self.declared_rates[periodic] = rate
         if kind is _HEARTBEAT:
             self._observe_heartbeat(m)
         elif kind is _SENSOR_INFO:
@@ -402,6 +402,20 @@ _SENSOR, _HEARTBEAT = TopicKind.SENSOR, TopicKind.HEARTBEAT
 _SENSOR_INFO, _DIRECT_EXECUTION_INFO = TopicKind.SENSOR_INFO, TopicKind.DIRECT_EXECUTION_INFO
 _PERIODIC = {k: k.value for k in (TopicKind.HEARTBEAT, TopicKind.SENSOR_INFO,
                                   TopicKind.DIRECT_EXECUTION_INFO, TopicKind.TST_EXECUTION_INFO)}
+
+
+def usable_rate(x: Any) -> float | None:
+    """``x`` as a declared rate in Hz, None unless it is a number whose period (1/rate, in
+    seconds) is finite and above zero: 1e-310 Hz passes the schema's '> 0' but its period is
+    infinite, and every deadline measured in it would be too (refused as a value)."""
+    if not _is_number(x) or not x > 0:
+        return None
+    try:
+        rate = float(x)  # an int of 400 digits overflows
+        period = 1.0 / rate
+    except (OverflowError, ZeroDivisionError):
+        return None
+    return rate if math.isfinite(rate) and 0.0 < period < math.inf else None
 
 
 def _is_number(x: Any) -> bool:

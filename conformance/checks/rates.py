@@ -41,7 +41,7 @@ from collections import deque
 from collections.abc import Iterator
 from operator import add
 
-from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.base import CheckContext, UnitState, check, usable_rate
 from conformance.checks.liveness import IDENTITY, SILENCE_PERIODS, Identity
 from conformance.checks.stall import stamp_of
 from conformance.checks.stash import StashKey
@@ -380,8 +380,11 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
     kind = v.topic.kind
     m = v.message
     rate = m.get("rate") if type(m) is dict else None
-    declared = float(rate) if (type(rate) is float or type(rate) is int) and rate > 0 else (
-        unit.declared_rates.get(kind))
+    declared = usable_rate(rate)
+    found = None if declared is not None or not (
+        type(rate) in (float, int) and rate > 0) else [_unusable(kind, msg, rate, unit)]
+    if declared is None:
+        declared = unit.declared_rates.get(kind)
     trackers = unit.stash.get(RATES)
     if trackers is None:
         trackers = _trackers(unit)
@@ -389,9 +392,9 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
     # spec's topics (3.1 sensor_info, 5.2 sensor.info) sends each at the declared rate.
     stream = v.topic.subtopic
     tracker = trackers.get(stream)
-    found = None
     if tracker is not None and declared is not None and tracker.declared != declared:
-        stat, found = tracker.judge(ctx, str(unit.address))
+        stat, closed_found = tracker.judge(ctx, str(unit.address))
+        found = closed_found + (found or [])
         if stat.judged:
             unit.examine(tracker.rule)
         closed = _closed(unit)
@@ -411,6 +414,24 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
     else:
         tracker.add(ctx, msg.time, unit.agent_uuid)
     return found
+
+
+def _number(x: float) -> str:
+    """A number for a person, whatever its size (no repr of a 5000-digit int)."""
+    try:
+        return f"{float(x):.6g}"
+    except OverflowError:
+        return f"a whole number of {x.bit_length()} bits"
+
+
+def _unusable(kind: TopicKind, msg: Message, rate: float, unit: UnitState) -> Violation:
+    """A declared rate refused as a value (``usable_rate``): a period no publisher keeps."""
+    return Violation.of(
+        RATE_RULES[kind], expected=f"a rate in Hz whose period (1/rate) is a finite number of "
+        f"seconds (declared in {kind.value}.rate)", observed=f"{_number(rate)} Hz",
+        topic=msg.topic, time=msg.time, unit=str(unit.address),
+        detail="1/rate is not a finite period: no message can be sent at this rate, so "
+               "it is off from any rate measured by more than any factor")
 
 
 @check("HB-003", "SI-002", "DEI-002", "TEI-002", finish=True, reads=(RATES,))

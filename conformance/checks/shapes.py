@@ -13,7 +13,7 @@ from typing import Any
 
 import orjson
 
-from conformance.validator import Examined, Validation, Validator
+from conformance.validator import Examined, Validation, Validator, read_in_part
 
 MAX_SHAPES = 64
 """Message shapes whose examined rules are kept per topic (more are asked for each message)."""
@@ -49,8 +49,8 @@ class Shapes:
         10-100x validation, bench/bench_validate.py)."""
         m = v.message
         m_type = m.__class__
-        if v.topic.kind is not route.topic_kind:  # a validator of its own mind: ask
-            return self.validator.examined(v)
+        if v.topic.kind is not route.topic_kind or v.violations and read_in_part(v):
+            return self.validator.examined(v)  # a validator of its own mind, or a part: ask
         if m_type is dict:
             if len(m) > MAX_SHAPE_KEYS:
                 return self.validator.examined(v)

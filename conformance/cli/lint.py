@@ -33,7 +33,9 @@ def build_parser() -> argparse.ArgumentParser:
         "Exit status: 0 no unit or commander fails a rule of severity error (with "
                "--gate units: no unit), 1 one does (or units past the bound were not judged), "
                "2 bad usage, 3 nothing could be linted (no broker, no messages, a ROS bag "
-               "that cannot be read whole, a --serve address that cannot be bound). What is wrong in a command is its commander's "
+               "that cannot be read whole, a --serve address that cannot be bound), 4 none fails "
+               "but part of the evidence could not be examined (malformed lines, messages "
+               "past a bound): partial, never clean. What is wrong in a command is its commander's "
                "fault: commanders (by the command's 'sender', else 'of UNIT') have rows of "
                "their own. " + bounds_help())
     src = p.add_argument_group("recorded traffic")

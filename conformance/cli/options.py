@@ -208,6 +208,14 @@ def reports_dir_problem(path: str | Path, *, create: bool = True) -> str | None:
             here.mkdir(parents=True, exist_ok=True)
         except OSError as e:  # a read-only file system, no permission
             return f"--reports-dir {str(path)!r}: cannot create it: {e.strerror or e}"
+        try:  # a folder that exists may still refuse files (read-only, /proc, permissions)
+            import tempfile
+
+            with tempfile.TemporaryFile(dir=here, prefix=".waraps-conformance-probe-"):
+                pass
+        except OSError as e:
+            return (f"--reports-dir {str(path)!r}: cannot write a report into it: "
+                    f"{e.strerror or e}; pass a folder you can write to")
     return None
 
 

@@ -9,8 +9,9 @@ person (what it prints: ``conformance.explanation``).
 tree (the ``tst`` node object); every problem of the tree is listed with its JSON path in the
 file (schemas, task parameters, structure: TST-001, TASK-*, TST-014, ERR-*).
 
-Exit code: 0 when nothing fails under the profile (warnings allowed), 1 when a rule fails,
-2 for a usage error (also a topic it cannot place: it says which forms it accepts, and an input
+Exit code: 0 when nothing fails under the profile (warnings allowed), 1 when a rule fails or
+the message could not be examined whole (past MSG-004's size or nesting bound: verdict
+could-not-test, judged on its shallower top-level fields alone), 2 for a usage error (also a topic it cannot place: it says which forms it accepts, and an input
 past ``bounds.MAX_VALIDATE_BYTES``: an endless stream such as /dev/zero is not read forever).
 """
 
@@ -84,7 +85,9 @@ def main(argv: list[str] | None = None) -> int:
         print(render(validation, profile))
         for note in notes:
             print(f"note      {note}")
-    return 1 if overall_verdict(validation, profile) is Verdict.FAIL else 0
+    # Not examined whole (MSG-004) is no pass either: 1, as a failure.
+    return 1 if overall_verdict(validation, profile) in (Verdict.FAIL,
+                                                         Verdict.COULD_NOT_TEST) else 0
 
 
 def _parser() -> argparse.ArgumentParser:

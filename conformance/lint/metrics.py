@@ -4,13 +4,15 @@ and Grafana can alert on a unit that turns non-conformant
 (``waraps_lint_unit_failing{unit="..."} == 1``).
 
 Unit names come from topics (anything a publisher chose): each label value is made printable
-(control characters shown escaped, ``display.printable``) and cut at ``NAME_CHARS``; each
+(control characters shown escaped, ``display.printable``) and cut at ``NAME_CHARS``, a digest
+of the whole name added where it was altered (``label``: a series per unit); each
 labelled family holds at most ``MAX_SERIES`` series, the rest summed into one series labelled
 ``(other units)``, so a flood of invented unit names cannot flood a time-series database.
 """
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -24,8 +26,17 @@ STATUS_WORDS = {"FAIL": "fail", "warn": "warn", "ok": "clean", "-": "silent"}
 
 
 def label(text: str) -> str:
-    """A label value from wire text: printable, at most ``NAME_CHARS`` characters."""
-    return printable(shorten(text, NAME_CHARS))
+    """A label value from wire text: printable, at most ``NAME_CHARS`` characters, and one
+    per name: a name that had to be escaped or cut ends in ``#`` and a digest of the whole
+    name, so two names never share a series (past 200 characters, 'u\\x1b' written out and
+    'u' with an ESC). A topic name holds no '#' (MQTT 4.7.1), so no name reads as one
+    altered."""
+    # Cut after escaping: 200 control characters escape to 800 (the digest tells them apart).
+    shown = shorten(printable(text), NAME_CHARS)
+    if shown == text:
+        return shown
+    digest = hashlib.blake2b(text.encode("utf-8", "surrogatepass"), digest_size=6).hexdigest()
+    return f"{shown} #{digest}"
 
 
 class _Capped:

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from conformance.display import NAME_CHARS, printable, printable_lines, shorten, shown
-from conformance.lint import EXIT_FAIL, EXIT_NOT_RUN, EXIT_PASS
+from conformance.lint import EXIT_FAIL, EXIT_NOT_RUN, EXIT_PARTIAL, EXIT_PASS
 from conformance.reporting.bounds import file_stem
 
 GATES = ("all", "units")
@@ -107,16 +107,29 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
                            started=started if not source else (linter.first_time or started),
                            finished=end),
                    RunFacts(kind="lint", gate=gate, strict=profile.is_strict,
-                            untimed=untimed(linter), not_judged=meta.get("not_judged", "")))
+                            untimed=untimed(linter), not_judged=meta.get("not_judged", ""),
+                            not_examined=_malformed(read.problem_count)))
     if serving:  # the fleet page's last snapshot: every verdict final
         serving.view.finish(linter, report, verdict=report.conclusion.verdict,
                             not_judged=meta.get("not_judged", ""))
     _tell(out, linter, report, read)
     if formats:
-        paths = write_reports(report, Path(reports_dir), formats, report_stem(source))
-        for path in paths:
-            print(shown(f"report: {path}"), file=out)
+        _write(out, report, Path(reports_dir), formats, report_stem(source))
     return _verdict(out, report, gate, meta.get("not_judged", "") if over else "")
+
+
+def _write(out: IO[str], report: Any, reports_dir: Path, formats: tuple[str, ...],
+           stem: str) -> None:
+    """The reports, and where they went; a folder removed or filled since it was checked
+    (before the run) is said, never a traceback: the run keeps its exit status."""
+    try:
+        paths = write_reports(report, reports_dir, formats, stem)
+    except OSError as e:
+        paths = []
+        print(shown(f"waraps-conformance lint: could not write the reports into "
+                    f"{reports_dir}: {e.strerror or e}"), file=sys.stderr)
+    for path in paths:
+        print(shown(f"report: {path}"), file=out)
 
 
 def _read_bag(linter: Any, scorecard: Callable[[str, bool], Any], source: str, ros_unit: Any,
@@ -237,14 +250,24 @@ def _verdict(out: IO[str], report: Any, gate: str, not_judged: str) -> int:
     failing = sorted(u for u, rep in report.units.items() if rep.worst().value == "fail"
                      and (gate == "all" or rep.party == "unit"))
     gated = "no unit or commander" if gate == "all" else "no unit"
+    conclusion = report.conclusion
     if failing or not not_judged:
         print(("FAIL: " + printable(", ".join(shorten(u, NAME_CHARS) for u in failing)))
-              if failing else f"{report.conclusion.verdict.upper()}: {gated} fails a rule of "
-              "severity error (observed, not certified)", file=out)
+              if failing else f"{conclusion.verdict.upper()}: {gated} fails a rule of "
+              "severity error (observed, not certified)" + "".join(
+                  f"; but {printable(why)}" for why in conclusion.why if conclusion.partial),
+              file=out)
     if not_judged:  # past the bound: never a pass (issue 19)
         print(f"FAIL: {printable(not_judged)}", file=out)
     out.flush()
-    return EXIT_FAIL if report.conclusion.exit_code else EXIT_PASS
+    return conclusion.exit_code if conclusion.exit_code in (EXIT_FAIL, EXIT_PARTIAL) else (
+        EXIT_FAIL if conclusion.exit_code else EXIT_PASS)
+
+
+def _malformed(count: int) -> str:
+    """Lines of a recording that could not be read, in words (``RunFacts.not_examined``)."""
+    return (f"{count} line(s) of the recording could not be read (malformed): what they held "
+            f"was not examined" if count else "")
 
 
 def _not_judged(over: int, units: list[str]) -> str:

@@ -12,8 +12,9 @@ loop), never the Monitor: nothing it does changes the run, and nothing publishes
 
 Loopback unless a host is named (and then only asked for by a loopback name: a page elsewhere
 cannot read it through DNS rebinding, 421); every method but GET and HEAD is refused (405);
-requests are bounded by waitress's limits (headers 8 KiB, no body, 32 connections, idle ones
-closed after 30 s).
+requests are bounded by waitress's limits (headers 8 KiB, no body, 128 connections) and by
+deadlines no trickle renews (a request whole within 5 s of its first part, a connection
+without a request closed after 30 s).
 """
 
 from __future__ import annotations
@@ -33,10 +34,20 @@ from conformance.lint.fleetview import FleetView, Snapshot
 LOOPBACK = "127.0.0.1"
 MAX_PATH = 2048
 """The longest request path answered (a unit address is at most a few hundred characters)."""
-LIMITS = {"threads": 4, "connection_limit": 32, "max_request_header_size": 8192,
-          "max_request_body_size": 0, "channel_timeout": 30, "cleanup_interval": 10,
+LIMITS = {"threads": 4, "connection_limit": 128, "max_request_header_size": 8192,
+          "max_request_body_size": 0, "channel_timeout": 30, "cleanup_interval": 1,
           "ident": "waraps-conformance", "asyncore_loop_timeout": 1}
-"""waitress's bounds (its adjustments): the page, its fragments and scrapes are small GETs."""
+"""waitress's bounds (its adjustments): the page, its fragments and scrapes are small GETs.
+Room for 128 connections, the deadlines below checked every second: a few dozen slow clients
+leave room for a scrape."""
+HEADER_SECONDS = 5.0
+"""A request must arrive whole within this many seconds of when it was first seen in part
+(a GET is one packet): a connection that trickles a header line every 10 s is closed however
+often it sends (slowloris), where waitress's idle timeout is renewed by every byte."""
+IDLE_SECONDS = 30.0
+"""A connection that holds no request is closed this long after it was last seen holding one
+(or opened), whatever it sends that is not a whole request."""
+_WAITING = "_waraps_waiting"
 MAX_ROWS_SHOWN = 500
 """Rows on the fleet page, worst first (a page of 4096 units would be some 6 MB a second)."""
 MAX_CACHED = 16
@@ -74,18 +85,32 @@ def parse_address(text: str) -> Address:
     if not sep:
         host = LOOPBACK
     host = host.strip("[]") or LOOPBACK
-    if not port.isdigit() or not 0 <= int(port) <= 65535:
-        raise ServeError(f"--serve {text!r}: use PORT (on 127.0.0.1), or HOST:PORT to serve "
-                         f"on another address, e.g. --serve 8080")
+    # ASCII digits only: '²' is a digit to str.isdigit and no number to int().
+    if not (port.isascii() and port.isdigit() and len(port) <= 5) or int(port) > 65535:
+        raise ServeError(f"--serve {shorten(printable(text), 80)!r}: use PORT (on 127.0.0.1), "
+                         f"or HOST:PORT to serve on another address, e.g. --serve 8080")
     return Address(host, int(port))
 
 
-def warnings(address: Address) -> list[str]:
-    """What the header of every page (and the terminal) says about where it is served."""
-    if address.loopback:
+def warnings(address: Address, loopback: bool | None = None) -> list[str]:
+    """What the header of every page (and the terminal) says about where it is served;
+    ``loopback``: what the bound socket says (else the address's spelling)."""
+    if address.loopback if loopback is None else loopback:
         return []
-    return [f"served on {address.host}: anyone who can reach this address can read this page "
-            f"(--serve PORT serves on loopback only)"]
+    return [f"served on {printable(address.host)}: anyone who can reach this address can read "
+            f"this page (--serve PORT serves on loopback only)"]
+
+
+def bound_loopback(listening: list[tuple[str, int]]) -> bool:
+    """Whether every address the server is bound to is a loopback one: decided from the bound
+    sockets, not from how the host was spelt ('127.1', 'LOCALHOST', '0x7f000001' all bind
+    127.0.0.1, and must keep the Host guard on)."""
+    try:
+        return bool(listening) and all(
+            ipaddress.ip_address(str(host).partition("%")[0]).is_loopback
+            for host, _ in listening)
+    except ValueError:
+        return False
 
 
 LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
@@ -255,16 +280,27 @@ class Server:
         # terminal, whose scorecard it would break into.
         logging.getLogger("waitress.queue").setLevel(logging.ERROR)
         self.address = address
-        self.app = App(view, warnings(address),
-                       LOOPBACK_NAMES | {address.host.lower()} if address.loopback else None)
+        self.app = App(view)  # its header and Host guard once bound: from what was bound
         try:
             self._server = create_server(self.app, host=address.host, port=address.port,
                                          **LIMITS)
         except OSError as e:
-            raise ServeError(f"--serve {address.host}:{address.port}: {e.strerror or e}") from e
+            raise ServeError(f"--serve {printable(address.host)}:{address.port}: "
+                             f"{e.strerror or e}") from e
         except ValueError as e:  # waitress: a host that resolves to nothing
-            raise ServeError(f"--serve {address.host}:{address.port}: {e}") from e
-        self.port = int(self._server.effective_port)  # type: ignore[union-attr]
+            raise ServeError(f"--serve {printable(address.host)}:{address.port}: "
+                             f"{printable(str(e))}") from e
+        server: Any = self._server
+        listening = list(getattr(server, "effective_listen", None)
+                         or [(server.effective_host, server.effective_port)])
+        self.loopback = bound_loopback(listening)
+        self.app.header = tuple(warnings(address, self.loopback))
+        self.app.hosts = (LOOPBACK_NAMES | {address.host.lower()} | {
+            str(h).lower() for h, _ in listening}) if self.loopback else None
+        self.port = int(listening[0][1])
+        for one in getattr(server, "map", {}).values() or [server]:
+            if hasattr(one, "active_channels"):  # each listening socket's server
+                one.maintenance = functools.partial(_close_the_slow, one)
         self._thread = threading.Thread(target=self._server.run, name="lint-serve", daemon=True)
 
     @property
@@ -288,6 +324,23 @@ class Server:
         except OSError:  # already closed
             pass
         self._thread.join(timeout)
+
+
+def _close_the_slow(server: Any, now: float) -> None:
+    """waitress's maintenance (every ``cleanup_interval``), with deadlines a trickle cannot
+    renew: a request seen in part for ``HEADER_SECONDS``, or no request for ``IDLE_SECONDS``,
+    closes its connection; one being answered is left alone."""
+    for channel in list(server.active_channels.values()):
+        if channel.requests:  # being answered: its time is the answer's
+            channel.__dict__.pop(_WAITING, None)
+            continue
+        partial = channel.request
+        state = id(partial) if partial is not None else None
+        seen = channel.__dict__.get(_WAITING)
+        if seen is None or seen[0] != state:
+            seen = channel.__dict__[_WAITING] = (state, now)
+        if now - seen[1] > (HEADER_SECONDS if partial is not None else IDLE_SECONDS):
+            channel.will_close = True
 
 
 class Watched:

@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import orjson
+
 from conformance.reporting.text import printable, render_violation
 from conformance.rules import CATALOGUE
 from conformance.scenarios.deviation import Kind
@@ -25,7 +27,7 @@ from conformance.scenarios.explore_action import (
     from_json,
     is_teardown,
 )
-from conformance.scenarios.explore_steps import Step, first_disagreement
+from conformance.scenarios.explore_steps import MAX_STEPS, Step, first_disagreement
 
 FORMAT = "waraps-conformance explore story 1"
 MAX_FILE = 2_000_000
@@ -145,12 +147,17 @@ def load(path: Path) -> tuple[list[Action], dict[str, Any]]:
             raw = f.read(MAX_FILE + 1)
         if len(raw) > MAX_FILE:
             raise ValueError(f"over {MAX_FILE} bytes")
-        data = json.loads(raw)
+        # orjson: no recursion over input, and no lone surrogate (a step's name is sent
+        # in a command, which must be UTF-8: one once ended the replay in a TypeError).
+        data = orjson.loads(raw)
     except (OSError, ValueError) as e:
-        raise StoryError(f"{path}: not a readable story ({e})") from None
+        raise StoryError(f"{path}: not a readable story ({printable(str(e))[:200]})") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT \
             or not isinstance(data.get("steps"), list):
         raise StoryError(f"{path}: not a story written by --explore (format {FORMAT!r})")
+    if len(data["steps"]) > MAX_STEPS:  # bounded by its count, not only by --max-duration
+        raise StoryError(f"{path}: {len(data['steps'])} steps; a story holds at most "
+                         f"{MAX_STEPS}, the steps an example keeps")
     adapted = data.setdefault("adapted", [])  # absent in a story stored before it was kept
     if not isinstance(adapted, list) or len(adapted) > len(ADAPTABLE) \
             or any(type(rule) is not str or rule not in ADAPTABLE for rule in adapted):

@@ -89,6 +89,8 @@ class Certification:
         when = time.strftime('%Y%m%dT%H%M%S', time.localtime())
         self.stem = f"{file_stem(self.unit.name)}-{when}"  # a bounded file name (issue 26)
         self.report_paths: dict[str, Path] = {}
+        self.report_error = ""
+        """Why the last report could not be written ('' when it was)."""
         self.collect_only = False
         """--collect-only: nothing is connected, run or written."""
         self.error: str | None = None
@@ -436,11 +438,14 @@ class Certification:
         try:
             self.report_paths = write_all(report, self.settings.reports_dir, self.stem)
         except OSError as e:
-            if force:
-                raise
-            # The next write (at the latest the final one) tries again.
-            self.events.append(f"could not write the reports into "
-                               f"{self.settings.reports_dir}: {e}")
+            # The next write tries again; the final one says it, and the run keeps its own
+            # exit status (a folder removed or filled during the run is no traceback).
+            self.report_error = (f"could not write the reports into "
+                                 f"{self.settings.reports_dir}: {e.strerror or e}")
+            if not force:
+                self.events.append(self.report_error)
+        else:
+            self.report_error = ""
         return self.report_paths
 
     def finish(self, *, interrupted: bool, exitstatus: int) -> int:

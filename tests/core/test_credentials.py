@@ -238,3 +238,61 @@ def test_the_certification_never_prints_a_hostile_password(password, pytester, m
         out = result.stdout.str() + result.stderr.str()
         assert result.ret == pytest.ExitCode.USAGE_ERROR and "***" in out, out
         assert "SECRET" not in out
+
+
+@pytest.mark.parametrize("command", sorted(PRINTING))
+@pytest.mark.parametrize("value", ["ture", "enabled", "required", "y", "2"])
+def test_an_unknown_tls_setting_is_an_error_never_plaintext(command, value, tmp_path,
+                                                            monkeypatch, capsys):
+    """WARAPS_TLS_CONNECTION=ture once connected in plaintext and sent the password: now an
+    error naming the values accepted, before any connection."""
+    from conformance.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("WARAPS_BROKER", "127.0.0.1")
+    monkeypatch.setenv("WARAPS_TLS_CONNECTION", value)
+    monkeypatch.setenv("WARAPS_PASSWORD", SECRET)
+    try:
+        status = main(PRINTING[command])
+    except SystemExit as e:
+        status = e.code
+    out = capsys.readouterr()
+    assert status not in (0, None), out
+    assert f"WARAPS_TLS_CONNECTION='{value}'" in out.err and "true, yes, on" in out.err, out
+    assert SECRET not in out.out + out.err
+
+
+@pytest.mark.parametrize("command", sorted(PRINTING))
+@pytest.mark.parametrize("variable", ["WARAPS_USERNAME", "WARAPS_PASSWORD"])
+def test_credentials_that_are_not_utf8_are_an_error_never_shown(command, variable, tmp_path,
+                                                                monkeypatch, capsys):
+    from conformance.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("WARAPS_BROKER", "127.0.0.1")
+    monkeypatch.setenv("WARAPS_USERNAME", "user")
+    monkeypatch.setenv(variable, "SECRET\udcffSECRET")  # the byte 0xff in the environment
+    try:
+        status = main(PRINTING[command])
+    except SystemExit as e:
+        status = e.code
+    out = capsys.readouterr()
+    assert status not in (0, None), out
+    assert f"{variable} is not UTF-8 text (its value is not shown)" in out.err, out
+    assert "SECRET" not in out.out + out.err and "Traceback" not in out.err
+
+
+@pytest.mark.parametrize(("variable", "value", "says"), [
+    ("WARAPS_TLS_CONNECTION", "ture", "WARAPS_TLS_CONNECTION='ture' is neither on"),
+    ("WARAPS_PASSWORD", "SECRET\udcffSECRET", "WARAPS_PASSWORD is not UTF-8 text"),
+])
+def test_the_certification_refuses_the_environment_failing_open(variable, value, says,
+                                                                pytester, monkeypatch):
+    pytester.makeini("[pytest]\naddopts = -p no:cacheprovider\n")
+    monkeypatch.setenv("WARAPS_BROKER", "127.0.0.1")
+    monkeypatch.setenv("WARAPS_USERNAME", "user")
+    monkeypatch.setenv(variable, value)
+    result = pytester.runpytest_subprocess("--unit", "waraps/unit/air/simulation/dji0")
+    out = result.stdout.str() + result.stderr.str()
+    assert result.ret == pytest.ExitCode.USAGE_ERROR and says in out, out
+    assert "SECRET" not in out and "INTERNALERROR" not in out

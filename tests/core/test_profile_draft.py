@@ -199,3 +199,24 @@ def test_a_draft_says_an_undeclared_level_and_an_unknown_role(tmp_path: Path) ->
     # It offers no task: the draft says so and lists none (an empty 'tasks:' read as null).
     assert "# direct_execution_info offers no task (5.3)" in text and "\ntasks: []\n" in text
     assert yaml.safe_load(text)["tasks"] == []
+
+
+@pytest.mark.parametrize("payload", [
+    b'{"levels": ' + b"[" * 100_000 + b"]" * 100_000 + b', "rate": 1}',  # 200 KB, once a RecursionError
+    b'{"levels": ["sensor"], "rate": 1' + b"0" * 400 + b"}",  # once an OverflowError
+    b'{"levels": ["sensor"], "rate": 1e400}',
+    b'{"levels": ["sensor"], "name": "\\ud800", "rate": 1}',
+], ids=["nested-100000", "rate-1e400-digits", "rate-1e400", "lone-surrogate"])
+def test_a_hostile_heartbeat_is_read_within_the_bounds(payload: bytes,
+                                                       unit_address: UnitAddress) -> None:
+    """The drafter reads payloads as the validator does (size, nesting, finite numbers):
+    what it cannot read is not a declaration, never a traceback."""
+    from conformance.message import Message
+    from conformance.profile_draft import problems
+
+    seen = Observed(unit_address, 5.0)
+    for i in range(5):
+        seen.feed(Message(1_763_700_000.0 + i, f"{unit_address.base}/heartbeat", payload))
+    text = draft(seen)
+    problems(seen)
+    assert yaml.safe_load(text)["extends"]

@@ -27,7 +27,11 @@ LAUGHS = "a: &a [lol, lol, lol, lol, lol, lol, lol, lol, lol]\n" + "".join(
     (b"a:\n" + b"".join(b" " * i + b"- \n" for i in range(1, 200)), "nested deeper than 32"),
     (b"safe-radius: .inf\n", "safe-radius: inf is not a finite number; write a number"),
     (b"rate-tolerance: .nan\n", "rate-tolerance: nan is not a finite number"),
-    (b"safe-radius: 1" + b"0" * 400 + b"\n", "is beyond 1e+15; write a smaller number"),
+    (b"safe-radius: 1" + b"0" * 400 + b"\n", "line 1: a number written in 401 characters"),
+    (b"safe-radius: 12345678901234567\n", "is beyond 1e+15; write a smaller number"),
+    # Python's own 4300-digit limit, and a base-60 integer it cannot print: refused first.
+    (b"rate-tolerance: " + b"1" * 5000 + b"\n", "line 1: a number written in 5000 characters"),
+    (b"safe-radius: " + b":".join([b"1"] * 3000) + b"\n", "a number written in 5999 characters"),
     (b"tasks:\n  go-home: {params: {speed: -.inf}}\n", "tasks.go-home.params.speed: -inf"),
     (b"name: caf\xe9\n", "line 1: byte 0xe9 is not UTF-8; save the file as UTF-8"),
     (b"description: '" + b"x" * (1024 * 1024) + b"'\n", "over the 1048576-byte bound"),
@@ -74,3 +78,29 @@ def test_the_builtin_profiles_and_documented_examples_are_in_the_subset() -> Non
         profile.load(name)
     for example in sorted(Path(__file__).parents[2].joinpath("docs", "profiles").glob("*.yaml")):
         profile.load(example)
+
+
+@pytest.mark.parametrize("value", [b"1" * 5000, b":".join([b"1"] * 3000)],
+                         ids=["5000-digits", "base-60-3000-parts"])
+@pytest.mark.parametrize("command", ["pytest", "validate", "lint"])
+def test_a_profile_number_past_the_bound_is_one_line_everywhere(tmp_path: Path, value: bytes,
+                                                                command: str) -> None:
+    """Once an INTERNALERROR in pytest, a traceback in validate and Python's own words
+    ('Exceeds the limit (4300 digits)') in lint: now the loader's one line, usage's status."""
+    path = tmp_path / "big.yaml"
+    path.write_bytes(b"extends: default\nsafe-radius: " + value + b"\n")
+    recording = tmp_path / "r.jsonl"
+    recording.write_text('{"ts": 1763700000.0, "topic": "waraps/unit/air/simulation/u0/'
+                         'heartbeat", "payload": "{}"}\n')
+    argv = {"pytest": ["-m", "pytest", "-p", "no:cacheprovider", "--unit",
+                       "waraps/unit/air/simulation/dji0", "--broker", "virtual"],
+            "validate": ["-m", "conformance.cli", "validate", "waraps/unit/air/simulation/u0/"
+                         "heartbeat", str(recording)],
+            "lint": ["-m", "conformance.cli", "lint", "--from", str(recording),
+                     "--format", "none"]}[command]
+    done = subprocess.run([sys.executable, *argv, "--profile", str(path)], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=120)
+    out = done.stdout + done.stderr
+    assert done.returncode in (2, 4), out  # usage (pytest's is 4)
+    assert "a number written in" in out, out
+    assert "Traceback" not in out and "INTERNALERROR" not in out and "4300" not in out

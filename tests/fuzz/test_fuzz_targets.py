@@ -29,7 +29,9 @@ SURFACES = {
     "ROS bags": ("rosbag_ros1", "rosbag_sqlite3", "rosbag_mcap", "rosbag_metadata"),
     "profiles": ("profile_loader",), "explore replays": ("explore_replay",),
     "validate": ("validate_input",), "option parsers": ("option_parsers",),
-    "the message path": ("message_path",),
+    "the message path": ("message_path",), "the profile drafter's feed": ("profile_draft",),
+    "the environment": ("environment",), "the serve address and metrics labels":
+    ("serve_address",), "bag decompression": ("bag_inflate",),
 }
 """Issue 26 §1's surfaces, each with its targets."""
 KNOWN_OPEN: dict[str, str] = {}

@@ -79,7 +79,8 @@ def test_serve_takes_a_port_for_loopback_or_an_explicit_host():
     assert parse_address("[::1]:0").loopback
     assert not parse_address("0.0.0.0:8080").loopback
     assert parse_address("192.0.2.7:9").host == "192.0.2.7"
-    for bad in ("", "http", "8080x", "host:", "1:99999"):
+    for bad in ("", "http", "8080x", "host:", "1:99999", "\u00b2", "127.0.0.1:\u0661\u0662",
+                "9" * 5000):  # digits to str.isdigit, no number to int()
         with pytest.raises(ServeError, match="--serve"):
             parse_address(bad)
 
@@ -106,11 +107,90 @@ def test_metrics_cap_the_series_of_invented_unit_names(monkeypatch):
     assert len(families["waraps_lint_unit_failing"].samples) == 11
 
 
+def test_metrics_give_each_unit_its_own_series():
+    """Names that differ only past 200 characters, or as an ESC and its escape written out,
+    once shared one label value (duplicate series)."""
+    from prometheus_client.parser import text_string_to_metric_families
+
+    from conformance.lint import metrics
+    from conformance.lint.fleetview import Row, Snapshot
+
+    base = "p/unit/air/simulation/"
+    names = [base + "u" * 300 + "a", base + "u" * 300 + "b", base + "v\x1b",
+             base + "v\\x1b", base + "w"]
+    rows = tuple(Row(name, "unit", messages=5, by_kind=(("heartbeat", 5),)) for name in names)
+    snap = Snapshot(1, 0.0, None, "", True, False, 25, 0, 0, True, rows)
+    families = {f.name: f for f in text_string_to_metric_families(
+        metrics.exposition(lambda: snap).decode())}
+    units = [s.labels["unit"] for s in families["waraps_lint_unit_failing"].samples]
+    assert len(units) == len(set(units)) == len(names), units
+    assert base + "w" in units and base + "v\\x1b" in units  # unaltered names as they are
+    assert all(len(u) < 250 and "\x1b" not in u for u in units)
+
+
 def test_only_a_host_named_on_purpose_is_warned_about():
     assert warnings(parse_address("8080")) == []
     assert warnings(parse_address("localhost:8080")) == []
     (line,) = warnings(parse_address("0.0.0.0:8080"))
     assert "anyone who can reach" in line and "--serve PORT" in line
+
+
+@pytest.mark.parametrize("host", ["127.1", "LOCALHOST", "0x7f000001", "127.0.0.1"])
+def test_the_host_guard_follows_the_bound_address_not_its_spelling(host):
+    """'127.1', 'LOCALHOST' and '0x7f000001' bind 127.0.0.1: the DNS-rebinding guard stays
+    on (a foreign Host gets 421) and no page warns that anyone can read it."""
+    server = Server(FleetView("nothing yet", live=True), parse_address(f"{host}:0")).start()
+    try:
+        assert server.loopback and server.app.header == ()
+        url = f"http://127.0.0.1:{server.port}/"
+        rebound = urllib.request.Request(url, headers={"Host": f"evil.example:{server.port}"})
+        with pytest.raises(urllib.error.HTTPError) as refused:
+            urllib.request.urlopen(rebound, timeout=10)
+        assert refused.value.code == 421
+        assert get(url)[0] == 200
+    finally:
+        server.stop()
+
+
+@pytest.mark.slow
+def test_slow_clients_cannot_starve_a_scrape():
+    """Slowloris: 40 connections, each trickling a header line (every 2 s here, faster than
+    the 10 s that once starved /metrics for as long as they lasted: each line renewed
+    waitress's idle timeout, and 32 connections filled it). A scrape is answered while they
+    trickle, and each of them is closed within the header deadline, however often it sends."""
+    from conformance.lint.serve import HEADER_SECONDS
+
+    server = Server(FleetView("nothing yet", live=True), parse_address("0")).start()
+    slow: list[socket.socket] = []
+    try:
+        for _ in range(40):
+            conn = socket.create_connection(("127.0.0.1", server.port), timeout=10)
+            conn.sendall(b"GET /metrics HTTP/1.1\r\nHost: 127.0.0.1\r\n")
+            slow.append(conn)
+        opened = time.monotonic()
+        assert get(f"{server.url}metrics")[0] == 200  # within urlopen's 10 s
+        closed: set[int] = set()
+        deadline = opened + HEADER_SECONDS + 6  # the deadline, checked every second
+        while len(closed) < len(slow) and time.monotonic() < deadline:
+            for i, conn in enumerate(slow):
+                if i in closed:
+                    continue
+                try:
+                    conn.sendall(b"X-Trickle: 1\r\n")
+                    conn.settimeout(0.05)
+                    if conn.recv(1) == b"":
+                        closed.add(i)
+                except TimeoutError:
+                    pass
+                except OSError:  # reset by the server: closed
+                    closed.add(i)
+            time.sleep(0.5)
+        assert len(closed) == len(slow), f"{len(slow) - len(closed)} trickling connections open"
+        assert get(f"{server.url}metrics")[0] == 200
+    finally:
+        for conn in slow:
+            conn.close()
+        server.stop()
 
 
 def test_the_server_answers_gets_only_within_its_bounds_and_stops():

@@ -159,7 +159,12 @@ def test_replay_of_a_file_that_is_no_story(pytester: pytest.Pytester) -> None:
             ("start-without-task", [{"do": "start", "slot": 0}],
              "step 1 (start): 'task' is missing (a name)"),
             ("periods-float", [{"do": "wait", "periods": 1.5}],
-             "step 1 (wait): 'periods' is 1.5, not a whole number from 0")):
+             "step 1 (wait): 'periods' is 1.5, not a whole number from 0"),
+            # A lone surrogate is no name a command can carry (once a TypeError, exit 1).
+            ("lone-surrogate", [start, {"do": "signal", "signal": "\ud800", "slot": 0}],
+             "not a readable story (no low surrogate in string"),
+            ("steps-60000", [{"do": "ping"}] * 60_000,
+             "60000 steps; a story holds at most 200, the steps an example keeps")):
         bad = pytester.path / f"{name}.json"
         bad.write_text(json.dumps({"format": "something else", "steps": []} if steps is None
                                   else {"format": "waraps-conformance explore story 1",

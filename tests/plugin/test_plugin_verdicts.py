@@ -69,6 +69,21 @@ def test_a_unit_that_dies_on_a_command_is_not_certified(pytester: pytest.Pyteste
         ("not claimed", "commander-side")) for v in tst.values()), tst
 
 
+def test_a_unit_whose_messages_could_not_be_examined_is_not_certified(
+        pytester: pytest.Pytester) -> None:
+    """Camera frames over the 1 MiB a message is examined up to (MSG-004, decided: a warn):
+    what they held is no evidence, so the run is never a pass, a warn or a could-not-test
+    with exit 0."""
+    run = certify(pytester, "--unit", UNIT, "--broker", "virtual", "--sim-rate", "3",
+                  "--sim-fault=camera-data-url", "--explore", "0", "--junitxml=junit.xml")
+    assert run.result.ret == NOT_CERTIFIED_EXIT, run.text
+    assert run.report is not None and run.report["verdict"] == "not certified"
+    assert_no_level_certified(run, pytester.path / "junit.xml")
+    (unit,) = run.report["conclusion"]["units"].values()
+    assert all("could not be examined whole (MSG-004)" in level["why"]
+               for level in unit["levels"])
+
+
 def test_a_run_of_selected_rules_is_partial(pytester: pytest.Pytester) -> None:
     """-k HB-003 on a unit that never answers ping: the selected rule passes, the run does
     not (partial, no level certified), and its repeat line keeps the selection."""
@@ -193,3 +208,43 @@ def test_tasks_started_before_the_broker_was_lost_are_aborted_when_it_returns(
                if a.get("command") == "signal-task" and a.get("signal") == "$abort"}
     assert lose.open_tasks <= aborted, (lose.open_tasks, aborts)
     assert not [r for r, v in run.unit_rules().items() if v["verdict"] == "fail"]
+
+
+def test_a_reports_folder_that_takes_no_file_is_a_usage_error(pytester: pytest.Pytester) -> None:
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--unit", UNIT,
+                                           "--broker", "virtual", "--reports-dir", "/proc")
+    out = result.stdout.str() + result.stderr.str()
+    assert result.ret == pytest.ExitCode.USAGE_ERROR, out
+    assert "--reports-dir '/proc': cannot write a report into it" in out
+    assert "Traceback" not in out and "INTERNALERROR" not in out
+
+
+def test_an_absent_unit_whose_reports_cannot_be_written_ends_not_certified(
+        pytester: pytest.Pytester, mosquitto: str) -> None:
+    """The folder replaced by a file while the suite waits for a heartbeat that never comes:
+    once a bare traceback and exit 1; now said, and the run's own status (6)."""
+    import subprocess
+    import sys
+
+    reports = pytester.path / "reports"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "--unit",
+         "waraps/unit/air/real/absent9", "--broker", mosquitto, "--reports-dir", str(reports)],
+        cwd=pytester.path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert proc.stdout is not None
+        lines = []
+        for line in proc.stdout:  # the header is printed before the heartbeat is awaited
+            lines.append(line)
+            if "collected" in line or "waiting up to" in line:
+                break
+        reports.rmdir()
+        reports.write_text("a file where the reports go\n")
+        rest, _ = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    out = "".join(lines) + rest
+    assert proc.returncode == NOT_CERTIFIED_EXIT, out
+    assert f"could not write the reports into {reports}" in out
+    assert "Traceback" not in out

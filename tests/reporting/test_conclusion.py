@@ -119,3 +119,34 @@ def test_triage_ranks_death_deafness_commands_messages_then_warnings() -> None:
                     key=lambda r: triage_rank(r, Verdict.FAIL))
     assert ranked == ["HB-012", "EXEC-ROBUST-001", "EXEC-PING-001", "HB-003"]
     assert TRIAGE[triage_rank("HB-012", Verdict.WARN)] == "warnings"
+
+
+def _not_examined(run: RunReport, count: int = 3) -> RunReport:
+    """``run`` whose unit sent ``count`` messages past MSG-004's bounds (decided: a warn)."""
+    unit = run.units[UNIT]
+    unit.rules["MSG-004"] = RuleResult("MSG-004", Verdict.WARN, "",
+                                       [Violation("MSG-004", "x", "y", time=1_700_000_010.0)])
+    unit.violation_counts["MSG-004"] = count
+    return run
+
+
+def test_a_certification_whose_evidence_could_not_be_examined_is_not_certified() -> None:
+    found = conclude(_not_examined(report()))
+    assert found.verdict == "not certified" and found.exit_code == EXIT_NOT_CERTIFIED
+    assert found.certified_levels(UNIT) == []
+    assert "3 message(s) could not be examined whole (MSG-004)" in found.units[UNIT].summary
+    assert any("could not be examined whole" in why for why in found.why)
+    # A failure stays the verdict it is.
+    assert conclude(_not_examined(report(HB_003=Verdict.FAIL))).exit_code == EXIT_FAILED
+
+
+def test_lint_of_evidence_that_could_not_be_examined_is_partial_never_clean() -> None:
+    found = conclude(_not_examined(report("lint")))
+    assert found.verdict == "partial" and found.exit_code == 4 and found.partial
+    assert found.units[UNIT].verdict == "could-not-test"
+    found = conclude(report("lint", MSG_005=Verdict.WARN))
+    assert found.verdict == "warn" and found.exit_code == 0
+    run = report("lint")
+    run.facts = RunFacts(kind="lint", not_examined="2 line(s) of the recording could not be read")
+    found = conclude(run)
+    assert found.verdict == "partial" and found.exit_code == 4

@@ -175,11 +175,14 @@ def _build(store: Typestore, msgtype: str, fields: dict[str, Any]) -> Any:
 
 
 def write_bag(path: Path, entries: Iterable[Entry], *, ros2: bool = False,
-              storage: str = "sqlite3", undefined: Iterable[str] = ()) -> Path:
+              storage: str = "sqlite3", undefined: Iterable[str] = (),
+              compression: str = "") -> Path:
     """A ROS 1 bag (``path`` ends in .bag) or a ROS 2 bag directory holding ``entries``.
 
     ``undefined``: types written without their definition (as older ROS 2 recorders do, or a
     ROS 1 recorder that lost them), so the reader must know them from elsewhere.
+    ``compression``: ROS 1 ``bz2`` or ``lz4`` chunks; ROS 2 ``storage`` (MCAP's zstd chunks),
+    ``message`` (each message zstd-compressed) or ``file`` (the store compressed whole).
     """
     store = typestore(ros2)
     undefined = set(undefined)
@@ -189,6 +192,12 @@ def write_bag(path: Path, entries: Iterable[Entry], *, ros2: bool = False,
         writer: Any = Writer2(path, version=9, storage_plugin=plugin)
     else:
         writer = Writer1(path)
+    if compression and ros2:
+        from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
+
+        writer.set_compression(CompressionMode[compression.upper()], CompressionFormat.ZSTD)
+    elif compression:
+        writer.set_compression(Writer1.CompressionFormat[compression.upper()])
     conns: dict[tuple[str, str], Any] = {}
     with writer:
         for e in entries:

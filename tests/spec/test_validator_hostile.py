@@ -154,3 +154,60 @@ def test_cli_shows_what_the_message_holds_escaped(
     out = capsys.readouterr().out
     assert "dji0\\u202e/heartbeat" in out and "observed  string" in out
     assert not any(c in out for c in "\x1b\x07\u202e\u200b"), out
+
+
+def test_a_field_past_the_nesting_bound_leaves_the_top_level_fields_judged(
+        tmp_path, capsys: pytest.CaptureFixture[str]) -> None:  # type: ignore[no-untyped-def]
+    """One field nested 65 levels once hid the whole heartbeat (rate, stamp) from every rule:
+    now the other top-level fields are read, the schema is not examined on a part, and the
+    message is could-not-test (validate: exit 1), never a pass or a warn."""
+    from conformance.cli.validate import main
+    from conformance.validator import Validator
+
+    payload = json.loads(_heartbeat(1_763_700_000.0))
+    payload["extra"] = json.loads("[" * 65 + "]" * 65)
+    raw = json.dumps(payload).encode()
+    topic = "waraps/unit/air/simulation/dji0/heartbeat"
+    v = validate(topic, raw, 1_763_700_000.0)
+    assert v.kind == "heartbeat" and v.message["rate"] == 1.0 and "extra" not in v.message
+    assert [x.rule for x in v.violations] == ["MSG-004"]
+    assert "deeper in 1 top-level field(s); judged on the other 7" in v.violations[0].observed
+    examined = set(Validator().examined(v))
+    assert "MSG-004" in examined and "HB-001" not in examined
+    path = tmp_path / "deep.json"
+    path.write_bytes(raw)
+    assert main([topic, str(path)]) == 1
+    assert "verdict   could-not-test" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("payload", "named"), [
+    (b'{"name": "dji0", "rate": 1.0, "rate": 0.5}', '"rate"'),
+    (b'{"name" : "a", "name" : "b"}', '"name"'),
+    (b'{"a": {"x": 1, "x": 2}, "b": [{"y": 1, "y": 1}]}', '"x", "y"'),
+])
+def test_a_member_named_twice_is_named(payload: bytes, named: str) -> None:
+    """A parser differential (one reader takes the last value, another the first): named, a
+    decided condition of MSG-002 that warns by default."""
+    from conformance.explanation import verdict_of
+    from conformance.profile import Profile
+    from conformance.validator import NAMES_CHECKED, Validator
+
+    validator = Validator()  # names are counted on a topic's first messages, then sampled
+    v = validator.validate("waraps/unit/air/simulation/dji0/heartbeat", payload, 1.0)
+    (twice,) = [x for x in v.violations if x.condition == "duplicate-names"]
+    assert twice.rule == "MSG-002" and twice.observed == f"named twice: {named}"
+    assert verdict_of("MSG-002", Profile(), "duplicate-names").value == "warn"
+    # Past the first messages of a topic, every 16th is counted: a serializer's habit is seen.
+    seen = sum(any(x.condition == "duplicate-names" for x in validator.validate(
+        "waraps/unit/air/simulation/dji0/heartbeat", payload, 1.0).violations)
+        for _ in range(NAMES_CHECKED + 63))
+    assert seen == NAMES_CHECKED - 1 + 4
+
+
+@pytest.mark.parametrize("payload", [b'{"a": "\\":", "b": 1}', b'{"a": "x\\" :", "b": {"c": 1}}',
+                                     b'{"a": 1, "b": 2}', b'[{"a": 1}, {"a": 1}]'])
+def test_names_in_strings_or_in_other_objects_are_not_twice(payload: bytes) -> None:
+    from conformance.validator import Validator
+
+    v = Validator().validate("waraps/unit/air/simulation/dji0/heartbeat", payload, 1.0)
+    assert not [x for x in v.violations if x.condition == "duplicate-names"]
