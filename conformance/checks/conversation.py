@@ -238,6 +238,14 @@ def conversations(unit: UnitState, ctx: CheckContext | None = None) -> Conversat
     return c
 
 
+def answered(unit: UnitState, com_uuid: str) -> bool:
+    """Whether the command ``com_uuid`` got an answer (late ones too): a scenario that gave up
+    waiting just before it came found no answer, but the Monitor judged it late."""
+    c = unit.stash.get(CONVERSATIONS)
+    cmd = c.commands.get(com_uuid) if c is not None else None
+    return cmd is not None and cmd.answers > 0
+
+
 def _model(ctx: CheckContext | None) -> protocol.Model:
     if ctx is None:
         return protocol.Model(tasks_kept=TASKS_KEPT)

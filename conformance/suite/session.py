@@ -23,6 +23,7 @@ import pytest
 
 from conformance import __version__
 from conformance.checks import Monitor
+from conformance.checks.conversation import answered
 from conformance.checks.exec_sequence import state_held
 from conformance.client import MqttClient
 from conformance.clock import REAL, VirtualClock
@@ -224,6 +225,9 @@ class Certification:
             else:
                 excused = self.unit_died(settle=True)
         with self._lock:
+            if violation is not None and violation.command and answered(
+                    self.monitor.state(self.unit), violation.command):
+                return  # answered meanwhile: late (the Monitor's own finding), not unanswered
             self.monitor.record(self.unit, rule, violation=violation, seen=seen,
                                 reason=reason, excused=excused)
 
