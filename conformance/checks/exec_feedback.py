@@ -36,7 +36,7 @@ a resend is then no sign that it started the task again (EXEC-RESEND-001)."""
 
 
 @check("EXEC-FB-004", "EXEC-START-003", "EXEC-SIG-002", "EXEC-SIG-003", "EXEC-SIG-004",
-       "EXEC-RESEND-001", on=(TopicKind.EXEC_FEEDBACK,),
+       "EXEC-RESEND-001", "EXEC-RESEND-003", on=(TopicKind.EXEC_FEEDBACK,),
        reads=(CONVERSATIONS, FEEDBACK_WITHOUT_TASK_UUID, REPEATS_STATUS))
 def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
                           v: Validation) -> Iterator[Violation]:
@@ -61,6 +61,9 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
     task = c.followed(task_uuid) or c.task(task_uuid, t)
     if str_of(m, "task-uuid") != task_uuid:
         c.model.hear(task, status, t)  # by another key: the model did not (exec_sequence)
+    if task.said_failed and status != "failed" and not _runs_again(task, status) and (
+            task.final is None or task.final[0] == "failed"):
+        yield from _failed_but_runs_on(c, task, msg, status)
     if task.final is not None:
         yield from _after_final(c, task, task_uuid, msg, m, status)
         return
@@ -76,10 +79,38 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
                                 "from memory, not executed again")
         task.running_feedback += 1
     yield from _judge_signalled(unit, c, task_uuid, msg, status)
+    if status == "failed":  # the finding if the task runs on after it (EXEC-FB-004's note)
+        rule = "EXEC-RESEND-003" if task.resent is not None else "EXEC-FB-004"
+        unit.examine(rule)
+        task.said_failed = (*task.said_failed, (rule, msg))[-2:]
     if status in FINAL_STATUSES:
         c.ended(task, (status, str_of(m, "com-uuid"), t))
         if task.command is not None:
             unit.examine("EXEC-START-003")
+
+
+def _runs_again(task: TaskRecord, status: str) -> bool:
+    """The task, ended, runs again after its start-task was resent (EXEC-RESEND-001)."""
+    return (task.final is not None and task.resent is not None
+            and task.resent > task.final[2] and status not in FINAL_STATUSES)
+
+
+def _failed_but_runs_on(c: Conversations, task: TaskRecord, msg: Message,
+                        status: str) -> Iterator[Violation]:
+    """A task said 'failed' (by its feedback, or by the answer to its resent start-task) and
+    runs on: the 'failed' was false, and is the finding, once (EXEC-RESEND-003, EXEC-FB-004's
+    decision), not the later, true status. The task is followed on to its true end."""
+    for rule, failed in task.said_failed:
+        yield violation(rule, failed, expected=f"'failed' only for a task that failed: task "
+                        f"{task.task_uuid} did not", observed=f"'failed', then '{status}' "
+                        f"{msg.time - failed.time:.2f} s later: the task ran on", path=(
+                            "$.status" if failed.topic == msg.topic else "$.response"),
+                        detail="12.1: answer a resend as the first time (from memory); "
+                        "say 'failed' only when the task has ended so")
+    task.said_failed = ()
+    if task.final is not None:
+        task.final = None
+        c.started(task)
 
 
 def _after_final(c: Conversations, task: TaskRecord, task_uuid: str, msg: Message, m: object,

@@ -66,7 +66,7 @@ EVIDENCE: dict[str, tuple[str, ...]] = {
     "EXEC-FB-004": ("start",), "ERR-006": ("query",), "ERR-013": ("signal",),
     "ERR-014": ("start",), "EXEC-009": ("ping", "start"), "EXEC-010": ("ping",),
     "HB-012": ("start",), "TST-002": ("tst",), "TST-003": ("tst",), "ERR-015": ("tst",),
-    "EXEC-SEQ-001": ("signal",), "EXEC-SEQ-002": ("signal",),
+    "EXEC-SEQ-001": ("signal",), "EXEC-SEQ-002": ("signal",), "EXEC-RESEND-003": ("resend",),
 }
 
 

@@ -235,11 +235,11 @@ _ALL = (
        "Executes a command resent with the same com-uuid again."),
     _f("resend-unanswered", "EXEC-RESEND-002",
        "Drops a resent command silently (no second answer)."),
-    _f("resend-answered-failed", "EXEC-FB-004",
+    _f("resend-answered-failed", "EXEC-RESEND-003",
        "Takes a resent start-task for a new one: answers it 'failed' (task-uuid in use) and "
        "sends a 'failed' feedback for the task, which runs on (seen in the field): refused, "
-       "not executed twice (EXEC-RESEND-001 holds); the task's feedback after its 'failed' "
-       "is EXEC-FB-004's (decided: it warns)."),
+       "not executed twice (EXEC-RESEND-001 holds); both 'failed' contradict the first "
+       "answer while the task runs (EXEC-RESEND-003, decided: it warns)."),
     # --- 12.4 feedback ------------------------------------------------------------------------
     _f("feedback-no-com-uuid", "EXEC-FB-001",
        "Leaves com-uuid out of feedback messages."),

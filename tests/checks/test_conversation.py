@@ -13,6 +13,8 @@ from conformance.violation import Verdict
 # Strict: these tests show each check finding what it finds; a decided rule (rules.toml basis)
 # then fails as it did before the catalogue said what each rule stands on. That a decided rule
 # only warns by default is the judge's, tested in tests/core/test_judge.py.
+T0 = 1_700_000_000.0
+"""When the ``stream`` fixture's time 0 is (tests/checks/conftest.py)."""
 TIMEOUTS = Profile(response_timeout=1.0, feedback_timeout=3.0, strict=True)
 
 
@@ -234,23 +236,48 @@ def test_a_unit_that_repeats_running_is_not_accused_of_a_second_start_by_it(stre
 def test_a_resend_refused_with_failed_feedback_is_not_executed_twice(stream):
     """Seen in the field (the official Python L2 agent): the resend is answered 'failed' ('A
     task is already running') with a 'failed' feedback for the task, which runs on. Nothing
-    ran twice (12.1): EXEC-RESEND-001 holds; the task's feedback after its 'failed' is
-    EXEC-FB-004's (a decided rule: strict here), never 'executed again'."""
+    ran twice (12.1): EXEC-RESEND-001 holds. Both 'failed' messages contradict the first
+    answer while the task runs on: EXEC-RESEND-003 (decided) names them, once each, and not
+    the task's later, true 'finished' (no EXEC-FB-004)."""
     task = new()
-    rules = judge(stream, _resent(stream, task, second=lambda c: [stream.response(
-        3.2, c, "failed", **{"task-uuid": task, "fail-reason": "A task is already running"})],
-        feedback=[stream.feedback(3.3, task, "failed")]))
-    assert rules["EXEC-RESEND-001"].verdict is Verdict.PASS
-    assert rules["EXEC-RESEND-002"].verdict is Verdict.PASS
-    fb = rules["EXEC-FB-004"]
-    assert fb.verdict is Verdict.FAIL and len(fb.violations) == 1
-    assert "final status 'failed'" in fb.violations[0].expected
-    assert "executed again" not in fb.violations[0].observed
-    lenient = judge(stream, _resent(stream, task, second=lambda c: [stream.response(
-        3.2, c, "failed", **{"task-uuid": task, "fail-reason": "A task is already running"})],
-        feedback=[stream.feedback(3.3, task, "failed")]), profile=Profile(
+    refused = lambda c: [stream.response(3.2, c, "failed", **{  # noqa: E731
+        "task-uuid": task, "fail-reason": "A task is already running"})]
+    rules = judge(stream, _resent(stream, task, second=refused,
+                                  feedback=[stream.feedback(3.3, task, "failed")]))
+    assert verdicts(rules, "EXEC-RESEND-001", "EXEC-RESEND-002", "EXEC-FB-004") == {
+        "EXEC-RESEND-001": "pass", "EXEC-RESEND-002": "pass", "EXEC-FB-004": "pass"}
+    r = rules["EXEC-RESEND-003"]
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 2, r  # strict here
+    answer, feedback = r.violations
+    assert answer.topic.endswith("exec/response") and answer.time == T0 + 3.2
+    assert feedback.topic.endswith("exec/feedback") and feedback.time == T0 + 3.3
+    assert "then 'finished'" in answer.observed and "ran on" in answer.observed
+    lenient = judge(stream, _resent(stream, task, second=refused, feedback=[
+        stream.feedback(3.3, task, "failed")]), profile=Profile(
         response_timeout=1.0, feedback_timeout=3.0))
-    assert lenient["EXEC-FB-004"].verdict is Verdict.WARN  # decided: an interop risk
+    assert lenient["EXEC-RESEND-003"].verdict is Verdict.WARN  # decided: an interop risk
+
+
+def test_a_task_that_said_failed_and_runs_on_is_blamed_on_its_failed(stream):
+    """EXEC-FB-004's note: a 'failed' feedback (here for a refused signal naming the task)
+    after which the task says 'running' and 'finished' was the false one: the finding is the
+    'failed', once, and the true end is no feedback after a final status."""
+    task = new()
+    cmd = start(stream, 2.1, task)
+    rules = judge(stream, [cmd, stream.response(2.2, com_of(cmd), "running", **{
+        "task-uuid": task}), stream.feedback(2.3, task, "running"),
+        stream.feedback(3.3, task, "failed"), stream.feedback(4.3, task, "running"),
+        stream.feedback(6.3, task, "finished"), stream.feedback(7.3, task, "running")])
+    r = rules["EXEC-FB-004"]
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 2, r  # strict here
+    false, after_end = r.violations
+    assert false.time == T0 + 3.3 and "then 'running'" in false.observed
+    assert after_end.time == T0 + 7.3 and "final status 'finished'" in after_end.expected
+    assert rules["EXEC-RESEND-003"].verdict is Verdict.SKIP  # nothing was resent
+    ended = judge(stream, [cmd, stream.response(2.2, com_of(cmd), "running", **{
+        "task-uuid": task}), stream.feedback(2.3, task, "running"),
+        stream.feedback(3.3, task, "failed")])
+    assert ended["EXEC-FB-004"].verdict is Verdict.PASS  # a 'failed' that stays is true
 
 
 def test_failed_feedback_after_a_resend_that_ran_the_ended_task_again(stream):
@@ -654,13 +681,20 @@ def test_a_query_status_answer_failed_reports_a_status_it_refuses_nothing(stream
 
 def test_a_resend_refused_is_not_executed_again(stream):
     """Seen in the field: a resent start-task answered 'failed' ('A task is already
-    running') and nothing else: refusing is not executing (EXEC-RESEND-001 holds)."""
+    running') and nothing else: refusing is not executing (EXEC-RESEND-001 holds); the task
+    then finishes, so the 'failed' contradicted the first answer (EXEC-RESEND-003, decided).
+    Answered again as the first time, it is clean."""
     task = new()
     rules = judge(stream, _resent(stream, task, second=lambda c: [stream.response(
         3.2, c, "failed", **{"task-uuid": task, "fail-reason": "A task is already running"})],
         feedback=[]))
     assert rules["EXEC-RESEND-001"].verdict is Verdict.PASS
     assert rules["EXEC-RESEND-002"].verdict is Verdict.PASS
+    r = rules["EXEC-RESEND-003"]
+    assert r.verdict is Verdict.FAIL and [v.time for v in r.violations] == [T0 + 3.2]  # strict
+    again = judge(stream, _resent(stream, task, second=lambda c: [stream.response(
+        3.2, c, "running", **{"task-uuid": task})], feedback=[]))
+    assert again["EXEC-RESEND-003"].verdict is Verdict.PASS
 
 
 def test_a_death_names_every_command_of_the_burst_the_last_first(stream):
