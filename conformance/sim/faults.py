@@ -204,6 +204,10 @@ _ALL = (
        "Its MQTT thread dies on a start-task without task-uuid (a KeyError): from then on it "
        "publishes and answers nothing, while the process lives on (seen in the field).",
        stimulus=True),
+    _f("dies-on-invalid-params", "HB-012",
+       "Its MQTT thread dies on a start-task whose parameters it cannot read ('waypoints: 42': "
+       "a TypeError), as the public L2 agents did in some runs: from then on it publishes "
+       "and answers nothing, while the process lives on.", stimulus=True),
     _f("no-final-feedback", "EXEC-START-003",
        "Sends no feedback when a task ends on its own (only on signals)."),
     _f("accept-invalid-params", "EXEC-START-004",

@@ -193,3 +193,23 @@ def test_tasks_started_before_the_broker_was_lost_are_aborted_when_it_returns(
                if a.get("command") == "signal-task" and a.get("signal") == "$abort"}
     assert lose.open_tasks <= aborted, (lose.open_tasks, aborts)
     assert not [r for r, v in run.unit_rules().items() if v["verdict"] == "fail"]
+
+
+def test_a_unit_killed_by_a_probe_is_judged_on_the_scenarios_before_it_and_restarted(
+        pytester: pytest.Pytester) -> None:
+    """The public L2 agents died on the start-task with invalid parameters (EXEC-START-004's
+    probe) in some runs: that probe runs after the scenarios whose evidence a death would
+    destroy (signal, query, resend), so they are judged; where the run can reboot the unit
+    it is restarted and the run carries on, saying so, and the death stays HB-012's."""
+    run = certify(pytester, "--unit", UNIT, "--broker", "virtual", "--sim-rate", "3",
+                  "--sim-fault=dies-on-invalid-params", f"--profile={FAST}")
+    rules = run.unit_rules()
+    assert rules["HB-012"]["verdict"] == "fail", rules["HB-012"]
+    judged = ("EXEC-SIG-001", "EXEC-SIG-002", "EXEC-QUERY-001", "EXEC-RESEND-001",
+              "EXEC-RESEND-002", "EXEC-ROBUST-001", "EXEC-ROBUST-002")
+    assert {r: rules[r]["verdict"] for r in judged} == dict.fromkeys(judged, "pass"), \
+        {r: rules[r] for r in judged}
+    assert rules["EXEC-START-004"]["verdict"] == "could-not-test"  # it died on it
+    assert "restarting it with the bundled reference unit's reboot and carrying on" in \
+        run.text, run.text
+    assert "the unit is back after its restart" in run.text

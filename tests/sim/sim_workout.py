@@ -190,6 +190,9 @@ def workout(u: UnitView, reboot: Callable[[], None], malformed: set[str] | None 
 
     # invalid parameters and a task not offered: refused, with a reason
     r = u.request(start_body("move-to", {"waypoint": "home", "speed": 7}, str(uuid.uuid4())))
+    if r is None and u.heartbeat_uuid(u.obs.mark()) is None:
+        ok["(died)"] = False  # the unit died on it: HB-012, for the Monitor to judge
+        return ok
     judge("EXEC-START-004", r is not None and r.get("response") == "failed"
           and bool(r.get("fail-reason")))
     r = u.request(start_body("fly-to-the-moon", {}, str(uuid.uuid4())))
