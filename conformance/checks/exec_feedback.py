@@ -15,6 +15,7 @@ from conformance.checks.command_history import response_timeout, str_of, violati
 from conformance.checks.conversation import (
     CONVERSATIONS,
     FEEDBACK_WITHOUT_TASK_UUID,
+    LISTED_KEPT,
     Conversations,
     conversations,
     said,
@@ -228,9 +229,10 @@ def ended_tasks_leave_tasks_executing(ctx: CheckContext, unit: UnitState, msg: M
         return None
     period = unit.period(TopicKind.DIRECT_EXECUTION_INFO) or 0.0
     grace = max(LISTED_GRACE_PERIODS * period, response_timeout(ctx))
-    found = None
-    for entry in executing[:64]:
-        task = c.followed(task_uuid_sent(entry)) if isinstance(entry, dict) else None
+    listed = [task_uuid_sent(e) if isinstance(e, dict) else None for e in executing[:64]]
+    found = list(_listed_wrongly(unit, c, msg, listed, grace))
+    for uuid in listed:
+        task = c.followed(uuid)
         if task is None or task.final is None or task.life != c.life:
             continue
         status, _, when = task.final
@@ -244,6 +246,38 @@ def ended_tasks_leave_tasks_executing(ctx: CheckContext, unit: UnitState, msg: M
                                path="$.tasks-executing", detail="5.3: list only the tasks "
                                "currently executing; remove a task when it ends"))
     return found
+
+
+def _listed_wrongly(unit: UnitState, c: Conversations, msg: Message, listed: list[str | None],
+                    grace: float) -> Iterator[Violation]:
+    """5.3 'List of tasks currently executing.': one task listed twice (after a resend of
+    its start-task, EXEC-RESEND-001's), or a task whose start-task was refused ('failed':
+    it never ran) listed from after the refusal on, past the grace. Once per task."""
+    first = c.first_listed
+    for uuid in dict.fromkeys(u for u in listed if u):
+        if uuid not in first:
+            first[uuid] = msg.time
+            while len(first) > LISTED_KEPT:
+                first.popitem(last=False)
+        if first[uuid] < 0:
+            continue  # named already
+        task = c.followed(uuid)
+        refused = c.model.tasks.get(uuid) if task is None else None
+        if listed.count(uuid) > 1 and (task is None or task.resent is None):
+            observed = f"listed {listed.count(uuid)} times"
+        elif (refused is not None and refused.refused and not refused.lost
+              and refused.ended_at is not None and first[uuid] > refused.ended_at
+              and msg.time - refused.ended_at > grace):
+            observed = (f"listed {msg.time - refused.ended_at:.1f} s after its start-task "
+                        f"was refused ('failed'): it never ran")
+        else:
+            continue
+        unit.examine("DEI-004")
+        first[uuid] = -1.0
+        yield violation("DEI-004", msg, expected=f"task {uuid} listed once, and only while "
+                        f"it runs", observed=observed, path="$.tasks-executing",
+                        detail="5.3: list each task currently executing once; a refused "
+                        "task never runs")
 
 
 @reinterprets("EXEC-FB-001", on=(TopicKind.EXEC_FEEDBACK,))

@@ -231,7 +231,10 @@ def _judge_task_uuid(unit: UnitState, cmd: Command, msg: Message, value: str | N
                             f"in {cmd.describe()})", observed=f"task-uuid {task_uuid!r}",
                             path="$.task-uuid", detail="return the task-uuid the commander "
                             "sent (12.1)")
-    elif value == "running":
+    elif value is not None and value != "failed":
+        # 12.1 'a generated task-uuid will be returned in the response message': whatever
+        # word accepts the start ('running'; 'ok' is EXEC-START-001's finding), only a
+        # refusal names no task.
         if task_uuid:
             unit.examine("EXEC-START-002")
         else:

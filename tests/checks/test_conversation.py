@@ -105,6 +105,53 @@ def test_start_task_answers_that_do_not_fit(stream):
     assert "'started'" in rules["EXEC-START-001"].violations[0].observed
 
 
+def test_a_start_task_without_task_uuid_answered_ok_and_no_task_uuid_fails_start_002(stream):
+    """Seen in the field: a start-task sent without a task-uuid answered 'ok' and none. 12.1:
+    'if not sent a generated task-uuid will be returned in the response message', whatever
+    word accepted it ('ok' itself is EXEC-START-001's); a refusal names no task."""
+    bare = start(stream, 4.1)
+    rules = judge(stream, [bare, stream.response(4.2, com_of(bare), "ok")])
+    assert rules["EXEC-START-001"].verdict is Verdict.FAIL
+    r = rules["EXEC-START-002"]
+    assert r.verdict is Verdict.FAIL and "a generated task-uuid" in r.violations[0].expected
+    refused = judge(stream, [bare, stream.response(4.2, com_of(bare), "failed", **{
+        "fail-reason": "no"})])
+    assert refused["EXEC-START-002"].verdict is Verdict.SKIP
+
+
+def test_a_task_listed_twice_or_after_its_refusal_fails_dei_004_once(stream):
+    """5.3 'List of tasks currently executing.' Seen in the field: a task listed twice (no
+    resend), and a task whose start-task (an unknown task: 'no-such-task') was refused
+    ('failed') kept in tasks-executing for good. Each is named once, not per message; a
+    task listed before its start-task was refused (the task-uuid of a running task) is no
+    evidence."""
+    task, phantom = new(), new()
+    cmd = start(stream, 2.1, task)
+    bogus = start(stream, 3.1, phantom, name="no-such-task")
+    twice = [{"task-name": "move-to", "task-uuid": task}] * 2
+    ghost = [{"task-name": "no-such-task", "task-uuid": phantom}]
+    rules = judge(stream, [
+        cmd, stream.response(2.2, com_of(cmd), "running", **{"task-uuid": task}),
+        stream.feedback(2.3, task, "running"),
+        stream.direct_execution_info(2.5, executing=twice),
+        bogus, stream.response(3.2, com_of(bogus), "failed", **{
+            "task-uuid": phantom, "fail-reason": "no such task"}),
+        *[stream.direct_execution_info(t, executing=ghost) for t in (3.5, 6.5, 9.5, 12.5)]])
+    r = rules["DEI-004"]
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 2, r
+    assert "listed 2 times" in r.violations[0].observed
+    assert "refused ('failed'): it never ran" in r.violations[1].observed
+    listed = [{"task-name": "move-to", "task-uuid": task}]
+    again = start(stream, 3.1, task)  # its uuid again: refused, the task runs on
+    rules = judge(stream, [
+        cmd, stream.response(2.2, com_of(cmd), "running", **{"task-uuid": task}),
+        stream.feedback(2.3, task, "running"), stream.direct_execution_info(2.5, executing=listed),
+        again, stream.response(3.2, com_of(again), "failed", **{
+            "task-uuid": task, "fail-reason": "task-uuid in use"}),
+        *[stream.direct_execution_info(t, executing=listed) for t in (6.5, 9.5)]])
+    assert rules["DEI-004"].verdict is not Verdict.FAIL, rules["DEI-004"]
+
+
 def test_a_dropped_start_task_fails_when_the_unit_answers_the_next_command(stream):
     dropped, ping = start(stream, 2.1, new()), stream.command(5.1, "ping")
     rules = judge(stream, [dropped, ping, stream.response(5.2, com_of(ping))])
