@@ -92,9 +92,20 @@ class Event:
 EVENT_KINDS = ("disconnected", "connected", "unexamined", "start", "end")
 UNTIMED_NOTE = "a mosquitto_sub -v capture has no times"
 """How the note on such a capture starts (lint prints it first: issue 27, 4)."""
+CUT = "cut"
+"""The kind of the ``Event`` a reader yields instead of a message whose payload the capturing
+tool cut to its first line (``cut_payload``; never read from a line): what it said is unknown,
+as over a gap of the observer, and it is the capture's fault, never the unit's."""
 UNTIMED = "untimed"
 """The kind of the ``Event`` a reader yields before the first message without a recorded time
 (never read from a line): the consumer judges no rule of ``UNTIMED_RULES``."""
+
+
+def cut_payload(payload: bytes | str) -> bool:
+    """Whether a payload is only the first line of a pretty-printed JSON text ('{' or '['):
+    a tool that records line by line cut it there (``mosquitto_sub -v`` prints the rest as
+    lines of their own)."""
+    return len(payload) < 8 and payload.strip() in (b"{", b"[", "{", "[")
 
 
 @dataclass(frozen=True)
@@ -140,6 +151,9 @@ class RecordingReader:
         self.blank_lines = 0
         self.formats: set[str] = set()
         self.notes: list[str] = []
+        self.cut = 0
+        """Messages whose payload the capture cut to its first line (``cut_payload``)."""
+        self._cut_lines = False  # the lines after a cut -v payload are its rest
         self._mosquitto = MosquittoLines(self.formats)
 
     @property
@@ -192,8 +206,11 @@ class RecordingReader:
                             retain = obj.get("retain", False)
                             if (qos == 0 or qos == 1 or qos == 2) and type(qos) is int and \
                                     type(retain) is bool:
-                                count += 1
                                 timed = True
+                                if len(payload) < 8 and cut_payload(payload):
+                                    yield self._cut(ts, topic)
+                                    continue
+                                count += 1
                                 yield new(message, (ts, topic, payload.encode(
                                     "utf-8", "surrogateescape"), qos, retain))
                                 continue
@@ -203,6 +220,9 @@ class RecordingReader:
                         self.problem(number, str(e), line)
                         continue
                     if isinstance(item, Message):
+                        if cut_payload(item.payload):
+                            yield self._cut(item.time, item.topic)
+                            continue
                         count += 1
                     yield item
                 self.messages += count  # counted per chunk (a shared counter costs per line)
@@ -234,12 +254,22 @@ class RecordingReader:
         verbose = (None if timed or self.formats - {FORMAT_MOSQUITTO_V}
                    else verbose_message(line))
         if verbose is None:
-            self.problem(number, _not_json(error, line, number), line)
+            if not self._cut_lines:  # else the rest of a cut payload: said in the note
+                self.problem(number, _not_json(error, line, number), line)
             return
         if FORMAT_MOSQUITTO_V not in self.formats:
             self.formats.add(FORMAT_MOSQUITTO_V)
             yield Event(verbose.time, UNTIMED)
+        if cut_payload(verbose.payload):
+            yield self._cut(verbose.time, verbose.topic)
+            self._cut_lines = True
+            return
+        self._cut_lines = False
         yield verbose
+
+    def _cut(self, t: float, topic: str) -> Event:
+        self.cut += 1
+        return Event(float(t), CUT, utf8(topic))
 
     def _add_notes(self) -> None:
         """What a person must know of the recording as a whole (after the last line)."""
@@ -248,6 +278,13 @@ class RecordingReader:
                 f"{self._mosquitto.truncated} payload(s) were cut at a NUL byte by mosquitto_sub "
                 f"-F %j (payloadlen is longer than the payload); the cut is marked by a NUL byte (a "
                 f"payload declared over 1 MiB: NUL bytes to that bound). Record with 'waraps-conformance record' for byte-exact payloads.")
+        if self.cut:
+            self.notes.append(
+                f"{self.cut} payload(s) were cut to their first line ('{{' or '[') by the "
+                f"capturing tool, which recorded a pretty-printed JSON payload line by line: the "
+                f"capture's fault, not the units'. They are not judged, nor is a command they "
+                f"may have answered judged unanswered. Record with 'waraps-conformance record' "
+                f"or mosquitto_sub -F %j for whole payloads.")
         if FORMAT_MOSQUITTO_V in self.formats:
             self.notes.append(
                 f"{UNTIMED_NOTE}: {', '.join(UNTIMED_RULES)} are "
