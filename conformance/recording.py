@@ -57,6 +57,7 @@ from conformance.mosquitto_sub import (
     verbose_message,
 )
 from conformance.recording_lines import Lines
+from conformance.violation import clock
 
 BIG_LINE_BYTES = 1 << 20
 """A line longer than this has its JSON values counted before it is parsed (MAX_LINE_VALUES)."""
@@ -65,6 +66,11 @@ PROBLEM_CHARS = 300
 fuzz/recording_mixed, was kept whole, and 100 problems are kept)."""
 MAX_PROBLEMS_KEPT = 100
 """Malformed lines kept with their text; beyond this they are only counted (bounded memory)."""
+
+BACKWARDS_SECONDS = 2.0
+"""How far a recorded time may run back behind the latest before it (a recording host's clock
+stepped by NTP) before the recording is refused: further back, two captures were joined (``cat
+a.jsonl b.jsonl``), and judged as one they would tell a death or a silence that never was."""
 
 FORMAT_JSONL = "jsonl"
 UNTIMED_RULES = ("HB-003", "SI-002", "DEI-002", "TEI-002", "HB-010", "HB-011", "HB-012",
@@ -151,6 +157,10 @@ class RecordingReader:
         self.blank_lines = 0
         self.formats: set[str] = set()
         self.notes: list[str] = []
+        self._latest = (float("-inf"), 0)  # the latest recorded time, and its line
+        self.backwards = ""
+        """Why reading stopped early: a recorded time ran backwards (``BACKWARDS_SECONDS``);
+        the consumer judges nothing of such a recording."""
         self.cut = 0
         """Messages whose payload the capture cut to its first line (``cut_payload``)."""
         self._cut_lines = False  # the lines after a cut -v payload are its rest
@@ -207,6 +217,11 @@ class RecordingReader:
                             if (qos == 0 or qos == 1 or qos == 2) and type(qos) is int and \
                                     type(retain) is bool:
                                 timed = True
+                                if ts < self._latest[0]:
+                                    if self._backwards(number, ts):
+                                        return
+                                else:
+                                    self._latest = (ts, number)
                                 if len(payload) < 8 and cut_payload(payload):
                                     yield self._cut(ts, topic)
                                     continue
@@ -219,6 +234,11 @@ class RecordingReader:
                     except (ValueError, OverflowError, OSError) as e:  # dates past any bound
                         self.problem(number, str(e), line)
                         continue
+                    if item.time < self._latest[0]:
+                        if self._backwards(number, item.time):
+                            return
+                    else:
+                        self._latest = (item.time, number)
                     if isinstance(item, Message):
                         if cut_payload(item.payload):
                             yield self._cut(item.time, item.topic)
@@ -266,6 +286,20 @@ class RecordingReader:
             return
         self._cut_lines = False
         yield verbose
+
+    def _backwards(self, number: int, t: float) -> bool:
+        """A recorded time before the latest one: a step of the recording host's clock within
+        ``BACKWARDS_SECONDS`` (False: read on), else reading stops there and ``backwards``
+        says why, naming the line (True): joined captures would tell a death or a silence
+        that never was, so nothing of it may be judged."""
+        latest, where = self._latest
+        if latest - t <= BACKWARDS_SECONDS:
+            return False
+        self.backwards = (
+            f"{self.name}: line {number}: time runs backwards: {clock(t)} is "
+            f"{latest - t:.1f} s before line {where}'s {clock(latest)}. Two captures joined "
+            f"end to end (cat a.jsonl b.jsonl)? Lint each on its own; nothing was judged.")
+        return True
 
     def _cut(self, t: float, topic: str) -> Event:
         self.cut += 1

@@ -7,6 +7,7 @@ from datetime import UTC
 from pathlib import Path
 
 import orjson
+import pytest
 from lint_helpers import (
     T0,
     failed_rules,
@@ -221,7 +222,7 @@ def test_usage_errors_exit_2(tmp_path: Path, reports_dir: Path) -> None:
 def test_payload_b64_lines_are_judged(tmp_path: Path, reports_dir: Path, prefix: str) -> None:
     base = f"{prefix}/unit/air/simulation/dji0"
     rec = write_recording(tmp_path / "r.jsonl", unit_traffic(prefix, "dji0", seconds=12))
-    extra = orjson.dumps({"ts": T0 + 3, "topic": f"{base}/sensor/speed",
+    extra = orjson.dumps({"ts": T0 + 12.5, "topic": f"{base}/sensor/speed",
                           "payload_b64": base64.b64encode(b"\x80abc").decode()})
     rec.write_bytes(rec.read_bytes() + extra + b"\n")
     run = run_lint(["--from", str(rec)], reports_dir)
@@ -327,3 +328,30 @@ def test_a_payload_the_capture_cut_to_its_first_line_is_the_captures_not_the_uni
     assert run.report is not None and "malformed line" not in run.out, run.out
     assert verdicts(run.report, unit)["MSG-002"] != "fail"
     assert run.out.count("cut to their first line") == 1, run.out
+
+
+def test_a_recording_whose_time_runs_backwards_is_refused_naming_the_line(
+        tmp_path: Path, reports_dir: Path, prefix: str,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Two captures joined end to end (`cat a.jsonl b.jsonl | lint --from -`): the first
+    one's death would read as a pass. Refused with an error naming the line where time runs
+    back, nothing judged (exit 3: nothing could be linted, no report); a step back within
+    BACKWARDS_SECONDS (a clock stepped by NTP) is read on."""
+    from conformance.recording import BACKWARDS_SECONDS
+
+    a = write_recording(tmp_path / "a.jsonl", unit_traffic(prefix, "dji0", seconds=20,
+                                                           t0=T0 + 3600))
+    b = write_recording(tmp_path / "b.jsonl", unit_traffic(prefix, "dji0", seconds=20))
+    joined = a.read_bytes() + b.read_bytes()
+    first_of_b = len(a.read_bytes().splitlines()) + 1
+    run = run_lint(["--from", "-"], reports_dir, stdin=joined)
+    assert run.code == 3 and run.report is None and not run.reports, run.out
+    err = capsys.readouterr().err
+    assert f"line {first_of_b}: time runs backwards" in err, err
+    assert f"before line {first_of_b - 1}'s" in err and "Lint each on its own" in err
+    stepped = unit_traffic(prefix, "dji0", seconds=20)
+    back = [Message(m.time - BACKWARDS_SECONDS / 2 if i > 30 else m.time, *m[1:])
+            for i, m in enumerate(stepped)]
+    run = run_lint(["--from", str(write_recording(tmp_path / "c.jsonl", back))],
+                   reports_dir / "c")
+    assert run.report is not None, run.out
