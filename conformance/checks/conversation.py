@@ -119,6 +119,9 @@ class Conversations(CommandHistory):
         self.silent_until: float | None = None
         """The end of the latest heartbeat silence over 2 periods: perhaps a reboot that kept
         its agent-uuid, whose history loss is REBOOT-002's to judge, not EXEC-QUERY-001's."""
+        self.lists_twice = False
+        """tasks-executing listed a task twice that no resend explains (DEI-004): a task
+        listed twice after its resend is then no sign it ran twice (EXEC-RESEND-001)."""
         self.first_listed: OrderedDict[str, float] = OrderedDict()
         """When tasks-executing first listed each task-uuid (the latest LISTED_KEPT), and
         the ones DEI-004 already named (time -1: once per task)."""

@@ -70,6 +70,7 @@ EVIDENCE: dict[str, tuple[str, ...]] = {
     "ERR-014": ("start",), "EXEC-009": ("ping", "start"), "EXEC-010": ("ping",),
     "HB-012": ("start",), "TST-002": ("tst",), "TST-003": ("tst",), "ERR-015": ("tst",),
     "EXEC-SEQ-001": ("signal",), "EXEC-SEQ-002": ("signal",), "EXEC-RESEND-003": ("resend",),
+    "DEI-004": ("refuse",),
 }
 
 

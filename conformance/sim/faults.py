@@ -158,6 +158,12 @@ _ALL = (
        "Lists a system signal '$resume' (an alias of $continue) for every task."),
     _f("tasks-executing-stale", "DEI-004",
        "Never removes ended tasks from tasks-executing."),
+    _f("tasks-executing-twice", "DEI-004",
+       "Lists each running task twice in tasks-executing (seen in the field).", stimulus=True),
+    _f("refused-task-listed", "DEI-004",
+       "Keeps the task-uuid of a start-task it refused ('failed': a task not offered, invalid "
+       "parameters) in tasks-executing for good, as a phantom task (seen in the field).",
+       stimulus=True),
     _f("tst-info-incomplete", "TEI-001",
        "Declares 'tst execution' and sends tst_execution_info without 'rate'."),
     _f("tst-info-rate-drift", "TEI-002",
