@@ -144,7 +144,7 @@ class Conversations(CommandHistory):
         task = self.model.follow(task_uuid)
         task.followed, task.command, task.life = t, command, self.life
         task.final = task.resent = task.left_at = task.listed_at = None
-        task.listed, task.running_feedback = False, 0
+        task.listed, task.running_feedback, task.said_failed = False, 0, ()
         return task
 
     def unfollow(self, task_uuid: str) -> None:

@@ -138,6 +138,7 @@ def _after_final(c: Conversations, task: TaskRecord, task_uuid: str, msg: Messag
                     "finished, failed or aborted")
     if again:  # it runs again: its later feedback is that run's, judged as a live task's
         task.final, task.resent = None, None  # in the state it says (``state_of``)
+        task.said_failed = ()  # its 'failed' was true: that run ended so
         c.started(task)
 
 

@@ -325,6 +325,21 @@ def test_a_task_that_said_failed_and_runs_on_is_blamed_on_its_failed(stream):
         "task-uuid": task}), stream.feedback(2.3, task, "running"),
         stream.feedback(3.3, task, "failed")])
     assert ended["EXEC-FB-004"].verdict is Verdict.PASS  # a 'failed' that stays is true
+    anew = start(stream, 5.1, task)  # its uuid started anew: a new task, not the old running on
+    rules = judge(stream, [cmd, stream.response(2.2, com_of(cmd), "running", **{
+        "task-uuid": task}), stream.feedback(2.3, task, "running"),
+        stream.feedback(3.3, task, "failed"), anew, stream.response(5.2, com_of(anew),
+                                                                      "running", **{
+            "task-uuid": task}), stream.feedback(5.3, task, "running"),
+        stream.feedback(7.3, task, "finished")])
+    assert rules["EXEC-FB-004"].verdict is Verdict.PASS, rules["EXEC-FB-004"]
+    again = start(stream, 4.1, task, com=com_of(cmd))  # resent after a true 'failed': run again
+    rules = judge(stream, [cmd, stream.response(2.2, com_of(cmd), "running", **{
+        "task-uuid": task}), stream.feedback(2.3, task, "running"),
+        stream.feedback(3.3, task, "failed"), again, stream.feedback(4.3, task, "running"),
+        stream.feedback(6.3, task, "finished")])
+    assert rules["EXEC-RESEND-001"].verdict is Verdict.FAIL
+    assert rules["EXEC-FB-004"].verdict is Verdict.PASS, rules["EXEC-FB-004"]
 
 
 def test_failed_feedback_after_a_resend_that_ran_the_ended_task_again(stream):
