@@ -72,6 +72,8 @@ def revive(c: Certification, name: str) -> None:
     still judged rather than could-not-test; said on the terminal and in the summary."""
     if c.context.reboot is None or c.settings.dry_run or c.revived >= MAX_REVIVES:
         return
+    if c.connection.lost_since() is not None or c.connection.away_since() is not None:
+        return  # not heard since the broker's outage: its silence is the broker's, not death
     died = c.unit_died()
     if not died:
         return
