@@ -178,6 +178,8 @@ class RecordingReader:
                                              _excerpt(raw) if raw else ""))
 
     def __iter__(self) -> Iterator[Message | Event]:
+        """Every item, in file order; long because the common line (our JSON Lines, a text
+        payload) is read inline: a call per line costs more than the rest of its reading."""
         loads = orjson.loads
         decode_error = orjson.JSONDecodeError
         new = tuple.__new__  # Message(...) without its Python-level __new__: once per line
@@ -217,11 +219,9 @@ class RecordingReader:
                             if (qos == 0 or qos == 1 or qos == 2) and type(qos) is int and \
                                     type(retain) is bool:
                                 timed = True
-                                if ts < self._latest[0]:
-                                    if self._backwards(number, ts):
-                                        return
-                                else:
-                                    self._latest = (ts, number)
+                                if ts < self._latest[0] and self._backwards(number, ts):
+                                    return
+                                self._latest = max(self._latest, (ts, number))
                                 if len(payload) < 8 and cut_payload(payload):
                                     yield self._cut(ts, topic)
                                     continue
@@ -234,11 +234,9 @@ class RecordingReader:
                     except (ValueError, OverflowError, OSError) as e:  # dates past any bound
                         self.problem(number, str(e), line)
                         continue
-                    if item.time < self._latest[0]:
-                        if self._backwards(number, item.time):
-                            return
-                    else:
-                        self._latest = (item.time, number)
+                    if item.time < self._latest[0] and self._backwards(number, item.time):
+                        return
+                    self._latest = max(self._latest, (item.time, number))
                     if isinstance(item, Message):
                         if cut_payload(item.payload):
                             yield self._cut(item.time, item.topic)
