@@ -71,6 +71,11 @@ def info_checks(limits: Limits, parsed: ParsedTopic, message: dict[str, Any], ra
                 detail="5.1 agent-type and 3.1 PREFIX3 name the same thing")]
     return found
 
+PLAUSIBLE_CLOCK = 365 * 86400.0
+"""Seconds a clock may be off and still be read as one (a stamp in another unit, MSG-008;
+``validate`` without an arrival time judges a stamp within it)."""
+
+
 def _seconds(s: float) -> str:
     return f"{s / 86400:g} days" if s >= 86400 else f"{s:g} s"
 
@@ -85,7 +90,10 @@ def stamp_violations(limits: Limits, parsed: ParsedTopic, stamp: float, raw: byt
     rule = "MSG-005"  # the unit's clock (decided), unless the stamp is in another unit (5.1)
     for scale, unit_name in ((1e3, "milliseconds"), (1e6, "microseconds"),
                              (1e9, "nanoseconds")):
-        if abs(stamp / scale - time) <= tolerance:
+        # In another unit when it reads as a plausible clock in it (within a year, as
+        # `validate` without an arrival time): one explanation of one stamp, whatever the
+        # clock tolerance and however far the unit's clock is off besides.
+        if abs(stamp / scale - time) <= max(tolerance, PLAUSIBLE_CLOCK):
             detail = f"looks like {unit_name}: divide by {scale:.0e} ({detail})"
             rule = "MSG-008"
             break

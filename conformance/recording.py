@@ -58,6 +58,7 @@ from conformance.mosquitto_sub import (
     verbose_message,
 )
 from conformance.recording_lines import Lines
+from conformance.violation import clock
 
 BIG_LINE_BYTES = 1 << 20
 """A line longer than this has its JSON values counted before it is parsed (MAX_LINE_VALUES)."""
@@ -66,6 +67,11 @@ PROBLEM_CHARS = 300
 fuzz/recording_mixed, was kept whole, and 100 problems are kept)."""
 MAX_PROBLEMS_KEPT = 100
 """Malformed lines kept with their text; beyond this they are only counted (bounded memory)."""
+
+BACKWARDS_SECONDS = 2.0
+"""How far a recorded time may run back behind the latest before it (a recording host's clock
+stepped by NTP) before the recording is refused: further back, two captures were joined (``cat
+a.jsonl b.jsonl``), and judged as one they would tell a death or a silence that never was."""
 
 FORMAT_JSONL = "jsonl"
 UNTIMED_RULES = ("HB-003", "SI-002", "DEI-002", "TEI-002", "HB-010", "HB-011", "HB-012",
@@ -93,9 +99,20 @@ class Event:
 EVENT_KINDS = ("disconnected", "connected", "unexamined", "start", "end")
 UNTIMED_NOTE = "a mosquitto_sub -v capture has no times"
 """How the note on such a capture starts (lint prints it first: issue 27, 4)."""
+CUT = "cut"
+"""The kind of the ``Event`` a reader yields instead of a message whose payload the capturing
+tool cut to its first line (``cut_payload``; never read from a line): what it said is unknown,
+as over a gap of the observer, and it is the capture's fault, never the unit's."""
 UNTIMED = "untimed"
 """The kind of the ``Event`` a reader yields before the first message without a recorded time
 (never read from a line): the consumer judges no rule of ``UNTIMED_RULES``."""
+
+
+def cut_payload(payload: bytes | str) -> bool:
+    """Whether a payload is only the first line of a pretty-printed JSON text ('{' or '['):
+    a tool that records line by line cut it there (``mosquitto_sub -v`` prints the rest as
+    lines of their own)."""
+    return len(payload) < 8 and payload.strip() in (b"{", b"[", "{", "[")
 
 
 @dataclass(frozen=True)
@@ -143,6 +160,13 @@ class RecordingReader:
         """Lines after the first that began with a UTF-8 byte order mark (read without it)."""
         self.formats: set[str] = set()
         self.notes: list[str] = []
+        self._latest = (float("-inf"), 0)  # the latest recorded time, and its line
+        self.backwards = ""
+        """Why reading stopped early: a recorded time ran backwards (``BACKWARDS_SECONDS``);
+        the consumer judges nothing of such a recording."""
+        self.cut = 0
+        """Messages whose payload the capture cut to its first line (``cut_payload``)."""
+        self._cut_lines = False  # the lines after a cut -v payload are its rest
         self._mosquitto = MosquittoLines(self.formats)
 
     @property
@@ -157,6 +181,8 @@ class RecordingReader:
                                              _excerpt(raw) if raw else ""))
 
     def __iter__(self) -> Iterator[Message | Event]:
+        """Every item, in file order; long because the common line (our JSON Lines, a text
+        payload) is read inline: a call per line costs more than the rest of its reading."""
         loads = orjson.loads
         decode_error = orjson.JSONDecodeError
         new = tuple.__new__  # Message(...) without its Python-level __new__: once per line
@@ -195,8 +221,14 @@ class RecordingReader:
                             retain = obj.get("retain", False)
                             if (qos == 0 or qos == 1 or qos == 2) and type(qos) is int and \
                                     type(retain) is bool:
-                                count += 1
                                 timed = True
+                                if ts < self._latest[0] and self._backwards(number, ts):
+                                    return
+                                self._latest = max(self._latest, (ts, number))
+                                if len(payload) < 8 and cut_payload(payload):
+                                    yield self._cut(ts, topic)
+                                    continue
+                                count += 1
                                 yield new(message, (ts, topic, payload.encode(
                                     "utf-8", "surrogateescape"), qos, retain))
                                 continue
@@ -205,7 +237,13 @@ class RecordingReader:
                     except (ValueError, OverflowError, OSError) as e:  # dates past any bound
                         self.problem(number, str(e), line)
                         continue
+                    if item.time < self._latest[0] and self._backwards(number, item.time):
+                        return
+                    self._latest = max(self._latest, (item.time, number))
                     if isinstance(item, Message):
+                        if cut_payload(item.payload):
+                            yield self._cut(item.time, item.topic)
+                            continue
                         count += 1
                     yield item
                 self.messages += count  # counted per chunk (a shared counter costs per line)
@@ -244,12 +282,36 @@ class RecordingReader:
         verbose = (None if timed or self.formats - {FORMAT_MOSQUITTO_V}
                    else verbose_message(line))
         if verbose is None:
-            self.problem(number, _not_json(error, line, number), line)
+            if not self._cut_lines:  # else the rest of a cut payload: said in the note
+                self.problem(number, _not_json(error, line, number), line)
             return
         if FORMAT_MOSQUITTO_V not in self.formats:
             self.formats.add(FORMAT_MOSQUITTO_V)
             yield Event(verbose.time, UNTIMED)
+        if cut_payload(verbose.payload):
+            yield self._cut(verbose.time, verbose.topic)
+            self._cut_lines = True
+            return
+        self._cut_lines = False
         yield verbose
+
+    def _backwards(self, number: int, t: float) -> bool:
+        """A recorded time before the latest one: a step of the recording host's clock within
+        ``BACKWARDS_SECONDS`` (False: read on), else reading stops there and ``backwards``
+        says why, naming the line (True): joined captures would tell a death or a silence
+        that never was, so nothing of it may be judged."""
+        latest, where = self._latest
+        if latest - t <= BACKWARDS_SECONDS:
+            return False
+        self.backwards = (
+            f"{self.name}: line {number}: time runs backwards: {clock(t)} is "
+            f"{latest - t:.1f} s before line {where}'s {clock(latest)}. Two captures joined "
+            f"end to end (cat a.jsonl b.jsonl)? Lint each on its own; nothing was judged.")
+        return True
+
+    def _cut(self, t: float, topic: str) -> Event:
+        self.cut += 1
+        return Event(float(t), CUT, utf8(topic))
 
     def _add_notes(self) -> None:
         """What a person must know of the recording as a whole (after the last line)."""
@@ -263,6 +325,13 @@ class RecordingReader:
                 f"{self._mosquitto.truncated} payload(s) were cut at a NUL byte by mosquitto_sub "
                 f"-F %j (payloadlen is longer than the payload); the cut is marked by a NUL byte (a "
                 f"payload declared over 1 MiB: NUL bytes to that bound). Record with 'waraps-conformance record' for byte-exact payloads.")
+        if self.cut:
+            self.notes.append(
+                f"{self.cut} payload(s) were cut to their first line ('{{' or '[') by the "
+                f"capturing tool, which recorded a pretty-printed JSON payload line by line: the "
+                f"capture's fault, not the units'. They are not judged, nor is a command they "
+                f"may have answered judged unanswered. Record with 'waraps-conformance record' "
+                f"or mosquitto_sub -F %j for whole payloads.")
         if FORMAT_MOSQUITTO_V in self.formats:
             self.notes.append(
                 f"{UNTIMED_NOTE}: {', '.join(UNTIMED_RULES)} are "

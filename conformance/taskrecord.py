@@ -79,6 +79,10 @@ class TaskRecord:
     """When its start-task was last resent."""
     running_feedback: int = 0
     """How many 'running' feedbacks it sent (EXEC-RESEND-001: started twice)."""
+    said_failed: tuple[tuple[str, Any], ...] = ()
+    """(rule, message) of the latest two that said 'failed' while it may run on (the answer
+    to its resent start-task, its feedback): the findings once it does (EXEC-RESEND-003,
+    EXEC-FB-004)."""
 
     @property
     def last_status(self) -> str | None:

@@ -53,6 +53,8 @@ COMMANDS_KEPT = 1024
 a few hundred bytes each, so a fleet of 200 units stays under about 100 MiB however long."""
 TASKS_KEPT = protocol.TASKS_KEPT
 """Tasks kept per unit: the bound of the model's store, made with the conversations."""
+LISTED_KEPT = 256
+"""Task-uuids whose first listing in tasks-executing is remembered per unit (DEI-004)."""
 FEEDBACK_WITHOUT_TASK_UUID: StashKey[bool] = StashKey("feedback-without-task-uuid")
 """The unit sent feedback without a task-uuid."""
 
@@ -117,6 +119,12 @@ class Conversations(CommandHistory):
         self.silent_until: float | None = None
         """The end of the latest heartbeat silence over 2 periods: perhaps a reboot that kept
         its agent-uuid, whose history loss is REBOOT-002's to judge, not EXEC-QUERY-001's."""
+        self.lists_twice = False
+        """tasks-executing listed a task twice that no resend explains (DEI-004): a task
+        listed twice after its resend is then no sign it ran twice (EXEC-RESEND-001)."""
+        self.first_listed: OrderedDict[str, float] = OrderedDict()
+        """When tasks-executing first listed each task-uuid (the latest LISTED_KEPT), and
+        the ones DEI-004 already named (time -1: once per task)."""
 
     @property
     def tasks(self) -> OrderedDict[str, TaskRecord]:
@@ -136,7 +144,7 @@ class Conversations(CommandHistory):
         task = self.model.follow(task_uuid)
         task.followed, task.command, task.life = t, command, self.life
         task.final = task.resent = task.left_at = task.listed_at = None
-        task.listed, task.running_feedback = False, 0
+        task.listed, task.running_feedback, task.said_failed = False, 0, ()
         return task
 
     def unfollow(self, task_uuid: str) -> None:

@@ -15,6 +15,7 @@ from conformance.checks.command_history import response_timeout, str_of, violati
 from conformance.checks.conversation import (
     CONVERSATIONS,
     FEEDBACK_WITHOUT_TASK_UUID,
+    LISTED_KEPT,
     Conversations,
     conversations,
     said,
@@ -36,7 +37,7 @@ a resend is then no sign that it started the task again (EXEC-RESEND-001)."""
 
 
 @check("EXEC-FB-004", "EXEC-START-003", "EXEC-SIG-002", "EXEC-SIG-003", "EXEC-SIG-004",
-       "EXEC-RESEND-001", on=(TopicKind.EXEC_FEEDBACK,),
+       "EXEC-RESEND-001", "EXEC-RESEND-003", on=(TopicKind.EXEC_FEEDBACK,),
        reads=(CONVERSATIONS, FEEDBACK_WITHOUT_TASK_UUID, REPEATS_STATUS))
 def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
                           v: Validation) -> Iterator[Violation]:
@@ -61,6 +62,9 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
     task = c.followed(task_uuid) or c.task(task_uuid, t)
     if str_of(m, "task-uuid") != task_uuid:
         c.model.hear(task, status, t)  # by another key: the model did not (exec_sequence)
+    if task.said_failed and status != "failed" and not _runs_again(task, status) and (
+            task.final is None or task.final[0] == "failed"):
+        yield from _failed_but_runs_on(c, task, msg, status)
     if task.final is not None:
         yield from _after_final(c, task, task_uuid, msg, m, status)
         return
@@ -76,10 +80,38 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
                                 "from memory, not executed again")
         task.running_feedback += 1
     yield from _judge_signalled(unit, c, task_uuid, msg, status)
+    if status == "failed":  # the finding if the task runs on after it (EXEC-FB-004's note)
+        rule = "EXEC-RESEND-003" if task.resent is not None else "EXEC-FB-004"
+        unit.examine(rule)
+        task.said_failed = (*task.said_failed, (rule, msg))[-2:]
     if status in FINAL_STATUSES:
         c.ended(task, (status, str_of(m, "com-uuid"), t))
         if task.command is not None:
             unit.examine("EXEC-START-003")
+
+
+def _runs_again(task: TaskRecord, status: str) -> bool:
+    """The task, ended, runs again after its start-task was resent (EXEC-RESEND-001)."""
+    return (task.final is not None and task.resent is not None
+            and task.resent > task.final[2] and status not in FINAL_STATUSES)
+
+
+def _failed_but_runs_on(c: Conversations, task: TaskRecord, msg: Message,
+                        status: str) -> Iterator[Violation]:
+    """A task said 'failed' (by its feedback, or by the answer to its resent start-task) and
+    runs on: the 'failed' was false, and is the finding, once (EXEC-RESEND-003, EXEC-FB-004's
+    decision), not the later, true status. The task is followed on to its true end."""
+    for rule, failed in task.said_failed:
+        yield violation(rule, failed, expected=f"'failed' only for a task that failed: task "
+                        f"{task.task_uuid} did not", observed=f"'failed', then '{status}' "
+                        f"{msg.time - failed.time:.2f} s later: the task ran on", path=(
+                            "$.status" if failed.topic == msg.topic else "$.response"),
+                        detail="12.1: answer a resend as the first time (from memory); "
+                        "say 'failed' only when the task has ended so")
+    task.said_failed = ()
+    if task.final is not None:
+        task.final = None
+        c.started(task)
 
 
 def _after_final(c: Conversations, task: TaskRecord, task_uuid: str, msg: Message, m: object,
@@ -106,6 +138,7 @@ def _after_final(c: Conversations, task: TaskRecord, task_uuid: str, msg: Messag
                     "finished, failed or aborted")
     if again:  # it runs again: its later feedback is that run's, judged as a live task's
         task.final, task.resent = None, None  # in the state it says (``state_of``)
+        task.said_failed = ()  # its 'failed' was true: that run ended so
         c.started(task)
 
 
@@ -146,10 +179,12 @@ def tasks_executing_follow_tasks(ctx: CheckContext, unit: UnitState, msg: Messag
     for task in open_tasks:
         n = listed.count(task.task_uuid)
         paused = state_of(task) is State.PAUSED
+        if n > 1 and task.resent is None:
+            c.lists_twice = True  # its way of listing (DEI-004's), not a resend run twice
         if n:
             task.listed, task.listed_at, task.left_at = True, msg.time, None
             task.listed_paused = task.listed_paused or paused
-            if n > 1 and task.resent is not None:
+            if n > 1 and task.resent is not None and not c.lists_twice:
                 unit.examine("EXEC-RESEND-001")
                 task.resent = None  # said once
                 found = [violation("EXEC-RESEND-001", msg, expected=f"task {task.task_uuid} "
@@ -197,9 +232,10 @@ def ended_tasks_leave_tasks_executing(ctx: CheckContext, unit: UnitState, msg: M
         return None
     period = unit.period(TopicKind.DIRECT_EXECUTION_INFO) or 0.0
     grace = max(LISTED_GRACE_PERIODS * period, response_timeout(ctx))
-    found = None
-    for entry in executing[:64]:
-        task = c.followed(task_uuid_sent(entry)) if isinstance(entry, dict) else None
+    listed = [task_uuid_sent(e) if isinstance(e, dict) else None for e in executing[:64]]
+    found = list(_listed_wrongly(unit, c, msg, listed, grace))
+    for uuid in listed:
+        task = c.followed(uuid)
         if task is None or task.final is None or task.life != c.life:
             continue
         status, _, when = task.final
@@ -213,6 +249,38 @@ def ended_tasks_leave_tasks_executing(ctx: CheckContext, unit: UnitState, msg: M
                                path="$.tasks-executing", detail="5.3: list only the tasks "
                                "currently executing; remove a task when it ends"))
     return found
+
+
+def _listed_wrongly(unit: UnitState, c: Conversations, msg: Message, listed: list[str | None],
+                    grace: float) -> Iterator[Violation]:
+    """5.3 'List of tasks currently executing.': one task listed twice (after a resend of
+    its start-task, EXEC-RESEND-001's), or a task whose start-task was refused ('failed':
+    it never ran) listed from after the refusal on, past the grace. Once per task."""
+    first = c.first_listed
+    for uuid in dict.fromkeys(u for u in listed if u):
+        if uuid not in first:
+            first[uuid] = msg.time
+            while len(first) > LISTED_KEPT:
+                first.popitem(last=False)
+        if first[uuid] < 0:
+            continue  # named already
+        task = c.followed(uuid)
+        refused = c.model.tasks.get(uuid) if task is None else None
+        if listed.count(uuid) > 1 and (task is None or task.resent is None):
+            observed = f"listed {listed.count(uuid)} times"
+        elif (refused is not None and refused.refused and not refused.lost
+              and refused.ended_at is not None and first[uuid] > refused.ended_at
+              and msg.time - refused.ended_at > grace):
+            observed = (f"listed {msg.time - refused.ended_at:.1f} s after its start-task "
+                        f"was refused ('failed'): it never ran")
+        else:
+            continue
+        unit.examine("DEI-004")
+        first[uuid] = -1.0
+        yield violation("DEI-004", msg, expected=f"task {uuid} listed once, and only while "
+                        f"it runs", observed=observed, path="$.tasks-executing",
+                        detail="5.3: list each task currently executing once; a refused "
+                        "task never runs")
 
 
 @reinterprets("EXEC-FB-001", on=(TopicKind.EXEC_FEEDBACK,))

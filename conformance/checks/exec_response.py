@@ -58,7 +58,8 @@ was this status."""
 
 @check("EXEC-006", "EXEC-009", "EXEC-010", "EXEC-PING-001", "EXEC-PING-002", "EXEC-START-001",
        "EXEC-START-002", "EXEC-START-004", "EXEC-START-005", "EXEC-SIG-001", "EXEC-QUERY-001",
-       "EXEC-RESEND-001", "EXEC-RESEND-002", "EXEC-ROBUST-002", on=(TopicKind.EXEC_RESPONSE,),
+       "EXEC-RESEND-001", "EXEC-RESEND-002", "EXEC-RESEND-003", "EXEC-ROBUST-002",
+       on=(TopicKind.EXEC_RESPONSE,),
        reads=(CONVERSATIONS,))
 def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
                              v: Validation) -> Iterator[Violation]:
@@ -230,7 +231,10 @@ def _judge_task_uuid(unit: UnitState, cmd: Command, msg: Message, value: str | N
                             f"in {cmd.describe()})", observed=f"task-uuid {task_uuid!r}",
                             path="$.task-uuid", detail="return the task-uuid the commander "
                             "sent (12.1)")
-    elif value == "running":
+    elif value is not None and value != "failed":
+        # 12.1 'a generated task-uuid will be returned in the response message': whatever
+        # word accepts the start ('running'; 'ok' is EXEC-START-001's finding), only a
+        # refusal names no task.
         if task_uuid:
             unit.examine("EXEC-START-002")
         else:
@@ -332,8 +336,14 @@ def _judge_resend_answer(unit: UnitState, c: Conversations, cmd: Command, msg: M
                         f"task {task_uuid}", path="$.task-uuid",
                         detail="12.1: remember com-uuids; answer a resend from memory")
     # A 'failed' answer ('A task is already running') refuses the resend: nothing ran twice
-    # (12.1). A 'failed' feedback that comes with it ends the task as it says; what the task
-    # sends after that is EXEC-FB-004's (exec_feedback).
+    # (12.1). It contradicts the first answer if the task runs on: the finding then
+    # (EXEC-RESEND-003, decided; exec_feedback judges it by the task's later feedback).
+    task = c.followed(first_task) if first_task is not None else None
+    if task is None or task.final is not None:
+        return
+    unit.examine("EXEC-RESEND-003")
+    if value == "failed":
+        task.said_failed = (*task.said_failed, ("EXEC-RESEND-003", msg))[-2:]
 
 
 def judge_unanswered(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: Command

@@ -25,6 +25,7 @@ import time as time_module
 from pathlib import Path
 from typing import Any
 
+from conformance import content
 from conformance import profile as profile_module
 from conformance.bounds import MAX_VALIDATE_BYTES, bounds_help
 from conformance.cli import options as opts
@@ -32,10 +33,10 @@ from conformance.explanation import overall_verdict, render, to_dict, unplaceabl
 from conformance.validator import Validator
 from conformance.violation import Verdict
 
-PLAUSIBLE_CLOCK = 365 * 86400.0
+PLAUSIBLE_CLOCK = content.PLAUSIBLE_CLOCK
 """Seconds a stamp may be from now when no arrival time is given (no --now, no --time): wide
 enough for any recorded message of the last year, narrow enough that a stamp in milliseconds
-or microseconds, or a clock that never synchronised, fails MSG-005."""
+or microseconds (MSG-008, as lint explains it), or a clock that never synchronised, fails."""
 
 
 def main(argv: list[str] | None = None) -> int:

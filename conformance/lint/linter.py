@@ -12,7 +12,7 @@ from typing import Any, Protocol
 from conformance.checks.monitor import MAX_COMMANDERS, MAX_UNITS, UNATTRIBUTED
 from conformance.message import Gap, Message
 from conformance.profile import Profile
-from conformance.recording import Event
+from conformance.recording import CUT, Event
 from conformance.rules import Severity
 from conformance.topics import parse_topic
 from conformance.violation import Violation
@@ -127,6 +127,8 @@ class Linter:
         elif event.kind == "connected":
             if self._open_gap is not None:
                 self._close_gap(event.time)
+        elif event.kind == CUT:  # a message whose content is unknown: as a gap, at a point
+            self.monitor.connection_gap(event.time, event.time)
         elif event.kind == "unexamined" and event.count > 0:
             self.unexamined += event.count
             self.monitor.unexamined(event.count)

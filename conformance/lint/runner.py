@@ -161,6 +161,9 @@ def _read_recording(linter: Any, scorecard: Callable[[str, bool], Any], source: 
     card = scorecard(name, False)
     with stream if stream is not (stdin or sys.stdin.buffer) else _noop():
         reader, end = run_recorded(linter, card, stream, name, options)
+    if reader.backwards:  # refused: judged as one, joined captures would tell what never was
+        print(shown(f"waraps-conformance lint: {reader.backwards}"), file=sys.stderr)
+        return None
     meta = {"source": name, "recording_lines": str(reader.lines),
             "recording_formats": ", ".join(sorted(reader.formats))}
     print(shown(f"read {name} as {', '.join(sorted(reader.formats)) or 'no known format'}"

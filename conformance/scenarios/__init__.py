@@ -3,8 +3,11 @@ expectations it checks (DESIGN 'Active scenarios').
 
 Each scenario drives the unit through one part of spec 12 (``tst``: spec 14) and records a verdict for each of
 its rules through ``Context.record``, the same way the passive checks do. ``SCENARIOS`` lists
-them in the order the suite runs them: reboot last, because it wipes the unit's history; tst
-before robust, whose malformed commands may kill a faulty unit's command handling.
+them in the order the suite runs them: reboot last, because it wipes the unit's history; the
+probes that may kill a faulty unit (refuse's invalid parameters, which killed the public L2
+agents in some runs, and robust's malformed commands) after the scenarios whose evidence a
+death would destroy (signal, query, resend, tst). A unit that died is restarted before the
+next scenario where the run can reboot it (``suite/scenario_run.py`` ``revive``).
 """
 
 from __future__ import annotations
@@ -39,14 +42,14 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
     Scenario("ping", ping.RULES, ping.run, doc="ping is answered with pong (12.2.1)"),
     Scenario("start", start.RULES, start.run,
              doc="start-task of every task the profile allows (12.2.3, 12.4, 5.3)"),
-    Scenario("refuse", start.REFUSAL_RULES, start.run_refusals,
-             doc="invalid parameters and unknown tasks are refused (12.1)"),
     Scenario("signal", signal.RULES, signal.run, doc="every signal the unit lists (12.2.2)"),
     Scenario("query", query.RULES, query.run, doc="query-status over the history (12.1)"),
     Scenario("resend", resend.RULES, resend.run,
              doc="a resent command is answered again, executed once (12.1)"),
     Scenario("tst", tst.RULES, tst.run, level=TST_EXECUTION,
              doc="TST trees, signals at node, tree and unit level, refusals, a resend (14)"),
+    Scenario("refuse", start.REFUSAL_RULES, start.run_refusals,
+             doc="invalid parameters and unknown tasks are refused (12.1)"),
     Scenario("robust", robust.RULES, robust.run,
              doc="malformed and unknown commands do not stop the unit (12.1)"),
     Scenario("reboot", reboot.RULES, reboot.run, level=None,
@@ -66,7 +69,8 @@ EVIDENCE: dict[str, tuple[str, ...]] = {
     "EXEC-FB-004": ("start",), "ERR-006": ("query",), "ERR-013": ("signal",),
     "ERR-014": ("start",), "EXEC-009": ("ping", "start"), "EXEC-010": ("ping",),
     "HB-012": ("start",), "TST-002": ("tst",), "TST-003": ("tst",), "ERR-015": ("tst",),
-    "EXEC-SEQ-001": ("signal",), "EXEC-SEQ-002": ("signal",),
+    "EXEC-SEQ-001": ("signal",), "EXEC-SEQ-002": ("signal",), "EXEC-RESEND-003": ("resend",),
+    "DEI-004": ("refuse",),
 }
 
 

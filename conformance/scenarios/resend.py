@@ -29,6 +29,16 @@ def _start(ctx: Context, task: str, params: dict[str, Any]) -> tuple[Sent, Entry
     return first, answer
 
 
+def _listed_twice_after(ctx: Context, info: Entry | None, task_uuid: str, resent: int) -> bool:
+    """``info`` lists the task twice after its resend, and the unit listed no task twice
+    before it (that is its way of listing, DEI-004's finding, and no sign of a second run)."""
+    if info is None or ctx.executing(info).count(task_uuid) < 2:
+        return False
+    return not any(e.seq < resent and len(ids) != len(set(ids))
+                   for e in ctx.traffic.since(0, "direct_execution_info")
+                   for ids in (ctx.executing(e),))
+
+
 def run(ctx: Context) -> None:
     available = ctx.tasks_available()
     origin = ctx.position()
@@ -76,7 +86,7 @@ def run(ctx: Context) -> None:
         info = ctx.traffic.wait_for(lambda e: task_uuid in ctx.executing(e),
                                     ctx.info_deadline(), after=again.mark,
                                     subtopic="direct_execution_info")
-        if info is not None and ctx.executing(info).count(task_uuid) > 1:
+        if _listed_twice_after(ctx, info, task_uuid, again.mark):
             twice, evidence = True, info
     if twice:
         ctx.record("EXEC-RESEND-001", violation=ctx.violation(

@@ -306,6 +306,23 @@ def run_refusals(ctx: Context) -> None:
     sent, answer = ctx.commander.start_task(name, {}, ctx.timing.response, invalid=True)
     _expect_refusal(ctx, "EXEC-START-005", answer, f"start-task '{name}' (not in "
                     "tasks-available)", with_reason=False)
+    _await_listings(ctx, sent.mark)
+
+
+def _await_listings(ctx: Context, after: int, count: int = 3) -> None:
+    """A refused task never runs (5.3): the Monitor fails DEI-004 for one listed in
+    tasks-executing past two info periods after its refusal (the public agents keep it for
+    good), so ``count`` direct_execution_info messages are awaited before the next scenario
+    (a reboot would end the evidence)."""
+    seen: set[int] = set()
+
+    def enough(e: Entry) -> bool:
+        seen.add(e.seq)
+        return len(seen) >= count
+
+    ctx.traffic.wait_for(enough, ctx.info_deadline(count + 0.5), after=after,
+                         subtopic="direct_execution_info",
+                         what="tasks-executing after the refused start-tasks")
 
 
 def _expect_refusal(ctx: Context, rule: str, answer: Entry | None, what: str, *,

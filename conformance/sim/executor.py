@@ -280,6 +280,9 @@ class CommandExecutor:
                 return None
             return []
         problems = spec.problems(params)
+        if problems and "dies-on-invalid-params" in self.faults:
+            self.unit.dead = True  # reading the parameters raised in the MQTT thread
+            return None
         if problems and "accept-invalid-params" not in self.faults:
             self._fail_task(com, task_uuid, name,
                             f"invalid parameters for {name}: " + "; ".join(problems))

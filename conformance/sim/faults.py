@@ -158,6 +158,12 @@ _ALL = (
        "Lists a system signal '$resume' (an alias of $continue) for every task."),
     _f("tasks-executing-stale", "DEI-004",
        "Never removes ended tasks from tasks-executing."),
+    _f("tasks-executing-twice", "DEI-004",
+       "Lists each running task twice in tasks-executing (seen in the field).", stimulus=True),
+    _f("refused-task-listed", "DEI-004",
+       "Keeps the task-uuid of a start-task it refused ('failed': a task not offered, invalid "
+       "parameters) in tasks-executing for good, as a phantom task (seen in the field).",
+       stimulus=True),
     _f("tst-info-incomplete", "TEI-001",
        "Declares 'tst execution' and sends tst_execution_info without 'rate'."),
     _f("tst-info-rate-drift", "TEI-002",
@@ -204,6 +210,10 @@ _ALL = (
        "Its MQTT thread dies on a start-task without task-uuid (a KeyError): from then on it "
        "publishes and answers nothing, while the process lives on (seen in the field).",
        stimulus=True),
+    _f("dies-on-invalid-params", "HB-012",
+       "Its MQTT thread dies on a start-task whose parameters it cannot read ('waypoints: 42': "
+       "a TypeError), as the public L2 agents did in some runs: from then on it publishes "
+       "and answers nothing, while the process lives on.", stimulus=True),
     _f("no-final-feedback", "EXEC-START-003",
        "Sends no feedback when a task ends on its own (only on signals)."),
     _f("accept-invalid-params", "EXEC-START-004",
@@ -235,11 +245,11 @@ _ALL = (
        "Executes a command resent with the same com-uuid again."),
     _f("resend-unanswered", "EXEC-RESEND-002",
        "Drops a resent command silently (no second answer)."),
-    _f("resend-answered-failed", "EXEC-FB-004",
+    _f("resend-answered-failed", "EXEC-RESEND-003",
        "Takes a resent start-task for a new one: answers it 'failed' (task-uuid in use) and "
        "sends a 'failed' feedback for the task, which runs on (seen in the field): refused, "
-       "not executed twice (EXEC-RESEND-001 holds); the task's feedback after its 'failed' "
-       "is EXEC-FB-004's (decided: it warns)."),
+       "not executed twice (EXEC-RESEND-001 holds); both 'failed' contradict the first "
+       "answer while the task runs (EXEC-RESEND-003, decided: it warns)."),
     # --- 12.4 feedback ------------------------------------------------------------------------
     _f("feedback-no-com-uuid", "EXEC-FB-001",
        "Leaves com-uuid out of feedback messages."),

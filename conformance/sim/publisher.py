@@ -238,7 +238,10 @@ class Publisher:
         elif "paused-not-executing" in self.variants:  # 5.3: 'currently executing'
             executing = [t for t in tasks if not t.ended and t.status != "paused"]
         else:
-            executing = [t for t in tasks if not t.ended]
+            executing = [t for t in tasks if not t.ended or (
+                "refused-task-listed" in self.faults and t.spec is None and not t.legs)]
+        if "tasks-executing-twice" in self.faults:
+            executing = [t for t in executing for _ in (t, t)]
         msg = self._info(type_, self.info_rate, **{
             "tasks-available": available,
             "tasks-executing": [{"task-name": t.name, "task-uuid": t.uuid} for t in executing],

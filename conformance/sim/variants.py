@@ -20,7 +20,8 @@ from conformance.sim.faults import switches
 @dataclass(frozen=True)
 class Variant:
     """A variant switch: its name, the spec sections that allow it, what it does, and the
-    rules it makes warn (errata readings the catalogue accepts with a warning)."""
+    rules it makes warn (errata readings the catalogue accepts with a warning, decided rules
+    it reads otherwise)."""
 
     name: str
     section: str
@@ -140,7 +141,9 @@ _ALL = _READINGS + (
             "nothing says what the second answer says)",
             "Takes a resent start-task for a new one and refuses it: 'failed', 'A task is "
             "already running' (the official Python agents), with no feedback; the task it "
-            "started runs on, never executed twice."),
+            "started runs on, never executed twice. The 'failed' contradicts the first "
+            "answer while the task runs: EXEC-RESEND-003, a decided rule, warns.",
+            warns=("EXEC-RESEND-003",)),
     Variant("signed-heading", "6.1 ('heading : float', no range)",
             "Publishes heading in (-180, 180] (atan2's range); it faces west at start, so "
             "its heading is negative.",

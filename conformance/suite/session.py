@@ -98,6 +98,8 @@ class Certification:
         """Why the run stopped before the tests (broker unreachable, unit not alive)."""
         self.scenarios_done: dict[str, bool] = {}
         """Scenario -> whether it ran (False: its rules could not be tested)."""
+        self.revived = 0
+        """How often the unit was restarted after it died (``scenario_run.revive``)."""
         self._passive_ready = False
         self._last_write = 0.0
         self.selected: list[str] = []
@@ -391,6 +393,13 @@ class Certification:
         from conformance.suite.scenario_run import run_scenario
 
         run_scenario(self, name)
+
+    def announce(self, text: str) -> None:
+        """Something the run did to the unit (a restart after its death): on the terminal
+        now (not under -q) and in the summary."""
+        line = self.events.at(self.traffic.clock.now(), text)
+        if self.config.get_verbosity() >= 0:
+            self.progress.line(line)
 
     def say_aborted(self, aborted: list[str]) -> None:
         self.events.append(f"aborted {len(aborted)} task(s) or TST tree(s) the suite had "

@@ -35,9 +35,6 @@ test_ping = scenario_test(
 test_start_task = scenario_test(
     "start", "12.2.3: every task the profile allows runs, reports feedback and shows in 5.3's "
     "tasks-executing; a task-uuid left out is generated.")
-test_start_task_refused = scenario_test(
-    "refuse", "12.1: invalid parameters and tasks not in tasks-available are refused with a "
-    "reason.")
 test_signal_task = scenario_test(
     "signal", "12.2.2: every signal the unit lists is answered, with the feedback it implies.")
 test_query_status = scenario_test(
@@ -47,6 +44,11 @@ test_resend = scenario_test(
 test_tst = scenario_test(
     "tst", "14: trees run, report every node to a final status, take signals at node, tree and "
     "unit level; trees the unit cannot run are refused; a resent start-tst starts once.")
+# After the scenarios whose evidence a death would destroy: its invalid parameters may kill
+# a unit (scenarios/__init__.py).
+test_start_task_refused = scenario_test(
+    "refuse", "12.1: invalid parameters and tasks not in tasks-available are refused with a "
+    "reason.")
 test_robustness = scenario_test(
     "robust", "12.1: malformed and unknown commands do not stop the unit.")
 test_reboot = scenario_test(

@@ -13,6 +13,8 @@ from conformance.violation import Verdict
 # Strict: these tests show each check finding what it finds; a decided rule (rules.toml basis)
 # then fails as it did before the catalogue said what each rule stands on. That a decided rule
 # only warns by default is the judge's, tested in tests/core/test_judge.py.
+T0 = 1_700_000_000.0
+"""When the ``stream`` fixture's time 0 is (tests/checks/conftest.py)."""
 TIMEOUTS = Profile(response_timeout=1.0, feedback_timeout=3.0, strict=True)
 
 
@@ -101,6 +103,53 @@ def test_start_task_answers_that_do_not_fit(stream):
     assert len(rules["EXEC-START-002"].violations) == 2
     assert rules["EXEC-START-001"].verdict is Verdict.FAIL
     assert "'started'" in rules["EXEC-START-001"].violations[0].observed
+
+
+def test_a_start_task_without_task_uuid_answered_ok_and_no_task_uuid_fails_start_002(stream):
+    """Seen in the field: a start-task sent without a task-uuid answered 'ok' and none. 12.1:
+    'if not sent a generated task-uuid will be returned in the response message', whatever
+    word accepted it ('ok' itself is EXEC-START-001's); a refusal names no task."""
+    bare = start(stream, 4.1)
+    rules = judge(stream, [bare, stream.response(4.2, com_of(bare), "ok")])
+    assert rules["EXEC-START-001"].verdict is Verdict.FAIL
+    r = rules["EXEC-START-002"]
+    assert r.verdict is Verdict.FAIL and "a generated task-uuid" in r.violations[0].expected
+    refused = judge(stream, [bare, stream.response(4.2, com_of(bare), "failed", **{
+        "fail-reason": "no"})])
+    assert refused["EXEC-START-002"].verdict is Verdict.SKIP
+
+
+def test_a_task_listed_twice_or_after_its_refusal_fails_dei_004_once(stream):
+    """5.3 'List of tasks currently executing.' Seen in the field: a task listed twice (no
+    resend), and a task whose start-task (an unknown task: 'no-such-task') was refused
+    ('failed') kept in tasks-executing for good. Each is named once, not per message; a
+    task listed before its start-task was refused (the task-uuid of a running task) is no
+    evidence."""
+    task, phantom = new(), new()
+    cmd = start(stream, 2.1, task)
+    bogus = start(stream, 3.1, phantom, name="no-such-task")
+    twice = [{"task-name": "move-to", "task-uuid": task}] * 2
+    ghost = [{"task-name": "no-such-task", "task-uuid": phantom}]
+    rules = judge(stream, [
+        cmd, stream.response(2.2, com_of(cmd), "running", **{"task-uuid": task}),
+        stream.feedback(2.3, task, "running"),
+        stream.direct_execution_info(2.5, executing=twice),
+        bogus, stream.response(3.2, com_of(bogus), "failed", **{
+            "task-uuid": phantom, "fail-reason": "no such task"}),
+        *[stream.direct_execution_info(t, executing=ghost) for t in (3.5, 6.5, 9.5, 12.5)]])
+    r = rules["DEI-004"]
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 2, r
+    assert "listed 2 times" in r.violations[0].observed
+    assert "refused ('failed'): it never ran" in r.violations[1].observed
+    listed = [{"task-name": "move-to", "task-uuid": task}]
+    again = start(stream, 3.1, task)  # its uuid again: refused, the task runs on
+    rules = judge(stream, [
+        cmd, stream.response(2.2, com_of(cmd), "running", **{"task-uuid": task}),
+        stream.feedback(2.3, task, "running"), stream.direct_execution_info(2.5, executing=listed),
+        again, stream.response(3.2, com_of(again), "failed", **{
+            "task-uuid": task, "fail-reason": "task-uuid in use"}),
+        *[stream.direct_execution_info(t, executing=listed) for t in (6.5, 9.5)]])
+    assert rules["DEI-004"].verdict is not Verdict.FAIL, rules["DEI-004"]
 
 
 def test_a_dropped_start_task_fails_when_the_unit_answers_the_next_command(stream):
@@ -234,23 +283,63 @@ def test_a_unit_that_repeats_running_is_not_accused_of_a_second_start_by_it(stre
 def test_a_resend_refused_with_failed_feedback_is_not_executed_twice(stream):
     """Seen in the field (the official Python L2 agent): the resend is answered 'failed' ('A
     task is already running') with a 'failed' feedback for the task, which runs on. Nothing
-    ran twice (12.1): EXEC-RESEND-001 holds; the task's feedback after its 'failed' is
-    EXEC-FB-004's (a decided rule: strict here), never 'executed again'."""
+    ran twice (12.1): EXEC-RESEND-001 holds. Both 'failed' messages contradict the first
+    answer while the task runs on: EXEC-RESEND-003 (decided) names them, once each, and not
+    the task's later, true 'finished' (no EXEC-FB-004)."""
     task = new()
-    rules = judge(stream, _resent(stream, task, second=lambda c: [stream.response(
-        3.2, c, "failed", **{"task-uuid": task, "fail-reason": "A task is already running"})],
-        feedback=[stream.feedback(3.3, task, "failed")]))
-    assert rules["EXEC-RESEND-001"].verdict is Verdict.PASS
-    assert rules["EXEC-RESEND-002"].verdict is Verdict.PASS
-    fb = rules["EXEC-FB-004"]
-    assert fb.verdict is Verdict.FAIL and len(fb.violations) == 1
-    assert "final status 'failed'" in fb.violations[0].expected
-    assert "executed again" not in fb.violations[0].observed
-    lenient = judge(stream, _resent(stream, task, second=lambda c: [stream.response(
-        3.2, c, "failed", **{"task-uuid": task, "fail-reason": "A task is already running"})],
-        feedback=[stream.feedback(3.3, task, "failed")]), profile=Profile(
+    refused = lambda c: [stream.response(3.2, c, "failed", **{  # noqa: E731
+        "task-uuid": task, "fail-reason": "A task is already running"})]
+    rules = judge(stream, _resent(stream, task, second=refused,
+                                  feedback=[stream.feedback(3.3, task, "failed")]))
+    assert verdicts(rules, "EXEC-RESEND-001", "EXEC-RESEND-002", "EXEC-FB-004") == {
+        "EXEC-RESEND-001": "pass", "EXEC-RESEND-002": "pass", "EXEC-FB-004": "pass"}
+    r = rules["EXEC-RESEND-003"]
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 2, r  # strict here
+    answer, feedback = r.violations
+    assert answer.topic.endswith("exec/response") and answer.time == T0 + 3.2
+    assert feedback.topic.endswith("exec/feedback") and feedback.time == T0 + 3.3
+    assert "then 'finished'" in answer.observed and "ran on" in answer.observed
+    lenient = judge(stream, _resent(stream, task, second=refused, feedback=[
+        stream.feedback(3.3, task, "failed")]), profile=Profile(
         response_timeout=1.0, feedback_timeout=3.0))
-    assert lenient["EXEC-FB-004"].verdict is Verdict.WARN  # decided: an interop risk
+    assert lenient["EXEC-RESEND-003"].verdict is Verdict.WARN  # decided: an interop risk
+
+
+def test_a_task_that_said_failed_and_runs_on_is_blamed_on_its_failed(stream):
+    """EXEC-FB-004's note: a 'failed' feedback (here for a refused signal naming the task)
+    after which the task says 'running' and 'finished' was the false one: the finding is the
+    'failed', once, and the true end is no feedback after a final status."""
+    task = new()
+    cmd = start(stream, 2.1, task)
+    rules = judge(stream, [cmd, stream.response(2.2, com_of(cmd), "running", **{
+        "task-uuid": task}), stream.feedback(2.3, task, "running"),
+        stream.feedback(3.3, task, "failed"), stream.feedback(4.3, task, "running"),
+        stream.feedback(6.3, task, "finished"), stream.feedback(7.3, task, "running")])
+    r = rules["EXEC-FB-004"]
+    assert r.verdict is Verdict.FAIL and len(r.violations) == 2, r  # strict here
+    false, after_end = r.violations
+    assert false.time == T0 + 3.3 and "then 'running'" in false.observed
+    assert after_end.time == T0 + 7.3 and "final status 'finished'" in after_end.expected
+    assert rules["EXEC-RESEND-003"].verdict is Verdict.SKIP  # nothing was resent
+    ended = judge(stream, [cmd, stream.response(2.2, com_of(cmd), "running", **{
+        "task-uuid": task}), stream.feedback(2.3, task, "running"),
+        stream.feedback(3.3, task, "failed")])
+    assert ended["EXEC-FB-004"].verdict is Verdict.PASS  # a 'failed' that stays is true
+    anew = start(stream, 5.1, task)  # its uuid started anew: a new task, not the old running on
+    rules = judge(stream, [cmd, stream.response(2.2, com_of(cmd), "running", **{
+        "task-uuid": task}), stream.feedback(2.3, task, "running"),
+        stream.feedback(3.3, task, "failed"), anew, stream.response(5.2, com_of(anew),
+                                                                      "running", **{
+            "task-uuid": task}), stream.feedback(5.3, task, "running"),
+        stream.feedback(7.3, task, "finished")])
+    assert rules["EXEC-FB-004"].verdict is Verdict.PASS, rules["EXEC-FB-004"]
+    again = start(stream, 4.1, task, com=com_of(cmd))  # resent after a true 'failed': run again
+    rules = judge(stream, [cmd, stream.response(2.2, com_of(cmd), "running", **{
+        "task-uuid": task}), stream.feedback(2.3, task, "running"),
+        stream.feedback(3.3, task, "failed"), again, stream.feedback(4.3, task, "running"),
+        stream.feedback(6.3, task, "finished")])
+    assert rules["EXEC-RESEND-001"].verdict is Verdict.FAIL
+    assert rules["EXEC-FB-004"].verdict is Verdict.PASS, rules["EXEC-FB-004"]
 
 
 def test_failed_feedback_after_a_resend_that_ran_the_ended_task_again(stream):
@@ -654,13 +743,20 @@ def test_a_query_status_answer_failed_reports_a_status_it_refuses_nothing(stream
 
 def test_a_resend_refused_is_not_executed_again(stream):
     """Seen in the field: a resent start-task answered 'failed' ('A task is already
-    running') and nothing else: refusing is not executing (EXEC-RESEND-001 holds)."""
+    running') and nothing else: refusing is not executing (EXEC-RESEND-001 holds); the task
+    then finishes, so the 'failed' contradicted the first answer (EXEC-RESEND-003, decided).
+    Answered again as the first time, it is clean."""
     task = new()
     rules = judge(stream, _resent(stream, task, second=lambda c: [stream.response(
         3.2, c, "failed", **{"task-uuid": task, "fail-reason": "A task is already running"})],
         feedback=[]))
     assert rules["EXEC-RESEND-001"].verdict is Verdict.PASS
     assert rules["EXEC-RESEND-002"].verdict is Verdict.PASS
+    r = rules["EXEC-RESEND-003"]
+    assert r.verdict is Verdict.FAIL and [v.time for v in r.violations] == [T0 + 3.2]  # strict
+    again = judge(stream, _resent(stream, task, second=lambda c: [stream.response(
+        3.2, c, "running", **{"task-uuid": task})], feedback=[]))
+    assert again["EXEC-RESEND-003"].verdict is Verdict.PASS
 
 
 def test_a_death_names_every_command_of_the_burst_the_last_first(stream):

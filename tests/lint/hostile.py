@@ -136,16 +136,18 @@ def line(ts: float, topic: str, payload: bytes) -> bytes:
     return orjson.dumps({"ts": ts, "topic": topic, "payload": payload.decode("utf-8")})
 
 
-def mosquitto_j(payloadlen: int, payload: str = "x") -> bytes:
+def mosquitto_j(payloadlen: int, payload: str = "x",
+                tst: str = "2026-11-21T07:26:55.807087Z+0100", subtopic: str = "heartbeat"
+                ) -> bytes:
     """A ``mosquitto_sub -F %j`` line declaring ``payloadlen`` (153 bytes for 2e9)."""
-    return (b'{"tst":"2026-11-21T07:26:55.807087Z+0100","topic":"' + UNIT.encode()
-            + b'/heartbeat","qos":0,"retain":0,"payloadlen":' + str(payloadlen).encode()
+    return (b'{"tst":"' + tst.encode() + b'","topic":"' + UNIT.encode() + b'/'
+            + subtopic.encode() + b'","qos":0,"retain":0,"payloadlen":' + str(payloadlen).encode()
             + b',"payload":"' + payload.encode() + b'"}')
 
 
-def mosquitto_jj(topic: str, value: bytes, payloadlen: int, t: str = "07:26:55.807087") -> bytes:
+def mosquitto_jj(topic: str, value: bytes, payloadlen: int, t: str = "05:40:00.500000") -> bytes:
     """A ``mosquitto_sub -F %J`` line: the payload ``value`` embedded as JSON."""
-    return (b'{"tst":"2026-11-21T' + t.encode() + b'Z+0100","topic":"' + topic.encode()
+    return (b'{"tst":"2025-11-21T' + t.encode() + b'Z+0100","topic":"' + topic.encode()
             + b'","qos":0,"retain":0,"payloadlen":' + str(payloadlen).encode() + b',"payload":'
             + value + b"}")
 
@@ -177,7 +179,8 @@ def mixed_j_and_jj(tmp: Path) -> Path:
     """Issue 26 §4: one ``-F %J`` line, then a conformant unit's ``-F %j`` lines (30 false
     MSG-003 findings when the first line's format was taken for the whole file)."""
     path = tmp / "mixed.txt"
-    first = mosquitto_jj(f"{UNIT}/sensor/speed", b"0.1", 3, "06:39:59.9")
+    first = as_mosquitto_j(line(T0 - 0.1, f"{UNIT}/sensor/speed", b"0.1")).replace(
+        b'"payload":"0.1"', b'"payload":0.1')  # -F %J: the payload embedded as JSON
     path.write_bytes(b"\n".join([first, *map(as_mosquitto_j, good_lines(12))]) + b"\n")
     return path
 
@@ -326,7 +329,10 @@ RECORDING_CASES = [
     Case("heartbeats-all-at-one-instant", _recording([  # found by fuzz/recording_mixed
         line(T0 + 0.5, "waraps/unit/air/simulation/dji9/heartbeat", heartbeat(T0, "dji9", 9))
         for _ in range(6)]), codes=frozenset({1}), says=("a mean interval of 0 s",)),
-    Case("payloadlen-64mib-2000-lines", _recording([mosquitto_j(64 << 20)] * 2000),
+    # Among the good lines' times (a time that runs back further is refused), on a sensor's
+    # topic (2000 heartbeats at one instant would be a rate of their own, HB-003).
+    Case("payloadlen-64mib-2000-lines", _recording([mosquitto_j(
+        64 << 20, tst="2025-11-21T04:40:01.050000Z+0000", subtopic="sensor/speed")] * 2000),
          # MSG-004 is decided (rules.toml): it warns, and the run is partial
          codes=frozenset({4}), says=("2000 payload(s) were cut at a NUL byte", "MSG-004")),
 ]

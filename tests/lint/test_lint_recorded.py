@@ -7,6 +7,7 @@ from datetime import UTC
 from pathlib import Path
 
 import orjson
+import pytest
 from lint_helpers import (
     T0,
     failed_rules,
@@ -221,7 +222,7 @@ def test_usage_errors_exit_2(tmp_path: Path, reports_dir: Path) -> None:
 def test_payload_b64_lines_are_judged(tmp_path: Path, reports_dir: Path, prefix: str) -> None:
     base = f"{prefix}/unit/air/simulation/dji0"
     rec = write_recording(tmp_path / "r.jsonl", unit_traffic(prefix, "dji0", seconds=12))
-    extra = orjson.dumps({"ts": T0 + 3, "topic": f"{base}/sensor/speed",
+    extra = orjson.dumps({"ts": T0 + 12.5, "topic": f"{base}/sensor/speed",
                           "payload_b64": base64.b64encode(b"\x80abc").decode()})
     rec.write_bytes(rec.read_bytes() + extra + b"\n")
     run = run_lint(["--from", str(rec)], reports_dir)
@@ -287,3 +288,70 @@ def test_a_recorded_stall_of_the_broker_is_not_the_units(tmp_path: Path, reports
     got = verdicts(run.report, unit)
     assert {r: got[r] for r in ("HB-003", "SI-002", "DEI-002", "HB-010")} == dict.fromkeys(
         ("HB-003", "SI-002", "DEI-002", "HB-010"), "pass")
+
+
+def _pretty_pong(prefix: str, cut: bool) -> tuple[list[Message], str]:
+    """A unit's traffic with a ping answered by a pretty-printed (multi-line) pong; ``cut``:
+    as a tool that records line by line kept it, its first line '{' only."""
+    msgs = unit_traffic(prefix, "dji0", seconds=20)
+    base = msgs[0].topic.rsplit("/", 1)[0]
+    agent = orjson.loads(next(m for m in msgs if m.topic.endswith("/heartbeat")).payload)[
+        "agent-uuid"]
+    ping = {"com-uuid": "7300d049-176f-4dcb-b0bf-151980d5611a", "command": "ping",
+            "sender": "commander"}
+    pong = {"agent-uuid": agent, "com-uuid": "8300d049-176f-4dcb-b0bf-151980d5611a",
+            "response": "pong", "response-to": ping["com-uuid"]}
+    text = orjson.dumps(pong, option=orjson.OPT_INDENT_2)
+    return msgs + [Message(T0 + 5.0, f"{base}/exec/command", orjson.dumps(ping), 0, False),
+                   Message(T0 + 5.1, f"{base}/exec/response",
+                           text.split(b"\n")[0] if cut else text, 0, False)], base
+
+
+def test_a_payload_the_capture_cut_to_its_first_line_is_the_captures_not_the_units(
+        tmp_path: Path, reports_dir: Path, prefix: str) -> None:
+    """A tool that records line by line keeps a pretty-printed pong as '{' (its first line;
+    mosquitto_sub -v prints the rest as lines of their own). The capture's fault, said once
+    in a note: not the unit's invalid JSON (MSG-002), nor its ping unanswered (EXEC-PING-001);
+    with -v, the rest of the payload is no malformed line either."""
+    msgs, base = _pretty_pong(prefix, cut=True)
+    unit = base
+    run = run_lint(["--from", str(write_recording(tmp_path / "cut.jsonl", msgs))],
+                   reports_dir)
+    assert run.report is not None, run.out
+    judged = verdicts(run.report, unit)
+    assert judged["EXEC-PING-001"] != "fail" and judged["MSG-002"] != "fail", judged
+    assert run.out.count("cut to their first line") == 1, run.out
+    whole, _ = _pretty_pong(prefix, cut=False)  # the capture was whole: the pong answers
+    verbose = b"".join(m.topic.encode() + b" " + m.payload + b"\n"
+                       for m in sorted(whole, key=lambda m: m.time))
+    run = run_lint(["--from", "-"], reports_dir / "v", stdin=verbose)
+    assert run.report is not None and "malformed line" not in run.out, run.out
+    assert verdicts(run.report, unit)["MSG-002"] != "fail"
+    assert run.out.count("cut to their first line") == 1, run.out
+
+
+def test_a_recording_whose_time_runs_backwards_is_refused_naming_the_line(
+        tmp_path: Path, reports_dir: Path, prefix: str,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Two captures joined end to end (`cat a.jsonl b.jsonl | lint --from -`): the first
+    one's death would read as a pass. Refused with an error naming the line where time runs
+    back, nothing judged (exit 3: nothing could be linted, no report); a step back within
+    BACKWARDS_SECONDS (a clock stepped by NTP) is read on."""
+    from conformance.recording import BACKWARDS_SECONDS
+
+    a = write_recording(tmp_path / "a.jsonl", unit_traffic(prefix, "dji0", seconds=20,
+                                                           t0=T0 + 3600))
+    b = write_recording(tmp_path / "b.jsonl", unit_traffic(prefix, "dji0", seconds=20))
+    joined = a.read_bytes() + b.read_bytes()
+    first_of_b = len(a.read_bytes().splitlines()) + 1
+    run = run_lint(["--from", "-"], reports_dir, stdin=joined)
+    assert run.code == 3 and run.report is None and not run.reports, run.out
+    err = capsys.readouterr().err
+    assert f"line {first_of_b}: time runs backwards" in err, err
+    assert f"before line {first_of_b - 1}'s" in err and "Lint each on its own" in err
+    stepped = unit_traffic(prefix, "dji0", seconds=20)
+    back = [Message(m.time - BACKWARDS_SECONDS / 2 if i > 30 else m.time, *m[1:])
+            for i, m in enumerate(stepped)]
+    run = run_lint(["--from", str(write_recording(tmp_path / "c.jsonl", back))],
+                   reports_dir / "c")
+    assert run.report is not None, run.out

@@ -48,16 +48,17 @@ def test_jsonl_round_trip_is_byte_exact_with_events() -> None:
     out = io.BytesIO()
     w = RecordingWriter(out)
     w.write(MESSAGES[0])
-    w.write(Event(1763706394.0, "disconnected", "connection lost"))
-    w.write(Event(1763706399.5, "connected"))
-    w.write(Event(1763706399.6, "unexamined", "fell behind", 42))
+    w.write(Event(1763706393.55, "disconnected", "connection lost"))
+    w.write(Event(1763706393.56, "connected"))
+    w.write(Event(1763706393.57, "unexamined", "fell behind", 42))
     for m in MESSAGES[1:]:
         w.write(m)
     items, reader = read(out.getvalue())
     assert [i for i in items if isinstance(i, Message)] == MESSAGES
     assert [i for i in items if isinstance(i, Event)] == [
-        Event(1763706394.0, "disconnected", "connection lost"), Event(1763706399.5, "connected"),
-        Event(1763706399.6, "unexamined", "fell behind", 42)]
+        Event(1763706393.55, "disconnected", "connection lost"), Event(1763706393.56,
+                                                                        "connected"),
+        Event(1763706393.57, "unexamined", "fell behind", 42)]
     assert reader.problem_count == 0 and reader.messages == len(MESSAGES)
     assert w.messages == len(MESSAGES)
     # Binary payloads go as base64, text as text (readable with jq).
@@ -67,8 +68,9 @@ def test_jsonl_round_trip_is_byte_exact_with_events() -> None:
 
 def test_minimal_lines_from_other_tools_are_read() -> None:
     items, reader = read(b'{"ts": 1700000000, "topic": "a/b", "payload": "x"}\n'
-                         b'{"ts": 1.5, "topic": "a/c", "payload_b64": "AAE=", "retain": 1}\r\n')
-    assert items == [Message(1700000000.0, "a/b", b"x"), Message(1.5, "a/c", b"\x00\x01", 0, True)]
+                         b'{"ts": 1700000001.5, "topic": "a/c", "payload_b64": "AAE=", "retain": 1}\r\n')
+    assert items == [Message(1700000000.0, "a/b", b"x"),
+                     Message(1700000001.5, "a/c", b"\x00\x01", 0, True)]
 
 
 def test_malformed_lines_are_reported_with_their_number_and_the_rest_is_read() -> None:

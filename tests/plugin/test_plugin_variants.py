@@ -58,7 +58,7 @@ GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
     # announce-nodes, periodic-feedback: readings of an independent unit (issue 24).
     (("respawn", "announce-nodes", "periodic-feedback"), True),
     # The official Python agents refuse a resent start-task ('A task is already running'):
-    # nothing runs twice (12.1), so no EXEC-RESEND-001 (issue 24).
+    # nothing runs twice (12.1), so no EXEC-RESEND-001; the 'failed' warns (EXEC-RESEND-003).
     (("resend-refused",), False),
     # Readings of units written elsewhere from the spec alone.
     (("both-sensor-info", "preparing-status", "paused-not-executing", "reboot-away"), True),
@@ -173,6 +173,9 @@ def test_variants_are_certified_and_lint_clean(pytester: pytest.Pytester,
     assert {rules[r]["verdict"] for r in ("EXEC-SEQ-001", "EXEC-SEQ-002")} == {"pass"}, \
         first_violations(rules, {"EXEC-SEQ-001", "EXEC-SEQ-002"})
     assert not lint, f"lint, {' + '.join(variants)}: {first_violations(linted, lint)}"
+    if "resend-refused" in variants:  # its 'failed' contradicts the first answer: decided
+        assert rules["EXEC-RESEND-003"]["verdict"] == linted["EXEC-RESEND-003"]["verdict"] \
+            == "warn", first_violations(rules, {"EXEC-RESEND-003"})
 
 
 @pytest.mark.parametrize("variants", [pytest.param(g, id="+".join(g)) for g in PACED])

@@ -248,3 +248,23 @@ def test_an_absent_unit_whose_reports_cannot_be_written_ends_not_certified(
     assert proc.returncode == NOT_CERTIFIED_EXIT, out
     assert f"could not write the reports into {reports}" in out
     assert "Traceback" not in out
+
+
+def test_a_unit_killed_by_a_probe_is_judged_on_the_scenarios_before_it_and_restarted(
+        pytester: pytest.Pytester) -> None:
+    """The public L2 agents died on the start-task with invalid parameters (EXEC-START-004's
+    probe) in some runs: that probe runs after the scenarios whose evidence a death would
+    destroy (signal, query, resend), so they are judged; where the run can reboot the unit
+    it is restarted and the run carries on, saying so, and the death stays HB-012's."""
+    run = certify(pytester, "--unit", UNIT, "--broker", "virtual", "--sim-rate", "3",
+                  "--sim-fault=dies-on-invalid-params", f"--profile={FAST}")
+    rules = run.unit_rules()
+    assert rules["HB-012"]["verdict"] == "fail", rules["HB-012"]
+    judged = ("EXEC-SIG-001", "EXEC-SIG-002", "EXEC-QUERY-001", "EXEC-RESEND-001",
+              "EXEC-RESEND-002", "EXEC-ROBUST-001", "EXEC-ROBUST-002")
+    assert {r: rules[r]["verdict"] for r in judged} == dict.fromkeys(judged, "pass"), \
+        {r: rules[r] for r in judged}
+    assert rules["EXEC-START-004"]["verdict"] == "could-not-test"  # it died on it
+    assert "restarting it with the bundled reference unit's reboot and carrying on" in \
+        run.text, run.text
+    assert "the unit is back" in run.text and "after its restart" in run.text

@@ -190,10 +190,20 @@ def workout(u: UnitView, reboot: Callable[[], None], malformed: set[str] | None 
 
     # invalid parameters and a task not offered: refused, with a reason
     r = u.request(start_body("move-to", {"waypoint": "home", "speed": 7}, str(uuid.uuid4())))
+    if r is None and u.heartbeat_uuid(u.obs.mark()) is None:
+        ok["(died)"] = False  # the unit died on it: HB-012, for the Monitor to judge
+        return ok
     judge("EXEC-START-004", r is not None and r.get("response") == "failed"
           and bool(r.get("fail-reason")))
-    r = u.request(start_body("fly-to-the-moon", {}, str(uuid.uuid4())))
+    moon = str(uuid.uuid4())
+    r = u.request(start_body("fly-to-the-moon", {}, moon))
     judge("EXEC-START-005", r is not None and r.get("response") == "failed")
+    # A refused task never runs (5.3): three info messages later it is not listed either.
+    mark, info = u.obs.mark(), None
+    for _ in range(3):
+        info = u.next_info(mark)
+        mark = u.obs.mark()
+    judge("DEI-004", info is not None and moon not in str(info.get("tasks-executing")))
 
     # a malformed command with a readable com-uuid: failed; the unit still pings
     bad = str(uuid.uuid4())

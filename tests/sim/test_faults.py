@@ -211,7 +211,7 @@ LINT_EXPECTED: dict[str, set[str]] = {
     "start-response-unpublished": {"EXEC-START-001"},
     "query-unanswered": {"EXEC-QUERY-001"},
     "resend-executes-twice": {"EXEC-RESEND-001"},
-    "resend-answered-failed": {"EXEC-FB-004"},
+    "resend-answered-failed": {"EXEC-RESEND-003"},
     "start-no-generated-task-uuid": {"EXEC-START-002"},
     "dies-on-missing-task-uuid": {"HB-012"},
     "undeclared-direct-execution": {"HB-013"},

@@ -211,3 +211,28 @@ def test_names_in_strings_or_in_other_objects_are_not_twice(payload: bytes) -> N
 
     v = Validator().validate("waraps/unit/air/simulation/dji0/heartbeat", payload, 1.0)
     assert not [x for x in v.violations if x.condition == "duplicate-names"]
+
+
+def test_a_microsecond_stamp_of_a_clock_off_is_explained_alike_by_validate_and_lint(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A stamp in microseconds from a clock 40 s ahead (past the profile's clock tolerance):
+    one explanation, microseconds (MSG-008), from `validate --time` and from lint of the
+    recorded message; never a clock decades ahead (MSG-005)."""
+    from conformance.message import Message
+    from conformance.recording import RecordingWriter
+
+    arrival = 1_763_706_393.5
+    payload = _heartbeat(int((arrival + 40.0) * 1e6))
+    topic = "waraps/unit/air/simulation/dji0/heartbeat"
+    path = tmp_path / "hb.json"
+    path.write_bytes(payload)
+    assert cli_main(["validate", "--time", str(arrival), topic, str(path)]) == 1
+    out = capsys.readouterr().out
+    assert "looks like microseconds" in out and "ahead of" not in out, out
+    recording = tmp_path / "hb.jsonl"
+    with recording.open("wb") as f:
+        RecordingWriter(f).write(Message(arrival, topic, payload, 0, False))
+    assert cli_main(["lint", "--from", str(recording), "--plain", "--reports-dir",
+                     str(tmp_path / "r")]) == 1
+    out = capsys.readouterr().out
+    assert "looks like microseconds" in out and "ahead of" not in out, out
