@@ -92,14 +92,12 @@ class Certification:
         self.report_paths: dict[str, Path] = {}
         self.report_error = ""
         """Why the last report could not be written ('' when it was)."""
-        self.collect_only = False
-        """--collect-only: nothing is connected, run or written."""
+        self.collect_only = False  # --collect-only: nothing is connected, run or written
         self.error: str | None = None
         """Why the run stopped before the tests (broker unreachable, unit not alive)."""
         self.scenarios_done: dict[str, bool] = {}
         """Scenario -> whether it ran (False: its rules could not be tested)."""
-        self.revived = 0
-        """How often the unit was restarted after it died (``scenario_run.revive``)."""
+        self.revived = 0  # how often the unit was restarted after it died (scenario_run.revive)
         self._passive_ready = False
         self._last_write = 0.0
         self.selected: list[str] = []
