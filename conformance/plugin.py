@@ -347,7 +347,8 @@ class _CertificationPlugin:
             return
         c = self.certification
         report = c.report()
-        text = last_line(report, c.conclusion(report), str(c.unit), self.status)
+        text = last_line(report, c.conclusion(report), str(c.unit), self.status,
+                         error_said=bool(c.error))
         tr.write_line(printable_lines(mask_password(text)),
                       green=self.status == 0, red=self.status != 0)
 

@@ -28,11 +28,15 @@ PYTEST_WORDS = {
 }
 
 
-def last_line(report: RunReport, conclusion: Conclusion, unit: str, status: int) -> str:
+def last_line(report: RunReport, conclusion: Conclusion, unit: str, status: int, *,
+              error_said: bool = False) -> str:
     """``exit 7: not certified: no rule failed, but 2 could not be tested: REBOOT-001,
-    REBOOT-002: no way to reboot the unit: pass --reboot-cmd ...``."""
+    REBOOT-002: no way to reboot the unit: pass --reboot-cmd ...``. ``error_said``: the
+    error that kept every rule from running was printed just above (said once)."""
     row = conclusion.units.get(unit)
-    if status != conclusion.exit_code:  # pytest's own status (usage, internal, ...)
+    if error_said and status == EXIT_NOT_CERTIFIED:
+        why = "not certified: no rule was judged (the error above says why)"
+    elif status != conclusion.exit_code:  # pytest's own status (usage, internal, ...)
         why = PYTEST_WORDS.get(status, "see above")
     elif status == EXIT_CERTIFIED:
         why = (f"{conclusion.headline()}: no selected rule failed; no level is certified by "
