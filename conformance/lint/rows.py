@@ -17,8 +17,12 @@ from conformance.lint.linter import NOT_A_UNIT, OTHER_UNITS
 from conformance.rules import CATALOGUE
 from conformance.violation import Verdict, Violation
 
-STATUS_ORDER = {"FAIL": 0, "warn": 1, "ok": 2, "-": 3}
-"""Rows worst first."""
+STATUS_ORDER = {"silent": 0, "FAIL": 1, "warn": 2, "ok": 3, "-": 4}
+"""Rows worst first: a unit gone silent first (death first, ``conclusion.TRIAGE``)."""
+STATUS_WORDS = {"silent": "silent", "FAIL": "fail", "warn": "warn", "ok": "clean",
+                "-": "unheard"}
+"""Each status in words, the same on the page, in the terminal and in ``/metrics``: silent
+(its heartbeat stopped, now), fail, warn, clean, unheard (nothing of its own seen)."""
 
 
 @dataclass(frozen=True)
@@ -56,15 +60,26 @@ class LintRow:
     live: tuple[str, ...] = ()
     """Failing rules off right now over their latest intervals (rates:
     ``Monitor.live_findings``; judged over the whole run at the end)."""
+    silent_since: float | None = None
+    """The unit's last heartbeat while it is silent right now (``Linter.watch_silences``:
+    more than 3 heartbeat periods), else None; at the end HB-010 or HB-012 judge it."""
 
     @property
     def status(self) -> str:
-        """FAIL, warn, ok (messages seen, or a commander) or - (nothing seen)."""
+        """silent (now), FAIL, warn, ok (messages seen, or a commander) or - (nothing seen)."""
+        if self.silent_since is not None:
+            return "silent"
         if self.live or any(f.verdict == "fail" for f in self.findings):
             return "FAIL"
         if self.findings:
             return "warn"
         return "ok" if self.messages or self.party == "commander" else "-"
+
+    @property
+    def failing(self) -> bool:
+        """Fails so far, or is silent now (a silence is HB-010's failure when it ends, and
+        HB-012's when it never does): what the terminal and ``/metrics`` call failing."""
+        return self.status in ("silent", "FAIL")
 
     @property
     def pseudo(self) -> bool:
@@ -99,6 +114,7 @@ def live_rows(linter: Any, evidence: Mapping[tuple[str, str], Violation] | None 
     fails: Callable[[str], bool] = cache(linter.is_error)
     untimed = bool(getattr(monitor, "untimed", False))  # a capture without times
     rows: dict[str, LintRow] = {}
+    silent: Mapping[str, float] = getattr(linter, "silent", {}) if live else {}
     for unit in list(monitor.units()):
         state: Any = monitor.state(unit)
         address = getattr(state, "address", None)
@@ -111,7 +127,7 @@ def live_rows(linter: Any, evidence: Mapping[tuple[str, str], Violation] | None 
             None if untimed else getattr(state, "first_seen", None),
             None if untimed else getattr(state, "last_seen", None),
             live=tuple(v.rule for v in monitor.live_findings(unit) if fails(v.rule))
-            if live else ())
+            if live else (), silent_since=silent.get(key))
     for label in getattr(monitor, "commanders", list)():  # a row each, clean or not
         rows[label] = LintRow(label, "commander", "commander", levels=())
     for unit, counts in list(linter.by_unit.items()):

@@ -138,8 +138,10 @@ def environment() -> Any:
                       finalize=_finalize)
     env.filters.update(unit_url=_escape_unit, clock=_clock, hz=_hz, ago=_ago, short=_short)
     from conformance.lint.plots import sparkline
+    from conformance.lint.rows import STATUS_WORDS
 
-    env.globals.update(sparkline=sparkline, rule_of=_rule_of, max_rows=MAX_ROWS_SHOWN)
+    env.globals.update(sparkline=sparkline, rule_of=_rule_of, max_rows=MAX_ROWS_SHOWN,
+                       status_words=STATUS_WORDS)
     return env
 
 
@@ -238,11 +240,9 @@ class App:
             name = "unit.html.j2" if path.startswith("/unit/") else "unit_body.html.j2"
             return "200 OK", self._page(name, snap, row=row), html
         if path == "/metrics":
-            from prometheus_client import CONTENT_TYPE_LATEST
+            from conformance.lint.metrics import CONTENT_TYPE, exposition
 
-            from conformance.lint.metrics import exposition
-
-            return "200 OK", exposition(lambda: snap), CONTENT_TYPE_LATEST
+            return "200 OK", exposition(lambda: snap), CONTENT_TYPE
         if path == "/report.json":
             data = self.view.report_json()
             if data is None:
