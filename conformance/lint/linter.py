@@ -230,9 +230,16 @@ class Linter:
                 self.fleet.append(Violation(
                     "HB-010", f"a heartbeat at least every {SILENCE_PERIODS * period:.3g} s "
                     f"({SILENCE_PERIODS:g} heartbeat periods)",
-                    f"silent since {time.strftime('%H:%M:%S', time.localtime(dead[1]))}: "
+                    f"silent since {_clock(dead[1])}: "
                     f"no heartbeat for {now - dead[1]:.1f} s (live: shown back when heard)",
                     topic=f"{key}/heartbeat", time=now, unit=key))
+        for key, last in self.silent.items():
+            if key not in silent:  # heard again: the silence's end is an observation too
+                self.fleet.append(Violation(
+                    "HB-010", "a heartbeat at least every 3 heartbeat periods",
+                    f"silent from {_clock(last)} until heard again, {now - last:.0f} s or less "
+                    f"(live; HB-010 judges the silence)", topic=f"{key}/heartbeat",
+                    time=now, unit=key))
         self.silent = silent
 
     # --- tallies ----------------------------------------------------------------------------
@@ -323,3 +330,7 @@ class Linter:
         """Units with a violation of a rule of severity error so far."""
         return sorted(u for u, counts in self.by_unit.items()
                       if any(self.is_error(r, u) for r in counts))
+
+
+def _clock(t: float) -> str:
+    return time.strftime("%H:%M:%S", time.localtime(t))

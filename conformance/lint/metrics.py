@@ -85,44 +85,8 @@ class SnapshotCollector:
         for (party, status), n in sorted(by.items()):
             units.add_metric([party, status], n)
         yield units
-        failing = _Capped(GaugeMetricFamily(
-            "waraps_lint_unit_failing", "1 when the unit or commander fails a rule of severity "
-            "error so far (or a rate is off over its latest intervals, or it is silent now), "
-            "else 0", labels=["unit", "party"]))
-        up = _Capped(GaugeMetricFamily(
-            "waraps_lint_unit_up", "1 while the unit is heard, 0 once its heartbeat is missing "
-            "for more than 3 of its periods (silent; 1 again when it is heard)",
-            labels=["unit"]))
-        last_seen = _Capped(GaugeMetricFamily(
-            "waraps_lint_unit_last_seen_timestamp_seconds", "When the unit's latest message "
-            "arrived, Unix seconds", labels=["unit"]))
-        findings = _Capped(CounterMetricFamily(
-            "waraps_lint_findings", "Violations found, by unit (or commander) and rule",
-            labels=["unit", "rule", "verdict"]))
-        messages = _Capped(CounterMetricFamily(
-            "waraps_lint_unit_messages", "Messages read, by unit and topic kind",
-            labels=["unit", "kind"]))
-        periods = _Capped(GaugeMetricFamily(  # base units: seconds, not Hz
-            "waraps_lint_period_seconds", "Declared and measured (latest 30 s) period of each "
-            "periodic message kind (1 / its rate), seconds", labels=["unit", "kind", "which"]))
-        for row in s.rows:
-            name = label(row.unit)
-            failing.add([name, row.party], 1.0 if row.failing else 0.0)
-            if row.party == "unit" and not row.pseudo and row.messages:
-                up.add([name], 0.0 if row.status == "silent" else 1.0)
-                if row.last_seen is not None:
-                    last_seen.add([name], row.last_seen)
-            for f in row.findings:
-                findings.add([name, f.rule, f.verdict], float(f.count))
-            for kind, n in row.by_kind:
-                messages.add([name, kind], float(n))
-            for r in row.rates:
-                for which, rate in (("declared", r.declared), ("measured", r.measured)):
-                    if rate:
-                        periods.add([name, r.kind, which], 1.0 / rate)
         # A family without a sample is left out (a HELP and TYPE over nothing).
-        yield from (f for f in (failing.done(), up.done(), last_seen.done(), findings.done(),
-                                messages.done(), periods.done()) if f.samples)
+        yield from (f for f in _row_families(s) if f.samples)
         yield _counter(CounterMetricFamily, "waraps_lint_messages",
                        "Messages read by the linter", s.messages)
         yield _counter(CounterMetricFamily, "waraps_lint_dropped_messages",
@@ -136,6 +100,47 @@ class SnapshotCollector:
         yield GaugeMetricFamily(  # a lint whose loop stopped stops moving it (alert rules)
             "waraps_lint_snapshot_timestamp_seconds", "When lint last took stock of the "
             "fleet (at least every few seconds while it runs), Unix seconds", value=s.made)
+
+
+def _row_families(s: Snapshot) -> list[Any]:
+    """The families with a series per unit (or commander), from the snapshot's rows."""
+    from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily
+
+    failing = _Capped(GaugeMetricFamily(
+        "waraps_lint_unit_failing", "1 when the unit or commander fails a rule of severity "
+        "error so far (or a rate is off over its latest intervals, or it is silent now), "
+        "else 0", labels=["unit", "party"]))
+    up = _Capped(GaugeMetricFamily(
+        "waraps_lint_unit_up", "1 while the unit is heard, 0 once its heartbeat is missing "
+        "for more than 3 of its periods (silent; 1 again when it is heard)", labels=["unit"]))
+    last_seen = _Capped(GaugeMetricFamily(
+        "waraps_lint_unit_last_seen_timestamp_seconds", "When the unit's latest message "
+        "arrived, Unix seconds", labels=["unit"]))
+    findings = _Capped(CounterMetricFamily(
+        "waraps_lint_findings", "Violations found, by unit (or commander) and rule",
+        labels=["unit", "rule", "verdict"]))
+    messages = _Capped(CounterMetricFamily(
+        "waraps_lint_unit_messages", "Messages read, by unit and topic kind",
+        labels=["unit", "kind"]))
+    periods = _Capped(GaugeMetricFamily(  # base units: seconds, not Hz
+        "waraps_lint_period_seconds", "Declared and measured (latest 30 s) period of each "
+        "periodic message kind (1 / its rate), seconds", labels=["unit", "kind", "which"]))
+    for row in s.rows:
+        name = label(row.unit)
+        failing.add([name, row.party], 1.0 if row.failing else 0.0)
+        if row.party == "unit" and not row.pseudo and row.messages:
+            up.add([name], 0.0 if row.status == "silent" else 1.0)
+            if row.last_seen is not None:
+                last_seen.add([name], row.last_seen)
+        for f in row.findings:
+            findings.add([name, f.rule, f.verdict], float(f.count))
+        for kind, n in row.by_kind:
+            messages.add([name, kind], float(n))
+        for r in row.rates:
+            for which, rate in (("declared", r.declared), ("measured", r.measured)):
+                if rate:
+                    periods.add([name, r.kind, which], 1.0 / rate)
+    return [f.done() for f in (failing, up, last_seen, findings, messages, periods)]
 
 
 def _counter(cls: Any, name: str, doc: str, value: float) -> Any:

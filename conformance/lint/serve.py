@@ -136,7 +136,8 @@ def environment() -> Any:
     env = Environment(loader=PackageLoader("conformance.lint", "templates"), autoescape=True,
                       undefined=StrictUndefined, trim_blocks=True, lstrip_blocks=True,
                       finalize=_finalize)
-    env.filters.update(unit_url=_escape_unit, clock=_clock, hz=_hz, ago=_ago, short=_short)
+    env.filters.update(unit_url=_escape_unit, clock=_clock, hz=_hz, ago=_ago, short=_short,
+                       breakable=_breakable)
     from conformance.lint.plots import sparkline
     from conformance.lint.rows import STATUS_WORDS
 
@@ -153,6 +154,13 @@ def _finalize(value: Any) -> Any:
 
 def _short(value: Any, limit: int = NAME_CHARS) -> str:
     return printable(shorten(value, limit))
+
+
+def _breakable(value: Any, limit: int = NAME_CHARS) -> Any:
+    """A unit address (escaped) that wraps after a '/', not inside a word."""
+    from markupsafe import Markup
+
+    return Markup("/<wbr>").join(_short(value, limit).split("/"))
 
 
 def _clock(t: float | None) -> str:

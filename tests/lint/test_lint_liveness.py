@@ -106,6 +106,7 @@ def test_a_unit_killed_in_a_live_fleet_is_silent_at_once_and_back_when_it_return
             wait_until("dji1 up in /metrics", lambda: values(
                 metrics(url), "waraps_lint_unit_up").get(names[1]) == 1.0, timeout=SEEN_WITHIN)
             lint.wait_for(f"{names[1]} heard again")
+            assert "until heard again" in get(url)[2].decode().split("Fleet observations")[1]
             assert firing("WarapsUnitSilent", metrics(url)) == set()
             lint.proc.send_signal(signal.SIGINT)  # the run ends; the page lingers
             lint.wait_for("serving the final fleet page", timeout=30)
@@ -114,3 +115,27 @@ def test_a_unit_killed_in_a_live_fleet_is_silent_at_once_and_back_when_it_return
             lint.interrupt()
     unreachable = scrape([], job=JOB, up=False)  # the scrape of a lint that is gone
     assert firing("WarapsLintStopped", unreachable) == {"WarapsLintStopped"}
+
+
+@pytest.mark.parametrize("rows", [0, 2])
+def test_metrics_follow_the_exposition_conventions(rows: int) -> None:
+    """Text format 0.0.4 as Prometheus expects it, base units (seconds, no ``_hz``), and no
+    family that announces itself (HELP, TYPE) without a sample (a recording's end, no unit)."""
+    from conformance.lint import metrics
+    from conformance.lint.fleetview import RateView, Row, Snapshot
+
+    assert metrics.CONTENT_TYPE == "text/plain; version=0.0.4; charset=utf-8"
+    units = tuple(Row(f"p/unit/air/simulation/u{i}", "unit", messages=5, last_seen=10.0,
+                      rates=(RateView("heartbeat", 2.0, 1.0),), by_kind=(("heartbeat", 5),))
+                  for i in range(rows))
+    text = metrics.exposition(lambda: Snapshot(1, 0.0, None, "", True, True, 5, 0, 0, None,
+                                               units)).decode()
+    assert "_hz" not in text
+    announced = [line.split()[2] for line in text.splitlines() if line.startswith("# TYPE")]
+    samples = {line.split("{")[0].split()[0] for line in text.splitlines()
+               if line and not line.startswith("#")}
+    for name in announced:
+        assert {name, f"{name}_total"} & samples, f"{name}: HELP and TYPE, no sample"
+    if rows:
+        assert 'waraps_lint_period_seconds{kind="heartbeat",unit="p/unit/air/simulation/u0",' \
+               'which="declared"} 0.5' in text
