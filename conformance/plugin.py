@@ -430,9 +430,12 @@ def findings(report: Any, unit: str, *, error_said: bool = False) -> list[str]:
     row = report.units.get(unit)
     if row is None:
         return []
+    from conformance.conclusion import ranked_findings
+
+    # Most severe first, the order of the reports (conclusion.TRIAGE).
     lines = [f"  failed  {r.rule} {printable(CATALOGUE[r.rule].title)}"
-             for r in row.rules.values()
-             if r.verdict is Verdict.FAIL and r.rule in CATALOGUE]
+             for _, name, r in ranked_findings(report)
+             if name == unit and r.verdict is Verdict.FAIL and r.rule in CATALOGUE]
     for group in untested(report):
         if group.unit != unit:
             continue
