@@ -265,13 +265,16 @@ class Scorecard:
         if force or now - self._last_summary >= PLAIN_SUMMARY_EVERY:
             self._last_summary = now
             units = len(list(linter.monitor.units()))
-            # The rows the page and /metrics show: failing so far, live, or silent now.
-            failing = sorted(r.unit for r in live_rows(linter) if r.failing)
+            # The rows the page and /metrics show (one source): failing so far, or live.
+            rows = live_rows(linter)
+            failing = sorted(r.unit for r in rows if r.failing)
+            silent = sorted(r.unit for r in rows if r.status == "silent")
             write(f"{_clock(linter.last_time)} {units} units, {linter.messages} messages"
                   + (f", {linter.unexamined} not examined" if linter.unexamined else "")
                   + (f", failing: {', '.join(failing[:10])}"
                      + (f" and {len(failing) - 10} more" if len(failing) > 10 else "")
-                     if failing else ", no unit fails so far") + "\n")
+                     if failing else ", no unit fails so far")
+                  + (f", silent now: {', '.join(silent[:10])}" if silent else "") + "\n")
         self.out.flush()
 
     def _write_live(self, linter: Linter) -> None:
@@ -293,7 +296,7 @@ class Scorecard:
         silent = dict(getattr(linter, "silent", {}))
         for unit, last in silent.items():
             if unit not in self._silent_shown:
-                write(printable(f"{_clock(linter.now())} FAIL {shorten(unit, NAME_CHARS)} "
+                write(printable(f"{_clock(linter.now())} down {shorten(unit, NAME_CHARS)} "
                                 f"silent: no heartbeat since {_clock(last)} (live)") + "\n")
         for unit in self._silent_shown:
             if unit not in silent:

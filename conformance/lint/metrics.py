@@ -107,9 +107,9 @@ def _row_families(s: Snapshot) -> list[Any]:
     from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily
 
     failing = _Capped(GaugeMetricFamily(
-        "waraps_lint_unit_failing", "1 when the unit or commander fails a rule of severity "
-        "error so far (or a rate is off over its latest intervals, or it is silent now), "
-        "else 0", labels=["unit", "party"]))
+        "waraps_lint_unit_failing", "1 when the unit or commander fails a rule so far as the "
+        "verdict will say (or a rate is off over its latest intervals), else 0; a silence is "
+        "waraps_lint_unit_up", labels=["unit", "party"]))
     up = _Capped(GaugeMetricFamily(
         "waraps_lint_unit_up", "1 while the unit is heard, 0 once its heartbeat is missing "
         "for more than 3 of its periods (silent; 1 again when it is heard)", labels=["unit"]))

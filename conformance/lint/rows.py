@@ -77,9 +77,11 @@ class LintRow:
 
     @property
     def failing(self) -> bool:
-        """Fails so far, or is silent now (a silence is HB-010's failure when it ends, and
-        HB-012's when it never does): what the terminal and ``/metrics`` call failing."""
-        return self.status in ("silent", "FAIL")
+        """Fails a rule so far as the judge will say (or a rate is off right now), silent or
+        not: what the terminal and ``/metrics`` call failing. A silence alone is no verdict
+        yet (HB-010 judges it when it ends, HB-012 when it never does): it is ``status``
+        silent, and ``waraps_lint_unit_up`` 0."""
+        return bool(self.live) or any(f.verdict == "fail" for f in self.findings)
 
     @property
     def pseudo(self) -> bool:
@@ -111,7 +113,11 @@ def live_rows(linter: Any, evidence: Mapping[tuple[str, str], Violation] | None 
     judge will say at the end (``Linter.is_error``). ``evidence``: (unit, rule) -> the first
     violation; ``live`` False: no live findings (the rates over the whole run)."""
     monitor = linter.monitor
-    fails: Callable[[str], bool] = cache(linter.is_error)
+    # As the judge will: a rule of whose unit only decided conditions were found warns
+    # (``Linter.is_error(rule, unit)``); a live finding by its own condition (``fails``).
+    fails: Callable[[str, str | None], bool] = cache(linter.is_error)
+    fails_now: Callable[[Violation], bool] = getattr(linter, "fails", lambda v: fails(v.rule,
+                                                                                     None))
     untimed = bool(getattr(monitor, "untimed", False))  # a capture without times
     rows: dict[str, LintRow] = {}
     silent: Mapping[str, float] = getattr(linter, "silent", {}) if live else {}
@@ -126,7 +132,7 @@ def live_rows(linter: Any, evidence: Mapping[tuple[str, str], Violation] | None 
             _levels(getattr(state, "levels", None), "unit", count), count,
             None if untimed else getattr(state, "first_seen", None),
             None if untimed else getattr(state, "last_seen", None),
-            live=tuple(v.rule for v in monitor.live_findings(unit) if fails(v.rule))
+            live=tuple(v.rule for v in monitor.live_findings(unit) if fails_now(v))
             if live else (), silent_since=silent.get(key))
     for label in getattr(monitor, "commanders", list)():  # a row each, clean or not
         rows[label] = LintRow(label, "commander", "commander", levels=())
@@ -134,7 +140,7 @@ def live_rows(linter: Any, evidence: Mapping[tuple[str, str], Violation] | None 
         party = "unit" if unit in (NOT_A_UNIT, OTHER_UNITS) else "commander"
         row = rows.get(unit) or LintRow(unit, party, "" if party == "unit" else "commander",
                                         levels=())
-        found = (Finding(rule, "fail" if fails(rule) else "warn", n,
+        found = (Finding(rule, "fail" if fails(rule, unit) else "warn", n,
                          (evidence or {}).get((unit, rule))) for rule, n in counts.items())
         rows[unit] = dataclasses.replace(row, findings=tuple(sorted(found, key=severity)))
     return list(rows.values())

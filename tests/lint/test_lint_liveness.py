@@ -86,7 +86,6 @@ def test_a_unit_killed_in_a_live_fleet_is_silent_at_once_and_back_when_it_return
             after = wait_until("dji1 down in /metrics", lambda: (lambda m: m if values(
                 m, "waraps_lint_unit_up").get(names[1]) == 0.0 else None)(metrics(url)),
                 timeout=SEEN_WITHIN)
-            assert values(after, "waraps_lint_unit_failing")[names[1]] == 1.0
             assert values(after, "waraps_lint_unit_up")[names[0]] == 1.0
             silent = {s.label("status"): s.value for s in after
                       if s.name == "waraps_lint_units" and s.label("party") == "unit"}
@@ -94,7 +93,8 @@ def test_a_unit_killed_in_a_live_fleet_is_silent_at_once_and_back_when_it_return
             last_seen = values(after, "waraps_lint_unit_last_seen_timestamp_seconds")
             assert last_seen[names[1]] <= killed + 1.0 / RATE < last_seen[names[0]]
             assert firing("WarapsUnitSilent", after) == {names[1]}
-            assert names[1] in firing("WarapsUnitFailing", after)
+            # A silence alone is no verdict yet: it fails HB-010 or HB-012 as the judge says
+            assert firing("WarapsUnitFailing", after) == set()
             assert firing("WarapsLintStopped", after) == set()
             lint.wait_for(f"{names[1]} silent: no heartbeat since")  # the terminal too
 
