@@ -28,6 +28,8 @@ MAX_TALLIED = MAX_UNITS + MAX_COMMANDERS
 """Units and commanders tallied one by one, as many as the Monitor tracks; a flood of invented
 unit names is tallied together beyond this (bounded memory)."""
 MAX_TOPIC_CACHE = 20_000
+WATCH_EVERY = 0.5
+"""Seconds (wall clock) between two looks for silent units: each looks at every unit."""
 RETURN_BUDGET = 10.0
 """Seconds after the observer's reconnect within which the units it heard before are to be
 heard again (each its second heartbeat: they reconnect on their own time, by their own
@@ -83,6 +85,7 @@ class Linter:
         self.live = False
         """Live traffic: silences are measured up to the wall clock (``now``), not up to the
         latest message (a fleet that fell silent as a whole sends none)."""
+        self._silences_watched = float("-inf")
         self.silent: dict[str, float] = {}
         """Units silent right now (``watch_silences``): their address -> their last
         heartbeat."""
@@ -212,6 +215,10 @@ class Linter:
         it). A unit heard again leaves the set; HB-010 then judges its silence."""
         from conformance.checks.liveness import SILENCE_PERIODS, death, heartbeat_period
 
+        tick = time.monotonic()
+        if tick - self._silences_watched < WATCH_EVERY:  # a look at every unit: bounded
+            return
+        self._silences_watched = tick
         now = self.now()
         if now is None or self._open_gap is not None or self._returning is not None or \
                 getattr(self.monitor, "untimed", False):  # a capture without times
