@@ -347,8 +347,12 @@ class _CertificationPlugin:
             return
         c = self.certification
         report = c.report()
+        row = report.units.get(str(c.unit))
+        final = {r: res.verdict.value for r, res in row.rules.items()} if row else {}
+        failed_then = tuple(sorted(r for r, shown in c.enacted.items()
+                                   if shown.value == "fail" and final.get(r) != "fail"))
         text = last_line(report, c.conclusion(report), str(c.unit), self.status,
-                         error_said=bool(c.error))
+                         error_said=bool(c.error), failed_then=failed_then)
         tr.write_line(printable_lines(mask_password(text)),
                       green=self.status == 0, red=self.status != 0)
 

@@ -29,12 +29,16 @@ PYTEST_WORDS = {
 
 
 def last_line(report: RunReport, conclusion: Conclusion, unit: str, status: int, *,
-              error_said: bool = False) -> str:
+              error_said: bool = False, failed_then: tuple[str, ...] = ()) -> str:
     """``exit 7: not certified: no rule failed, but 2 could not be tested: REBOOT-001,
     REBOOT-002: no way to reboot the unit: pass --reboot-cmd ...``. ``error_said``: the
-    error that kept every rule from running was printed just above (said once)."""
+    error that kept every rule from running was printed just above (said once).
+    ``failed_then``: rules whose test failed when it ran that the whole run does not fail."""
     row = conclusion.units.get(unit)
-    if error_said and status == EXIT_NOT_CERTIFIED:
+    if status == EXIT_FAILED and not conclusion.exit_code and failed_then:
+        why = (f"{', '.join(failed_then)} failed when its test ran; the whole run's report "
+               f"does not fail it (its verdict: {conclusion.verdict}): see the reports")
+    elif error_said and status == EXIT_NOT_CERTIFIED:
         why = "not certified: no rule was judged (the error above says why)"
     elif status != conclusion.exit_code:  # pytest's own status (usage, internal, ...)
         why = PYTEST_WORDS.get(status, "see above")

@@ -107,3 +107,20 @@ def test_7_without_reboot_cmd_no_level_is_certified(pytester: pytest.Pytester, m
     assert line.startswith("exit 7: not certified: no rule failed, but sensor: "), line
     assert "could not test REBOOT-001, REBOOT-002: no way to reboot the unit: pass " \
            "--reboot-cmd" in line, line
+
+
+def test_the_last_line_says_when_a_test_failed_that_the_whole_run_does_not_fail() -> None:
+    """A rule whose test failed when it ran (pytest's 1) that the whole run's report does not
+    fail: the last line says so, never 'the suite's own error'."""
+    from conformance.conclusion import conclude
+    from conformance.results import RunReport, UnitReport
+    from conformance.suite.gate import last_line
+    from conformance.violation import RuleResult, Verdict
+
+    rules = {"HB-003": RuleResult("HB-003", Verdict.PASS, "")}
+    report = RunReport("certification", 1.0, 2.0, units={UNIT: UnitReport(
+        UNIT, "air", "simulation", "dji0", levels=["sensor"], rules=rules)})
+    line = last_line(report, conclude(report), UNIT, FAILED_EXIT, failed_then=("HB-003",))
+    assert line == ("exit 1: HB-003 failed when its test ran; the whole run's report does not "
+                    "fail it (its verdict: pass): see the reports"), line
+    assert "own error" in last_line(report, conclude(report), UNIT, FAILED_EXIT)
