@@ -11,7 +11,10 @@ none could not be tested; a rule that holds for every level (no ``level``: topic
 heartbeat, death, reboot) failing or not tested denies every level (REBOOT-* without
 --reboot-cmd: no level is certified). Skips (not claimed, not applicable) do not count
 against a level; a rule of a claimed level that needs a command and saw none it applies to
-is no skip but could-not-test (the judge's: the suite did not provoke its evidence). A run that selected rules or was cut short is **partial**: its verdict is never
+is no skip but could-not-test (the judge's: the suite did not provoke its evidence). A
+complete run in which no rule failed exits 0 only when every level its unit claims is
+certified, else ``EXIT_UNTESTED`` (7: a gate must not read it as certified). A run that
+selected rules or was cut short is **partial**: its verdict is never
 ``pass``. Lint observes traffic it never caused: it says what it saw ("clean for 10 min,
 never commanded"), never "certified".
 """
@@ -27,6 +30,7 @@ from conformance.exits import (  # noqa: F401 (their one home; read here by the 
     EXIT_INTERRUPTED,
     EXIT_LINT_PARTIAL,
     EXIT_NOT_CERTIFIED,
+    EXIT_UNTESTED,
 )
 from conformance.facts import RunFacts, iso
 from conformance.results import RunReport, UnitReport
@@ -152,8 +156,17 @@ def conclude(report: RunReport) -> Conclusion:
     units = {name: _certification_unit(name, u, why, not_run, facts.unexplored)
              for name, u in report.units.items()}
     told = (*why, unread) if unread and verdict == NOT_CERTIFIED else tuple(why)
+    if code == EXIT_CERTIFIED and not why and not _all_certified(units, facts.unit):
+        code = EXIT_UNTESTED  # complete, nothing failed, yet a claimed level not certified
     return Conclusion(report.kind, verdict, bool(why), told, code, units, counts(report),
                       facts.strict, _judged_after_test(report, facts))
+
+
+def _all_certified(units: dict[str, UnitStatus], unit: str) -> bool:
+    """Every level the unit under test claims is certified (the unit's row; without the
+    run's facts, every row of a unit): what exit status 0 of a complete run says."""
+    rows = [units[unit]] if unit in units else [u for u in units.values() if u.party == "unit"]
+    return bool(rows) and all(u.levels and all(lv.certified for lv in u.levels) for u in rows)
 
 
 def _judged_after_test(report: RunReport, facts: RunFacts) -> tuple[str, ...]:

@@ -15,7 +15,7 @@ import pytest
 
 from conformance.cli.options import BROKER_ENV, CREDENTIALS, TLS_FILES, TLS_INSECURE, parse_rate
 from conformance.display import printable, printable_lines
-from conformance.exits import EXIT_NOT_CERTIFIED
+from conformance.exits import EXIT_NOT_CERTIFIED, EXIT_UNTESTED
 from conformance.masking import mask_password
 
 if TYPE_CHECKING:
@@ -26,8 +26,8 @@ PLUGIN_NAME = "waraps-conformance-certification"
 # Exit statuses: pytest's own (ExitCode 0-5) keep their meaning; one is added.
 # The verdict model (conformance.conclusion) decides which; README 'Exit status' lists them.
 CERTIFIED_EXIT = pytest.ExitCode.OK
-"""0: no rule failed (a complete run: its levels certified as the report says; a partial run of
-selected rules: verdict 'partial', no level certified)."""
+"""0: a complete run certified every level the unit claims; or a partial run of selected rules
+in which none failed (verdict 'partial', no level certified)."""
 FAILED_EXIT = pytest.ExitCode.TESTS_FAILED
 """1: a rule failed."""
 INTERRUPTED_EXIT = pytest.ExitCode.INTERRUPTED
@@ -35,9 +35,14 @@ INTERRUPTED_EXIT = pytest.ExitCode.INTERRUPTED
 NOT_CERTIFIED_EXIT = EXIT_NOT_CERTIFIED  # README "Exit status"
 """6: not certified: the broker or the unit could not be reached, or the broker was lost for
 good during the run."""
-EXIT_HELP = ("exit status: 0 no rule failed, 1 a rule failed, 2 interrupted (Ctrl-C or "
-             "--max-duration), 4 usage error, 6 not certified (broker or unit unreachable, "
-             "or the broker lost for good)")
+UNTESTED_EXIT = EXIT_UNTESTED
+"""7: not certified: a complete run in which no rule failed, but a level the unit claims could
+not be certified (a rule it needs could not be tested: no --reboot-cmd, no opt-in)."""
+EXIT_HELP = ("exit status: 0 certified (every claimed level; with -k/--rule: no selected rule "
+             "failed), 1 a rule failed, 2 interrupted (Ctrl-C or --max-duration), 4 usage "
+             "error, 6 not certified (broker or unit unreachable, or the broker lost for good), "
+             "7 not certified (no rule failed, but a rule a claimed level needs could not be "
+             "tested); the last line says why")
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -219,6 +224,8 @@ class _CertificationPlugin:
     def __init__(self, certification: Certification) -> None:
         self.certification = certification
         self.finished = False
+        self.status: int | None = None
+        """The run's exit status, once the session finished."""
         self.session: pytest.Session | None = None
         self.explore_outcome = ""
         """test_explore's outcome in the suite's words (it judges no rule of its own)."""
@@ -321,11 +328,33 @@ class _CertificationPlugin:
         interrupted = (exitstatus == pytest.ExitCode.INTERRUPTED and c.broker_lost is None
                        ) or bool(c.out_of_time)
         session.exitstatus = c.finish(interrupted=interrupted, exitstatus=int(exitstatus))
+        self.status = int(session.exitstatus)
 
     def pytest_unconfigure(self, config: pytest.Config) -> None:
         if not self.finished:  # a usage error or an internal error before the session
             self.finished = True
             self.certification.finish(interrupted=True, exitstatus=-1)
+        elif self.status is not None and not self.certification.collect_only:
+            self._say_exit(config)
+
+    def _say_exit(self, config: pytest.Config) -> None:
+        """The last line the terminal prints, after pytest's own counts (README 'Exit
+        status'): the exit status and why, so a log says what a gate read."""
+        from conformance.suite.gate import last_line
+
+        tr = config.pluginmanager.get_plugin("terminalreporter")
+        if tr is None:
+            return
+        c = self.certification
+        report = c.report()
+        row = report.units.get(str(c.unit))
+        final = {r: res.verdict.value for r, res in row.rules.items()} if row else {}
+        failed_then = tuple(sorted(r for r, shown in c.enacted.items()
+                                   if shown.value == "fail" and final.get(r) != "fail"))
+        text = last_line(report, c.conclusion(report), str(c.unit), self.status,
+                         error_said=bool(c.error), failed_then=failed_then)
+        tr.write_line(printable_lines(mask_password(text)),
+                      green=self.status == 0, red=self.status != 0)
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         c = self.certification
@@ -405,9 +434,12 @@ def findings(report: Any, unit: str, *, error_said: bool = False) -> list[str]:
     row = report.units.get(unit)
     if row is None:
         return []
+    from conformance.conclusion import ranked_findings
+
+    # Most severe first, the order of the reports (conclusion.TRIAGE).
     lines = [f"  failed  {r.rule} {printable(CATALOGUE[r.rule].title)}"
-             for r in row.rules.values()
-             if r.verdict is Verdict.FAIL and r.rule in CATALOGUE]
+             for _, name, r in ranked_findings(report)
+             if name == unit and r.verdict is Verdict.FAIL and r.rule in CATALOGUE]
     for group in untested(report):
         if group.unit != unit:
             continue

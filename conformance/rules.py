@@ -88,7 +88,11 @@ class Condition:
         """What the condition stands on, for people: the quote (and why it follows), or the
         decision (an interop risk: the spec does not say)."""
         if self.basis is Basis.DECIDED:
-            return f"decided: {self.decision}" if self.decision else "decided"
+            # What the decision calls a fault warns: next to a warn badge it must not read
+            # as a failure (DESIGN 'What a condition stands on').
+            said = ("decided (the spec does not say; a finding warns, and fails only where "
+                    "the arena adopts it: --strict-rules, or the profile's severity)")
+            return f"{said}: {self.decision}" if self.decision else said
         text = f'{self.basis.value}: "{self.quote}"' if self.quote else self.basis.value
         return text + (f" ({self.because})" if self.because else "")
 

@@ -42,7 +42,7 @@ PLAIN_SUMMARY_EVERY = 10.0
 """Seconds between summary lines in plain mode."""
 TTY_REFRESH_EVERY = 1.0
 """Seconds between two redraws on a terminal."""
-STATUS_STYLES = {"FAIL": "bold red", "warn": "yellow", "ok": "green"}
+STATUS_STYLES = {"silent": "bold red", "FAIL": "bold red", "warn": "yellow", "ok": "green"}
 
 
 @dataclass(frozen=True)
@@ -134,6 +134,8 @@ class Scorecard:
         self._last_live = 0.0
         self._live_shown: dict[tuple[str, str], Violation] = {}
         """(unit, rule) -> the live finding last printed (plain mode)."""
+        self._silent_shown: dict[str, float] = {}
+        """Units shown silent (plain mode): their last heartbeat."""
 
     # --- data -----------------------------------------------------------------------------------
     def rows(self, linter: Linter, *, overall: bool = False) -> list[UnitRow]:
@@ -263,12 +265,16 @@ class Scorecard:
         if force or now - self._last_summary >= PLAIN_SUMMARY_EVERY:
             self._last_summary = now
             units = len(list(linter.monitor.units()))
-            failing = linter.failing_units()
+            # The rows the page and /metrics show (one source): failing so far, or live.
+            rows = live_rows(linter)
+            failing = sorted(r.unit for r in rows if r.failing)
+            silent = sorted(r.unit for r in rows if r.status == "silent")
             write(f"{_clock(linter.last_time)} {units} units, {linter.messages} messages"
                   + (f", {linter.unexamined} not examined" if linter.unexamined else "")
                   + (f", failing: {', '.join(failing[:10])}"
                      + (f" and {len(failing) - 10} more" if len(failing) > 10 else "")
-                     if failing else ", no unit fails so far") + "\n")
+                     if failing else ", no unit fails so far")
+                  + (f", silent now: {', '.join(silent[:10])}" if silent else "") + "\n")
         self.out.flush()
 
     def _write_live(self, linter: Linter) -> None:
@@ -287,6 +293,16 @@ class Scorecard:
                 write(f"{_clock(linter.last_time)} ok   {key[0]} {key[1]} back within "
                       f"{v.expected} over its latest intervals (live)\n")
         self._live_shown = now_off
+        silent = dict(getattr(linter, "silent", {}))
+        for unit, last in silent.items():
+            if unit not in self._silent_shown:
+                write(printable(f"{_clock(linter.now())} down {shorten(unit, NAME_CHARS)} "
+                                f"silent: no heartbeat since {_clock(last)} (live)") + "\n")
+        for unit in self._silent_shown:
+            if unit not in silent:
+                write(printable(f"{_clock(linter.now())} back {shorten(unit, NAME_CHARS)} "
+                                f"heard again (live; HB-010 judges its silence)") + "\n")
+        self._silent_shown = silent
 
     def _redraw(self, linter: Linter, elapsed: float | None, connected: bool | None) -> None:
         display = self._terminal()

@@ -71,6 +71,13 @@ def excerpt(payload: bytes | str | None, limit: int = EXCERPT_CHARS) -> str:
     return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
+def head(payload: bytes | memoryview, limit: int) -> bytes:
+    """The first ``limit`` bytes of a payload kept as evidence (bounded memory), with '…'
+    when that cut it: an excerpt shown later says it is one (``excerpt``)."""
+    kept = bytes(payload[:limit])
+    return kept + "…".encode() if len(payload) > limit else kept
+
+
 @dataclass(frozen=True)
 class Violation:
     """One broken rule, with the evidence a person needs to find and fix it.

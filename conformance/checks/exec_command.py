@@ -26,7 +26,7 @@ from conformance.message import Message
 from conformance.taskrecord import TaskRecord
 from conformance.topics import TopicKind
 from conformance.validator import Validation
-from conformance.violation import Violation
+from conformance.violation import Violation, head
 
 _COM_UUID = re.compile(rb'"com-uuid"\s*:\s*"([^"\\]{1,100})"')
 
@@ -73,7 +73,7 @@ def command_opens_conversation(ctx: CheckContext, unit: UnitState, msg: Message,
             name == "start-task" and not isinstance(m.get("task"), dict)):
         name = MALFORMED
     invalid = name == "start-task" and any(f.rule == "TASK-001" for f in v.violations)
-    cmd = Command(com_uuid, name, t, m, digest, bytes(memoryview(content)[:120]), invalid,
+    cmd = Command(com_uuid, name, t, m, digest, head(memoryview(content), 120), invalid,
                   c.life)
     c.commands[com_uuid] = cmd
     c.last_command = cmd

@@ -28,7 +28,7 @@ from conformance.message import Message
 from conformance.topics import TopicKind
 from conformance.tst import Node, read_tree
 from conformance.validator import Validation
-from conformance.violation import Violation
+from conformance.violation import Violation, head
 
 
 @check("EXEC-008", on=(TopicKind.TST_COMMAND,), reads=(TST_CONVERSATIONS,))
@@ -65,7 +65,7 @@ def tst_command_opens_conversation(ctx: CheckContext, unit: UnitState, msg: Mess
             detail="generate a fresh com-uuid for every new command")
         return
     unit.examine("EXEC-008")
-    cmd = TstCommand(com_uuid, name, t, m, digest, bytes(memoryview(content)[:160]), c.life,
+    cmd = TstCommand(com_uuid, name, t, m, digest, head(memoryview(content), 160), c.life,
                      msg.topic)
     c.commands[com_uuid] = cmd
     c.await_answer(cmd)

@@ -9,6 +9,11 @@ import sys
 from pathlib import Path
 
 from conformance.cli import options as opts
+from conformance.masking import mask_password
+
+EXIT_NOT_SEEN = 6
+"""The unit was not heard (no heartbeat): as a certification of it would say (README 'Exit
+status')."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -17,7 +22,10 @@ def build_parser() -> argparse.ArgumentParser:
         "Observe a unit for a while (read-only: it never publishes) and write a starting "
         "profile from what it declares and publishes: levels, sensors, tasks, rates. Edit it, "
         "then certify with 'pytest --unit ADDRESS --profile FILE'. The format: "
-        "schemas/generated/PROFILE.md.")
+        "schemas/generated/PROFILE.md.",
+        "Exit status: 0 drafted, 2 bad usage (an option, an output that exists), 3 the broker "
+        "could not be reached or the output not written, 6 no heartbeat of the unit was seen "
+        "(a commented draft is written all the same).")
     opts.add_broker_options(p, broker_help=f"mqtt://host:port or mqtts://host:port (default: "
                                            f"{opts.BROKER_ENV})")
     p.add_argument("--unit", required=True, metavar="ADDRESS",
@@ -79,4 +87,9 @@ def main(argv: list[str] | None = None) -> int:
             opts.say("profile", f"cannot write {out}: {e.strerror or e}")
             return 3
         print(opts.shown(f"wrote {out}"), file=sys.stderr)
-    return 0 if seen.heartbeat is not None else 6
+    if seen.heartbeat is None:  # said, not only in the draft's comments
+        opts.say("profile", f"no heartbeat of {unit} within {args.observe} on "
+                            f"{mask_password(str(broker), url=True)}: the draft says what "
+                            f"was not seen (is the unit running, and is its address right?)")
+        return EXIT_NOT_SEEN
+    return 0

@@ -21,7 +21,9 @@ def build_parser() -> argparse.ArgumentParser:
         "sim",
         "Run the WARA-PS reference unit: conformant on the levels 'sensor' and "
                     "'direct execution' (and 'tst execution' with --tst), unless faults are "
-                    "switched on.")
+                    "switched on.",
+        "Exit status: 0 stopped (Ctrl-C, SIGTERM), 2 bad usage, 3 the broker could not be "
+        "reached (as for lint, record and profile).")
     opts.add_reference_unit_options(p, fault_metavar="NAME[@I,J]")
     p.add_argument("--count", type=int, default=1, metavar="N",
                    help="run N units named with a numeric suffix (dji0, dji1, ...) on one "

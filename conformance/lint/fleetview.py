@@ -72,7 +72,8 @@ class Row(LintRow):
 
 @dataclass(frozen=True)
 class Snapshot:
-    """The fleet as it stood at ``made`` (wall clock); ``now`` is the traffic's latest time."""
+    """The fleet as it stood at ``made`` (wall clock); ``now`` is the time its silences were
+    measured at (``Linter.now``: the wall clock live, else the traffic's latest time)."""
 
     version: int
     made: float
@@ -98,7 +99,7 @@ class Snapshot:
 
     def counts(self, party: str = "unit") -> dict[str, int]:
         """Rows of ``party`` (unit or commander) by status."""
-        out = {"FAIL": 0, "warn": 0, "ok": 0, "-": 0}
+        out = dict.fromkeys(STATUS_ORDER, 0)
         for r in self.rows:
             if r.party == party:
                 out[r.status] += 1
@@ -253,7 +254,8 @@ class FleetView:
                             by_kind=tuple(sorted((_kind(k), n) for k, n in kinds.items()))))
         fleet = tuple((linter.unit_of(v), v) for v in list(linter.fleet))
         old = self._snapshot
-        return Snapshot(old.version + 1, time.time(), linter.last_time, self.title, self.live,
+        now = linter.now() if hasattr(linter, "now") else linter.last_time
+        return Snapshot(old.version + 1, time.time(), now, self.title, self.live,
                         False, linter.messages, linter.unexamined,
                         len(linter.gaps) + (linter.open_gap is not None), connected,
                         _sorted(done), fleet)

@@ -5,6 +5,7 @@ keeps the running tallies the scorecard shows. The checks themselves live in
 
 from __future__ import annotations
 
+import time
 from collections import Counter, deque
 from collections.abc import Iterable
 from typing import Any, Protocol
@@ -27,6 +28,8 @@ MAX_TALLIED = MAX_UNITS + MAX_COMMANDERS
 """Units and commanders tallied one by one, as many as the Monitor tracks; a flood of invented
 unit names is tallied together beyond this (bounded memory)."""
 MAX_TOPIC_CACHE = 20_000
+WATCH_EVERY = 0.5
+"""Seconds (wall clock) between two looks for silent units: each looks at every unit."""
 RETURN_BUDGET = 10.0
 """Seconds after the observer's reconnect within which the units it heard before are to be
 heard again (each its second heartbeat: they reconnect on their own time, by their own
@@ -79,6 +82,13 @@ class Linter:
         """After a reconnect, until every unit alive before it is heard again: heartbeats
         seen since, per unit (``_watch_return``)."""
         self._return_by = 0.0
+        self.live = False
+        """Live traffic: silences are measured up to the wall clock (``now``), not up to the
+        latest message (a fleet that fell silent as a whole sends none)."""
+        self._silences_watched = float("-inf")
+        self.silent: dict[str, float] = {}
+        """Units silent right now (``watch_silences``): their address -> their last
+        heartbeat."""
 
     # --- feeding ----------------------------------------------------------------------------
     def feed(self, messages: list[Message]) -> None:
@@ -191,6 +201,54 @@ class Linter:
             self._heard_again(min(now, self._return_by))
         self.monitor.finish(now)
 
+    # --- liveness, live -----------------------------------------------------------------------
+    def now(self) -> float | None:
+        """The time silences are measured at: the wall clock on live traffic, else the latest
+        message's time (Unix seconds; None before the first)."""
+        return time.time() if self.live else self.last_time
+
+    def watch_silences(self) -> None:
+        """Which units are silent right now (their heartbeat missing for more than
+        ``SILENCE_PERIODS`` periods: ``checks.liveness.death``, the measure HB-010 and
+        HB-012 judge by), each new one a fleet observation as it happens. Nobody is silent
+        while the observer itself cannot hear (an open gap, or units not yet back after
+        it). A unit heard again leaves the set; HB-010 then judges its silence."""
+        from conformance.checks.liveness import SILENCE_PERIODS, death, heartbeat_period
+
+        tick = time.monotonic()
+        if tick - self._silences_watched < WATCH_EVERY:  # a look at every unit: bounded
+            return
+        self._silences_watched = tick
+        now = self.now()
+        if now is None or self._open_gap is not None or self._returning is not None or \
+                getattr(self.monitor, "untimed", False):  # a capture without times
+            self.silent = {}
+            return
+        silent = {}
+        for unit in list(self.monitor.units()):
+            state = self.monitor.state(unit)
+            dead = death(self.monitor.ctx, state, now)
+            if dead is None:
+                continue
+            key = str(getattr(state, "address", None) or unit)
+            silent[key] = dead[1]
+            if key not in self.silent:
+                period = heartbeat_period(state)
+                self.fleet.append(Violation(
+                    "HB-010", f"a heartbeat at least every {SILENCE_PERIODS * period:.3g} s "
+                    f"({SILENCE_PERIODS:g} heartbeat periods)",
+                    f"silent since {_clock(dead[1])}: "
+                    f"no heartbeat for {now - dead[1]:.1f} s (live: shown back when heard)",
+                    topic=f"{key}/heartbeat", time=now, unit=key))
+        for key, last in self.silent.items():
+            if key not in silent:  # heard again: the silence's end is an observation too
+                self.fleet.append(Violation(
+                    "HB-010", "a heartbeat at least every 3 heartbeat periods",
+                    f"silent from {_clock(last)} until heard again, {now - last:.0f} s or less "
+                    f"(live; HB-010 judges the silence)", topic=f"{key}/heartbeat",
+                    time=now, unit=key))
+        self.silent = silent
+
     # --- tallies ----------------------------------------------------------------------------
     def unit_of(self, v: Violation) -> str:
         """The unit a violation is about (its ``unit``, else the unit of its topic)."""
@@ -279,3 +337,7 @@ class Linter:
         """Units with a violation of a rule of severity error so far."""
         return sorted(u for u, counts in self.by_unit.items()
                       if any(self.is_error(r, u) for r in counts))
+
+
+def _clock(t: float) -> str:
+    return time.strftime("%H:%M:%S", time.localtime(t))

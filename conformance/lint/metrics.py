@@ -19,10 +19,10 @@ from typing import Any
 from conformance.display import NAME_CHARS, printable, shorten
 from conformance.lint.fleetview import Snapshot
 from conformance.lint.linter import OTHER_UNITS
+from conformance.lint.rows import STATUS_WORDS
 
 MAX_SERIES = 5000
 """Series per labelled metric family (``bounds.MAX_UNITS`` units would need 4096 each)."""
-STATUS_WORDS = {"FAIL": "fail", "warn": "warn", "ok": "clean", "-": "silent"}
 
 
 def label(text: str) -> str:
@@ -77,39 +77,16 @@ class SnapshotCollector:
 
         s = self.latest()
         units = GaugeMetricFamily("waraps_lint_units", "Units and commanders by their status "
-                                  "so far (fail, warn, clean, silent)", labels=["party", "status"])
+                                  "(silent now, fail, warn, clean so far; unheard: nothing of "
+                                  "its own seen)", labels=["party", "status"])
         by = {(p, w): 0 for p in ("unit", "commander") for w in STATUS_WORDS.values()}
         for row in s.rows:
             by[(row.party, STATUS_WORDS[row.status])] += 1
         for (party, status), n in sorted(by.items()):
             units.add_metric([party, status], n)
         yield units
-        failing = _Capped(GaugeMetricFamily(
-            "waraps_lint_unit_failing", "1 when the unit or commander fails a rule of severity "
-            "error so far (or a rate is off over its latest intervals), else 0",
-            labels=["unit", "party"]))
-        findings = _Capped(CounterMetricFamily(
-            "waraps_lint_findings", "Violations found, by unit (or commander) and rule",
-            labels=["unit", "rule", "verdict"]))
-        messages = _Capped(CounterMetricFamily(
-            "waraps_lint_unit_messages", "Messages read, by unit and topic kind",
-            labels=["unit", "kind"]))
-        rates = _Capped(GaugeMetricFamily(
-            "waraps_lint_rate_hz", "Declared and measured (latest 30 s) rate of each periodic "
-            "message kind, Hz", labels=["unit", "kind", "which"]))
-        for row in s.rows:
-            name = label(row.unit)
-            failing.add([name, row.party], 1.0 if row.status == "FAIL" else 0.0)
-            for f in row.findings:
-                findings.add([name, f.rule, f.verdict], float(f.count))
-            for kind, n in row.by_kind:
-                messages.add([name, kind], float(n))
-            for r in row.rates:
-                if r.declared is not None:
-                    rates.add([name, r.kind, "declared"], r.declared)
-                if r.measured is not None:
-                    rates.add([name, r.kind, "measured"], r.measured)
-        yield from (failing.done(), findings.done(), messages.done(), rates.done())
+        # A family without a sample is left out (a HELP and TYPE over nothing).
+        yield from (f for f in _row_families(s) if f.samples)
         yield _counter(CounterMetricFamily, "waraps_lint_messages",
                        "Messages read by the linter", s.messages)
         yield _counter(CounterMetricFamily, "waraps_lint_dropped_messages",
@@ -120,6 +97,50 @@ class SnapshotCollector:
         done = GaugeMetricFamily("waraps_lint_finished", "1 once the run has ended and every "
                                  "verdict is final", value=1.0 if s.finished else 0.0)
         yield done
+        yield GaugeMetricFamily(  # a lint whose loop stopped stops moving it (alert rules)
+            "waraps_lint_snapshot_timestamp_seconds", "When lint last took stock of the "
+            "fleet (at least every few seconds while it runs), Unix seconds", value=s.made)
+
+
+def _row_families(s: Snapshot) -> list[Any]:
+    """The families with a series per unit (or commander), from the snapshot's rows."""
+    from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily
+
+    failing = _Capped(GaugeMetricFamily(
+        "waraps_lint_unit_failing", "1 when the unit or commander fails a rule so far as the "
+        "verdict will say (or a rate is off over its latest intervals), else 0; a silence is "
+        "waraps_lint_unit_up", labels=["unit", "party"]))
+    up = _Capped(GaugeMetricFamily(
+        "waraps_lint_unit_up", "1 while the unit is heard, 0 once its heartbeat is missing "
+        "for more than 3 of its periods (silent; 1 again when it is heard)", labels=["unit"]))
+    last_seen = _Capped(GaugeMetricFamily(
+        "waraps_lint_unit_last_seen_timestamp_seconds", "When the unit's latest message "
+        "arrived, Unix seconds", labels=["unit"]))
+    findings = _Capped(CounterMetricFamily(
+        "waraps_lint_findings", "Violations found, by unit (or commander) and rule",
+        labels=["unit", "rule", "verdict"]))
+    messages = _Capped(CounterMetricFamily(
+        "waraps_lint_unit_messages", "Messages read, by unit and topic kind",
+        labels=["unit", "kind"]))
+    periods = _Capped(GaugeMetricFamily(  # base units: seconds, not Hz
+        "waraps_lint_period_seconds", "Declared and measured (latest 30 s) period of each "
+        "periodic message kind (1 / its rate), seconds", labels=["unit", "kind", "which"]))
+    for row in s.rows:
+        name = label(row.unit)
+        failing.add([name, row.party], 1.0 if row.failing else 0.0)
+        if row.party == "unit" and not row.pseudo and row.messages:
+            up.add([name], 0.0 if row.status == "silent" else 1.0)
+            if row.last_seen is not None:
+                last_seen.add([name], row.last_seen)
+        for f in row.findings:
+            findings.add([name, f.rule, f.verdict], float(f.count))
+        for kind, n in row.by_kind:
+            messages.add([name, kind], float(n))
+        for r in row.rates:
+            for which, rate in (("declared", r.declared), ("measured", r.measured)):
+                if rate:
+                    periods.add([name, r.kind, which], 1.0 / rate)
+    return [f.done() for f in (failing, up, last_seen, findings, messages, periods)]
 
 
 def _counter(cls: Any, name: str, doc: str, value: float) -> Any:
@@ -128,8 +149,13 @@ def _counter(cls: Any, name: str, doc: str, value: float) -> Any:
     return family
 
 
+CONTENT_TYPE = "text/plain; version=0.0.4; charset=utf-8"
+"""The text format ``exposition`` writes, as Prometheus expects it (prometheus_client's
+``CONTENT_TYPE_LATEST`` names 1.0.0, which its ``generate_latest`` does not write)."""
+
+
 def exposition(latest: Callable[[], Snapshot]) -> bytes:
-    """The text exposition of the latest snapshot."""
+    """The text exposition (format 0.0.4) of the latest snapshot."""
     from prometheus_client import CollectorRegistry, generate_latest
 
     registry = CollectorRegistry(auto_describe=False)

@@ -4,7 +4,9 @@ up with, end) so that silences and gaps are read right."""
 
 from __future__ import annotations
 
+import sys
 import time
+from collections.abc import Callable
 from typing import IO
 
 from conformance.display import shown
@@ -12,14 +14,29 @@ from conformance.lint.capture import CaptureOptions, LiveCapture
 from conformance.recording import Event, RecordingWriter
 
 
-def record(options: CaptureOptions, out: IO[bytes], *, name: str, log: IO[str]) -> int:
-    """Record what ``options`` capture to ``out`` (called ``name`` in the messages on ``log``)
-    until their duration is over or Ctrl-C. Returns 0; raises ``BrokerError`` when the broker
-    cannot be reached (nothing is written then)."""
+def record(options: CaptureOptions, open_output: Callable[[], IO[bytes]], *, name: str,
+           log: IO[str]) -> int:
+    """Record what ``options`` capture to the output ``open_output`` opens (called ``name``
+    in the messages on ``log``) until their duration is over or Ctrl-C. Returns 0; raises
+    ``BrokerError`` when the broker cannot be reached: the output is then never opened (no
+    empty file, and a file ``--force`` would replace is left as it was)."""
     assert options.broker is not None
-    writer = RecordingWriter(out)
     capture = LiveCapture(options.broker, options.topics)
     capture.start()
+    try:
+        out = open_output()
+    except BaseException:
+        capture.stop()
+        raise
+    try:
+        return _record(options, capture, RecordingWriter(out), name=name, log=log)
+    finally:
+        if out is not sys.stdout.buffer:
+            out.close()
+
+
+def _record(options: CaptureOptions, capture: LiveCapture, writer: RecordingWriter, *,
+            name: str, log: IO[str]) -> int:
     try:  # from here on, Ctrl-C (or SIGTERM) ends the recording with its end event
         print(shown(f"recording {', '.join(options.topics)} from {options.broker} to {name}"
                     + (f" for {options.duration:g} s" if options.duration else

@@ -17,8 +17,12 @@ from conformance.lint.linter import NOT_A_UNIT, OTHER_UNITS
 from conformance.rules import CATALOGUE
 from conformance.violation import Verdict, Violation
 
-STATUS_ORDER = {"FAIL": 0, "warn": 1, "ok": 2, "-": 3}
-"""Rows worst first."""
+STATUS_ORDER = {"silent": 0, "FAIL": 1, "warn": 2, "ok": 3, "-": 4}
+"""Rows worst first: a unit gone silent first (death first, ``conclusion.TRIAGE``)."""
+STATUS_WORDS = {"silent": "silent", "FAIL": "fail", "warn": "warn", "ok": "clean",
+                "-": "unheard"}
+"""Each status in words, the same on the page, in the terminal and in ``/metrics``: silent
+(its heartbeat stopped, now), fail, warn, clean, unheard (nothing of its own seen)."""
 
 
 @dataclass(frozen=True)
@@ -56,15 +60,28 @@ class LintRow:
     live: tuple[str, ...] = ()
     """Failing rules off right now over their latest intervals (rates:
     ``Monitor.live_findings``; judged over the whole run at the end)."""
+    silent_since: float | None = None
+    """The unit's last heartbeat while it is silent right now (``Linter.watch_silences``:
+    more than 3 heartbeat periods), else None; at the end HB-010 or HB-012 judge it."""
 
     @property
     def status(self) -> str:
-        """FAIL, warn, ok (messages seen, or a commander) or - (nothing seen)."""
+        """silent (now), FAIL, warn, ok (messages seen, or a commander) or - (nothing seen)."""
+        if self.silent_since is not None:
+            return "silent"
         if self.live or any(f.verdict == "fail" for f in self.findings):
             return "FAIL"
         if self.findings:
             return "warn"
         return "ok" if self.messages or self.party == "commander" else "-"
+
+    @property
+    def failing(self) -> bool:
+        """Fails a rule so far as the judge will say (or a rate is off right now), silent or
+        not: what the terminal and ``/metrics`` call failing. A silence alone is no verdict
+        yet (HB-010 judges it when it ends, HB-012 when it never does): it is ``status``
+        silent, and ``waraps_lint_unit_up`` 0."""
+        return bool(self.live) or any(f.verdict == "fail" for f in self.findings)
 
     @property
     def pseudo(self) -> bool:
@@ -96,9 +113,14 @@ def live_rows(linter: Any, evidence: Mapping[tuple[str, str], Violation] | None 
     judge will say at the end (``Linter.is_error``). ``evidence``: (unit, rule) -> the first
     violation; ``live`` False: no live findings (the rates over the whole run)."""
     monitor = linter.monitor
-    fails: Callable[[str], bool] = cache(linter.is_error)
+    # As the judge will: a rule of whose unit only decided conditions were found warns
+    # (``Linter.is_error(rule, unit)``); a live finding by its own condition (``fails``).
+    fails: Callable[[str, str | None], bool] = cache(linter.is_error)
+    fails_now: Callable[[Violation], bool] = getattr(linter, "fails", lambda v: fails(v.rule,
+                                                                                     None))
     untimed = bool(getattr(monitor, "untimed", False))  # a capture without times
     rows: dict[str, LintRow] = {}
+    silent: Mapping[str, float] = getattr(linter, "silent", {}) if live else {}
     for unit in list(monitor.units()):
         state: Any = monitor.state(unit)
         address = getattr(state, "address", None)
@@ -110,15 +132,15 @@ def live_rows(linter: Any, evidence: Mapping[tuple[str, str], Violation] | None 
             _levels(getattr(state, "levels", None), "unit", count), count,
             None if untimed else getattr(state, "first_seen", None),
             None if untimed else getattr(state, "last_seen", None),
-            live=tuple(v.rule for v in monitor.live_findings(unit) if fails(v.rule))
-            if live else ())
+            live=tuple(v.rule for v in monitor.live_findings(unit) if fails_now(v))
+            if live else (), silent_since=silent.get(key))
     for label in getattr(monitor, "commanders", list)():  # a row each, clean or not
         rows[label] = LintRow(label, "commander", "commander", levels=())
     for unit, counts in list(linter.by_unit.items()):
         party = "unit" if unit in (NOT_A_UNIT, OTHER_UNITS) else "commander"
         row = rows.get(unit) or LintRow(unit, party, "" if party == "unit" else "commander",
                                         levels=())
-        found = (Finding(rule, "fail" if fails(rule) else "warn", n,
+        found = (Finding(rule, "fail" if fails(rule, unit) else "warn", n,
                          (evidence or {}).get((unit, rule))) for rule, n in counts.items())
         rows[unit] = dataclasses.replace(row, findings=tuple(sorted(found, key=severity)))
     return list(rows.values())

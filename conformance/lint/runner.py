@@ -393,6 +393,7 @@ def feed_recorded(linter: Any, scorecard: Any, items: Any, options: Any) -> floa
                 linter.record(item.unit, item.rule, item.violation)
             n += 1
             if n & 0xFF == 0:  # a pipe from mosquitto_sub is live: show progress (throttled)
+                linter.watch_silences()
                 scorecard.update(linter)
     except KeyboardInterrupt:
         pass
@@ -433,6 +434,7 @@ def run_live(linter: Any, scorecard: Any, capture: Any, options: Any) -> float:
     start = time.monotonic()
     deadline = None if not options.duration else start + options.duration
     wants = options.wants if options.units else None
+    linter.live = True  # silences measured up to the wall clock, every tick
     try:
         while True:
             left = 0.25 if deadline is None else min(0.25, deadline - time.monotonic())
@@ -444,6 +446,7 @@ def run_live(linter: Any, scorecard: Any, capture: Any, options: Any) -> float:
             if wants is not None:
                 batch = [m for m in batch if wants(m.topic)]
             linter.feed(batch)
+            linter.watch_silences()
             scorecard.update(linter, elapsed=time.monotonic() - start,
                              connected=capture.is_connected)
     except KeyboardInterrupt:

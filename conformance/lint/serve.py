@@ -136,10 +136,13 @@ def environment() -> Any:
     env = Environment(loader=PackageLoader("conformance.lint", "templates"), autoescape=True,
                       undefined=StrictUndefined, trim_blocks=True, lstrip_blocks=True,
                       finalize=_finalize)
-    env.filters.update(unit_url=_escape_unit, clock=_clock, hz=_hz, ago=_ago, short=_short)
+    env.filters.update(unit_url=_escape_unit, clock=_clock, hz=_hz, ago=_ago, short=_short,
+                       breakable=_breakable)
     from conformance.lint.plots import sparkline
+    from conformance.lint.rows import STATUS_WORDS
 
-    env.globals.update(sparkline=sparkline, rule_of=_rule_of, max_rows=MAX_ROWS_SHOWN)
+    env.globals.update(sparkline=sparkline, rule_of=_rule_of, max_rows=MAX_ROWS_SHOWN,
+                       status_words=STATUS_WORDS)
     return env
 
 
@@ -151,6 +154,13 @@ def _finalize(value: Any) -> Any:
 
 def _short(value: Any, limit: int = NAME_CHARS) -> str:
     return printable(shorten(value, limit))
+
+
+def _breakable(value: Any, limit: int = NAME_CHARS) -> Any:
+    """A unit address (escaped) that wraps after a '/', not inside a word."""
+    from markupsafe import Markup
+
+    return Markup("/<wbr>").join(_short(value, limit).split("/"))
 
 
 def _clock(t: float | None) -> str:
@@ -238,11 +248,9 @@ class App:
             name = "unit.html.j2" if path.startswith("/unit/") else "unit_body.html.j2"
             return "200 OK", self._page(name, snap, row=row), html
         if path == "/metrics":
-            from prometheus_client import CONTENT_TYPE_LATEST
+            from conformance.lint.metrics import CONTENT_TYPE, exposition
 
-            from conformance.lint.metrics import exposition
-
-            return "200 OK", exposition(lambda: snap), CONTENT_TYPE_LATEST
+            return "200 OK", exposition(lambda: snap), CONTENT_TYPE
         if path == "/report.json":
             data = self.view.report_json()
             if data is None:

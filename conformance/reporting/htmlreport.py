@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import functools
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -27,10 +28,10 @@ from conformance.conclusion import of as conclusion_of
 from conformance.display import shorten
 from conformance.reporting.bounds import bounded
 from conformance.reporting.files import atomic_write
-from conformance.reporting.text import iso_time, printable
+from conformance.reporting.text import RERUN_OF, iso_time, printable, rerun_command
 from conformance.results import RateStat, RunReport, UnitReport
 from conformance.rules import CATALOGUE
-from conformance.violation import RuleResult, Verdict
+from conformance.violation import RuleResult, Verdict, Violation
 
 if TYPE_CHECKING:
     from jinja2 import Environment
@@ -77,7 +78,7 @@ def environment() -> Environment:
                       trim_blocks=True, lstrip_blocks=True)
     env.globals.update(colours=COLOURS, order=ORDER, run_colours=RUN_VERDICT_COLOURS,
                        catalogue=CATALOGUE, anchor=anchor, iso_time=iso_time,
-                       as_verdict=as_verdict)
+                       as_verdict=as_verdict, grouped=grouped)
     return env
 
 
@@ -110,16 +111,41 @@ def render_html(report: RunReport, files: list[str] | None = None) -> str:
         for plot in view.plots:
             if plot.stat.rule and plot.stat.verdict in (Verdict.FAIL, Verdict.WARN):
                 rate_plots.setdefault((view.name, plot.stat.rule), []).append(plot)
+    failing = [(u, r) for _, u, r in found if r.verdict is Verdict.FAIL]
+    warned = [(u, r) for _, u, r in found if r.verdict is Verdict.WARN]
     return environment().get_template("report.html.j2").render(
         report=report, title=f"WARA-PS conformance {report.kind} report",
-        verdict=conclusion.verdict, conclusion=conclusion,
-        failing=[(u, r) for _, u, r in found if r.verdict is Verdict.FAIL],
-        warned=[(u, r) for _, u, r in found if r.verdict is Verdict.WARN],
+        verdict=conclusion.verdict, conclusion=conclusion, failing=failing, warned=warned,
+        reruns={(u, r.rule): rerun_of(report, u, r) for u, r in failing + warned},
         untested=untested(report), untimed=facts_of(report).untimed,
         story=str(report.meta.get("explore_story") or "").split("\n"),
         gaps=[(a, b) for a, b in report.gaps if b - a >= MIN_GAP],
         head=_head_facts(report, conclusion), units=units, rate_plots=rate_plots,
         written=", ".join(files or [])) + "\n"
+
+
+def rerun_of(report: RunReport, unit: str, result: RuleResult) -> str:
+    """The command that reruns ``result``'s rule on ``unit``: the one the certification
+    printed (``RERUN_OF``), else the report's own (``text.rerun_command``)."""
+    said = report.meta.get(RERUN_OF + result.rule) if unit == report.meta.get("unit") else None
+    topic = result.violations[0].topic if result.violations else ""
+    return str(said or rerun_command(report, unit, result.rule, topic))
+
+
+IDENTIFIER = re.compile(r"[0-9a-fA-F]{8}-[0-9a-fA-F-]{27,}|\d+(?:\.\d+)?")
+"""What differs between violations alike: uuids (com-uuid, task-uuid) and numbers."""
+
+
+def grouped(violations: list[Violation]) -> list[list[Violation]]:
+    """Violations alike (the same words, topic, path and hint but for their identifiers and
+    numbers: twenty heartbeats with the same wrong type, each ping unanswered) in one group
+    each, in the order of their first."""
+    groups: dict[tuple[str, ...], list[Violation]] = {}
+    for v in violations:
+        key = (IDENTIFIER.sub("#", v.expected), IDENTIFIER.sub("#", v.observed), v.topic,
+               v.path, IDENTIFIER.sub("#", v.detail))
+        groups.setdefault(key, []).append(v)
+    return list(groups.values())
 
 
 MIN_GAP = 0.05
@@ -174,7 +200,7 @@ def _head_facts(report: RunReport, conclusion: Conclusion) -> HeadFacts:
     meta = [("rules", reading(conclusion.strict))]
     for key in dict.fromkeys([k for k, _ in META_WORDS] + sorted(report.meta)):
         value = report.meta.get(key)
-        if value and key not in META_SHOWN_ELSEWHERE:
+        if value and key not in META_SHOWN_ELSEWHERE and not key.startswith(RERUN_OF):
             meta.append((words.get(key, key.replace("_", " ")), value))
     return HeadFacts(counts, not_run, report.meta.get("exit_status", conclusion.exit_code),
                      [(n, ", ".join(u.agent_uuids) or "-") for n, u in report.units.items()

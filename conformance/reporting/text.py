@@ -24,6 +24,12 @@ def iso_time(t: float | None) -> str:
         return repr(t)
 
 
+RERUN_OF = "rerun "
+"""``meta["rerun HB-003"]``: the certification's own command that reruns a failed or warned
+rule (its evidence's scenarios, ``--observe``, a stored exploration story), as the terminal
+printed it: the HTML report shows the same line."""
+
+
 def rerun_command(report: Any, unit: str, rule_id: str, topic: str = "") -> str:
     """How to repeat what found a violation of ``rule_id`` on ``unit``: for a lint report
     ``waraps-conformance lint --from <recording> --unit <unit>`` (or ``--broker <url>`` and

@@ -170,8 +170,10 @@ class Context:
             late = (f"the broker delivered the suite's command {lag:.1f} s late: the wait "
                     f"for the answer was lengthened as much")
             detail = f"{detail}; {late}" if detail else late
+        # The topic labels the payload shown: the entry's own (an answer shown for missing
+        # feedback is a response), else the one where the answer was awaited.
         return Violation.of(rule, expected=expected, observed=observed,
-                            topic=self.unit.topic(subtopic),
+                            topic=self.unit.topic(entry.subtopic if entry else subtopic),
                             time=entry.time if entry else None,
                             payload=entry.excerpt if entry else None, detail=detail,
                             unit=str(self.unit), command=command if entry is None else "")

@@ -177,6 +177,11 @@ class Fleet(_Running):
         """Reboot one unit (by index) or every unit."""
         self.runtime.reboot(index, wait=wait, timeout=timeout)
 
+    def kill(self, index: int) -> None:
+        """Kill one unit (by index): silent for good, as a unit whose MQTT thread died, until
+        ``reboot(index)`` brings it back."""
+        self.runtime.kill(index)
+
     @property
     def agent_uuids(self) -> list[str]:
         return [c.agent_uuid for c in self.cores]

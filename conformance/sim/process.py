@@ -31,6 +31,9 @@ from conformance.topics import UnitAddress
 if TYPE_CHECKING:
     from conformance.sim.fleet import Fleet, SimUnit
 
+EXIT_UNREACHABLE = 3
+"""The broker could not be reached: the status ``lint``, ``record`` and ``profile`` give it."""
+
 
 def list_faults(as_json: bool) -> str:
     if as_json:
@@ -41,14 +44,29 @@ def list_faults(as_json: bool) -> str:
             "not_unit_breakable": NOT_UNIT_BREAKABLE,
         }, indent=2)
     width = max(map(len, FAULTS))
-    lines = [f"{'fault':<{width}}  rules broken / what it does", ""]
+    lines = [f"{'fault':<{width}}  the rules it fails, and those it only warns (a decided rule, "
+             f"unless --strict-rules) / what it does", ""]
     for f in FAULTS.values():
         scope = "  [only visible to a broker-wide observer]" if f.scope == "broker" else ""
-        lines.append(f"{f.name:<{width}}  {' '.join(f.rules)}{scope}")
+        lines.append(f"{f.name:<{width}}  {rules_broken(f.rules)}{scope}")
         lines.append(f"{'':<{width}}    {f.description}")
     lines += ["", "Rules no unit can break (no fault):"]
     lines += [f"  {rule}: {why}" for rule, why in NOT_UNIT_BREAKABLE.items()]
     return "\n".join(lines)
+
+
+def rules_broken(rules: Sequence[str]) -> str:
+    """``fails TOPIC-002 SI-001; warns HB-010``: what the judge makes of each rule a fault
+    breaks, by the catalogue's severity and basis (``judge.violation_verdict``)."""
+    from conformance.judge import violation_verdict
+    from conformance.rules import CATALOGUE
+    from conformance.violation import Verdict
+
+    fails = [r for r in rules if r in CATALOGUE and violation_verdict(
+        CATALOGUE[r], CATALOGUE[r].severity, strict=False) is Verdict.FAIL]
+    warns = [r for r in rules if r not in fails]
+    return "; ".join(f"{word} {' '.join(found)}" for word, found in (("fails", fails),
+                                                                      ("warns", warns)) if found)
 
 
 def parse_faults(specs: Sequence[str], count: int) -> tuple[frozenset[str], dict[int, set[str]]]:
@@ -113,7 +131,7 @@ def run(address: UnitAddress, broker: BrokerURL | None, *, count: int = 1, rate:
         print(shown_line(f"waraps-conformance sim: {e}"), file=sys.stderr)
         if embedded is not None:
             embedded.stop()
-        return 1
+        return EXIT_UNREACHABLE
     _listen(runner, stop)
     shown = ",".join(faults) or "none"
     if variants:

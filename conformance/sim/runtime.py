@@ -175,6 +175,13 @@ class Runtime:
                 raise TimeoutError(f"units did not come back from a reboot within {timeout} s")
             time.sleep(0.01)  # a poll inside a deadline, not a fixed sleep
 
+    def kill(self, index: int) -> None:
+        """Kill one unit (by index) as a process whose MQTT thread died: it publishes nothing
+        from its next step on, until a reboot restarts it (``reboot``)."""
+        with self._lock:
+            self._control.append(("kill", index))
+        self._wake.set()
+
     @property
     def running(self) -> bool:
         return self._thread is not None and self._thread.is_alive() and not self._stopping
@@ -254,6 +261,8 @@ class Runtime:
                 self.units[i].request_reboot()
                 self._guarded(self.units[i].run, now)
                 self._reschedule(i)
+            elif what == "kill":
+                self.units[i].dead = True
 
     def _handle_inbox(self, now: float) -> None:
         for _ in range(BATCH):

@@ -34,6 +34,7 @@ from conformance.facts import CTRL_C, RunFacts
 from conformance.judge import judge, unexamined
 from conformance.protocol import State
 from conformance.reporting.bounds import file_stem
+from conformance.reporting.text import RERUN_OF
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
 from conformance.scenarios import (
@@ -446,6 +447,10 @@ class Certification:
         from conformance.reporting import write_all
 
         report = self.report(**extra)
+        unit = report.units.get(str(self.unit))
+        for r in unit.rules.values() if unit is not None else ():
+            if r.verdict in (Verdict.FAIL, Verdict.WARN):  # the rerun lines the terminal prints
+                report.meta[RERUN_OF + r.rule] = self.rerun_command(r.rule)
         try:
             self.report_paths = write_all(report, self.settings.reports_dir, self.stem)
         except OSError as e:

@@ -355,6 +355,7 @@ def test_a_heartbeat_that_stops_for_good_is_a_death_at_finish(stream):
     died = commanded.report().units[str(stream.address)].rules["HB-012"]
     assert died.verdict is Verdict.FAIL and died.violations[0].condition == "", died
     assert "it had received no command" in r.violations[0].observed
+    assert "dies on a command" not in r.violations[0].detail  # the hint fits the finding
     assert rules["HB-010"].verdict is Verdict.PASS  # a silence that resumed is HB-010's
     m.finish(now=stream.heartbeat(3).time)  # finish again: re-judged, not counted twice
     assert m.report().units[str(stream.address)].rules["HB-012"].verdict is Verdict.PASS

@@ -61,6 +61,18 @@ def test_answered_ping_passes_and_an_unanswered_one_fails_naming_it(stream):
     assert com_of(lost) in r.violations[0].expected and r.violations[0].observed == "no answer"
 
 
+def test_the_excerpt_of_a_long_command_says_it_is_cut(stream):
+    # The Monitor keeps a command's head only (bounded memory): shown, it ends with '…',
+    # never mid-token as if it were the whole command.
+    lost = stream.command(2.1, "ping", sender="commander-" + "x" * 300)
+    later = stream.command(5.1, "ping")
+    bad = judge(stream, [lost, later, stream.response(5.2, com_of(later))])
+    shown = bad["EXEC-PING-001"].violations[0].excerpt
+    assert shown.endswith("…") and len(shown) < 200, shown
+    short = judge(stream, [stream.command(2.1, "ping"), stream.command(5.1, "ping")])
+    assert not any(v.excerpt.endswith("…") for v in short["EXEC-PING-001"].violations)
+
+
 def test_a_pong_to_another_com_uuid_fails_ping_002_not_ping_001(stream):
     ping = stream.command(2.1, "ping")
     other = stream.command(6.1, "ping")

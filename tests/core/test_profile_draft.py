@@ -44,8 +44,12 @@ def test_a_unit_never_seen_gets_a_commented_draft_and_exit_6(
         unit_address: UnitAddress, mosquitto: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["profile", "--unit", str(unit_address), "--broker", mosquitto,
                  "--observe", "0.5s"]) == 6
-    text = capsys.readouterr().out
+    said = capsys.readouterr()
+    text = said.out
     assert "No heartbeat was seen" in text and "No direct_execution_info was seen" in text
+    # exit 6 is said on stderr too, with what to check
+    assert f"waraps-conformance profile: no heartbeat of {unit_address} within 0.5s on " \
+           f"{mosquitto}" in said.err and "is the unit running" in said.err, said.err
     profile.from_dict(__import__("yaml").safe_load(text), "<draft>")  # still a valid profile
 
 

@@ -139,3 +139,16 @@ def test_the_readme_counts_rules_by_basis(rules: list[dict]) -> None:
     assert [int(n) for n in found.groups()] == [
         counts["stated"], counts["implied"], counts["decided"]], (
         f"README counts {found.groups()}; the catalogue has {dict(counts)}")
+
+
+def test_a_decided_basis_never_reads_as_a_failure_next_to_a_warn_badge() -> None:
+    """A decided rule warns unless the arena adopts it: its basis says so, whatever verb its
+    decision uses (SENS-003's 'fails a negative value' stood beside a warn badge)."""
+    from conformance.rules import CATALOGUE, Basis
+
+    for rule in CATALOGUE.values():
+        if rule.basis is Basis.DECIDED:
+            assert rule.basis_text().startswith(
+                "decided (the spec does not say; a finding warns, and fails only where the "
+                "arena adopts it"), rule.id
+    assert "flags a negative value" in CATALOGUE["SENS-003"].basis_text()

@@ -10,6 +10,7 @@ import subprocess
 import threading
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import orjson
 import pytest
@@ -281,3 +282,55 @@ def test_json_text_is_written_without_recursion_at_any_depth() -> None:
     assert json.loads(dumps(mixed)) == mixed
     escaped = b'{"volt\xb1age":1}'.decode("utf-8", "surrogateescape")
     assert dumps(json.loads(escaped)) == b'{"volt\xb1age":1}'
+
+
+# --- record -o FILE: never destroys a file, writes nothing it could not record ---------------
+def record_main(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
+    """``waraps-conformance record ARGS`` in process: its exit status and standard error."""
+    from conformance.cli import main
+
+    try:
+        status = main(["record", *args])
+    except SystemExit as e:  # argparse's own errors
+        status = int(e.code or 0)
+    return status, capsys.readouterr().err
+
+
+UNREACHABLE = ["--broker", "mqtt://127.0.0.1:1", "--duration", "1s"]
+
+
+def test_record_over_an_existing_file_leaves_it_intact_without_force(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "field-test.jsonl"
+    kept = b'{"kind":"start"}\n' * 1000  # an earlier recording
+    out.write_bytes(kept)
+    status, err = record_main([*UNREACHABLE, "-o", str(out)], capsys)
+    assert status == 2, err
+    assert f"{out} exists; pass --force to replace it" in err
+    assert out.read_bytes() == kept
+
+
+def test_record_writes_nothing_when_it_cannot_connect(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "never.jsonl"
+    status, err = record_main([*UNREACHABLE, "-o", str(out)], capsys)
+    assert status == 3 and "cannot reach the broker" in err, err
+    assert not out.exists()  # no 0-byte file
+    # and --force over an existing file replaces it only once there is a recording
+    kept = b'{"kind":"start"}\n'
+    out.write_bytes(kept)
+    status, err = record_main([*UNREACHABLE, "--force", "-o", str(out)], capsys)
+    assert status == 3, err
+    assert out.read_bytes() == kept
+
+
+@pytest.mark.mosquitto
+def test_record_force_replaces_an_existing_file(mosquitto: str, prefix: str, tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "field-test.jsonl"
+    out.write_bytes(b"old\n")
+    status, err = record_main(["--broker", mosquitto, "--topic", f"{prefix}/#",
+                               "--duration", "0.5s", "--force", "-o", str(out)], capsys)
+    assert status == 0, err
+    events = [item for item in read(out.read_bytes())[0] if isinstance(item, Event)]
+    assert [e.kind for e in events] == ["start", "end"], out.read_bytes()

@@ -10,6 +10,7 @@ from conformance.conclusion import (
     EXIT_FAILED,
     EXIT_INTERRUPTED,
     EXIT_NOT_CERTIFIED,
+    EXIT_UNTESTED,
     TRIAGE,
     conclude,
     triage_rank,
@@ -52,6 +53,23 @@ def test_a_rule_of_a_level_that_could_not_be_tested_denies_that_level_only() -> 
     run = report(EXEC_PING_001=Verdict.COULD_NOT_TEST)
     assert levels(run) == {"direct execution": "1 could not be tested"}
     assert conclude(run).certified_levels(UNIT) == ["sensor"]
+
+
+@pytest.mark.parametrize("untested", ["REBOOT_001", "EXEC_PING_001"])
+def test_a_complete_run_that_certified_less_than_the_unit_claims_does_not_exit_0(
+        untested: str) -> None:
+    # No rule failed, yet a claimed level is not certified (REBOOT-001 without --reboot-cmd
+    # denies every level; EXEC-PING-001 one): a gate reading 0 as certified must not admit it.
+    found = conclude(report(**{untested: Verdict.COULD_NOT_TEST}))
+    assert found.verdict == "could-not-test" and not found.partial
+    assert found.exit_code == EXIT_UNTESTED != EXIT_CERTIFIED
+
+
+def test_a_rule_of_a_level_the_unit_does_not_claim_does_not_deny_the_exit_0() -> None:
+    run = report(TST_004=Verdict.COULD_NOT_TEST)  # tst execution: not claimed
+    assert conclude(run).exit_code == EXIT_CERTIFIED
+    run.units[UNIT].levels = []
+    assert conclude(run).exit_code == EXIT_UNTESTED  # it claims nothing: nothing certified
 
 
 def test_a_failed_rule_of_every_level_and_a_death_deny_every_level() -> None:

@@ -272,3 +272,33 @@ def test_the_html_report_plots_a_rate_whose_messages_came_at_one_instant(tmp_pat
     monitor.finish(t)
     report = monitor.report(broker="", started=t, finished=t)
     assert "<svg" in write_html(report, tmp_path / "r.html").read_text()
+
+
+def test_the_html_names_the_unit_first_and_each_failure_has_its_rerun_and_grouped_evidence():
+    """A certification of one unit: the first screen names the unit and its verdict; a
+    failure shows the rerun line the terminal printed; violations alike (each unanswered
+    ping, twenty heartbeats with the same wrong type) are one group, the rest folded."""
+    from conformance.results import UnitReport
+    from conformance.violation import RuleResult
+
+    unit = "waraps/unit/air/simulation/dji0"
+    pings = [Violation("EXEC-PING-001", f"an answer to ping (com-uuid {u}) within 1.5 s",
+                       "no answer", topic=f"{unit}/exec/command", time=1_700_000_000.0 + i)
+             for i, u in enumerate(["584546bd-edf6-4580-92b2-f522d5e3c180",
+                                    "50834474-345d-4b86-bc46-085a4ede3876",
+                                    "16f7426a-7539-4007-96f2-7fb1d3fdb010"])]
+    other = Violation("EXEC-PING-001", "a response 'pong' within 1.5 s", "no response",
+                      topic=f"{unit}/exec/response", time=1_700_000_005.0)
+    rules = {"EXEC-PING-001": RuleResult("EXEC-PING-001", Verdict.FAIL, "", [other, *pings])}
+    report = RunReport("certification", 1_700_000_000.0, 1_700_000_010.0, units={unit: UnitReport(
+        unit, "air", "simulation", "dji0", levels=["sensor"], rules=rules)})
+    rerun = f"pytest --unit {unit} --broker mqtt://127.0.0.1:1883 --seed 3 -k EXEC-PING-001"
+    report.meta.update({"unit": unit, "rerun " + "EXEC-PING-001": rerun})
+    page = render_html(report)
+    first = page[:page.index("What failed")]
+    assert f'<span class="mono">{unit}</span>' in first and "fail</span>" in first
+    failure = page[page.index('id="u-waraps-unit-air-simulation-dji0-EXEC-PING-001"'):]
+    assert f"<b>rerun</b> <code>{rerun}</code>" in failure
+    assert failure.count('<table class="violation">') == 4  # each kept, none lost
+    assert "2 more like it, the last at 2023-11-14T22:13:22.000+00:00" in failure
+    assert "rerun " + "EXEC-PING-001" not in page[page.index('<table class="head">'):]

@@ -82,6 +82,13 @@ def test_list_faults_prints_every_fault_with_its_rules() -> None:
     text = subprocess.run([sys.executable, "-m", "conformance.cli", "sim", "--list-faults"],
                           capture_output=True, text=True, check=True).stdout
     assert all(name in text for name in FAULTS)
+    # A rule a fault breaks is listed as the judge says it: a decided rule only warns (the
+    # unit stays certified), never under 'fails'.
+    lines = {line.split()[0]: line for line in text.splitlines() if line.split()
+             and line.split()[0] in FAULTS}
+    assert lines["topic-space-sensor"].split("  ", 1)[1].strip() == \
+        "fails TOPIC-003 SI-001; warns TOPIC-008"
+    assert lines["stamp-clock-skew"].split("  ", 1)[1].strip() == "warns MSG-005"
 
 
 # --- the matrices -------------------------------------------------------------------------------
