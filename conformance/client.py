@@ -18,7 +18,7 @@ import ssl
 import threading
 import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from urllib.parse import urlsplit
 
@@ -122,7 +122,7 @@ class BrokerURL:
     """mqtts without verifying the broker's certificate (a test broker with its own CA)."""
 
     @classmethod
-    def parse(cls, text: str, env: dict[str, str] | None = None) -> BrokerURL:
+    def parse(cls, text: str, env: Mapping[str, str] | None = None) -> BrokerURL:
         """Parse a broker URL; credentials are read from ``env`` (default ``os.environ``)."""
         env = os.environ if env is None else env
         text = text.strip()
@@ -161,7 +161,7 @@ class BrokerURL:
                    password=_credential(env.get("WARAPS_PASSWORD"), "WARAPS_PASSWORD"))
 
     @classmethod
-    def from_env(cls, env: dict[str, str] | None = None) -> BrokerURL | None:
+    def from_env(cls, env: Mapping[str, str] | None = None) -> BrokerURL | None:
         """The arena's own variables: WARAPS_BROKER, WARAPS_PORT, WARAPS_TLS_CONNECTION, ..."""
         env = os.environ if env is None else env
         host = env.get("WARAPS_BROKER")
@@ -340,7 +340,8 @@ class MqttClient:
                               f"file (--ca-file) and that the broker speaks TLS on this port"
                               ) from None
         except (OSError, UnicodeError) as e:  # UnicodeError: a host name IDNA refuses
-            raise BrokerError(f"cannot reach the broker at {b}: {e.strerror or e}. Is it "
+            why = (e.strerror if isinstance(e, OSError) else None) or e
+            raise BrokerError(f"cannot reach the broker at {b}: {why}. Is it "
                               f"running and listening there? (--broker, WARAPS_BROKER/"
                               f"WARAPS_PORT)") from None
         self._paho.loop_start()
@@ -405,7 +406,7 @@ class MqttClient:
     def subscribe(self, topic: str, qos: int = 0, timeout: float = 5.0) -> None:
         """Subscribe and wait for the SUBACK, so nothing published afterwards is missed."""
         done = threading.Event()
-        result: list[object] = []
+        result: list[list[object]] = []
 
         def on_subscribe(client, userdata, mid, reason_codes, properties) -> None:
             result.append(reason_codes)
@@ -419,8 +420,8 @@ class MqttClient:
             raise BrokerError(f"subscribe to {topic!r} failed: {paho.error_string(rc)}")
         if not done.wait(timeout):
             raise BrokerError(f"no SUBACK for {topic!r} within {timeout:.1f} s")
-        codes = result[0] if result else []
-        if any(getattr(c, "is_failure", False) for c in codes):  # type: ignore[union-attr]
+        codes: list[object] = result[0] if result else []
+        if any(getattr(c, "is_failure", False) for c in codes):
             raise BrokerError(f"the broker refused the subscription to {topic!r}: {codes} "
                               f"(an ACL may forbid it)")
 

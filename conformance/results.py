@@ -182,7 +182,7 @@ class UnitReport:
 
 
 def _rule_result_to_dict(r: RuleResult) -> dict[str, Any]:
-    out = {"rule": r.rule, "verdict": r.verdict.value, "reason": r.reason,
+    out: dict[str, Any] = {"rule": r.rule, "verdict": r.verdict.value, "reason": r.reason,
            "violations": [v.to_dict() for v in r.violations]}
     rule = CATALOGUE.get(r.rule)
     if rule is not None and r.verdict in (Verdict.FAIL, Verdict.WARN):

@@ -86,7 +86,7 @@ def geopoint_schema() -> dict[str, Any]:
 def _type_schema(spec_type: str, ref: str) -> dict[str, Any]:
     """The JSON Schema of a spec type (section 9); ``ref`` is the GeoPoint's relative URI."""
     geopoint = {"$ref": ref}
-    return {
+    schemas: dict[str, dict[str, Any]] = {
         "string": {"type": "string"},
         "strings": {"type": "array", "items": {"type": "string"}},
         "bool": {"type": "boolean"},
@@ -96,7 +96,8 @@ def _type_schema(spec_type: str, ref: str) -> dict[str, Any]:
         "geopoint": geopoint,
         "geopoints": {"type": "array", "items": geopoint},
         "geopointarrays": {"type": "array", "items": {"type": "array", "items": geopoint}},
-    }[spec_type]
+    }
+    return schemas[spec_type]
 
 
 def _constrained(spec_type: str, constraints: dict[str, Any], ref: str) -> dict[str, Any]:

@@ -36,6 +36,7 @@ from typing import Any, NamedTuple
 
 import jsonschema_rs
 import orjson
+from jsonschema_rs import ValidationErrorKind as _Kind
 from orjson import JSONDecodeError as _JSONDecodeError
 from orjson import loads as _loads
 
@@ -481,12 +482,13 @@ def _schema_violations(path: str, validator: jsonschema_rs.Validator, message: A
         rule = notes.rule or "MSG-003"
         kind = error.kind
         spots: list[tuple[list[Any], str, str]]
-        if type(kind).__name__ == "AdditionalProperties":
+        if isinstance(kind, _Kind.AdditionalProperties):
+            instance = error.instance if isinstance(error.instance, dict) else {}
             spots = [([*error.instance_path, key], f"no parameter '{key}'",
-                      _short(error.instance.get(key))) for key in kind.unexpected]
+                      _short(instance.get(key))) for key in kind.unexpected]
         else:
             where = list(error.instance_path)
-            if type(kind).__name__ == "Required":
+            if isinstance(kind, _Kind.Required):
                 where.append(kind.property)
             expected, observed = _words(kind, error.instance, error.message)
             spots = [(where, expected, observed)]

@@ -16,7 +16,7 @@ import math
 from collections import OrderedDict
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeGuard
 
 from conformance.checks.stall import StallWatch
 from conformance.checks.stash import Stash, StashKey
@@ -122,7 +122,7 @@ def covered_rules() -> set[str]:
     return set(CHECKS)
 
 
-class BoundedDict(OrderedDict):  # type: ignore[type-arg]
+class BoundedDict(OrderedDict[Any, Any]):
     """An LRU mapping holding at most ``limit`` entries (bounded memory for any run length)."""
 
     def __init__(self, limit: int = 4096) -> None:  # a default: copy and pickle call cls()
@@ -418,7 +418,7 @@ def usable_rate(x: Any) -> float | None:
     return rate if math.isfinite(rate) and 0.0 < period < math.inf else None
 
 
-def _is_number(x: Any) -> bool:
+def _is_number(x: object) -> TypeGuard[float]:
     t = type(x)
     return t is float or t is int or (isinstance(x, (int, float)) and not isinstance(x, bool))
 

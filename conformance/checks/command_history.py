@@ -69,6 +69,10 @@ class SentCommand:
         """Already judged unanswered: a late answer after that is EXEC-010's, not again its
         command's rule."""
 
+    def describe(self) -> str:
+        """The command as a finding names it; exec and TST commands add what they carry."""
+        return f"{self.name} (com-uuid {self.com_uuid})"
+
 
 class CommandHistory:
     """What one unit was told and how it answered (bounded); ``life`` is its agent-uuid."""

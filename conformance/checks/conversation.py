@@ -180,7 +180,7 @@ def said(task: TaskRecord, last: int = 1) -> list[tuple[float, str]]:
     """(time, status) of the ``last`` latest statuses (the model's) the task said since the
     conversations follow it."""
     since = task.followed if task.followed is not None else float("inf")
-    found = []
+    found: list[tuple[float, str]] = []
     for heard in reversed(task.statuses):
         if heard[0] < since or len(found) == last:
             break

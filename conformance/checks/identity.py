@@ -5,7 +5,7 @@ declared level backed by its info message (HB-008)."""
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import Any
+from typing import Any, TypeGuard
 
 from conformance.checks.base import CheckContext, UnitState, check
 from conformance.checks.conversation import CONVERSATIONS
@@ -112,7 +112,7 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
         return _silence(ctx, unit, msg, v)
     identity.silences_pending = None
     found = _silence(ctx, unit, msg, v)
-    kept = [f for f in pending if not ctx.in_gap(f.time, msg.time)]
+    kept = [f for f in pending if f.time is None or not ctx.in_gap(f.time, msg.time)]
     return [*kept, *(found or ())] or None
 
 
@@ -281,7 +281,7 @@ def retained_message_is_not_stale(ctx: CheckContext, unit: UnitState, msg: Messa
                "retained message when the unit stops")]
 
 
-def _number(x: Any) -> bool:
+def _number(x: object) -> TypeGuard[float]:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 

@@ -274,8 +274,8 @@ class Monitor:
         of UNIT' (v0.7 has no sender field in 12.2; implementations add one)."""
         sender = m.get("sender") if isinstance(m, dict) else None
         if m is None and isinstance(payload, bytes):  # not JSON: the sender may still be read
-            found = _SENDER.search(payload, 0, 65536)
-            sender = found.group(1).decode("utf-8", "replace") if found else None
+            match = _SENDER.search(payload, 0, 65536)
+            sender = match.group(1).decode("utf-8", "replace") if match else None
         if isinstance(sender, str) and sender.strip():
             name = "".join(ch if ch.isprintable() else "?" for ch in sender.strip()[:MAX_SENDER])
         else:

@@ -40,6 +40,7 @@ from array import array
 from collections import deque
 from collections.abc import Iterator
 from operator import add
+from typing import TYPE_CHECKING
 
 from conformance.checks.base import CheckContext, UnitState, check, usable_rate
 from conformance.checks.liveness import IDENTITY, SILENCE_PERIODS, Identity
@@ -50,6 +51,9 @@ from conformance.results import RateStat
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Verdict, Violation, clock
+
+if TYPE_CHECKING:
+    from conformance.checks.rows import Findings
 
 RATE_RULES = {
     TopicKind.HEARTBEAT: "HB-003",
@@ -436,7 +440,7 @@ def _unusable(kind: TopicKind, msg: Message, rate: float, unit: UnitState) -> Vi
 
 @check("HB-003", "SI-002", "DEI-002", "TEI-002", finish=True, reads=(RATES,))
 def rate_matches_declared_at_end(ctx: CheckContext, unit: UnitState, now: float,
-                                 findings) -> Iterator[Violation]:  # type: ignore[no-untyped-def]
+                                 findings: Findings) -> Iterator[Violation]:
     for tracker in _trackers(unit).values():
         stat, found = tracker.judge(ctx, str(unit.address))
         if not stat.judged:

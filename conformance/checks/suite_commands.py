@@ -53,7 +53,7 @@ def sent_by_suite(m: Any, payload: Any, unit: UnitState) -> bool:
     if ours:
         unit.stash[SEEN] = True
         return True
-    return bool(unit.stash.get(SEEN)) and isinstance(payload, (bytes, bytearray)) \
+    return unit.stash.get(SEEN, False) and isinstance(payload, (bytes, bytearray)) \
         and bytes(payload) in _PROBES
 
 

@@ -49,8 +49,11 @@ def _terminate_as_ctrl_c() -> Callable[[], None]:
     if threading.current_thread() is not threading.main_thread():
         return lambda: None
     previous = signal.signal(signal.SIGTERM, interrupt)
-    return lambda: signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None
-                                 else previous)
+
+    def restore() -> None:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+
+    return restore
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -79,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
 
     restore = _terminate_as_ctrl_c()
 
-    stdout, sys.stdout = sys.stdout, PipeOut(sys.stdout)  # type: ignore[assignment]
+    stdout, sys.stdout = sys.stdout, PipeOut(sys.stdout)
     try:
         return int(module.main(rest) or 0)
     except KeyboardInterrupt:

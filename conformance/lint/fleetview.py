@@ -223,7 +223,8 @@ class FleetView:
 
     def _rates(self, key: str, state: Any, seen: dict[Any, int]) -> tuple[RateView, ...]:
         out = []
-        first = last = None
+        first: dict[Any, float] | None = None
+        last: dict[Any, float] = {}
         for kind, declared in state.declared_rates.items():
             samples = list(self._samples.get((key, _kind(kind)), ()))
             history = tuple((t1, (n1 - n0) / (t1 - t0)) for (t0, n0), (t1, n1)

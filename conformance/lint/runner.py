@@ -354,7 +354,7 @@ def run_bag(linter: Any, scorecard: Any, bag: Any, options: Any) -> float:
     try:
         feed_recorded(linter, scorecard, items, options)
     finally:
-        items.close()  # type: ignore[attr-defined]
+        items.close()
     end = linter.last_time or 0.0
     linter.finish(end)
     return end

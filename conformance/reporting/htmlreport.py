@@ -234,21 +234,20 @@ class UnitView:
 
 def _unit(name: str, unit: UnitReport, status: UnitStatus) -> UnitView:
     ranked = sorted(unit.rules.values(), key=lambda r: ORDER.index(r.verdict))
-    words = dict(verdict=status.verdict, status=status.summary,
-                 identity=f"{unit.agent_type} / {unit.role} / {unit.name}",
-                 agent_uuids=", ".join(unit.agent_uuids) or "-",
-                 levels=", ".join(unit.levels) or "-",
-                 sensors=", ".join(map(str, unit.facts.get("sensors_listed") or ())))
+    view = UnitView(name, unit, unit.verdict_counts(),
+                    identity=f"{unit.agent_type} / {unit.role} / {unit.name}",
+                    agent_uuids=", ".join(unit.agent_uuids) or "-",
+                    levels=", ".join(unit.levels) or "-",
+                    sensors=", ".join(map(str, unit.facts.get("sensors_listed") or ())),
+                    shown=[r for r in ranked if r.verdict is not Verdict.SKIP], skipped=[],
+                    bad=[], verdict=status.verdict, status=status.summary)
     if unit.party == "commander":  # what it sent, judged by the commander's rules
-        return UnitView(name, unit, unit.verdict_counts(), **words,
-                        shown=[r for r in ranked if r.verdict is not Verdict.SKIP],
-                        skipped=[], bad=[])
-    return UnitView(name, unit, unit.verdict_counts(), **words,
-                    shown=[r for r in ranked if r.verdict is not Verdict.SKIP],
-                    skipped=[r for r in ranked if r.verdict is Verdict.SKIP],
-                    bad=[r for r in ranked if r.verdict in (Verdict.FAIL, Verdict.WARN)],
-                    plots=[plot_of(r, i) for i, r in enumerate(unit.rates)],
-                    sparks=sparks(unit))
+        return view
+    view.skipped = [r for r in ranked if r.verdict is Verdict.SKIP]
+    view.bad = [r for r in ranked if r.verdict in (Verdict.FAIL, Verdict.WARN)]
+    view.plots = [plot_of(r, i) for i, r in enumerate(unit.rates)]
+    view.sparks = sparks(unit)
+    return view
 
 
 @dataclass

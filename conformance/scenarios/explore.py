@@ -371,9 +371,8 @@ def query_order(explorer: Explorer) -> list[int | None]:
     """Tasks to ask about: paused, then ended, then running ones, the rest; then a task
     never seen (12.1: 'unknown')."""
     states = explorer.states()
-    order: list[int | None] = sorted(range(len(states)),
-                                     key=lambda i: (QUERY_FIRST.get(states[i], 3), i))
-    return order + [None]
+    order = sorted(range(len(states)), key=lambda i: (QUERY_FIRST.get(states[i], 3), i))
+    return [*order, None]
 
 
 def _ended_start(explorer: Explorer, states: list[str], i: int) -> bool:

@@ -162,7 +162,7 @@ def _task_uuid(ctx: Context, task: str, sent: Sent, answer: Entry,
             "EXEC-START-002", expected=f"task-uuid {wanted}", observed=f"{task_uuid!r}",
             entry=answer, detail=f"task '{task}'"))
         # Follow the task-uuid the unit runs the task under (the commander does, too).
-        task_uuid = ctx.commander.unit_task_uuid(wanted)
+        task_uuid = ctx.commander.unit_task_uuid(str(wanted))  # sent: not generate
     return task_uuid if isinstance(task_uuid, str) else None
 
 

@@ -349,10 +349,10 @@ class TstCommander(Sender):
                     self.open_trees.pop(com, None)
             else:  # refused (ended meanwhile, or not this name of it), or unanswered
                 with self._lock:
-                    tree = self.open_trees.get(com)
-                if tree is not None and answer is not None and self.ended(tree):
+                    still = self.open_trees.get(com)
+                if still is not None and answer is not None and self.ended(still):
                     with self._lock:
                         self.open_trees.pop(com, None)
-                elif tree is not None:
-                    tree.stuck = True
+                elif still is not None:
+                    still.stuck = True
         return aborted

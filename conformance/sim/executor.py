@@ -71,17 +71,18 @@ class CommandExecutor:
         if not self.subscribed:
             self.subscribed = True
             return
+        problem: str | None
         if size > MAX_COMMAND_BYTES:
             msg, problem = None, f"a command of {size} bytes is larger than {MAX_COMMAND_BYTES}"
         else:
             msg, problem = _decode(payload)
         if problem is not None:
-            com = _readable_com_uuid(payload, msg)
+            readable = _readable_com_uuid(payload, msg)
             if "crash-on-malformed" in self.faults:
                 self.unit.crashed = True
                 return
-            if com is not None and "malformed-unanswered" not in self.faults:
-                self._answer(com, "failed", fail_reason=problem)
+            if readable is not None and "malformed-unanswered" not in self.faults:
+                self._answer(readable, "failed", fail_reason=problem)
             return
         assert isinstance(msg, dict)
         com = msg["com-uuid"]

@@ -20,7 +20,7 @@ import os
 import signal
 import sys
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 from conformance.client import BrokerError, BrokerURL
@@ -169,7 +169,7 @@ def _listen(runner: SimUnit | Fleet, stop: threading.Event) -> None:
                      name="sim-stdin").start()
 
 
-def _read_control(reboot, stop: threading.Event) -> None:  # type: ignore[no-untyped-def]
+def _read_control(reboot: Callable[[str | None], None], stop: threading.Event) -> None:
     """stdin lines: 'reboot', 'reboot NAME|INDEX', 'stop'. End of input changes nothing."""
     for line in sys.stdin:
         words = line.split()

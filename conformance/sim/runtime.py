@@ -17,7 +17,7 @@ import sys
 import threading
 import time
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 from conformance.client import BrokerURL, Message, MqttClient
@@ -238,7 +238,7 @@ class Runtime:
             if len(self._started) == len(self.units):
                 self._all_started.set()
 
-    def _guarded(self, fn, *args) -> None:  # type: ignore[no-untyped-def]
+    def _guarded(self, fn: Callable[..., object], *args: object) -> None:
         try:
             fn(*args)
         except Exception as e:  # a bug must not stop the other units: count and report it
@@ -278,7 +278,8 @@ class Runtime:
             for i in self._tst_by_topic.get(topic, ()):  # else: a unit that is not ours
                 self._deliver(i, now, self.units[i].tst_command, payload, now, topic)
 
-    def _deliver(self, i: int, now: float, handler, *args) -> None:  # type: ignore[no-untyped-def]
+    def _deliver(self, i: int, now: float, handler: Callable[..., object],
+                 *args: object) -> None:
         unit = self.units[i]
         before = unit.due
         self._guarded(handler, *args)

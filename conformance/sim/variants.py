@@ -11,6 +11,7 @@ scenario that fails it makes a false accusation. Variants combine freely, but fo
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from conformance.rules import CATALOGUE, Severity
@@ -209,7 +210,7 @@ class VariantError(ValueError):
     """An unknown variant name, or variants that cannot be combined."""
 
 
-def check_variants(names: object) -> frozenset[str]:
+def check_variants(names: str | Iterable[str]) -> frozenset[str]:
     """The variant names as a set; raise ``VariantError`` for an unknown one or a conflict."""
     out = switches(names, VARIANTS, "variant", VariantError)
     for pair in CONFLICTS:

@@ -319,8 +319,9 @@ class Connection:
         """The task names the unit lists in tasks-available (5.3), as last seen."""
         info = self.traffic.latest("direct_execution_info")
         tasks = info.get("tasks-available") if info is not None else None
-        return [t.get("name") for t in tasks if isinstance(t, dict)] \
-            if isinstance(tasks, list) else []
+        names = (t.get("name") for t in tasks if isinstance(t, dict)) \
+            if isinstance(tasks, list) else ()
+        return [n for n in names if isinstance(n, str)]
 
     def _command_lag(self, lag: float, now: float) -> None:
         """The broker delivered the suite's command back ``lag`` seconds after it was sent;
@@ -408,8 +409,8 @@ class Connection:
         whether the broker still delivers."""
         self._probe_silence(silent_periods)
         since = self._unechoed
-        now = self.traffic.clock.now
-        if since is None or self._wait(self._echoed, max(0.0, since + slack - now())):
+        clock_now = self.traffic.clock.now
+        if since is None or self._wait(self._echoed, max(0.0, since + slack - clock_now())):
             return None
         start = min(since, self._last_arrival or since)
         with self.monitor_lock:
@@ -418,7 +419,7 @@ class Connection:
             self.monitor.connection_gap(start, None)
             self._away()
         back = self._wait(self._echoed, budget)
-        now = now()
+        now = clock_now()
         self.events.at(now, f"the broker delivered nothing from {clock(start)} for "
                             f"{now - start:.1f} s (the suite's own command did not come back): "
                             f"{'it delivers again; ' if back else ''}what the unit sent "
@@ -430,7 +431,8 @@ class Connection:
         tells a dead unit from a broker that delivers nothing (issue 25 §3)."""
         latest = self.traffic.latest("heartbeat")
         rate = latest.get("rate") if latest is not None else None
-        if (latest is None or type(rate) not in (int, float) or rate <= 0
+        if (latest is None or not isinstance(rate, (int, float)) or isinstance(rate, bool)
+                or rate <= 0
                 or latest.time == self._probed or self._unechoed is not None
                 or not self._echoed.is_set() or self.settings.dry_run
                 or self.traffic.clock.now() - latest.time <= periods / rate):

@@ -124,7 +124,8 @@ def run(c: Certification, node: pytest.Item) -> None:
     dead = c.unit_died()
     if dead:
         pytest.skip(f"could not test: {dead}")
-    actions, stored = None, {}
+    actions: list[Action] | None = None
+    stored: dict[str, Any] = {}
     if s.explore_replay is not None:
         try:
             actions, stored = load(s.explore_replay)

@@ -17,7 +17,7 @@ import dataclasses
 import threading
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
@@ -58,6 +58,9 @@ from conformance.suite.settings import Settings
 from conformance.topics import UnitAddress, level_name
 from conformance.violation import Observed, RuleResult, Verdict
 
+if TYPE_CHECKING:
+    from conformance.sim.virtual import VirtualClient
+
 CERTIFICATION = pytest.StashKey["Certification"]()
 
 
@@ -94,7 +97,7 @@ class Certification:
         self.report_error = ""
         """Why the last report could not be written ('' when it was)."""
         self.collect_only = False  # --collect-only: nothing is connected, run or written
-        self.error: str | None = None
+        self.error = ""
         """Why the run stopped before the tests (broker unreachable, unit not alive)."""
         self.scenarios_done: dict[str, bool] = {}
         """Scenario -> whether it ran (False: its rules could not be tested)."""
@@ -158,7 +161,7 @@ class Certification:
         self.started = self.observation.started
 
     @property
-    def client(self) -> MqttClient | None:
+    def client(self) -> MqttClient | VirtualClient | None:
         """The suite's MQTT client (None before ``start``)."""
         return self.connection.client
 
@@ -355,7 +358,8 @@ class Certification:
         """The pytest command that repeats this run (of ``rule`` alone, when given); a rule
         only exploration found, by replaying its story (``-k RULE`` sends no such order)."""
         since, replay = self.replays.get(rule or "", (0.0, ""))
-        if replay and all((v.time or since) >= since for v in self.result(rule).violations):
+        if replay and rule and all((v.time or since) >= since
+                                   for v in self.result(rule).violations):
             return replay
         return self.settings.rerun_command(rule, self._observe_for(rule) if rule else 0)
 

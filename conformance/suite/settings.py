@@ -423,8 +423,8 @@ def _broker(config: pytest.Config) -> BrokerURL:
         if broker.scheme != "mqtts":
             raise pytest.UsageError("--ca-file, --cert-file, --key-file and --tls-insecure "
                                     "need an mqtts:// broker")
-        broker = broker.with_tls_files(*(str(v) if v else None for v in files.values()),
-                                       insecure=insecure)
+        ca, cert, private = (str(v) if v else None for v in files.values())
+        broker = broker.with_tls_files(ca, cert, private, insecure=insecure)
     return broker
 
 
