@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Collection, Iterable, Mapping
 from types import MappingProxyType
 
-from conformance.facts import RunFacts, iso
+from conformance.facts import RunFacts, RunKind, iso
 from conformance.results import (
     COMMANDER_REASON,
     NOT_APPLICABLE,
@@ -141,7 +141,7 @@ def judge(report: RunReport, facts: RunFacts) -> RunReport:
     ``facts``, with its conclusion; its verdicts are frozen afterwards."""
     from conformance.conclusion import conclude
 
-    if facts.kind == "certification" and facts.unit:
+    if facts.kind == RunKind.CERTIFICATION and facts.unit:
         unit = _row(report, facts.unit)
         _commander_rules_aside(unit)
         if facts.broker_lost is not None:

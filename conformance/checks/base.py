@@ -20,6 +20,7 @@ from typing import Any, TypeGuard
 
 from conformance.checks.stall import StallWatch
 from conformance.checks.stash import Stash, StashKey
+from conformance.facts import RunKind
 from conformance.message import Message
 from conformance.profile import Profile
 from conformance.topics import TopicKind, UnitAddress, level_name
@@ -441,7 +442,7 @@ def geopoint(m: Any) -> tuple[float, float, float | None] | None:
 class CheckContext:
     """What checks may read besides the unit: the profile, the run kind, the observer's gaps."""
 
-    def __init__(self, profile: Profile, kind: str) -> None:
+    def __init__(self, profile: Profile, kind: RunKind) -> None:
         self.profile = profile
         self.kind = kind
         self.started: float | None = None

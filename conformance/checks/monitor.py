@@ -45,9 +45,10 @@ from conformance.checks.rows import (
 from conformance.checks.shapes import Shapes
 from conformance.checks.suite_commands import suite_row
 from conformance.checks.tst_routing import TstRouting
+from conformance.facts import RunKind
 from conformance.message import Message
 from conformance.profile import Profile
-from conformance.results import RunReport, UnitReport
+from conformance.results import Party, RunReport, UnitReport
 from conformance.rules import CATALOGUE, Side
 from conformance.topics import TST_EXECUTION, TopicKind, UnitAddress, parse_topic
 from conformance.validator import Examined, Validation, Validator
@@ -142,13 +143,14 @@ class Monitor:
     """
 
     def __init__(self, profile: Profile | None = None, *, validator: Validator | None = None,
-                 units: Collection[UnitAddress] | None = None, kind: str = "lint") -> None:
-        if kind not in ("lint", "certification"):
+                 units: Collection[UnitAddress] | None = None,
+                 kind: RunKind | str = RunKind.LINT) -> None:
+        if kind not in tuple(RunKind):
             raise ValueError(f"kind must be 'lint' or 'certification', got {kind!r}")
         self.profile = profile or (validator.profile if validator is not None else Profile())
         self.validator = validator or Validator(self.profile)
-        self.kind = kind
-        self.ctx = CheckContext(self.profile, kind)
+        self.kind = RunKind(kind)
+        self.ctx = CheckContext(self.profile, self.kind)
         self._only = frozenset(units) if units is not None else None
         self._entries: dict[UnitAddress | None, Row] = {}
         self._commanders: dict[str, Row] = {}
@@ -288,7 +290,7 @@ class Monitor:
             if found is None:
                 label = f"commander {name}"
                 found = self._commanders[name] = Row(
-                    UnitState(UnitAddress(UNATTRIBUTED, "", "", label)), "commander", label)
+                    UnitState(UnitAddress(UNATTRIBUTED, "", "", label)), Party.COMMANDER, label)
         return found
 
     @staticmethod
@@ -506,7 +508,7 @@ class Monitor:
             report = row_report(self.ctx, self.profile, self.kind, address, entry, final, now)
             units[report.unit] = report
         # In a certification the suite itself is the commander: no row of its own.
-        if self.kind == "lint":
+        if self.kind is RunKind.LINT:
             for _, entry in sorted(self._commanders.items()):
                 report = row_report(self.ctx, self.profile, self.kind, None, entry, Findings(), now)
                 units[report.unit] = report

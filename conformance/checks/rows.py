@@ -12,9 +12,10 @@ from typing import Any
 
 from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import OVER_A_GAP
+from conformance.facts import RunKind
 from conformance.judge import judge_rates, judge_rule
 from conformance.profile import Profile
-from conformance.results import UnitReport, skip_reason
+from conformance.results import Party, UnitReport, skip_reason
 from conformance.rules import CATALOGUE, Mode, Rule, Side
 from conformance.topics import UnitAddress
 from conformance.validator import Examined
@@ -109,10 +110,10 @@ class Findings:
 class Row:
     __slots__ = ("state", "records", "groups", "final", "unit", "party")
 
-    def __init__(self, state: UnitState, party: str = "unit", label: str = "") -> None:
+    def __init__(self, state: UnitState, party: Party = Party.UNIT, label: str = "") -> None:
         self.state = state
         self.party = party
-        """``unit``, or ``commander``: a row of what commanders sent (DESIGN: blame)."""
+        """A unit's, or a row of what commanders sent (DESIGN: blame)."""
         self.unit = label or ("" if state.address.prefix == UNATTRIBUTED else str(state.address))
         self.records: dict[str, RuleRecord] = {}
         self.groups: dict[Examined, int] = {}
@@ -135,7 +136,7 @@ class Row:
         return found
 
 
-def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddress | None,
+def row_report(ctx: CheckContext, profile: Profile, kind: RunKind, address: UnitAddress | None,
            entry: Row, final: Findings, now: float) -> UnitReport:
     """The report's row of ``entry`` (the unit at ``address``, or a commander or the
     unattributed topics when None), with the end-of-run ``final`` findings, at ``now``."""
@@ -211,7 +212,7 @@ def _examined(entry: Row, final: Findings) -> dict[str, int]:
 def _rule_ids(entry: Row, address: UnitAddress | None, examined: dict[str, int]) -> list[str]:
     """The rules a row reports: a commander's rules and any other it broke; without a unit
     only the rules examined or broken; a unit every rule of the catalogue."""
-    if entry.party == "commander":
+    if entry.party == Party.COMMANDER:
         return [r for r, rule in CATALOGUE.items() if rule.side is Side.COMMANDER
                 or r in examined or r in entry.records]
     if address is None:

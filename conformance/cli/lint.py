@@ -21,8 +21,9 @@ from typing import IO
 
 from conformance.bounds import bounds_help
 from conformance.cli import options as opts
+from conformance.facts import GATES, Gate
 from conformance.lint import EXIT_NOT_RUN, EXIT_USAGE
-from conformance.lint.runner import GATES, REPORT_FORMATS, lint
+from conformance.lint.runner import REPORT_FORMATS, lint
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -146,7 +147,7 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
             return usage(f"--ros-unit: {e}")
     try:
         return lint(options, profile, source=args.source, ros_unit=ros_unit,
-                    reports_dir=Path(args.reports_dir), formats=formats, gate=args.gate,
+                    reports_dir=Path(args.reports_dir), formats=formats, gate=Gate(args.gate),
                     plain=args.plain, stdout=stdout, stdin=stdin, serve=serve, linger=linger)
     except ServeError as e:  # the address cannot be bound: nothing was linted
         opts.say("lint", e)

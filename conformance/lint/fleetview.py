@@ -24,6 +24,7 @@ from typing import Any
 
 from conformance.lint.linter import FLEET_RULES
 from conformance.lint.rows import STATUS_ORDER, LintRow, live_rows, report_rows, seen_fields
+from conformance.results import Party
 from conformance.violation import Verdict, Violation
 
 SNAPSHOT_EVERY = 1.0
@@ -97,7 +98,7 @@ class Snapshot:
                 return r
         return None
 
-    def counts(self, party: str = "unit") -> dict[str, int]:
+    def counts(self, party: Party = Party.UNIT) -> dict[str, int]:
         """Rows of ``party`` (unit or commander) by status."""
         out = dict.fromkeys(STATUS_ORDER, 0)
         for r in self.rows:
@@ -107,7 +108,7 @@ class Snapshot:
 
 
 def _sorted(rows: list[Row]) -> tuple[Row, ...]:
-    return tuple(sorted(rows, key=lambda r: (STATUS_ORDER[r.status], r.party != "unit",
+    return tuple(sorted(rows, key=lambda r: (STATUS_ORDER[r.status], r.party != Party.UNIT,
                                              r.pseudo, r.unit)))
 
 
@@ -301,12 +302,12 @@ def _fleet_findings(report: Any, limit: int = 50) -> tuple[tuple[str, Violation]
 def _provisional_report(linter: Any, meta: dict[str, Any]) -> bytes:
     """The report as it stands, judged (end-of-run checks judged at the latest time, not
     stored); ``meta``: ``facts`` (``RunFacts``) and what the report says of the run."""
-    from conformance.facts import RunFacts
+    from conformance.facts import RunFacts, RunKind
     from conformance.judge import judge
     from conformance.reporting.jsonreport import dumps
 
     meta = dict(meta)
-    facts = meta.pop("facts", None) or RunFacts(kind="lint")
+    facts = meta.pop("facts", None) or RunFacts(kind=RunKind.LINT)
     report = linter.monitor.report(finished=None, provisional="the run goes on: this is the "
                                    "report as it stands", **meta)
     return dumps(judge(report, facts))

@@ -14,16 +14,17 @@ from pathlib import Path
 from typing import IO, Any
 
 from conformance.display import NAME_CHARS, printable, printable_lines, shorten, shown
+from conformance.facts import Gate, RunFacts, RunKind
 from conformance.lint import EXIT_FAIL, EXIT_NOT_RUN, EXIT_PARTIAL, EXIT_PASS
 from conformance.reporting.bounds import file_stem
+from conformance.results import Party
 
-GATES = ("all", "units")
 REPORT_FORMATS = ("json", "html", "junit")
 
 
 def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any = None,
          reports_dir: Path = Path("reports"), formats: tuple[str, ...] = REPORT_FORMATS,
-         gate: str = "all", plain: bool = False, stdout: IO[str] | None = None,
+         gate: Gate = Gate.ALL, plain: bool = False, stdout: IO[str] | None = None,
          stdin: IO[bytes] | None = None, serve: Any = None, linger: float | None = 0.0) -> int:
     """Lint the traffic ``options`` (``CaptureOptions``) name, live, or the recording or ROS
     bag at ``source``; print the scorecard and write the reports. Returns the exit status:
@@ -61,7 +62,7 @@ class _Read:
 
 
 def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
-          reports_dir: Path, formats: tuple[str, ...], gate: str, plain: bool,
+          reports_dir: Path, formats: tuple[str, ...], gate: Gate, plain: bool,
           stdout: IO[str] | None, stdin: IO[bytes] | None, serving: Any = None) -> int:
     from conformance.lint.linter import Linter
     from conformance.rosbag import is_bag
@@ -71,10 +72,10 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
     monitor = _monitor(profile, options.units)
     linter = Linter(monitor, profile)
     if serving:  # /report.json while lint runs: judged as the end will judge it
-        from conformance.facts import RunFacts
 
         serving.view.report_meta(broker=str(options.broker or ""),
-                                 facts=RunFacts(kind="lint", gate=gate, strict=profile.is_strict))
+                                 facts=RunFacts(kind=RunKind.LINT, gate=gate,
+                                                strict=profile.is_strict))
     started = time.time()
 
     def scorecard(title: str, live: bool) -> Any:
@@ -100,13 +101,12 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
     over, over_units = monitor.not_judged()
     if over:
         meta["not_judged"] = _not_judged(over, over_units)
-    from conformance.facts import RunFacts
     from conformance.judge import judge
 
     report = judge(_report(monitor, linter, kind_meta=meta, broker=read.broker,
                            started=started if not source else (linter.first_time or started),
                            finished=end),
-                   RunFacts(kind="lint", gate=gate, strict=profile.is_strict,
+                   RunFacts(kind=RunKind.LINT, gate=gate, strict=profile.is_strict,
                             untimed=untimed(linter), not_judged=meta.get("not_judged", ""),
                             not_examined=_malformed(read.problem_count)))
     if serving:  # the fleet page's last snapshot: every verdict final
@@ -244,15 +244,15 @@ def _tell(out: IO[str], linter: Any, report: Any, read: _Read) -> None:
               file=out)
 
 
-def _verdict(out: IO[str], report: Any, gate: str, not_judged: str) -> int:
+def _verdict(out: IO[str], report: Any, gate: Gate, not_judged: str) -> int:
     """The evidence of the failures, the last line (what was observed, never a certificate:
     DESIGN 'Semantics', 'clean', not 'pass'), and the exit status."""
     evidence = failures(report)
     if evidence:
         print(f"\n{printable_lines(evidence)}\n", file=out)
     failing = sorted(u for u, rep in report.units.items() if rep.worst().value == "fail"
-                     and (gate == "all" or rep.party == "unit"))
-    gated = "no unit or commander" if gate == "all" else "no unit"
+                     and (gate == Gate.ALL or rep.party == Party.UNIT))
+    gated = "no unit or commander" if gate == Gate.ALL else "no unit"
     conclusion = report.conclusion
     if failing or not not_judged:
         print(("FAIL: " + printable(", ".join(shorten(u, NAME_CHARS) for u in failing)))
@@ -330,7 +330,7 @@ class _noop:
 def _monitor(profile: Any, units: tuple[Any, ...]) -> Any:
     from conformance.checks import Monitor
 
-    return Monitor(profile, units=list(units) or None, kind="lint")
+    return Monitor(profile, units=list(units) or None, kind=RunKind.LINT)
 
 
 def run_recorded(linter: Any, scorecard: Any, stream: IO[bytes], name: str,

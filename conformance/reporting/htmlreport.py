@@ -29,7 +29,7 @@ from conformance.display import shorten
 from conformance.reporting.bounds import bounded
 from conformance.reporting.files import atomic_write
 from conformance.reporting.text import RERUN_OF, iso_time, printable, rerun_command
-from conformance.results import RateStat, RunReport, UnitReport
+from conformance.results import Party, RateStat, RunReport, UnitReport
 from conformance.rules import CATALOGUE
 from conformance.violation import RuleResult, Verdict, Violation
 
@@ -241,7 +241,7 @@ def _unit(name: str, unit: UnitReport, status: UnitStatus) -> UnitView:
                     sensors=", ".join(map(str, unit.facts.get("sensors_listed") or ())),
                     shown=[r for r in ranked if r.verdict is not Verdict.SKIP], skipped=[],
                     bad=[], verdict=status.verdict, status=status.summary)
-    if unit.party == "commander":  # what it sent, judged by the commander's rules
+    if unit.party == Party.COMMANDER:  # what it sent, judged by the commander's rules
         return view
     view.skipped = [r for r in ranked if r.verdict is Verdict.SKIP]
     view.bad = [r for r in ranked if r.verdict in (Verdict.FAIL, Verdict.WARN)]

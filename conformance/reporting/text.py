@@ -7,6 +7,7 @@ from datetime import UTC, datetime
 from typing import Any
 
 from conformance.display import printable, shorten
+from conformance.facts import RunKind
 from conformance.rules import CATALOGUE, Rule, Severity
 from conformance.topics import TopicError, UnitAddress, parse_topic
 from conformance.violation import Verdict, Violation
@@ -37,7 +38,7 @@ def rerun_command(report: Any, unit: str, rule_id: str, topic: str = "") -> str:
     <rule>``. ``report`` is a ``RunReport``: its kind, broker and meta say which. A
     commander's row ('commander alice') is no unit: its finding is repeated by linting the
     unit whose command ``topic`` it was found on (or every unit, when the topic names none)."""
-    if getattr(report, "kind", "certification") != "lint":
+    if getattr(report, "kind", RunKind.CERTIFICATION) != RunKind.LINT:
         return f"pytest --unit {shlex.quote(unit)} -k {shlex.quote(rule_id)}"
     try:
         unit = UnitAddress.parse(unit).base
@@ -142,7 +143,7 @@ def render_verdicts(report: Any, per_unit: int = FINDINGS_PER_UNIT) -> str:
     conclusion = conclusion_of(report)
     counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
     out = [f"verdict: {conclusion.verdict} ({counts})"
-           + (f"; {LINT_NEVER_CERTIFIES}" if report.kind == "lint" else "")]
+           + (f"; {LINT_NEVER_CERTIFIES}" if report.kind == RunKind.LINT else "")]
     by_unit: dict[str, list[tuple[int, Any]]] = {}
     for rank, unit, result in ranked_findings(report):
         by_unit.setdefault(unit, []).append((rank, result))

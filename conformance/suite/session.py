@@ -30,7 +30,7 @@ from conformance.clock import REAL, VirtualClock
 from conformance.conclusion import INTERRUPTED, NOT_CERTIFIED, Conclusion
 from conformance.conclusion import of as conclusion_of
 from conformance.display import LINE_CHARS, shorten, shown
-from conformance.facts import CTRL_C, RunFacts
+from conformance.facts import CTRL_C, RunFacts, RunKind
 from conformance.judge import judge, unexamined
 from conformance.protocol import State
 from conformance.reporting.bounds import file_stem
@@ -83,7 +83,7 @@ class Certification:
         # report; it judges the unit's answers with the deadlines the scenarios wait for.
         self.monitor = Monitor(dataclasses.replace(
             self.profile, response_timeout=self.timing.response,
-            feedback_timeout=self.timing.feedback), units=[self.unit], kind="certification")
+            feedback_timeout=self.timing.feedback), units=[self.unit], kind=RunKind.CERTIFICATION)
         self._lock = threading.RLock()
         self.events = Events()
         """What happened to the connection and the unit, for the terminal summary."""
@@ -288,7 +288,7 @@ class Certification:
         """What the judge must know of this run so far (``conformance.facts.RunFacts``)."""
         cut = self.out_of_time or (CTRL_C if self.interrupted else "")
         return RunFacts(
-            kind="certification", unit=str(self.unit), strict=self.profile.is_strict,
+            kind=RunKind.CERTIFICATION, unit=str(self.unit), strict=self.profile.is_strict,
             error=self.error, broker_lost=self.broker_lost,
             interrupted=bool(cut), cut_short=cut, selection=self.selection,
             # A rule the exploration (or its replay) judged was judged, selected or not.
