@@ -12,7 +12,7 @@ also stopped answering
 
 from __future__ import annotations
 
-from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import (
     OVER_A_GAP,
     judged_on_a_copy,
@@ -32,6 +32,7 @@ from conformance.checks.conversation import (
 )
 from conformance.checks.exec_response import judge_unanswered
 from conformance.checks.liveness import IDENTITY, dying_at_end, dying_before_life
+from conformance.checks.registry import check
 from conformance.message import Message
 from conformance.taskrecord import State
 from conformance.topics import TopicKind

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from conformance.checks.base import CheckContext, UnitState, check, reinterprets
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import response_timeout, str_of, violation
 from conformance.checks.conversation import (
     CONVERSATIONS,
@@ -22,6 +22,7 @@ from conformance.checks.conversation import (
     state_of,
     task_uuid_sent,
 )
+from conformance.checks.registry import check, reinterprets
 from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.status import FINAL_STATUSES, meaning

@@ -14,7 +14,7 @@ from collections.abc import Generator, Iterator
 from typing import Any
 
 from conformance import protocol
-from conformance.checks.base import CheckContext, UnitState, check, reinterprets
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import (
     OVER_A_GAP,
     late,
@@ -35,6 +35,7 @@ from conformance.checks.conversation import (
     state_of,
     task_uuid_sent,
 )
+from conformance.checks.registry import check, reinterprets
 from conformance.message import Message
 from conformance.status import accepts_signal
 from conformance.topics import TopicKind

@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import dataclasses
 
-from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import violation
 from conformance.checks.conversation import CONVERSATIONS, conversations
+from conformance.checks.registry import check
 from conformance.message import Message
 from conformance.protocol import BUILTIN_SIGNALS, Command, Model, State
 from conformance.topics import TopicKind

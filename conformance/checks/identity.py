@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Any, TypeGuard
 
-from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.conversation import CONVERSATIONS
 from conformance.checks.liveness import (
     DEATHS_KEPT,
@@ -20,6 +20,7 @@ from conformance.checks.liveness import (
     heartbeat_period,
     heartbeat_tracker,
 )
+from conformance.checks.registry import check
 from conformance.message import Message
 from conformance.topics import INFO_KIND_OF_LEVEL, TopicKind, level_name
 from conformance.validator import Validation

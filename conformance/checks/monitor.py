@@ -24,15 +24,9 @@ from typing import Any
 import orjson
 
 from conformance import bounds
-from conformance.checks.base import (
-    AT_FINISH,
-    ON_KIND,
-    ON_MESSAGE,
-    REINTERPRET,
-    CheckContext,
-    UnitState,
-)
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.rates import live_findings as live_rate_findings
+from conformance.checks.registry import build
 from conformance.checks.rows import (
     UNATTRIBUTED,
     Findings,
@@ -54,6 +48,7 @@ from conformance.topics import TST_EXECUTION, TopicKind, UnitAddress, parse_topi
 from conformance.validator import Examined, Validation, Validator
 from conformance.violation import Observed, Violation
 
+REGISTRY = build()  # built here: the package __init__ imported every check module first
 MAX_UNITS = bounds.MAX_UNITS
 """Units tracked at once; further units' messages are unexamined: lint fails (``not_judged``)."""
 MAX_NAMED_OVER_CAP = 8
@@ -106,7 +101,7 @@ class _Route:
             self.kind = None  # exec/command/<command>: the message says
         else:
             self.kind = parsed.kind.value
-        self.reinterpret = tuple(c.fn for c in REINTERPRET.get(parsed.kind, ()))
+        self.reinterpret = tuple(c.fn for c in REGISTRY.reinterpret.get(parsed.kind, ()))
         self.checks = self.checks_for(self.kind)
         # What the validator examined, by message shape (``checks/shapes.py``).
         self.content_fields = content_fields
@@ -122,8 +117,8 @@ class _Route:
 
     def checks_for(self, kind: str | None) -> tuple[Any, ...]:
         """The message checks of a message of validation kind ``kind`` on this topic."""
-        narrower = ON_KIND.get(kind or "")
-        return tuple(c.fn for c in ON_MESSAGE.get(self.topic_kind, ())) + (
+        narrower = REGISTRY.on_kind.get(kind or "")
+        return tuple(c.fn for c in REGISTRY.on_message.get(self.topic_kind, ())) + (
             tuple(c.fn for c in narrower) if narrower else ())
 
 
@@ -295,8 +290,8 @@ class Monitor:
 
     @staticmethod
     def _checks_for(v: Validation) -> tuple[Any, ...]:
-        return (tuple(c.fn for c in ON_MESSAGE.get(v.topic.kind, ()))
-                + tuple(c.fn for c in ON_KIND.get(v.kind, ())))
+        return (tuple(c.fn for c in REGISTRY.on_message.get(v.topic.kind, ()))
+                + tuple(c.fn for c in REGISTRY.on_kind.get(v.kind, ())))
 
     def _tst_route(self, route: _Route, message: Message) -> _Route:
         """14.1: a message on an operator's tst topic (op0/tst/...) is the conversation of the
@@ -544,7 +539,7 @@ class Monitor:
         if entry.state.address.prefix == UNATTRIBUTED:
             return findings
         unit = str(entry.state.address)
-        for c in AT_FINISH:
+        for c in REGISTRY.at_finish:
             out = c.fn(self.ctx, entry.state, now, findings)
             if out:
                 findings.violations.extend(

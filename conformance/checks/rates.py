@@ -42,8 +42,9 @@ from collections.abc import Iterator
 from operator import add
 from typing import TYPE_CHECKING
 
-from conformance.checks.base import CheckContext, UnitState, check, usable_rate
+from conformance.checks.base import CheckContext, UnitState, usable_rate
 from conformance.checks.liveness import IDENTITY, SILENCE_PERIODS, Identity
+from conformance.checks.registry import check
 from conformance.checks.stall import stamp_of
 from conformance.checks.stash import StashKey
 from conformance.message import Message

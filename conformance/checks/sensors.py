@@ -9,7 +9,8 @@ import math
 from collections.abc import Iterator
 from typing import Any
 
-from conformance.checks.base import CheckContext, UnitState, check, geopoint, reinterprets
+from conformance.checks.base import CheckContext, UnitState, geopoint
+from conformance.checks.registry import check, reinterprets
 from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.topics import MANDATORY_SENSORS, TopicKind

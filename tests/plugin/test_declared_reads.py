@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 from certify_helpers import certify_virtual
 
-from conformance.checks import base
+from conformance.checks import registry
 from conformance.checks.stash import Stash, StashKey
 
 UNIT = "waraps/unit/air/simulation/dji0"
@@ -26,10 +26,7 @@ def _declared() -> tuple[dict[CodeType, set[StashKey[Any]]], dict[CodeType, str]
     checks sharing one code (a finish check's wrapper) -> the union of theirs."""
     declared: dict[CodeType, set[StashKey[Any]]] = {}
     names: dict[CodeType, str] = {}
-    registered = [*base.AT_FINISH, *(c for cs in base.ON_MESSAGE.values() for c in cs),
-                  *(c for cs in base.ON_KIND.values() for c in cs),
-                  *(c for cs in base.REINTERPRET.values() for c in cs)]
-    for c in registered:
+    for c in registry.build().checks:
         for fn in (c.fn, getattr(c.fn, "__wrapped__", c.fn)):
             declared.setdefault(fn.__code__, set()).update(c.reads)
             names.setdefault(fn.__code__, f"{fn.__module__}.{fn.__qualname__}")
