@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import re
 
+from conformance.masking import mask_password
+
 _NOT_PLAIN = re.compile("[^\x20-\x7e]")
 """A character that is not printable ASCII: the only ones worth a look (ASCII text is shown
 as it is)."""
@@ -49,8 +51,6 @@ def printable(text: object) -> str:
 def shown(text: object) -> str:
     """``text`` (ours, holding user or wire text: a URL, a command line, an error) fit for a
     terminal: one line, escaped (issue 26 §3), never a password (§5)."""
-    from conformance.masking import mask_password
-
     return printable(mask_password(str(text)))
 
 

@@ -20,6 +20,8 @@ from typing import Any
 
 from conformance.display import shorten
 from conformance.message import Message
+from conformance.scenarios.params import task_schema
+from conformance.scenarios.safety import MOVES_WITHOUT_TAG
 from conformance.taskspec import task_spec
 from conformance.topics import LEVELS, MANDATORY_SENSORS, ROLES, TopicKind, UnitAddress, parse_topic
 from conformance.validator import Unreadable, decode
@@ -86,8 +88,6 @@ def _names(items: Any, key: str | None = None) -> list[str]:
 
 
 def _moves(task: str) -> bool:
-    from conformance.scenarios.safety import MOVES_WITHOUT_TAG
-
     try:
         return task_spec(task).moves_unit or task in MOVES_WITHOUT_TAG
     except KeyError:
@@ -115,8 +115,6 @@ def _yaml_list(items: list[str]) -> str:
 def _example(task: str) -> dict[str, Any] | None:
     """The parameters of section 9's own example for ``task``, or None (not a section 9
     task)."""
-    from conformance.scenarios.params import task_schema
-
     examples = (task_schema(task) or {}).get("examples") or []
     return next((e for e in examples if isinstance(e, dict)), None)
 

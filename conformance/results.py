@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from conformance.facts import RunFacts, RunKind
+from conformance.masking import mask_password
 from conformance.rules import CATALOGUE, Mode, Rule, Side
 from conformance.violation import RuleResult, Verdict, Violation
 
@@ -89,8 +90,6 @@ def skip_reason(rule: Rule, *, kind: RunKind, unit: str, levels: tuple[str, ...]
 def redact_broker(url: str) -> str:
     """A broker URL fit for a report: never with a password (``mqtts://user@host:8883``: the
     lint's rerun line pastes it)."""
-    from conformance.masking import mask_password
-
     return mask_password(url or "", url=True, hidden=None)
 
 

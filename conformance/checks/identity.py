@@ -8,7 +8,7 @@ from collections.abc import Iterator
 from typing import Any, TypeGuard
 
 from conformance.checks.base import CheckContext, UnitState
-from conformance.checks.conversation import CONVERSATIONS
+from conformance.checks.conversation import CONVERSATIONS, commands_died_on
 from conformance.checks.liveness import (
     DEATHS_KEPT,
     HB,
@@ -209,8 +209,6 @@ def unit_does_not_die(ctx: CheckContext, unit: UnitState, now: float,
                       findings: Any) -> Iterator[Violation]:
     """5.1: the heartbeat registers availability. One that stops for good is a death (error):
     the finding names the last command the unit received before it fell silent."""
-    from conformance.checks.conversation import commands_died_on
-
     if unit.last_heartbeat is None or unit.period(HB) is None:
         return
     findings.examine("HB-012")

@@ -43,7 +43,7 @@ from conformance.facts import RunKind
 from conformance.message import Message
 from conformance.profile import Profile
 from conformance.results import Party, RunReport, UnitReport
-from conformance.rules import CATALOGUE, Side
+from conformance.rules import CATALOGUE, Side, get
 from conformance.topics import TST_EXECUTION, TopicKind, UnitAddress, parse_topic
 from conformance.validator import Examined, Validation, Validator
 from conformance.violation import Observed, Violation
@@ -455,8 +455,6 @@ class Monitor:
         ROS bag's, reported unattributed)."""
         self.version += 1
         if rule not in CATALOGUE:
-            from conformance.rules import get
-
             get(rule)  # raises naming close ids
         entry = self._entries.get(unit) or self._new_entry(unit, force=True)
         assert entry is not None

@@ -10,8 +10,12 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
+from conformance import __version__
 from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import OVER_A_GAP
+from conformance.checks.conversation import dropped
+from conformance.checks.liveness import deaths
+from conformance.checks.rates import rate_stats
 from conformance.facts import RunKind
 from conformance.judge import judge_rates, judge_rule
 from conformance.profile import Profile
@@ -140,9 +144,6 @@ def row_report(ctx: CheckContext, profile: Profile, kind: RunKind, address: Unit
            entry: Row, final: Findings, now: float) -> UnitReport:
     """The report's row of ``entry`` (the unit at ``address``, or a commander or the
     unattributed topics when None), with the end-of-run ``final`` findings, at ``now``."""
-    from conformance.checks.liveness import deaths
-    from conformance.checks.rates import rate_stats
-
     state = entry.state
     examined = _examined(entry, final)
     notes = {**state.notes, **final.notes}
@@ -255,8 +256,6 @@ def _excuse(evidence: list[Violation], count: int, excused: str,
 
 def _facts(state: UnitState) -> dict[str, Any]:
     """What the report tells people of the unit besides the verdicts."""
-    from conformance.checks.conversation import dropped
-
     return {
         "declared_rates": dict(state.declared_rates),
         "sensors_listed": list(state.sensors_listed or ()),
@@ -289,8 +288,6 @@ def suite_version() -> str:
 
         return version("waraps-conformance")
     except Exception:  # not installed: the source tree's version
-        from conformance import __version__
-
         return __version__
 
 

@@ -2,8 +2,11 @@
 
 Each subcommand is a thin module of this package, ``conformance.cli.<name>``, exposing
 ``main(argv) -> int``: it parses its arguments (the shared option groups are in
-``conformance.cli.options``) and calls the part that does the work. This module only
-dispatches, so ``waraps-conformance --help`` stays fast (no amqtt, paho or schema import).
+``conformance.cli.options``) and calls the part that does the work, imported inside ``main``
+after the arguments are parsed, so that ``COMMAND --help`` loads no MQTT client, schema or
+broker (the pytest plugin, ``plugin.py``, likewise loads the suite only for ``--unit``).
+This module only dispatches, so ``waraps-conformance --help`` stays fast (no amqtt, paho or
+schema import).
 """
 
 from __future__ import annotations

@@ -22,8 +22,7 @@ from typing import IO
 from conformance.bounds import bounds_help
 from conformance.cli import options as opts
 from conformance.facts import GATES, Gate
-from conformance.lint import EXIT_NOT_RUN, EXIT_USAGE
-from conformance.lint.runner import REPORT_FORMATS, lint
+from conformance.lint import EXIT_NOT_RUN, EXIT_USAGE, REPORT_FORMATS
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -104,7 +103,9 @@ def parse_formats(text: str) -> tuple[str, ...]:
 
 def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
          stdin: IO[bytes] | None = None) -> int:
+    # Loaded here, not at the top: `lint --help` loads no MQTT client, schema or report writer.
     from conformance.lint.capture import CaptureOptionsError
+    from conformance.lint.runner import lint
     from conformance.lint.serve import ServeError, parse_address
     from conformance.profile import ProfileError, load
 

@@ -22,8 +22,11 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
+from conformance.facts import RunFacts, RunKind
+from conformance.judge import judge
 from conformance.lint.linter import FLEET_RULES
 from conformance.lint.rows import STATUS_ORDER, LintRow, live_rows, report_rows, seen_fields
+from conformance.reporting.jsonreport import dumps
 from conformance.results import Party
 from conformance.violation import Verdict, Violation
 
@@ -184,8 +187,6 @@ class FleetView:
         with self._report_ready:
             if self._final_report is not None:
                 if self._report_final is None:  # nothing changes it any more: any thread
-                    from conformance.reporting.jsonreport import dumps
-
                     self._report_final = dumps(self._final_report)
                 return self._report_final
             made = self._report_made
@@ -302,10 +303,6 @@ def _fleet_findings(report: Any, limit: int = 50) -> tuple[tuple[str, Violation]
 def _provisional_report(linter: Any, meta: dict[str, Any]) -> bytes:
     """The report as it stands, judged (end-of-run checks judged at the latest time, not
     stored); ``meta``: ``facts`` (``RunFacts``) and what the report says of the run."""
-    from conformance.facts import RunFacts, RunKind
-    from conformance.judge import judge
-    from conformance.reporting.jsonreport import dumps
-
     meta = dict(meta)
     facts = meta.pop("facts", None) or RunFacts(kind=RunKind.LINT)
     report = linter.monitor.report(finished=None, provisional="the run goes on: this is the "

@@ -10,12 +10,13 @@ from collections import Counter, deque
 from typing import Any
 
 from conformance.checks.monitor import MAX_COMMANDERS, MAX_UNITS, UNATTRIBUTED, Monitor
+from conformance.judge import violation_verdict
 from conformance.message import Gap, Message
 from conformance.profile import Profile
 from conformance.recording import CUT, Event
-from conformance.rules import Severity
+from conformance.rules import CATALOGUE, Severity
 from conformance.topics import parse_topic
-from conformance.violation import Violation
+from conformance.violation import Verdict, Violation
 
 FLEET_RULES = ("HB-010", "HB-011", "HB-012", "HB-006", "EXEC-006", "EXEC-008", "MSG-007")
 """Observations about the fleet over time (silence, identity, commands and answers, retained
@@ -280,8 +281,6 @@ class Linter:
 
     @staticmethod
     def _decided(v: Violation) -> bool:
-        from conformance.rules import CATALOGUE
-
         rule = CATALOGUE.get(v.rule)
         try:
             return rule is not None and rule.decided(v.condition)
@@ -292,10 +291,6 @@ class Linter:
         """Whether a violation of ``rule`` fails (else warns), as the judge will say at the
         end (``judge.violation_verdict``: a decided rule, or a rule of whose ``unit`` only
         decided conditions were found, warns unless the profile adopts it)."""
-        from conformance.judge import violation_verdict
-        from conformance.rules import CATALOGUE
-        from conformance.violation import Verdict
-
         found = CATALOGUE.get(rule)
         severity = self.profile.severity_of(rule)
         if found is None:
@@ -307,10 +302,6 @@ class Linter:
 
     def fails(self, v: Violation) -> bool:
         """Whether the finding ``v`` on its own fails (its condition's basis, the profile)."""
-        from conformance.judge import violation_verdict
-        from conformance.rules import CATALOGUE
-        from conformance.violation import Verdict
-
         rule = CATALOGUE.get(v.rule)
         if rule is None:
             return self.profile.severity_of(v.rule) is Severity.ERROR

@@ -13,13 +13,34 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+from conformance.bounds import MAX_UNITS
+from conformance.checks import Monitor
+from conformance.client import BrokerError
+from conformance.conclusion import ranked_findings
 from conformance.display import NAME_CHARS, printable, printable_lines, shorten, shown
 from conformance.facts import Gate, RunFacts, RunKind
-from conformance.lint import EXIT_FAIL, EXIT_NOT_RUN, EXIT_PARTIAL, EXIT_PASS
+from conformance.judge import judge
+from conformance.lint import EXIT_FAIL, EXIT_NOT_RUN, EXIT_PARTIAL, EXIT_PASS, REPORT_FORMATS
+from conformance.lint.capture import LiveCapture
+from conformance.lint.linter import Linter
+from conformance.lint.serve import Serving
+from conformance.message import Message
+from conformance.recording import (
+    UNTIMED,
+    UNTIMED_NOTE,
+    UNTIMED_RULES,
+    Event,
+    RecordingError,
+    RecordingReader,
+    open_recording,
+)
+from conformance.reporting import write_html, write_json, write_junit
 from conformance.reporting.bounds import file_stem
+from conformance.reporting.text import render_verdicts, render_violation
 from conformance.results import Party
-
-REPORT_FORMATS = ("json", "html", "junit")
+from conformance.rosbag import BagError, BagReader, is_bag
+from conformance.scorecard import Scorecard
+from conformance.violation import Verdict
 
 
 def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any = None,
@@ -38,7 +59,6 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
         return _lint(options, profile, source=source, ros_unit=ros_unit,
                      reports_dir=reports_dir, formats=formats, gate=gate, plain=plain,
                      stdout=stdout, stdin=stdin)
-    from conformance.lint.serve import Serving
 
     with Serving(serve, linger, stdout or sys.stdout, live=not source) as serving:
         return _lint(options, profile, source=source, ros_unit=ros_unit, reports_dir=reports_dir,
@@ -64,10 +84,6 @@ class _Read:
 def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
           reports_dir: Path, formats: tuple[str, ...], gate: Gate, plain: bool,
           stdout: IO[str] | None, stdin: IO[bytes] | None, serving: Any = None) -> int:
-    from conformance.lint.linter import Linter
-    from conformance.rosbag import is_bag
-    from conformance.scorecard import Scorecard
-
     out = stdout or sys.stdout
     monitor = _monitor(profile, options.units)
     linter = Linter(monitor, profile)
@@ -101,7 +117,6 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
     over, over_units = monitor.not_judged()
     if over:
         meta["not_judged"] = _not_judged(over, over_units)
-    from conformance.judge import judge
 
     report = judge(_report(monitor, linter, kind_meta=meta, broker=read.broker,
                            started=started if not source else (linter.first_time or started),
@@ -135,8 +150,6 @@ def _write(out: IO[str], report: Any, reports_dir: Path, formats: tuple[str, ...
 def _read_bag(linter: Any, scorecard: Callable[[str, bool], Any], source: str, ros_unit: Any,
               options: Any) -> _Read | None:
     """Lint a ROS bag (None when it cannot be: said on stderr)."""
-    from conformance.rosbag import BagError, BagReader
-
     reader = BagReader(source, ros_unit)
     card = scorecard(reader.name, False)
     try:
@@ -151,8 +164,6 @@ def _read_bag(linter: Any, scorecard: Callable[[str, bool], Any], source: str, r
 def _read_recording(linter: Any, scorecard: Callable[[str, bool], Any], source: str,
                     stdin: IO[bytes] | None, options: Any, out: IO[str]) -> _Read | None:
     """Lint a recording, ``-`` for standard input (None when it cannot be opened)."""
-    from conformance.recording import RecordingError, open_recording
-
     try:
         stream, name = open_recording(source, stdin)
     except RecordingError as e:
@@ -177,9 +188,6 @@ def _read_recording(linter: Any, scorecard: Callable[[str, bool], Any], source: 
 def _read_live(linter: Any, scorecard: Callable[[str, bool], Any], options: Any,
                out: IO[str]) -> _Read | None:
     """Lint live traffic, read-only (None when the broker cannot be reached)."""
-    from conformance.client import BrokerError
-    from conformance.lint.capture import LiveCapture
-
     assert options.broker is not None
     capture = LiveCapture(options.broker, options.topics)
     try:
@@ -217,9 +225,6 @@ def _tell(out: IO[str], linter: Any, report: Any, read: _Read) -> None:
     """The end of a lint on the terminal: each unit's verdict and its most severe findings
     first (issue 18, 6), then the table; a capture without times says so before anything
     else (issue 27, 4); then the malformed lines, notes, gaps and stalls."""
-    from conformance.recording import UNTIMED_NOTE
-    from conformance.reporting.text import render_verdicts
-
     notes = read.notes
     first = [n for n in notes if n.startswith(UNTIMED_NOTE)] if report.facts.untimed else []
     notes = [n for n in notes if n not in first]
@@ -274,8 +279,6 @@ def _malformed(count: int) -> str:
 
 
 def _not_judged(over: int, units: list[str]) -> str:
-    from conformance.bounds import MAX_UNITS
-
     return (f"not judged: {over} messages of units past the {MAX_UNITS} units lint judges at "
             f"once ({', '.join(units)}{' and more' if len(units) >= 8 else ''}); lint them "
             f"apart with --unit ADDRESS or --topic FILTER")
@@ -292,10 +295,6 @@ MAX_FAILURES_SHOWN = 10
 def failures(report: Any, limit: int = MAX_FAILURES_SHOWN) -> str:
     """The first violation of each failed (unit, rule), at most ``limit`` of them, in the form
     the certification prints (STYLE.md): what a person reads before opening the HTML."""
-    from conformance.conclusion import ranked_findings
-    from conformance.reporting.text import render_violation
-    from conformance.violation import Verdict
-
     shown: list[str] = []
     more = 0
     # Most severe first (death, deafness, commands, messages): the cap cuts the least severe.
@@ -328,16 +327,12 @@ class _noop:
 
 
 def _monitor(profile: Any, units: tuple[Any, ...]) -> Any:
-    from conformance.checks import Monitor
-
     return Monitor(profile, units=list(units) or None, kind=RunKind.LINT)
 
 
 def run_recorded(linter: Any, scorecard: Any, stream: IO[bytes], name: str,
                  options: Any) -> tuple[Any, float]:
     """Feed a recording to the linter at its recorded times; returns (reader, end time)."""
-    from conformance.recording import RecordingReader
-
     reader = RecordingReader(stream, name)
     last_event = feed_recorded(linter, scorecard, reader, options)
     if reader.unprintable:
@@ -364,9 +359,6 @@ def feed_recorded(linter: Any, scorecard: Any, items: Any, options: Any) -> floa
     """Feed recorded items at their recorded times, until ``--duration`` past the first
     message or Ctrl-C: messages (of the ``--unit``s), capture events, and ROS findings
     (``rosbag.Finding``). Returns the time of the last capture event, if any."""
-    from conformance.message import Message
-    from conformance.recording import UNTIMED, Event
-
     units = set(options.units)
     wants = options.wants if units else None
     feed = linter.feed_one
@@ -407,8 +399,6 @@ class _Untimed:
     untimed = True
 
     def __init__(self, monitor: Any) -> None:
-        from conformance.recording import UNTIMED_RULES
-
         self._monitor = monitor
         self._rules = frozenset(UNTIMED_RULES)
 
@@ -424,8 +414,6 @@ class _Untimed:
 
 
 def _unexamined(t: float, n: int) -> Any:
-    from conformance.recording import Event
-
     return Event(t, "unexamined", "mosquitto_sub -F %J could not print them", n)
 
 
@@ -482,8 +470,6 @@ def report_stem(source: str | None) -> str:
 def write_reports(report: Any, directory: Path, formats: tuple[str, ...], stem: str) -> list[Path]:
     """Write the chosen report formats (``conformance.reporting``, the same writers as
     certification); returns their paths."""
-    from conformance.reporting import write_html, write_json, write_junit
-
     writers = {"json": (write_json, ".json"), "html": (write_html, ".html"),
                "junit": (write_junit, ".xml")}
     directory.mkdir(parents=True, exist_ok=True)

@@ -30,6 +30,7 @@ from urllib.parse import quote
 
 from conformance.display import NAME_CHARS, printable, shorten
 from conformance.lint.fleetview import FleetView, Snapshot
+from conformance.rules import CATALOGUE
 
 LOOPBACK = "127.0.0.1"
 MAX_PATH = 2048
@@ -182,8 +183,6 @@ def _hz(rate: float | None) -> str:
 
 
 def _rule_of(rule_id: str) -> Any:
-    from conformance.rules import CATALOGUE
-
     return CATALOGUE.get(rule_id)
 
 

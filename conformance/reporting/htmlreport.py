@@ -30,7 +30,7 @@ from conformance.reporting.bounds import bounded
 from conformance.reporting.files import atomic_write
 from conformance.reporting.text import RERUN_OF, iso_time, printable, rerun_command
 from conformance.results import Party, RateStat, RunReport, UnitReport
-from conformance.rules import CATALOGUE
+from conformance.rules import CATALOGUE, reading
 from conformance.violation import RuleResult, Verdict, Violation
 
 if TYPE_CHECKING:
@@ -195,7 +195,6 @@ def _head_facts(report: RunReport, conclusion: Conclusion) -> HeadFacts:
     counts = dict(conclusion.counts)
     not_run = counts.pop(NOT_RUN, 0)
     words = dict(META_WORDS)
-    from conformance.rules import reading
 
     meta = [("rules", reading(conclusion.strict))]
     for key in dict.fromkeys([k for k, _ in META_WORDS] + sorted(report.meta)):

@@ -6,8 +6,11 @@ import shlex
 from datetime import UTC, datetime
 from typing import Any
 
+from conformance.conclusion import LINT_NEVER_CERTIFIES, TRIAGE, ranked_findings
+from conformance.conclusion import of as conclusion_of
 from conformance.display import printable, shorten
 from conformance.facts import RunKind
+from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Rule, Severity
 from conformance.topics import TopicError, UnitAddress, parse_topic
 from conformance.violation import Verdict, Violation
@@ -105,9 +108,6 @@ def render_violation(rule: str | Rule, violation: Violation, unit: str = "",
 
 def render_summary(report: object) -> str:
     """A few lines per unit: verdict counts and the failing and warning rules."""
-    from conformance.conclusion import of as conclusion_of
-    from conformance.results import RunReport
-
     assert isinstance(report, RunReport)
     conclusion = conclusion_of(report)  # the one verdict model: its words and counts
     out = [f"{report.kind} report, profile {report.profile}, broker {report.broker or '-'}: "
@@ -137,9 +137,6 @@ def render_verdicts(report: Any, per_unit: int = FINDINGS_PER_UNIT) -> str:
     counts as the JSON and HTML reports), then each unit's verdict and its most severe findings
     first (``conformance.conclusion.TRIAGE``), units with the most severe findings first. A
     cap cuts only the least severe."""
-    from conformance.conclusion import LINT_NEVER_CERTIFIES, TRIAGE, ranked_findings
-    from conformance.conclusion import of as conclusion_of
-
     conclusion = conclusion_of(report)
     counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
     out = [f"verdict: {conclusion.verdict} ({counts})"

@@ -20,12 +20,16 @@ import orjson
 from conformance.checks import Monitor
 from conformance.checks.stall import LAG_JUMP, stamp_of
 from conformance.client import BrokerURL, MqttClient
+from conformance.clock import VirtualClock
 from conformance.message import Message
 from conformance.scenarios import Traffic
 from conformance.scenarios.params import task_moves
 from conformance.scenarios.reboot import intervals
 from conformance.scenarios.safety import MotionGate
+from conformance.scenarios.sender import Sender
 from conformance.scenarios.traffic import LAG_SLACK
+from conformance.sim.reference import Reference
+from conformance.sim.virtual import VirtualClient, VirtualReference
 from conformance.suite.events import Events, clock
 from conformance.suite.probe import NotAlive, Probe, not_alive
 from conformance.suite.settings import Settings
@@ -126,7 +130,6 @@ class Connection:
             self._open_virtual()
         elif s.embedded:
             # Imported here: the broker and the simulator load only for --broker embedded.
-            from conformance.sim.reference import Reference
 
             self.reference = Reference(self.unit, faults=s.sim_faults,
                                        variants=s.sim_variants, rate=s.sim_rate,
@@ -166,9 +169,6 @@ class Connection:
     def _open_virtual(self) -> None:
         """--broker virtual: the reference unit and an in-memory broker on the traffic's
         virtual clock (the test suite's matrices only: ``conformance.sim.virtual``)."""
-        from conformance.clock import VirtualClock
-        from conformance.sim.virtual import VirtualClient, VirtualReference
-
         s = self.settings
         clock = self.traffic.clock
         assert isinstance(clock, VirtualClock), "--broker virtual runs in virtual time"
@@ -437,7 +437,6 @@ class Connection:
                 or not self._echoed.is_set() or self.settings.dry_run
                 or self.traffic.clock.now() - latest.time <= periods / rate):
             return
-        from conformance.scenarios.sender import Sender
 
         self._probed = latest.time
         self.publish(self.unit.topic("exec/command"), Sender.compose({"command": "ping"})[0])

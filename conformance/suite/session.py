@@ -33,17 +33,20 @@ from conformance.display import LINE_CHARS, shorten, shown
 from conformance.facts import CTRL_C, RunFacts, RunKind
 from conformance.judge import judge, unexamined
 from conformance.protocol import State
+from conformance.reporting import write_all
 from conformance.reporting.bounds import file_stem
 from conformance.reporting.text import RERUN_OF
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
 from conformance.scenarios import (
+    RULE_SCENARIO,
     Commander,
     Context,
     Safety,
     Timing,
     Traffic,
     TstCommander,
+    scenarios_for,
 )
 from conformance.scenarios.deviation import Deviation, Deviations
 from conformance.scenarios.params import task_moves
@@ -53,7 +56,9 @@ from conformance.suite.events import Events, clock
 from conformance.suite.header import header_lines
 from conformance.suite.observation import Observation
 from conformance.suite.probe import NotAlive
+from conformance.suite.progress import Progress
 from conformance.suite.reboot import Reboot
+from conformance.suite.scenario_run import run_scenario
 from conformance.suite.settings import Settings
 from conformance.topics import UnitAddress, level_name
 from conformance.violation import Observed, RuleResult, Verdict
@@ -131,8 +136,6 @@ class Certification:
     def _commanders(self, config: pytest.Config, settings: Settings) -> None:
         """What drives the unit: the commanders (12, 14), the safety decision, the scenarios'
         context and the observation's waits, all reporting on the progress line."""
-        from conformance.suite.progress import Progress
-
         self.progress = Progress(config)
         self.traffic.waits.on_tick = self.progress.tick
         self.traffic.waits.on_end = self.progress.end
@@ -365,8 +368,6 @@ class Certification:
 
     def _observe_for(self, rule: str) -> int:
         """Seconds of observation a rerun of ``rule`` needs (0: the passive window will do)."""
-        from conformance.scenarios import RULE_SCENARIO
-
         if rule in RULE_SCENARIO:
             return 0
         return self.observation.observe_for(
@@ -386,15 +387,11 @@ class Certification:
 
     def run_evidence(self, rule: str) -> None:
         """Run (once) every scenario whose traffic is evidence for ``rule``."""
-        from conformance.scenarios import scenarios_for
-
         for name in scenarios_for(rule):
             self.run_scenario(name)
 
     def run_scenario(self, name: str) -> None:
         """Run a scenario once (later calls return at once): ``scenario_run.run_scenario``."""
-        from conformance.suite.scenario_run import run_scenario
-
         run_scenario(self, name)
 
     def announce(self, text: str) -> None:
@@ -448,7 +445,6 @@ class Certification:
         if not force and now - self._last_write < 1.0:
             return self.report_paths
         self._last_write = now
-        from conformance.reporting import write_all
 
         report = self.report(**extra)
         unit = report.units.get(str(self.unit))

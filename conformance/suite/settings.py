@@ -20,6 +20,8 @@ import pytest
 from conformance.cli.options import parse_duration, reports_dir_problem
 from conformance.client import BrokerURL, mask_password
 from conformance.profile import Profile, ProfileError, builtin_names, load
+from conformance.rules import CATALOGUE
+from conformance.scenarios import story
 from conformance.topics import TopicError, UnitAddress
 
 # option dest -> ini name (the ini twin of every option but --unit and --seed)
@@ -375,19 +377,15 @@ def _replay(config: pytest.Config, reports: Path) -> Path | None:
     if not path.is_file():
         raise pytest.UsageError(f"--explore-replay {value}: no such file (a failing "
                                 f"exploration stores its story under {reports})")
-    from conformance.scenarios.story import StoryError, load
-
     try:  # read now: a story that is none is a usage error, before anything runs
-        load(path)
-    except StoryError as e:
+        story.load(path)
+    except story.StoryError as e:
         raise pytest.UsageError(f"--explore-replay: {e}") from None
     return path
 
 
 def _rules(values: object) -> tuple[str, ...]:
     """``--rule``: rule ids of the catalogue (also comma-separated)."""
-    from conformance.rules import CATALOGUE
-
     out: list[str] = []
     for value in values:  # type: ignore[attr-defined]
         for rule in filter(None, (r.strip().upper() for r in str(value).split(","))):
