@@ -20,9 +20,12 @@ import time
 import uuid
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
+from typing import cast
 from urllib.parse import urlsplit
 
 import paho.mqtt.client as paho
+from paho.mqtt.properties import Properties
+from paho.mqtt.reasoncodes import ReasonCode
 
 from conformance.display import printable, shorten
 from conformance.masking import mask_password  # re-exported: a URL made fit to print
@@ -352,7 +355,8 @@ class MqttClient:
             raise BrokerError(f"the broker at {b} did not accept the connection: {reason}")
         return self
 
-    def _handle_connect(self, client, userdata, flags, reason_code, properties) -> None:
+    def _handle_connect(self, client: paho.Client, userdata: object, flags: paho.ConnectFlags,
+                        reason_code: ReasonCode, properties: Properties | None) -> None:
         if reason_code.is_failure:
             self._connect_failure = str(reason_code)
             if str(reason_code).lower().startswith(("not authorized", "bad user")):
@@ -370,7 +374,9 @@ class MqttClient:
         if self._on_connection_change:
             self._on_connection_change(True, "connected")
 
-    def _handle_disconnect(self, client, userdata, flags, reason_code, properties) -> None:
+    def _handle_disconnect(self, client: paho.Client, userdata: object,
+                           flags: paho.DisconnectFlags, reason_code: ReasonCode,
+                           properties: Properties | None) -> None:
         self._connected.clear()
         if self._closing:
             return
@@ -406,9 +412,10 @@ class MqttClient:
     def subscribe(self, topic: str, qos: int = 0, timeout: float = 5.0) -> None:
         """Subscribe and wait for the SUBACK, so nothing published afterwards is missed."""
         done = threading.Event()
-        result: list[list[object]] = []
+        result: list[list[ReasonCode]] = []
 
-        def on_subscribe(client, userdata, mid, reason_codes, properties) -> None:
+        def on_subscribe(client: paho.Client, userdata: object, mid: int,
+                         reason_codes: list[ReasonCode], properties: Properties | None) -> None:
             result.append(reason_codes)
             done.set()
 
@@ -420,15 +427,17 @@ class MqttClient:
             raise BrokerError(f"subscribe to {topic!r} failed: {paho.error_string(rc)}")
         if not done.wait(timeout):
             raise BrokerError(f"no SUBACK for {topic!r} within {timeout:.1f} s")
-        codes: list[object] = result[0] if result else []
+        codes: list[ReasonCode] = result[0] if result else []
         if any(getattr(c, "is_failure", False) for c in codes):
             raise BrokerError(f"the broker refused the subscription to {topic!r}: {codes} "
                               f"(an ACL may forbid it)")
 
-    def _handle_message(self, client, userdata, msg) -> None:
+    def _handle_message(self, client: paho.Client, userdata: object,
+                        msg: paho.MQTTMessage) -> None:
         self.received += 1
-        m = Message(msg.timestamp + self._mono_to_unix, msg.topic, msg.payload, msg.qos,
-                    bool(msg.retain))
+        # A received payload is bytes (a bytearray only where paho builds one to send).
+        m = Message(msg.timestamp + self._mono_to_unix, msg.topic, cast(bytes, msg.payload),
+                    msg.qos, bool(msg.retain))
         if self._on_message is not None:
             self._on_message(m)
         else:
