@@ -61,8 +61,7 @@ import orjson
 
 from conformance.message import Message
 from conformance.status import FINAL_STATUSES, accepts_signal, meaning
-from conformance.taskrecord import State as State  # re-exported: the states of 12.2
-from conformance.taskrecord import TaskRecord
+from conformance.taskrecord import State, TaskRecord  # State: re-exported
 
 BUILTIN_SIGNALS = ("$abort", "$continue", "$enough", "$pause")
 """12.2.2: 'The buildtin signals are $enough, $pause, $continue and $abort.'"""
