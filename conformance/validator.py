@@ -322,9 +322,8 @@ class Validator:
             plan_naming = plan.naming + (twice,)
         else:
             plan_naming = plan.naming
-        kind = plan.kind
-        if kind is None:  # a command: its kind and schema follow its 'command'
-            kind = self._kind(parsed, message)
+        kind = self._kind(parsed, message) if plan.kind is None else plan.kind
+        if plan.kind is None:  # a command: its kind and schema follow its 'command'
             path = schema.schema_path_for_kind(kind)
             validator = schema.compiled(path) if path is not None else None
         else:

@@ -387,7 +387,8 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
     rate = m.get("rate") if type(m) is dict else None
     declared = usable_rate(rate)
     found = None if declared is not None or not (
-        type(rate) in (float, int) and rate > 0) else [_unusable(kind, msg, rate, unit)]
+        isinstance(rate, (float, int)) and not isinstance(rate, bool) and rate > 0
+    ) else [_unusable(kind, msg, rate, unit)]
     if declared is None:
         declared = unit.declared_rates.get(kind)
     trackers = unit.stash.get(RATES)
@@ -425,8 +426,8 @@ def _number(x: float) -> str:
     """A number for a person, whatever its size (no repr of a 5000-digit int)."""
     try:
         return f"{float(x):.6g}"
-    except OverflowError:
-        return f"a whole number of {x.bit_length()} bits"
+    except OverflowError:  # only an int is too large for a float
+        return f"a whole number of {int(x).bit_length()} bits"
 
 
 def _unusable(kind: TopicKind, msg: Message, rate: float, unit: UnitState) -> Violation:
