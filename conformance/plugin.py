@@ -335,9 +335,9 @@ class _CertificationPlugin:
             self.finished = True
             self.certification.finish(interrupted=True, exitstatus=-1)
         elif self.status is not None and not self.certification.collect_only:
-            self._say_exit(config)
+            self._say_exit(config, self.status)
 
-    def _say_exit(self, config: pytest.Config) -> None:
+    def _say_exit(self, config: pytest.Config, status: int) -> None:
         """The last line the terminal prints, after pytest's own counts (README 'Exit
         status'): the exit status and why, so a log says what a gate read."""
         from conformance.suite.gate import last_line
@@ -351,10 +351,10 @@ class _CertificationPlugin:
         final = {r: res.verdict.value for r, res in row.rules.items()} if row else {}
         failed_then = tuple(sorted(r for r, shown in c.enacted.items()
                                    if shown.value == "fail" and final.get(r) != "fail"))
-        text = last_line(report, c.conclusion(report), str(c.unit), self.status,
+        text = last_line(report, c.conclusion(report), str(c.unit), status,
                          error_said=bool(c.error), failed_then=failed_then)
         tr.write_line(printable_lines(mask_password(text)),
-                      green=self.status == 0, red=self.status != 0)
+                      green=status == 0, red=status != 0)
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         c = self.certification

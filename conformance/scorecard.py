@@ -294,13 +294,13 @@ class Scorecard:
                       f"{v.expected} over its latest intervals (live)\n")
         self._live_shown = now_off
         silent = dict(getattr(linter, "silent", {}))
-        for unit, last in silent.items():
-            if unit not in self._silent_shown:
-                write(printable(f"{_clock(linter.now())} down {shorten(unit, NAME_CHARS)} "
+        for name, last in silent.items():
+            if name not in self._silent_shown:
+                write(printable(f"{_clock(linter.now())} down {shorten(name, NAME_CHARS)} "
                                 f"silent: no heartbeat since {_clock(last)} (live)") + "\n")
-        for unit in self._silent_shown:
-            if unit not in silent:
-                write(printable(f"{_clock(linter.now())} back {shorten(unit, NAME_CHARS)} "
+        for name in self._silent_shown:
+            if name not in silent:
+                write(printable(f"{_clock(linter.now())} back {shorten(name, NAME_CHARS)} "
                                 f"heard again (live; HB-010 judges its silence)") + "\n")
         self._silent_shown = silent
 
