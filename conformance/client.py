@@ -62,7 +62,7 @@ _LABEL = re.compile(r"[a-z0-9_](?:[a-z0-9_-]{0,61}[a-z0-9_])?", re.I)
 
 def _is_host(host: str) -> bool:
     """``host`` is an IP address or a host name a resolver can be asked about (labels of 1 to
-    63 characters, 253 in all, after IDNA): ``a..b`` is not (issue 26)."""
+    63 characters, 253 in all, after IDNA): ``a..b`` is not."""
     try:
         ipaddress.ip_address(host)
         return True
@@ -132,7 +132,7 @@ class BrokerURL:
         if text in ("embedded", "virtual"):  # virtual: the tests' in-memory double (sim/virtual)
             return cls(text)
         # What an error may say: never a password it wrongly has, a long URL excerpted.
-        # Escaped first, then cut: an escaped code point may take 10 characters (issue 26 §3).
+        # Escaped first, then cut: an escaped code point may take 10 characters.
         shown = "'" + shorten(printable(mask_password(text, url=True)), 200) + "'"
         try:
             parts = urlsplit(text if "://" in text else f"mqtt://{text}")
@@ -320,7 +320,7 @@ class MqttClient:
                 c.tls_insecure_set(True)
         c.reconnect_delay_set(min_delay=1, max_delay=30)  # backoff after a dropped connection
         # QoS 1 publishes from a suite are few; bound the unacknowledged window anyway
-        # (FIELD-NOTES: paho overwrites past 65,535 in flight).
+        # (docs/FIELD-NOTES.md 'MQTT on loopback': paho overwrites past 65,535 in flight).
         c.max_inflight_messages_set(1000)
         c.on_connect = self._handle_connect
         c.on_disconnect = self._handle_disconnect
@@ -393,7 +393,8 @@ class MqttClient:
         return self._connected.wait(timeout)
 
     def close(self, timeout: float = 2.0) -> None:
-        """Disconnect cleanly (before an embedded broker shuts down: FIELD-NOTES)."""
+        """Disconnect cleanly (before an embedded broker shuts down:
+        docs/FIELD-NOTES.md 'The embedded amqtt broker')."""
         self._closing = True
         try:
             self._paho.disconnect()

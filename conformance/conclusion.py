@@ -372,7 +372,7 @@ def _lint_unit(name: str, unit: UnitReport, *, untimed: bool = False) -> UnitSta
     return UnitStatus(name, unit.party, verdict, summary, levels, died)
 
 
-# --- triage: the most severe findings first (issue 18, 6) ---------------------------------------
+# --- triage: the most severe findings first ---------------------------------------
 TRIAGE = ("death", "deafness", "commands", "messages", "warnings")
 """The severity classes, most severe first: a unit that died (HB-012), a unit that stopped
 answering (EXEC-ROBUST-001), commands answered wrongly or not at all (conversation and active

@@ -1,4 +1,4 @@
-"""Wire text made fit to show (issue 19 §4, §5; issue 26 §3): ``printable`` for a terminal
+"""Wire text made fit to show: ``printable`` for a terminal
 (and any report), every character a person cannot see or that moves the cursor shown escaped,
 and ``shorten`` for a report, a long string excerpted with a visible ellipsis and its full
 length. Every writer of a terminal line or a report uses these: the one escape."""
@@ -50,7 +50,7 @@ def printable(text: object) -> str:
 
 def shown(text: object) -> str:
     """``text`` (ours, holding user or wire text: a URL, a command line, an error) fit for a
-    terminal: one line, escaped (issue 26 §3), never a password (§5)."""
+    terminal: one line, escaped, never a password (§5)."""
     return printable(mask_password(str(text)))
 
 

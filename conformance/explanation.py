@@ -37,7 +37,7 @@ def unplaceable(topic: str) -> str:
 
 def render(validation: Validation, profile: profile_module.Profile) -> str:
     """The kind, then each violation as the STYLE guide shows it, then a one-line verdict."""
-    # What the message holds is shown escaped (issue 26 §3): topic, paths, values.
+    # What the message holds is shown escaped: topic, paths, values.
     lines = [f"topic     {printable(validation.topic.topic)}", f"kind      {validation.kind}"]
     for v in validation.violations:
         rule = CATALOGUE.get(v.rule)

@@ -237,7 +237,7 @@ def _not_run(unit: UnitReport, selected: Iterable[str], ran: Collection[str], wh
 
 def _untimed(report: RunReport) -> None:
     """A capture without arrival times (mosquitto_sub -v) neither passes nor fails the rules
-    that need them (issue 20): they are could-not-test on every row, and no rate is shown."""
+    that need them: they are could-not-test on every row, and no rate is shown."""
     for row in report.units.values():
         for rule in UNTIMED_RULES:
             if rule in row.rules:

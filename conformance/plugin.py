@@ -274,7 +274,7 @@ class _CertificationPlugin:
         def key(item: pytest.Item) -> tuple[int, int]:
             rule = rule_of(item)
             if item.get_closest_marker("waraps_explore") is not None:
-                return (1, len(order))  # after the scripted scenarios (issue 17)
+                return (1, len(order))  # after the scripted scenarios
             if rule is None:
                 return (0, 0)
             if rule in RULE_SCENARIO:
@@ -363,7 +363,7 @@ class _CertificationPlugin:
         tr = terminalreporter
 
         def line(text: str, **markup: bool) -> None:
-            # Every line through the one escape (issue 26 §3): the unit's own words (its
+            # Every line through the one escape: the unit's own words (its
             # levels, names, reasons) never reach the terminal raw; our own line breaks stay.
             # Never a password (§5): the repeat line, an error naming a URL.
             tr.line(printable_lines(mask_password(text)), **markup)
@@ -422,7 +422,7 @@ def _explore_outcome(report: pytest.TestReport, explored: str) -> str:
 
 
 def findings(report: Any, unit: str, *, error_said: bool = False) -> list[str]:
-    """What the summary names after the levels (issue 27 §2): each failed rule with its title
+    """What the summary names after the levels: each failed rule with its title
     (its evidence is in pytest's failures above), then the rules that could not be tested,
     grouped by their reason, which names the option that would test them (``--reboot-cmd``),
     and the rules not run, counted (unless the error that kept them from running was said:

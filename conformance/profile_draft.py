@@ -7,7 +7,7 @@ to edit (the format: ``schemas/generated/PROFILE.md``). What was measured agains
 unit declares (a rate, a level without its info message) is written as a PROBLEM; each task is
 written with the parameters the suite would start it with (section 9's example) or a
 placeholder to fill in. Every byte from the wire is quoted or escaped: nothing a unit
-publishes can become a key of the profile (issue 26 §2).
+publishes can become a key of the profile.
 """
 
 from __future__ import annotations
@@ -97,7 +97,7 @@ def _moves(task: str) -> bool:
 def _q(value: Any) -> str:
     """Wire text as a YAML scalar that is only ever that value: a JSON string with every
     non-ASCII code point escaped (``\\u2028``, ``\\u0085``, bidi and control characters
-    included), which YAML reads as a double-quoted scalar (issue 26 §2: nothing a unit
+    included), which YAML reads as a double-quoted scalar (nothing a unit
     publishes becomes a key or a line of the profile)."""
     return json.dumps(str(value), ensure_ascii=True)
 
@@ -218,7 +218,7 @@ def _sensor_lines(seen: Observed) -> list[str]:
 
 def _task_lines(seen: Observed) -> list[str]:
     """``tasks`` as a mapping: each section 9 task with its example's parameters, every
-    other task a commented placeholder saying what to fill in (never invented: issue 25)."""
+    other task a commented placeholder saying what to fill in (never invented)."""
     tasks = _names((seen.dei or {}).get("tasks-available"), "name")
     if seen.dei is None:
         return ["# No direct_execution_info was seen (5.3): no tasks to list.", "tasks: []",

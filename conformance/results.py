@@ -44,7 +44,7 @@ UNPROVOKED = "the suite did not provoke the evidence: "
 
 UNIT_WORD_CHARS = 200
 """A unit address longer than this is not repeated in each rule's reason: the reasons of 800
-units with 100 KB names took gigabytes (issue 26 §4: names stored once)."""
+units with 100 KB names took gigabytes (names stored once)."""
 
 
 def _unit_word(unit: str) -> str:

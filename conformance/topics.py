@@ -204,7 +204,7 @@ class ParsedTopic:
 
 LONG_TOPIC = 1024
 """A topic longer than this (MQTT allows 64 KiB) is parsed each time, never cached: 8192
-cached 64 KiB topics would hold 2 GiB (issue 19 §3)."""
+cached 64 KiB topics would hold 2 GiB."""
 
 
 def parse_topic(topic: str) -> ParsedTopic:

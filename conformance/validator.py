@@ -6,7 +6,8 @@ rule that names the problem (MSG-001..MSG-004).
 
 Then the message is checked against the JSON Schema of its kind (``conformance.schema``:
 jsonschema-rs, compiled once per process, ``is_valid`` first; errors are collected only when it
-fails, FIELD-NOTES). Each schema error becomes a violation of the rule named by the nearest
+fails, docs/FIELD-NOTES.md 'Validation cost'). Each schema error becomes a violation of the rule
+named by the nearest
 ``x-rule`` along its evaluation path, with the JSON path of the offending value
 (``$.task.params.waypoints[2].latitude``), what was expected and what was observed; one
 violation per rule and spot. An erratum reading (ERR-*) yields only its ERR violation: the
@@ -338,7 +339,7 @@ class Validator:
                 time=time, payload=raw, unit=plan.unit)]
         else:
             found = None
-            if not validator.is_valid(message):  # FIELD-NOTES: is_valid first, errors on failure
+            if not validator.is_valid(message):  # docs/FIELD-NOTES.md 'Validation cost'
                 found = _schema_violations(path, validator, message, topic, raw, time,
                                            plan.unit)
             content = plan.content

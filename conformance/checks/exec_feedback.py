@@ -51,7 +51,7 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
     if not task_uuid or status is None:
         # Missing or empty ("" names no task): which task it concerns cannot be told. Its own
         # finding per message (EXEC-FB-001), never one pseudo-task '' whose feedback follows
-        # its own final status (FIELD-NOTES, precision: empty task-uuid).
+        # its own final status (docs/FIELD-NOTES.md 'Precision': empty task-uuid).
         if status is not None:
             unit.stash[FEEDBACK_WITHOUT_TASK_UUID] = True
             unit.note("EXEC-FB-004", "feedback without a task-uuid: its tasks could not be "
@@ -218,7 +218,7 @@ periods of direct_execution_info (or the response timeout, if longer) pass first
 def ended_tasks_leave_tasks_executing(ctx: CheckContext, unit: UnitState, msg: Message,
                                       v: Validation) -> list[Violation] | None:
     """5.3 'List of tasks currently executing.': a task whose feedback said 'finished' or
-    'aborted' and is listed long after is an entry that never ends (issue 24). Found wherever
+    'aborted' and is listed long after is an entry that never ends. Found wherever
     the traffic shows it, whichever command ended the task. (Runs on every
     direct_execution_info: a list or None.)"""
     c = unit.stash.get(CONVERSATIONS)

@@ -106,7 +106,7 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
                               v: Validation) -> list[Violation] | None:
     """5.1: the heartbeat registers availability; a silence over 3 declared periods warns.
     A silence that ended in a burst after a silence of every topic is judged at the next
-    heartbeat, once the burst has shown whether the broker stalled (issue 25 §3)."""
+    heartbeat, once the burst has shown whether the broker stalled."""
     identity = unit.stash.setdefault(IDENTITY, Identity)
     pending = identity.silences_pending
     if not pending:

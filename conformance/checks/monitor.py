@@ -190,7 +190,7 @@ class Monitor:
         t = message.time
         v = self._validate(topic, message.payload, t)
         if v.message is not None and len(message.payload) > bounds.ID_CHARS:
-            bounds.bound_ids(v.message)  # what the checks keep of a message is bounded (issue 19 §3)
+            bounds.bound_ids(v.message)  # what the checks keep of a message is bounded
         self.ctx.stalls.feed(t, topic, route.topic_kind, v.message)  # before any check
         if t > self._latest:
             self._latest = t
@@ -201,7 +201,7 @@ class Monitor:
             return self._feed_command(route, entry, message, v, examined)
         if route.topic_kind is TopicKind.UNKNOWN and _is_command(v.message):
             # A command on a topic of its sender's making (an operator's '.../None/command',
-            # FIELD-NOTES, precision): what is wrong in it is the sender's, on its row.
+            # docs/FIELD-NOTES.md 'Precision'): what is wrong in it is the sender's, on its row.
             entry = self._commander_entry(entry, v.message, message.payload)
         groups = entry.groups
         groups[examined] = groups.get(examined, 0) + 1
@@ -405,7 +405,7 @@ class Monitor:
 
     def not_judged(self) -> tuple[int, list[str]]:
         """Messages of units past ``MAX_UNITS`` that were not judged, and the first units they
-        name (at most ``MAX_NAMED_OVER_CAP``): lint fails on them, never passes (issue 19)."""
+        name (at most ``MAX_NAMED_OVER_CAP``): lint fails on them, never passes."""
         return self._over, list(self._over_units)
 
     def finish(self, now: float | None = None) -> None:

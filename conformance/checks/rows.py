@@ -232,7 +232,7 @@ def _excuse_scenario(evidence: list[Violation], count: int, excused: str, seen: 
     evidence, count, excused = _excuse(evidence, count, excused, died,
                                        "the unit died (HB-012) before it could answer")
     # What a scenario found missing while the broker lost or held the traffic, or was due
-    # within a response timeout before (issue 25 §3): the broker's fault.
+    # within a response timeout before: the broker's fault.
     evidence, count, excused = _excuse(evidence, count, excused, held, OVER_A_GAP)
     if not count and before:
         # The examinations that found what was excused are no passes: a rule judged only

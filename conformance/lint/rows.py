@@ -1,7 +1,7 @@
 """What lint saw of each unit and commander: one ``LintRow`` each, made here only, live from
 the ``Linter`` or at the end from the run report, and rendered by the terminal scorecard
 (``conformance.scorecard``) and the fleet page (``lint.fleetview``) alike, so the two cannot
-disagree on a row's type, role, levels, messages, last seen, findings or status (issue 28, 3).
+disagree on a row's type, role, levels, messages, last seen, findings or status.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ class Finding:
 @dataclass(frozen=True)
 class LintRow:
     """A unit or commander (``party``) as lint saw it; times Unix seconds, None in a capture
-    without times (issue 27, 4). ``levels`` None: a unit sent messages but no levels yet."""
+    without times. ``levels`` None: a unit sent messages but no levels yet."""
 
     unit: str
     party: Party = Party.UNIT

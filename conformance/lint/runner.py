@@ -223,8 +223,8 @@ def _nothing_read(out: IO[str], linter: Any, read: _Read) -> int:
 
 def _tell(out: IO[str], linter: Any, report: Any, read: _Read) -> None:
     """The end of a lint on the terminal: each unit's verdict and its most severe findings
-    first (issue 18, 6), then the table; a capture without times says so before anything
-    else (issue 27, 4); then the malformed lines, notes, gaps and stalls."""
+    first, then the table; a capture without times says so before anything
+    else; then the malformed lines, notes, gaps and stalls."""
     notes = read.notes
     first = [n for n in notes if n.startswith(UNTIMED_NOTE)] if report.facts.untimed else []
     notes = [n for n in notes if n not in first]
@@ -240,7 +240,7 @@ def _tell(out: IO[str], linter: Any, report: Any, read: _Read) -> None:
         print(f"connection gap: {time.strftime('%H:%M:%S', time.localtime(gap.start))} for "
               f"{gap.duration:.1f} s ({printable(gap.reason or 'connection lost')}); rates over it not "
               f"judged", file=out)
-    for start, end in linter.monitor.ctx.stalls.found:  # issue 25 §3: the broker's, not the units'
+    for start, end in linter.monitor.ctx.stalls.found:  # The broker's, not the units'
         print(f"broker stalled: {time.strftime('%H:%M:%S', time.localtime(start))} for "
               f"{end - start:.1f} s (nothing arrived, then what it held at once); rates, "
               f"silences and deadlines over it not judged", file=out)
@@ -265,7 +265,7 @@ def _verdict(out: IO[str], report: Any, gate: Gate, not_judged: str) -> int:
               "severity error (observed, not certified)" + "".join(
                   f"; but {printable(why)}" for why in conclusion.why if conclusion.partial),
               file=out)
-    if not_judged:  # past the bound: never a pass (issue 19)
+    if not_judged:  # past the bound: never a pass
         print(f"FAIL: {printable(not_judged)}", file=out)
     out.flush()
     return conclusion.exit_code if conclusion.exit_code in (EXIT_FAIL, EXIT_PARTIAL) else (
@@ -462,7 +462,7 @@ def report_stem(source: str | None) -> str:
     ``lint-<local time>``."""
     if source and source != "-":
         name = Path(source).name.split(".")[0]
-        if name:  # bounded and sanitised (a 300-character name: issue 26)
+        if name:  # bounded and sanitised (a 300-character name)
             return f"lint-{file_stem(name).replace('.', '_')}"
     return time.strftime("lint-%Y%m%d-%H%M%S")
 

@@ -64,7 +64,7 @@ def _finalize(value: Any) -> Any:
     # one the cached environment's templates make (their markup was escaped twice).
     if hasattr(value, "__html__"):
         return value
-    return "" if value is None else printable(shorten(value))  # issue 19 §4, §5
+    return "" if value is None else printable(shorten(value))
 
 
 @functools.cache

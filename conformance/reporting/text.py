@@ -133,7 +133,7 @@ FINDINGS_PER_UNIT = 5
 
 
 def render_verdicts(report: Any, per_unit: int = FINDINGS_PER_UNIT) -> str:
-    """What lint's text output opens with (issue 18, 6): the run's verdict and counts (the same
+    """What lint's text output opens with: the run's verdict and counts (the same
     counts as the JSON and HTML reports), then each unit's verdict and its most severe findings
     first (``conformance.conclusion.TRIAGE``), units with the most severe findings first. A
     cap cuts only the least severe."""

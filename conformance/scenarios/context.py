@@ -140,7 +140,7 @@ class Context:
     def executing(self, entry: Entry) -> list[str]:
         """The task-uuids a direct_execution_info message lists in tasks-executing; an entry
         that names its task ``uuid`` (seen in the field; DEI-001 judges the key) is followed by
-        what it says (FIELD-NOTES 'Other keys')."""
+        what it says (docs/FIELD-NOTES.md 'Precision': other keys)."""
         tasks = entry.get("tasks-executing") or []
         uuids = (t.get("task-uuid", t.get("uuid")) for t in tasks if isinstance(t, dict)) \
             if isinstance(tasks, list) else ()

@@ -191,7 +191,7 @@ class NoParams(LookupError):
 
 
 def no_params_reason(task: str) -> str:
-    """Why ``task`` is not started: its parameters are not known (issue 25 §2)."""
+    """Why ``task`` is not started: its parameters are not known."""
     return (f"no task to start: {task} has no parameters in the profile and is not a section "
             f"9 task; add tasks: {{{task}: {{params: ...}}}} to the profile")
 

@@ -237,7 +237,7 @@ def _no_final(ctx: Context, untestable: str | None, sent: Sent, *,
               violation: Violation) -> None:
     """EXEC-START-003 without a final status: the unit's failure, unless a deviation seen
     earlier explains it, or the suite's link to the broker was lost since the task's
-    start-task ``sent`` (issue 25: a broker's fault is the broker's; what the unit published
+    start-task ``sent`` (a broker's fault is the broker's; what the unit published
     meanwhile is unknown): then could-not-test, with that reason."""
     if not untestable and ctx.commander.gaps() != sent.gaps_before:
         untestable = FINAL_LOST

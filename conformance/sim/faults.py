@@ -183,8 +183,8 @@ _ALL: tuple[Fault, ...] = (
        "task-uuid, answering no command."),
     _f("fail-reason-empty", "EXEC-007 EXEC-START-004",
        "Refuses commands with fail-reason '' (the reason is only logged)."),
-    # EXEC-ROBUST-001 is not its: a unit that never answered a ping did not stop answering
-    # (issue 24 §2), the robustness scenario says could-not-test.
+    # EXEC-ROBUST-001 is not its: a unit that never answered a ping did not stop answering;
+    # the robustness scenario says could-not-test.
     _f("pong-missing", "EXEC-PING-001",
        "Never answers ping."),
     _f("pong-late", "EXEC-PING-001 EXEC-010",
@@ -328,7 +328,7 @@ _SEQUENCE = (
 SEQUENCE_FAULTS = frozenset(f.name for f in _SEQUENCE)
 _ALL = _ALL + _SEQUENCE
 
-# --- 14 TST execution (issue 10; conformance.sim.tst) ------------------------------------------
+# --- 14 TST execution (conformance.sim.tst) ------------------------------------------
 # Each switches the TST level on by itself (the unit then declares 'tst execution'). All but
 # tst-info-type-upper show only once TST commands are sent (stimulus).
 

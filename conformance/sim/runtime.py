@@ -4,7 +4,7 @@ The thread keeps a heap of when each unit is next due and runs it then (periodic
 simulation steps); commands arrive on paho's network thread, wait in a bounded inbox and are
 handed to their unit on the runtime thread, so a unit's state is only ever touched by one
 thread. One connection for a whole fleet is what lets 500 units at 1 Hz run on one core
-(FIELD-NOTES: per-message cost is what counts).
+(docs/FIELD-NOTES.md 'MQTT on loopback': per-message cost is what counts).
 
 Safety (DESIGN): the client may publish only under the bases of its own units (and of the TST
 operator whose tst/command they were told to listen to, 14.1), and never to a command topic.
@@ -304,5 +304,6 @@ def _compress(topics: list[str], tail: str) -> list[str]:
 
 def spread(count: int, period: float) -> Sequence[float]:
     """Phases that spread ``count`` units evenly over one period (seconds), so a fleet does not
-    publish in bursts (Mosquitto drops past 1000 queued messages per client: FIELD-NOTES)."""
+    publish in bursts (Mosquitto drops past 1000 queued messages per client:
+    docs/FIELD-NOTES.md 'MQTT on loopback')."""
     return [period * i / count for i in range(count)] if count > 1 else [0.0]

@@ -78,7 +78,7 @@ class Connection:
     _unechoed: float | None = field(default=None, init=False)
     """When the earliest command the suite published that has not come back was sent: the
     broker delivers a subscriber's own messages back, so one that does not is not delivering
-    (a stall: issue 25 §3)."""
+    (a stall)."""
     _echoed: threading.Event = field(default_factory=threading.Event, init=False)
     _heard_again: threading.Event = field(default_factory=threading.Event, init=False)
     """Clear from a reconnect (or a stall) until the unit's second fresh heartbeat after it
@@ -428,7 +428,7 @@ class Connection:
 
     def _probe_silence(self, periods: float) -> None:
         """One ping when the unit has been silent for ``periods`` declared periods: its echo
-        tells a dead unit from a broker that delivers nothing (issue 25 §3)."""
+        tells a dead unit from a broker that delivers nothing."""
         latest = self.traffic.latest("heartbeat")
         rate = latest.get("rate") if latest is not None else None
         if (latest is None or not isinstance(rate, (int, float)) or isinstance(rate, bool)

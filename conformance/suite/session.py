@@ -97,7 +97,7 @@ class Certification:
         self.reboot = Reboot(config, self.connection, self.timing.reboot,
                              self._reboot_requested, self.events)
         when = time.strftime('%Y%m%dT%H%M%S', time.localtime())
-        self.stem = f"{file_stem(self.unit.name)}-{when}"  # a bounded file name (issue 26)
+        self.stem = f"{file_stem(self.unit.name)}-{when}"  # a bounded file name
         self.report_paths: dict[str, Path] = {}
         self.report_error = ""
         """Why the last report could not be written ('' when it was)."""
@@ -513,8 +513,8 @@ class Certification:
 
     def header(self) -> list[str]:
         """The lines pytest shows before the tests (``header_lines``); the unit's own words
-        in them (agent-uuid, agent-type, levels) escaped and excerpted (issue 19 §5), never a
-        password (issue 26 §5)."""
+        in them (agent-uuid, agent-type, levels) escaped and excerpted, never a
+        password."""
         return [shown(shorten(line, LINE_CHARS)) for line in header_lines(
             self.settings, broker=self.connection.broker_url, heartbeat=self.context.heartbeat(),
             levels=self.context.levels(),

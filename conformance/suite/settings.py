@@ -87,7 +87,7 @@ class Settings:
     markexpr: str = ""
     """pytest's -m expression."""
     explore: float | None = None
-    """--explore: seconds of exploration after the scripted scenarios (issue 17); None: the
+    """--explore: seconds of exploration after the scripted scenarios; None: the
     default (``suite.exploration.default_budget``), 0: off."""
     explore_order: str = "model"
     """--explore-order: 'model' (the most telling command first) or 'random'."""
@@ -121,10 +121,10 @@ class Settings:
         """The pytest command that repeats this run (``rule``: only that rule, observing at
         least ``observe`` seconds): every option that changes what is tested or how, TLS
         files included. Never a secret: the broker URL carries no password (the password
-        comes only from WARAPS_PASSWORD), a reboot command's is masked (issue 26 §5)."""
+        comes only from WARAPS_PASSWORD), a reboot command's is masked."""
         b = self.broker
         # '=' for paths: a path in its own argument could be taken for a test path by pytest.
-        q = shlex.quote  # every value shell-quoted: a unit name may be `x;rm -rf ~` (issue 19 §5)
+        q = shlex.quote  # every value shell-quoted: a unit name may be `x;rm -rf ~`
         parts = ["pytest", "--unit", q(str(self.unit)), "--broker", q(str(b))]
         parts += b.tls_arguments()
         parts += [q(f"--sim-fault={f}") for f in self.sim_faults]

@@ -1,5 +1,5 @@
-"""Every check declares the unit's components it reads (``@check(..., reads=...)``, issue 28
-§2): certifications of the reference unit, direct execution and TST, in virtual time (and with
+"""Every check declares the unit's components it reads (``@check(..., reads=...)``):
+certifications of the reference unit, direct execution and TST, in virtual time (and with
 faults that reach the paths a conformant unit does not: a death after a command, responses
 and feedback naming another agent-uuid or no task, silences), with every access to a ``Stash``
 traced to the check whose call it happened in (itself or what it called); each check read
