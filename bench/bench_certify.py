@@ -18,7 +18,7 @@ Every run is a real ``pytest --unit ...`` in a subprocess, started through ``sys
   bench run. With ``--jobs N`` the conformant run goes through the same pool, so the ratios
   compare runs under the same load.
 
-The bound (issue 9): a 1 Hz unit at timing scale 1 is certified within 90 s whatever single
+The bound: a 1 Hz unit at timing scale 1 is certified within 90 s whatever single
 fault it has. Prints a table and writes bench/results/certify.json. Measures, asserts nothing
 (the machine is shared: figures drift 10-30 %).
 """

@@ -1,4 +1,4 @@
-"""Benchmark: exploration (issue 17) against the 1 Hz reference unit.
+"""Benchmark: exploration against the 1 Hz reference unit.
 
     python bench/bench_explore.py                  # N=10 seeds, every sequence fault
     python bench/bench_explore.py --seeds 3 --jobs 6 --faults pause-pauses-all

@@ -1,4 +1,4 @@
-"""Coverage-guided fuzzing of every input surface (issue 26 §1): each target of ``fuzz/`` run
+"""Coverage-guided fuzzing of every input surface: each target of ``fuzz/`` run
 under libFuzzer (atheris) for a given time, one at a time, from its seeds
 (``python -m fuzz.seeds``) and the corpus earlier runs kept (``fuzz/corpus/TARGET``).
 

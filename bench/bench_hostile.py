@@ -1,4 +1,4 @@
-"""Benchmark of the hostile corpus (issue 19 §6): every case of ``tests/lint/hostile.py`` run as
+"""Benchmark of the hostile corpus: every case of ``tests/lint/hostile.py`` run as
 the console script in a subprocess under the same 3 GiB address-space cap as the tests, its wall
 time and peak resident memory (the kernel's, wait4); then the slowest case and the largest peak.
 

@@ -14,7 +14,8 @@ memory and memory at each quarter of the run (it must stay flat: bounded for any
 a cProfile of the full lint on a slice, to show where the time goes.
 
 Live: a Mosquitto started here on a free loopback port (``max_queued_messages 0``: it never
-drops, FIELD-NOTES), a publisher flooding it, and in turn a bare paho subscriber that only
+drops, docs/FIELD-NOTES.md 'MQTT on loopback'), a publisher flooding it, and in turn a bare paho
+subscriber that only
 counts and the linter's own live pipeline (capture queue + Monitor). Messages per second each
 examines, and their ratio (target >= 0.8), medians over the repetitions of the same run.
 

@@ -1,4 +1,4 @@
-"""Benchmark: memory stays flat whatever the unit sends, and reports stay bounded (issue 19).
+"""Benchmark: memory stays flat whatever the unit sends, and reports stay bounded.
 
     python bench/bench_memory.py                       # both parts, 120 s of 5 MiB payloads
     python bench/bench_memory.py --seconds 30          # a shorter, scaled run

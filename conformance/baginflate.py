@@ -83,9 +83,10 @@ def lz4_bounded(data: bytes, declared: int | None = None) -> bytes:
 
 def _zstd() -> Any:
     try:
-        from compression import zstd  # type: ignore[import-not-found]
+        from compression import zstd  # type: ignore[import-not-found,unused-ignore]
     except ImportError:
-        from backports import zstd  # type: ignore[import-not-found,no-redef]
+        # Installed on some machines (typed), absent on others: each ignore may go unused.
+        from backports import zstd  # type: ignore[import-not-found,no-redef,unused-ignore]
     return zstd
 
 
@@ -142,7 +143,7 @@ def install() -> None:
 
     ros1.decompressors.update({"bz2": bz2_bounded, "lz4": lz4_bounded})
     mcap.DECOMPRESSORS.update({"lz4": lz4_bounded, "zstd": zstd_bounded})
-    ros2.zstd = _BoundedZstd  # type: ignore[attr-defined]
+    ros2.zstd = _BoundedZstd  # type: ignore[assignment]  # a module's name, our class
     _installed = True
 
 

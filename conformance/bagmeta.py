@@ -1,4 +1,4 @@
-"""A ROS 2 bag's ``metadata.yaml`` checked before ``rosbags`` reads it (issue 26 §4).
+"""A ROS 2 bag's ``metadata.yaml`` checked before ``rosbags`` reads it.
 
 rosbags loads the file with PyYAML whole: a billion laughs (1 KB of aliases) hangs it, and
 deep nesting recurses. rosbag2 writes a few KB of plain YAML, with no anchor or alias, five

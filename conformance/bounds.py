@@ -1,4 +1,4 @@
-"""The bounds of every input the tool reads (issue 19 §1): one place, named in the errors, in
+"""The bounds of every input the tool reads: one place, named in the errors, in
 ``--help`` (``bounds_help``) and in the README's "Bounds" table.
 
 A bound is never a silent cut: what lies past it is a finding on that line (a recording), a
@@ -23,7 +23,7 @@ payload deeper than 64 levels is MSG-004's violation (``validator.MAX_DEPTH``)."
 MAX_LINE_VALUES = 1 << 20
 """A recording line over 1 MiB is read only if it holds at most this many JSON values (its
 ',', '[' and '{' bytes, counted before parsing): a 64 MiB line ``[{},{},...]`` would take
-~2 GB as Python objects (issue 26 §4). Past it the line is a problem, as past the others."""
+~2 GB as Python objects. Past it the line is a problem, as past the others."""
 MIN_TIME = 0.0
 MAX_TIME = 4_102_444_800.0
 """Recorded times (Unix seconds) from 1970-01-01 to 2100-01-01; a time outside is a problem

@@ -1,7 +1,8 @@
 """The embedded amqtt broker: the zero-setup default for the demo and for tests.
 
 Runs amqtt on its own event loop in a background thread, on 127.0.0.1 only (amqtt binds
-0.0.0.0:1883 when left to itself), on a free port unless one is given. FIELD-NOTES pitfalls
+0.0.0.0:1883 when left to itself), on a free port unless one is given. The pitfalls of
+docs/FIELD-NOTES.md 'The embedded amqtt broker'
 handled here: ``Broker()`` is created inside the running loop; the anonymous-auth plugin stays
 (without it every connect fails "Not authorized"); shutdown is bounded by a timeout because
 amqtt 0.12 can hang on clients with QoS 1 acks in flight.
@@ -34,7 +35,8 @@ def free_port(host: str = HOST) -> int:
 def _config(port: int) -> dict[str, Any]:
     return {
         "listeners": {"default": {"type": "tcp", "bind": f"{HOST}:{port}", "max_connections": 0}},
-        # Only what a broker needs: anonymous auth (FIELD-NOTES: the default plugin set costs
+        # Only what a broker needs: anonymous auth
+        # (docs/FIELD-NOTES.md 'The embedded amqtt broker': the default plugin set costs
         # ~35 % throughput and the $SYS plugin warns about psutil).
         "plugins": {"amqtt.plugins.authentication.AnonymousAuthPlugin": {"allow_anonymous": True}},
     }

@@ -18,11 +18,14 @@ import ssl
 import threading
 import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
+from typing import cast
 from urllib.parse import urlsplit
 
 import paho.mqtt.client as paho
+from paho.mqtt.properties import Properties
+from paho.mqtt.reasoncodes import ReasonCode
 
 from conformance.display import printable, shorten
 from conformance.masking import mask_password  # re-exported: a URL made fit to print
@@ -59,7 +62,7 @@ _LABEL = re.compile(r"[a-z0-9_](?:[a-z0-9_-]{0,61}[a-z0-9_])?", re.I)
 
 def _is_host(host: str) -> bool:
     """``host`` is an IP address or a host name a resolver can be asked about (labels of 1 to
-    63 characters, 253 in all, after IDNA): ``a..b`` is not (issue 26)."""
+    63 characters, 253 in all, after IDNA): ``a..b`` is not."""
     try:
         ipaddress.ip_address(host)
         return True
@@ -122,14 +125,14 @@ class BrokerURL:
     """mqtts without verifying the broker's certificate (a test broker with its own CA)."""
 
     @classmethod
-    def parse(cls, text: str, env: dict[str, str] | None = None) -> BrokerURL:
+    def parse(cls, text: str, env: Mapping[str, str] | None = None) -> BrokerURL:
         """Parse a broker URL; credentials are read from ``env`` (default ``os.environ``)."""
         env = os.environ if env is None else env
         text = text.strip()
         if text in ("embedded", "virtual"):  # virtual: the tests' in-memory double (sim/virtual)
             return cls(text)
         # What an error may say: never a password it wrongly has, a long URL excerpted.
-        # Escaped first, then cut: an escaped code point may take 10 characters (issue 26 §3).
+        # Escaped first, then cut: an escaped code point may take 10 characters.
         shown = "'" + shorten(printable(mask_password(text, url=True)), 200) + "'"
         try:
             parts = urlsplit(text if "://" in text else f"mqtt://{text}")
@@ -161,7 +164,7 @@ class BrokerURL:
                    password=_credential(env.get("WARAPS_PASSWORD"), "WARAPS_PASSWORD"))
 
     @classmethod
-    def from_env(cls, env: dict[str, str] | None = None) -> BrokerURL | None:
+    def from_env(cls, env: Mapping[str, str] | None = None) -> BrokerURL | None:
         """The arena's own variables: WARAPS_BROKER, WARAPS_PORT, WARAPS_TLS_CONNECTION, ..."""
         env = os.environ if env is None else env
         host = env.get("WARAPS_BROKER")
@@ -317,7 +320,7 @@ class MqttClient:
                 c.tls_insecure_set(True)
         c.reconnect_delay_set(min_delay=1, max_delay=30)  # backoff after a dropped connection
         # QoS 1 publishes from a suite are few; bound the unacknowledged window anyway
-        # (FIELD-NOTES: paho overwrites past 65,535 in flight).
+        # (docs/FIELD-NOTES.md 'MQTT on loopback': paho overwrites past 65,535 in flight).
         c.max_inflight_messages_set(1000)
         c.on_connect = self._handle_connect
         c.on_disconnect = self._handle_disconnect
@@ -340,7 +343,8 @@ class MqttClient:
                               f"file (--ca-file) and that the broker speaks TLS on this port"
                               ) from None
         except (OSError, UnicodeError) as e:  # UnicodeError: a host name IDNA refuses
-            raise BrokerError(f"cannot reach the broker at {b}: {e.strerror or e}. Is it "
+            why = (e.strerror if isinstance(e, OSError) else None) or e
+            raise BrokerError(f"cannot reach the broker at {b}: {why}. Is it "
                               f"running and listening there? (--broker, WARAPS_BROKER/"
                               f"WARAPS_PORT)") from None
         self._paho.loop_start()
@@ -351,7 +355,8 @@ class MqttClient:
             raise BrokerError(f"the broker at {b} did not accept the connection: {reason}")
         return self
 
-    def _handle_connect(self, client, userdata, flags, reason_code, properties) -> None:
+    def _handle_connect(self, client: paho.Client, userdata: object, flags: paho.ConnectFlags,
+                        reason_code: ReasonCode, properties: Properties | None) -> None:
         if reason_code.is_failure:
             self._connect_failure = str(reason_code)
             if str(reason_code).lower().startswith(("not authorized", "bad user")):
@@ -369,7 +374,9 @@ class MqttClient:
         if self._on_connection_change:
             self._on_connection_change(True, "connected")
 
-    def _handle_disconnect(self, client, userdata, flags, reason_code, properties) -> None:
+    def _handle_disconnect(self, client: paho.Client, userdata: object,
+                           flags: paho.DisconnectFlags, reason_code: ReasonCode,
+                           properties: Properties | None) -> None:
         self._connected.clear()
         if self._closing:
             return
@@ -386,7 +393,8 @@ class MqttClient:
         return self._connected.wait(timeout)
 
     def close(self, timeout: float = 2.0) -> None:
-        """Disconnect cleanly (before an embedded broker shuts down: FIELD-NOTES)."""
+        """Disconnect cleanly (before an embedded broker shuts down:
+        docs/FIELD-NOTES.md 'The embedded amqtt broker')."""
         self._closing = True
         try:
             self._paho.disconnect()
@@ -405,9 +413,10 @@ class MqttClient:
     def subscribe(self, topic: str, qos: int = 0, timeout: float = 5.0) -> None:
         """Subscribe and wait for the SUBACK, so nothing published afterwards is missed."""
         done = threading.Event()
-        result: list[object] = []
+        result: list[list[ReasonCode]] = []
 
-        def on_subscribe(client, userdata, mid, reason_codes, properties) -> None:
+        def on_subscribe(client: paho.Client, userdata: object, mid: int,
+                         reason_codes: list[ReasonCode], properties: Properties | None) -> None:
             result.append(reason_codes)
             done.set()
 
@@ -419,15 +428,17 @@ class MqttClient:
             raise BrokerError(f"subscribe to {topic!r} failed: {paho.error_string(rc)}")
         if not done.wait(timeout):
             raise BrokerError(f"no SUBACK for {topic!r} within {timeout:.1f} s")
-        codes = result[0] if result else []
-        if any(getattr(c, "is_failure", False) for c in codes):  # type: ignore[union-attr]
+        codes: list[ReasonCode] = result[0] if result else []
+        if any(getattr(c, "is_failure", False) for c in codes):
             raise BrokerError(f"the broker refused the subscription to {topic!r}: {codes} "
                               f"(an ACL may forbid it)")
 
-    def _handle_message(self, client, userdata, msg) -> None:
+    def _handle_message(self, client: paho.Client, userdata: object,
+                        msg: paho.MQTTMessage) -> None:
         self.received += 1
-        m = Message(msg.timestamp + self._mono_to_unix, msg.topic, msg.payload, msg.qos,
-                    bool(msg.retain))
+        # A received payload is bytes (a bytearray only where paho builds one to send).
+        m = Message(msg.timestamp + self._mono_to_unix, msg.topic, cast(bytes, msg.payload),
+                    msg.qos, bool(msg.retain))
         if self._on_message is not None:
             self._on_message(m)
         else:

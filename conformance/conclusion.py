@@ -21,6 +21,7 @@ never commanded"), never "certified".
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -32,19 +33,44 @@ from conformance.exits import (  # noqa: F401 (their one home; read here by the 
     EXIT_NOT_CERTIFIED,
     EXIT_UNTESTED,
 )
-from conformance.facts import RunFacts, iso
-from conformance.results import RunReport, UnitReport
+from conformance.facts import Gate, RunFacts, RunKind, iso
+from conformance.results import Party, RunReport, UnitReport
 from conformance.rules import CATALOGUE, Mode
 from conformance.topics import level_name
 from conformance.violation import RuleResult, Verdict
 
+
+class RunVerdict(enum.StrEnum):
+    """A run's verdict, and a row's, in the words every output shows: a rule's verdict
+    (``Verdict``'s words), or a word only a run has. A ``StrEnum``: it prints, serialises and
+    compares as that word."""
+
+    PASS = "pass"
+    SKIP = "skip"
+    COULD_NOT_TEST = "could-not-test"
+    WARN = "warn"
+    FAIL = "fail"
+    NOT_CERTIFIED = "not certified"
+    """The broker or the unit could not be reached, or the broker was lost for good."""
+    INTERRUPTED = "interrupted"
+    PARTIAL = "partial"
+    """Selected rules ran and none failed: not a certificate."""
+    CLEAN = "clean"
+    """Lint's verdict when nothing failed or warned: what was observed, not a certificate."""
+
+    @classmethod
+    def of(cls, verdict: Verdict) -> RunVerdict:
+        return cls(verdict.value)
+
+
 CERTIFIED = "certified"
-NOT_CERTIFIED = "not certified"
-INTERRUPTED = "interrupted"
-PARTIAL = "partial"
+"""What a level is when the run earned it (a level's status, a unit's summary)."""
+NOT_CERTIFIED = RunVerdict.NOT_CERTIFIED
+INTERRUPTED = RunVerdict.INTERRUPTED
+PARTIAL = RunVerdict.PARTIAL
 NOT_RUN = "not run"
-CLEAN = "clean"
-"""Lint's verdict when nothing failed or warned: what was observed, not a certificate."""
+"""The count of the rules that never ran (a selection, a run cut short)."""
+CLEAN = RunVerdict.CLEAN
 
 LINT_NEVER_CERTIFIES = "lint observes; only a complete pytest --unit run certifies"
 
@@ -70,8 +96,8 @@ class UnitStatus:
     """One row of the report: its worst rule verdict, a sentence for people, its levels."""
 
     unit: str
-    party: str
-    verdict: str
+    party: Party
+    verdict: RunVerdict
     summary: str
     """``certified: sensor, direct execution``; ``not certified: 1 failed, 2 could not be
     tested; the unit died at ...``; lint: ``clean for 10 min, never commanded``."""
@@ -87,8 +113,8 @@ class UnitStatus:
 class Conclusion:
     """A run's conclusion: its verdict, whether it is partial and why, its exit status."""
 
-    kind: str
-    verdict: str
+    kind: RunKind
+    verdict: RunVerdict
     partial: bool
     why: tuple[str, ...]
     """Why the run is partial or not certified (empty for a complete run)."""
@@ -135,23 +161,23 @@ def facts_of(report: RunReport) -> RunFacts:
 def conclude(report: RunReport) -> Conclusion:
     """The conclusion of ``report`` under its facts (module docstring)."""
     facts = facts_of(report)
-    if report.kind == "lint":
+    if report.kind == RunKind.LINT:
         return _conclude_lint(report, facts)
     why = facts.reasons()
     worst = report.worst()
-    unread = _not_examined([u for u in report.units.values() if u.party == "unit"])
+    unread = _not_examined([u for u in report.units.values() if u.party == Party.UNIT])
     if facts.error or facts.broker_lost is not None:
         verdict, code = NOT_CERTIFIED, EXIT_NOT_CERTIFIED
     elif facts.interrupted:
         verdict, code = INTERRUPTED, EXIT_INTERRUPTED
     elif worst is Verdict.FAIL:
-        verdict, code = Verdict.FAIL.value, EXIT_FAILED
+        verdict, code = RunVerdict.FAIL, EXIT_FAILED
     elif unread:  # never a pass, a warn or a could-not-test with exit 0 (bounds.py)
         verdict, code = NOT_CERTIFIED, EXIT_NOT_CERTIFIED
     elif why:
         verdict, code = PARTIAL, EXIT_CERTIFIED  # no selected rule failed; not a certificate
     else:
-        verdict, code = worst.value, EXIT_CERTIFIED
+        verdict, code = RunVerdict.of(worst), EXIT_CERTIFIED
     not_run = set(report.not_run)
     units = {name: _certification_unit(name, u, why, not_run, facts.unexplored)
              for name, u in report.units.items()}
@@ -206,8 +232,8 @@ def died_at(unit: UnitReport, verdict: Verdict = Verdict.FAIL) -> float | None:
 
 def _certification_unit(name: str, unit: UnitReport, run_why: list[str],
                         not_run: set[str], unexplored: str = "") -> UnitStatus:
-    worst = unit.worst().value
-    if unit.party != "unit":
+    worst = RunVerdict.of(unit.worst())
+    if unit.party != Party.UNIT:
         return UnitStatus(name, unit.party, worst, worst)
     died = died_at(unit)
     general = [r for r in unit.rules.values() if _level_of(r.rule) is None]
@@ -268,12 +294,12 @@ def _level_of(rule: str) -> str | None:
 def _conclude_lint(report: RunReport, facts: RunFacts) -> Conclusion:
     """Lint's verdict: ``fail`` when a row the gate looks at fails a rule (or units past the
     bound were not judged: never a pass), ``warn``, else ``clean``; exit 1 on ``fail``."""
-    rows = [u for u in report.units.values() if facts.gate == "all" or u.party == "unit"]
+    rows = [u for u in report.units.values() if facts.gate == Gate.ALL or u.party == Party.UNIT]
     worst = Verdict.worst([u.worst() for u in rows])
     failed = worst is Verdict.FAIL or bool(facts.not_judged)
     unread = [why for why in (facts.not_examined, _not_examined(rows)) if why]
-    verdict = (Verdict.FAIL.value if failed else PARTIAL if unread else
-               Verdict.WARN.value if worst is Verdict.WARN else CLEAN)
+    verdict = (RunVerdict.FAIL if failed else PARTIAL if unread else
+               RunVerdict.WARN if worst is Verdict.WARN else CLEAN)
     why = ((facts.not_judged,) if facts.not_judged else ()) + tuple(unread)
     units = {name: _lint_unit(name, u, untimed=facts.untimed) for name, u in report.units.items()}
     code = EXIT_FAILED if failed else EXIT_LINT_PARTIAL if unread else EXIT_CERTIFIED
@@ -317,14 +343,14 @@ def _lint_unit(name: str, unit: UnitReport, *, untimed: bool = False) -> UnitSta
     warned = sum(r.verdict is Verdict.WARN for r in unit.rules.values())
     span = ((unit.last_seen or 0.0) - (unit.first_seen or 0.0)) if unit.first_seen else 0.0
     unread = not_examined(unit)
-    verdict = (worst.value if worst is Verdict.FAIL else Verdict.COULD_NOT_TEST.value if unread
-               else worst.value if worst is Verdict.WARN else CLEAN)
+    verdict = (RunVerdict.FAIL if worst is Verdict.FAIL else RunVerdict.COULD_NOT_TEST if unread
+               else RunVerdict.WARN if worst is Verdict.WARN else CLEAN)
     unread_said = (f"; {unread} message(s) could not be examined whole ({NOT_EXAMINED_RULE})"
                    if unread else "")
-    if unit.party != "unit":
+    if unit.party != Party.UNIT:
         said = (f"{failed} rule(s) failed" if failed else
                 f"{warned} rule(s) warned" if warned else CLEAN)
-        return UnitStatus(name, unit.party, worst.value if verdict == CLEAN else verdict,
+        return UnitStatus(name, unit.party, RunVerdict.of(worst) if verdict == CLEAN else verdict,
                           f"{said}: what it sent, observed{unread_said}")
     n = commands_seen(unit)
     commanded = "never commanded" if not n else f"{n} command{'s' * (n != 1)} seen"
@@ -346,7 +372,7 @@ def _lint_unit(name: str, unit: UnitReport, *, untimed: bool = False) -> UnitSta
     return UnitStatus(name, unit.party, verdict, summary, levels, died)
 
 
-# --- triage: the most severe findings first (issue 18, 6) ---------------------------------------
+# --- triage: the most severe findings first ---------------------------------------
 TRIAGE = ("death", "deafness", "commands", "messages", "warnings")
 """The severity classes, most severe first: a unit that died (HB-012), a unit that stopped
 answering (EXEC-ROBUST-001), commands answered wrongly or not at all (conversation and active

@@ -23,10 +23,13 @@ from conformance.violation import Violation, clock
 class Limits(Protocol):
     """What the content checks read from the validator's profile."""
 
-    clock_tolerance: float
-    """MSG-005: seconds a stamp may differ from the arrival time."""
-    feedback_statuses: frozenset[str]
-    """EXEC-FB-002: statuses that are no violation."""
+    @property
+    def clock_tolerance(self) -> float:
+        """MSG-005: seconds a stamp may differ from the arrival time."""
+
+    @property
+    def feedback_statuses(self) -> frozenset[str]:
+        """EXEC-FB-002: statuses that are no violation."""
 
 
 @dataclass(frozen=True)

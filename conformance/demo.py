@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from conformance.display import shown
+from conformance.suite.session import CERTIFICATION
 
 
 class _Collector:
@@ -22,8 +23,6 @@ class _Collector:
         self.paths: dict[str, Any] = {}
 
     def pytest_unconfigure(self, config: Any) -> None:
-        from conformance.suite.session import CERTIFICATION
-
         found = config.stash.get(CERTIFICATION, None)
         if found is not None:
             self.paths = dict(found.report_paths)

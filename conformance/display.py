@@ -1,4 +1,4 @@
-"""Wire text made fit to show (issue 19 §4, §5; issue 26 §3): ``printable`` for a terminal
+"""Wire text made fit to show: ``printable`` for a terminal
 (and any report), every character a person cannot see or that moves the cursor shown escaped,
 and ``shorten`` for a report, a long string excerpted with a visible ellipsis and its full
 length. Every writer of a terminal line or a report uses these: the one escape."""
@@ -6,6 +6,8 @@ length. Every writer of a terminal line or a report uses these: the one escape."
 from __future__ import annotations
 
 import re
+
+from conformance.masking import mask_password
 
 _NOT_PLAIN = re.compile("[^\x20-\x7e]")
 """A character that is not printable ASCII: the only ones worth a look (ASCII text is shown
@@ -48,9 +50,7 @@ def printable(text: object) -> str:
 
 def shown(text: object) -> str:
     """``text`` (ours, holding user or wire text: a URL, a command line, an error) fit for a
-    terminal: one line, escaped (issue 26 §3), never a password (§5)."""
-    from conformance.masking import mask_password
-
+    terminal: one line, escaped, never a password (§5)."""
     return printable(mask_password(str(text)))
 
 

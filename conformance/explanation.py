@@ -11,7 +11,8 @@ import orjson
 
 from conformance import profile as profile_module
 from conformance.display import printable, shorten
-from conformance.rules import CATALOGUE
+from conformance.judge import violation_verdict
+from conformance.rules import CATALOGUE, get
 from conformance.validator import Validation, Validator
 from conformance.violation import Verdict
 
@@ -36,7 +37,7 @@ def unplaceable(topic: str) -> str:
 
 def render(validation: Validation, profile: profile_module.Profile) -> str:
     """The kind, then each violation as the STYLE guide shows it, then a one-line verdict."""
-    # What the message holds is shown escaped (issue 26 §3): topic, paths, values.
+    # What the message holds is shown escaped: topic, paths, values.
     lines = [f"topic     {printable(validation.topic.topic)}", f"kind      {validation.kind}"]
     for v in validation.violations:
         rule = CATALOGUE.get(v.rule)
@@ -84,9 +85,6 @@ def validate_tst(validator: Validator, payload: bytes) -> Validation:
 def verdict_of(rule_id: str, profile: profile_module.Profile, condition: str = "") -> Verdict:
     """The verdict a violation of ``rule_id`` (finding ``condition``) earns under ``profile``
     (the judge's)."""
-    from conformance.judge import violation_verdict
-    from conformance.rules import get
-
     return violation_verdict(get(rule_id), profile.severity_of(rule_id),
                              strict=profile.adopts(rule_id), condition=condition)
 

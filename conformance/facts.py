@@ -8,28 +8,48 @@ read only by the judge and the conclusion: never as strings in ``meta``.
 
 from __future__ import annotations
 
+import enum
 from dataclasses import asdict, dataclass, fields
 from datetime import UTC, datetime
 from typing import Any
 
 CTRL_C = "Ctrl-C"
 """``RunFacts.cut_short`` of a run interrupted by the user (else what cut it: --max-duration)."""
-GATES = ("all", "units")
-"""Which rows decide lint's exit status: every row, or only the units' (not commanders')."""
+
+
+class RunKind(enum.StrEnum):
+    """What a run is. A ``StrEnum``: its members print and serialise as the words reports
+    have always carried, and equal them."""
+
+    CERTIFICATION = "certification"
+    """One unit, observed and commanded by ``pytest --unit``."""
+    LINT = "lint"
+    """Traffic observed (live or recorded), never caused: ``waraps-conformance lint``."""
+
+
+class Gate(enum.StrEnum):
+    """Which rows decide lint's exit status (``lint --gate``)."""
+
+    ALL = "all"
+    """Every row: units and commanders."""
+    UNITS = "units"
+    """Only the units' rows (a fleet gate that commanders' faults do not fail)."""
+
+
+GATES = tuple(gate.value for gate in Gate)
 
 
 @dataclass(frozen=True)
 class RunFacts:
     """What the judge must know of a run. Times are Unix seconds."""
 
-    kind: str = "certification"
-    """``certification`` (pytest --unit) or ``lint``."""
+    kind: RunKind = RunKind.CERTIFICATION
     unit: str = ""
     """A certification's unit under test (its address)."""
     strict: bool = False
     """Decided rules fail instead of warning (``--strict-rules``, ``strict: true``)."""
-    gate: str = "all"
-    """Lint: ``all`` rows or only ``units`` decide the exit status (``GATES``)."""
+    gate: Gate = Gate.ALL
+    """Lint: the rows that decide the exit status."""
     error: str = ""
     """The broker or the unit could not be reached: no rule ran."""
     broker_lost: float | None = None
@@ -56,6 +76,11 @@ class RunFacts:
     not_examined: str = ""
     """Lint: lines of the recording that could not be read (why, in words): what they held
     was never examined, so the run is never clean."""
+
+    def __post_init__(self) -> None:
+        # A caller's plain words ("lint", "units") made the members (frozen: set once here).
+        object.__setattr__(self, "kind", RunKind(self.kind))
+        object.__setattr__(self, "gate", Gate(self.gate))
 
     @property
     def complete(self) -> bool:

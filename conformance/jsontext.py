@@ -1,4 +1,4 @@
-"""JSON text of a parsed value without recursion (issue 26 §4: no recursion over input).
+"""JSON text of a parsed value without recursion (no recursion over input).
 
 orjson writes at most 255 levels (and no string holding surrogates), and ``json.dumps``
 recurses (a ``-F %J`` payload of 999 nested arrays raised RecursionError); a recording line

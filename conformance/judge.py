@@ -19,7 +19,9 @@ from __future__ import annotations
 from collections.abc import Collection, Iterable, Mapping
 from types import MappingProxyType
 
-from conformance.facts import RunFacts, iso
+from conformance.conclusion import conclude
+from conformance.facts import RunFacts, RunKind, iso
+from conformance.recording import UNTIMED_REASON, UNTIMED_RULES
 from conformance.results import (
     COMMANDER_REASON,
     NOT_APPLICABLE,
@@ -29,6 +31,7 @@ from conformance.results import (
     UnitReport,
 )
 from conformance.rules import CATALOGUE, Mode, Rule, Severity, Side
+from conformance.topics import UnitAddress
 from conformance.violation import Observed, RuleResult, Verdict, Violation
 
 INTEROP_RISK = "interop risk: the spec does not say; this suite decided: "
@@ -139,9 +142,7 @@ def unexamined(rule: str) -> RuleResult:
 def judge(report: RunReport, facts: RunFacts) -> RunReport:
     """``report`` (each rule judged from its evidence by ``judge_rule``) under the run's
     ``facts``, with its conclusion; its verdicts are frozen afterwards."""
-    from conformance.conclusion import conclude
-
-    if facts.kind == "certification" and facts.unit:
+    if facts.kind == RunKind.CERTIFICATION and facts.unit:
         unit = _row(report, facts.unit)
         _commander_rules_aside(unit)
         if facts.broker_lost is not None:
@@ -172,8 +173,6 @@ def _row(report: RunReport, name: str) -> UnitReport:
     """The unit under test's row (an empty one when it was never heard)."""
     found = report.units.get(name)
     if found is None:
-        from conformance.topics import UnitAddress
-
         address = UnitAddress.parse(name)
         found = report.units[name] = UnitReport(name, address.agent_type, address.role,
                                                 address.name)
@@ -238,9 +237,7 @@ def _not_run(unit: UnitReport, selected: Iterable[str], ran: Collection[str], wh
 
 def _untimed(report: RunReport) -> None:
     """A capture without arrival times (mosquitto_sub -v) neither passes nor fails the rules
-    that need them (issue 20): they are could-not-test on every row, and no rate is shown."""
-    from conformance.recording import UNTIMED_REASON, UNTIMED_RULES
-
+    that need them: they are could-not-test on every row, and no rate is shown."""
     for row in report.units.values():
         for rule in UNTIMED_RULES:
             if rule in row.rules:

@@ -1,4 +1,4 @@
-"""A URL or a command line made fit to print (issue 19 §5, issue 26 §5): ``mask_password``,
+"""A URL or a command line made fit to print: ``mask_password``,
 the one masking every printer of a URL uses (the CLI's messages, the certification's header,
 summary and repeat lines, the reports' ``broker``). Paho-free: reports and lint load it."""
 
@@ -19,7 +19,7 @@ _HOST_AFTER = re.compile(r"@(?=[^\s@])")
 def mask_password(text: str, *, url: bool = False, hidden: str | None = "***") -> str:
     """``text`` with the password of every ``scheme://user:password@host`` in it shown as
     ``hidden`` (None: left out with its ':', ``scheme://user@host``, a URL to paste again):
-    the one place a URL or a command line is made fit to print (issue 26 §5).
+    the one place a URL or a command line is made fit to print.
 
     ``url``: ``text`` is one URL, or a bare ``user:password@host`` (what ``--broker`` and
     ``WARAPS_BROKER`` accept), whatever it holds. Else ``text`` is a message or a command

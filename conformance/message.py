@@ -10,7 +10,8 @@ from typing import NamedTuple
 
 class Message(NamedTuple):
     """One received message. ``time`` is the arrival time in Unix seconds, taken by paho on
-    receipt (FIELD-NOTES: timing inside the callback lags by up to 2 ms), or the recorded one.
+    receipt (docs/FIELD-NOTES.md 'MQTT on loopback': a time taken in the callback lags by up to 2
+    ms), or the recorded one.
 
     Immutable. A NamedTuple, not a frozen dataclass: it is made for every message, and a
     frozen dataclass costs 2-3 times as much to create (bench/bench_lint.py)."""

@@ -65,7 +65,7 @@ def cut_at_nul(raw: bytes, length: int) -> bytes:
     """The payload ``mosquitto_sub -F %j`` cut at a NUL byte: what is known of it, then one NUL
     (which JSON text never holds: MSG-002 fails on it, as on the payload itself). A payload
     declared longer than a message is examined (MSG-004) is padded to one byte past that
-    bound, no further: the declared length is never materialised (issue 26 §4)."""
+    bound, no further: the declared length is never materialised."""
     if length > MAX_EXAMINED_BYTES:
         return raw + bytes(MAX_EXAMINED_BYTES + 1 - len(raw)) if len(raw) <= MAX_EXAMINED_BYTES \
             else raw
@@ -160,7 +160,7 @@ class MosquittoLines:
                 as_json = orjson.dumps(value)
             except orjson.JSONEncodeError:  # surrogate escapes: raw bytes, so -F %j
                 as_json = b""
-            # Told per line (issue 26 §4: a -F %J line among -F %j lines must not turn them
+            # Told per line (a -F %J line among -F %j lines must not turn them
             # all into JSON strings): the lengths decide; only a line they leave open follows
             # the format seen before it.
             if len(raw) == length:

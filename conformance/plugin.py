@@ -274,7 +274,7 @@ class _CertificationPlugin:
         def key(item: pytest.Item) -> tuple[int, int]:
             rule = rule_of(item)
             if item.get_closest_marker("waraps_explore") is not None:
-                return (1, len(order))  # after the scripted scenarios (issue 17)
+                return (1, len(order))  # after the scripted scenarios
             if rule is None:
                 return (0, 0)
             if rule in RULE_SCENARIO:
@@ -335,9 +335,9 @@ class _CertificationPlugin:
             self.finished = True
             self.certification.finish(interrupted=True, exitstatus=-1)
         elif self.status is not None and not self.certification.collect_only:
-            self._say_exit(config)
+            self._say_exit(config, self.status)
 
-    def _say_exit(self, config: pytest.Config) -> None:
+    def _say_exit(self, config: pytest.Config, status: int) -> None:
         """The last line the terminal prints, after pytest's own counts (README 'Exit
         status'): the exit status and why, so a log says what a gate read."""
         from conformance.suite.gate import last_line
@@ -351,10 +351,10 @@ class _CertificationPlugin:
         final = {r: res.verdict.value for r, res in row.rules.items()} if row else {}
         failed_then = tuple(sorted(r for r, shown in c.enacted.items()
                                    if shown.value == "fail" and final.get(r) != "fail"))
-        text = last_line(report, c.conclusion(report), str(c.unit), self.status,
+        text = last_line(report, c.conclusion(report), str(c.unit), status,
                          error_said=bool(c.error), failed_then=failed_then)
         tr.write_line(printable_lines(mask_password(text)),
-                      green=self.status == 0, red=self.status != 0)
+                      green=status == 0, red=status != 0)
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         c = self.certification
@@ -363,7 +363,7 @@ class _CertificationPlugin:
         tr = terminalreporter
 
         def line(text: str, **markup: bool) -> None:
-            # Every line through the one escape (issue 26 §3): the unit's own words (its
+            # Every line through the one escape: the unit's own words (its
             # levels, names, reasons) never reach the terminal raw; our own line breaks stay.
             # Never a password (§5): the repeat line, an error naming a URL.
             tr.line(printable_lines(mask_password(text)), **markup)
@@ -422,7 +422,7 @@ def _explore_outcome(report: pytest.TestReport, explored: str) -> str:
 
 
 def findings(report: Any, unit: str, *, error_said: bool = False) -> list[str]:
-    """What the summary names after the levels (issue 27 §2): each failed rule with its title
+    """What the summary names after the levels: each failed rule with its title
     (its evidence is in pytest's failures above), then the rules that could not be tested,
     grouped by their reason, which names the option that would test them (``--reboot-cmd``),
     and the rules not run, counted (unless the error that kept them from running was said:

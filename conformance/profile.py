@@ -62,7 +62,7 @@ class Profile:
     """Motion targets stay within this distance of the unit's own reported position."""
     rate_tolerance: float = 0.2
     min_intervals: int = 10
-    """A rate is judged over at least this many intervals (FIELD-NOTES timing jitter)."""
+    """A rate is judged over at least this many intervals (docs/FIELD-NOTES.md 'Timing jitter')."""
     max_gap_periods: float = 1.5
     clock_tolerance: float = 30.0
     """How far a message's stamp may be from its arrival time (MSG-005)."""

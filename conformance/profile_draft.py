@@ -7,7 +7,7 @@ to edit (the format: ``schemas/generated/PROFILE.md``). What was measured agains
 unit declares (a rate, a level without its info message) is written as a PROBLEM; each task is
 written with the parameters the suite would start it with (section 9's example) or a
 placeholder to fill in. Every byte from the wire is quoted or escaped: nothing a unit
-publishes can become a key of the profile (issue 26 §2).
+publishes can become a key of the profile.
 """
 
 from __future__ import annotations
@@ -20,6 +20,8 @@ from typing import Any
 
 from conformance.display import shorten
 from conformance.message import Message
+from conformance.scenarios.params import task_schema
+from conformance.scenarios.safety import MOVES_WITHOUT_TAG
 from conformance.taskspec import task_spec
 from conformance.topics import LEVELS, MANDATORY_SENSORS, ROLES, TopicKind, UnitAddress, parse_topic
 from conformance.validator import Unreadable, decode
@@ -86,8 +88,6 @@ def _names(items: Any, key: str | None = None) -> list[str]:
 
 
 def _moves(task: str) -> bool:
-    from conformance.scenarios.safety import MOVES_WITHOUT_TAG
-
     try:
         return task_spec(task).moves_unit or task in MOVES_WITHOUT_TAG
     except KeyError:
@@ -97,7 +97,7 @@ def _moves(task: str) -> bool:
 def _q(value: Any) -> str:
     """Wire text as a YAML scalar that is only ever that value: a JSON string with every
     non-ASCII code point escaped (``\\u2028``, ``\\u0085``, bidi and control characters
-    included), which YAML reads as a double-quoted scalar (issue 26 §2: nothing a unit
+    included), which YAML reads as a double-quoted scalar (nothing a unit
     publishes becomes a key or a line of the profile)."""
     return json.dumps(str(value), ensure_ascii=True)
 
@@ -115,8 +115,6 @@ def _yaml_list(items: list[str]) -> str:
 def _example(task: str) -> dict[str, Any] | None:
     """The parameters of section 9's own example for ``task``, or None (not a section 9
     task)."""
-    from conformance.scenarios.params import task_schema
-
     examples = (task_schema(task) or {}).get("examples") or []
     return next((e for e in examples if isinstance(e, dict)), None)
 
@@ -220,7 +218,7 @@ def _sensor_lines(seen: Observed) -> list[str]:
 
 def _task_lines(seen: Observed) -> list[str]:
     """``tasks`` as a mapping: each section 9 task with its example's parameters, every
-    other task a commented placeholder saying what to fill in (never invented: issue 25)."""
+    other task a commented placeholder saying what to fill in (never invented)."""
     tasks = _names((seen.dei or {}).get("tasks-available"), "name")
     if seen.dei is None:
         return ["# No direct_execution_info was seen (5.3): no tasks to list.", "tasks: []",

@@ -1,4 +1,4 @@
-"""A profile file's text read as a YAML subset that cannot be forged into a bomb (issue 26 §2).
+"""A profile file's text read as a YAML subset that cannot be forged into a bomb.
 
 A profile decides verdicts, so what reads it refuses what YAML allows but a profile never
 needs: anchors and aliases (billion laughs), tags (``!!python/object``, ``!!binary``), more

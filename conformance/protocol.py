@@ -61,7 +61,7 @@ import orjson
 
 from conformance.message import Message
 from conformance.status import FINAL_STATUSES, accepts_signal, meaning
-from conformance.taskrecord import State, TaskRecord
+from conformance.taskrecord import State, TaskRecord  # State: re-exported
 
 BUILTIN_SIGNALS = ("$abort", "$continue", "$enough", "$pause")
 """12.2.2: 'The buildtin signals are $enough, $pause, $continue and $abort.'"""
@@ -287,9 +287,9 @@ class Model:
                                why="task-uuid of a live task: refused, or the same task")
         key = uuid if uuid else NEW_TASK
         running = Outcome("running", {key: State.RUNNING})
-        named = uuid and known is None  # 12.1's 'finished': done at once (already airborne)
-        failed = Outcome("failed", {uuid: State.FAILED} if named else {})
-        finished = Outcome("finished", {uuid: State.FINISHED} if named else {})
+        named = uuid if known is None else None  # 12.1's 'finished': done at once (airborne)
+        failed = Outcome("failed", {named: State.FAILED} if named else {})
+        finished = Outcome("finished", {named: State.FINISHED} if named else {})
         # Spec silent on a second task: the unit may run both or end the first, only with a
         # final status (EXEC-START-003), never silently (docs/MODEL.md).
         return Expectation(command, resend, (running, failed, finished), "EXEC-START-001",

@@ -98,7 +98,7 @@ class Event:
 
 EVENT_KINDS = ("disconnected", "connected", "unexamined", "start", "end")
 UNTIMED_NOTE = "a mosquitto_sub -v capture has no times"
-"""How the note on such a capture starts (lint prints it first: issue 27, 4)."""
+"""How the note on such a capture starts (lint prints it first)."""
 CUT = "cut"
 """The kind of the ``Event`` a reader yields instead of a message whose payload the capturing
 tool cut to its first line (``cut_payload``; never read from a line): what it said is unknown,

@@ -1,6 +1,6 @@
 """A recording's binary stream cut into lines, a chunk at a time, each line bounded
 (``bounds.MAX_LINE_BYTES``): a line past the bound is reported and skipped without ever being
-held whole, so a 10 GB line costs no more memory than a short one (issue 19 §1)."""
+held whole, so a 10 GB line costs no more memory than a short one."""
 
 from __future__ import annotations
 

@@ -7,16 +7,26 @@ a rule passes only when it was actually examined: a skip never becomes a pass.
 
 from __future__ import annotations
 
+import enum
 import shlex
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
-from conformance.facts import RunFacts
+from conformance.facts import RunFacts, RunKind
+from conformance.masking import mask_password
 from conformance.rules import CATALOGUE, Mode, Rule, Side
 from conformance.violation import RuleResult, Verdict, Violation
 
-KINDS = ("certification", "lint")
+
+class Party(enum.StrEnum):
+    """Whose row a report's row is (DESIGN 'Conversations, and whose fault it is'). A
+    ``StrEnum``: it prints, serialises and compares as the word the reports carry."""
+
+    UNIT = "unit"
+    """A unit: what it publishes and how it answers."""
+    COMMANDER = "commander"
+    """A commander: what it sent, judged by the commander's rules."""
 
 
 COMMANDER_REASON = ("commander-side rule: in a certification the suite itself is the commander "
@@ -34,7 +44,7 @@ UNPROVOKED = "the suite did not provoke the evidence: "
 
 UNIT_WORD_CHARS = 200
 """A unit address longer than this is not repeated in each rule's reason: the reasons of 800
-units with 100 KB names took gigabytes (issue 26 §4: names stored once)."""
+units with 100 KB names took gigabytes (names stored once)."""
 
 
 def _unit_word(unit: str) -> str:
@@ -42,19 +52,19 @@ def _unit_word(unit: str) -> str:
     return shlex.quote(unit) if len(unit) <= UNIT_WORD_CHARS else "ADDRESS (this unit's)"
 
 
-def skip_reason(rule: Rule, *, kind: str, unit: str, levels: tuple[str, ...] | None,
-                note: str = "", party: str = "unit") -> str:
+def skip_reason(rule: Rule, *, kind: RunKind, unit: str, levels: tuple[str, ...] | None,
+                note: str = "", party: Party = Party.UNIT) -> str:
     """Why a rule that was never examined is skipped (the reason a person reads).
 
     ``levels`` is what the unit declares in its heartbeat, or None when no heartbeat was seen;
     ``note`` is what the check itself said (``only 3 intervals observed; need 10``); ``party``
     is whose row it is (``unit`` or ``commander``).
     """
-    if rule.side is Side.COMMANDER and party == "unit":
-        if kind == "certification":
+    if rule.side is Side.COMMANDER and party == Party.UNIT:
+        if kind == RunKind.CERTIFICATION:
             return COMMANDER_REASON
         return "commander-side rule: what commanders send is judged on their own rows"
-    if party == "commander":
+    if party == Party.COMMANDER:
         return note or "no command of this commander that the rule applies to was seen"
     if rule.id.startswith("ROS-") and not note:
         return "judged from ROS bags that hold the topics it is about (lint --from run.bag)"
@@ -63,9 +73,9 @@ def skip_reason(rule: Rule, *, kind: str, unit: str, levels: tuple[str, ...] | N
     level = rule.spec_level if note == "" else None
     if level is not None and levels is not None and level not in levels:
         return f"not claimed: unit declares no '{level}' level"
-    if rule.mode is Mode.ACTIVE and kind == "lint":
+    if rule.mode is Mode.ACTIVE and kind == RunKind.LINT:
         return f"needs a stimulus: run pytest --unit {_unit_word(unit)}"
-    if rule.mode is Mode.CONVERSATION and kind == "lint" and not note:
+    if rule.mode is Mode.CONVERSATION and kind == RunKind.LINT and not note:
         return (f"no command to this unit that the rule applies to was seen (pytest --unit "
                 f"{_unit_word(unit)} sends them)")
     if level is not None and levels is None:
@@ -80,8 +90,6 @@ def skip_reason(rule: Rule, *, kind: str, unit: str, levels: tuple[str, ...] | N
 def redact_broker(url: str) -> str:
     """A broker URL fit for a report: never with a password (``mqtts://user@host:8883``: the
     lint's rerun line pastes it)."""
-    from conformance.masking import mask_password
-
     return mask_password(url or "", url=True, hidden=None)
 
 
@@ -140,8 +148,8 @@ class UnitReport:
     agent_type: str
     role: str
     name: str
-    party: str = "unit"
-    """``unit``, or ``commander``: a row of what one commander sent (DESIGN: blame)."""
+    party: Party = Party.UNIT
+    """A unit's row, or a row of what one commander sent (DESIGN: blame)."""
     agent_uuids: list[str] = field(default_factory=list)
     levels: list[str] = field(default_factory=list)
     message_count: int = 0
@@ -178,11 +186,12 @@ class UnitReport:
         d["rates"] = [RateStat.from_dict(r) for r in d.get("rates", [])]
         d["violation_times"] = {r: (float(a), float(b))
                                 for r, (a, b) in d.get("violation_times", {}).items()}
+        d["party"] = Party(d.get("party", Party.UNIT))
         return cls(**d)
 
 
 def _rule_result_to_dict(r: RuleResult) -> dict[str, Any]:
-    out = {"rule": r.rule, "verdict": r.verdict.value, "reason": r.reason,
+    out: dict[str, Any] = {"rule": r.rule, "verdict": r.verdict.value, "reason": r.reason,
            "violations": [v.to_dict() for v in r.violations]}
     rule = CATALOGUE.get(r.rule)
     if rule is not None and r.verdict in (Verdict.FAIL, Verdict.WARN):
@@ -217,7 +226,7 @@ class RunReport:
     observer was disconnected; ``unexamined`` counts messages it could not examine.
     """
 
-    kind: str
+    kind: RunKind
     started: float
     finished: float | None
     broker: str = ""
@@ -238,6 +247,7 @@ class RunReport:
 
     def __post_init__(self) -> None:
         self.broker = redact_broker(self.broker)
+        self.kind = RunKind(self.kind)  # a caller's plain word ("lint") made the member
 
     def verdict_counts(self) -> dict[str, int]:
         """Number of (unit, rule) results per verdict, every verdict present."""

@@ -136,7 +136,7 @@ class BagReader:
         linted = [c for c in reader.connections if routes.get(c.id, _SKIP).deserialize]
         total = getattr(reader, "message_count", None)
         why = odd_count(self.path, [*(c.msgcount for c in reader.connections), total])
-        if why:  # metadata.yaml's counts, as rosbags read them (issue 26 §4)
+        if why:  # metadata.yaml's counts, as rosbags read them
             raise BagError(why)
         indexed = sum(c.msgcount for c in linted)
         if total is not None and total != sum(c.msgcount for c in reader.connections):
@@ -170,7 +170,7 @@ class BagReader:
         if self.not_topic_msg:
             self.notes.append(f"{self.not_topic_msg} /heartbeat_info message(s) were not linted: "
                               f"they have no string fields 'topic' and 'msg' (ROS-003)")
-        if self.undecodable:  # a damaged container gives no verdict (issue 26 §4)
+        if self.undecodable:  # a damaged container gives no verdict
             raise BagError(f"{self.path}: {self.undecodable} message(s) could not be deserialized "
                            f"with their connection's type (the bag is damaged), so nothing was "
                            f"judged. Fix: record it again")

@@ -183,7 +183,7 @@ class Scorecard:
         """``table()``, and where each shown unit's status is: (line, column, status), for each
         status that fits in the width (the terminal colours it)."""
         statuses = []
-        # Wire text (names, types, roles, levels) escaped before it is measured (issue 19 §5).
+        # Wire text (names, types, roles, levels) escaped before it is measured.
         names = {id(r): printable(r.unit) for r in rows}
         uw = max([4] + [len(n) for n in names.values()])
         uw = min(uw, max(20, width // 3))
@@ -294,13 +294,13 @@ class Scorecard:
                       f"{v.expected} over its latest intervals (live)\n")
         self._live_shown = now_off
         silent = dict(getattr(linter, "silent", {}))
-        for unit, last in silent.items():
-            if unit not in self._silent_shown:
-                write(printable(f"{_clock(linter.now())} down {shorten(unit, NAME_CHARS)} "
+        for name, last in silent.items():
+            if name not in self._silent_shown:
+                write(printable(f"{_clock(linter.now())} down {shorten(name, NAME_CHARS)} "
                                 f"silent: no heartbeat since {_clock(last)} (live)") + "\n")
-        for unit in self._silent_shown:
-            if unit not in silent:
-                write(printable(f"{_clock(linter.now())} back {shorten(unit, NAME_CHARS)} "
+        for name in self._silent_shown:
+            if name not in silent:
+                write(printable(f"{_clock(linter.now())} back {shorten(name, NAME_CHARS)} "
                                 f"heard again (live; HB-010 judges its silence)") + "\n")
         self._silent_shown = silent
 
@@ -389,7 +389,7 @@ def _order(row: UnitRow) -> tuple[int, bool, str]:
 
 def rows_from_report(report: Any) -> list[UnitRow]:
     """Scorecard rows from a ``RunReport`` (``lint.rows.report_rows``), rate over the whole
-    run. A capture without times shows no rate and no time (issue 27, 4)."""
+    run. A capture without times shows no rate and no time."""
     return sorted((UnitRow(**seen_fields(row), rate=_overall_rate(row) if row.party == "unit"
                            else None)  # a commander's commands come in bursts: no rate
                    for row in report_rows(report)), key=_order)

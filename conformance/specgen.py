@@ -5,7 +5,8 @@
 From ``schemas/tasks/*.yaml`` it writes ``schemas/generated/``: ``geopoint.json`` (the GeoPoint
 shared by all), ``params/<task>.json`` (one per task), ``start-task.json`` (the exec command,
 12.2.3) and ``start-tst.json`` (the TST command with its recursive ``children``, 14.3.4), which
-pick a task's params schema by task name with ``if``/``then`` (not ``oneOf``: FIELD-NOTES, so
+pick a task's params schema by task name with ``if``/``then`` (not ``oneOf``:
+docs/FIELD-NOTES.md 'Validation cost', so
 every validator reports the exact failing field), and ``TASKS.md``. Output is deterministic:
 sorted keys, indent 2, a final newline. The output is committed; a test regenerates it into a
 temporary folder and fails when the committed copy is stale.
@@ -86,7 +87,7 @@ def geopoint_schema() -> dict[str, Any]:
 def _type_schema(spec_type: str, ref: str) -> dict[str, Any]:
     """The JSON Schema of a spec type (section 9); ``ref`` is the GeoPoint's relative URI."""
     geopoint = {"$ref": ref}
-    return {
+    schemas: dict[str, dict[str, Any]] = {
         "string": {"type": "string"},
         "strings": {"type": "array", "items": {"type": "string"}},
         "bool": {"type": "boolean"},
@@ -96,7 +97,8 @@ def _type_schema(spec_type: str, ref: str) -> dict[str, Any]:
         "geopoint": geopoint,
         "geopoints": {"type": "array", "items": geopoint},
         "geopointarrays": {"type": "array", "items": {"type": "array", "items": geopoint}},
-    }[spec_type]
+    }
+    return schemas[spec_type]
 
 
 def _constrained(spec_type: str, constraints: dict[str, Any], ref: str) -> dict[str, Any]:
@@ -191,7 +193,8 @@ def params_schema(task: TaskSpec) -> dict[str, Any]:
 
 
 def _dispatch_by_name(specs: list[TaskSpec], generic_params: dict[str, Any]) -> list[dict]:
-    """if/then per task name (FIELD-NOTES: not oneOf), and the generic params check otherwise."""
+    """if/then per task name (docs/FIELD-NOTES.md 'Validation cost': not oneOf), and the generic
+    params check otherwise."""
     names = [s.name for s in specs]
     out: list[dict[str, Any]] = [{
         "if": {"required": ["name"], "properties": {"name": {"const": s.name}}},

@@ -10,7 +10,8 @@ from __future__ import annotations
 # 12.4: "running - failed - aborted - paused - finished - starting - task specific strings".
 STANDARD_STATUSES = frozenset({"running", "failed", "aborted", "paused", "finished", "starting"})
 FINAL_STATUSES = frozenset({"finished", "failed", "aborted"})
-# Words real units end tasks with instead of 12.4's (FIELD-NOTES 'Vocabulary'): the final
+# Words real units end tasks with instead of 12.4's
+# (docs/FIELD-NOTES.md 'Faults seen in the traffic of real agents': vocabulary): the final
 # status each one means. Compared in lower case, without surrounding blanks.
 FINAL_LOOKING: dict[str, str] = {
     "done": "finished", "complete": "finished", "completed": "finished",

@@ -14,6 +14,7 @@ import functools
 import re
 from dataclasses import dataclass
 
+from conformance.display import printable
 from conformance.violation import Violation
 
 AGENT_TYPES = ("air", "ground", "surface", "subsurface")  # 5.1
@@ -93,8 +94,6 @@ _NOT_IN_TOPIC = re.compile("[\x00\ud800-\udfff]")
 def _quoted(text: str) -> str:
     """``text`` quoted for an error message, escaped (``display.printable``), then excerpted
     when long (a 100 KB option value; an escaped code point may take 10 characters)."""
-    from conformance.display import printable
-
     shown = printable(text)
     return f"'{shown}'" if len(shown) <= 200 else f"'{shown[:200]}'... ({len(text)} chars)"
 
@@ -205,7 +204,7 @@ class ParsedTopic:
 
 LONG_TOPIC = 1024
 """A topic longer than this (MQTT allows 64 KiB) is parsed each time, never cached: 8192
-cached 64 KiB topics would hold 2 GiB (issue 19 §3)."""
+cached 64 KiB topics would hold 2 GiB."""
 
 
 def parse_topic(topic: str) -> ParsedTopic:

@@ -6,7 +6,8 @@ rule that names the problem (MSG-001..MSG-004).
 
 Then the message is checked against the JSON Schema of its kind (``conformance.schema``:
 jsonschema-rs, compiled once per process, ``is_valid`` first; errors are collected only when it
-fails, FIELD-NOTES). Each schema error becomes a violation of the rule named by the nearest
+fails, docs/FIELD-NOTES.md 'Validation cost'). Each schema error becomes a violation of the rule
+named by the nearest
 ``x-rule`` along its evaluation path, with the JSON path of the offending value
 (``$.task.params.waypoints[2].latitude``), what was expected and what was observed; one
 violation per rule and spot. An erratum reading (ERR-*) yields only its ERR violation: the
@@ -36,6 +37,7 @@ from typing import Any, NamedTuple
 
 import jsonschema_rs
 import orjson
+from jsonschema_rs import ValidationErrorKind as _Kind
 from orjson import JSONDecodeError as _JSONDecodeError
 from orjson import loads as _loads
 
@@ -321,9 +323,8 @@ class Validator:
             plan_naming = plan.naming + (twice,)
         else:
             plan_naming = plan.naming
-        kind = plan.kind
-        if kind is None:  # a command: its kind and schema follow its 'command'
-            kind = self._kind(parsed, message)
+        kind = self._kind(parsed, message) if plan.kind is None else plan.kind
+        if plan.kind is None:  # a command: its kind and schema follow its 'command'
             path = schema.schema_path_for_kind(kind)
             validator = schema.compiled(path) if path is not None else None
         else:
@@ -338,7 +339,7 @@ class Validator:
                 time=time, payload=raw, unit=plan.unit)]
         else:
             found = None
-            if not validator.is_valid(message):  # FIELD-NOTES: is_valid first, errors on failure
+            if not validator.is_valid(message):  # docs/FIELD-NOTES.md 'Validation cost'
                 found = _schema_violations(path, validator, message, topic, raw, time,
                                            plan.unit)
             content = plan.content
@@ -481,12 +482,13 @@ def _schema_violations(path: str, validator: jsonschema_rs.Validator, message: A
         rule = notes.rule or "MSG-003"
         kind = error.kind
         spots: list[tuple[list[Any], str, str]]
-        if type(kind).__name__ == "AdditionalProperties":
+        if isinstance(kind, _Kind.AdditionalProperties):
+            instance = error.instance if isinstance(error.instance, dict) else {}
             spots = [([*error.instance_path, key], f"no parameter '{key}'",
-                      _short(error.instance.get(key))) for key in kind.unexpected]
+                      _short(instance.get(key))) for key in kind.unexpected]
         else:
             where = list(error.instance_path)
-            if type(kind).__name__ == "Required":
+            if isinstance(kind, _Kind.Required):
                 where.append(kind.property)
             expected, observed = _words(kind, error.instance, error.message)
             spots = [(where, expected, observed)]

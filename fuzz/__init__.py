@@ -1,5 +1,4 @@
-"""Coverage-guided fuzz targets (atheris, libFuzzer in-process), one module per input surface
-(issue 26 §1).
+"""Coverage-guided fuzz targets (atheris, libFuzzer in-process), one module per input surface.
 
 A top-level package beside ``bench/`` and ``tests/``, not inside ``conformance``: the targets
 are shared by the benchmark (``bench/bench_fuzz.py``, long runs) and CI

@@ -1,7 +1,7 @@
 """What the bag targets share: a small conformant bag of each storage (the tests' own writer,
 ``tests/ros/ros_bags.py``), the fuzzed bytes put in its place, and the reader's invariant.
 
-The invariant of a bag (issue 26 §1, §4): ``BagReader`` reads the bag whole or raises
+The invariant of a bag: ``BagReader`` reads the bag whole or raises
 ``BagError`` with a one-line message; nothing else escapes. A damaged container gives no
 verdict: when any message could not be read (``undecodable``), the bag is refused, never
 judged on what survives. Time proportional to the input.

@@ -1,6 +1,6 @@
 """What every target shares: running it under libFuzzer, and the invariant's checks.
 
-The invariant (issue 26 §1): only the documented errors escape, each one line; time within a
+The invariant: only the documented errors escape, each one line; time within a
 bound proportional to the input (``within_time``; libFuzzer's ``-timeout`` catches a hang);
 memory within ``-rss_limit_mb`` (``RSS_LIMIT_MB``) and, where a target can see it, output
 proportional to the input (``proportional``).

@@ -4,7 +4,7 @@
 Invariant: ``load`` returns a ``Profile`` or raises ``ProfileError`` with a one-line message
 (where and how to fix it); a profile loaded has finite numbers; time and memory proportional
 to the input (no billion laughs, no extends cycle, no deep recursion). The loader's hardening
-is another part of issue 26 (§2); this target finds what it misses.
+is tested apart (tests/core/test_profile_forged.py); this target finds what it misses.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """What the recording targets share: lines of each recording format built from fuzzed fields
 (``conformance.recording``), and the reader's invariant.
 
-The invariant of a recording (issue 26 §1, §4): ``RecordingReader`` never raises; it yields only
+The invariant of a recording: ``RecordingReader`` never raises; it yields only
 ``Message`` and ``Event`` items, messages at times within ``bounds`` (a ``-v`` line: now), and
 every bad line is a one-line ``LineProblem``; each message it yields (held one at a time) is
 within 1 MiB + 64 times the input (padding is never materialised to ``payloadlen``); the ``Monitor`` judges every message without

@@ -1,7 +1,7 @@
 """Passive checks: history-dependent rules judged over a stream of messages, per unit.
 
 ``Monitor`` is the one entry point, shared by the linter and the certification suite. The
-checks are registered by rule id (``conformance.checks.base.CHECKS``), one module per spec
+checks are registered by rule id (``conformance.checks.registry``), one module per spec
 area: ``rates`` (HB-003, SI-002, DEI-002, TEI-002), ``identity`` (HB-006, HB-008, HB-010,
 HB-011, HB-012, MSG-007; the liveness they measure in ``liveness``), ``sensors`` (SI-003, SI-004, SI-005, SENS-005), ``execution``
 (EXEC-004, EXEC-FB-003), ``levels`` (HB-013), the conversations of spec 12 (every command, its
@@ -38,7 +38,13 @@ from conformance.checks import (  # noqa: F401  (registers)
     tst_deadline,
 )
 # isort: on
-from conformance.checks.base import CHECKS, Check, CheckContext, UnitState, check, covered_rules
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.monitor import Monitor
+from conformance.checks.registry import Check, Registry, build, check, covered_rules
 
-__all__ = ["CHECKS", "Check", "CheckContext", "Monitor", "UnitState", "check", "covered_rules"]
+# Every check module is imported above (and the Monitor built the registry from them).
+CHECKS = build().by_rule
+"""Rule id -> the checks implementing it."""
+
+__all__ = ["CHECKS", "Check", "CheckContext", "Monitor", "Registry", "UnitState", "check",
+           "covered_rules"]

@@ -1,11 +1,6 @@
-"""The check registry, the per-unit state checks read, and the context they run in.
+"""What checks read: the state of a unit (``UnitState``) and the run's ``CheckContext``.
 
-A check is a small function registered for the rule ids it implements, one implementation per
-rule. Message checks run on every message of the topic kinds they listen to, *before* the unit
-state is updated with that message (so they compare the message with what came before); finish
-checks run at the end of a run (or for a provisional report) and must not change state.
-
-Checks mark what they examined (``unit.examine(rule)``): a rule passes only when examined. When
+The checks themselves are registered in ``checks/registry.py``. Checks mark what they examined (``unit.examine(rule)``): a rule passes only when examined. When
 a check cannot judge yet it leaves a note (``unit.note(rule, "only 3 intervals; need 10")``)
 that becomes the skip reason.
 """
@@ -14,115 +9,19 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
-from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeGuard
 
 from conformance.checks.stall import StallWatch
 from conformance.checks.stash import Stash, StashKey
+from conformance.facts import RunKind
 from conformance.message import Message
 from conformance.profile import Profile
 from conformance.topics import TopicKind, UnitAddress, level_name
 from conformance.validator import Validation
-from conformance.violation import Violation
-
-MessageCheck = Callable[["CheckContext", "UnitState", Message, Validation],
-                        "Iterable[Violation] | None"]
-FinishCheck = Callable[["CheckContext", "UnitState", float, Any], "Iterable[Violation] | None"]
-"""A finish check gets ``(ctx, unit, now, findings)`` and marks what it examined, and why it
-could not judge, on ``findings`` (``findings.examine(rule)``, ``findings.note(rule, why)``)."""
 
 
-@dataclass(frozen=True)
-class Check:
-    """A registered check: the rules it implements and when it runs."""
-
-    rules: tuple[str, ...]
-    fn: Callable[..., Any]
-    kinds: tuple[TopicKind | str, ...] = ()
-    at_finish: bool = False
-    reads: tuple[StashKey[Any], ...] = ()
-    """The unit's components (``UnitState.stash``) it reads or keeps, itself or through what
-    it calls: declared, and held to by ``tests/plugin/test_declared_reads.py``."""
-
-    @property
-    def name(self) -> str:
-        return self.fn.__name__
-
-
-ON_MESSAGE: dict[TopicKind, list[Check]] = {}
-"""Topic kind -> the message checks that listen to it, in registration order."""
-ON_KIND: dict[str, list[Check]] = {}
-"""Validation kind, for a narrower choice (``"sensor/position"``, ``"exec/command/start-task"``)
--> the message checks that listen to it. A message runs the checks of its topic kind, then
-those of its validation kind. (Kept apart: a TopicKind compares equal to its string.)"""
-AT_FINISH: list[Check] = []
-CHECKS: dict[str, list[Check]] = {}
-"""Rule id -> the checks implementing it (a message part and a finish part at most)."""
-
-
-def check(*rules: str, on: Iterable[TopicKind | str] = (), finish: bool = False,
-          reads: Iterable[StashKey[Any]] = ()
-          ) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """Register a check for ``rules``: on messages of the kinds ``on``, or at ``finish``;
-    ``reads`` declares the unit's components it reads or keeps (``checks/stash.py``).
-
-    A message check returns (or yields) the violations it finds: a generator, a list, or None
-    for none (the cheapest, for checks on frequent messages).
-    """
-    from conformance.rules import get
-
-    for rule in rules:
-        get(rule)  # an unknown id is a bug: fail at import, naming close ids
-
-    def register(fn: Callable[..., Any]) -> Callable[..., Any]:
-        c = Check(tuple(rules), fn, tuple(on), finish, tuple(reads))
-        if finish:
-            AT_FINISH.append(c)
-        for kind in c.kinds:
-            if isinstance(kind, TopicKind):
-                ON_MESSAGE.setdefault(kind, []).append(c)
-            else:
-                ON_KIND.setdefault(kind, []).append(c)
-        for rule in rules:
-            CHECKS.setdefault(rule, []).append(c)
-        return fn
-
-    return register
-
-
-REINTERPRET: dict[TopicKind, list[Check]] = {}
-"""Topic kind -> checks that re-read the validator's violations of a message in the light of
-history (``fn(ctx, unit, msg, v, found) -> found``): e.g. a response answering a signal-task,
-whose form 12.3.2 leaves undefined, is judged by ERR-013 instead of EXEC-002."""
-
-
-def reinterprets(*rules: str, on: Iterable[TopicKind], reads: Iterable[StashKey[Any]] = ()
-                 ) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """Register a check that may replace validator violations by violations of ``rules``
-    (``reads``: as for ``check``)."""
-    from conformance.rules import get
-
-    for rule in rules:
-        get(rule)
-
-    def register(fn: Callable[..., Any]) -> Callable[..., Any]:
-        c = Check(tuple(rules), fn, tuple(on), reads=tuple(reads))
-        for kind in c.kinds:
-            REINTERPRET.setdefault(kind, []).append(c)  # type: ignore[arg-type]
-        for rule in rules:
-            CHECKS.setdefault(rule, []).append(c)
-        return fn
-
-    return register
-
-
-def covered_rules() -> set[str]:
-    """Every rule id some passive check of this package implements."""
-    return set(CHECKS)
-
-
-class BoundedDict(OrderedDict):  # type: ignore[type-arg]
+class BoundedDict(OrderedDict[Any, Any]):
     """An LRU mapping holding at most ``limit`` entries (bounded memory for any run length)."""
 
     def __init__(self, limit: int = 4096) -> None:  # a default: copy and pickle call cls()
@@ -418,7 +317,7 @@ def usable_rate(x: Any) -> float | None:
     return rate if math.isfinite(rate) and 0.0 < period < math.inf else None
 
 
-def _is_number(x: Any) -> bool:
+def _is_number(x: object) -> TypeGuard[float]:
     t = type(x)
     return t is float or t is int or (isinstance(x, (int, float)) and not isinstance(x, bool))
 
@@ -441,7 +340,7 @@ def geopoint(m: Any) -> tuple[float, float, float | None] | None:
 class CheckContext:
     """What checks may read besides the unit: the profile, the run kind, the observer's gaps."""
 
-    def __init__(self, profile: Profile, kind: str) -> None:
+    def __init__(self, profile: Profile, kind: RunKind) -> None:
         self.profile = profile
         self.kind = kind
         self.started: float | None = None

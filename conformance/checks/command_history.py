@@ -32,7 +32,7 @@ OVER_A_GAP = ("could not be judged: the broker lost or held the unit's traffic m
               "observer's connection was down, or the broker stalled), or the capture cut a "
               "message then, so what the unit sent then is unknown (a broker's or a capture's "
               "fault is never the unit's)")
-"""The reason a deadline over a gap of the observer is not judged (issue 25 §3)."""
+"""The reason a deadline over a gap of the observer is not judged."""
 
 Judge = Callable[[CheckContext, UnitState, Any, float], list[Violation]]
 """``judge(ctx, unit, c, now)``: violations in what is still open in conversations ``c``."""
@@ -68,6 +68,10 @@ class SentCommand:
         self.missed = False
         """Already judged unanswered: a late answer after that is EXEC-010's, not again its
         command's rule."""
+
+    def describe(self) -> str:
+        """The command as a finding names it; exec and TST commands add what they carry."""
+        return f"{self.name} (com-uuid {self.com_uuid})"
 
 
 class CommandHistory:
@@ -211,7 +215,8 @@ def died_on_any(c: CommandHistory, last: float, period: float) -> list[Any]:
     """Every command a unit heard until its last heartbeat ``last`` may have died on, the last
     first: those it left unanswered within a period before ``last`` (else the first within a
     period after it), sent after the last command it answered: a command it answered another
-    one after did not kill it. Which of a burst killed it the traffic cannot tell (FIELD-NOTES:
+    one after did not kill it. Which of a burst killed it the traffic cannot tell
+    (docs/FIELD-NOTES.md 'Precision':
     a non-UTF-8 payload killed a unit that then received an unknown command)."""
     answered = max((cmd.last_sent for cmd in c.commands.values() if cmd.answers),
                    default=float("-inf"))
@@ -229,7 +234,7 @@ def dying_from(c: CommandHistory, last: float, period: float) -> float:
     """When a unit heard until its last heartbeat ``last`` began dying, as far as the commands
     it left unanswered go: at the command it may have died on (``died_on``), else at ``last``.
     Commands before that one were received by a live unit: each is its own finding
-    (FIELD-NOTES, precision: dying after a command)."""
+    (docs/FIELD-NOTES.md 'Precision': dying after a command)."""
     named = died_on(c, last, period)
     return min(named.last_sent, last) if named is not None else last
 
@@ -290,7 +295,7 @@ def left_unanswered(ctx: CheckContext, unit: UnitState, rule: str, cmd: SentComm
                     topic: str, detail: str) -> list[Violation]:
     """12.1, 14.4: a command the unit never answered fails ``rule``, its evidence the command
     (on ``topic``), unless the broker lost or held traffic within its response timeout (its
-    answer may be what was lost, issue 25 §3). Marked ``missed``: an answer after this is
+    answer may be what was lost). Marked ``missed``: an answer after this is
     only late (EXEC-010). Exec and TST conversations alike."""
     timeout = response_timeout(ctx)
     if ctx.gaps and ctx.in_gap(cmd.last_sent, cmd.last_sent + timeout):

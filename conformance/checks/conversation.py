@@ -9,7 +9,7 @@ Deadlines pass on the unit's heartbeats and at the end (``exec_deadline``). The 
 judges a recording in ``lint`` and the suite's own commands in ``pytest --unit``; what exec and
 TST conversations share is ``command_history``'s.
 
-One task state (issue 28 §2): the tasks are the unit's ``protocol.Model``'s (``model``, made
+One task state: the tasks are the unit's ``protocol.Model``'s (``model``, made
 with the conversations, fed every exec message first by ``exec_sequence``). The model owns a
 task's record, its state and statuses; the conversations read them and keep on the record only
 their evidence (which start-task began it, its final feedback, resends, tasks-executing), and
@@ -180,7 +180,7 @@ def said(task: TaskRecord, last: int = 1) -> list[tuple[float, str]]:
     """(time, status) of the ``last`` latest statuses (the model's) the task said since the
     conversations follow it."""
     since = task.followed if task.followed is not None else float("inf")
-    found = []
+    found: list[tuple[float, str]] = []
     for heard in reversed(task.statuses):
         if heard[0] < since or len(found) == last:
             break
@@ -224,7 +224,7 @@ def state_of(task: TaskRecord) -> State:
 
 def task_uuid_sent(m: Any) -> str | None:
     """The task a response or feedback names: its task-uuid, else the ``uuid`` some agents
-    send instead (FIELD-NOTES, precision: other keys). The wrong key is EXEC-FB-001's (or
+    send instead (docs/FIELD-NOTES.md 'Precision': other keys). The wrong key is EXEC-FB-001's (or
     EXEC-START-002's) finding; the task is still tracked by what the unit sends."""
     found = str_of(m, "task-uuid")
     if found is None and isinstance(m, dict) and "task-uuid" not in m:

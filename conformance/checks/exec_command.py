@@ -13,7 +13,7 @@ from collections.abc import Iterator
 
 import orjson
 
-from conformance.checks.base import CheckContext, UnitState, check, reinterprets
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import str_of
 from conformance.checks.conversation import (
     CONVERSATIONS,
@@ -22,6 +22,7 @@ from conformance.checks.conversation import (
     Conversations,
     conversations,
 )
+from conformance.checks.registry import check, reinterprets
 from conformance.message import Message
 from conformance.taskrecord import TaskRecord
 from conformance.topics import TopicKind

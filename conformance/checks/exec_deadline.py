@@ -12,7 +12,7 @@ also stopped answering
 
 from __future__ import annotations
 
-from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import (
     OVER_A_GAP,
     judged_on_a_copy,
@@ -32,6 +32,7 @@ from conformance.checks.conversation import (
 )
 from conformance.checks.exec_response import judge_unanswered
 from conformance.checks.liveness import IDENTITY, dying_at_end, dying_before_life
+from conformance.checks.registry import check
 from conformance.message import Message
 from conformance.taskrecord import State
 from conformance.topics import TopicKind
@@ -97,7 +98,8 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
                 continue
             if unit.stash.get(FEEDBACK_WITHOUT_TASK_UUID):
                 # The awaited status may have come in feedback naming no task (EXEC-FB-001's
-                # finding): not judged, as a task's end is not (12.4; FIELD-NOTES precision).
+                # finding): not judged, as a task's end is not (12.4;
+                # docs/FIELD-NOTES.md 'Precision').
                 unit.note(e.rule, "the unit sends feedback without a task-uuid: the status "
                                   "a signal awaits could not be tracked")
                 continue
@@ -120,7 +122,7 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
                 continue  # its final feedback may be one without task-uuid
             if ctx.gaps and ctx.in_gap(task.listed_at or task.left_at, task.left_at + timeout):
                 # It ended while the broker lost or held traffic: its final feedback may have
-                # been sent then (issue 25 §3: the broker killed 18 s into a run).
+                # been sent then (the broker killed 18 s into a run).
                 unit.note("EXEC-START-003", OVER_A_GAP)
                 continue
             unit.examine("EXEC-START-003")
@@ -150,9 +152,10 @@ def _judge_streak(ctx: CheckContext, unit: UnitState, c: Conversations, *, ended
         streak = [cmd for cmd in streak if cmd.last_sent < since]
     found: list[Violation] = []
     timeout = response_timeout(ctx)
-    # Answers in flight (FIELD-NOTES, precision): a command sent before the unit's last
+    # Answers in flight (docs/FIELD-NOTES.md 'Precision'): a command sent before the unit's last
     # answer says nothing about whether it still answers, only about itself. Nor does a kind
-    # of command it never answered (FIELD-NOTES, real agents: kinds never answered): that
+    # of command it never answered (docs/FIELD-NOTES.md 'Real agents certified live': kinds never
+    # answered): that
     # fails its own rule from the first second; only the kinds it answered before can stop.
     after = [cmd for cmd in streak
              if (c.last_answer is None or cmd.last_sent > c.last_answer)

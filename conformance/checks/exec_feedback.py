@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from conformance.checks.base import CheckContext, UnitState, check, reinterprets
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import response_timeout, str_of, violation
 from conformance.checks.conversation import (
     CONVERSATIONS,
@@ -22,6 +22,7 @@ from conformance.checks.conversation import (
     state_of,
     task_uuid_sent,
 )
+from conformance.checks.registry import check, reinterprets
 from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.status import FINAL_STATUSES, meaning
@@ -50,7 +51,7 @@ def feedback_follows_task(ctx: CheckContext, unit: UnitState, msg: Message,
     if not task_uuid or status is None:
         # Missing or empty ("" names no task): which task it concerns cannot be told. Its own
         # finding per message (EXEC-FB-001), never one pseudo-task '' whose feedback follows
-        # its own final status (FIELD-NOTES, precision: empty task-uuid).
+        # its own final status (docs/FIELD-NOTES.md 'Precision': empty task-uuid).
         if status is not None:
             unit.stash[FEEDBACK_WITHOUT_TASK_UUID] = True
             unit.note("EXEC-FB-004", "feedback without a task-uuid: its tasks could not be "
@@ -217,7 +218,7 @@ periods of direct_execution_info (or the response timeout, if longer) pass first
 def ended_tasks_leave_tasks_executing(ctx: CheckContext, unit: UnitState, msg: Message,
                                       v: Validation) -> list[Violation] | None:
     """5.3 'List of tasks currently executing.': a task whose feedback said 'finished' or
-    'aborted' and is listed long after is an entry that never ends (issue 24). Found wherever
+    'aborted' and is listed long after is an entry that never ends. Found wherever
     the traffic shows it, whichever command ended the task. (Runs on every
     direct_execution_info: a list or None.)"""
     c = unit.stash.get(CONVERSATIONS)

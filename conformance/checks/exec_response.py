@@ -14,7 +14,7 @@ from collections.abc import Generator, Iterator
 from typing import Any
 
 from conformance import protocol
-from conformance.checks.base import CheckContext, UnitState, check, reinterprets
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import (
     OVER_A_GAP,
     late,
@@ -35,6 +35,7 @@ from conformance.checks.conversation import (
     state_of,
     task_uuid_sent,
 )
+from conformance.checks.registry import check, reinterprets
 from conformance.message import Message
 from conformance.status import accepts_signal
 from conformance.topics import TopicKind
@@ -77,7 +78,8 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
         return
     unit.examine("EXEC-006")
     c.answered_any = True
-    c.last_answer = t  # credited at any time, late or not (FIELD-NOTES: answers in flight)
+    # credited at any time, late or not (docs/FIELD-NOTES.md 'Precision': answers in flight)
+    c.last_answer = t
     if cmd.judged:
         return
     value, task_uuid = str_of(m, "response"), str_of(m, "task-uuid")
@@ -220,7 +222,7 @@ def _judge_task_uuid(unit: UnitState, cmd: Command, msg: Message, value: str | N
                      task_uuid: str | None) -> Iterator[Violation]:
     """12.1: the start-task response carries the task-uuid sent, or one the unit generated.
     Only the answer to a start-task sent without one shows the generated one (the words the
-    rule quotes): the task-uuid sent, returned, is no pass (issue 24, a rule left could-not-test
+    rule quotes): the task-uuid sent, returned, is no pass (a rule left could-not-test
     by a start-task never answered)."""
     if cmd.task_uuid is not None:
         if task_uuid == cmd.task_uuid:
@@ -300,7 +302,7 @@ def _judge_timing(ctx: CheckContext, unit: UnitState, cmd: Command, msg: Message
         unit.examine("EXEC-010")
     elif ctx.gaps and ctx.in_gap(cmd.last_sent, msg.time):
         # The broker held or lost traffic meanwhile (an outage, a stall): when the unit
-        # answered is unknown (issue 25 §3).
+        # answered is unknown.
         unit.note("EXEC-010", OVER_A_GAP)
     else:
         # Late: how late is EXEC-010's finding; the command's own rule wanted it in time.
@@ -397,7 +399,7 @@ def no_task_named_no_task_uuid(ctx: CheckContext, unit: UnitState, msg: Message,
                                v: Validation, found: list[Violation]) -> list[Violation]:
     """12.1: a response names the task of the command it answers. ``task-uuid: ""`` answering
     a command that named no task (a malformed one, a ping) is no malformed id (ERR-014): there
-    is no task to name (FIELD-NOTES, precision: spec words). A started task must name one
+    is no task to name (docs/FIELD-NOTES.md 'Precision': spec words). A started task must name one
     (EXEC-START-002's)."""
     m = v.message
     if not found or str_of(m, "task-uuid") != "":

@@ -8,7 +8,7 @@ the suite cannot disagree about a sequence. What the conversation checks already
 final statuses, resends, query-status) stays theirs: the model adds only what needs the order
 of commands across tasks.
 
-The model is the unit's one store of tasks (issue 28 §2): it is made with the conversations
+The model is the unit's one store of tasks: it is made with the conversations
 (``conversation.conversations``) and this check feeds it first, before the conversation checks
 read what it holds (``checks/__init__.py`` registers it first). Its life is the conversations'
 (``exec_deadline`` tells it a new one).
@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import dataclasses
 
-from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import violation
 from conformance.checks.conversation import CONVERSATIONS, conversations
+from conformance.checks.registry import check
 from conformance.message import Message
 from conformance.protocol import BUILTIN_SIGNALS, Command, Model, State
 from conformance.topics import TopicKind

@@ -7,7 +7,8 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Any
 
-from conformance.checks.base import BoundedDict, CheckContext, UnitState, check
+from conformance.checks.base import BoundedDict, CheckContext, UnitState
+from conformance.checks.registry import check
 from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.topics import TopicKind

@@ -5,10 +5,10 @@ declared level backed by its info message (HB-008)."""
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import Any
+from typing import Any, TypeGuard
 
-from conformance.checks.base import CheckContext, UnitState, check
-from conformance.checks.conversation import CONVERSATIONS
+from conformance.checks.base import CheckContext, UnitState
+from conformance.checks.conversation import CONVERSATIONS, commands_died_on
 from conformance.checks.liveness import (
     DEATHS_KEPT,
     HB,
@@ -20,6 +20,7 @@ from conformance.checks.liveness import (
     heartbeat_period,
     heartbeat_tracker,
 )
+from conformance.checks.registry import check
 from conformance.message import Message
 from conformance.topics import INFO_KIND_OF_LEVEL, TopicKind, level_name
 from conformance.validator import Validation
@@ -105,14 +106,14 @@ def unit_does_not_fall_silent(ctx: CheckContext, unit: UnitState, msg: Message,
                               v: Validation) -> list[Violation] | None:
     """5.1: the heartbeat registers availability; a silence over 3 declared periods warns.
     A silence that ended in a burst after a silence of every topic is judged at the next
-    heartbeat, once the burst has shown whether the broker stalled (issue 25 §3)."""
+    heartbeat, once the burst has shown whether the broker stalled."""
     identity = unit.stash.setdefault(IDENTITY, Identity)
     pending = identity.silences_pending
     if not pending:
         return _silence(ctx, unit, msg, v)
     identity.silences_pending = None
     found = _silence(ctx, unit, msg, v)
-    kept = [f for f in pending if not ctx.in_gap(f.time, msg.time)]
+    kept = [f for f in pending if f.time is None or not ctx.in_gap(f.time, msg.time)]
     return [*kept, *(found or ())] or None
 
 
@@ -208,8 +209,6 @@ def unit_does_not_die(ctx: CheckContext, unit: UnitState, now: float,
                       findings: Any) -> Iterator[Violation]:
     """5.1: the heartbeat registers availability. One that stops for good is a death (error):
     the finding names the last command the unit received before it fell silent."""
-    from conformance.checks.conversation import commands_died_on
-
     if unit.last_heartbeat is None or unit.period(HB) is None:
         return
     findings.examine("HB-012")
@@ -281,7 +280,7 @@ def retained_message_is_not_stale(ctx: CheckContext, unit: UnitState, msg: Messa
                "retained message when the unit stops")]
 
 
-def _number(x: Any) -> bool:
+def _number(x: object) -> TypeGuard[float]:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 

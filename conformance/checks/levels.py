@@ -3,9 +3,10 @@ is passed over by every commander that reads them (HB-013)."""
 
 from __future__ import annotations
 
-from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import violation
 from conformance.checks.conversation import CONVERSATIONS, conversations
+from conformance.checks.registry import check
 from conformance.message import Message
 from conformance.topics import DIRECT_EXECUTION, INFO_KIND_OF_LEVEL, TST_EXECUTION, TopicKind
 from conformance.validator import Validation

@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from conformance.checks.base import CheckContext, UnitState
+from conformance.checks.command_history import dead_since, dying_from
 from conformance.checks.stash import StashKey
 from conformance.topics import TopicKind
 from conformance.violation import Violation
@@ -92,8 +93,6 @@ def dying_before_life(unit: UnitState, c: CommandHistory, t: float
     """(dying since, last heartbeat) of a unit whose new life began at ``t`` after a silence
     of more than SILENCE_PERIODS heartbeat periods (``command_history.dead_since``: what it
     left unanswered since is the silence's), None after a shorter one. Exec and TST alike."""
-    from conformance.checks.command_history import dead_since
-
     return dead_since(unit, c, t, heartbeat_period(unit), SILENCE_PERIODS)
 
 
@@ -101,8 +100,6 @@ def dying_at_end(ctx: CheckContext, unit: UnitState, c: CommandHistory, now: flo
                  ) -> tuple[float, float] | None:
     """(dying since, last heartbeat) of a unit dead at ``now`` (``death``), dying since the
     command it may have died on (``command_history.dying_from``); None while it lives."""
-    from conformance.checks.command_history import dying_from
-
     dead = death(ctx, unit, now)
     return (dying_from(c, dead[1], heartbeat_period(unit)), dead[1]) if dead else None
 

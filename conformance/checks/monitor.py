@@ -24,15 +24,9 @@ from typing import Any
 import orjson
 
 from conformance import bounds
-from conformance.checks.base import (
-    AT_FINISH,
-    ON_KIND,
-    ON_MESSAGE,
-    REINTERPRET,
-    CheckContext,
-    UnitState,
-)
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.rates import live_findings as live_rate_findings
+from conformance.checks.registry import build
 from conformance.checks.rows import (
     UNATTRIBUTED,
     Findings,
@@ -45,14 +39,16 @@ from conformance.checks.rows import (
 from conformance.checks.shapes import Shapes
 from conformance.checks.suite_commands import suite_row
 from conformance.checks.tst_routing import TstRouting
+from conformance.facts import RunKind
 from conformance.message import Message
 from conformance.profile import Profile
-from conformance.results import RunReport, UnitReport
-from conformance.rules import CATALOGUE, Side
+from conformance.results import Party, RunReport, UnitReport
+from conformance.rules import CATALOGUE, Side, get
 from conformance.topics import TST_EXECUTION, TopicKind, UnitAddress, parse_topic
 from conformance.validator import Examined, Validation, Validator
 from conformance.violation import Observed, Violation
 
+REGISTRY = build()  # built here: the package __init__ imported every check module first
 MAX_UNITS = bounds.MAX_UNITS
 """Units tracked at once; further units' messages are unexamined: lint fails (``not_judged``)."""
 MAX_NAMED_OVER_CAP = 8
@@ -105,7 +101,7 @@ class _Route:
             self.kind = None  # exec/command/<command>: the message says
         else:
             self.kind = parsed.kind.value
-        self.reinterpret = tuple(c.fn for c in REINTERPRET.get(parsed.kind, ()))
+        self.reinterpret = tuple(c.fn for c in REGISTRY.reinterpret.get(parsed.kind, ()))
         self.checks = self.checks_for(self.kind)
         # What the validator examined, by message shape (``checks/shapes.py``).
         self.content_fields = content_fields
@@ -121,8 +117,8 @@ class _Route:
 
     def checks_for(self, kind: str | None) -> tuple[Any, ...]:
         """The message checks of a message of validation kind ``kind`` on this topic."""
-        narrower = ON_KIND.get(kind or "")
-        return tuple(c.fn for c in ON_MESSAGE.get(self.topic_kind, ())) + (
+        narrower = REGISTRY.on_kind.get(kind or "")
+        return tuple(c.fn for c in REGISTRY.on_message.get(self.topic_kind, ())) + (
             tuple(c.fn for c in narrower) if narrower else ())
 
 
@@ -142,13 +138,14 @@ class Monitor:
     """
 
     def __init__(self, profile: Profile | None = None, *, validator: Validator | None = None,
-                 units: Collection[UnitAddress] | None = None, kind: str = "lint") -> None:
-        if kind not in ("lint", "certification"):
+                 units: Collection[UnitAddress] | None = None,
+                 kind: RunKind | str = RunKind.LINT) -> None:
+        if kind not in tuple(RunKind):
             raise ValueError(f"kind must be 'lint' or 'certification', got {kind!r}")
         self.profile = profile or (validator.profile if validator is not None else Profile())
         self.validator = validator or Validator(self.profile)
-        self.kind = kind
-        self.ctx = CheckContext(self.profile, kind)
+        self.kind = RunKind(kind)
+        self.ctx = CheckContext(self.profile, self.kind)
         self._only = frozenset(units) if units is not None else None
         self._entries: dict[UnitAddress | None, Row] = {}
         self._commanders: dict[str, Row] = {}
@@ -193,7 +190,7 @@ class Monitor:
         t = message.time
         v = self._validate(topic, message.payload, t)
         if v.message is not None and len(message.payload) > bounds.ID_CHARS:
-            bounds.bound_ids(v.message)  # what the checks keep of a message is bounded (issue 19 §3)
+            bounds.bound_ids(v.message)  # what the checks keep of a message is bounded
         self.ctx.stalls.feed(t, topic, route.topic_kind, v.message)  # before any check
         if t > self._latest:
             self._latest = t
@@ -204,7 +201,7 @@ class Monitor:
             return self._feed_command(route, entry, message, v, examined)
         if route.topic_kind is TopicKind.UNKNOWN and _is_command(v.message):
             # A command on a topic of its sender's making (an operator's '.../None/command',
-            # FIELD-NOTES, precision): what is wrong in it is the sender's, on its row.
+            # docs/FIELD-NOTES.md 'Precision'): what is wrong in it is the sender's, on its row.
             entry = self._commander_entry(entry, v.message, message.payload)
         groups = entry.groups
         groups[examined] = groups.get(examined, 0) + 1
@@ -274,8 +271,8 @@ class Monitor:
         of UNIT' (v0.7 has no sender field in 12.2; implementations add one)."""
         sender = m.get("sender") if isinstance(m, dict) else None
         if m is None and isinstance(payload, bytes):  # not JSON: the sender may still be read
-            found = _SENDER.search(payload, 0, 65536)
-            sender = found.group(1).decode("utf-8", "replace") if found else None
+            match = _SENDER.search(payload, 0, 65536)
+            sender = match.group(1).decode("utf-8", "replace") if match else None
         if isinstance(sender, str) and sender.strip():
             name = "".join(ch if ch.isprintable() else "?" for ch in sender.strip()[:MAX_SENDER])
         else:
@@ -288,13 +285,13 @@ class Monitor:
             if found is None:
                 label = f"commander {name}"
                 found = self._commanders[name] = Row(
-                    UnitState(UnitAddress(UNATTRIBUTED, "", "", label)), "commander", label)
+                    UnitState(UnitAddress(UNATTRIBUTED, "", "", label)), Party.COMMANDER, label)
         return found
 
     @staticmethod
     def _checks_for(v: Validation) -> tuple[Any, ...]:
-        return (tuple(c.fn for c in ON_MESSAGE.get(v.topic.kind, ()))
-                + tuple(c.fn for c in ON_KIND.get(v.kind, ())))
+        return (tuple(c.fn for c in REGISTRY.on_message.get(v.topic.kind, ()))
+                + tuple(c.fn for c in REGISTRY.on_kind.get(v.kind, ())))
 
     def _tst_route(self, route: _Route, message: Message) -> _Route:
         """14.1: a message on an operator's tst topic (op0/tst/...) is the conversation of the
@@ -408,7 +405,7 @@ class Monitor:
 
     def not_judged(self) -> tuple[int, list[str]]:
         """Messages of units past ``MAX_UNITS`` that were not judged, and the first units they
-        name (at most ``MAX_NAMED_OVER_CAP``): lint fails on them, never passes (issue 19)."""
+        name (at most ``MAX_NAMED_OVER_CAP``): lint fails on them, never passes."""
         return self._over, list(self._over_units)
 
     def finish(self, now: float | None = None) -> None:
@@ -458,8 +455,6 @@ class Monitor:
         ROS bag's, reported unattributed)."""
         self.version += 1
         if rule not in CATALOGUE:
-            from conformance.rules import get
-
             get(rule)  # raises naming close ids
         entry = self._entries.get(unit) or self._new_entry(unit, force=True)
         assert entry is not None
@@ -506,7 +501,7 @@ class Monitor:
             report = row_report(self.ctx, self.profile, self.kind, address, entry, final, now)
             units[report.unit] = report
         # In a certification the suite itself is the commander: no row of its own.
-        if self.kind == "lint":
+        if self.kind is RunKind.LINT:
             for _, entry in sorted(self._commanders.items()):
                 report = row_report(self.ctx, self.profile, self.kind, None, entry, Findings(), now)
                 units[report.unit] = report
@@ -542,7 +537,7 @@ class Monitor:
         if entry.state.address.prefix == UNATTRIBUTED:
             return findings
         unit = str(entry.state.address)
-        for c in AT_FINISH:
+        for c in REGISTRY.at_finish:
             out = c.fn(self.ctx, entry.state, now, findings)
             if out:
                 findings.violations.extend(

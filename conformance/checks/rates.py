@@ -2,7 +2,8 @@
 
 A rate is judged over at least ``profile.min_intervals`` intervals: the mean period must be
 within ``profile.rate_tolerance`` of the declared one, and no single interval may exceed
-``profile.max_gap_periods`` declared periods (FIELD-NOTES 'Timing jitter': this raised no false
+``profile.max_gap_periods`` declared periods (docs/FIELD-NOTES.md 'Timing jitter': this raised no
+false
 alarm at 1 and 10 Hz). Intervals that overlap a connection gap of the observer are left out.
 Intervals over 3 declared periods are silences (HB-010: a boat out of range may fall silent);
 they are left out of the mean while the other intervals are enough to judge, and counted in
@@ -12,12 +13,12 @@ interval 3 declared periods or longer after 2 (declared 5 Hz, sent every 5 s).
 
 An interval is measured between the unit's own stamps (5.1) where both messages carry one that
 reads as Unix seconds, else between arrivals: a broker that held traffic delivers it in a
-burst, and the stamps keep the unit's spacing (issue 25 §3). Intervals over a gap of the
+burst, and the stamps keep the unit's spacing. Intervals over a gap of the
 observer (its connection down, or a stall of the broker found in the traffic,
 ``checks/stall.py``) are left out either way; the rate's note says both.
 
 The interval across a reboot (an agent-uuid not seen before, spec 5.1; for a message without
-one, the heartbeat's: issue 24 §2) is left out too: the restart's silence is HB-006's and
+one, the heartbeat's) is left out too: the restart's silence is HB-006's and
 HB-010's to judge, not the rate's. Agent-uuids that take
 turns (two agents under one name, HB-011) are no reboot: their doubled rate stays HB-003's.
 
@@ -40,9 +41,11 @@ from array import array
 from collections import deque
 from collections.abc import Iterator
 from operator import add
+from typing import TYPE_CHECKING
 
-from conformance.checks.base import CheckContext, UnitState, check, usable_rate
+from conformance.checks.base import CheckContext, UnitState, usable_rate
 from conformance.checks.liveness import IDENTITY, SILENCE_PERIODS, Identity
+from conformance.checks.registry import check
 from conformance.checks.stall import stamp_of
 from conformance.checks.stash import StashKey
 from conformance.message import Message
@@ -50,6 +53,9 @@ from conformance.results import RateStat
 from conformance.topics import TopicKind
 from conformance.validator import Validation
 from conformance.violation import Verdict, Violation, clock
+
+if TYPE_CHECKING:
+    from conformance.checks.rows import Findings
 
 RATE_RULES = {
     TopicKind.HEARTBEAT: "HB-003",
@@ -64,7 +70,7 @@ rate is not the rate the unit sends at (the rule's words); less, past the profil
 is the suite's bound (the decided condition ``tolerance``)."""
 GROSS_MIN_INTERVALS = 3
 GROSS_SLOW_MIN_INTERVALS = 2
-"""HB-003's decision (issue 24 §2): when every interval is at least GROSS_FACTOR declared
+"""HB-003's decision: when every interval is at least GROSS_FACTOR declared
 periods long, 2 intervals are enough to fail the rate (declared 5 Hz, sent every 5 s: each
 interval 25 periods); a near miss still needs ``min_intervals``."""
 MAX_SERIES = 600
@@ -184,7 +190,7 @@ class RateTracker:
             self.excluded += 1
             return
         if stamp is not None and last_stamp is not None and stamp > last_stamp:
-            # The unit's own spacing (issue 25 §3): arrivals bunch when a broker or link
+            # The unit's own spacing: arrivals bunch when a broker or link
             # holds traffic and delivers it at once; the stamps say when it was sent.
             dt = stamp - last_stamp
             self.by_stamp += 1
@@ -285,7 +291,7 @@ class RateTracker:
                 self.all_max_at, self.silences)
 
     def _how(self) -> str:
-        """How the intervals were measured, for the rate's note (issue 25 §3)."""
+        """How the intervals were measured, for the rate's note."""
         said = []
         if self.by_stamp:
             said.append("intervals by the unit's stamps" if self.by_stamp == self.all_n else
@@ -382,7 +388,8 @@ def rate_matches_declared(ctx: CheckContext, unit: UnitState, msg: Message,
     rate = m.get("rate") if type(m) is dict else None
     declared = usable_rate(rate)
     found = None if declared is not None or not (
-        type(rate) in (float, int) and rate > 0) else [_unusable(kind, msg, rate, unit)]
+        isinstance(rate, (float, int)) and not isinstance(rate, bool) and rate > 0
+    ) else [_unusable(kind, msg, rate, unit)]
     if declared is None:
         declared = unit.declared_rates.get(kind)
     trackers = unit.stash.get(RATES)
@@ -420,8 +427,8 @@ def _number(x: float) -> str:
     """A number for a person, whatever its size (no repr of a 5000-digit int)."""
     try:
         return f"{float(x):.6g}"
-    except OverflowError:
-        return f"a whole number of {x.bit_length()} bits"
+    except OverflowError:  # only an int is too large for a float
+        return f"a whole number of {int(x).bit_length()} bits"
 
 
 def _unusable(kind: TopicKind, msg: Message, rate: float, unit: UnitState) -> Violation:
@@ -436,7 +443,7 @@ def _unusable(kind: TopicKind, msg: Message, rate: float, unit: UnitState) -> Vi
 
 @check("HB-003", "SI-002", "DEI-002", "TEI-002", finish=True, reads=(RATES,))
 def rate_matches_declared_at_end(ctx: CheckContext, unit: UnitState, now: float,
-                                 findings) -> Iterator[Violation]:  # type: ignore[no-untyped-def]
+                                 findings: Findings) -> Iterator[Violation]:
     for tracker in _trackers(unit).values():
         stat, found = tracker.judge(ctx, str(unit.address))
         if not stat.judged:

@@ -10,11 +10,16 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
+from conformance import __version__
 from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import OVER_A_GAP
+from conformance.checks.conversation import dropped
+from conformance.checks.liveness import deaths
+from conformance.checks.rates import rate_stats
+from conformance.facts import RunKind
 from conformance.judge import judge_rates, judge_rule
 from conformance.profile import Profile
-from conformance.results import UnitReport, skip_reason
+from conformance.results import Party, UnitReport, skip_reason
 from conformance.rules import CATALOGUE, Mode, Rule, Side
 from conformance.topics import UnitAddress
 from conformance.validator import Examined
@@ -109,10 +114,10 @@ class Findings:
 class Row:
     __slots__ = ("state", "records", "groups", "final", "unit", "party")
 
-    def __init__(self, state: UnitState, party: str = "unit", label: str = "") -> None:
+    def __init__(self, state: UnitState, party: Party = Party.UNIT, label: str = "") -> None:
         self.state = state
         self.party = party
-        """``unit``, or ``commander``: a row of what commanders sent (DESIGN: blame)."""
+        """A unit's, or a row of what commanders sent (DESIGN: blame)."""
         self.unit = label or ("" if state.address.prefix == UNATTRIBUTED else str(state.address))
         self.records: dict[str, RuleRecord] = {}
         self.groups: dict[Examined, int] = {}
@@ -135,13 +140,10 @@ class Row:
         return found
 
 
-def row_report(ctx: CheckContext, profile: Profile, kind: str, address: UnitAddress | None,
+def row_report(ctx: CheckContext, profile: Profile, kind: RunKind, address: UnitAddress | None,
            entry: Row, final: Findings, now: float) -> UnitReport:
     """The report's row of ``entry`` (the unit at ``address``, or a commander or the
     unattributed topics when None), with the end-of-run ``final`` findings, at ``now``."""
-    from conformance.checks.liveness import deaths
-    from conformance.checks.rates import rate_stats
-
     state = entry.state
     examined = _examined(entry, final)
     notes = {**state.notes, **final.notes}
@@ -211,7 +213,7 @@ def _examined(entry: Row, final: Findings) -> dict[str, int]:
 def _rule_ids(entry: Row, address: UnitAddress | None, examined: dict[str, int]) -> list[str]:
     """The rules a row reports: a commander's rules and any other it broke; without a unit
     only the rules examined or broken; a unit every rule of the catalogue."""
-    if entry.party == "commander":
+    if entry.party == Party.COMMANDER:
         return [r for r, rule in CATALOGUE.items() if rule.side is Side.COMMANDER
                 or r in examined or r in entry.records]
     if address is None:
@@ -230,7 +232,7 @@ def _excuse_scenario(evidence: list[Violation], count: int, excused: str, seen: 
     evidence, count, excused = _excuse(evidence, count, excused, died,
                                        "the unit died (HB-012) before it could answer")
     # What a scenario found missing while the broker lost or held the traffic, or was due
-    # within a response timeout before (issue 25 §3): the broker's fault.
+    # within a response timeout before: the broker's fault.
     evidence, count, excused = _excuse(evidence, count, excused, held, OVER_A_GAP)
     if not count and before:
         # The examinations that found what was excused are no passes: a rule judged only
@@ -254,8 +256,6 @@ def _excuse(evidence: list[Violation], count: int, excused: str,
 
 def _facts(state: UnitState) -> dict[str, Any]:
     """What the report tells people of the unit besides the verdicts."""
-    from conformance.checks.conversation import dropped
-
     return {
         "declared_rates": dict(state.declared_rates),
         "sensors_listed": list(state.sensors_listed or ()),
@@ -288,14 +288,12 @@ def suite_version() -> str:
 
         return version("waraps-conformance")
     except Exception:  # not installed: the source tree's version
-        from conformance import __version__
-
         return __version__
 
 
 def schemas_hash() -> str:
     try:
-        from conformance.schema import schemas_hash  # type: ignore[attr-defined]
+        from conformance.schema import schemas_hash
     except Exception:  # the schema module is not there (yet)
         return ""
     try:

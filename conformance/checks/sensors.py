@@ -9,7 +9,8 @@ import math
 from collections.abc import Iterator
 from typing import Any
 
-from conformance.checks.base import CheckContext, UnitState, check, geopoint, reinterprets
+from conformance.checks.base import CheckContext, UnitState, geopoint
+from conformance.checks.registry import check, reinterprets
 from conformance.checks.stash import StashKey
 from conformance.message import Message
 from conformance.topics import MANDATORY_SENSORS, TopicKind
@@ -21,11 +22,13 @@ PUBLISH_WINDOW_PERIODS = 3.0
 """A listed sensor is judged unpublished only after 3 declared periods of the slower of
 heartbeat and sensor_info since the first sensor_info (sensors declare no rate of their own)."""
 MIN_JUMP_INTERVAL = 0.5
-"""SENS-005 compares positions at least 0.5 s apart: arrival-time jitter (FIELD-NOTES: up to
+"""SENS-005 compares positions at least 0.5 s apart: arrival-time jitter
+(docs/FIELD-NOTES.md 'Timing jitter': up to
 tens of ms) over a shorter interval would turn metre-level noise into absurd speeds."""
 BURST_GAP = 0.002
 """Positions arriving closer than this were queued and flushed together (a broker or link
-catching up; FIELD-NOTES timing jitter: +-0.7 ms idle, 1-7 ms loaded between messages sent a
+catching up; docs/FIELD-NOTES.md 'Timing jitter': +-0.7 ms idle, 1-7 ms loaded between messages
+sent a
 period apart): their arrival times are not when they were sent, so the latest of them is the
 new anchor and none is compared with one from before the burst."""
 EARTH_RADIUS = 6_371_000.0  # metres
@@ -259,7 +262,7 @@ def position_moves_plausibly(ctx: CheckContext, unit: UnitState, msg: Message,
     dt = t - t0
     seen.anchor = (point, t, life)
     if life != life0 or (ctx.gaps and ctx.in_gap(t0, t)):
-        # Another life of the unit (issue 24 §2): a new agent-uuid, a reboot the suite asked
+        # Another life of the unit: a new agent-uuid, a reboot the suite asked
         # for, or a gap of the broker between the two positions. A restarted agent may spawn
         # elsewhere; positions are compared within one life only.
         return None

@@ -1,5 +1,5 @@
 """A broker that stalls (frozen, overloaded, a link that holds traffic) is the broker's fault,
-never the unit's (DESIGN 'Safety', issue 25 §3): found from the traffic and marked as a gap of
+never the unit's (DESIGN 'Safety'): found from the traffic and marked as a gap of
 the observer, so that rates, silences, uuid changes and deadlines over it are not judged.
 
 A stall shows as a silence of every topic of every unit followed by a burst: what the broker
@@ -30,7 +30,8 @@ STALL_SILENCE = 2.0
 """Seconds every topic must have been silent before a burst reads as a stall (decision: twice
 the 1 Hz period of most units; a fleet is never silent that long while the broker works)."""
 BURST_SPACING = 0.05
-"""Seconds between consecutive arrivals of a burst (FIELD-NOTES: loaded jitter 1-7 ms, single
+"""Seconds between consecutive arrivals of a burst (docs/FIELD-NOTES.md 'Timing jitter': loaded
+jitter 1-7 ms, single
 outliers to 47 ms)."""
 LAG_JUMP = STALL_SILENCE / 2
 """Seconds by which a stamp's lag must exceed that topic's previous lag to be a held message."""

@@ -1,4 +1,4 @@
-"""A unit's typed components: what each check keeps of a unit between messages (issue 28 §2).
+"""A unit's typed components: what each check keeps of a unit between messages.
 
 In the spirit of pytest's ``Stash``: a component's key is a ``StashKey[T]`` object defined next
 to the component's owner (``CONVERSATIONS`` beside ``Conversations``, which hold the unit's

@@ -15,6 +15,7 @@ from typing import Any
 from conformance.checks.base import UnitState
 from conformance.checks.rows import UNATTRIBUTED, Row
 from conformance.checks.stash import StashKey
+from conformance.results import Party
 from conformance.topics import UnitAddress
 
 SENDER = "waraps-conformance"
@@ -53,7 +54,7 @@ def sent_by_suite(m: Any, payload: Any, unit: UnitState) -> bool:
     if ours:
         unit.stash[SEEN] = True
         return True
-    return bool(unit.stash.get(SEEN)) and isinstance(payload, (bytes, bytearray)) \
+    return unit.stash.get(SEEN, False) and isinstance(payload, (bytes, bytearray)) \
         and bytes(payload) in _PROBES
 
 
@@ -66,5 +67,5 @@ def suite_row(unit: UnitState, m: Any, payload: Any) -> Row | None:
     row = unit.stash.get(SUITE_ROW)
     if row is None:
         row = unit.stash[SUITE_ROW] = Row(UnitState(UnitAddress(UNATTRIBUTED, "", "", LABEL)),
-                                          "commander", LABEL)
+                                          Party.COMMANDER, LABEL)
     return row

@@ -13,8 +13,9 @@ from collections.abc import Iterator
 
 import orjson
 
-from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import str_of
+from conformance.checks.registry import check
 from conformance.checks.tst_conversation import (
     TST_COMMANDS,
     TST_CONVERSATIONS,

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import (
     OVER_A_GAP,
     judged_on_a_copy,
@@ -19,6 +19,7 @@ from conformance.checks.command_history import (
     resends_unanswered,
 )
 from conformance.checks.liveness import IDENTITY, dying_at_end, dying_before_life
+from conformance.checks.registry import check
 from conformance.checks.tst_conversation import (
     ANSWER_RULE,
     TST_CONVERSATIONS,

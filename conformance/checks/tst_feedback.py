@@ -13,8 +13,9 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Any
 
-from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import str_of, violation
+from conformance.checks.registry import check
 from conformance.checks.tst_conversation import (
     TST_CONVERSATIONS,
     TstConversations,

@@ -12,8 +12,9 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Any
 
-from conformance.checks.base import CheckContext, UnitState, check
+from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.command_history import left_unanswered, str_of, violation
+from conformance.checks.registry import check
 from conformance.checks.tst_conversation import (
     ANSWER_RULE,
     TST_CONVERSATIONS,

@@ -50,9 +50,9 @@ class TstRouting:
             root = m.get("root-uuid")
             if address is not None and isinstance(root, str):
                 self.by_node[root] = address
-            return address  # type: ignore[no-any-return]
+            return address
         if kind is TopicKind.TST_FEEDBACK:
-            return self.by_node.get(m.get("node-uuid"))  # type: ignore[no-any-return]
+            return self.by_node.get(m.get("node-uuid"))
         return None
 
     def _command(self, m: dict[str, Any], resolve: Callable[[str], UnitAddress | None]

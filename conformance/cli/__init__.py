@@ -2,8 +2,11 @@
 
 Each subcommand is a thin module of this package, ``conformance.cli.<name>``, exposing
 ``main(argv) -> int``: it parses its arguments (the shared option groups are in
-``conformance.cli.options``) and calls the part that does the work. This module only
-dispatches, so ``waraps-conformance --help`` stays fast (no amqtt, paho or schema import).
+``conformance.cli.options``) and calls the part that does the work, imported inside ``main``
+after the arguments are parsed, so that ``COMMAND --help`` loads no MQTT client, schema or
+broker (the pytest plugin, ``plugin.py``, likewise loads the suite only for ``--unit``).
+This module only dispatches, so ``waraps-conformance --help`` stays fast (no amqtt, paho or
+schema import).
 """
 
 from __future__ import annotations
@@ -49,8 +52,11 @@ def _terminate_as_ctrl_c() -> Callable[[], None]:
     if threading.current_thread() is not threading.main_thread():
         return lambda: None
     previous = signal.signal(signal.SIGTERM, interrupt)
-    return lambda: signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None
-                                 else previous)
+
+    def restore() -> None:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+
+    return restore
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -79,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
 
     restore = _terminate_as_ctrl_c()
 
-    stdout, sys.stdout = sys.stdout, PipeOut(sys.stdout)  # type: ignore[assignment]
+    stdout, sys.stdout = sys.stdout, PipeOut(sys.stdout)
     try:
         return int(module.main(rest) or 0)
     except KeyboardInterrupt:

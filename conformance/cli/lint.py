@@ -21,8 +21,8 @@ from typing import IO
 
 from conformance.bounds import bounds_help
 from conformance.cli import options as opts
-from conformance.lint import EXIT_NOT_RUN, EXIT_USAGE
-from conformance.lint.runner import GATES, REPORT_FORMATS, lint
+from conformance.facts import GATES, Gate
+from conformance.lint import EXIT_NOT_RUN, EXIT_USAGE, REPORT_FORMATS
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -103,7 +103,9 @@ def parse_formats(text: str) -> tuple[str, ...]:
 
 def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
          stdin: IO[bytes] | None = None) -> int:
+    # Loaded here, not at the top: `lint --help` loads no MQTT client, schema or report writer.
     from conformance.lint.capture import CaptureOptionsError
+    from conformance.lint.runner import lint
     from conformance.lint.serve import ServeError, parse_address
     from conformance.profile import ProfileError, load
 
@@ -146,7 +148,7 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
             return usage(f"--ros-unit: {e}")
     try:
         return lint(options, profile, source=args.source, ros_unit=ros_unit,
-                    reports_dir=Path(args.reports_dir), formats=formats, gate=args.gate,
+                    reports_dir=Path(args.reports_dir), formats=formats, gate=Gate(args.gate),
                     plain=args.plain, stdout=stdout, stdin=stdin, serve=serve, linger=linger)
     except ServeError as e:  # the address cannot be bound: nothing was linted
         opts.say("lint", e)

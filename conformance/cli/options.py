@@ -54,7 +54,7 @@ def parse_duration(text: str) -> float:
             break
         total += float(m.group(1)) * _UNIT_SECONDS[m.group(2)]
         pos = m.end()
-    if not s or pos != len(s) or not 0 < total <= MAX_DURATION_SECONDS:  # inf: issue 26
+    if not s or pos != len(s) or not 0 < total <= MAX_DURATION_SECONDS:  # inf and nan too
         raise ValueError(f"duration {_excerpt(text)} is not a positive time like 90s, 10m, "
                          f"1h30m or a number of seconds, at most {MAX_DURATION_SECONDS // 86400} "
                          f"days")
@@ -86,7 +86,7 @@ MAX_RATE = 1000.0
 
 def parse_rate(text: str) -> float:
     """A rate in Hz as ``--rate`` and ``--sim-rate`` take it: a number above 0, at most
-    ``MAX_RATE`` (``inf``, ``nan``, 0 and negative numbers are refused: issue 26). An
+    ``MAX_RATE`` (``inf``, ``nan``, 0 and negative numbers are refused). An
     ``argparse.ArgumentTypeError`` (a usage error of the command, or of pytest) says so."""
     try:
         rate = float(text)

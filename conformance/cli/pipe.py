@@ -1,6 +1,6 @@
 """Standard output whose reader may leave (``waraps-conformance lint --from F | head -n 1``):
 the command goes on and ends as it would have (its reports written, its exit status its
-own: issue 26 §4); only what it prints goes nowhere once the reader is gone."""
+own); only what it prints goes nowhere once the reader is gone."""
 
 from __future__ import annotations
 

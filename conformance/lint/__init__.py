@@ -11,6 +11,9 @@ from __future__ import annotations
 
 from conformance.exits import EXIT_LINT_PARTIAL as EXIT_PARTIAL  # noqa: F401 (its one home)
 
+REPORT_FORMATS = ("json", "html", "junit")
+"""What ``lint --report-format`` may name (all three by default)."""
+
 EXIT_PASS, EXIT_FAIL, EXIT_USAGE, EXIT_NOT_RUN = 0, 1, 2, 3
 """Exit status of a lint: no unit (or commander) fails a rule of severity error; one does; bad
 usage; nothing could be linted (no broker, no messages); ``EXIT_PARTIAL`` (4): none fails, but

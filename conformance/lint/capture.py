@@ -2,7 +2,8 @@
 
 paho's network thread only appends each message to a bounded queue (a few microseconds), so it
 keeps reading the socket however slow the examination is; Mosquitto would otherwise drop
-messages silently once 1000 are queued for us (FIELD-NOTES), and healthy units would look too
+messages silently once 1000 are queued for us (docs/FIELD-NOTES.md 'MQTT on loopback'), and healthy
+units would look too
 slow. When the queue is full the *oldest* messages are dropped and counted: the consumer is
 told with an ``unexamined`` event, so rate checks for that window are not judged instead of
 reporting false rate violations. Connection losses become ``disconnected`` / ``connected``

@@ -22,8 +22,12 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
+from conformance.facts import RunFacts, RunKind
+from conformance.judge import judge
 from conformance.lint.linter import FLEET_RULES
 from conformance.lint.rows import STATUS_ORDER, LintRow, live_rows, report_rows, seen_fields
+from conformance.reporting.jsonreport import dumps
+from conformance.results import Party
 from conformance.violation import Verdict, Violation
 
 SNAPSHOT_EVERY = 1.0
@@ -97,7 +101,7 @@ class Snapshot:
                 return r
         return None
 
-    def counts(self, party: str = "unit") -> dict[str, int]:
+    def counts(self, party: Party = Party.UNIT) -> dict[str, int]:
         """Rows of ``party`` (unit or commander) by status."""
         out = dict.fromkeys(STATUS_ORDER, 0)
         for r in self.rows:
@@ -107,7 +111,7 @@ class Snapshot:
 
 
 def _sorted(rows: list[Row]) -> tuple[Row, ...]:
-    return tuple(sorted(rows, key=lambda r: (STATUS_ORDER[r.status], r.party != "unit",
+    return tuple(sorted(rows, key=lambda r: (STATUS_ORDER[r.status], r.party != Party.UNIT,
                                              r.pseudo, r.unit)))
 
 
@@ -183,8 +187,6 @@ class FleetView:
         with self._report_ready:
             if self._final_report is not None:
                 if self._report_final is None:  # nothing changes it any more: any thread
-                    from conformance.reporting.jsonreport import dumps
-
                     self._report_final = dumps(self._final_report)
                 return self._report_final
             made = self._report_made
@@ -223,7 +225,8 @@ class FleetView:
 
     def _rates(self, key: str, state: Any, seen: dict[Any, int]) -> tuple[RateView, ...]:
         out = []
-        first = last = None
+        first: dict[Any, float] | None = None
+        last: dict[Any, float] = {}
         for kind, declared in state.declared_rates.items():
             samples = list(self._samples.get((key, _kind(kind)), ()))
             history = tuple((t1, (n1 - n0) / (t1 - t0)) for (t0, n0), (t1, n1)
@@ -300,12 +303,8 @@ def _fleet_findings(report: Any, limit: int = 50) -> tuple[tuple[str, Violation]
 def _provisional_report(linter: Any, meta: dict[str, Any]) -> bytes:
     """The report as it stands, judged (end-of-run checks judged at the latest time, not
     stored); ``meta``: ``facts`` (``RunFacts``) and what the report says of the run."""
-    from conformance.facts import RunFacts
-    from conformance.judge import judge
-    from conformance.reporting.jsonreport import dumps
-
     meta = dict(meta)
-    facts = meta.pop("facts", None) or RunFacts(kind="lint")
+    facts = meta.pop("facts", None) or RunFacts(kind=RunKind.LINT)
     report = linter.monitor.report(finished=None, provisional="the run goes on: this is the "
                                    "report as it stands", **meta)
     return dumps(judge(report, facts))

@@ -7,16 +7,16 @@ from __future__ import annotations
 
 import time
 from collections import Counter, deque
-from collections.abc import Iterable
-from typing import Any, Protocol
+from typing import Any
 
-from conformance.checks.monitor import MAX_COMMANDERS, MAX_UNITS, UNATTRIBUTED
+from conformance.checks.monitor import MAX_COMMANDERS, MAX_UNITS, UNATTRIBUTED, Monitor
+from conformance.judge import violation_verdict
 from conformance.message import Gap, Message
 from conformance.profile import Profile
 from conformance.recording import CUT, Event
-from conformance.rules import Severity
+from conformance.rules import CATALOGUE, Severity
 from conformance.topics import parse_topic
-from conformance.violation import Violation
+from conformance.violation import Verdict, Violation
 
 FLEET_RULES = ("HB-010", "HB-011", "HB-012", "HB-006", "EXEC-006", "EXEC-008", "MSG-007")
 """Observations about the fleet over time (silence, identity, commands and answers, retained
@@ -37,21 +37,6 @@ backoff), plus two of their longest declared heartbeat periods; until then, or u
 back, the gap stays open (as the suite keeps it open until its unit is back)."""
 
 
-class MonitorLike(Protocol):
-    """The contract of ``conformance.checks.Monitor`` that the linter relies on."""
-
-    def feed(self, message: Message) -> list[Violation]: ...
-    def record(self, unit: Any, rule: str, *, violation: Violation | None = None) -> None: ...
-    def connection_gap(self, start: float, end: float | None) -> None: ...
-    def heard_again(self, t: float) -> None: ...
-    ctx: Any  # checks/base.py's CheckContext (its ``stalls``: checks/stall.py)
-    def unexamined(self, n: int) -> None: ...
-    def finish(self, now: float) -> Any: ...
-    def units(self) -> Iterable[Any]: ...
-    def state(self, unit: Any) -> Any: ...
-    def report(self, **meta: Any) -> Any: ...
-
-
 class Linter:
     """Feeds a Monitor and tallies violations per unit and rule (bounded memory).
 
@@ -59,7 +44,7 @@ class Linter:
     latest fleet observations, ``events`` capture events not yet shown.
     """
 
-    def __init__(self, monitor: MonitorLike, profile: Profile | None = None) -> None:
+    def __init__(self, monitor: Monitor, profile: Profile | None = None) -> None:
         self.monitor = monitor
         self.profile = profile or Profile()
         self.messages = 0
@@ -149,20 +134,21 @@ class Linter:
         gap = self._open_gap
         assert gap is not None
         self._open_gap = None
-        closed = Gap(gap.start, max(end, gap.start), gap.reason)
+        end = max(end, gap.start)
+        closed = Gap(gap.start, end, gap.reason)
         self.gaps.append(closed)
         # Rates, silences and deadlines over a time we could not see are not judged (the
         # Monitor leaves it out), nor until the units alive before are heard again.
         if final:
-            self.monitor.connection_gap(closed.start, closed.end)  # type: ignore[arg-type]
+            self.monitor.connection_gap(closed.start, end)
             return
         self.monitor.connection_gap(closed.start, None)
         units = [u for u in self.monitor.units() if self._alive_at(u, closed.start)]
         self._returning = {str(u): 0 for u in units}
         periods = [self.monitor.state(u).period("heartbeat") or 1.0 for u in units]
-        self._return_by = closed.end + RETURN_BUDGET + 2 * max(periods, default=1.0)
+        self._return_by = end + RETURN_BUDGET + 2 * max(periods, default=1.0)
         if not units:
-            self._heard_again(closed.end)
+            self._heard_again(end)
 
     def _alive_at(self, unit: Any, t: float) -> bool:
         """Whether ``unit`` was heard within 3 heartbeat periods (at least 3 s) before ``t``."""
@@ -295,8 +281,6 @@ class Linter:
 
     @staticmethod
     def _decided(v: Violation) -> bool:
-        from conformance.rules import CATALOGUE
-
         rule = CATALOGUE.get(v.rule)
         try:
             return rule is not None and rule.decided(v.condition)
@@ -307,10 +291,6 @@ class Linter:
         """Whether a violation of ``rule`` fails (else warns), as the judge will say at the
         end (``judge.violation_verdict``: a decided rule, or a rule of whose ``unit`` only
         decided conditions were found, warns unless the profile adopts it)."""
-        from conformance.judge import violation_verdict
-        from conformance.rules import CATALOGUE
-        from conformance.violation import Verdict
-
         found = CATALOGUE.get(rule)
         severity = self.profile.severity_of(rule)
         if found is None:
@@ -322,10 +302,6 @@ class Linter:
 
     def fails(self, v: Violation) -> bool:
         """Whether the finding ``v`` on its own fails (its condition's basis, the profile)."""
-        from conformance.judge import violation_verdict
-        from conformance.rules import CATALOGUE
-        from conformance.violation import Verdict
-
         rule = CATALOGUE.get(v.rule)
         if rule is None:
             return self.profile.severity_of(v.rule) is Severity.ERROR

@@ -20,6 +20,7 @@ from conformance.display import NAME_CHARS, printable, shorten
 from conformance.lint.fleetview import Snapshot
 from conformance.lint.linter import OTHER_UNITS
 from conformance.lint.rows import STATUS_WORDS
+from conformance.results import Party
 
 MAX_SERIES = 5000
 """Series per labelled metric family (``bounds.MAX_UNITS`` units would need 4096 each)."""
@@ -79,7 +80,7 @@ class SnapshotCollector:
         units = GaugeMetricFamily("waraps_lint_units", "Units and commanders by their status "
                                   "(silent now, fail, warn, clean so far; unheard: nothing of "
                                   "its own seen)", labels=["party", "status"])
-        by = {(p, w): 0 for p in ("unit", "commander") for w in STATUS_WORDS.values()}
+        by = {(p, w): 0 for p in Party for w in STATUS_WORDS.values()}
         for row in s.rows:
             by[(row.party, STATUS_WORDS[row.status])] += 1
         for (party, status), n in sorted(by.items()):

@@ -62,8 +62,11 @@ def _record(options: CaptureOptions, capture: LiveCapture, writer: RecordingWrit
     finally:
         capture.stop()
         batch, events = capture.take(timeout=0, max_messages=10**9)  # all that is left
-        for item in [*events, *(m for m in batch if options.wants(m.topic))]:
-            writer.write(item)
+        for event in events:
+            writer.write(event)
+        for message in batch:
+            if options.wants(message.topic):
+                writer.write(message)
         # Lint judges up to here: a unit silent since its last message until now has died.
         writer.write(Event(time.time(), "end", "stopped"))
         writer.flush()

@@ -1,7 +1,7 @@
 """What lint saw of each unit and commander: one ``LintRow`` each, made here only, live from
 the ``Linter`` or at the end from the run report, and rendered by the terminal scorecard
 (``conformance.scorecard``) and the fleet page (``lint.fleetview``) alike, so the two cannot
-disagree on a row's type, role, levels, messages, last seen, findings or status (issue 28, 3).
+disagree on a row's type, role, levels, messages, last seen, findings or status.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from typing import Any
 
 from conformance.conclusion import facts_of, triage_rank
 from conformance.lint.linter import NOT_A_UNIT, OTHER_UNITS
+from conformance.results import Party
 from conformance.rules import CATALOGUE
 from conformance.violation import Verdict, Violation
 
@@ -45,10 +46,10 @@ class Finding:
 @dataclass(frozen=True)
 class LintRow:
     """A unit or commander (``party``) as lint saw it; times Unix seconds, None in a capture
-    without times (issue 27, 4). ``levels`` None: a unit sent messages but no levels yet."""
+    without times. ``levels`` None: a unit sent messages but no levels yet."""
 
     unit: str
-    party: str = "unit"
+    party: Party = Party.UNIT
     agent_type: str = ""
     role: str = ""
     levels: tuple[str, ...] | None = None
@@ -73,7 +74,7 @@ class LintRow:
             return "FAIL"
         if self.findings:
             return "warn"
-        return "ok" if self.messages or self.party == "commander" else "-"
+        return "ok" if self.messages or self.party == Party.COMMANDER else "-"
 
     @property
     def failing(self) -> bool:
@@ -100,11 +101,11 @@ def severity(f: Finding) -> tuple[int, int, str]:
             -f.count, f.rule)
 
 
-def _levels(levels: Any, party: str, messages: int) -> tuple[str, ...] | None:
+def _levels(levels: Any, party: Party, messages: int) -> tuple[str, ...] | None:
     """None only for a unit that sent messages and no levels (no heartbeat yet)."""
     if levels:
         return tuple(levels)
-    return None if party == "unit" and messages else ()
+    return None if party == Party.UNIT and messages else ()
 
 
 def live_rows(linter: Any, evidence: Mapping[tuple[str, str], Violation] | None = None,
@@ -127,18 +128,18 @@ def live_rows(linter: Any, evidence: Mapping[tuple[str, str], Violation] | None 
         key = str(address if address is not None else unit)
         count = int(getattr(state, "message_count", 0) or 0)
         rows[key] = LintRow(
-            key, "unit", str(getattr(state, "agent_type", "") or ""),
+            key, Party.UNIT, str(getattr(state, "agent_type", "") or ""),
             str(getattr(address, "role", "") or ""),
-            _levels(getattr(state, "levels", None), "unit", count), count,
+            _levels(getattr(state, "levels", None), Party.UNIT, count), count,
             None if untimed else getattr(state, "first_seen", None),
             None if untimed else getattr(state, "last_seen", None),
             live=tuple(v.rule for v in monitor.live_findings(unit) if fails_now(v))
             if live else (), silent_since=silent.get(key))
     for label in getattr(monitor, "commanders", list)():  # a row each, clean or not
-        rows[label] = LintRow(label, "commander", "commander", levels=())
+        rows[label] = LintRow(label, Party.COMMANDER, "commander", levels=())
     for unit, counts in list(linter.by_unit.items()):
-        party = "unit" if unit in (NOT_A_UNIT, OTHER_UNITS) else "commander"
-        row = rows.get(unit) or LintRow(unit, party, "" if party == "unit" else "commander",
+        party = Party.UNIT if unit in (NOT_A_UNIT, OTHER_UNITS) else Party.COMMANDER
+        row = rows.get(unit) or LintRow(unit, party, "" if party == Party.UNIT else "commander",
                                         levels=())
         found = (Finding(rule, "fail" if fails(rule, unit) else "warn", n,
                          (evidence or {}).get((unit, rule))) for rule, n in counts.items())
@@ -157,7 +158,7 @@ def report_rows(report: Any) -> list[LintRow]:
                          res.violations[0] if res.violations else None, res.reason)
                  for rule, res in u.rules.items() if res.verdict.value in ("fail", "warn")]
         rows.append(LintRow(
-            unit, u.party, "commander" if u.party == "commander" else u.agent_type, u.role,
+            unit, u.party, "commander" if u.party == Party.COMMANDER else u.agent_type, u.role,
             _levels(u.levels, u.party, u.message_count), u.message_count,
             None if untimed else u.first_seen, None if untimed else u.last_seen,
             tuple(sorted(found, key=severity))))

@@ -13,17 +13,39 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+from conformance.bounds import MAX_UNITS
+from conformance.checks import Monitor
+from conformance.client import BrokerError
+from conformance.conclusion import ranked_findings
 from conformance.display import NAME_CHARS, printable, printable_lines, shorten, shown
-from conformance.lint import EXIT_FAIL, EXIT_NOT_RUN, EXIT_PARTIAL, EXIT_PASS
+from conformance.facts import Gate, RunFacts, RunKind
+from conformance.judge import judge
+from conformance.lint import EXIT_FAIL, EXIT_NOT_RUN, EXIT_PARTIAL, EXIT_PASS, REPORT_FORMATS
+from conformance.lint.capture import LiveCapture
+from conformance.lint.linter import Linter
+from conformance.lint.serve import Serving
+from conformance.message import Message
+from conformance.recording import (
+    UNTIMED,
+    UNTIMED_NOTE,
+    UNTIMED_RULES,
+    Event,
+    RecordingError,
+    RecordingReader,
+    open_recording,
+)
+from conformance.reporting import write_html, write_json, write_junit
 from conformance.reporting.bounds import file_stem
-
-GATES = ("all", "units")
-REPORT_FORMATS = ("json", "html", "junit")
+from conformance.reporting.text import render_verdicts, render_violation
+from conformance.results import Party
+from conformance.rosbag import BagError, BagReader, is_bag
+from conformance.scorecard import Scorecard
+from conformance.violation import Verdict
 
 
 def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any = None,
          reports_dir: Path = Path("reports"), formats: tuple[str, ...] = REPORT_FORMATS,
-         gate: str = "all", plain: bool = False, stdout: IO[str] | None = None,
+         gate: Gate = Gate.ALL, plain: bool = False, stdout: IO[str] | None = None,
          stdin: IO[bytes] | None = None, serve: Any = None, linger: float | None = 0.0) -> int:
     """Lint the traffic ``options`` (``CaptureOptions``) name, live, or the recording or ROS
     bag at ``source``; print the scorecard and write the reports. Returns the exit status:
@@ -37,7 +59,6 @@ def lint(options: Any, profile: Any, *, source: str | None = None, ros_unit: Any
         return _lint(options, profile, source=source, ros_unit=ros_unit,
                      reports_dir=reports_dir, formats=formats, gate=gate, plain=plain,
                      stdout=stdout, stdin=stdin)
-    from conformance.lint.serve import Serving
 
     with Serving(serve, linger, stdout or sys.stdout, live=not source) as serving:
         return _lint(options, profile, source=source, ros_unit=ros_unit, reports_dir=reports_dir,
@@ -61,20 +82,16 @@ class _Read:
 
 
 def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
-          reports_dir: Path, formats: tuple[str, ...], gate: str, plain: bool,
+          reports_dir: Path, formats: tuple[str, ...], gate: Gate, plain: bool,
           stdout: IO[str] | None, stdin: IO[bytes] | None, serving: Any = None) -> int:
-    from conformance.lint.linter import Linter
-    from conformance.rosbag import is_bag
-    from conformance.scorecard import Scorecard
-
     out = stdout or sys.stdout
     monitor = _monitor(profile, options.units)
     linter = Linter(monitor, profile)
     if serving:  # /report.json while lint runs: judged as the end will judge it
-        from conformance.facts import RunFacts
 
         serving.view.report_meta(broker=str(options.broker or ""),
-                                 facts=RunFacts(kind="lint", gate=gate, strict=profile.is_strict))
+                                 facts=RunFacts(kind=RunKind.LINT, gate=gate,
+                                                strict=profile.is_strict))
     started = time.time()
 
     def scorecard(title: str, live: bool) -> Any:
@@ -100,13 +117,11 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
     over, over_units = monitor.not_judged()
     if over:
         meta["not_judged"] = _not_judged(over, over_units)
-    from conformance.facts import RunFacts
-    from conformance.judge import judge
 
     report = judge(_report(monitor, linter, kind_meta=meta, broker=read.broker,
                            started=started if not source else (linter.first_time or started),
                            finished=end),
-                   RunFacts(kind="lint", gate=gate, strict=profile.is_strict,
+                   RunFacts(kind=RunKind.LINT, gate=gate, strict=profile.is_strict,
                             untimed=untimed(linter), not_judged=meta.get("not_judged", ""),
                             not_examined=_malformed(read.problem_count)))
     if serving:  # the fleet page's last snapshot: every verdict final
@@ -135,8 +150,6 @@ def _write(out: IO[str], report: Any, reports_dir: Path, formats: tuple[str, ...
 def _read_bag(linter: Any, scorecard: Callable[[str, bool], Any], source: str, ros_unit: Any,
               options: Any) -> _Read | None:
     """Lint a ROS bag (None when it cannot be: said on stderr)."""
-    from conformance.rosbag import BagError, BagReader
-
     reader = BagReader(source, ros_unit)
     card = scorecard(reader.name, False)
     try:
@@ -151,8 +164,6 @@ def _read_bag(linter: Any, scorecard: Callable[[str, bool], Any], source: str, r
 def _read_recording(linter: Any, scorecard: Callable[[str, bool], Any], source: str,
                     stdin: IO[bytes] | None, options: Any, out: IO[str]) -> _Read | None:
     """Lint a recording, ``-`` for standard input (None when it cannot be opened)."""
-    from conformance.recording import RecordingError, open_recording
-
     try:
         stream, name = open_recording(source, stdin)
     except RecordingError as e:
@@ -177,9 +188,6 @@ def _read_recording(linter: Any, scorecard: Callable[[str, bool], Any], source: 
 def _read_live(linter: Any, scorecard: Callable[[str, bool], Any], options: Any,
                out: IO[str]) -> _Read | None:
     """Lint live traffic, read-only (None when the broker cannot be reached)."""
-    from conformance.client import BrokerError
-    from conformance.lint.capture import LiveCapture
-
     assert options.broker is not None
     capture = LiveCapture(options.broker, options.topics)
     try:
@@ -215,11 +223,8 @@ def _nothing_read(out: IO[str], linter: Any, read: _Read) -> int:
 
 def _tell(out: IO[str], linter: Any, report: Any, read: _Read) -> None:
     """The end of a lint on the terminal: each unit's verdict and its most severe findings
-    first (issue 18, 6), then the table; a capture without times says so before anything
-    else (issue 27, 4); then the malformed lines, notes, gaps and stalls."""
-    from conformance.recording import UNTIMED_NOTE
-    from conformance.reporting.text import render_verdicts
-
+    first, then the table; a capture without times says so before anything
+    else; then the malformed lines, notes, gaps and stalls."""
     notes = read.notes
     first = [n for n in notes if n.startswith(UNTIMED_NOTE)] if report.facts.untimed else []
     notes = [n for n in notes if n not in first]
@@ -235,7 +240,7 @@ def _tell(out: IO[str], linter: Any, report: Any, read: _Read) -> None:
         print(f"connection gap: {time.strftime('%H:%M:%S', time.localtime(gap.start))} for "
               f"{gap.duration:.1f} s ({printable(gap.reason or 'connection lost')}); rates over it not "
               f"judged", file=out)
-    for start, end in linter.monitor.ctx.stalls.found:  # issue 25 §3: the broker's, not the units'
+    for start, end in linter.monitor.ctx.stalls.found:  # The broker's, not the units'
         print(f"broker stalled: {time.strftime('%H:%M:%S', time.localtime(start))} for "
               f"{end - start:.1f} s (nothing arrived, then what it held at once); rates, "
               f"silences and deadlines over it not judged", file=out)
@@ -244,15 +249,15 @@ def _tell(out: IO[str], linter: Any, report: Any, read: _Read) -> None:
               file=out)
 
 
-def _verdict(out: IO[str], report: Any, gate: str, not_judged: str) -> int:
+def _verdict(out: IO[str], report: Any, gate: Gate, not_judged: str) -> int:
     """The evidence of the failures, the last line (what was observed, never a certificate:
     DESIGN 'Semantics', 'clean', not 'pass'), and the exit status."""
     evidence = failures(report)
     if evidence:
         print(f"\n{printable_lines(evidence)}\n", file=out)
     failing = sorted(u for u, rep in report.units.items() if rep.worst().value == "fail"
-                     and (gate == "all" or rep.party == "unit"))
-    gated = "no unit or commander" if gate == "all" else "no unit"
+                     and (gate == Gate.ALL or rep.party == Party.UNIT))
+    gated = "no unit or commander" if gate == Gate.ALL else "no unit"
     conclusion = report.conclusion
     if failing or not not_judged:
         print(("FAIL: " + printable(", ".join(shorten(u, NAME_CHARS) for u in failing)))
@@ -260,7 +265,7 @@ def _verdict(out: IO[str], report: Any, gate: str, not_judged: str) -> int:
               "severity error (observed, not certified)" + "".join(
                   f"; but {printable(why)}" for why in conclusion.why if conclusion.partial),
               file=out)
-    if not_judged:  # past the bound: never a pass (issue 19)
+    if not_judged:  # past the bound: never a pass
         print(f"FAIL: {printable(not_judged)}", file=out)
     out.flush()
     return conclusion.exit_code if conclusion.exit_code in (EXIT_FAIL, EXIT_PARTIAL) else (
@@ -274,8 +279,6 @@ def _malformed(count: int) -> str:
 
 
 def _not_judged(over: int, units: list[str]) -> str:
-    from conformance.bounds import MAX_UNITS
-
     return (f"not judged: {over} messages of units past the {MAX_UNITS} units lint judges at "
             f"once ({', '.join(units)}{' and more' if len(units) >= 8 else ''}); lint them "
             f"apart with --unit ADDRESS or --topic FILTER")
@@ -292,10 +295,6 @@ MAX_FAILURES_SHOWN = 10
 def failures(report: Any, limit: int = MAX_FAILURES_SHOWN) -> str:
     """The first violation of each failed (unit, rule), at most ``limit`` of them, in the form
     the certification prints (STYLE.md): what a person reads before opening the HTML."""
-    from conformance.conclusion import ranked_findings
-    from conformance.reporting.text import render_violation
-    from conformance.violation import Verdict
-
     shown: list[str] = []
     more = 0
     # Most severe first (death, deafness, commands, messages): the cap cuts the least severe.
@@ -328,16 +327,12 @@ class _noop:
 
 
 def _monitor(profile: Any, units: tuple[Any, ...]) -> Any:
-    from conformance.checks import Monitor
-
-    return Monitor(profile, units=list(units) or None, kind="lint")
+    return Monitor(profile, units=list(units) or None, kind=RunKind.LINT)
 
 
 def run_recorded(linter: Any, scorecard: Any, stream: IO[bytes], name: str,
                  options: Any) -> tuple[Any, float]:
     """Feed a recording to the linter at its recorded times; returns (reader, end time)."""
-    from conformance.recording import RecordingReader
-
     reader = RecordingReader(stream, name)
     last_event = feed_recorded(linter, scorecard, reader, options)
     if reader.unprintable:
@@ -354,7 +349,7 @@ def run_bag(linter: Any, scorecard: Any, bag: Any, options: Any) -> float:
     try:
         feed_recorded(linter, scorecard, items, options)
     finally:
-        items.close()  # type: ignore[attr-defined]
+        items.close()
     end = linter.last_time or 0.0
     linter.finish(end)
     return end
@@ -364,9 +359,6 @@ def feed_recorded(linter: Any, scorecard: Any, items: Any, options: Any) -> floa
     """Feed recorded items at their recorded times, until ``--duration`` past the first
     message or Ctrl-C: messages (of the ``--unit``s), capture events, and ROS findings
     (``rosbag.Finding``). Returns the time of the last capture event, if any."""
-    from conformance.message import Message
-    from conformance.recording import UNTIMED, Event
-
     units = set(options.units)
     wants = options.wants if units else None
     feed = linter.feed_one
@@ -407,8 +399,6 @@ class _Untimed:
     untimed = True
 
     def __init__(self, monitor: Any) -> None:
-        from conformance.recording import UNTIMED_RULES
-
         self._monitor = monitor
         self._rules = frozenset(UNTIMED_RULES)
 
@@ -424,8 +414,6 @@ class _Untimed:
 
 
 def _unexamined(t: float, n: int) -> Any:
-    from conformance.recording import Event
-
     return Event(t, "unexamined", "mosquitto_sub -F %J could not print them", n)
 
 
@@ -474,7 +462,7 @@ def report_stem(source: str | None) -> str:
     ``lint-<local time>``."""
     if source and source != "-":
         name = Path(source).name.split(".")[0]
-        if name:  # bounded and sanitised (a 300-character name: issue 26)
+        if name:  # bounded and sanitised (a 300-character name)
             return f"lint-{file_stem(name).replace('.', '_')}"
     return time.strftime("lint-%Y%m%d-%H%M%S")
 
@@ -482,8 +470,6 @@ def report_stem(source: str | None) -> str:
 def write_reports(report: Any, directory: Path, formats: tuple[str, ...], stem: str) -> list[Path]:
     """Write the chosen report formats (``conformance.reporting``, the same writers as
     certification); returns their paths."""
-    from conformance.reporting import write_html, write_json, write_junit
-
     writers = {"json": (write_json, ".json"), "html": (write_html, ".html"),
                "junit": (write_junit, ".xml")}
     directory.mkdir(parents=True, exist_ok=True)

@@ -30,13 +30,15 @@ from urllib.parse import quote
 
 from conformance.display import NAME_CHARS, printable, shorten
 from conformance.lint.fleetview import FleetView, Snapshot
+from conformance.rules import CATALOGUE
 
 LOOPBACK = "127.0.0.1"
 MAX_PATH = 2048
 """The longest request path answered (a unit address is at most a few hundred characters)."""
-LIMITS = {"threads": 4, "connection_limit": 128, "max_request_header_size": 8192,
-          "max_request_body_size": 0, "channel_timeout": 30, "cleanup_interval": 1,
-          "ident": "waraps-conformance", "asyncore_loop_timeout": 1}
+LIMITS: dict[str, Any] = {"threads": 4, "connection_limit": 128,
+                          "max_request_header_size": 8192, "max_request_body_size": 0,
+                          "channel_timeout": 30, "cleanup_interval": 1,
+                          "ident": "waraps-conformance", "asyncore_loop_timeout": 1}
 """waitress's bounds (its adjustments): the page, its fragments and scrapes are small GETs.
 Room for 128 connections, the deadlines below checked every second: a few dozen slow clients
 leave room for a scrape."""
@@ -181,8 +183,6 @@ def _hz(rate: float | None) -> str:
 
 
 def _rule_of(rule_id: str) -> Any:
-    from conformance.rules import CATALOGUE
-
     return CATALOGUE.get(rule_id)
 
 
@@ -325,7 +325,8 @@ class Server:
         its trigger), then stop the worker threads; bounded by ``timeout`` seconds."""
         from waitress import wasyncore
 
-        server = self._server
+        # Its own loop's trigger and socket map are not in waitress's typed interface.
+        server: Any = self._server
         server.task_dispatcher.shutdown(cancel_pending=True, timeout=timeout)
         try:
             server.trigger.pull_trigger(lambda: wasyncore.close_all(server._map))

@@ -1,4 +1,4 @@
-"""Every report file has a size bound whatever the input (issue 19 §4): ``MAX_REPORT_BYTES``.
+"""Every report file has a size bound whatever the input: ``MAX_REPORT_BYTES``.
 
 A writer renders through ``bounded``: the report as it is when it fits; else the same report
 with less in it, chosen from the size of a sample of its units: first each rule's evidence cut
@@ -35,7 +35,7 @@ def file_stem(name: str, limit: int = STEM_CHARS) -> str:
     """``name`` (a unit's, a recording's: anything a person or a unit chose) as the start of a
     report's file name: itself when it is at most ``limit`` characters of ``A-Za-z0-9._-``;
     else those characters kept, others as '_', cut to ``limit``, and a hash of the whole so
-    that two names never share a file (issue 26: a 300-character unit name)."""
+    that two names never share a file (a 300-character unit name)."""
     safe = "".join(c if c.isascii() and (c.isalnum() or c in "._-") else "_" for c in
                    name[:limit + 1]).lstrip(".")
     if safe == name and len(name) <= limit:

@@ -29,8 +29,8 @@ from conformance.display import shorten
 from conformance.reporting.bounds import bounded
 from conformance.reporting.files import atomic_write
 from conformance.reporting.text import RERUN_OF, iso_time, printable, rerun_command
-from conformance.results import RateStat, RunReport, UnitReport
-from conformance.rules import CATALOGUE
+from conformance.results import Party, RateStat, RunReport, UnitReport
+from conformance.rules import CATALOGUE, reading
 from conformance.violation import RuleResult, Verdict, Violation
 
 if TYPE_CHECKING:
@@ -64,7 +64,7 @@ def _finalize(value: Any) -> Any:
     # one the cached environment's templates make (their markup was escaped twice).
     if hasattr(value, "__html__"):
         return value
-    return "" if value is None else printable(shorten(value))  # issue 19 §4, §5
+    return "" if value is None else printable(shorten(value))
 
 
 @functools.cache
@@ -195,7 +195,6 @@ def _head_facts(report: RunReport, conclusion: Conclusion) -> HeadFacts:
     counts = dict(conclusion.counts)
     not_run = counts.pop(NOT_RUN, 0)
     words = dict(META_WORDS)
-    from conformance.rules import reading
 
     meta = [("rules", reading(conclusion.strict))]
     for key in dict.fromkeys([k for k, _ in META_WORDS] + sorted(report.meta)):
@@ -234,21 +233,20 @@ class UnitView:
 
 def _unit(name: str, unit: UnitReport, status: UnitStatus) -> UnitView:
     ranked = sorted(unit.rules.values(), key=lambda r: ORDER.index(r.verdict))
-    words = dict(verdict=status.verdict, status=status.summary,
-                 identity=f"{unit.agent_type} / {unit.role} / {unit.name}",
-                 agent_uuids=", ".join(unit.agent_uuids) or "-",
-                 levels=", ".join(unit.levels) or "-",
-                 sensors=", ".join(map(str, unit.facts.get("sensors_listed") or ())))
-    if unit.party == "commander":  # what it sent, judged by the commander's rules
-        return UnitView(name, unit, unit.verdict_counts(), **words,
-                        shown=[r for r in ranked if r.verdict is not Verdict.SKIP],
-                        skipped=[], bad=[])
-    return UnitView(name, unit, unit.verdict_counts(), **words,
-                    shown=[r for r in ranked if r.verdict is not Verdict.SKIP],
-                    skipped=[r for r in ranked if r.verdict is Verdict.SKIP],
-                    bad=[r for r in ranked if r.verdict in (Verdict.FAIL, Verdict.WARN)],
-                    plots=[plot_of(r, i) for i, r in enumerate(unit.rates)],
-                    sparks=sparks(unit))
+    view = UnitView(name, unit, unit.verdict_counts(),
+                    identity=f"{unit.agent_type} / {unit.role} / {unit.name}",
+                    agent_uuids=", ".join(unit.agent_uuids) or "-",
+                    levels=", ".join(unit.levels) or "-",
+                    sensors=", ".join(map(str, unit.facts.get("sensors_listed") or ())),
+                    shown=[r for r in ranked if r.verdict is not Verdict.SKIP], skipped=[],
+                    bad=[], verdict=status.verdict, status=status.summary)
+    if unit.party == Party.COMMANDER:  # what it sent, judged by the commander's rules
+        return view
+    view.skipped = [r for r in ranked if r.verdict is Verdict.SKIP]
+    view.bad = [r for r in ranked if r.verdict in (Verdict.FAIL, Verdict.WARN)]
+    view.plots = [plot_of(r, i) for i, r in enumerate(unit.rates)]
+    view.sparks = sparks(unit)
+    return view
 
 
 @dataclass

@@ -40,7 +40,7 @@ def to_junit(report: RunReport) -> str:
 
 def _to_junit(report: RunReport) -> str:
     # Written directly, one string per element (linear): junit_xml's pretty printer parsed
-    # the whole document again with minidom, 5 s and 3 GB for 4096 units (issue 19 §4).
+    # the whole document again with minidom, 5 s and 3 GB for 4096 units.
     suites: list[str] = []
     tests = failures_total = 0
     conclusion = conclusion_of(report)

@@ -6,7 +6,11 @@ import shlex
 from datetime import UTC, datetime
 from typing import Any
 
+from conformance.conclusion import LINT_NEVER_CERTIFIES, TRIAGE, ranked_findings
+from conformance.conclusion import of as conclusion_of
 from conformance.display import printable, shorten
+from conformance.facts import RunKind
+from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Rule, Severity
 from conformance.topics import TopicError, UnitAddress, parse_topic
 from conformance.violation import Verdict, Violation
@@ -37,7 +41,7 @@ def rerun_command(report: Any, unit: str, rule_id: str, topic: str = "") -> str:
     <rule>``. ``report`` is a ``RunReport``: its kind, broker and meta say which. A
     commander's row ('commander alice') is no unit: its finding is repeated by linting the
     unit whose command ``topic`` it was found on (or every unit, when the topic names none)."""
-    if getattr(report, "kind", "certification") != "lint":
+    if getattr(report, "kind", RunKind.CERTIFICATION) != RunKind.LINT:
         return f"pytest --unit {shlex.quote(unit)} -k {shlex.quote(rule_id)}"
     try:
         unit = UnitAddress.parse(unit).base
@@ -104,9 +108,6 @@ def render_violation(rule: str | Rule, violation: Violation, unit: str = "",
 
 def render_summary(report: object) -> str:
     """A few lines per unit: verdict counts and the failing and warning rules."""
-    from conformance.conclusion import of as conclusion_of
-    from conformance.results import RunReport
-
     assert isinstance(report, RunReport)
     conclusion = conclusion_of(report)  # the one verdict model: its words and counts
     out = [f"{report.kind} report, profile {report.profile}, broker {report.broker or '-'}: "
@@ -132,17 +133,14 @@ FINDINGS_PER_UNIT = 5
 
 
 def render_verdicts(report: Any, per_unit: int = FINDINGS_PER_UNIT) -> str:
-    """What lint's text output opens with (issue 18, 6): the run's verdict and counts (the same
+    """What lint's text output opens with: the run's verdict and counts (the same
     counts as the JSON and HTML reports), then each unit's verdict and its most severe findings
     first (``conformance.conclusion.TRIAGE``), units with the most severe findings first. A
     cap cuts only the least severe."""
-    from conformance.conclusion import LINT_NEVER_CERTIFIES, TRIAGE, ranked_findings
-    from conformance.conclusion import of as conclusion_of
-
     conclusion = conclusion_of(report)
     counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
     out = [f"verdict: {conclusion.verdict} ({counts})"
-           + (f"; {LINT_NEVER_CERTIFIES}" if report.kind == "lint" else "")]
+           + (f"; {LINT_NEVER_CERTIFIES}" if report.kind == RunKind.LINT else "")]
     by_unit: dict[str, list[tuple[int, Any]]] = {}
     for rank, unit, result in ranked_findings(report):
         by_unit.setdefault(unit, []).append((rank, result))

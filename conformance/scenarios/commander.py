@@ -191,7 +191,8 @@ class Commander(Sender):
             self._start_commands[sent.com_uuid] = sent
         task = sent.body.get("task")
         name = task.get("name", "") if isinstance(task, dict) else ""
-        uuids = {sent.body.get("task-uuid"), answer.get("task-uuid") if answer else None}
+        uuids = {u for u in (sent.body.get("task-uuid"), answer.get("task-uuid") if answer
+                             else None) if isinstance(u, str) and u}
         refused = answer is not None and answer.get("response") == "failed"
         self._follow(sent, answer, name, refused)
         with self._lock:
@@ -199,7 +200,7 @@ class Commander(Sender):
                 if refused:  # never started: nothing to abort
                     self.open_tasks.pop(task_uuid, None)
                     self._closed.add(task_uuid)
-                elif isinstance(task_uuid, str) and task_uuid and task_uuid not in self._closed:
+                elif task_uuid not in self._closed:
                     known = self.open_tasks.setdefault(
                         task_uuid, OpenTask(task_uuid, name, sent.mark))
                     known.com_uuids.append(sent.com_uuid)
@@ -395,9 +396,9 @@ class Commander(Sender):
         with self._lock:
             starts = dict(self._start_commands)
         for e in self.traffic.since(0, "exec/response"):
-            sent = starts.get(e.get("response-to"))
-            if sent is not None and isinstance(e.get("task-uuid"), str):
-                self._track(sent, e)
+            start = starts.get(e.get("response-to"))
+            if start is not None and isinstance(e.get("task-uuid"), str):
+                self._track(start, e)
         with self._lock:
             tasks = list(self.open_tasks.values())
         ended = [t for t in tasks if self.is_final(t.task_uuid)]

@@ -140,10 +140,11 @@ class Context:
     def executing(self, entry: Entry) -> list[str]:
         """The task-uuids a direct_execution_info message lists in tasks-executing; an entry
         that names its task ``uuid`` (seen in the field; DEI-001 judges the key) is followed by
-        what it says (FIELD-NOTES 'Other keys')."""
+        what it says (docs/FIELD-NOTES.md 'Precision': other keys)."""
         tasks = entry.get("tasks-executing") or []
-        return [t.get("task-uuid", t.get("uuid")) for t in tasks if isinstance(t, dict)] \
-            if isinstance(tasks, list) else []
+        uuids = (t.get("task-uuid", t.get("uuid")) for t in tasks if isinstance(t, dict)) \
+            if isinstance(tasks, list) else ()
+        return [u for u in uuids if isinstance(u, str)]
 
     def wait_listed(self, task_uuid: str, *, after: int) -> Entry | None:
         """The first direct_execution_info after ``after`` that lists ``task_uuid`` in

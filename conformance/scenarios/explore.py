@@ -1,5 +1,5 @@
 """Exploration: a hypothesis state machine sends spec-12 commands in orders no script has,
-and the Monitor judges every answer (issue 17; DESIGN 'One model of the protocol's states').
+and the Monitor judges every answer (DESIGN 'One model of the protocol's states').
 
 Its rules are the commands: start-task (with or without task-uuid, of the tasks the unit lists
 and the suite may start, parameters drawn from the task's schema inside the safe radius),
@@ -7,7 +7,8 @@ every built-in signal to any task (running, paused, ended, or never seen), query
 task, a resend of any earlier command, ping, and waiting. ``Explorer`` (explore_steps.py) runs
 each step and judges it; a disagreement is told as a ``Story`` (story.py).
 
-Against a slow, real system (FIELD-NOTES 'hypothesis against a slow, real system'): no
+Against a slow, real system
+(docs/FIELD-NOTES.md 'Stateful exploration against a slow, real system'): no
 per-step deadline, a bounded step count, health checks off, and the wall-clock budget is ours:
 past it no example starts and no step runs (``OutOfBudget`` is not an ``Exception``, so
 hypothesis lets it through). The first disagreement ends the generation (``Found``); it is
@@ -371,9 +372,8 @@ def query_order(explorer: Explorer) -> list[int | None]:
     """Tasks to ask about: paused, then ended, then running ones, the rest; then a task
     never seen (12.1: 'unknown')."""
     states = explorer.states()
-    order: list[int | None] = sorted(range(len(states)),
-                                     key=lambda i: (QUERY_FIRST.get(states[i], 3), i))
-    return order + [None]
+    order = sorted(range(len(states)), key=lambda i: (QUERY_FIRST.get(states[i], 3), i))
+    return [*order, None]
 
 
 def _ended_start(explorer: Explorer, states: list[str], i: int) -> bool:

@@ -210,7 +210,7 @@ class Explorer:
         self.died = ""
         self.slots, self.commands, self.steps = [], {}, []
         self._pending_until = 0.0
-        self._refused_aborts: list[Slot] = []
+        self._refused_aborts = []
 
     def end(self) -> None:
         """Abort what this example started, await each final status, then wait until what

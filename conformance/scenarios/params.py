@@ -1,4 +1,4 @@
-"""Task parameters for start-task: never invented (DESIGN 'Safety', issue 25 §2).
+"""Task parameters for start-task: never invented (DESIGN 'Safety').
 
 A task is started with the parameters the profile gives it, else, for a section 9 task, with
 the parameters of the spec's own example (``schemas/tasks/<task>.yaml``); a task with neither
@@ -15,6 +15,7 @@ import math
 import random
 from typing import Any
 
+from conformance import schema, taskspec
 from conformance.scenarios.safety import DROPPED, NoParams, Position, Safety, no_params_reason
 
 # Parameters of section 9 that are distances in metres, bounded to the safe area.
@@ -33,8 +34,6 @@ def task_schema(task: str) -> dict[str, Any] | None:
     """The JSON Schema of ``task``'s params (GeoPoint inlined), or None for a task that is not
     in section 9 (5.3 lets units offer others: they are started only with the profile's
     parameters)."""
-    from conformance import taskspec
-
     try:
         return taskspec.params_schema(task)
     except KeyError:
@@ -43,8 +42,6 @@ def task_schema(task: str) -> dict[str, Any] | None:
 
 def task_moves(task: str) -> bool | None:
     """Whether a section-9 task moves the unit (its tags include 'vehicle'); None: unknown."""
-    from conformance import taskspec
-
     try:
         return taskspec.task_spec(task).moves_unit
     except KeyError:
@@ -110,8 +107,6 @@ def valid_params(task: str, origin: Position, safety: Safety, seed: int, *,
 
 def _is_valid(task: str, params: Any) -> bool:
     """Whether ``params`` is valid under the task's params schema (True: no schema)."""
-    from conformance import schema, taskspec
-
     try:
         return bool(schema.compiled(taskspec.params_schema_path(task)).is_valid(params))
     except KeyError:

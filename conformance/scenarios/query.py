@@ -8,6 +8,7 @@ from conformance.scenarios.context import Context, describe
 from conformance.scenarios.deviation import FINAL_STATUSES, meaning
 from conformance.scenarios.params import valid_params
 from conformance.scenarios.sender import new_uuid
+from conformance.scenarios.traffic import Entry
 from conformance.violation import Observed
 
 RULES = ("EXEC-QUERY-001", "EXEC-QUERY-002")
@@ -17,7 +18,7 @@ ACCEPTED = {state.value: set(answers) for state, answers in QUERY_ANSWERS.items(
             if state is not State.UNKNOWN}
 
 
-def status_answer(answer) -> object:
+def status_answer(answer: Entry | None) -> object:
     """The status in a query-status response: its ``status`` field, else its ``response``."""
     return answer.get("status", answer.get("response")) if answer is not None else None
 

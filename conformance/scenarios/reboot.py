@@ -23,7 +23,7 @@ RULES = ("REBOOT-001", "REBOOT-002")
 def silence(previous: Entry, entry: Entry) -> float:
     """Seconds between two heartbeats: by the unit's stamps where both have one (5.1), so that
     heartbeats a stalled broker held and then delivered at once are not taken for the silence
-    of a reboot (issue 25 §3); else by their arrivals."""
+    of a reboot; else by their arrivals."""
     stamps = [stamp_of(e.body, e.time) for e in (previous, entry)]
     if stamps[0] is not None and stamps[1] is not None:
         return stamps[1] - stamps[0]

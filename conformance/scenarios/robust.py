@@ -39,8 +39,8 @@ def malformed(com_uuid: str) -> list[tuple[str, bytes]]:
 
 
 def run(ctx: Context) -> None:
-    # 'Stopped answering' is judged only by a kind of command the unit answered before (issue
-    # 24 §2): a ping, first, when none was answered yet (a rerun of this rule alone).
+    # 'Stopped answering' is judged only by a kind of command the unit answered before: a
+    # ping, first, when none was answered yet (a rerun of this rule alone).
     try:
         answered_ping = _pong_seen(ctx) or (
             ctx.commander.ping(ctx.timing.response)[1] is not None or _pong_seen(ctx))
@@ -67,7 +67,7 @@ def run(ctx: Context) -> None:
             command=sent.com_uuid))
     # Still alive? Any pong after this ping counts (EXEC-PING-002 judges its response-to),
     # however late: lateness is EXEC-PING-001's and EXEC-010's, not a stopped unit. A unit
-    # that never answered a ping cannot show it by one (issue 24 §2: 'stopped answering' is
+    # that never answered a ping cannot show it by one ('stopped answering' is
     # judged only from kinds of command it answered before; EXEC-PING-001 is its finding).
     if not answered_ping:
         ctx.record("EXEC-ROBUST-001", seen=Observed.UNTESTABLE, reason=(

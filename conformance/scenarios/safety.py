@@ -25,8 +25,10 @@ from typing import Any
 
 import orjson
 
+from conformance import taskspec
 from conformance.profile import Profile
 from conformance.topics import UnitAddress
+from conformance.validator import validate
 
 # Section 9 tasks that move the unit although their tags do not say 'vehicle': navigate flies
 # waypoints (9.14), observe-position circles or hovers at a distance (9.8).
@@ -189,7 +191,7 @@ class NoParams(LookupError):
 
 
 def no_params_reason(task: str) -> str:
-    """Why ``task`` is not started: its parameters are not known (issue 25 §2)."""
+    """Why ``task`` is not started: its parameters are not known."""
     return (f"no task to start: {task} has no parameters in the profile and is not a section "
             f"9 task; add tasks: {{{task}: {{params: ...}}}} to the profile")
 
@@ -197,8 +199,6 @@ def no_params_reason(task: str) -> str:
 def has_params(task: str, given: dict[str, Any]) -> bool:
     """Whether the suite knows parameters for ``task``: the profile's (``given``), or the
     example of a section 9 task (9: each task's specification has one)."""
-    from conformance import taskspec
-
     if task in given:
         return True
     try:
@@ -209,8 +209,6 @@ def has_params(task: str, given: dict[str, Any]) -> bool:
 
 def motion_tasks_of_the_spec() -> frozenset[str]:
     """The tasks of section 9 that move the unit (tag 'vehicle', or ``MOVES_WITHOUT_TAG``)."""
-    from conformance import taskspec
-
     return frozenset(s.name for s in taskspec.task_specs()
                      if s.moves_unit or s.name in MOVES_WITHOUT_TAG) | MOVES_WITHOUT_TAG
 
@@ -314,7 +312,6 @@ def hostility(topic: str, payload: bytes, *, given: dict[str, Any] | None = None
         return f"a JSON {type(body).__name__}, not an object"
     if _depth_over(body, MAX_COMMAND_DEPTH):
         return f"nested deeper than {MAX_COMMAND_DEPTH}"
-    from conformance.validator import validate  # loaded with the first publish only
 
     found = sorted({v.rule for v in validate(topic, payload).violations
                     if v.rule not in WELL_FORMED_FINDINGS

@@ -1,4 +1,4 @@
-"""Shrinking a story by replaying it (issue 17: 'a failure is a minimal, replayable story').
+"""Shrinking a story by replaying it ('a failure is a minimal, replayable story').
 
 Hypothesis shrinks the choices it drew, and after a removed step the same choice names another
 command (the options depend on the unit's state): against a real unit that rarely gets a story

@@ -137,10 +137,10 @@ def _unexamined(ctx: Context, todo: list[str], done: set[str], available: dict[s
                        reason=reason)
     # What an accepted $abort (EXEC-SEQ-001) or any built-in signal (EXEC-SEQ-002) does:
     # inapplicable where no task lists one (the Monitor's examination, if any, passes).
-    for rule, wanted in (("EXEC-SEQ-001", ("$abort",)), ("EXEC-SEQ-002", BUILTIN_SIGNALS)):
-        if not any(s in todo for s in wanted):
+    for rule, signals in (("EXEC-SEQ-001", ("$abort",)), ("EXEC-SEQ-002", BUILTIN_SIGNALS)):
+        if not any(s in todo for s in signals):
             ctx.record(rule, seen=Observed.NOT_APPLICABLE, reason=f"no task in tasks-available "
-                       f"lists {' or '.join(wanted)} (5.3)")
+                       f"lists {' or '.join(signals)} (5.3)")
     if not todo:
         ctx.record("EXEC-SIG-001", seen=Observed.NOT_APPLICABLE,
                    reason="no task in tasks-available lists a signal (5.3)")

@@ -162,7 +162,7 @@ def _task_uuid(ctx: Context, task: str, sent: Sent, answer: Entry,
             "EXEC-START-002", expected=f"task-uuid {wanted}", observed=f"{task_uuid!r}",
             entry=answer, detail=f"task '{task}'"))
         # Follow the task-uuid the unit runs the task under (the commander does, too).
-        task_uuid = ctx.commander.unit_task_uuid(wanted)
+        task_uuid = ctx.commander.unit_task_uuid(str(wanted))  # sent: not generate
     return task_uuid if isinstance(task_uuid, str) else None
 
 
@@ -237,7 +237,7 @@ def _no_final(ctx: Context, untestable: str | None, sent: Sent, *,
               violation: Violation) -> None:
     """EXEC-START-003 without a final status: the unit's failure, unless a deviation seen
     earlier explains it, or the suite's link to the broker was lost since the task's
-    start-task ``sent`` (issue 25: a broker's fault is the broker's; what the unit published
+    start-task ``sent`` (a broker's fault is the broker's; what the unit published
     meanwhile is unknown): then could-not-test, with that reason."""
     if not untestable and ctx.commander.gaps() != sent.gaps_before:
         untestable = FINAL_LOST

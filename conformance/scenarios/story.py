@@ -199,7 +199,7 @@ FIELDS: dict[str, dict[str, tuple[bool, str]]] = {
 }
 """Each kind of step: its fields, whether each is needed, and the kind of value it holds (what
 the explorer reads, ``explore_steps.Explorer``; every step may say 'teardown'). A stored story
-is checked when it is loaded, so a wrong one is one line, never a traceback (issue 26 §4)."""
+is checked when it is loaded, so a wrong one is one line, never a traceback."""
 
 
 def _wrong_field(action: dict[str, Any]) -> str:

@@ -2,7 +2,7 @@
 
 The MQTT network thread calls ``add``; scenarios call ``wait_for`` with a predicate and a
 deadline (never a fixed sleep). Memory is bounded in count and in bytes, whatever the unit
-sends (issue 19): the newest ``capacity`` messages are kept; each keeps a digest and an
+sends: the newest ``capacity`` messages are kept; each keeps a digest and an
 excerpt of its payload, never the payload; its decoded body is kept whole only while it is
 small and recent (``BODY_BYTES``, ``FULL_BODIES_BYTES``), else only the top-level fields an
 answer is read by (``answer_fields``).
@@ -83,7 +83,7 @@ TICK = 1.0
 """Seconds between two progress reports of a wait that lasts."""
 STREAK_GAP = 0.5
 """Seconds between two waits that still belong to one busy stretch: a scenario that waits a
-second in short waits shows them too (issue 27 §3: every second says what it waits for)."""
+second in short waits shows them too (every second says what it waits for)."""
 LAG_SLACK = 0.1
 """Seconds the broker may take to deliver the suite's command back before a wait on the unit
 is lengthened by as much (``Traffic.command_lag``)."""

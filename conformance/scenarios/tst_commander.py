@@ -30,7 +30,8 @@ def node(name: str, params: dict[str, Any], node_uuid: str, children: Iterable[d
          *, execunit: str) -> dict[str, Any]:
     """A TST node as every example of 11 writes it: name, params, children and common_params
     (ERR-009's canonical spelling) with both execunit and node-uuid, on every node, the root's
-    children too: a strict unit may refuse a node without them (FIELD-NOTES 'Strict
+    children too: a strict unit may refuse a node without them (docs/FIELD-NOTES.md 'Precision':
+    strict
     readers'), and 14.3.4 says node-uuids are best set on every node."""
     return {"name": name, "params": params, "children": list(children),
             "common_params": {"execunit": execunit, "node-uuid": node_uuid}}
@@ -349,10 +350,10 @@ class TstCommander(Sender):
                     self.open_trees.pop(com, None)
             else:  # refused (ended meanwhile, or not this name of it), or unanswered
                 with self._lock:
-                    tree = self.open_trees.get(com)
-                if tree is not None and answer is not None and self.ended(tree):
+                    still = self.open_trees.get(com)
+                if still is not None and answer is not None and self.ended(still):
                     with self._lock:
                         self.open_trees.pop(com, None)
-                elif tree is not None:
-                    tree.stuck = True
+                elif still is not None:
+                    still.stuck = True
         return aborted

@@ -71,17 +71,14 @@ class CommandExecutor:
         if not self.subscribed:
             self.subscribed = True
             return
-        if size > MAX_COMMAND_BYTES:
-            msg, problem = None, f"a command of {size} bytes is larger than {MAX_COMMAND_BYTES}"
-        else:
-            msg, problem = _decode(payload)
+        msg, problem = _decode(payload, size)
         if problem is not None:
-            com = _readable_com_uuid(payload, msg)
+            readable = _readable_com_uuid(payload, msg)
             if "crash-on-malformed" in self.faults:
                 self.unit.crashed = True
                 return
-            if com is not None and "malformed-unanswered" not in self.faults:
-                self._answer(com, "failed", fail_reason=problem)
+            if readable is not None and "malformed-unanswered" not in self.faults:
+                self._answer(readable, "failed", fail_reason=problem)
             return
         assert isinstance(msg, dict)
         com = msg["com-uuid"]
@@ -424,8 +421,11 @@ class CommandExecutor:
         self._answer(com, status, task_uuid=task_uuid, fail_reason=reason, kind="query")
 
 
-def _decode(payload: bytes) -> tuple[Any, str | None]:
-    """The command as a dict with a string com-uuid, or what is wrong with it."""
+def _decode(payload: bytes, size: int) -> tuple[Any, str | None]:
+    """The command (``size`` bytes, ``payload`` its head when too large) as a dict with a
+    string com-uuid, or what is wrong with it."""
+    if size > MAX_COMMAND_BYTES:
+        return None, f"a command of {size} bytes is larger than {MAX_COMMAND_BYTES}"
     try:
         msg = orjson.loads(payload)
     except orjson.JSONDecodeError as e:

@@ -14,7 +14,7 @@ linter) sees them.
 from __future__ import annotations
 
 import difflib
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from conformance.rules import CATALOGUE, Mode
@@ -52,7 +52,7 @@ def _f(name: str, rules: str, description: str, scope: str = "unit",
     return Fault(name, tuple(rules.split()), description, scope, stimulus)
 
 
-_ALL = (
+_ALL: tuple[Fault, ...] = (
     # --- 3 topics -------------------------------------------------------------------------------
     _f("topic-leading-slash", "TOPIC-001",
        "Publishes and listens under '/<unit>/...' (a ROS namespace '/dji0' pasted into the "
@@ -183,8 +183,8 @@ _ALL = (
        "task-uuid, answering no command."),
     _f("fail-reason-empty", "EXEC-007 EXEC-START-004",
        "Refuses commands with fail-reason '' (the reason is only logged)."),
-    # EXEC-ROBUST-001 is not its: a unit that never answered a ping did not stop answering
-    # (issue 24 §2), the robustness scenario says could-not-test.
+    # EXEC-ROBUST-001 is not its: a unit that never answered a ping did not stop answering;
+    # the robustness scenario says could-not-test.
     _f("pong-missing", "EXEC-PING-001",
        "Never answers ping."),
     _f("pong-late", "EXEC-PING-001 EXEC-010",
@@ -328,7 +328,7 @@ _SEQUENCE = (
 SEQUENCE_FAULTS = frozenset(f.name for f in _SEQUENCE)
 _ALL = _ALL + _SEQUENCE
 
-# --- 14 TST execution (issue 10; conformance.sim.tst) ------------------------------------------
+# --- 14 TST execution (conformance.sim.tst) ------------------------------------------
 # Each switches the TST level on by itself (the unit then declares 'tst execution'). All but
 # tst-info-type-upper show only once TST commands are sent (stimulus).
 
@@ -413,14 +413,14 @@ class FaultError(ValueError):
     """An unknown fault name; the message lists close matches."""
 
 
-def switches(names: object, known: Mapping[str, object], what: str,
+def switches(names: str | Iterable[str], known: Mapping[str, object], what: str,
              error: type[ValueError]) -> frozenset[str]:
     """``names`` (one name or several) as a set of switches of ``known`` (faults, variants);
     ``error`` names any unknown one, with the close matches and where the list is."""
     if isinstance(names, str):
         names = (names,)
     out = set()
-    for name in names:  # type: ignore[union-attr]
+    for name in names:
         if name not in known:
             close = difflib.get_close_matches(str(name), known, n=3)
             hint = f"; did you mean {', '.join(close)}?" if close else ""
@@ -430,7 +430,7 @@ def switches(names: object, known: Mapping[str, object], what: str,
     return frozenset(out)
 
 
-def check_names(names: object) -> frozenset[str]:
+def check_names(names: str | Iterable[str]) -> frozenset[str]:
     """The fault names as a set; raise ``FaultError`` naming any unknown one."""
     return switches(names, FAULTS, "fault", FaultError)
 

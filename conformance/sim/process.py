@@ -20,16 +20,14 @@ import os
 import signal
 import sys
 import threading
-from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Sequence
 
 from conformance.client import BrokerError, BrokerURL
 from conformance.display import shown as shown_line
 from conformance.sim.faults import FAULTS, NOT_UNIT_BREAKABLE, FaultError, check_names
+from conformance.sim.fleet import Fleet, SimUnit
+from conformance.sim.variants import VariantError, check_variants
 from conformance.topics import UnitAddress
-
-if TYPE_CHECKING:
-    from conformance.sim.fleet import Fleet, SimUnit
 
 EXIT_UNREACHABLE = 3
 """The broker could not be reached: the status ``lint``, ``record`` and ``profile`` give it."""
@@ -96,21 +94,17 @@ def run(address: UnitAddress, broker: BrokerURL | None, *, count: int = 1, rate:
     ``variants`` apply to every unit (VariantError).
     Returns 0, or 1 when the units could not start."""
     common, by_index = parse_faults(faults, count)
-    from conformance.sim.variants import VariantError, check_variants
-
     variant_names = check_variants(list(variants))
     if broker is None and "mqtt5-qos1" in variant_names:
         raise VariantError("variant mqtt5-qos1 needs a broker that speaks MQTT 5: the "
                            "embedded amqtt broker refuses it (pass --broker mqtt://HOST:PORT)")
     embedded = None
     if broker is None:
-        from conformance.broker import EmbeddedBroker
+        from conformance.broker import EmbeddedBroker  # amqtt loads only when it is needed
 
         embedded = EmbeddedBroker().start()
         print(embedded.url, flush=True)
         broker = BrokerURL.parse(embedded.url)
-
-    from conformance.sim.fleet import Fleet, SimUnit
 
     runner: SimUnit | Fleet
     if count == 1:
@@ -152,8 +146,6 @@ def run(address: UnitAddress, broker: BrokerURL | None, *, count: int = 1, rate:
 def _listen(runner: SimUnit | Fleet, stop: threading.Event) -> None:
     """SIGINT and SIGTERM set ``stop``; SIGHUP reboots the unit (every unit of a fleet); a
     line on stdin stops or reboots (``_read_control``)."""
-    from conformance.sim.fleet import SimUnit
-
     def reboot(name: str | None = None) -> None:
         if isinstance(runner, SimUnit):
             runner.reboot()
@@ -169,7 +161,7 @@ def _listen(runner: SimUnit | Fleet, stop: threading.Event) -> None:
                      name="sim-stdin").start()
 
 
-def _read_control(reboot, stop: threading.Event) -> None:  # type: ignore[no-untyped-def]
+def _read_control(reboot: Callable[[str | None], None], stop: threading.Event) -> None:
     """stdin lines: 'reboot', 'reboot NAME|INDEX', 'stop'. End of input changes nothing."""
     for line in sys.stdin:
         words = line.split()

@@ -269,7 +269,7 @@ class Publisher:
             q = destination(p, 0.0, 800.0)
             lat, lon = round(q.latitude, 7), round(q.longitude, 7)
         if "position-deg-e7" in self.faults:
-            lat, lon = round(lat * 1e7), round(lon * 1e7)  # type: ignore[assignment]
+            lat, lon = round(lat * 1e7), round(lon * 1e7)
         msg: dict[str, Any] = {"altitude": round(p.altitude, 2), "latitude": lat,
                                "longitude": lon, "rostype": "GeoPoint"}
         if "geopoint-type" in self.variants:

@@ -6,6 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from conformance.broker import EmbeddedBroker
+from conformance.sim.fleet import SimUnit
 from conformance.topics import UnitAddress
 
 
@@ -39,8 +41,6 @@ class Reference(ReferenceUnit):
 
     def start(self) -> Reference:
         # Imported here: amqtt and the simulator load only when a reference pair is wanted.
-        from conformance.broker import EmbeddedBroker
-        from conformance.sim.fleet import SimUnit
 
         self.broker = EmbeddedBroker().start()
         try:

@@ -4,7 +4,7 @@ The thread keeps a heap of when each unit is next due and runs it then (periodic
 simulation steps); commands arrive on paho's network thread, wait in a bounded inbox and are
 handed to their unit on the runtime thread, so a unit's state is only ever touched by one
 thread. One connection for a whole fleet is what lets 500 units at 1 Hz run on one core
-(FIELD-NOTES: per-message cost is what counts).
+(docs/FIELD-NOTES.md 'MQTT on loopback': per-message cost is what counts).
 
 Safety (DESIGN): the client may publish only under the bases of its own units (and of the TST
 operator whose tst/command they were told to listen to, 14.1), and never to a command topic.
@@ -17,7 +17,7 @@ import sys
 import threading
 import time
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 from conformance.client import BrokerURL, Message, MqttClient
@@ -238,7 +238,7 @@ class Runtime:
             if len(self._started) == len(self.units):
                 self._all_started.set()
 
-    def _guarded(self, fn, *args) -> None:  # type: ignore[no-untyped-def]
+    def _guarded(self, fn: Callable[..., object], *args: object) -> None:
         try:
             fn(*args)
         except Exception as e:  # a bug must not stop the other units: count and report it
@@ -278,7 +278,8 @@ class Runtime:
             for i in self._tst_by_topic.get(topic, ()):  # else: a unit that is not ours
                 self._deliver(i, now, self.units[i].tst_command, payload, now, topic)
 
-    def _deliver(self, i: int, now: float, handler, *args) -> None:  # type: ignore[no-untyped-def]
+    def _deliver(self, i: int, now: float, handler: Callable[..., object],
+                 *args: object) -> None:
         unit = self.units[i]
         before = unit.due
         self._guarded(handler, *args)
@@ -303,5 +304,6 @@ def _compress(topics: list[str], tail: str) -> list[str]:
 
 def spread(count: int, period: float) -> Sequence[float]:
     """Phases that spread ``count`` units evenly over one period (seconds), so a fleet does not
-    publish in bursts (Mosquitto drops past 1000 queued messages per client: FIELD-NOTES)."""
+    publish in bursts (Mosquitto drops past 1000 queued messages per client:
+    docs/FIELD-NOTES.md 'MQTT on loopback')."""
     return [period * i / count for i in range(count)] if count > 1 else [0.0]

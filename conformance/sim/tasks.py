@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeGuard
 
 from conformance.sim.vehicle import GeoPoint, Vehicle, bearing, destination, distance
 
@@ -28,7 +28,7 @@ Check = Callable[[Any], str | None]
 """A parameter check: None when the value is fine, else what is wrong with it."""
 
 
-def _is_number(v: Any) -> bool:
+def _is_number(v: object) -> TypeGuard[float]:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 

@@ -11,6 +11,7 @@ scenario that fails it makes a false accusation. Variants combine freely, but fo
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from conformance.rules import CATALOGUE, Severity
@@ -83,12 +84,12 @@ _ALL = _READINGS + (
             "Reports a started task 'starting' (12.4's list) before 'running'."),
     Variant("announce-nodes", "14.5 (not-active, the first status it lists)",
             "Reports every node of a tree it starts 'not-active' before it activates the "
-            "root (a unit written elsewhere, issue 24): a seq's later children say so "
+            "root (a unit written elsewhere): a seq's later children say so "
             "while the first runs, and are not listed in nodes-executing until they start."),
     Variant("periodic-feedback", "12.4 ('Update of the status of the task': how often is not "
             "said)",
             "With every heartbeat, sends each running or paused task's status again, as a "
-            "periodic report (a unit written elsewhere, issue 24)."),
+            "periodic report (a unit written elsewhere)."),
     Variant("silent-start", "12.3.3, 12.4 (feedback is an 'Update of the status')",
             "Sends no feedback for a task it starts: its start-task answer says 'running', and "
             "feedback follows only changes ($pause, the end; a unit written elsewhere, issue "
@@ -123,7 +124,7 @@ _ALL = _READINGS + (
             "Tags its position \"type\": \"GeoPoint\" instead of rostype: 6.1 says only "
             "'GeoPoint' and has no example of sensor/position (ERR-010 is for task "
             "parameters, whose examples tag rostype)."),
-    # Behaviours of public agents certified live (FIELD-NOTES 'Real agents certified live').
+    # Behaviours of public agents certified live (docs/FIELD-NOTES.md 'Real agents certified live').
     Variant("silent-unknown-command", "12.1 (four commands; nothing said of any other)",
             "Answers no command whose 'command' is a string other than 12.1's four (the "
             "official agents dispatch on the four names and drop the rest); malformed "
@@ -209,7 +210,7 @@ class VariantError(ValueError):
     """An unknown variant name, or variants that cannot be combined."""
 
 
-def check_variants(names: object) -> frozenset[str]:
+def check_variants(names: str | Iterable[str]) -> frozenset[str]:
     """The variant names as a set; raise ``VariantError`` for an unknown one or a conflict."""
     out = switches(names, VARIANTS, "variant", VariantError)
     for pair in CONFLICTS:

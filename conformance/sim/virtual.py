@@ -271,7 +271,7 @@ class VirtualReference(ReferenceUnit):
         self._deliver(self.core.tst_command, message.payload, self.clock.monotonic(),
                       message.topic)
 
-    def _deliver(self, handler, *args) -> None:  # type: ignore[no-untyped-def]
+    def _deliver(self, handler: Callable[..., object], *args: object) -> None:
         core, now = self.core, self.clock.monotonic()
         before = core.due
         handler(*args)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
@@ -45,7 +45,8 @@ traffic = certification_part(
 
 @pytest.fixture(scope="session", autouse=True)
 def certification_properties(certification: Certification,
-                             record_testsuite_property) -> Iterator[None]:
+                             record_testsuite_property: Callable[[str, object], None]
+                             ) -> Iterator[None]:
     """Unit, agent-uuid, profile, suite version and schemas hash in the JUnit file."""
     yield
     report = certification.report()

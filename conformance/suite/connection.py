@@ -20,12 +20,16 @@ import orjson
 from conformance.checks import Monitor
 from conformance.checks.stall import LAG_JUMP, stamp_of
 from conformance.client import BrokerURL, MqttClient
+from conformance.clock import VirtualClock
 from conformance.message import Message
 from conformance.scenarios import Traffic
 from conformance.scenarios.params import task_moves
 from conformance.scenarios.reboot import intervals
 from conformance.scenarios.safety import MotionGate
+from conformance.scenarios.sender import Sender
 from conformance.scenarios.traffic import LAG_SLACK
+from conformance.sim.reference import Reference
+from conformance.sim.virtual import VirtualClient, VirtualReference
 from conformance.suite.events import Events, clock
 from conformance.suite.probe import NotAlive, Probe, not_alive
 from conformance.suite.settings import Settings
@@ -74,7 +78,7 @@ class Connection:
     _unechoed: float | None = field(default=None, init=False)
     """When the earliest command the suite published that has not come back was sent: the
     broker delivers a subscriber's own messages back, so one that does not is not delivering
-    (a stall: issue 25 §3)."""
+    (a stall)."""
     _echoed: threading.Event = field(default_factory=threading.Event, init=False)
     _heard_again: threading.Event = field(default_factory=threading.Event, init=False)
     """Clear from a reconnect (or a stall) until the unit's second fresh heartbeat after it
@@ -126,7 +130,6 @@ class Connection:
             self._open_virtual()
         elif s.embedded:
             # Imported here: the broker and the simulator load only for --broker embedded.
-            from conformance.sim.reference import Reference
 
             self.reference = Reference(self.unit, faults=s.sim_faults,
                                        variants=s.sim_variants, rate=s.sim_rate,
@@ -166,9 +169,6 @@ class Connection:
     def _open_virtual(self) -> None:
         """--broker virtual: the reference unit and an in-memory broker on the traffic's
         virtual clock (the test suite's matrices only: ``conformance.sim.virtual``)."""
-        from conformance.clock import VirtualClock
-        from conformance.sim.virtual import VirtualClient, VirtualReference
-
         s = self.settings
         clock = self.traffic.clock
         assert isinstance(clock, VirtualClock), "--broker virtual runs in virtual time"
@@ -319,8 +319,9 @@ class Connection:
         """The task names the unit lists in tasks-available (5.3), as last seen."""
         info = self.traffic.latest("direct_execution_info")
         tasks = info.get("tasks-available") if info is not None else None
-        return [t.get("name") for t in tasks if isinstance(t, dict)] \
-            if isinstance(tasks, list) else []
+        names = (t.get("name") for t in tasks if isinstance(t, dict)) \
+            if isinstance(tasks, list) else ()
+        return [n for n in names if isinstance(n, str)]
 
     def _command_lag(self, lag: float, now: float) -> None:
         """The broker delivered the suite's command back ``lag`` seconds after it was sent;
@@ -408,8 +409,8 @@ class Connection:
         whether the broker still delivers."""
         self._probe_silence(silent_periods)
         since = self._unechoed
-        now = self.traffic.clock.now
-        if since is None or self._wait(self._echoed, max(0.0, since + slack - now())):
+        clock_now = self.traffic.clock.now
+        if since is None or self._wait(self._echoed, max(0.0, since + slack - clock_now())):
             return None
         start = min(since, self._last_arrival or since)
         with self.monitor_lock:
@@ -418,7 +419,7 @@ class Connection:
             self.monitor.connection_gap(start, None)
             self._away()
         back = self._wait(self._echoed, budget)
-        now = now()
+        now = clock_now()
         self.events.at(now, f"the broker delivered nothing from {clock(start)} for "
                             f"{now - start:.1f} s (the suite's own command did not come back): "
                             f"{'it delivers again; ' if back else ''}what the unit sent "
@@ -427,15 +428,15 @@ class Connection:
 
     def _probe_silence(self, periods: float) -> None:
         """One ping when the unit has been silent for ``periods`` declared periods: its echo
-        tells a dead unit from a broker that delivers nothing (issue 25 §3)."""
+        tells a dead unit from a broker that delivers nothing."""
         latest = self.traffic.latest("heartbeat")
         rate = latest.get("rate") if latest is not None else None
-        if (latest is None or type(rate) not in (int, float) or rate <= 0
+        if (latest is None or not isinstance(rate, (int, float)) or isinstance(rate, bool)
+                or rate <= 0
                 or latest.time == self._probed or self._unechoed is not None
                 or not self._echoed.is_set() or self.settings.dry_run
                 or self.traffic.clock.now() - latest.time <= periods / rate):
             return
-        from conformance.scenarios.sender import Sender
 
         self._probed = latest.time
         self.publish(self.unit.topic("exec/command"), Sender.compose({"command": "ping"})[0])

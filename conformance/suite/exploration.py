@@ -1,4 +1,4 @@
-"""The certification's exploration (issue 17): after the scripted scenarios, command orders
+"""The certification's exploration: after the scripted scenarios, command orders
 drawn by hypothesis (``scenarios/explore.py``) within a budget, the Monitor judging every
 answer; a disagreement is printed as a story the moment it is found, stored under the reports
 folder, and its rerun line replays exactly that story (``--explore-replay``).
@@ -32,7 +32,7 @@ RESERVE = 10.0
 """Seconds of --max-duration left to the tests after the exploration (the passive rules)."""
 RUN_BUDGET = 80.0
 """Seconds a run with the default options aims to end within (a 1 Hz unit is certified within
-90 s whatever single fault it has: issue 25 §4): the default exploration takes what the
+90 s whatever single fault it has): the default exploration takes what the
 scripted scenarios left of it, after ``RESERVE`` for the passive rules; ``--explore`` asks for
 an exact budget instead."""
 ANSWER_PACE = 1.0
@@ -124,7 +124,8 @@ def run(c: Certification, node: pytest.Item) -> None:
     dead = c.unit_died()
     if dead:
         pytest.skip(f"could not test: {dead}")
-    actions, stored = None, {}
+    actions: list[Action] | None = None
+    stored: dict[str, Any] = {}
     if s.explore_replay is not None:
         try:
             actions, stored = load(s.explore_replay)
@@ -241,7 +242,7 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item, began: flo
     search = Search(explorer, seconds, c.settings.seed, tell,
                     guided=c.settings.explore_order == "model")
 
-    def doing(what: str) -> None:  # the terminal shows where it stands (issue 27 §3)
+    def doing(what: str) -> None:  # the terminal shows where it stands
         o = search.outcome
         c.progress.show_status(
             f"exploring: {search.clock.monotonic() - search.started:.0f} s of {seconds:.0f} s, "

@@ -9,7 +9,10 @@ from contextlib import AbstractContextManager
 from typing import Any
 
 from conformance.checks import Monitor
+from conformance.checks.identity import SILENCE_PERIODS, heartbeat_period
+from conformance.checks.tst_conversation import open_until
 from conformance.scenarios import Context, Traffic
+from conformance.scenarios.reboot import intervals
 from conformance.suite.events import clock
 from conformance.violation import Verdict
 
@@ -48,8 +51,6 @@ class Observation:
         5 Hz declared, 5.002 s apart, was called dead 2 ms before each heartbeat).
         A unit that heartbeats answers at once. ``settle``: a unit still within its 3
         periods is waited for too (before a verdict, not before a command)."""
-        from conformance.checks.identity import SILENCE_PERIODS, heartbeat_period
-
         latest = self.traffic.latest("heartbeat")
         rate = self.context.rate_of("heartbeat")
         if latest is None or rate is None:
@@ -76,8 +77,6 @@ class Observation:
     def _longest_interval(self, kept: int = 16) -> float:
         """The longest interval between the unit's latest ``kept`` heartbeats of one
         agent-uuid, seconds (0 before two)."""
-        from conformance.scenarios.reboot import intervals
-
         # (by the unit's stamps, as the reboot reads them; asked only during a silence)
         return max(intervals(self.traffic.since(0, "heartbeat")[-kept:]), default=0.0)
 
@@ -91,8 +90,6 @@ class Observation:
     def settle(self) -> None:
         """Wait until the Monitor has judged what the TST conversations left open: one
         heartbeat of the unit after the latest deadline (none open: at once)."""
-        from conformance.checks.tst_conversation import open_until
-
         with self._lock:
             until = open_until(self.monitor.state(self.unit), self.monitor.ctx)
         if until is None:

@@ -4,7 +4,7 @@ A wait that lasts shows what it is for and for how long (``waiting for the final
 move-to 3f2a1b0c: 12 s of 30 s``), and the exploration its progress (``exploring: 12 s of
 50 s, 3 examples, 41 steps; signal-task $pause to T1``): on a terminal it is drawn on the
 line below pytest's line of result letters, the cursor put back where pytest left it, and
-erased when it is over, so pytest's line is never split (issue 27 §3); a plain line every
+erased when it is over, so pytest's line is never split; a plain line every
 ``LINE_EVERY`` seconds otherwise (CI logs). ``-v`` also shows each scenario step (every
 command sent and its answer) and each deviation the scenarios adapt to; ``-q`` shows none of
 it. Nothing here changes pytest's own output (``-rA``, ``--junitxml``).

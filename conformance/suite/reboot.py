@@ -40,7 +40,7 @@ class Reboot:
     def how(self) -> str:
         """The way the unit is rebooted, in the words of the option that says so."""
         if self.settings.reboot_cmd:
-            # As a shell word, never with a password (issue 26 §3, §5); escaped where shown.
+            # As a shell word, never with a password; escaped where shown.
             return f"--reboot-cmd {shlex.quote(mask_password(self.settings.reboot_cmd))}"
         if self.settings.embedded:
             return "the bundled reference unit's reboot"
@@ -89,7 +89,8 @@ NAMES_KEPT = 64
 class Names:
     """A read-only watch on ``<prefix>/unit/<type>/<role>/+/heartbeat``: when each unit name
     of the unit's type and role first heartbeated (live, not retained). Some agents add a
-    random suffix to their name at every start (FIELD-NOTES: ``cppl2_9d00``): after the reboot
+    random suffix to their name at every start (docs/FIELD-NOTES.md 'Real agents certified live':
+    ``cppl2_9d00``): after the reboot
     the suite requested, a name first heard then is the unit, back under another name."""
 
     def __init__(self, connection: Connection, base: str) -> None:

@@ -17,7 +17,7 @@ import dataclasses
 import threading
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
@@ -30,20 +30,23 @@ from conformance.clock import REAL, VirtualClock
 from conformance.conclusion import INTERRUPTED, NOT_CERTIFIED, Conclusion
 from conformance.conclusion import of as conclusion_of
 from conformance.display import LINE_CHARS, shorten, shown
-from conformance.facts import CTRL_C, RunFacts
+from conformance.facts import CTRL_C, RunFacts, RunKind
 from conformance.judge import judge, unexamined
 from conformance.protocol import State
+from conformance.reporting import write_all
 from conformance.reporting.bounds import file_stem
 from conformance.reporting.text import RERUN_OF
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Mode
 from conformance.scenarios import (
+    RULE_SCENARIO,
     Commander,
     Context,
     Safety,
     Timing,
     Traffic,
     TstCommander,
+    scenarios_for,
 )
 from conformance.scenarios.deviation import Deviation, Deviations
 from conformance.scenarios.params import task_moves
@@ -53,10 +56,15 @@ from conformance.suite.events import Events, clock
 from conformance.suite.header import header_lines
 from conformance.suite.observation import Observation
 from conformance.suite.probe import NotAlive
+from conformance.suite.progress import Progress
 from conformance.suite.reboot import Reboot
+from conformance.suite.scenario_run import run_scenario
 from conformance.suite.settings import Settings
 from conformance.topics import UnitAddress, level_name
 from conformance.violation import Observed, RuleResult, Verdict
+
+if TYPE_CHECKING:
+    from conformance.sim.virtual import VirtualClient
 
 CERTIFICATION = pytest.StashKey["Certification"]()
 
@@ -80,7 +88,7 @@ class Certification:
         # report; it judges the unit's answers with the deadlines the scenarios wait for.
         self.monitor = Monitor(dataclasses.replace(
             self.profile, response_timeout=self.timing.response,
-            feedback_timeout=self.timing.feedback), units=[self.unit], kind="certification")
+            feedback_timeout=self.timing.feedback), units=[self.unit], kind=RunKind.CERTIFICATION)
         self._lock = threading.RLock()
         self.events = Events()
         """What happened to the connection and the unit, for the terminal summary."""
@@ -89,12 +97,12 @@ class Certification:
         self.reboot = Reboot(config, self.connection, self.timing.reboot,
                              self._reboot_requested, self.events)
         when = time.strftime('%Y%m%dT%H%M%S', time.localtime())
-        self.stem = f"{file_stem(self.unit.name)}-{when}"  # a bounded file name (issue 26)
+        self.stem = f"{file_stem(self.unit.name)}-{when}"  # a bounded file name
         self.report_paths: dict[str, Path] = {}
         self.report_error = ""
         """Why the last report could not be written ('' when it was)."""
         self.collect_only = False  # --collect-only: nothing is connected, run or written
-        self.error: str | None = None
+        self.error = ""
         """Why the run stopped before the tests (broker unreachable, unit not alive)."""
         self.scenarios_done: dict[str, bool] = {}
         """Scenario -> whether it ran (False: its rules could not be tested)."""
@@ -128,8 +136,6 @@ class Certification:
     def _commanders(self, config: pytest.Config, settings: Settings) -> None:
         """What drives the unit: the commanders (12, 14), the safety decision, the scenarios'
         context and the observation's waits, all reporting on the progress line."""
-        from conformance.suite.progress import Progress
-
         self.progress = Progress(config)
         self.traffic.waits.on_tick = self.progress.tick
         self.traffic.waits.on_end = self.progress.end
@@ -158,7 +164,7 @@ class Certification:
         self.started = self.observation.started
 
     @property
-    def client(self) -> MqttClient | None:
+    def client(self) -> MqttClient | VirtualClient | None:
         """The suite's MQTT client (None before ``start``)."""
         return self.connection.client
 
@@ -285,7 +291,7 @@ class Certification:
         """What the judge must know of this run so far (``conformance.facts.RunFacts``)."""
         cut = self.out_of_time or (CTRL_C if self.interrupted else "")
         return RunFacts(
-            kind="certification", unit=str(self.unit), strict=self.profile.is_strict,
+            kind=RunKind.CERTIFICATION, unit=str(self.unit), strict=self.profile.is_strict,
             error=self.error, broker_lost=self.broker_lost,
             interrupted=bool(cut), cut_short=cut, selection=self.selection,
             # A rule the exploration (or its replay) judged was judged, selected or not.
@@ -355,14 +361,13 @@ class Certification:
         """The pytest command that repeats this run (of ``rule`` alone, when given); a rule
         only exploration found, by replaying its story (``-k RULE`` sends no such order)."""
         since, replay = self.replays.get(rule or "", (0.0, ""))
-        if replay and all((v.time or since) >= since for v in self.result(rule).violations):
+        if replay and rule and all((v.time or since) >= since
+                                   for v in self.result(rule).violations):
             return replay
         return self.settings.rerun_command(rule, self._observe_for(rule) if rule else 0)
 
     def _observe_for(self, rule: str) -> int:
         """Seconds of observation a rerun of ``rule`` needs (0: the passive window will do)."""
-        from conformance.scenarios import RULE_SCENARIO
-
         if rule in RULE_SCENARIO:
             return 0
         return self.observation.observe_for(
@@ -382,15 +387,11 @@ class Certification:
 
     def run_evidence(self, rule: str) -> None:
         """Run (once) every scenario whose traffic is evidence for ``rule``."""
-        from conformance.scenarios import scenarios_for
-
         for name in scenarios_for(rule):
             self.run_scenario(name)
 
     def run_scenario(self, name: str) -> None:
         """Run a scenario once (later calls return at once): ``scenario_run.run_scenario``."""
-        from conformance.suite.scenario_run import run_scenario
-
         run_scenario(self, name)
 
     def announce(self, text: str) -> None:
@@ -444,7 +445,6 @@ class Certification:
         if not force and now - self._last_write < 1.0:
             return self.report_paths
         self._last_write = now
-        from conformance.reporting import write_all
 
         report = self.report(**extra)
         unit = report.units.get(str(self.unit))
@@ -513,8 +513,8 @@ class Certification:
 
     def header(self) -> list[str]:
         """The lines pytest shows before the tests (``header_lines``); the unit's own words
-        in them (agent-uuid, agent-type, levels) escaped and excerpted (issue 19 §5), never a
-        password (issue 26 §5)."""
+        in them (agent-uuid, agent-type, levels) escaped and excerpted, never a
+        password."""
         return [shown(shorten(line, LINE_CHARS)) for line in header_lines(
             self.settings, broker=self.connection.broker_url, heartbeat=self.context.heartbeat(),
             levels=self.context.levels(),

@@ -20,6 +20,8 @@ import pytest
 from conformance.cli.options import parse_duration, reports_dir_problem
 from conformance.client import BrokerURL, mask_password
 from conformance.profile import Profile, ProfileError, builtin_names, load
+from conformance.rules import CATALOGUE
+from conformance.scenarios import story
 from conformance.topics import TopicError, UnitAddress
 
 # option dest -> ini name (the ini twin of every option but --unit and --seed)
@@ -85,7 +87,7 @@ class Settings:
     markexpr: str = ""
     """pytest's -m expression."""
     explore: float | None = None
-    """--explore: seconds of exploration after the scripted scenarios (issue 17); None: the
+    """--explore: seconds of exploration after the scripted scenarios; None: the
     default (``suite.exploration.default_budget``), 0: off."""
     explore_order: str = "model"
     """--explore-order: 'model' (the most telling command first) or 'random'."""
@@ -119,10 +121,10 @@ class Settings:
         """The pytest command that repeats this run (``rule``: only that rule, observing at
         least ``observe`` seconds): every option that changes what is tested or how, TLS
         files included. Never a secret: the broker URL carries no password (the password
-        comes only from WARAPS_PASSWORD), a reboot command's is masked (issue 26 §5)."""
+        comes only from WARAPS_PASSWORD), a reboot command's is masked."""
         b = self.broker
         # '=' for paths: a path in its own argument could be taken for a test path by pytest.
-        q = shlex.quote  # every value shell-quoted: a unit name may be `x;rm -rf ~` (issue 19 §5)
+        q = shlex.quote  # every value shell-quoted: a unit name may be `x;rm -rf ~`
         parts = ["pytest", "--unit", q(str(self.unit)), "--broker", q(str(b))]
         parts += b.tls_arguments()
         parts += [q(f"--sim-fault={f}") for f in self.sim_faults]
@@ -375,19 +377,15 @@ def _replay(config: pytest.Config, reports: Path) -> Path | None:
     if not path.is_file():
         raise pytest.UsageError(f"--explore-replay {value}: no such file (a failing "
                                 f"exploration stores its story under {reports})")
-    from conformance.scenarios.story import StoryError, load
-
     try:  # read now: a story that is none is a usage error, before anything runs
-        load(path)
-    except StoryError as e:
+        story.load(path)
+    except story.StoryError as e:
         raise pytest.UsageError(f"--explore-replay: {e}") from None
     return path
 
 
 def _rules(values: object) -> tuple[str, ...]:
     """``--rule``: rule ids of the catalogue (also comma-separated)."""
-    from conformance.rules import CATALOGUE
-
     out: list[str] = []
     for value in values:  # type: ignore[attr-defined]
         for rule in filter(None, (r.strip().upper() for r in str(value).split(","))):
@@ -423,8 +421,8 @@ def _broker(config: pytest.Config) -> BrokerURL:
         if broker.scheme != "mqtts":
             raise pytest.UsageError("--ca-file, --cert-file, --key-file and --tls-insecure "
                                     "need an mqtts:// broker")
-        broker = broker.with_tls_files(*(str(v) if v else None for v in files.values()),
-                                       insecure=insecure)
+        ca, cert, private = (str(v) if v else None for v in files.values())
+        broker = broker.with_tls_files(ca, cert, private, insecure=insecure)
     return broker
 
 

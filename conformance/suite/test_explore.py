@@ -1,4 +1,4 @@
-"""Exploration (issue 17): after the scripted scenarios, command orders no script has, drawn
+"""Exploration: after the scripted scenarios, command orders no script has, drawn
 by hypothesis within a budget (``--explore``), every answer judged by the Monitor; a
 disagreement fails this test with its story, whose rerun line replays it."""
 

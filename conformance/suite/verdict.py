@@ -54,7 +54,8 @@ def locate_skip(item: pytest.Item, report: pytest.TestReport) -> None:
     the line of the suite that raised it."""
     marker = item.get_closest_marker("waraps_rule")
     if marker is not None and report.skipped and isinstance(report.longrepr, tuple):
-        report.longrepr = (marker.args[0], None, report.longrepr[2])
+        # pytest prints (path, lineno, reason); lineno None leaves the line out.
+        report.longrepr = (marker.args[0], None, report.longrepr[2])  # type: ignore[assignment]
 
 
 def enact(certification: Certification, rule: str, node: pytest.Item) -> None:

@@ -1,4 +1,5 @@
-"""Each finding is charged to the party whose message it is about (DESIGN: blame; FIELD-NOTES,
+"""Each finding is charged to the party whose message it is about (DESIGN: blame;
+docs/FIELD-NOTES.md
 precision: whose topic, operators): a unit's own topic is the unit's, once, never each
 commander's; a command on a topic of its sender's making is that commander's."""
 
@@ -82,7 +83,7 @@ def test_an_operators_command_on_a_topic_of_its_own_is_on_its_row(stream, prefix
 def test_the_suites_own_commands_and_probes_are_no_commanders_fault(stream):
     """A recording made during a certification holds the suite's deliberate probes (its
     sender 'waraps-conformance'; unreadable payloads once it was seen commanding the unit):
-    no commander row fails for them; the unit's answers are still judged (issue 24, 5)."""
+    no commander row fails for them; the unit's answers are still judged."""
     from conformance.checks.suite_commands import SENDER, UNREADABLE
 
     ping = {"com-uuid": str(uuid.uuid4()), "command": "ping", "sender": SENDER}

@@ -1,4 +1,4 @@
-"""What the checks keep of a message is bounded in bytes (issue 19 §3): identifiers they keep
+"""What the checks keep of a message is bounded in bytes: identifiers they keep
 as keys (com-uuid, task-uuid, response-to, ...) longer than ``bounds.ID_CHARS`` are kept as
 stand-ins of bounded size, the same for the same identifier, so answers still match."""
 

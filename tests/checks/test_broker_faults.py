@@ -1,5 +1,5 @@
-"""A broker's fault is the broker's (issue 25 §3), and evidence per life of the unit (issue 24
-§2): synthetic streams with controlled arrival times. A stall (the broker frozen, then what it
+"""A broker's fault is the broker's, and evidence per life of the unit:
+synthetic streams with controlled arrival times. A stall (the broker frozen, then what it
 held delivered in one burst) and an outage (the observer's connection down) are never
 evidence against the unit; a gross rate mismatch is judged from 2 intervals; positions are
 compared within one life only."""
@@ -135,8 +135,8 @@ def _ping_before_heard_again(stream, heard: float):
 
 def test_a_command_sent_before_the_unit_is_heard_again_is_not_failed(stream):
     """The unit reconnects on its own time, after the observer: a command sent between the
-    observer's reconnect and the unit's return may never have reached it (the CI run of
-    issue 25's broker kill)."""
+    observer's reconnect and the unit's return may never have reached it (seen in a CI run
+    whose broker was killed)."""
     assert _ping_before_heard_again(stream, heard=16.0)[1]["EXEC-PING-001"].verdict is \
         Verdict.FAIL
     m, rules = _ping_before_heard_again(stream, heard=19.0)
@@ -177,7 +177,7 @@ def test_a_final_feedback_that_falls_in_an_outage_is_not_failed(stream):
     assert r.verdict is not Verdict.FAIL and "broker" in r.reason, r
 
 
-# -- issue 24 §2: a gross rate mismatch from 2 intervals; positions per life ----------------
+# -- a gross rate mismatch from 2 intervals; positions per life ----------------
 
 def test_a_gross_rate_mismatch_fails_from_two_intervals(stream):
     stream.rate = 5.0  # declared 5 Hz, sent every 5 s (a real agent): each interval 25 periods

@@ -82,7 +82,7 @@ def test_rate_fails_on_a_single_long_gap(stream):
 
 
 def test_a_rate_is_judged_live_over_its_latest_intervals_and_finally_over_the_whole(stream):
-    """Issue 20: the live view turns red once min_intervals (10) clean intervals are off, a
+    """The live view turns red once min_intervals (10) clean intervals are off, a
     gross mismatch after 2 or 3, and clears when the rate recovers; the rule is judged over the
     whole observation at the end (a rate that recovered may pass)."""
     m = Monitor()
@@ -112,7 +112,7 @@ def test_a_conformant_rate_is_never_shown_off_live(stream, times):
 
 
 def test_a_gross_rate_mismatch_shows_live_after_two_intervals(stream):
-    """Issue 24 §2: every interval 3 declared periods or longer is gross after 2 intervals."""
+    """Every interval 3 declared periods or longer is gross after 2 intervals."""
     m = Monitor()
     stream.feed(m, [stream.heartbeat(i * 5.0) for i in range(2)])
     assert m.live_findings(stream.address) == []
@@ -168,7 +168,7 @@ def test_rate_counts_the_same_pause_without_a_reboot(stream):
 def test_info_rate_without_agent_uuid_starts_afresh_with_the_heartbeats_new_life(stream, rule,
                                                                                   builder):
     """The RISE agent's info messages carry no agent-uuid: its restart (2.4 s at 1 Hz, a new
-    agent-uuid in the heartbeat) is the heartbeat's life boundary for them too (issue 24 §2),
+    agent-uuid in the heartbeat) is the heartbeat's life boundary for them too,
     while the same pause without a new life stays a stall."""
     def life(new: str | None) -> list:
         msgs = []

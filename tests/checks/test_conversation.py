@@ -90,7 +90,7 @@ def test_start_task_running_with_feedback_to_the_end_passes(stream):
         stream.feedback(6.5, task, "finished")])
     assert set(verdicts(rules, "EXEC-START-001", "EXEC-START-003",
                         "EXEC-FB-004").values()) == {"pass"}
-    # 12.1's words are about a start-task sent without a task-uuid: none was (issue 24)
+    # 12.1's words are about a start-task sent without a task-uuid: none was
     assert rules["EXEC-START-002"].verdict is Verdict.SKIP
     assert "no start-task without a task-uuid" in rules["EXEC-START-002"].reason
     generated = new()
@@ -277,8 +277,8 @@ def test_a_resend_executed_again_fails_resend_001(stream):
 
 
 def test_a_unit_that_repeats_running_is_not_accused_of_a_second_start_by_it(stream):
-    """12.4's 'Update of the status' read as a periodic report (an independent unit, issue
-    24): every running task's status each second. Once the unit has shown that, a 'running'
+    """12.4's 'Update of the status' read as a periodic report (an independent
+    unit): every running task's status each second. Once the unit has shown that, a 'running'
     after a resend is its period, not the task started again."""
     other, task = new(), new()
     first = start(stream, 1.0, other)
@@ -472,7 +472,8 @@ def test_a_unit_deaf_after_a_malformed_command_fails_robust_001_and_each_command
 
 
 def test_kinds_never_answered_do_not_say_the_unit_stopped_answering(stream):
-    """FIELD-NOTES (real agents, kinds never answered): a unit that answers start-task and
+    """docs/FIELD-NOTES.md 'Real agents certified live' (kinds never answered): a unit that answers
+    start-task and
     signal-task but never ping or query-status, from the first second, did not stop answering
     after a malformed command; each unanswered kind fails its own rule."""
     task = new()
@@ -493,7 +494,8 @@ def test_kinds_never_answered_do_not_say_the_unit_stopped_answering(stream):
 
 
 def test_answers_in_flight_are_credited_not_taken_for_deafness(stream):
-    """FIELD-NOTES (precision): a unit that ignored a malformed command and then, inside that
+    """docs/FIELD-NOTES.md 'Precision': a unit that ignored a malformed command and then, inside
+    that
     command's timeout, answered another has not stopped answering; a query-status it ignores
     later is one kind of command unanswered, its own finding only."""
     bad = stream.msg("exec/command", b'{"com-uuid": "' + new().encode() + b'", signal: $abort}',
@@ -548,7 +550,7 @@ def test_a_unit_that_dies_on_a_command_is_one_death_naming_it(stream):
 
 
 def test_dying_after_commands_excuses_only_the_last_one(stream):
-    """FIELD-NOTES (precision): commands a unit received before the one it died on were left
+    """docs/FIELD-NOTES.md 'Precision': commands a unit received before the one it died on were left
     unanswered by a live unit: each fails its rule; HB-012 names the last one they received while alive."""
     ping0 = stream.command(5.0, "ping")
     ping = stream.command(9.2, "ping")
@@ -667,7 +669,7 @@ def test_a_task_the_unit_lists_is_no_unknown_task_of_the_commander(stream):
 
 
 def test_an_empty_task_uuid_is_a_finding_per_message_not_a_pseudo_task(stream):
-    """FIELD-NOTES (precision): feedback with task-uuid "" is one fault per message, not one
+    """docs/FIELD-NOTES.md 'Precision': feedback with task-uuid "" is one fault per message, not one
     task '' that received feedback after its final status."""
     rules = judge(stream, [stream.feedback(2.0, "", "running"),
                            stream.feedback(3.0, "", "finished"),
@@ -684,7 +686,7 @@ def test_an_empty_task_uuid_is_a_finding_per_message_not_a_pseudo_task(stream):
 
 
 def test_an_empty_task_uuid_answering_a_command_that_named_no_task_is_no_fault(stream):
-    """FIELD-NOTES (precision: spec words): the 'failed' answer to a malformed command that
+    """docs/FIELD-NOTES.md 'Precision' (spec words): the 'failed' answer to a malformed command that
     named no task has no task to name; ``task-uuid: ""`` there is not ERR-014's."""
     bad = stream.command(2.0, "start-task")  # no task: malformed
     ok = judge(stream, [bad, stream.response(2.1, com_of(bad), "failed", **{
@@ -699,7 +701,8 @@ def test_an_empty_task_uuid_answering_a_command_that_named_no_task_is_no_fault(s
 
 
 def test_a_task_named_uuid_instead_of_task_uuid_is_still_tracked(stream):
-    """FIELD-NOTES (precision: other keys): some agents name the task 'uuid'. The wrong key is
+    """docs/FIELD-NOTES.md 'Precision' (other keys): some agents name the task 'uuid'. The wrong
+    key is
     each message's finding; the task is tracked by what the unit sends."""
     import orjson
 
@@ -772,7 +775,8 @@ def test_a_resend_refused_is_not_executed_again(stream):
 
 
 def test_a_death_names_every_command_of_the_burst_the_last_first(stream):
-    """FIELD-NOTES (dying on bytes): a non-UTF-8 payload killed the unit, and an unknown
+    """docs/FIELD-NOTES.md 'Real agents certified live' (dying on bytes): a non-UTF-8 payload
+    killed the unit, and an unknown
     command came in the same burst. Which one killed it the traffic cannot tell: HB-012 names
     every command it left unanswered in the period before its last heartbeat, the last
     first, and not one it answered another command after."""
@@ -792,7 +796,7 @@ def test_a_death_names_every_command_of_the_burst_the_last_first(stream):
 
 
 def test_a_task_still_listed_long_after_it_finished_fails_dei_004_from_traffic(stream):
-    """Issue 24: tasks-executing entries that never end are on the wire; wherever the traffic
+    """Tasks-executing entries that never end are on the wire; wherever the traffic
     shows the task's end ('finished', 'aborted'), a listing past two info periods fails DEI-004
     (5.3 'List of tasks currently executing.'). A listing composed before the end, or after a
     'failed' (which the public agents also send for a refused command), is no evidence."""

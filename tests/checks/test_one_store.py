@@ -1,4 +1,4 @@
-"""One task state (issue 28 §2): the unit's protocol.Model keeps every task, and the exec
+"""One task state: the unit's protocol.Model keeps every task, and the exec
 conversations read and annotate its records; no second store of TaskRecords exists."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Conformant units judged without false accusations from the observer's own timing
-(FIELD-NOTES, timing jitter; precision): every case shown both ways."""
+(docs/FIELD-NOTES.md 'Timing jitter', 'Precision'): every case shown both ways."""
 
 from __future__ import annotations
 

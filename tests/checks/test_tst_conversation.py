@@ -175,7 +175,7 @@ def test_a_seq_that_stops_at_an_aborted_child_passes(stream):
 
 
 def test_a_seq_whose_nodes_are_announced_not_active_at_the_start_passes(stream):
-    # An independent unit (issue 24) says 'not-active' for every node before running the
+    # An independent unit says 'not-active' for every node before running the
     # first: b's 'not-active' is not b started while a runs.
     x = Tst(stream)
     msgs, _ = seq_run(x, 2.0, announced=True)
@@ -408,7 +408,7 @@ def test_commands_on_an_operators_topic_are_judged_as_the_units_they_concern(str
 
 
 def test_a_start_tst_whose_answer_falls_in_an_outage_is_not_failed(stream):
-    """Issue 25 §3: the observer's connection was down while the answer was due; what the
+    """The observer's connection was down while the answer was due; what the
     unit sent then is unknown (the same traffic without the gap fails TST-004, above)."""
     x = Tst(stream)
     lost = x.start(2.0, leaf("look-at-bearing", new()))

@@ -1,5 +1,5 @@
 """The layout stays what docs/ARCHITECTURE.md says: no import cycle among the package's modules
-and no module a reader cannot take in (issue 11's 'about 500 lines')."""
+and no module a reader cannot take in ('about 500 lines')."""
 
 from __future__ import annotations
 
@@ -121,7 +121,7 @@ def test_no_module_is_too_long_to_read() -> None:
 
 
 MAX_FUNCTION_LINES = 60
-"""A function longer than this says why in its docstring ("long because ..."; issue 28)."""
+"""A function longer than this says why in its docstring ("long because ...")."""
 
 
 def test_no_function_is_too_long_without_saying_why() -> None:

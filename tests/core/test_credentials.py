@@ -1,5 +1,5 @@
-"""A password never reaches stdout, stderr or a report, whatever the command or the error
-(issue 19 §5): one masking (``client.mask_password``), used by every error that shows a URL."""
+"""A password never reaches stdout, stderr or a report, whatever the command or the error:
+one masking (``client.mask_password``), used by every error that shows a URL."""
 
 from __future__ import annotations
 
@@ -37,7 +37,7 @@ def test_mask_password(text, shown):
 HOSTILE_PASSWORDS = ["pw", "p/w", "p#w", "p?w", "p w", "p@w", "p:w", "p@@w", "x://y@z",
                      "a/b#c?d e@f:g", "@", "/", "p --seed", "p'w\"q"]
 """Passwords holding what ends a URL's user-info in a careless reading (RFC 3986 3.2.1):
-masking stopped at '/', '#', '?' or ' ' (issue 26 §5)."""
+masking stopped at '/', '#', '?' or ' '."""
 
 
 @pytest.mark.parametrize("password", HOSTILE_PASSWORDS)

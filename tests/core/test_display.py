@@ -1,4 +1,4 @@
-"""The one escape (issue 26 §3): ``display.printable`` shows every character a person cannot
+"""The one escape: ``display.printable`` shows every character a person cannot
 see, or that moves the cursor or reorders text, as a visible escape; ASCII text is unchanged;
 two different names never print alike."""
 

@@ -1,4 +1,4 @@
-"""Hostile option values (issue 26's list): each is one line saying what is wrong, with the
+"""Hostile option values: each is one line saying what is wrong, with the
 documented exit status, and never a traceback; a reader that leaves (``| head -n 1``) changes
 neither the reports nor the exit status. Run as the console script, as a person runs it."""
 

@@ -1,6 +1,6 @@
 """The one judge (conformance/judge.py): no other module decides or changes a verdict; a
 decided rule warns unless the run is strict; lint's gate reaches its JSON and its exit status
-alike (issue 28 §1, issue 24 §1)."""
+alike."""
 
 from __future__ import annotations
 

@@ -93,7 +93,7 @@ def test_each_example_profile_loads_and_names_real_tasks(path: Path) -> None:
 
     p = profile.load(path)
     known = {s.name for s in task_specs()}
-    # a task outside section 9 only with the parameters to start it (issue 25 §2)
+    # a task outside section 9 only with the parameters to start it
     assert set(p.tasks) - set(p.task_params) <= known
     assert set(p.motion_tasks) <= known | set(p.task_params)
     assert set(p.motion_tasks) <= set(p.tasks) or not p.tasks

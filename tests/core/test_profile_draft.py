@@ -91,7 +91,7 @@ def hostile_observation(unit: UnitAddress) -> Observed:
 
 
 def test_nothing_a_unit_publishes_becomes_a_key_of_the_draft(unit_address: UnitAddress) -> None:
-    """Issue 26 §2: every line-breaking code point (\\n, \\r, U+2028, U+2029, U+0085, \\v,
+    """Every line-breaking code point (\\n, \\r, U+2028, U+2029, U+0085, \\v,
     \\f), YAML's specials, control and bidi characters in sensor, level and task names are
     escaped; the draft loads with exactly the keys the drafter writes, and no severity."""
     text = draft(hostile_observation(unit_address))
@@ -114,7 +114,7 @@ def test_nothing_a_unit_publishes_becomes_a_key_of_the_draft(unit_address: UnitA
 def test_a_hostile_unit_cannot_certify_itself_through_its_drafted_profile(
         pytester: pytest.Pytester, unit_address: UnitAddress, mosquitto: str,
         tmp_path: Path) -> None:
-    """Issue 26's scenario: a unit publishes on `.../sensor/cam\\u2028severity: {'*':
+    """The forged profile: a unit publishes on `.../sensor/cam\\u2028severity: {'*':
     warning}\\u2028description`; the profile drafted from it has no severity, and the faulty
     reference unit (topic-uppercase-sensor) certified with it still fails."""
     from conformance.client import BrokerURL, MqttClient
@@ -144,7 +144,8 @@ def test_a_hostile_unit_cannot_certify_itself_through_its_drafted_profile(
 def test_a_unit_slower_than_it_declares_is_a_problem_in_the_draft_and_on_stderr(
         unit_address: UnitAddress, mosquitto: str, tmp_path: Path,
         capsys: pytest.CaptureFixture[str]) -> None:
-    """FIELD-NOTES: an agent declaring 5 Hz publishes at 0.2 Hz; the draft says so as a
+    """docs/FIELD-NOTES.md 'Real agents certified live': an agent declaring 5 Hz publishes at 0.2
+    Hz; the draft says so as a
     problem, not as a neutral note."""
     out = tmp_path / "slow.yaml"
     with SimUnit(unit_address, mosquitto, rate=5.0, faults=["heartbeat-rate-drift"]):

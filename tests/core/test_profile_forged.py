@@ -1,4 +1,4 @@
-"""Profiles that cannot be forged (issue 26 §2): the loader reads a YAML subset, refusing
+"""Profiles that cannot be forged: the loader reads a YAML subset, refusing
 what a profile never needs (anchors, aliases, tags, size, depth, numbers that are not finite,
 non-UTF-8, extends cycles) with one line naming the file, where and the fix: no hang, no
 traceback, whatever the file holds."""

@@ -1,4 +1,4 @@
-"""Every rule of the catalogue says what it stands on (issue 24): the spec's words (stated), words
+"""Every rule of the catalogue says what it stands on: the spec's words (stated), words
 it follows from necessarily (implied), or a choice this suite made where the spec is silent or
 contradicts itself (decided). Read from ``conformance/rules.toml`` with tomllib, not through
 ``conformance.rules``, so that the data is judged as written."""
@@ -95,7 +95,7 @@ def test_every_erratum_is_decided(rules: list[dict]) -> None:
 
 
 def test_the_issues_false_findings_are_not_stated(rules: list[dict]) -> None:
-    # Issue 24: 6.1 says 'heading: float' (no range); v0.7 has no example of sensor/position;
+    # 6.1 says 'heading: float' (no range); v0.7 has no example of sensor/position;
     # 14.5 only lists statuses (no composite's status).
     basis = {r["id"]: r["basis"] for r in rules}
     assert basis["SENS-002"] == basis["ERR-010"] == basis["TST-010"] == "decided"

@@ -1,4 +1,4 @@
-"""Every fuzz target (``fuzz/``, issue 26 §1) run briefly under libFuzzer from its seeds: a crash,
+"""Every fuzz target (``fuzz/``) run briefly under libFuzzer from its seeds: a crash,
 a hang past libFuzzer's ``-timeout``, memory past ``-rss_limit_mb`` or a broken bound of the
 target's invariant fails the test with the input's path and the end of libFuzzer's output.
 
@@ -33,7 +33,7 @@ SURFACES = {
     "the environment": ("environment",), "the serve address and metrics labels":
     ("serve_address",), "bag decompression": ("bag_inflate",),
 }
-"""Issue 26 §1's surfaces, each with its targets."""
+"""The input surfaces, each with its targets."""
 KNOWN_OPEN: dict[str, str] = {}
 """Targets whose findings are owned elsewhere: run, but a finding is an expected failure."""
 
@@ -74,7 +74,7 @@ def test_a_target_runs_briefly_without_a_finding(target: str, seeds: Path,
 
 
 REGRESSIONS = Path(__file__).parent / "regressions"
-"""Inputs that broke a target's invariant (found by fuzzing or named in issue 26), one folder
+"""Inputs that broke a target's invariant (found by fuzzing or by hand), one folder
 per target: each is run once through its target and must now hold."""
 
 

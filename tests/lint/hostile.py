@@ -1,4 +1,4 @@
-"""The hostile corpus (issue 19 §6), generated into a folder, and a bounded run of the console
+"""The hostile corpus, generated into a folder, and a bounded run of the console
 script on each case: a subprocess under an address-space cap (``ulimit -v``), its time and peak
 memory measured. Imported by ``test_hostile_inputs.py`` and ``bench/bench_hostile.py``.
 
@@ -26,7 +26,7 @@ T0 = 1_763_700_000.0
 UNIT = "waraps/unit/air/simulation/dji0"
 ADDRESS_SPACE = 3 << 30
 """The ``ulimit -v`` of every run: 3 GiB (numpy and rosbags map ~1 GiB of address space
-before reading anything; the 2e9-byte payloadlen of issue 19 needed 3.9 GB)."""
+before reading anything; a 2e9-byte payloadlen once needed 3.9 GB)."""
 MAX_SECONDS = 60.0
 """A run killed past this is a hang (a case takes under 5 s on an idle machine)."""
 MAX_PEAK_MB = 400
@@ -163,7 +163,7 @@ def as_mosquitto_j(jsonl: bytes) -> bytes:
 
 
 def _empty_objects(path: Path, count: int = 22_000_000) -> Path:
-    """Issue 26 §4: a -F %J line of 66 MB, ``[{},{},...]`` (2.1 GB as Python objects: once a
+    """A -F %J line of 66 MB, ``[{},{},...]`` (2.1 GB as Python objects: once a
     SIGSEGV in orjson.dumps), among good lines; written in pieces, never held."""
     good = good_lines()
     head, tail = mosquitto_jj(f"{UNIT}/sensor/speed", b"@", 3 * count).split(b"@")
@@ -176,7 +176,7 @@ def _empty_objects(path: Path, count: int = 22_000_000) -> Path:
 
 
 def mixed_j_and_jj(tmp: Path) -> Path:
-    """Issue 26 §4: one ``-F %J`` line, then a conformant unit's ``-F %j`` lines (30 false
+    """One ``-F %J`` line, then a conformant unit's ``-F %j`` lines (30 false
     MSG-003 findings when the first line's format was taken for the whole file)."""
     path = tmp / "mixed.txt"
     first = as_mosquitto_j(line(T0 - 0.1, f"{UNIT}/sensor/speed", b"0.1")).replace(
@@ -246,7 +246,7 @@ def fleet(tmp: Path, units: int = 100_000) -> Path:
 
 
 def long_names(tmp: Path, units: int = 100, chars: int = 100_000) -> Path:
-    """Issue 26 §4: ``units`` units whose names take ``chars`` characters, one heartbeat each
+    """``units`` units whose names take ``chars`` characters, one heartbeat each
     (800 such units once took gigabytes: the name repeated in each rule's reason)."""
     path = tmp / "long-names.jsonl"
     with open(path, "wb") as f:
@@ -316,7 +316,7 @@ RECORDING_CASES = [
     Case("overlong-line", _recording(b"x" * ((64 << 20) + 10)),
          says=("malformed line 7: line of 67108875 bytes is longer than the 64 MiB",)),
     Case("empty", b"", codes=frozenset({3}), says=("no messages were read",)),
-    # Issue 26 §4: bounded by construction, not by case.
+    # Bounded by construction, not by case.
     Case("jj-nested-999", _recording(mosquitto_jj(f"{UNIT}/sensor/speed", b"[" * 999
                                                   + b"]" * 999, 1998)),
          codes=frozenset({4}), says=("MSG-004",)),  # decided: partial unless strict
@@ -448,7 +448,7 @@ BILLION_LAUGHS = "".join(
 
 
 def metadata_bags(tmp: Path) -> list[Path]:
-    """Issue 26 §4: ROS 2 bags whose metadata.yaml says ``message_count: lots`` (in a topic's
+    """ROS 2 bags whose metadata.yaml says ``message_count: lots`` (in a topic's
     count, then in the total), is a billion laughs, or nests 10,000 levels deep."""
     sys.path.insert(0, str(Path(__file__).parent.parent / "ros"))
     from ros_bags import unit_entries, write_bag

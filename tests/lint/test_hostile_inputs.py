@@ -1,4 +1,4 @@
-"""The hostile corpus (issue 19 §6, issue 20 §4): each case run as the console script in a
+"""The hostile corpus: each case run as the console script in a
 subprocess under an address-space cap (``hostile.ADDRESS_SPACE``), and for each: no traceback,
 an exit status from the documented table, the message that names what and which bound, time
 and peak memory within ``hostile.MAX_SECONDS`` and ``hostile.MAX_PEAK_MB``.
@@ -66,7 +66,7 @@ def test_a_hostile_source_is_refused_or_read_within_its_bounds(
 
 
 def test_a_mosquitto_v_capture_is_judged_except_what_needs_times(tmp_path: Path) -> None:
-    """Issue 20 §4: the format is told from the content and named; the rate rules are
+    """The format is told from the content and named; the rate rules are
     could-not-test 'no timestamps' (HB-003 would fail with times: every second heartbeat is
     missing), the rest is judged (HB-002 fails, HB-001 passes)."""
     case = next(c for c in COMMAND_CASES if c.name == "mosquitto-v-capture")
@@ -83,7 +83,7 @@ def test_a_mosquitto_v_capture_is_judged_except_what_needs_times(tmp_path: Path)
 
 def test_a_mosquitto_v_capture_says_it_has_no_times_first_and_shows_no_rate(
         tmp_path: Path) -> None:
-    """Issue 27 §4: the note comes before the verdicts; no rate, no 'clean for 0 s', no
+    """The note comes before the verdicts; no rate, no 'clean for 0 s', no
     'in 0 s observed', no time of a finding (the reading's times are not the traffic's)."""
     case = next(c for c in COMMAND_CASES if c.name == "mosquitto-v-capture")
     case = dataclasses.replace(case, args=(*case.args[:-1], "json,html"))
@@ -120,7 +120,7 @@ def test_a_recording_with_times_is_not_untimed_by_one_line_that_looks_like_v(
 def test_a_fleet_past_the_unit_bound_fails_naming_what_was_not_judged(tmp_path: Path) -> None:
     """100k units (a generated recording), every unit the linter judges conformant and the
     last one faulty: never a pass. Reports are not written here (their size is bounded
-    elsewhere: issue 19 §4)."""
+    elsewhere)."""
     path = fleet(tmp_path)
     run = run_bounded("fleet", ["lint", "--from", str(path), "--plain", "--format", "none"],
                       tmp_path)
@@ -145,7 +145,7 @@ def test_a_fleet_within_the_unit_bound_is_judged_whole(tmp_path: Path) -> None:
 @pytest.mark.parametrize("storage", ["ros1", "sqlite3", "mcap"])
 def test_a_damaged_bag_never_yields_a_verdict_on_part_of_it(storage: str,
                                                              tmp_path: Path) -> None:
-    """Issue 19 §2: a failing bag damaged at 16 offsets, cut off, or (ROS 2) with a
+    """A failing bag damaged at 16 offsets, cut off, or (ROS 2) with a
     metadata.yaml that claims more than was stored: each fails on what it holds (exit 1) or
     is refused (exit 3), never passes; a short read says so and how to fix it."""
     src, copies = damaged_bags(tmp_path, storage, 16)
@@ -243,7 +243,7 @@ def test_random_damage_to_a_recording_is_never_a_traceback(tmp_path: Path) -> No
 
 
 def test_formats_are_told_per_line(tmp_path: Path) -> None:
-    """Issue 26 §4: one ``-F %J`` line before a conformant unit's ``-F %j`` lines: each line is
+    """One ``-F %J`` line before a conformant unit's ``-F %j`` lines: each line is
     read in its own format, so the heartbeats are objects (no MSG-003) and the unit is clean."""
     from hostile import mixed_j_and_jj
 
@@ -256,7 +256,7 @@ def test_formats_are_told_per_line(tmp_path: Path) -> None:
 
 
 def test_a_hostile_metadata_yaml_is_refused_in_one_line(tmp_path: Path) -> None:
-    """Issue 26 §4: a ROS 2 bag whose metadata.yaml holds 'message_count: lots' (once a
+    """A ROS 2 bag whose metadata.yaml holds 'message_count: lots' (once a
     TypeError), a 1 KB billion laughs (once a hang) or 10,000 levels of nesting: each refused
     (exit 3) with one line naming the file and how to fix it, within the bounds."""
     from hostile import metadata_bags
@@ -274,7 +274,7 @@ def test_a_hostile_metadata_yaml_is_refused_in_one_line(tmp_path: Path) -> None:
 
 
 def test_long_unit_names_are_stored_once(tmp_path: Path) -> None:
-    """Issue 26 §4: 100 units with 100 KB names (20 MB): every report written within the memory
+    """100 units with 100 KB names (20 MB): every report written within the memory
     bound (527 MB before: each rule's reason repeated the name) and about the input's size."""
     from hostile import long_names
 

@@ -107,7 +107,7 @@ def test_a_commanders_faults_are_on_its_row_and_the_unit_has_none(mosquitto: str
     assert {r: res["reason"] for r, res in me["rules"].items()
             if res["verdict"] in ("fail", "warn")} == {}, run.out
     # The unit's side of every conversation was judged, and passed.
-    # Every start-task named its task-uuid: 12.1's generated one was never asked for (issue 24)
+    # Every start-task named its task-uuid: 12.1's generated one was never asked for
     assert me["rules"]["EXEC-START-002"]["verdict"] == "skip", me["rules"]["EXEC-START-002"]
     for rule in ("EXEC-PING-001", "EXEC-PING-002", "EXEC-START-001",
                  "EXEC-RESEND-001", "EXEC-RESEND-002", "EXEC-ROBUST-002", "EXEC-SIG-001",
@@ -157,7 +157,7 @@ def _beats(rec: Recorder, n: int) -> None:
 
 def test_answers_in_flight_are_no_unit_that_stopped_answering(mosquitto: str, tmp_path: Path,
                                                              prefix: str) -> None:
-    """FIELD-NOTES (precision): a unit that ignores a malformed command and, inside its
+    """docs/FIELD-NOTES.md 'Precision': a unit that ignores a malformed command and, inside its
     timeout, answers a ping has not stopped answering; the query-status it ignores later is
     that command's own finding. Recorded from the reference unit, linted."""
     def script(send, rec) -> None:  # type: ignore[no-untyped-def]

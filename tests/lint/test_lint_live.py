@@ -25,7 +25,8 @@ from conformance.recording import Event
 pytestmark = pytest.mark.mosquitto
 
 LENIENT = "extends: default\nname: lenient-timing\nmax_gap_periods: 5\n"
-"""A loaded 2-core CI machine delays single messages (FIELD-NOTES): these tests judge the mean
+"""A loaded 2-core CI machine delays single messages (docs/FIELD-NOTES.md 'Timing jitter'): these
+tests judge the mean
 rate, and leave single late messages to the benchmarks."""
 
 
@@ -229,7 +230,7 @@ def test_lint_over_tls_verifies_the_broker_certificate(tmp_path: Path, prefix: s
 
 def test_a_rate_off_shows_while_lint_runs_not_only_at_the_end(mosquitto: str, prefix: str,
                                                               tmp_path: Path) -> None:
-    """Issue 20: a unit sending its heartbeat at 1/1.35 of its declared rate is shown failing
+    """A unit sending its heartbeat at 1/1.35 of its declared rate is shown failing
     on the live scorecard within its first ten intervals (here 5 Hz: about 3 s), long before
     the end of a 60 s lint; the final judgement is still over the whole observation."""
     from conformance.sim import SimUnit

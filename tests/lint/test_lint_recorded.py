@@ -171,7 +171,7 @@ def test_a_command_sent_before_the_unit_is_back_after_a_gap_is_not_failed(
         tmp_path: Path, reports_dir: Path, prefix: str) -> None:
     """The recorder is back at 39.9 s, the unit only at 44 s (it reconnects on its own time):
     a ping sent at 41 s may never have reached it. The same ping once the unit is back fails
-    EXEC-PING-001 (the test can fail), as the suite judges it (issue 25 §3)."""
+    EXEC-PING-001 (the test can fail), as the suite judges it."""
     unit = f"{prefix}/unit/air/simulation/dji0"
     msgs = unit_traffic(prefix, "dji0", seconds=60, skip=(20.0, 44.0))
     gap = [Event(T0 + 19.9, "disconnected", "connection lost"), Event(T0 + 39.9, "connected")]
@@ -272,7 +272,7 @@ def test_a_commanders_rerun_line_lints_the_unit_it_commanded_and_finds_it_again(
 
 def test_a_recorded_stall_of_the_broker_is_not_the_units(tmp_path: Path, reports_dir: Path,
                                                          prefix: str) -> None:
-    """Issue 25 §3: the broker froze 20 s, then delivered what it held within milliseconds.
+    """The broker froze 20 s, then delivered what it held within milliseconds.
     lint finds the stall in the traffic, says so, and judges no rate or silence over it (the
     burst fails HB-003 of every unit when taken for the units' own timing)."""
     msgs = fleet_traffic(prefix, ["dji0", "dji1"], seconds=60)

@@ -218,7 +218,7 @@ def test_mosquitto_sub_big_j_format_reserialises_and_loses_non_json(prefix: str,
 @pytest.mark.mosquitto
 def test_mosquitto_sub_v_format_is_told_from_its_content(prefix: str,
                                                          publisher: MqttClient) -> None:
-    """Issue 20 §4: TOPIC PAYLOAD per line, no times; read as messages of the time they were
+    """TOPIC PAYLOAD per line, no times; read as messages of the time they were
     read, after an UNTIMED event (the rules that need times are not judged). A payload with a
     newline is cut there by the format itself: its continuation is a problem of its line."""
     data = capture_mosquitto_sub("-v", prefix, publisher)
@@ -263,7 +263,7 @@ def test_record_to_a_pipe_passes_on_a_steady_trickle(mosquitto: str, prefix: str
 
 
 def test_json_text_is_written_without_recursion_at_any_depth() -> None:
-    """Issue 26 §4: what orjson writes where it can; deeper (999 levels: once a RecursionError
+    """What orjson writes where it can; deeper (999 levels: once a RecursionError
     in the json fallback) with an explicit stack; a string of surrogate escapes (a line that
     was not UTF-8) as the bytes it stands for."""
     import json

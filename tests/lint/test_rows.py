@@ -1,5 +1,5 @@
 """The terminal scorecard and the fleet page show one unit alike: both render ``lint.rows``
-(issue 28, 3). One run (a clean unit, one that breaks a rule, one slower than it declares, a
+(3). One run (a clean unit, one that breaks a rule, one slower than it declares, a
 commander with a clean command and one with a faulty one), read off both as they render it:
 while it runs and at its end."""
 

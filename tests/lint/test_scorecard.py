@@ -82,7 +82,7 @@ def test_terminal_view_draws_control_characters_harmlessly() -> None:
     table = ["UNIT        STATUS", "evil\x1b[2J\x07 FAIL"]
     Console(file=term, force_terminal=True, width=80).print(styled("h", table, [(1, 16, "FAIL")], []))
     assert "\x1b[2J" not in term.getvalue() and "\x07" not in term.getvalue()
-    assert "evil\\x1b[2J\\x07 \x1b[1;31mFAIL" in term.getvalue()  # escaped (issue 19 §5)
+    assert "evil\\x1b[2J\\x07 \x1b[1;31mFAIL" in term.getvalue()  # escaped
 
 
 def test_plain_view_prints_each_first_violation_once_and_summaries(prefix: str) -> None:
@@ -152,7 +152,7 @@ def test_plain_view_says_when_a_rate_goes_off_and_when_it_is_back(prefix: str) -
     (row,) = [r for r in card.rows(linter) if r.unit == unit]
     assert row.status == "FAIL" and row.live == ("HB-003",)
     assert "HB-003(live)" in card.table([row], None)[1]
-# --- the verdict model in lint's outputs (conformance.conclusion; issue 18, 1 and 6) -----------
+# --- the verdict model in lint's outputs (conformance.conclusion) -----------
 def html_counts(page: str) -> dict[str, int]:
     """The verdict counts of the HTML report's header ('84 pass' badges, '3 not run')."""
     head = page[page.index('<table class="head">'):]  # the run's facts (each unit has its own)

@@ -1,4 +1,4 @@
-"""Nothing from the wire drives the terminal (issue 19 §5): unit names, topics, payloads, sender
+"""Nothing from the wire drives the terminal: unit names, topics, payloads, sender
 names and event details holding escape sequences (OSC 0 window title, OSC 52 clipboard, CSI)
 are shown escaped by ``display.printable``, in the plain output and on a terminal alike."""
 

@@ -66,7 +66,7 @@ def certify(pytester: pytest.Pytester, *args: str, plugins: tuple[object, ...] =
     reports = pytester.path / ("reports" if runs == 0 else f"reports-{runs}")
     # --opt=value: a value in its own argument would be taken for a test path while pytest
     # picks the rootdir and ini file (plugin options are not known yet at that point).
-    # Exploration (issue 17) is off unless a test asks for it (--explore beats its ini twin):
+    # Exploration is off unless a test asks for it (--explore beats its ini twin):
     # these runs test other things, and each would take its budget longer.
     result = pytester.runpytest_inprocess("-p", "no:cacheprovider", "-o", "addopts=",
                                           "-o", "waraps_explore=0",

@@ -1,4 +1,4 @@
-"""Every printed command line is shell-quoted (issue 19 §5): each is pasted into a shell, which
+"""Every printed command line is shell-quoted: each is pasted into a shell, which
 must run it with exactly the arguments meant and nothing else, for crafted unit names."""
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ def test_reasons_that_name_a_command_quote_the_unit(tmp_path, name):
 
 
 def test_a_unit_too_long_to_repeat_is_not_repeated_in_each_reason():
-    """Issue 26 §4: names stored once; a reason names a long unit by a stand-in."""
+    """Names stored once; a reason names a long unit by a stand-in."""
     unit = "waraps/unit/air/simulation/" + "n" * 100_000
     reason = skip_reason(get(ACTIVE), kind="lint", unit=unit, levels=None)
     assert "nnnn" not in reason and "pytest --unit ADDRESS (this unit's)" in reason

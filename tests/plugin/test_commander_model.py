@@ -1,4 +1,4 @@
-"""The commander asks the Monitor's model whether a task it started has ended (issue 28 §2,
+"""The commander asks the Monitor's model whether a task it started has ended (
 one task state): its raw feedback is read only where the model holds nothing of the task."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""Every check declares the unit's components it reads (``@check(..., reads=...)``, issue 28
-§2): certifications of the reference unit, direct execution and TST, in virtual time (and with
+"""Every check declares the unit's components it reads (``@check(..., reads=...)``):
+certifications of the reference unit, direct execution and TST, in virtual time (and with
 faults that reach the paths a conformant unit does not: a death after a command, responses
 and feedback naming another agent-uuid or no task, silences), with every access to a ``Stash``
 traced to the check whose call it happened in (itself or what it called); each check read
@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 from certify_helpers import certify_virtual
 
-from conformance.checks import base
+from conformance.checks import registry
 from conformance.checks.stash import Stash, StashKey
 
 UNIT = "waraps/unit/air/simulation/dji0"
@@ -26,10 +26,7 @@ def _declared() -> tuple[dict[CodeType, set[StashKey[Any]]], dict[CodeType, str]
     checks sharing one code (a finish check's wrapper) -> the union of theirs."""
     declared: dict[CodeType, set[StashKey[Any]]] = {}
     names: dict[CodeType, str] = {}
-    registered = [*base.AT_FINISH, *(c for cs in base.ON_MESSAGE.values() for c in cs),
-                  *(c for cs in base.ON_KIND.values() for c in cs),
-                  *(c for cs in base.REINTERPRET.values() for c in cs)]
-    for c in registered:
+    for c in registry.build().checks:
         for fn in (c.fn, getattr(c.fn, "__wrapped__", c.fn)):
             declared.setdefault(fn.__code__, set()).update(c.reads)
             names.setdefault(fn.__code__, f"{fn.__module__}.{fn.__qualname__}")

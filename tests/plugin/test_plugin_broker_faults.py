@@ -1,4 +1,4 @@
-"""A broker's fault is the broker's (issue 25 §3): the broker killed mid-certification of the
+"""A broker's fault is the broker's: the broker killed mid-certification of the
 conformant reference unit and restarted 5 s later, or frozen 20 s (SIGSTOP, SIGCONT) and then
 delivering what it held in one burst. What the unit published meanwhile is unknown:
 the run certifies, or says could-not-test, and never fails a rule. The same outage at the

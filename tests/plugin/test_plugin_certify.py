@@ -127,7 +127,7 @@ def test_reference_unit_passes_on_mosquitto_and_its_recording_lints_clean(
     sent, answered = _conversation(recording)
     assert len(sent) > 20 and sent <= answered, sorted(sent - answered)
     # The suite's deliberately broken commands are its own probes, no commander's fault
-    # (issue 24, 5): the recording of a certification lints with the unit's findings only.
+    # (5): the recording of a certification lints with the unit's findings only.
     commanders = [u for u in report["units"].values() if u["party"] == "commander"]
     assert commanders == [], commanders
     assert code == 0, out.getvalue()

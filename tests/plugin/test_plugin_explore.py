@@ -1,4 +1,4 @@
-"""Exploration (issue 17): the conformant reference unit still certifies with it on (with and
+"""Exploration: the conformant reference unit still certifies with it on (with and
 without TST); a sequence fault no scripted scenario reaches is found by it, told as a story
 whose rerun line replays it, and a replay against a unit without the fault says it no longer
 fails; ``--explore 0`` and ``--dry-run`` say why nothing was explored (never a pass)."""
@@ -54,7 +54,7 @@ def test_sequence_fault_found_told_and_replayed(pytester: pytest.Pytester) -> No
     assert f"disagree here: {RULE}" in told and "sent  {" not in told  # brief: the steps
     assert "<-- the model and the unit disagree here" in text and RULE in text
     assert "sent  {" in text and "came  exec/response:" in text
-    # the reports tell the story step by step too (issue 27 §2)
+    # the reports tell the story step by step too
     assert run.report is not None and RULE in run.report["meta"]["explore_story"]
     (html,) = run.reports_dir.glob("*.html")
     page = html.read_text()
@@ -150,7 +150,7 @@ def test_replay_of_a_file_that_is_no_story(pytester: pytest.Pytester) -> None:
     assert missing.ret == pytest.ExitCode.USAGE_ERROR
     assert "--explore-replay nowhere.json: no such file" in "\n".join(missing.errlines)
     start = {"do": "start", "task": "move-to", "slot": 0}
-    for name, steps, says in (  # issue 26 §4: each one line, a usage error, before any test
+    for name, steps, says in (  # Each one line, a usage error, before any test
             ("other-format", None, "not a story written by --explore"),
             ("slot-string", [start, {"do": "query", "slot": "0"}],
              "step 2 (query): 'slot' is '0', not a slot"),
@@ -238,7 +238,7 @@ def test_replay_never_moves_a_real_unit_without_allow_motion(pytester: pytest.Py
 def test_a_unit_silent_on_start_is_explored_as_briskly_as_one_that_reports_it(
         pytester: pytest.Pytester) -> None:
     """A unit that sends no feedback for a start it answered 'running' (12.4's feedback read
-    as an update of the status; an independent unit, issue 24) is waited for once: later
+    as an update of the status; an independent unit) is waited for once: later
     starts go on at once (measured, default profile, 30 s: 22 steps before, 109 after)."""
     import re
 

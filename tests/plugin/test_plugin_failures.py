@@ -38,7 +38,7 @@ def test_a_unit_that_answers_nothing(pytester: pytest.Pytester, mosquitto: str,
                       f"--profile={FAST}")
     assert run.result.ret == pytest.ExitCode.TESTS_FAILED
     assert run.outcomes["EXEC-PING-001"] == "failed"
-    # It never answered a ping, so it did not 'stop answering' (issue 24 §2): that is
+    # It never answered a ping, so it did not 'stop answering': that is
     # EXEC-PING-001's finding, and EXEC-ROBUST-001 says it could not tell.
     assert run.outcomes["EXEC-ROBUST-001"] == "skipped"
     rules = run.unit_rules()
@@ -90,7 +90,7 @@ def test_a_unit_by_another_name_is_suggested(pytester: pytest.Pytester, mosquitt
                       mosquitto, f"--profile={FAST}")
     assert run.result.ret == NOT_CERTIFIED_EXIT
     assert f"did you mean --unit {prefix}/unit/air/simulation/dji1?" in run.text
-    # our own line breaks are line breaks (issue 27 §3), not an escaped \x0a
+    # our own line breaks are line breaks, not an escaped \x0a
     assert "\\x0a" not in run.text
     assert any(line.startswith(f"A unit publishes at {prefix}/unit/air/simulation/dji1")
                for line in run.result.outlines), run.text
@@ -98,7 +98,7 @@ def test_a_unit_by_another_name_is_suggested(pytester: pytest.Pytester, mosquitt
 
 def test_the_summary_names_what_could_not_be_tested_and_the_option(
         pytester: pytest.Pytester, mosquitto: str, prefix: str) -> None:
-    """Issue 27 §2: without --reboot-cmd the summary names the REBOOT rules, why, and the
+    """Without --reboot-cmd the summary names the REBOOT rules, why, and the
     option that would test them (not only '1 could not be tested')."""
     unit = f"{prefix}/unit/air/simulation/dji0"
     with SimUnit(unit, mosquitto, rate=3.0):

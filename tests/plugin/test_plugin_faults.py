@@ -44,7 +44,7 @@ pytestmark = pytest.mark.slow
 # strict: once they agree, the XPASS fails this test and the entry must go. In virtual time,
 # as the rest of the matrix.
 AWAITING_SCENARIOS: dict[str, str] = {
-    # Behaviours of the public agents (issue 24 part 3), misjudged as the checks stand:
+    # Behaviours of the public agents, misjudged as the checks stand:
     # (heartbeat-rate-gross and start-no-task-uuid-unanswered waited here; both fail exactly
     # their rules now.)
 }
@@ -299,7 +299,7 @@ def test_fault_outside_the_unit_address_stops_with_one_error(pytester: pytest.Py
 
 def test_a_unit_deaf_to_start_task_without_task_uuid_has_its_resend_judged(
         pytester: pytest.Pytester, prefix: str) -> None:
-    """Public agents answer no start-task without a task-uuid (issue 25): the resend scenario
+    """Public agents answer no start-task without a task-uuid: the resend scenario
     then asks with one, as the spec's examples do, so their resend handling is judged instead
     of could-not-test, and a unit that runs the resend again still fails EXEC-RESEND-001."""
     deaf = certify_selected(pytester, prefix, "RESEND", "start-no-task-uuid-unanswered")

@@ -1,4 +1,4 @@
-"""Nothing a unit publishes drives the certifier's terminal (issue 26 §3): a level name
+"""Nothing a unit publishes drives the certifier's terminal: a level name
 holding an OSC 52 clipboard write, a screen clear, a bidi override, a carriage return and a
 forged ``PASSED`` line is shown escaped in the header and the summary's per-level lines."""
 

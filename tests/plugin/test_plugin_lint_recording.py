@@ -1,4 +1,4 @@
-"""A recording made during a certification lints with the unit's findings only (issue 24, 5):
+"""A recording made during a certification lints with the unit's findings only:
 the suite's own commands (its sender) and deliberate probes (unreadable payloads, unknown and
 malformed commands, invalid parameters, a start-task without task-uuid) are no commander's
 fault, so lint exits 0 unless the unit itself fails."""

@@ -1,4 +1,4 @@
-"""An outage of the observer is not a fault of the unit (issue 18): a broker that drops for
+"""An outage of the observer is not a fault of the unit: a broker that drops for
 5 s while the suite waits for a started task in tasks-executing (DEI-004) leaves that
 judgement could-not-test, never failed."""
 
@@ -14,7 +14,7 @@ from certify_helpers import FAST, PrivateMosquitto, Rebooter, certify
 from conformance.sim import SimUnit
 
 pytestmark = pytest.mark.slow
-OUTAGE = 5.0  # seconds: the outage is the stimulus (issue 18's 5 s)
+OUTAGE = 5.0  # seconds: the outage is the stimulus
 
 
 class OutageAfterRunning:

@@ -68,7 +68,7 @@ class Writer:
 
 @pytest.mark.parametrize("verbosity", [0, 1])
 def test_on_a_terminal_a_wait_is_drawn_below_pytests_line_and_erased(verbosity: int) -> None:
-    """Issue 27 §3: pytest's line of result letters is never rewritten or split: the wait is
+    """Pytest's line of result letters is never rewritten or split: the wait is
     drawn on the line below, the cursor put back after the last letter, then erased."""
     tr = Reporter(tty=True)
     tr._tw = Writer(tr, "test_execution.py ..")  # type: ignore[attr-defined]

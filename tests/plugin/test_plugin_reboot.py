@@ -1,5 +1,6 @@
-"""REBOOT-001 when the unit comes back from the requested reboot under another name (issue 24,
-2; FIELD-NOTES: agents that add a random suffix to their name at every start, `cppl2_9d00`):
+"""REBOOT-001 when the unit comes back from the requested reboot under another name (
+2; docs/FIELD-NOTES.md 'Real agents certified live': agents that add a random suffix to their name
+at every start, `cppl2_9d00`):
 it fails naming the new name, instead of could-not-test; a unit of the same type and role that
 was there before the reboot is not taken for it."""
 

@@ -88,7 +88,7 @@ def test_durations_read_as_the_subcommands_read_them(pytester: pytest.Pytester) 
 
 
 def test_a_selection_is_kept_shell_quoted(pytester: pytest.Pytester) -> None:
-    """A run of selected rules is partial; its repeat line selects the same rules (issue 18):
+    """A run of selected rules is partial; its repeat line selects the same rules:
     -k and -m as typed, quoted for a shell; a rule's own rerun line names only the rule."""
     s = settings_of(pytester, "--unit", UNIT, "--broker", "embedded", "--seed", "3",
                     "-k", "HB-003 or EXEC-PING-001", "-m", "not slow", "--rule", "HB-012")
@@ -104,7 +104,7 @@ def test_a_selection_is_kept_shell_quoted(pytester: pytest.Pytester) -> None:
 @pytest.mark.slow
 def test_a_rule_only_exploration_found_reruns_by_replaying_its_story(
         pytester: pytest.Pytester) -> None:
-    """Issue 24, 4: a rule found by exploration printed `-k EXEC-SEQ-002`, which sends no
+    """A rule found by exploration printed `-k EXEC-SEQ-002`, which sends no
     such order of commands and passed on the unit that still had the fault. Its rerun line
     replays the story, and fails again against the same fault. (The other kinds of rerun line,
     `-k RULE` with or without --observe and the whole run's, run again in
@@ -130,7 +130,7 @@ def test_a_rule_only_exploration_found_reruns_by_replaying_its_story(
     again = certify(pytester, *shlex.split(line)[1:])
     assert again.result.ret == 1, again.text
     assert "disagree again" in again.text and rule in again.text
-    # The replay's exit status, verdict and report agree (issue 24, 4): the rule it judged
+    # The replay's exit status, verdict and report agree: the rule it judged
     # failed, not 'not run: not selected (-k test_explore)'.
     assert again.report is not None
     assert (again.report["verdict"], again.report["conclusion"]["exit_code"]) == ("fail", 1)

@@ -1,6 +1,6 @@
 """A unit that is not alive when the run begins (an earlier run may have left it dead) is
 restarted once with --reboot-cmd before it is judged not alive, and the run says so; without
---reboot-cmd the message suggests it (issue 20)."""
+--reboot-cmd the message suggests it."""
 
 from __future__ import annotations
 

@@ -449,7 +449,7 @@ def test_the_profile_own_parameters_are_the_user_word_and_a_broken_copy_is_not()
 
 def test_a_task_outside_section_9_is_started_only_with_the_profile_parameters(
         pytester: pytest.Pytester, mosquitto: str, prefix: str, tmp_path: Path) -> None:
-    """Issue 25 §2, from the broker's traffic: a unit offering go-home (variant own-task)
+    """From the broker's traffic: a unit offering go-home (variant own-task)
     is never sent it with invented parameters; without parameters in the profile the rules
     that needed it say could-not-test naming them; with them it is started with exactly
     those."""

@@ -59,7 +59,7 @@ def test_section_9_parameters_are_the_spec_example_valid_seeded_and_near_the_uni
         assert p["rostype"] == "GeoPoint" and "type" not in p  # the canonical form (ERR-010)
     for key in ("loop-flag", "hold-flag", "continue-flag", "named-position"):
         assert params.get(key) in (None, False)
-    # Never invented: every key is one of the spec's own example (issue 25 §2).
+    # Never invented: every key is one of the spec's own example.
     example = task_schema(task)["examples"][0]
     assert set(params) <= set(example), (params, example)
 

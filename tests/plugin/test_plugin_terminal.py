@@ -75,10 +75,10 @@ def test_waits_are_drawn_in_place_and_result_letters_stay_on_their_lines(tmp_pat
          "-k", "EXEC-PING or EXEC-START or HB-00"], tmp_path, budget=100)
     assert "waiting for exec/response of dji0: 1 s of 2 s" in raw  # drawn while it lasted
     # A stretch of short waits (each task's answers) is shown too: every second says what it
-    # waits for, not only waits that last a second (issue 27 §3).
+    # waits for, not only waits that last a second.
     assert re.search(r"waiting for [^\x1b]*: 0 s of \d+ s", raw), raw[:3000]
     shown = screen(raw)
-    # pytest's line of result letters is never split by a wait line (issue 27 §3)
+    # pytest's line of result letters is never split by a wait line
     assert sum(line.startswith("test_execution.py") for line in shown) == 1, "\n".join(shown)
     assert not any("waiting for" in line for line in shown), "a wait line was left behind"
     letters = r"[.sFE]+( +\[ *\d+%\])?"
@@ -96,7 +96,7 @@ def test_waits_are_drawn_in_place_and_result_letters_stay_on_their_lines(tmp_pat
 
 @pytest.mark.slow
 def test_exploration_shows_its_progress_and_leaves_nothing_behind(tmp_path: Path) -> None:
-    """Issue 27 §3: elapsed of budget, examples, steps and what it does, redrawn in place."""
+    """Elapsed of budget, examples, steps and what it does, redrawn in place."""
     raw = run_on_a_terminal(
         ["-p", "no:cacheprovider", "-o", "addopts=", "--unit", "waraps/unit/air/simulation/dji0",
          "--broker", "embedded", "--sim-rate", "3", f"--profile={FAST}",

@@ -54,8 +54,8 @@ GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
     (("terse", "info-rates", "retained-info", "integer-numbers", "key-order", "mqtt5-qos1"),
      True),
     # A rebooted unit spawns elsewhere with a new agent-uuid: positions are compared within
-    # one life (issue 24 §2), so it runs with the others now.
-    # announce-nodes, periodic-feedback: readings of an independent unit (issue 24).
+    # one life, so it runs with the others now.
+    # announce-nodes, periodic-feedback: readings of an independent unit.
     (("respawn", "announce-nodes", "periodic-feedback"), True),
     # The official Python agents refuse a resent start-task ('A task is already running'):
     # nothing runs twice (12.1), so no EXEC-RESEND-001; the 'failed' warns (EXEC-RESEND-003).
@@ -80,7 +80,7 @@ exploration)."""
 AWAITING: dict[tuple[str, ...], tuple[set[str], str]] = {  # variants -> (rules, why)
     # 'strict' on the TST level waited here for the suite to send common_params on every TST
     # node (as every example of section 11 does); it does now.
-    # Behaviours of the public agents (issue 24 part 3), falsely judged as the checks stand:
+    # Behaviours of the public agents, falsely judged as the checks stand:
 }
 
 

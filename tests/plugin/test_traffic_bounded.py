@@ -1,5 +1,5 @@
 """The suite's message store (``scenarios/traffic.py``) stays bounded in bytes whatever the
-unit sends (issue 19 §3): a digest and an excerpt per message, whole bodies only while small
+unit sends: a digest and an excerpt per message, whole bodies only while small
 and recent, and the answers scenarios wait for still readable."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The certification HTML as a person reads it (issue 27 §2): the verdict and each level, then
+"""The certification HTML as a person reads it: the verdict and each level, then
 what failed with its evidence and basis, then what could not be tested and the option that
 would test it; the rule table and the run's facts folded below. Screenshots of a failing, a
 could-not-test and a passing run are kept in ``reports/test-artefacts/`` (look at them)."""

@@ -1,4 +1,4 @@
-"""Reports are bounded whatever the input (issue 19 §4): every string excerpted with a visible
+"""Reports are bounded whatever the input: every string excerpted with a visible
 ellipsis and its full length, every file under ``bounds.MAX_REPORT_BYTES`` (past it, a note in
 the file says what was left out, and the file stays whole), and writing thousands of units
 stays linear (figures: bench/bench_memory.py)."""

@@ -109,7 +109,7 @@ def test_render_violation_reads_like_the_style_guide():
         "  observed  0.61 Hz over 12 intervals (min 1.58 s, max 1.71 s)",
         "  topic     waraps/unit/air/simulation/dji0/heartbeat",
         "  spec      5.1 General Heartbeat Message",
-        # What the rule stands on (issue 24): the spec's words, or this suite's decision.
+        # What the rule stands on: the spec's words, or this suite's decision.
         f"  basis     {printable(shorten(CATALOGUE['HB-003'].basis_text()))}",
         "  rerun     pytest --unit waraps/unit/air/simulation/dji0 -k HB-003",
     ]

@@ -113,7 +113,7 @@ def test_the_console_script_prints_no_traceback(tmp_path: Path) -> None:
 
 
 def test_a_message_its_type_cannot_read_refuses_the_bag(tmp_path: Path) -> None:
-    """Issue 26 §4: a damaged container gives no verdict, never 'clean' on what survives."""
+    """A damaged container gives no verdict, never 'clean' on what survives."""
     entries = unit_entries()
     entries.append(Entry("/husky0/sensor/speed", "std_msgs/msg/Float32", 1_763_700_005.5,
                          raw=b"\x01"))  # 1 byte where a float32 takes 4

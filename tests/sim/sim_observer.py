@@ -52,7 +52,8 @@ class Observer:
             self._parsed.append(_UNPARSED)
             # Waiters also look every 30 ms: waking them for each of thousands of messages a
             # second would starve this client's own network thread (and the simulator) of the
-            # GIL, and Mosquitto drops what a slow subscriber leaves queued (FIELD-NOTES).
+            # GIL, and Mosquitto drops what a slow subscriber leaves queued
+            # (docs/FIELD-NOTES.md 'MQTT on loopback').
             now = time.monotonic()
             if now - self._notified > 0.02:
                 self._notified = now

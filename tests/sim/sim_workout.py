@@ -213,7 +213,7 @@ def workout(u: UnitView, reboot: Callable[[], None], malformed: set[str] | None 
     r = u.answer(bad)
     judge("EXEC-ROBUST-002", r is not None and r.get("response") == "failed")
     # Still alive after them: a pong, however late (lateness is EXEC-PING-001's and EXEC-010's);
-    # judged only when the unit answered a ping before (issue 24 §2: a kind it answered)
+    # judged only when the unit answered a ping before (a kind it answered)
     if pong is not None:
         judge("EXEC-ROBUST-001", ping(4 * WAIT)[1] is not None)
 

@@ -16,7 +16,8 @@ from conformance.client import BrokerURL, MqttClient
 def test_listens_on_loopback_only_and_relays(prefix: str) -> None:
     with EmbeddedBroker() as broker:
         assert broker.url.startswith("mqtt://127.0.0.1:")
-        # amqtt binds 0.0.0.0:1883 when left to itself (FIELD-NOTES); ours is loopback only.
+        # amqtt binds 0.0.0.0:1883 when left to itself
+        # (docs/FIELD-NOTES.md 'The embedded amqtt broker'); ours is loopback only.
         with socket.socket() as s:
             s.settimeout(0.5)
             assert s.connect_ex(("127.0.0.1", broker.port)) == 0

@@ -149,7 +149,7 @@ KNOWN_GAPS: dict[str, tuple[set[str], str]] = {
     # longer and fails both (tests/plugin/test_plugin_faults.py).
     "abort-running-goes-on": ({"EXEC-SIG-002"},
                               "the next task pre-empts it within the response timeout"),
-    # Behaviours of the public agents (issue 24 part 3), judged as the checks stand:
+    # Behaviours of the public agents, judged as the checks stand:
     "reboot-renames": ({"HB-012", "REBOOT-001", "REBOOT-002"},
                        "the workout and the Monitor follow the address it started at: gone "
                        "from there after the reboot, it reads as dead and its old task is "
@@ -211,7 +211,7 @@ def test_each_passive_fault_breaks_exactly_its_rules(prefix: str) -> None:
 
 
 LINT_EXPECTED: dict[str, set[str]] = {
-    # Faults modelled on the field (issue 8): what lint of a recording finds, from the traffic
+    # Faults modelled on the field: what lint of a recording finds, from the traffic
     # alone. The rules the suite's own deadlines and stimuli add (EXEC-ROBUST-001 after a
     # malformed command, EXEC-QUERY-002 for a task never seen) are not for lint to judge.
     "pong-missing": {"EXEC-PING-001"},

@@ -486,7 +486,8 @@ def test_rate_edge_speeds_the_heartbeat_and_execution_info_inside_the_tolerance(
         assert count(run, sub) == count(base, sub)
 
 
-# --- behaviours of the public agents certified live (FIELD-NOTES) -------------------------------
+# --- behaviours of the public agents certified live (docs/FIELD-NOTES.md)
+# -------------------------------
 
 def test_silent_unknown_command_leaves_only_the_unknown_command_unanswered(plain: Run) -> None:
     unknown = (5.5, "exec", {"com-uuid": com(8), "command": "waraps-conformance-no-such",

@@ -1,4 +1,4 @@
-"""The task specification files and the deterministic schema generator (issue 2, items 2-3)."""
+"""The task specification files and the deterministic schema generator (items 2-3)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Hostile payloads: each is a violation of the rule that names the problem, never an
-exception (issue 2, item 7)."""
+exception (item 7)."""
 
 from __future__ import annotations
 
@@ -144,7 +144,7 @@ def test_validate_without_an_arrival_time_judges_the_stamp_for_plausibility_and_
 def test_cli_shows_what_the_message_holds_escaped(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A value, a key and the topic holding escape sequences, a bidi override and zero-width
-    characters are shown escaped in validate's text (issue 26 §3), on one line each."""
+    characters are shown escaped in validate's text, on one line each."""
     hostile = "\x1b]52;c;cHduZWQ=\x07\x1b[2J\u202e\u200b"
     path = tmp_path / "hb.json"
     path.write_bytes(orjson.dumps({"name": "dji0", "rate": hostile, "type": "HeartBeat",

@@ -191,7 +191,7 @@ FAULTS = [
     ("tst-response", _set("response-to", U1), "TST-002", "$.com-uuid"),
     ("tst-feedback", _set("status", "finished"), "TST-003", "$.status"),
     ("tst-feedback", _set("root-flag", "true"), "TST-003", "$.root-flag"),
-    # section 14's errata and tree structure (issue 10)
+    # section 14's errata and tree structure
     ("tst-response", _set("response", "running"), "ERR-015", "$.response"),
     ("ping", _set("command", "start-tst"), "ERR-016", "$.command"),
     ("ping", _set("command", "signal-unit"), "ERR-016", "$.command"),
@@ -233,7 +233,7 @@ def test_err_009_common_params_spelled_with_hyphen_is_only_err_009() -> None:
 def test_err_010_a_tasks_geopoint_tagged_type_or_untagged_is_only_err_010() -> None:
     """ERR-010 rests on the examples, and every example of a GeoPoint is a task's (10, 11):
     there 'type' or no tag warns. 6.1 has no example of sensor/position: no tag is asked of
-    it (issue 24: it warned on every agent); a tag with another value is still SENS-001."""
+    it (it warned on every agent); a tag with another value is still SENS-001."""
     tagged_type = {k: v for k, v in GEO.items() if k != "rostype"} | {"type": "GeoPoint"}
     untagged = {k: v for k, v in GEO.items() if k != "rostype"}
     assert run("sensor/position", tagged_type) == []

@@ -1,6 +1,6 @@
 """Extract every JSON example of the spec into raw text files (how the corpus was made).
 
-    python tests/spec/corpus/extract.py /work/shared/spec/waraps-core-api-0.7.txt OUT_DIR
+    python tests/spec/corpus/extract.py docs/spec/waraps-core-api-0.7.txt OUT_DIR
 
 Each example is the text between its section heading and the next, from the first line that is
 "{" to the last that ends with "}", with code fences, page-break blank lines and footnotes
