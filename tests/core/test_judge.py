@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from collections.abc import Iterator
 from pathlib import Path
 
 import orjson
@@ -28,17 +29,22 @@ READS_BACK = {PACKAGE / "results.py"}
 """Where a report written earlier is read back (its verdicts as written, not decided)."""
 
 
-def test_no_module_but_the_judge_makes_or_changes_a_verdict() -> None:
-    offenders = []
+def code_lines(besides: Path) -> Iterator[tuple[Path, str, str]]:
+    """(file, where, code without its comment) of every line of the package outside the
+    judge and the folder ``besides``."""
     for path in sorted(PACKAGE.rglob("*.py")):
-        if path == JUDGE or path.is_relative_to(PACKAGE / "sim"):
+        if path == JUDGE or path.is_relative_to(besides):
             continue
         for n, line in enumerate(path.read_text("utf-8").splitlines(), 1):
-            code = line.split("#", 1)[0]
-            if MAKES_A_VERDICT.search(code) and not (
-                    path in READS_BACK and "def _rule_result_from_dict" in
-                    path.read_text("utf-8") and "d[\"rule\"]" in code):
-                offenders.append(f"{path.relative_to(PACKAGE.parent)}:{n}: {line.strip()}")
+            yield path, f"{path.relative_to(PACKAGE.parent)}:{n}: {line.strip()}", \
+                line.split("#", 1)[0]
+
+
+def test_no_module_but_the_judge_makes_or_changes_a_verdict() -> None:
+    offenders = [where for path, where, code in code_lines(PACKAGE / "sim")
+                 if MAKES_A_VERDICT.search(code) and not (
+                     path in READS_BACK and "def _rule_result_from_dict" in
+                     path.read_text("utf-8") and "d[\"rule\"]" in code)]
     assert not offenders, "verdicts are made only by conformance/judge.py:\n" + "\n".join(
         offenders)
 
@@ -89,14 +95,9 @@ def test_what_a_scenario_saw_is_evidence_the_judge_reads() -> None:
 def test_no_scenario_or_statistic_sets_a_verdict() -> None:
     """Scenarios and rate statistics carry evidence and numbers: no ``verdict=Verdict.``
     passed or assigned outside the judge (report rendering names a verdict it was given)."""
-    offenders = []
-    for path in sorted(PACKAGE.rglob("*.py")):
-        if path == JUDGE or path.is_relative_to(PACKAGE / "reporting"):
-            continue
-        for n, line in enumerate(path.read_text("utf-8").splitlines(), 1):
-            code = line.split("#", 1)[0]
-            if re.search(r"\bverdict\s*=\s*Verdict\.(PASS|FAIL|WARN|COULD_NOT_TEST)", code):
-                offenders.append(f"{path.relative_to(PACKAGE.parent)}:{n}: {line.strip()}")
+    sets = re.compile(r"\bverdict\s*=\s*Verdict\.(PASS|FAIL|WARN|COULD_NOT_TEST)")
+    offenders = [where for _, where, code in code_lines(PACKAGE / "reporting")
+                 if sets.search(code)]
     assert not offenders, "\n".join(offenders)
 
 
