@@ -25,6 +25,7 @@ from conformance.recording import UNTIMED_REASON, UNTIMED_RULES
 from conformance.results import (
     COMMANDER_REASON,
     NOT_APPLICABLE,
+    NOT_SEEN,
     UNPROVOKED,
     RateStat,
     RunReport,
@@ -204,8 +205,11 @@ def _unprovoked(unit: UnitReport) -> None:
                 or found.side is not Side.UNIT or result.reason.startswith(NOT_APPLICABLE)
                 or (found.spec_level is not None and found.spec_level not in claimed)):
             continue
-        unit.rules[rule] = RuleResult(rule, Verdict.COULD_NOT_TEST,
-                                      UNPROVOKED + (result.reason or "not examined"))
+        # The suite's doing when nothing came; a check's own reason (the unit's message has
+        # no tasks-executing list to read) says why as it is.
+        why = result.reason or "not examined"
+        unit.rules[rule] = RuleResult(rule, Verdict.COULD_NOT_TEST, UNPROVOKED + why if why in (
+            NOT_SEEN, "not examined", "not run in this session") else why)
 
 
 def _excuse_outage(unit: UnitReport, lost: float) -> None:

@@ -84,7 +84,11 @@ def skip_reason(rule: Rule, *, kind: RunKind, unit: str, levels: tuple[str, ...]
         return note
     if rule.mode is Mode.ACTIVE:
         return "not run in this session"
-    return "no message this rule applies to was seen"
+    return NOT_SEEN
+
+
+NOT_SEEN = "no message this rule applies to was seen"
+"""A skip's reason when nothing the rule applies to came, and no check said why."""
 
 
 def redact_broker(url: str) -> str:
