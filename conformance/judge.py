@@ -61,7 +61,7 @@ def judge_rule(rule: Rule, *, severity: Severity, strict: bool, violations: list
     """
     count = len(violations) if count < 0 else count
     if firm < 0:
-        firm = sum(not _decided(rule, v.condition) for v in violations)
+        firm = sum(not rule.decided(v.condition) for v in violations)
     lenient = not strict and severity is Severity.ERROR
     if count:
         fails = severity is Severity.ERROR and (strict or firm > 0)
@@ -97,15 +97,6 @@ def judge_rates(stats: Iterable[RateStat], rules: Mapping[str, RuleResult]) -> N
             stat.verdict = judged.verdict if judged is not None else Verdict.FAIL
 
 
-def _decided(rule: Rule, condition: str) -> bool:
-    """Whether a finding of ``condition`` stands only on this suite's decision (a condition
-    the catalogue does not know is the rule's own)."""
-    try:
-        return rule.decided(condition)
-    except KeyError:
-        return rule.is_decided
-
-
 def _risks(rule: Rule, violations: list[Violation]) -> str:
     """Why decided findings only warn: each decided condition found, with its decision."""
     found = dict.fromkeys(v.condition for v in violations) or {"": None}
@@ -125,7 +116,7 @@ def violation_verdict(rule: Rule, severity: Severity, *, strict: bool,
     """What a violation of ``rule`` (finding ``condition``) earns on its own (``validate`` of
     one message, a finding shown alone): fail for an error whose condition is stated or
     implied (or any error in a strict run), else warn."""
-    if severity is Severity.ERROR and (strict or not _decided(rule, condition)):
+    if severity is Severity.ERROR and (strict or not rule.decided(condition)):
         return Verdict.FAIL
     return Verdict.WARN
 

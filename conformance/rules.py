@@ -168,10 +168,11 @@ class Rule:
         raise KeyError(f"{self.id} has no condition {condition_id!r}")
 
     def decided(self, condition_id: str = "") -> bool:
-        """Whether a finding of ``condition_id`` stands on this suite's decision only."""
-        if not condition_id:  # the rule's own words (the usual case: no Condition made)
-            return self.basis is Basis.DECIDED
-        return self.condition(condition_id).is_decided
+        """Whether a finding of ``condition_id`` stands on this suite's decision only; a
+        condition this catalogue does not know (a report of another version) is the rule's
+        own words."""
+        found = next((c for c in self.conditions if c.id == condition_id), None)
+        return (found.basis if found is not None else self.basis) is Basis.DECIDED
 
 
 def _load(text: str) -> tuple[Rule, ...]:

@@ -85,12 +85,7 @@ def _firm(rule: Rule, evidence: list[Violation], count: int, recorded: int) -> i
 
 
 def _decided(rule: Rule | None, condition: str) -> bool:
-    if rule is None:
-        return False
-    try:
-        return rule.decided(condition)
-    except KeyError:
-        return rule.is_decided
+    return rule is not None and rule.decided(condition)
 
 
 class Findings:

@@ -282,10 +282,7 @@ class Linter:
     @staticmethod
     def _decided(v: Violation) -> bool:
         rule = CATALOGUE.get(v.rule)
-        try:
-            return rule is not None and rule.decided(v.condition)
-        except KeyError:
-            return rule.is_decided if rule is not None else False
+        return rule is not None and rule.decided(v.condition)
 
     def is_error(self, rule: str, unit: str | None = None) -> bool:
         """Whether a violation of ``rule`` fails (else warns), as the judge will say at the
