@@ -82,10 +82,15 @@ def revive(c: Certification, name: str) -> None:
     c.announce(f"the unit died before the {name} scenario ({died}); restarting it with {how} "
                f"and carrying on")
     mark, began = c.traffic.mark(), clock.now()
-    failure = c.context.reboot()
-    back = None if failure is not None else c.traffic.wait_for(
-        lambda e: True, c.timing.reboot, after=mark, subtopic="heartbeat",
-        what="the unit's heartbeat after its restart")
+    names = c.reboot.watch_names()  # an agent may come back under another name (REBOOT-001)
+    try:
+        failure = c.context.reboot()
+        back = None if failure is not None else c.traffic.wait_for(
+            lambda e: True, c.timing.reboot, after=mark, subtopic="heartbeat",
+            what="the unit's heartbeat after its restart")
+        renamed = names.new_name(set(), began, 0.0) if back is None else None
+    finally:
+        names.close()
     if back is not None:
         # 12.1: a restart loses the history of commands; the tasks that ended before it are
         # not asked about (query-status, REBOOT-002): the scenarios after it end their own.
@@ -94,7 +99,10 @@ def revive(c: Certification, name: str) -> None:
                    f"death stays HB-012's finding")
     else:
         c.announce(f"restarted with {how}, " + (f"which failed: {failure}" if failure else
-                   f"but no heartbeat within {c.timing.reboot:.0f} s"))
+                   f"but no heartbeat within {c.timing.reboot:.0f} s") + (
+                   f"; a unit of its type and role first heard since: '{renamed}' (the unit "
+                   f"back under another name? the suite follows only {c.unit.name!r})"
+                   if renamed else ""))
 
 
 def _why_not_run(c: Certification, name: str, scenario: Scenario) -> str | None:

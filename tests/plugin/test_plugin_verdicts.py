@@ -268,3 +268,18 @@ def test_a_unit_killed_by_a_probe_is_judged_on_the_scenarios_before_it_and_resta
     assert "restarting it with the bundled reference unit's reboot and carrying on" in \
         run.text, run.text
     assert "the unit is back" in run.text and "after its restart" in run.text
+
+
+def test_a_unit_restarted_under_another_name_is_named_not_followed(
+        pytester: pytest.Pytester) -> None:
+    """The public C++ agent adds a random suffix to its name at every start: restarted after
+    its death it heartbeats under another address. The run says which name appeared, and
+    still judges only the unit under test (it never publishes to the new name)."""
+    run = certify(pytester, "--unit", UNIT, "--broker", "virtual", "--sim-rate", "3",
+                  "--sim-fault=dies-on-invalid-params", "--sim-fault=reboot-renames",
+                  f"--profile={FAST}")
+    assert "restarting it with the bundled reference unit's reboot" in run.text, run.text
+    said = run.text.split("restarting it with", 1)[1]
+    assert "but no heartbeat within" in said, said
+    assert "a unit of its type and role first heard since: 'dji0" in said, said
+    assert run.unit_rules()["HB-012"]["verdict"] == "fail"
