@@ -377,6 +377,13 @@ class Monitor:
         self.version += 1
         self.ctx.add_gap(float(start), math.inf if end is None else float(end))
 
+    def host_held(self, start: float, end: float) -> None:
+        """The host held the unit from ``start`` to ``end`` (the bundled reference unit runs in
+        the observer's own process: a loaded machine holds both): like a connection gap, that
+        time is not judged."""
+        self.version += 1
+        self.ctx.add_gap(float(start), float(end))
+
     def heard_again(self, t: float) -> None:
         """The unit is back on the broker at ``t``: an open ``connection_gap`` ends there."""
         self.version += 1

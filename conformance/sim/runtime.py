@@ -35,6 +35,10 @@ OVERSIZE_KEEP = 65536
 refuse it."""
 BATCH = 256
 """Commands handled between two looks at the schedule, so a flood cannot delay heartbeats."""
+HOLD_MARK = 0.25
+"""A step run this many seconds or more after it was due was held by the host (a loaded
+machine), not by the unit's own code: ``on_hold`` is told (a unit at 2 Hz is then half a
+period late)."""
 
 
 class Runtime:
@@ -68,6 +72,10 @@ class Runtime:
         self.held = 0.0
         """The most seconds a unit's step ran after it was due: how long the host held this
         thread (a loaded machine), so that a silence it caused is not taken for the unit's."""
+        self.on_hold: Callable[[float, float], None] | None = None
+        """Told each time the host held this thread ``HOLD_MARK`` or more past a due step:
+        from when to when (Unix seconds). A certification of the bundled unit in its own
+        process marks that time as the observer's (``suite/connection.py``)."""
 
     def add(self, unit: UnitCore) -> int:
         """Add a unit before ``start``; returns its index."""
@@ -222,6 +230,9 @@ class Runtime:
                 if due != unit.due:
                     continue  # superseded by an earlier entry for this unit
                 self.held = max(self.held, now - due)
+                if now - due >= HOLD_MARK and self.on_hold is not None:
+                    wall = time.time()
+                    self.on_hold(wall - (now - due), wall)
                 self._guarded(unit.run, now)
                 self._reschedule(i)
             if self._inbox:

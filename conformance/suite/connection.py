@@ -49,6 +49,9 @@ if TYPE_CHECKING:
     from conformance.sim.reference import Reference
     from conformance.sim.virtual import VirtualClient, VirtualReference
 
+HOLDS_SAID = 5
+"""Holds of the bundled reference unit said in the summary at most (each is a gap all the same)."""
+
 Revive = tuple[str, float, Callable[[], "str | None"]]
 """How a unit that is not alive is restarted before the run: (how, in the words of the option;
 seconds to wait for its heartbeat after; the restart, returning None or what went wrong)."""
@@ -103,6 +106,8 @@ class Connection:
     """Whether a command already waited in vain for the unit since the last reconnect."""
     _last_arrival: float | None = field(default=None, init=False)
     _probed: float | None = field(default=None, init=False)
+    _holds: int = field(default=0, init=False)
+    """How often the host held the bundled reference unit (``_host_held``)."""
     """The last heartbeat whose silence was probed with a ping (once per silence)."""
 
     def __post_init__(self) -> None:
@@ -114,6 +119,18 @@ class Connection:
                                  listed=self._tasks_listed, task_moves=task_moves)
         """What may not be said to a real unit (DESIGN 'Safety'), asked about every payload."""
         self._heard_again.set()  # no reconnect yet
+
+    def _host_held(self, start: float, end: float) -> None:
+        """The host held the bundled reference unit's thread from ``start`` to ``end``: a
+        silence then is the loaded machine's, not the unit's, and is not judged. Said when it
+        is long enough to matter, at most ``HOLDS_SAID`` times. Runs on the unit's thread."""
+        with self.monitor_lock:
+            self.monitor.host_held(start, end)
+            self._holds += 1
+            said = self._holds <= HOLDS_SAID and end - start >= 1.0
+        if said:
+            self.events.at(start, f"the host held the bundled reference unit {end - start:.1f} s "
+                           f"(a loaded machine): that time is not judged")
 
     @property
     def unit(self) -> UnitAddress:
@@ -136,6 +153,7 @@ class Connection:
                                        seed=s.seed, tst=s.sim_tst,
                                        tst_operator=s.tst_operator).start()
             self.broker_url = BrokerURL.parse(self.reference.url)
+            self.reference.sim.runtime.on_hold = self._host_held
         probe = None if s.virtual else self._open_mqtt()
         try:
             if not self._wait_alive(alive_timeout):

@@ -675,3 +675,17 @@ def test_signal_task_response_in_another_form_is_err_013_not_exec_002(stream):
     assert err013 and all(C1 in v.excerpt for v in err013)
     assert exec002 and all(C2 in v.excerpt for v in exec002)
     assert verdict(m, stream, "ERR-013").verdict is Verdict.WARN
+
+
+def test_a_silence_while_the_host_held_the_unit_is_not_judged(stream):
+    """The bundled reference unit runs in the suite's own process: a loaded machine that held
+    it (``Monitor.host_held``) made that silence, not the unit."""
+    stream.levels = []
+    msgs = [stream.heartbeat(i) for i in range(3)] + [stream.heartbeat(10 + i) for i in range(3)]
+    held = Monitor()
+    held.host_held(msgs[2].time + 0.2, msgs[3].time - 0.1)
+    assert "HB-010" not in rules_found(stream.feed(held, msgs))
+    assert verdict(held, stream, "HB-010").verdict is Verdict.PASS
+    elsewhere = Monitor()
+    elsewhere.host_held(msgs[-1].time + 5, msgs[-1].time + 9)  # another time: no excuse
+    assert rules_found(stream.feed(elsewhere, msgs)) == {"HB-010"}
