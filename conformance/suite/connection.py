@@ -107,7 +107,7 @@ class Connection:
     _last_arrival: float | None = field(default=None, init=False)
     _probed: float | None = field(default=None, init=False)
     _holds: int = field(default=0, init=False)
-    """How often the host held the bundled reference unit (``_host_held``)."""
+    """How often the host held the bundled reference unit (``host_held``)."""
     """The last heartbeat whose silence was probed with a ping (once per silence)."""
 
     def __post_init__(self) -> None:
@@ -120,10 +120,11 @@ class Connection:
         """What may not be said to a real unit (DESIGN 'Safety'), asked about every payload."""
         self._heard_again.set()  # no reconnect yet
 
-    def _host_held(self, start: float, end: float) -> None:
-        """The host held the bundled reference unit's thread from ``start`` to ``end``: a
-        silence then is the loaded machine's, not the unit's, and is not judged. Said when it
-        is long enough to matter, at most ``HOLDS_SAID`` times. Runs on the unit's thread."""
+    def host_held(self, start: float, end: float) -> None:
+        """The host held the bundled reference unit's thread from ``start`` to ``end`` (or a
+        unit a test runs in the suite's process: ``Runtime.on_hold``): a silence then is the
+        loaded machine's, not the unit's, and is not judged. Said when it is long enough to
+        matter, at most ``HOLDS_SAID`` times. Runs on the unit's thread."""
         with self.monitor_lock:
             self.monitor.host_held(start, end)
             self._holds += 1
@@ -153,7 +154,7 @@ class Connection:
                                        seed=s.seed, tst=s.sim_tst,
                                        tst_operator=s.tst_operator).start()
             self.broker_url = BrokerURL.parse(self.reference.url)
-            self.reference.sim.runtime.on_hold = self._host_held
+            self.reference.sim.runtime.on_hold = self.host_held
         probe = None if s.virtual else self._open_mqtt()
         try:
             if not self._wait_alive(alive_timeout):

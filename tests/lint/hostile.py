@@ -28,7 +28,8 @@ ADDRESS_SPACE = 3 << 30
 """The ``ulimit -v`` of every run: 3 GiB (numpy and rosbags map ~1 GiB of address space
 before reading anything; a 2e9-byte payloadlen once needed 3.9 GB)."""
 MAX_SECONDS = 60.0
-"""A run killed past this is a hang (a case takes under 5 s on an idle machine)."""
+"""A run killed past this (on an idle machine; more on a busy one: ``machine.deadline``) is a
+hang (a case takes under 5 s on an idle machine)."""
 MAX_PEAK_MB = 400
 """Peak resident memory of any run (the 100k-unit fleet takes ~250 MB)."""
 EXIT_TABLE = {"lint": {0, 1, 2, 3, 4}, "validate": {0, 1, 2}}
@@ -76,9 +77,13 @@ def _cap() -> None:  # in the child, before exec
 
 
 def run_bounded(name: str, args: list[str], cwd: Path, *, stdin: str | Path | None = None,
-                script: str | None = None, timeout: float = MAX_SECONDS) -> Run:
+                script: str | None = None, timeout: float | None = None) -> Run:
     """``waraps-conformance ARGS`` (or ``python -c SCRIPT ARGS``) in a subprocess under the
-    address-space cap; its peak memory from the kernel (its own VmHWM at exit)."""
+    address-space cap; its peak memory from the kernel (its own VmHWM at exit); killed as
+    hung past ``timeout`` (``MAX_SECONDS`` as this machine's load allows)."""
+    from machine import deadline  # here: the cases' own processes import this module too
+
+    timeout = deadline(MAX_SECONDS) if timeout is None else timeout
     out_path, err_path = cwd / f"{name}.out", cwd / f"{name}.err"
     peak_path = cwd / f"{name}.peak"
     command = [sys.executable, "-c", PEAK_WRAPPER, str(peak_path), script or "", *args]
