@@ -269,3 +269,15 @@ def test_an_exploration_left_no_time_is_said_beside_the_verdict(
     summary = run.report["conclusion"]["units"][UNIT]["summary"]
     assert summary.endswith(f"; exploration not run: {why}"), summary
     assert run.report["facts"]["unexplored"] == why
+
+
+def test_an_exploration_that_sent_nothing_is_no_pass(pytester: pytest.Pytester) -> None:
+    """A budget spent before the first example (a loaded machine once spent 21 s of 10
+    starting it; here 1 ms of the real clock) explored nothing: could not test, said beside
+    the verdict, never 'the unit answered as the model says'."""
+    run = certify(pytester, *EMBEDDED, "--explore=0.001s", "-k", "test_explore")
+    assert run.report is not None, run.text
+    assert "answered as the model says" not in run.text, run.text
+    assert "exploration: could-not-test (no command order was explored (0 examples, 0 steps" \
+        in run.text, run.text
+    assert run.report["facts"]["unexplored"].startswith("no command order was explored")
