@@ -37,6 +37,15 @@ class ProcessRebooter:
         self.fleet.reboot()
         return True
 
+    def pytest_sessionstart(self, session: pytest.Session) -> None:
+        """The fleet shares this process: the certification is told when the host held it
+        (as ``certify_helpers.Rebooter`` does; the lint of the recording cannot be)."""
+        from conformance.suite.session import CERTIFICATION
+
+        certification = session.config.stash.get(CERTIFICATION, None)
+        if certification is not None:
+            self.fleet.runtime.on_hold = certification.connection.host_held
+
 
 def certify_both(pytester: pytest.Pytester, broker: str, base: UnitAddress,
                  recording: Path) -> tuple[list[UnitAddress], list[Certified]]:
