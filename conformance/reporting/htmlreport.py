@@ -43,15 +43,13 @@ COLOURS = {
 ORDER = [Verdict.FAIL, Verdict.WARN, Verdict.COULD_NOT_TEST, Verdict.PASS, Verdict.SKIP]
 RUN_VERDICT_COLOURS = {"not certified": "#cf222e", "interrupted": "#bc4c00",
                        "partial": "#bc4c00", "clean": "#1a7f37"}
-# Run facts (RunReport.meta) in words, in this order; keys shown elsewhere are left out.
-META_WORDS = (("not_run", "rules not run"),
-              ("profile_source", "profile file"), ("timing_scale", "timing scale"),
+# What the run was (RunReport.meta, by its JSON keys) in words, in this order, then the
+# others; those shown elsewhere (the heading, the story) are left out.
+META_WORDS = (("profile_source", "profile file"), ("timing_scale", "timing scale"),
               ("seed", "seed"), ("dry_run", "dry run"), ("allow_motion", "motion allowed"),
               ("reboot", "reboot"), ("commands_sent", "commands sent"),
               ("rerun", "repeat this run"))
-META_SHOWN_ELSEWHERE = {"unit", "broker", "started", "finished", "suite_version", "agent_uuid",
-                        "verdict", "interrupted", "exit_status", "error", "broker_lost",
-                        "cut_short", "selection", "explore_story"}
+META_SHOWN_ELSEWHERE = {"unit", "agent_uuid", "exit_status", "explore_story"}
 SERIES_COLOURS = ["#0969da", "#bf3989", "#1a7f37", "#bc4c00", "#8250df", "#6e7781"]
 
 
