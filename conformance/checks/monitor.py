@@ -492,8 +492,8 @@ class Monitor:
 
         ``run``: broker, started, finished, suite_version, schemas_hash (each optional).
         """
-        if set(run) - {"broker", "started", "finished", "suite_version", "schemas_hash"}:
-            raise TypeError(f"Monitor.report: {sorted(run)}: not all a run's (meta: RunMeta)")
+        if unknown := set(run) - {"broker", "started", "finished", "suite_version", "schemas_hash"}:
+            raise TypeError(f"not fields of a run (what it was is a RunMeta): {sorted(unknown)}")
         now = self._finished if self._finished is not None else self._now(None)
         units: dict[str, UnitReport] = {}
         for address, entry in sorted(self._entries.items(),
