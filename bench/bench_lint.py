@@ -247,7 +247,7 @@ def child_recorded(mode: str, path: str, total: int, limit: int) -> dict:
         out["conversation_checks_passed"] = sum(
             u.examined.get(r, 0) for u in report.units.values()
             for r in ("EXEC-PING-001", "EXEC-START-001", "EXEC-START-003", "EXEC-QUERY-001"))
-        out["expectations_dropped"] = sum(u.facts.get("conversations_dropped", 0)
+        out["expectations_dropped"] = sum(u.facts.conversations_dropped
                                           for u in report.units.values())
         out["violations"] = linter.violations
         out["reader_problems"] = reader.problem_count

@@ -326,8 +326,7 @@ def _not_examined(rows: list[UnitReport]) -> str:
 
 def commands_seen(unit: UnitReport) -> int:
     """How many commands to the unit the observer saw (exec and TST)."""
-    counts = unit.facts.get("message_counts") or {}
-    return sum(n for kind, n in counts.items()
+    return sum(n for kind, n in unit.facts.message_counts.items()
                if kind in ("exec/command", "tst/command") or kind.startswith(
                    ("exec/command/", "tst/command/")))
 

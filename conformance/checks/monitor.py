@@ -42,7 +42,7 @@ from conformance.checks.tst_routing import TstRouting
 from conformance.facts import RunKind
 from conformance.message import Message
 from conformance.profile import Profile
-from conformance.results import Party, RunReport, UnitReport
+from conformance.results import Party, RunMeta, RunReport, UnitReport
 from conformance.rules import CATALOGUE, Side, get
 from conformance.topics import TST_EXECUTION, TopicKind, UnitAddress, parse_topic
 from conformance.validator import Examined, Validation, Validator
@@ -493,13 +493,14 @@ class Monitor:
         if reason and seen in (None, Observed.EXAMINED):
             entry.state.note(rule, reason)
 
-    def report(self, **meta: Any) -> RunReport:
-        """The results so far as a ``RunReport``. Before ``finish`` the end-of-run checks are
-        judged provisionally at the latest arrival time, without being stored.
+    def report(self, meta: RunMeta | None = None, **run: Any) -> RunReport:
+        """The results so far as a ``RunReport``, with ``meta``. Before ``finish`` the
+        end-of-run checks are judged provisionally at the latest arrival time, not stored.
 
-        Known keys: broker, started, finished, suite_version, schemas_hash; any other key goes
-        to ``meta`` as text.
+        ``run``: broker, started, finished, suite_version, schemas_hash (each optional).
         """
+        if unknown := set(run) - {"broker", "started", "finished", "suite_version", "schemas_hash"}:
+            raise TypeError(f"not fields of a run (what it was is a RunMeta): {sorted(unknown)}")
         now = self._finished if self._finished is not None else self._now(None)
         units: dict[str, UnitReport] = {}
         for address, entry in sorted(self._entries.items(),
@@ -512,18 +513,17 @@ class Monitor:
             for _, entry in sorted(self._commanders.items()):
                 report = row_report(self.ctx, self.profile, self.kind, None, entry, Findings(), now)
                 units[report.unit] = report
-        started = meta.pop("started", None)
+        started = run.pop("started", None)
         if started is None:
             started = min([self.ctx.started or self.created, self.created])
         return RunReport(
             kind=self.kind, started=float(started),
-            finished=meta.pop("finished", self._finished),
-            broker=str(meta.pop("broker", "")), profile=self.profile.name,
-            suite_version=str(meta.pop("suite_version", "") or suite_version()),
-            schemas_hash=str(meta.pop("schemas_hash", "") or schemas_hash()),
+            finished=run.pop("finished", self._finished),
+            broker=str(run.pop("broker", "")), profile=self.profile.name,
+            suite_version=str(run.pop("suite_version", "") or suite_version()),
+            schemas_hash=str(run.pop("schemas_hash", "") or schemas_hash()),
             units=units, gaps=self.ctx.gaps_until(now), unexamined=self._unexamined,
-            meta={k: str(v) for k, v in meta.items()},
-        )
+            meta=meta or RunMeta())
 
     # -- internals ------------------------------------------------------------------------
 

@@ -8,7 +8,6 @@ into the report's row at report time (examined sets expanded into per-rule count
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
 
 from conformance import __version__
 from conformance.checks.base import CheckContext, UnitState
@@ -19,7 +18,7 @@ from conformance.checks.rates import rate_stats
 from conformance.facts import RunKind
 from conformance.judge import judge_rates, judge_rule
 from conformance.profile import Profile
-from conformance.results import Party, UnitReport, skip_reason
+from conformance.results import Party, UnitFacts, UnitReport, skip_reason
 from conformance.rules import CATALOGUE, Mode, Rule, Side
 from conformance.topics import UnitAddress
 from conformance.validator import Examined
@@ -249,18 +248,17 @@ def _excuse(evidence: list[Violation], count: int, excused: str,
     return kept, count - (len(evidence) - len(kept)), excused or why
 
 
-def _facts(state: UnitState) -> dict[str, Any]:
+def _facts(state: UnitState) -> UnitFacts:
     """What the report tells people of the unit besides the verdicts."""
-    return {
-        "declared_rates": dict(state.declared_rates),
-        "sensors_listed": list(state.sensors_listed or ()),
-        "sensors_seen": dict(state.sensors_seen),
-        "tasks_available": {k: list(v) for k, v in state.tasks_available.items()},
-        "tasks_executing": dict(state.tasks_executing),
-        "position": list(state.position) if state.position else None,
-        "message_counts": dict(state.counts),
-        "conversations_dropped": dropped(state),
-    }
+    return UnitFacts(
+        declared_rates=dict(state.declared_rates),
+        sensors_listed=tuple(state.sensors_listed or ()),
+        sensors_seen=dict(state.sensors_seen),
+        tasks_available=dict(state.tasks_available),
+        tasks_executing=dict(state.tasks_executing),
+        position=state.position,
+        message_counts=dict(state.counts),
+        conversations_dropped=dropped(state))
 
 
 def _broker_gaps(ctx: CheckContext, profile: Profile) -> list[tuple[float, float]]:

@@ -27,7 +27,7 @@ from conformance.judge import judge
 from conformance.lint.linter import FLEET_RULES
 from conformance.lint.rows import STATUS_ORDER, LintRow, live_rows, report_rows, seen_fields
 from conformance.reporting.jsonreport import dumps
-from conformance.results import Party
+from conformance.results import Party, RunMeta
 from conformance.violation import Verdict, Violation
 
 SNAPSHOT_EVERY = 1.0
@@ -305,6 +305,6 @@ def _provisional_report(linter: Any, meta: dict[str, Any]) -> bytes:
     stored); ``meta``: ``facts`` (``RunFacts``) and what the report says of the run."""
     meta = dict(meta)
     facts = meta.pop("facts", None) or RunFacts(kind=RunKind.LINT)
-    report = linter.monitor.report(finished=None, provisional="the run goes on: this is the "
-                                   "report as it stands", **meta)
+    said = RunMeta(provisional="the run goes on: this is the report as it stands")
+    report = linter.monitor.report(said, finished=None, **meta)
     return dumps(judge(report, facts))

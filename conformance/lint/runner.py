@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import IO, Any
 
@@ -37,7 +37,7 @@ from conformance.recording import (
 from conformance.reporting import write_html, write_json, write_junit
 from conformance.reporting.bounds import file_stem
 from conformance.reporting.text import render_verdicts, render_violation
-from conformance.results import Party
+from conformance.results import Party, RunMeta
 from conformance.rosbag import BagError, BagReader, is_bag
 from conformance.scorecard import Scorecard
 from conformance.violation import Verdict
@@ -74,7 +74,7 @@ class _Read:
 
     scorecard: Any
     end: float
-    meta: dict[str, str]
+    meta: RunMeta
     notes: list[str] = field(default_factory=list)
     broker: str = ""
     problems: list[Any] = field(default_factory=list)
@@ -106,31 +106,29 @@ def _lint(options: Any, profile: Any, *, source: str | None, ros_unit: Any,
         read = _read_live(linter, scorecard, options, out)
     if read is None:
         return EXIT_NOT_RUN
-    meta, end = read.meta, read.end
-    meta["duration_s"] = f"{(linter.last_time or end) - (linter.first_time or end):.3f}"
-    if options.units:
-        meta["units"] = " ".join(u.base for u in options.units)
-
+    end = read.end
     if linter.messages == 0:
         return _nothing_read(out, linter, read)
 
     over, over_units = monitor.not_judged()
-    if over:
-        meta["not_judged"] = _not_judged(over, over_units)
-
+    not_judged = _not_judged(over, over_units) if over else ""
+    meta = replace(read.meta,
+                   duration_s=f"{(linter.last_time or end) - (linter.first_time or end):.3f}",
+                   units=" ".join(u.base for u in options.units) if options.units else None,
+                   not_judged=not_judged or None)
     report = judge(_report(monitor, linter, kind_meta=meta, broker=read.broker,
                            started=started if not source else (linter.first_time or started),
                            finished=end),
                    RunFacts(kind=RunKind.LINT, gate=gate, strict=profile.is_strict,
-                            untimed=untimed(linter), not_judged=meta.get("not_judged", ""),
+                            untimed=untimed(linter), not_judged=not_judged,
                             not_examined=_malformed(read.problem_count)))
     if serving:  # the fleet page's last snapshot: every verdict final
         serving.view.finish(linter, report, verdict=report.conclusion.verdict,
-                            not_judged=meta.get("not_judged", ""))
+                            not_judged=not_judged)
     _tell(out, linter, report, read)
     if formats:
         _write(out, report, Path(reports_dir), formats, report_stem(source))
-    return _verdict(out, report, gate, meta.get("not_judged", "") if over else "")
+    return _verdict(out, report, gate, not_judged)
 
 
 def _write(out: IO[str], report: Any, reports_dir: Path, formats: tuple[str, ...],
@@ -157,8 +155,8 @@ def _read_bag(linter: Any, scorecard: Callable[[str, bool], Any], source: str, r
     except BagError as e:
         print(shown(f"waraps-conformance lint: {e}"), file=sys.stderr)
         return None
-    return _Read(card, end, {"source": reader.name, "recording_formats": reader.format,
-                             "bag_messages_read": str(reader.read)}, list(reader.notes))
+    return _Read(card, end, RunMeta(source=reader.name, recording_formats=reader.format,
+                                    bag_messages_read=str(reader.read)), list(reader.notes))
 
 
 def _read_recording(linter: Any, scorecard: Callable[[str, bool], Any], source: str,
@@ -175,13 +173,13 @@ def _read_recording(linter: Any, scorecard: Callable[[str, bool], Any], source: 
     if reader.backwards:  # refused: judged as one, joined captures would tell what never was
         print(shown(f"waraps-conformance lint: {reader.backwards}"), file=sys.stderr)
         return None
-    meta = {"source": name, "recording_lines": str(reader.lines),
-            "recording_formats": ", ".join(sorted(reader.formats))}
+    meta = RunMeta(source=name, recording_lines=str(reader.lines),
+                   recording_formats=", ".join(sorted(reader.formats)))
     print(shown(f"read {name} as {', '.join(sorted(reader.formats)) or 'no known format'}"
                 f" ({reader.messages} messages)"), file=out)
     if reader.problem_count:
-        meta["recording_problems"] = str(reader.problem_count)
-        meta["recording_problem_lines"] = "; ".join(str(p) for p in reader.problems[:20])
+        meta = replace(meta, recording_problems=str(reader.problem_count),
+                       recording_problem_lines="; ".join(str(p) for p in reader.problems[:20]))
     return _Read(card, end, meta, [*reader.notes], "", reader.problems, reader.problem_count)
 
 
@@ -201,11 +199,12 @@ def _read_live(linter: Any, scorecard: Callable[[str, bool], Any], options: Any,
                     + (f" for {options.duration:g} s" if options.duration
                        else " until Ctrl-C")), file=out, flush=True)
     end = run_live(linter, card, capture, options)
-    meta = {"source": f"live {' '.join(options.topics)}"}
-    if options.broker.tls_arguments():  # the rerun line repeats them (reporting/text.py)
-        meta["tls_options"] = " ".join(options.broker.tls_arguments())
-    if capture.dropped:
-        meta["unexamined_reason"] = "the linter fell behind the broker; oldest dropped"
+    meta = RunMeta(
+        source=f"live {' '.join(options.topics)}",
+        # the rerun line repeats them (reporting/text.py)
+        tls_options=" ".join(options.broker.tls_arguments()) or None,
+        unexamined_reason="the linter fell behind the broker; oldest dropped"
+        if capture.dropped else None)
     return _Read(card, end, meta, [], str(options.broker))
 
 
@@ -450,11 +449,11 @@ def run_live(linter: Any, scorecard: Any, capture: Any, options: Any) -> float:
     return end
 
 
-def _report(monitor: Any, linter: Any, *, kind_meta: dict[str, str], broker: str,
+def _report(monitor: Any, linter: Any, *, kind_meta: RunMeta, broker: str,
             started: float, finished: float) -> Any:
     """The run report from the Monitor (it holds the gaps and unexamined counts it was told),
     with what the linter knows about its source in ``meta``."""
-    return monitor.report(broker=broker, started=started, finished=finished, **kind_meta)
+    return monitor.report(kind_meta, broker=broker, started=started, finished=finished)
 
 
 def report_stem(source: str | None) -> str:

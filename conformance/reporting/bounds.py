@@ -16,14 +16,14 @@ import hashlib
 from collections.abc import Callable
 from typing import TypeVar
 
-from conformance.results import RunReport
+from conformance.results import RunMeta, RunReport
 from conformance.violation import Verdict
 
 MAX_REPORT_BYTES = 10_000_000
 """The largest report file written, in bytes (each of JSON, HTML and JUnit)."""
 SAMPLE_UNITS = 8
 TRUNCATED = "report_truncated"
-"""The ``meta`` key that says what a bounded report left out."""
+"""The JSON ``meta`` key that says what a bounded report left out (``RunMeta``'s field)."""
 
 Out = TypeVar("Out", str, bytes)
 
@@ -92,9 +92,10 @@ def _estimate(render: Callable[[RunReport], Out], report: RunReport) -> float:
     return empty + sum(sizes) / len(sizes) * len(names)
 
 
-def _note(report: RunReport, text: str) -> dict[str, str]:
-    before = report.meta.get(TRUNCATED)
-    return {**report.meta, TRUNCATED: f"{before}; {text}" if before else text}
+def _note(report: RunReport, text: str) -> RunMeta:
+    before = report.meta.report_truncated
+    return dataclasses.replace(report.meta,
+                               report_truncated=f"{before}; {text}" if before else text)
 
 
 def _evidence_cut(report: RunReport, limit: int) -> RunReport:

@@ -28,8 +28,8 @@ from conformance.conclusion import of as conclusion_of
 from conformance.display import shorten
 from conformance.reporting.bounds import bounded
 from conformance.reporting.files import atomic_write
-from conformance.reporting.text import RERUN_OF, iso_time, printable, rerun_command
-from conformance.results import Party, RateStat, RunReport, UnitReport
+from conformance.reporting.text import iso_time, printable, rerun_command
+from conformance.results import RERUN_OF, Party, RateStat, RunReport, UnitReport
 from conformance.rules import CATALOGUE, reading
 from conformance.violation import RuleResult, Verdict, Violation
 
@@ -43,15 +43,13 @@ COLOURS = {
 ORDER = [Verdict.FAIL, Verdict.WARN, Verdict.COULD_NOT_TEST, Verdict.PASS, Verdict.SKIP]
 RUN_VERDICT_COLOURS = {"not certified": "#cf222e", "interrupted": "#bc4c00",
                        "partial": "#bc4c00", "clean": "#1a7f37"}
-# Run facts (RunReport.meta) in words, in this order; keys shown elsewhere are left out.
-META_WORDS = (("not_run", "rules not run"),
-              ("profile_source", "profile file"), ("timing_scale", "timing scale"),
+# What the run was (RunReport.meta, by its JSON keys) in words, in this order, then the
+# others; those shown elsewhere (the heading, the story) are left out.
+META_WORDS = (("profile_source", "profile file"), ("timing_scale", "timing scale"),
               ("seed", "seed"), ("dry_run", "dry run"), ("allow_motion", "motion allowed"),
               ("reboot", "reboot"), ("commands_sent", "commands sent"),
               ("rerun", "repeat this run"))
-META_SHOWN_ELSEWHERE = {"unit", "broker", "started", "finished", "suite_version", "agent_uuid",
-                        "verdict", "interrupted", "exit_status", "error", "broker_lost",
-                        "cut_short", "selection", "explore_story"}
+META_SHOWN_ELSEWHERE = {"unit", "agent_uuid", "exit_status", "explore_story"}
 SERIES_COLOURS = ["#0969da", "#bf3989", "#1a7f37", "#bc4c00", "#8250df", "#6e7781"]
 
 
@@ -118,7 +116,7 @@ def render_html(report: RunReport, files: list[str] | None = None) -> str:
         verdict=conclusion.verdict, conclusion=conclusion, failing=failing, warned=warned,
         reruns={(u, r.rule): rerun_of(report, u, r) for u, r in failing + warned},
         untested=untested(report), untimed=facts_of(report).untimed,
-        story=str(report.meta.get("explore_story") or "").split("\n"),
+        story=(report.meta.explore_story or "").split("\n"),
         gaps=[(a, b) for a, b in report.gaps if b - a >= MIN_GAP],
         head=_head_facts(report, conclusion), units=units, rate_plots=rate_plots,
         written=", ".join(files or [])) + "\n"
@@ -126,8 +124,8 @@ def render_html(report: RunReport, files: list[str] | None = None) -> str:
 
 def rerun_of(report: RunReport, unit: str, result: RuleResult) -> str:
     """The command that reruns ``result``'s rule on ``unit``: the one the certification
-    printed (``RERUN_OF``), else the report's own (``text.rerun_command``)."""
-    said = report.meta.get(RERUN_OF + result.rule) if unit == report.meta.get("unit") else None
+    printed (``RunMeta.rerun_of``), else the report's own (``text.rerun_command``)."""
+    said = report.meta.rerun_of.get(result.rule) if unit == report.meta.unit else None
     topic = result.violations[0].topic if result.violations else ""
     return str(said or rerun_command(report, unit, result.rule, topic))
 
@@ -197,11 +195,13 @@ def _head_facts(report: RunReport, conclusion: Conclusion) -> HeadFacts:
     words = dict(META_WORDS)
 
     meta = [("rules", reading(conclusion.strict))]
-    for key in dict.fromkeys([k for k, _ in META_WORDS] + sorted(report.meta)):
-        value = report.meta.get(key)
+    said = report.meta.to_dict()  # the JSON's keys: the page shows what the JSON says
+    for key in dict.fromkeys([k for k, _ in META_WORDS] + sorted(said)):
+        value = said.get(key)
         if value and key not in META_SHOWN_ELSEWHERE and not key.startswith(RERUN_OF):
             meta.append((words.get(key, key.replace("_", " ")), value))
-    return HeadFacts(counts, not_run, report.meta.get("exit_status", conclusion.exit_code),
+    exit_status = report.meta.exit_status
+    return HeadFacts(counts, not_run, conclusion.exit_code if exit_status is None else exit_status,
                      [(n, ", ".join(u.agent_uuids) or "-") for n, u in report.units.items()
                       if n != "(unattributed)"], meta)
 
@@ -237,7 +237,7 @@ def _unit(name: str, unit: UnitReport, status: UnitStatus) -> UnitView:
                     identity=f"{unit.agent_type} / {unit.role} / {unit.name}",
                     agent_uuids=", ".join(unit.agent_uuids) or "-",
                     levels=", ".join(unit.levels) or "-",
-                    sensors=", ".join(map(str, unit.facts.get("sensors_listed") or ())),
+                    sensors=", ".join(unit.facts.sensors_listed),
                     shown=[r for r in ranked if r.verdict is not Verdict.SKIP], skipped=[],
                     bad=[], verdict=status.verdict, status=status.summary)
     if unit.party == Party.COMMANDER:  # what it sent, judged by the commander's rules

@@ -44,7 +44,7 @@ def _to_junit(report: RunReport) -> str:
     suites: list[str] = []
     tests = failures_total = 0
     conclusion = conclusion_of(report)
-    truncated = report.meta.get("report_truncated")
+    truncated = report.meta.report_truncated
     for name, unit in report.units.items():
         stamp = iso_time(unit.first_seen)
         at = f" timestamp={_attr(stamp)}" if stamp else ""

@@ -28,12 +28,6 @@ def iso_time(t: float | None) -> str:
         return repr(t)
 
 
-RERUN_OF = "rerun "
-"""``meta["rerun HB-003"]``: the certification's own command that reruns a failed or warned
-rule (its evidence's scenarios, ``--observe``, a stored exploration story), as the terminal
-printed it: the HTML report shows the same line."""
-
-
 def rerun_command(report: Any, unit: str, rule_id: str, topic: str = "") -> str:
     """How to repeat what found a violation of ``rule_id`` on ``unit``: for a lint report
     ``waraps-conformance lint --from <recording> --unit <unit>`` (or ``--broker <url>`` and
@@ -49,11 +43,11 @@ def rerun_command(report: Any, unit: str, rule_id: str, topic: str = "") -> str:
         parsed = parse_topic(topic).unit if topic else None
         unit = parsed.base if parsed is not None else ""
     only = f" --unit {shlex.quote(unit)}" if unit else ""
-    meta = getattr(report, "meta", {}) or {}
-    source = meta.get("source", "")
-    broker = getattr(report, "broker", "")
-    if broker and "recording_lines" not in meta:  # live traffic (the URL has no password)
-        tls = meta.get("tls_options", "")  # already shell-quoted
+    meta = report.meta
+    source = meta.source or ""
+    broker = report.broker
+    if broker and meta.recording_lines is None:  # live traffic (the URL has no password)
+        tls = meta.tls_options or ""  # already shell-quoted
         return (f"waraps-conformance lint --broker {shlex.quote(broker)}"
                 + (f" {tls}" if tls else "") + only)
     if not source or source in ("-", "<stdin>") or source.startswith("live "):

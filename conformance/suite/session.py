@@ -35,8 +35,7 @@ from conformance.judge import judge, unexamined
 from conformance.protocol import State
 from conformance.reporting import write_all
 from conformance.reporting.bounds import file_stem
-from conformance.reporting.text import RERUN_OF
-from conformance.results import RunReport
+from conformance.results import RunMeta, RunReport
 from conformance.rules import CATALOGUE, Mode
 from conformance.scenarios import (
     RULE_SCENARIO,
@@ -337,24 +336,26 @@ class Certification:
         return self.conclusion(report).counts
 
     def meta(self) -> dict[str, Any]:
+        """The report's fields for ``Monitor.report``, its ``meta`` (``RunMeta``) with them."""
         s = self.settings
         hb = self.traffic.latest("heartbeat")
         return {
             "broker": str(s.broker) if not s.embedded else
             f"embedded ({self.connection.broker_url})",
             "started": self.started, "suite_version": __version__,
-            "unit": str(self.unit), "seed": str(s.seed), "timing_scale": f"{s.timing_scale:g}",
-            "profile_source": self.profile.source, "dry_run": str(s.dry_run).lower(),
-            "allow_motion": str(s.allow_motion).lower(),
-            "allow_hostile": str(s.allow_hostile).lower(),
-            "safety": self.connection.motion.decision.sentence(),
-            "reboot": self.reboot.how() if self.context.reboot else "none",
-            "agent_uuid": str(hb.get("agent-uuid")) if hb else "",
-            "commands_sent": str(self.commander.sent_count + self.tst.sent_count),
-            "tst_command_topic": s.tst_topic,
-            "explore": self.explored or ("off" if s.explore == 0 else "not run"),
-            "explore_story": self.explore_story,
-            "rerun": self.rerun_command(),
+            "meta": RunMeta(
+                unit=str(self.unit), seed=str(s.seed), timing_scale=f"{s.timing_scale:g}",
+                profile_source=self.profile.source, dry_run=str(s.dry_run).lower(),
+                allow_motion=str(s.allow_motion).lower(),
+                allow_hostile=str(s.allow_hostile).lower(),
+                safety=self.connection.motion.decision.sentence(),
+                reboot=self.reboot.how() if self.context.reboot else "none",
+                agent_uuid=str(hb.get("agent-uuid")) if hb else "",
+                commands_sent=str(self.commander.sent_count + self.tst.sent_count),
+                tst_command_topic=s.tst_topic,
+                explore=self.explored or ("off" if s.explore == 0 else "not run"),
+                explore_story=self.explore_story,
+                rerun=self.rerun_command()),
         }
 
     def rerun_command(self, rule: str | None = None) -> str:
@@ -438,9 +439,10 @@ class Certification:
         self._passive_ready = True
 
     # --- reports and the end ---------------------------------------------------------------------
-    def write_reports(self, *, force: bool = False, **extra: Any) -> dict[str, Path]:
+    def write_reports(self, *, force: bool = False, exit_status: str | None = None,
+                      **extra: Any) -> dict[str, Path]:
         """Write reports/<unit>-<time>.json and .html (atomically; at most once a second unless
-        ``force``), so they survive a Ctrl-C."""
+        ``force``), so they survive a Ctrl-C; ``exit_status``: the finished run's."""
         now = self.traffic.clock.monotonic()
         if not force and now - self._last_write < 1.0:
             return self.report_paths
@@ -448,9 +450,10 @@ class Certification:
 
         report = self.report(**extra)
         unit = report.units.get(str(self.unit))
-        for r in unit.rules.values() if unit is not None else ():
-            if r.verdict in (Verdict.FAIL, Verdict.WARN):  # the rerun lines the terminal prints
-                report.meta[RERUN_OF + r.rule] = self.rerun_command(r.rule)
+        reruns = [r.rule for r in (unit.rules.values() if unit is not None else ())
+                  if r.verdict in (Verdict.FAIL, Verdict.WARN)]  # the lines the terminal prints
+        report.meta = dataclasses.replace(report.meta, exit_status=exit_status,
+                                          rerun_of={r: self.rerun_command(r) for r in reruns})
         try:
             self.report_paths = write_all(report, self.settings.reports_dir, self.stem)
         except OSError as e:

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import pytest
+
 from conformance.checks import Monitor, covered_rules
 from conformance.conclusion import conclude
 from conformance.message import Message
 from conformance.profile import Profile
+from conformance.results import RunMeta
 from conformance.topics import UnitAddress
 from conformance.violation import Observed, Verdict, Violation
 
@@ -133,7 +136,9 @@ def test_unexamined_and_gaps_reach_the_report(stream):
     m = Monitor()
     m.unexamined(7)
     m.connection_gap(5.0, 6.0)
-    r = m.report(broker="mqtt://user:secret@127.0.0.1:1883", operator="me")
+    r = m.report(RunMeta(source="me"), broker="mqtt://user:secret@127.0.0.1:1883")
     assert r.unexamined == 7 and r.gaps == [(5.0, 6.0)]
     assert r.broker == "mqtt://user@127.0.0.1:1883"
-    assert r.meta == {"operator": "me"}
+    assert r.meta == RunMeta(source="me")
+    with pytest.raises(TypeError, match="operator"):  # meta is a RunMeta's, never a loose key
+        m.report(operator="me")

@@ -119,6 +119,10 @@ def test_malformed_lines_are_reported_with_line_numbers_and_the_rest_judged(
     assert "malformed line 5: not JSON" in run.out
     assert "malformed line 51: 'topic' is missing" in run.out
     assert run.report["meta"]["recording_problems"] == "2"
+    # the keys a recording's lint has always written (RunMeta's, results.py): none dropped
+    assert sorted(run.report["meta"]) == ["duration_s", "recording_formats", "recording_lines",
+                                          "recording_problem_lines", "recording_problems",
+                                          "source"]
     assert run.report["units"][f"{prefix}/unit/air/simulation/dji0"]["message_count"] == 140
 
 

@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import pytest
 
 from conformance.reporting.text import rerun_command as report_rerun
-from conformance.results import skip_reason
+from conformance.results import RunMeta, skip_reason
 from conformance.rules import get
 from conformance.suite.settings import read
 
@@ -58,18 +58,18 @@ def test_the_certifications_repeat_line_pastes_safely(pytester, tmp_path, name):
 @pytest.mark.parametrize("name", CRAFTED)
 def test_the_reports_rerun_lines_paste_safely(tmp_path, name):
     unit = f"waraps/unit/air/simulation/{name}"
-    certification = SimpleNamespace(kind="certification", meta={}, broker="")
+    certification = SimpleNamespace(kind="certification", meta=RunMeta(), broker="")
     args = pasted(report_rerun(certification, unit, "HB-003"), tmp_path)
     assert args == ["--unit", unit, "-k", "HB-003"]
     recording = SimpleNamespace(kind="lint", broker="",
-                                meta={"source": f"field {name}.jsonl", "recording_lines": 3})
+                                meta=RunMeta(source=f"field {name}.jsonl", recording_lines="3"))
     args = pasted(report_rerun(recording, unit, "HB-003"), tmp_path)
     assert args == ["lint", "--from", f"field {name}.jsonl", "--unit", unit]
-    piped = SimpleNamespace(kind="lint", broker="", meta={"source": "-", "recording_lines": 3})
+    piped = SimpleNamespace(kind="lint", broker="", meta=RunMeta(source="-", recording_lines="3"))
     assert pasted(report_rerun(piped, unit, "HB-003"), tmp_path)[:3] == [
         "lint", "--from", "<recording>"]
     live = SimpleNamespace(kind="lint", broker=f"mqtt://{name}:1883",
-                           meta={"tls_options": "--ca-file='my ca.pem'"})
+                           meta=RunMeta(tls_options="--ca-file='my ca.pem'"))
     args = pasted(report_rerun(live, unit, "HB-003"), tmp_path)
     assert args == ["lint", "--broker", f"mqtt://{name}:1883", "--ca-file=my ca.pem",
                     "--unit", unit]

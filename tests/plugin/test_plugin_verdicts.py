@@ -20,6 +20,12 @@ from conformance.client import BrokerURL, MqttClient
 from conformance.plugin import NOT_CERTIFIED_EXIT
 from conformance.sim import SimUnit
 
+CERTIFICATION_META = [
+    "agent_uuid", "allow_hostile", "allow_motion", "commands_sent", "dry_run", "exit_status",
+    "explore", "explore_story", "profile_source", "reboot", "rerun", "safety", "seed",
+    "timing_scale", "tst_command_topic", "unit"]
+"""The keys of a certification's JSON ``meta`` (tests/reporting/test_run_meta.py's list)."""
+
 pytestmark = pytest.mark.slow
 
 
@@ -67,6 +73,11 @@ def test_a_unit_that_dies_on_a_command_is_not_certified(pytester: pytest.Pyteste
     tst = {r: v for r, v in run.unit_rules().items() if r.startswith("TST-")}
     assert tst and all(v["verdict"] == "skip" and v["reason"].startswith(
         ("not claimed", "commander-side")) for v in tst.values()), tst
+    # The keys a certification's report has always written (RunMeta's, results.py), and the
+    # command that reruns each failed or warned rule alone: none dropped.
+    found = [r for r, v in run.unit_rules().items() if v["verdict"] in ("fail", "warn")]
+    assert sorted(run.report["meta"]) == sorted([*CERTIFICATION_META, *(f"rerun {r}" for r in found)])
+    assert run.report["meta"]["rerun HB-012"].endswith("-k HB-012")
 
 
 def test_a_unit_whose_messages_could_not_be_examined_is_not_certified(

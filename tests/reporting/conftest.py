@@ -37,4 +37,4 @@ def run_report(prefix: str) -> RunReport:
     m.feed(Message(T0 + 4.0, f"{prefix}/unit/air", b"{}"))
     m.record(good, "REBOOT-001", seen=Observed.UNTESTABLE, reason="no reboot command")
     m.finish()
-    return m.report(broker="mqtts://alice:s3cret@127.0.0.1:8883", operator="test")
+    return m.report(broker="mqtts://alice:s3cret@127.0.0.1:8883")

@@ -70,7 +70,7 @@ HOSTILE = (f"<script>{PWN}</script>", f'"><img src=x onerror="{PWN}">',
 def hostile_report() -> RunReport:
     """A report whose wire-borne fields all hold markup: the unit name, a topic, a rule detail,
     a payload excerpt, a reason, a rate's kind (in an attribute), and a run fact."""
-    from conformance.results import RateStat, UnitReport
+    from conformance.results import RateStat, RunMeta, UnitFacts, UnitReport
     from conformance.violation import RuleResult, Verdict, Violation
 
     every = " ".join(HOSTILE)
@@ -87,9 +87,10 @@ def hostile_report() -> RunReport:
                                       mean_interval=2.0, min_interval=1.9, max_interval=2.1,
                                       verdict=Verdict.FAIL, series=[(0.0, 0.5), (2.0, 0.5)],
                                       rule="HB-003", reason=every, start=0.0, end=2.0)],
-                      facts={"sensors_listed": list(HOSTILE)})
+                      facts=UnitFacts(sensors_listed=HOSTILE))
     return RunReport(kind="lint", started=1_700_000_000.0, finished=1_700_000_010.0,
-                     units={name: unit}, meta={"rerun": every, HOSTILE[0]: every})
+                     units={name: unit}, meta=RunMeta(rerun=every, source=every, unit=name,
+                                                      rerun_of={"HB-002": every}))
 
 
 def page_title(dom: str) -> str:

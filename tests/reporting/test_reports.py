@@ -21,7 +21,7 @@ from conformance.reporting import (
     to_junit,
     write_all,
 )
-from conformance.results import RunReport
+from conformance.results import RunMeta, RunReport
 from conformance.rules import CATALOGUE
 from conformance.violation import Verdict, Violation
 
@@ -87,7 +87,7 @@ def test_write_all_is_atomic_and_repeatable(run_report: RunReport, tmp_path, mon
         raise KeyboardInterrupt
 
     monkeypatch.setattr(files_mod.os, "replace", interrupted)
-    run_report.meta["changed"] = "yes"
+    run_report.meta = RunMeta(source="changed")
     with pytest.raises(KeyboardInterrupt):
         write_all(run_report, tmp_path, "run")
     assert first["html"].read_bytes() == before  # the old report survives whole
@@ -129,21 +129,21 @@ def test_rerun_line_says_how_to_repeat_a_lint_or_a_certification():
         return lines[0].split(None, 1)[1]
 
     recorded = RunReport(kind="lint", started=0.0, finished=1.0,
-                         meta={"source": "rec/fleet day.jsonl", "recording_lines": "10"})
+                         meta=RunMeta(source="rec/fleet day.jsonl", recording_lines="10"))
     assert rerun(recorded) == f"waraps-conformance lint --from 'rec/fleet day.jsonl' --unit {unit}"
     piped = RunReport(kind="lint", started=0.0, finished=1.0,
-                      meta={"source": "<stdin>", "recording_lines": "10"})
+                      meta=RunMeta(source="<stdin>", recording_lines="10"))
     assert rerun(piped) == f"waraps-conformance lint --from '<recording>' --unit {unit}"
     live = RunReport(kind="lint", started=0.0, finished=1.0,
                      broker="mqtts://alice:s3cret@broker.example:8883",
-                     meta={"source": "live waraps/#"})
+                     meta=RunMeta(source="live waraps/#"))
     assert rerun(live) == (f"waraps-conformance lint --broker mqtts://alice@broker.example:8883 "
                            f"--unit {unit}")
     tls = BrokerURL.parse("mqtts://127.0.0.1:8883").with_tls_files(
         "certs/my ca.pem", None, None, insecure=True).tls_arguments()
     assert tls == ["--ca-file='certs/my ca.pem'", "--tls-insecure"]
     live_tls = RunReport(kind="lint", started=0.0, finished=1.0, broker="mqtts://127.0.0.1:8883",
-                         meta={"source": "live waraps/#", "tls_options": " ".join(tls)})
+                         meta=RunMeta(source="live waraps/#", tls_options=" ".join(tls)))
     assert rerun(live_tls) == ("waraps-conformance lint --broker mqtts://127.0.0.1:8883 "
                                f"--ca-file='certs/my ca.pem' --tls-insecure --unit {unit}")
     certification = RunReport(kind="certification", started=0.0, finished=1.0)
@@ -192,16 +192,15 @@ def test_html_opens_with_verdict_levels_and_failing_rules(run_report: RunReport)
 
 
 def test_html_header_facts_once_each_in_words(run_report: RunReport):
-    run_report.meta.update({"unit": "waraps/unit/air/simulation/dji0", "timing_scale": "1",
-                            "rerun": "pytest --unit x --seed 1", "broker": run_report.broker,
-                            "started": "1", "suite_version": "9"})
+    run_report.meta = RunMeta(unit="waraps/unit/air/simulation/dji0", timing_scale="1",
+                              rerun="pytest --unit x --seed 1", exit_status="1")
     page = render_html(run_report)
     head = page[page.index('<table class="head">'):page.index("</table>",
                                                                  page.index('class="head"'))]
     assert "timing scale" in head and "timing_scale" not in head
     assert "repeat this run" in head
     assert head.count(">broker<") == 1 and head.count(">started<") == 1
-    assert ">unit<" not in head
+    assert ">unit<" not in head and head.count(">exit status<") == 1
 
 
 def test_html_footer_names_the_files_written_with_it(run_report: RunReport, tmp_path):
@@ -293,7 +292,7 @@ def test_the_html_names_the_unit_first_and_each_failure_has_its_rerun_and_groupe
     report = RunReport("certification", 1_700_000_000.0, 1_700_000_010.0, units={unit: UnitReport(
         unit, "air", "simulation", "dji0", levels=["sensor"], rules=rules)})
     rerun = f"pytest --unit {unit} --broker mqtt://127.0.0.1:1883 --seed 3 -k EXEC-PING-001"
-    report.meta.update({"unit": unit, "rerun " + "EXEC-PING-001": rerun})
+    report.meta = RunMeta(unit=unit, rerun_of={"EXEC-PING-001": rerun})
     page = render_html(report)
     first = page[:page.index("What failed")]
     assert f'<span class="mono">{unit}</span>' in first and "fail</span>" in first
