@@ -324,6 +324,25 @@ _SEQUENCE = (
     _seq("feedback-after-abort-paused", "EXEC-FB-004",
          "A task aborted while paused says 'paused' once more after its 'aborted' (its pause "
          "timer fires after the abort)."),
+    # 12.1 lists 'running' for a paused task's query ('paused' is accepted: docs/MODEL.md);
+    # what no reading allows is an end the task never had.
+    _seq("query-paused-finished", "EXEC-QUERY-001",
+         "Answers query-status of a paused task 'finished' (a task no longer running counts "
+         "as done), though it is paused and goes on when continued."),
+    # 5.3: a paused task may be left out of tasks-executing, but not after being listed
+    # paused (docs/MODEL.md).
+    _seq("paused-dropped-from-list", "EXEC-START-003",
+         "Lists a paused task in tasks-executing once, then leaves it out while it stays "
+         "paused (it moves paused tasks to a table the list is not built from), with no "
+         "final status."),
+    _seq("resend-signal-reapplied", "EXEC-RESEND-001",
+         "Remembers only start-tasks' com-uuids: a resent signal-task is applied again ($pause, "
+         "$continue, the first $pause resent: the task pauses again)."),
+    # EXEC-SEQ-002's condition also-aborted (decided: a task serving another may end with it)
+    # warns by default; the test profiles adopt it.
+    _seq("abort-aborts-all", "EXEC-SEQ-002",
+         "Aborts every task on an $abort of one (the cancel goes to the controller all tasks "
+         "share), each with its 'aborted'."),
 )
 SEQUENCE_FAULTS = frozenset(f.name for f in _SEQUENCE)
 _ALL = _ALL + _SEQUENCE
