@@ -342,7 +342,8 @@ _SEQUENCE = (
     # warns by default; the test profiles adopt it.
     _seq("abort-aborts-all", "EXEC-SEQ-002",
          "Aborts every task on an $abort of one (the cancel goes to the controller all tasks "
-         "share), each with its 'aborted'."),
+         "share), each with its 'aborted' (EXEC-SEQ-002's condition also-aborted, decided: "
+         "it warns)."),
 )
 SEQUENCE_FAULTS = frozenset(f.name for f in _SEQUENCE)
 _ALL = _ALL + _SEQUENCE
