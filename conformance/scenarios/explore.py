@@ -5,7 +5,9 @@ Its rules are the commands: start-task (with or without task-uuid, of the tasks 
 and the suite may start, parameters drawn from the task's schema inside the safe radius),
 every built-in signal to any task (running, paused, ended, or never seen), query-status of any
 task, a resend of any earlier command, ping, and waiting. ``Explorer`` (explore_steps.py) runs
-each step and judges it; a disagreement is told as a ``Story`` (story.py).
+each step and judges it; a disagreement is told as a ``Story`` (story.py). The choice of a
+command about the tasks favours those toward the model's transitions the run has not reached
+yet (explore_cover.py); the summary says which were reached, and names the others.
 
 Against a slow, real system
 (docs/FIELD-NOTES.md 'Stateful exploration against a slow, real system'): no
