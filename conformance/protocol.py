@@ -46,7 +46,9 @@ Public API (stable):
 - ``Outcome``: ``response``, ``states`` (task-uuid -> State after it; ``NEW_TASK`` for the
   task a start-task without task-uuid begins, whose uuid the response names), ``implies``
   (task-uuid -> the feedback statuses of which one must follow within ``feedback_timeout``).
-- ``Finding``: ``rule``, ``task_uuid``, ``com_uuid``, ``expected``, ``observed``, ``time``.
+- ``Finding``: ``rule``, ``task_uuid``, ``com_uuid``, ``expected``, ``observed``, ``time``
+  (``conformance.sequence_rules``, where the rules judged on feedback by the commands before
+  it are: EXEC-SEQ-001, EXEC-SEQ-002, a resent signal applied again EXEC-RESEND-001).
 """
 
 from __future__ import annotations
@@ -60,6 +62,7 @@ from typing import Any
 import orjson
 
 from conformance.message import Message
+from conformance.sequence_rules import Finding, keeps_running, reapplied, touched_by_another
 from conformance.status import FINAL_STATUSES, accepts_signal, meaning
 from conformance.taskrecord import State, TaskRecord  # State: re-exported
 
@@ -165,19 +168,6 @@ class Expectation:
                 and accepts_signal(response):
             response = "ok"
         return next((o for o in self.outcomes if o.response == response), None)
-
-
-@dataclass(frozen=True)
-class Finding:
-    """The unit disagrees with the model: ``rule`` is broken."""
-
-    rule: str
-    task_uuid: str | None
-    com_uuid: str | None
-    expected: str
-    observed: str
-    time: float
-    condition: str = ""  # which condition of ``rule`` (rules.toml), "" its own words
 
 
 class Model:
@@ -429,9 +419,9 @@ class Model:
         task = self.follow(uuid)
         previous = task.last_status
         found: list[Finding] = []
-        if task.state.live:
-            found += self._keeps_running(task, status, previous, t)
-            found += self._touched_by_another(task, status, previous, t)
+        if task.state.live:  # the sequence rules (``conformance.sequence_rules``)
+            for rule in (keeps_running, touched_by_another, reapplied):
+                found += rule(self, task, status, previous, t)
         self.hear(task, status, t)
         return found
 
@@ -457,61 +447,6 @@ class Model:
             task.state = State.RUNNING
         elif status == "paused":
             task.state = State.PAUSED
-
-    # --- the sequence rules -------------------------------------------------------------------
-    def _keeps_running(self, task: TaskRecord, status: str, previous: str | None,
-                       t: float) -> list[Finding]:
-        """EXEC-SEQ-001 (12.2.2): once $abort is accepted the task stops; 'running' again (from
-        'paused', or a response timeout after the answer) says it went on; one in flight not."""
-        stop = task.acked_since(float("-inf"), ("$abort",))
-        if stop is None or status != "running":
-            return []
-        when, signal, com = stop
-        if previous == "running" and t - when <= self.response_timeout:
-            return []
-        how = "resumed from 'paused'" if previous == "paused" else \
-            f"still 'running' {t - when:.2f} s later"
-        word = self.answered.get(com, ("ok",))[0]
-        return [Finding("EXEC-SEQ-001", task.task_uuid, com,
-                        f"task {task.task_uuid} stops after {signal} was answered {word!r}",
-                        f"feedback 'running' after the {word!r} ({how})", t)]
-
-    def _touched_by_another(self, task: TaskRecord, status: str, previous: str | None,
-                            t: float) -> list[Finding]:
-        """EXEC-SEQ-002 (12.2.2): a signal names one task-uuid and changes only that task.
-        A task says what another task's signal asked for ('paused' for $pause, 'running' again
-        after 'paused' for $continue, 'aborted' for $abort), within the response timeout of
-        that signal (accepted), with no such signal sent to it in that time (answered or
-        not), and, for 'aborted', no start-task or $continue in that time (either may pre-empt
-        it)."""
-        wanted = {"paused": "$pause", "aborted": "$abort"}.get(status)
-        if status == "running" and previous == "paused":
-            wanted = "$continue"
-        if wanted is None:
-            return []
-        since = t - self.response_timeout
-        culprit: tuple[float, Command] | None = None
-        for com, sent in reversed(self.sent_at.items()):  # the latest first
-            if sent < since:
-                break
-            cmd = self.commands.get(com)
-            if cmd is None:
-                continue
-            if cmd.name == "signal-task" and cmd.signal == wanted:
-                if cmd.task_uuid == task.task_uuid:
-                    return []  # its own (perhaps answered after its feedback)
-                if culprit is None and accepts_signal(self.answered.get(com, (None,))[0]):
-                    culprit = (sent, cmd)
-            elif wanted == "$abort" and (cmd.name == "start-task" or cmd.signal == "$continue"):
-                return []  # pre-empted: a second task may end the first (EXEC-START-003)
-        if culprit is None:
-            return []
-        sent, cmd = culprit
-        return [Finding("EXEC-SEQ-002", task.task_uuid, cmd.com_uuid,
-                        f"only task {cmd.task_uuid} changed by {wanted} (its task-uuid)",
-                        f"task {task.task_uuid} says '{status}' {t - sent:.2f} s after that "
-                        f"{wanted} was sent and accepted", t,
-                        "also-aborted" if wanted == "$abort" else "")]
 
     def _remember(self, task_uuid: str, name: str | None, state: State, started_by: str | None
                   = None, refused: bool = False, ended_at: float | None = None) -> TaskRecord:

@@ -2,7 +2,8 @@
 
 Every exec message of a unit is fed to its ``Model``; the findings it returns are the sequence
 rules' (EXEC-SEQ-001: a task stops once $abort is accepted; EXEC-SEQ-002: a
-signal changes only the task it names). The same code runs in ``lint`` and in ``pytest
+signal changes only the task it names; EXEC-RESEND-001 where a resent signal is applied
+again: ``conformance.sequence_rules``). The same code runs in ``lint`` and in ``pytest
 --unit`` (and the exploration asks the same model what to expect), so lint of a recording and
 the suite cannot disagree about a sequence. What the conversation checks already judge (answers,
 final statuses, resends, query-status) stays theirs: the model adds only what needs the order
@@ -33,6 +34,8 @@ DETAIL = {
                     "keep running it (a paused task too)",
     "EXEC-SEQ-002": "12.2.2: apply a signal to the task-uuid it names, not to every task "
                     "(or to the vehicle)",
+    "EXEC-RESEND-001": "12.1: a resent signal-task (its com-uuid) is answered again, not "
+                       "applied again",
 }
 
 
@@ -50,8 +53,9 @@ def state_held(unit: UnitState, task_uuid: str) -> State:
     return c.model.state(task_uuid) if c is not None else State.UNKNOWN
 
 
-@check("EXEC-SEQ-001", "EXEC-SEQ-002", on=(TopicKind.EXEC_COMMAND, TopicKind.EXEC_RESPONSE,
-                                           TopicKind.EXEC_FEEDBACK), reads=(CONVERSATIONS,))
+@check("EXEC-SEQ-001", "EXEC-SEQ-002", "EXEC-RESEND-001",
+       on=(TopicKind.EXEC_COMMAND, TopicKind.EXEC_RESPONSE, TopicKind.EXEC_FEEDBACK),
+       reads=(CONVERSATIONS,))
 def sequence_follows_model(ctx: CheckContext, unit: UnitState, msg: Message,
                            v: Validation) -> list[Violation] | None:
     """Feed the model (first: the conversation checks read what it holds); report what it

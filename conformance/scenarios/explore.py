@@ -5,7 +5,9 @@ Its rules are the commands: start-task (with or without task-uuid, of the tasks 
 and the suite may start, parameters drawn from the task's schema inside the safe radius),
 every built-in signal to any task (running, paused, ended, or never seen), query-status of any
 task, a resend of any earlier command, ping, and waiting. ``Explorer`` (explore_steps.py) runs
-each step and judges it; a disagreement is told as a ``Story`` (story.py).
+each step and judges it; a disagreement is told as a ``Story`` (story.py). The choice of a
+command about the tasks favours those toward the model's transitions the run has not reached
+yet (explore_cover.py); the summary says which were reached, and names the others.
 
 Against a slow, real system
 (docs/FIELD-NOTES.md 'Stateful exploration against a slow, real system'): no
@@ -27,6 +29,7 @@ from typing import Any, NamedTuple
 from conformance.protocol import BUILTIN_SIGNALS
 from conformance.scenarios.context import RUNS_UNTIL_ENOUGH
 from conformance.scenarios.explore_action import Action, Ping, Query, Resend, Signal, Start, Wait
+from conformance.scenarios.explore_cover import TRANSITIONS, toward
 from conformance.scenarios.explore_steps import UNCHANGED, Disagreement, Explorer, Step
 from conformance.scenarios.shrink import shrink
 from conformance.scenarios.story import Story, describe
@@ -77,6 +80,8 @@ class Outcome:
     """What hypothesis ended with (its own complaint, if any)."""
     replays: int = 0
     """Replays of shorter stories while shrinking."""
+    covered: frozenset[str] = frozenset()
+    """The model's transitions its steps took (``explore_cover.TRANSITIONS``)."""
 
 
 class Search:
@@ -130,6 +135,7 @@ class Search:
             raise Stopped(e) from e
         finally:
             self.outcome.steps = self.explorer.total_steps
+            self.outcome.covered = frozenset(self.explorer.covered)
 
     def end_example(self) -> None:
         """The example's teardown (every task aborted, what the unit owes awaited): what it
@@ -142,6 +148,7 @@ class Search:
             raise Stopped(e) from e
         finally:
             self.outcome.steps = self.explorer.total_steps
+            self.outcome.covered = frozenset(self.explorer.covered)
         if self.failed:
             raise Found()
 
@@ -237,7 +244,7 @@ def machine_for(search: Search) -> type:
         @rule(data=st.data())
         def b_task_command(self, data: Any) -> None:
             search.run_step(pick(data, "command", task_commands(
-                explorer, alternate=search.outcome.examples % 2 == 0)))
+                explorer, alternate=search.outcome.examples % 2 == 0, bias=search.guided)))
 
         @rule(data=st.data())
         def c_query_status(self, data: Any) -> None:
@@ -329,11 +336,14 @@ class Option(NamedTuple):
     action: Action
 
 
-def task_commands(explorer: Explorer, alternate: bool = False) -> list[Action]:
+def task_commands(explorer: Explorer, alternate: bool = False, bias: bool = False
+                  ) -> list[Action]:
     """Commands about the tasks started, the most telling in the model's view first: a
     signal that changes a live task's state, a query of a paused or ended task, a resend of
     a start-task whose task has ended; among those, the kind done least in this example
-    first. Then the rest; then signals to a task the unit never saw."""
+    first. Then the rest; then signals to a task the unit never saw. ``bias``: first, and
+    as many times over as the rest, the commands toward the transitions the run has not
+    reached yet (``explore_cover.toward``), so that about half the draws pick one."""
     states = explorer.states()
     done = Counter(_kind(s.action) for s in explorer.steps)
     options: list[Option] = []
@@ -357,7 +367,10 @@ def task_commands(explorer: Explorer, alternate: bool = False) -> list[Action]:
                                        done["resend", None], BEFORE_EVERY_TASK, 0),
                               Resend(step)))
     options.sort(key=lambda o: o.priority)
-    return [o.action for o in options] + [Signal(signal, None) for signal in SIGNALS]
+    rest = [o.action for o in options] + [Signal(signal, None) for signal in SIGNALS]
+    wanted = toward(explorer, [n for n in TRANSITIONS if not explorer.covered[n]]) \
+        if bias else []
+    return wanted * max(1, len(rest) // len(wanted)) + rest if wanted else rest
 
 
 def _kind(action: Action) -> tuple[str, str | None]:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -37,6 +38,7 @@ from conformance.scenarios.explore_action import (
     slot_of,
     to_json,
 )
+from conformance.scenarios.explore_cover import MAX_WAIT, reached
 from conformance.scenarios.params import valid_params
 from conformance.scenarios.sender import Sent, new_uuid
 from conformance.scenarios.signal import IMPLIED
@@ -72,6 +74,8 @@ class Slot:
     task_uuid: str | None
     mark: int
     state: str = "starting"
+    since: float = 0.0
+    """When the exploration first saw it in ``state`` (its clock's now)."""
 
 
 @dataclass
@@ -204,6 +208,10 @@ class Explorer:
         """Unix time until which an answer or feedback the unit owes is not yet late."""
         self._refused_aborts: list[Slot] = []
         """Tasks whose teardown $abort the unit answered 'failed' (it no longer knows them)."""
+        self.covered: Counter[str] = Counter()
+        """The model's transitions the run's steps took (``explore_cover.TRANSITIONS``)."""
+        self.last_start = 0.0
+        """When the example's latest start-task was sent (its clock's now)."""
 
     # --- an example ---------------------------------------------------------------------------
     def begin(self) -> None:
@@ -211,6 +219,7 @@ class Explorer:
         self.slots, self.commands, self.steps = [], {}, []
         self._pending_until = 0.0
         self._refused_aborts = []
+        self.last_start = 0.0
 
     def end(self) -> None:
         """Abort what this example started, await each final status, then wait until what
@@ -249,6 +258,7 @@ class Explorer:
     # --- one step -----------------------------------------------------------------------------
     def do(self, action: Action) -> Step:
         """Run one step; raises ``Disagreement`` when the Monitor found a violation meanwhile."""
+        self.covered.update(reached(self, action))
         step = Step(action, at=self.ctx.traffic.clock.now())
         if len(self.steps) < MAX_STEPS:
             self.steps.append(step)
@@ -336,10 +346,12 @@ class Explorer:
         if slot.task_uuid is None or slot.state == "refused":
             return
         held = self.model_state(self.ctx.commander.unit_task_uuid(slot.task_uuid))
-        if held in ("running", "paused"):
-            slot.state = held
-        elif held in FINAL_STATUSES:
-            slot.state = "ended"
+        state = "ended" if held in FINAL_STATUSES else held
+        if state in ("running", "paused", "ended") and state != slot.state:
+            slot.state, slot.since = str(state), self.now()
+
+    def now(self) -> float:
+        return self.ctx.traffic.clock.now()
 
     def states(self) -> list[str]:
         """Each slot's state as the unit last showed it."""
@@ -364,7 +376,8 @@ class Explorer:
                                 "task": {"name": name, "params": params}}
         if action.task_uuid:
             body["task-uuid"] = new_uuid()
-        slot = Slot(name, body.get("task-uuid"), self.ctx.traffic.mark())
+        slot = Slot(name, body.get("task-uuid"), self.ctx.traffic.mark(), since=self.now())
+        self.last_start = self.now()
         self.slots.append(slot)
         sent, answer = self._send(step, body)
         if answer is None:
@@ -442,4 +455,4 @@ class Explorer:
             self._unanswered()
 
     def _wait(self, step: Step, action: Wait) -> None:
-        self._wait_heartbeat(max(1, min(5, action.periods)))
+        self._wait_heartbeat(max(1, min(MAX_WAIT, action.periods)))

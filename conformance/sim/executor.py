@@ -82,7 +82,8 @@ class CommandExecutor:
             return
         assert isinstance(msg, dict)
         com = msg["com-uuid"]
-        known = com in self.history and not self._forgets_ended(com)
+        known = com in self.history and not self._forgets_ended(com) and not (
+            msg.get("command") == "signal-task" and "resend-signal-reapplied" in self.faults)
         if (known and ("resend-answered-failed" in self.faults or "resend-refused" in
                        self.variants) and msg.get("command") == "start-task"):
             self._refuse_resend(com, msg)
@@ -382,6 +383,10 @@ class CommandExecutor:
             self.runner.end(task, "aborted", "aborted by $abort")
             if paused and "feedback-after-abort-paused" in self.faults:
                 self.runner.feedback(task, "paused")  # its pause timer fires after the end
+            if "abort-aborts-all" in self.faults:  # the cancel goes to the shared controller
+                for other in list(self.runner.tasks.values()):
+                    if other is not task and not other.ended and other.node is None:
+                        self.runner.end(other, "aborted", "aborted by $abort of another")
 
     def _accepts(self, signal: str) -> str:
         """The word a signal is accepted with: 'ok', or 12.1's 'running' (variant
@@ -413,6 +418,8 @@ class CommandExecutor:
                 self._answer(com, "unknown", task_uuid=task_uuid, fail_reason="", kind="query")
             return
         status = task.status
+        if status == "paused" and "query-paused-finished" in self.faults:
+            status = "finished"  # not running any more: counted as done
         if "success-vocabulary" in self.variants:  # 12.1's list: running, failed, success
             status = QUERY_WORDS_12_1.get(status, status)
         if status == "finished" and "query-answers-success" in self.faults:

@@ -46,22 +46,23 @@ def list_faults(as_json: bool) -> str:
              f"unless --strict-rules) / what it does", ""]
     for f in FAULTS.values():
         scope = "  [only visible to a broker-wide observer]" if f.scope == "broker" else ""
-        lines.append(f"{f.name:<{width}}  {rules_broken(f.rules)}{scope}")
+        lines.append(f"{f.name:<{width}}  {rules_broken(f.rules, f.decided)}{scope}")
         lines.append(f"{'':<{width}}    {f.description}")
     lines += ["", "Rules no unit can break (no fault):"]
     lines += [f"  {rule}: {why}" for rule, why in NOT_UNIT_BREAKABLE.items()]
     return "\n".join(lines)
 
 
-def rules_broken(rules: Sequence[str]) -> str:
+def rules_broken(rules: Sequence[str], decided: Sequence[str] = ()) -> str:
     """``fails TOPIC-002 SI-001; warns HB-010``: what the judge makes of each rule a fault
-    breaks, by the catalogue's severity and basis (``judge.violation_verdict``)."""
+    breaks, by the catalogue's severity and basis (``judge.violation_verdict``); ``decided``:
+    rules it breaks only through a decided condition (they warn)."""
     from conformance.judge import violation_verdict
     from conformance.rules import CATALOGUE
     from conformance.violation import Verdict
 
     fails = [r for r in rules if r in CATALOGUE and violation_verdict(
-        CATALOGUE[r], CATALOGUE[r].severity, strict=False) is Verdict.FAIL]
+        CATALOGUE[r], CATALOGUE[r].severity, strict=False) is Verdict.FAIL and r not in decided]
     warns = [r for r in rules if r not in fails]
     return "; ".join(f"{word} {' '.join(found)}" for word, found in (("fails", fails),
                                                                       ("warns", warns)) if found)

@@ -68,6 +68,8 @@ class Publisher:
         self.streams: list[Stream] = []
         self.heartbeats = 0
         self.last_heartbeat: float | None = None
+        self.listed_paused: set[str] = set()
+        """Fault paused-dropped-from-list: the paused tasks tasks-executing listed once."""
         """When the last heartbeat went out (monotonic seconds)."""
 
     def _levels(self) -> list[str]:
@@ -240,6 +242,10 @@ class Publisher:
         else:
             executing = [t for t in tasks if not t.ended or (
                 "refused-task-listed" in self.faults and t.spec is None and not t.legs)]
+        if "paused-dropped-from-list" in self.faults:  # listed once paused, then moved away
+            executing = [t for t in executing
+                         if t.status != "paused" or t.uuid not in self.listed_paused]
+            self.listed_paused = {t.uuid for t in tasks if t.status == "paused"}
         if "tasks-executing-twice" in self.faults:
             executing = [t for t in executing for _ in (t, t)]
         msg = self._info(type_, self.info_rate, **{

@@ -16,6 +16,7 @@ from conformance.reporting.text import printable
 from conformance.scenarios.deviation import Kind
 from conformance.scenarios.explore import Outcome, Search, Stopped, replay
 from conformance.scenarios.explore_action import Action
+from conformance.scenarios.explore_cover import coverage
 from conformance.scenarios.explore_steps import Collector, Explorer, UnitDied, judged
 from conformance.scenarios.sender import NotSent
 from conformance.scenarios.story import Story, StoryError, load
@@ -322,4 +323,4 @@ def _summary(outcome: Outcome) -> str:
            "try"}.get(outcome.ended, outcome.ended)
     replays = f", {outcome.replays} replays to shrink it" if outcome.replays else ""
     return (f"{outcome.examples} example{'s' * (outcome.examples != 1)}, {steps(outcome.steps)} "
-            f"in {outcome.elapsed:.0f} s ({why}{replays})")
+            f"in {outcome.elapsed:.0f} s ({why}{replays}); {coverage(outcome.covered)}")

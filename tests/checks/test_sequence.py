@@ -131,6 +131,50 @@ def test_pause_of_one_task_passes_and_a_pause_that_pauses_another_fails(stream):
     assert a in v.observed and b in v.expected
 
 
+# --- EXEC-RESEND-001: a resent signal is answered as the first, not applied again ------------
+
+def _paused_then_continued(stream, a: str) -> tuple[list, dict]:
+    """start a; $pause (paused); $continue (running again): the $pause's body for a resend."""
+    pause = signal(stream, 3.0, a, "$pause", (3.2, a, "paused"))
+    body = orjson.loads(pause[0].payload)
+    return (start(stream, 2.0, a) + pause
+            + signal(stream, 4.0, a, "$continue", (4.2, a, "running"))), body
+
+
+def resend(stream, t: float, body: dict, answer: str = "ok") -> list:
+    """``body`` sent again (its com-uuid), answered ``answer`` as the first was."""
+    extra = {k: v for k, v in body.items() if k not in ("com-uuid", "command", "sender")}
+    return [stream.command(t, body["command"], com_uuid=body["com-uuid"], **extra),
+            stream.response(t + 0.1, body["com-uuid"], answer, **{
+                "task-uuid": body["task-uuid"], "fail-reason": ""})]
+
+
+def test_a_resent_pause_answered_again_passes_and_one_applied_again_fails(stream):
+    a = new()
+    before, pause = _paused_then_continued(stream, a)
+    ok = judge(stream, before + resend(stream, 5.0, pause))
+    assert not failing(ok)
+    bad = judge(stream, before + resend(stream, 5.0, pause)
+                + [stream.feedback(5.2, a, "paused")])
+    assert failing(bad) == {"EXEC-RESEND-001"}
+    v = bad["EXEC-RESEND-001"].violations[0]
+    assert pause["com-uuid"] in v.expected and a in v.observed and "again" in v.observed
+    # A new $pause (its own com-uuid) pauses it again: no resend.
+    fresh = judge(stream, before + signal(stream, 5.0, a, "$pause", (5.2, a, "paused")))
+    assert not failing(fresh)
+
+
+def test_a_pause_resent_before_its_effect_showed_is_not_applied_twice(stream):
+    """The resend came before the first's 'paused' (its answer was lost): the 'paused' that
+    follows is the first's own effect."""
+    a = new()
+    cmd = stream.command(3.0, "signal-task", signal="$pause", **{"task-uuid": a})
+    body = orjson.loads(cmd.payload)
+    rules = judge(stream, start(stream, 2.0, a) + [cmd] + resend(stream, 3.3, body)
+                  + [stream.feedback(3.5, a, "paused")])
+    assert not failing(rules)
+
+
 def test_a_task_paused_before_its_own_pause_is_answered_is_not_touched_by_another(stream):
     a, b = new(), new()
     both = start(stream, 2.0, a) + start(stream, 3.0, b)

@@ -138,6 +138,37 @@ def query_paused(d: Driver) -> None:
     d.signal(a, "$abort", "aborted")
 
 
+def pause_listed_then_waited(d: Driver) -> None:
+    a, _ = d.start()
+    d.signal(a, "$pause", "paused")
+    d.heartbeats(6)  # tasks-executing lists it paused; the lint profile's deadlines pass
+    # left paused: a final status after it left the list would be EXEC-FB-004's as well
+
+
+def pause_resent_after_continue(d: Driver) -> None:
+    a, _ = d.start()
+    pause = d.command("signal-task", signal="$pause", **{"task-uuid": a})
+    assert d.send(pause)["response"] == "ok"
+    d.until(a, "paused")
+    d.signal(a, "$continue")
+    d.wait_for(lambda: d.statuses(a)[-1] == "running", "'running' again")
+    assert d.send(pause)["response"] == "ok"  # the resend: answered as before
+    d.heartbeats(1)
+    d.signal(a, "$abort", "aborted")
+
+
+def abort_one_of_two(d: Driver) -> None:
+    a, _ = d.start()
+    b = str(uuid.uuid4())  # another group (the detector): both run
+    assert d.send(d.command("start-task", **{"task-uuid": b, "task": {
+        "name": "image-object-detection", "params": {}}}))["response"] == "running"
+    d.until(b, "running")
+    d.heartbeats(3)  # past the response timeout of b's start (no pre-emption: EXEC-SEQ-002)
+    d.signal(b, "$abort", "aborted")
+    d.heartbeats(1)
+    d.signal(a, "$abort")  # ended already where the fault aborted it with b
+
+
 SEQUENCES: dict[str, Callable[[Driver], None]] = {
     "abort-paused-resumes": abort_paused,
     "pause-pauses-all": pause_one_of_two,
@@ -145,6 +176,10 @@ SEQUENCES: dict[str, Callable[[Driver], None]] = {
     "preempt-paused-silently": second_task_while_paused,
     "query-paused-unknown": query_paused,
     "feedback-after-abort-paused": abort_paused,
+    "query-paused-finished": query_paused,
+    "paused-dropped-from-list": pause_listed_then_waited,
+    "resend-signal-reapplied": pause_resent_after_continue,
+    "abort-aborts-all": abort_one_of_two,
 }
 """Sequence fault -> the command order that shows it."""
 

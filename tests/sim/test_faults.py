@@ -89,6 +89,8 @@ def test_list_faults_prints_every_fault_with_its_rules() -> None:
     assert lines["topic-space-sensor"].split("  ", 1)[1].strip() == \
         "fails TOPIC-003 SI-001; warns TOPIC-008"
     assert lines["stamp-clock-skew"].split("  ", 1)[1].strip() == "warns MSG-005"
+    # ... and a rule broken only through a decided condition (EXEC-SEQ-002's also-aborted)
+    assert lines["abort-aborts-all"].split("  ", 1)[1].strip() == "warns EXEC-SEQ-002"
 
 
 # --- the matrices -------------------------------------------------------------------------------

@@ -11,6 +11,7 @@ import io
 import json
 from pathlib import Path
 
+import orjson
 import pytest
 from sim_sequences import SEQUENCES, Driver, drive
 
@@ -38,6 +39,16 @@ def _tasks(d: Driver) -> list[str]:
 def _listed(d: Driver, task: str) -> bool:
     return any(task in {e.get("task-uuid") for e in i["tasks-executing"]}
                for i in d.on("direct_execution_info")[-2:])
+
+
+def _paused_listings(d: Driver, task: str) -> list[bool]:
+    """Whether each direct_execution_info while ``task`` was paused listed it."""
+    paused = [m.time for m in d.messages if m.topic.endswith("exec/feedback")
+              and orjson.loads(m.payload).get("task-uuid") == task]
+    began, ended = paused[1], (paused[2:] or [float("inf")])[0]  # 'paused', then the next
+    return [task in {e.get("task-uuid") for e in orjson.loads(m.payload)["tasks-executing"]}
+            for m in d.messages if m.topic.endswith("direct_execution_info")
+            and began < m.time < ended]
 
 
 def _lint(d: Driver, tmp_path: Path, name: str) -> set[str]:
@@ -96,16 +107,29 @@ def test_a_sequence_fault_changes_exactly_what_it_names_and_lint_fails_its_rule(
         assert bad.statuses(fa) == ["running", "paused"]  # gone without a word
         assert not _listed(bad, fa) and not _listed(good, a)
         assert good.statuses(others[0]) == bad.statuses(fothers[0])
-    elif fault == "query-paused-unknown":
+    elif fault in ("query-paused-unknown", "query-paused-finished"):
         assert _answers(good, "query-status") == ["paused"]
-        assert _answers(bad, "query-status") == ["unknown"]
+        assert _answers(bad, "query-status") == [fault.rsplit("-", 1)[1]]
         assert good.statuses(a) == bad.statuses(fa) == ["running", "paused", "aborted"]
+    elif fault == "paused-dropped-from-list":
+        assert good.statuses(a) == bad.statuses(fa) == ["running", "paused"]
+        assert _paused_listings(good, a) == [True] * len(_paused_listings(good, a))
+        listings = _paused_listings(bad, fa)
+        assert listings[0] and not any(listings[1:]) and len(listings) > 2, listings
+    elif fault == "resend-signal-reapplied":
+        assert good.statuses(a) == ["running", "paused", "running", "aborted"]
+        assert bad.statuses(fa) == ["running", "paused", "running", "paused", "aborted"]
+    elif fault == "abort-aborts-all":
+        assert good.statuses(a) == ["running", "aborted"]
+        assert bad.statuses(fa) == ["running", "aborted"]  # aborted with the other
+        assert _answers(good, "signal-task") == ["ok", "ok"]
+        assert _answers(bad, "signal-task") == ["ok", "failed"]  # nothing left to abort
     else:
         pytest.fail(f"no expectation for {fault}")
     # Everything else the unit answered is the same.
     for command in ("start-task", "ping"):
         assert _answers(good, command) == _answers(bad, command), command
-    if fault != "resend-after-end-runs-again":
+    if fault not in ("resend-after-end-runs-again", "abort-aborts-all"):
         assert _answers(good, "signal-task") == _answers(bad, "signal-task")
     # lint of the recordings: exactly the fault's rules, and nothing on the conformant unit.
     assert _lint(bad, tmp_path, "bad") == set(FAULTS[fault].rules)
