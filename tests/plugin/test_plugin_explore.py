@@ -287,3 +287,17 @@ def test_an_exploration_that_sent_nothing_is_no_pass(pytester: pytest.Pytester) 
     assert "exploration: could-not-test (no command order was explored (0 examples, 0 steps" \
         in run.text, run.text
     assert run.report["facts"]["unexplored"].startswith("no command order was explored")
+
+
+def test_an_exploration_that_reached_no_transition_is_no_pass(
+        pytester: pytest.Pytester) -> None:
+    """A step or two that reached none of the model's transitions (the public Workshop agent:
+    one start-task in the 11 s its pace left) explored no command order: could not test."""
+    from certify_helpers import MATRIX, certify_virtual
+
+    run = certify_virtual(pytester, UNIT, f"--profile={MATRIX}", "--seed", "1",
+                          "--explore=0.001s", "-k", "test_explore")
+    assert run.report is not None, run.text
+    assert "steps in" in run.report["facts"]["unexplored"], run.report["facts"]
+    assert "transitions covered 0/" in run.report["facts"]["unexplored"]
+    assert "exploration: could-not-test (no command order was explored" in run.text, run.text
