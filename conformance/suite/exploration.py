@@ -263,7 +263,8 @@ def _explore(c: Certification, explorer: Explorer, node: pytest.Item, began: flo
         # Nothing sent, or no transition of the model reached (a slow unit's one start-task
         # in 11 s), is nothing explored: could not test (the run's facts say so), never a
         # pass of a search that did not happen.
-        c.unexplored = f"no command order was explored ({summary})"
+        c.unexplored = (f"no command order was explored ({summary}); --explore 120s gives "
+                        f"it longer")
         c.explored = f"not run: {c.unexplored}"
         pytest.skip(f"could not test: {c.unexplored}")
     if story is None:
