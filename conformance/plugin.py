@@ -283,8 +283,8 @@ class _CertificationPlugin:
 
         items.sort(key=key)  # stable: the file order within each group stays
         c = self.certification
-        c.selected = [r for r in map(rule_of, items) if r]
-        if set(c.selected) != set(CATALOGUE):  # -k, -m, --rule or test ids: a partial run
+        c.evidence.selected = [r for r in map(rule_of, items) if r]
+        if set(c.evidence.selected) != set(CATALOGUE):  # -k, -m, --rule or test ids: a partial run
             c.selection = c.settings.selection_words() or "not every rule's test was selected"
 
     @pytest.hookimpl(tryfirst=True)
@@ -312,7 +312,7 @@ class _CertificationPlugin:
             report.when == "setup" and report.outcome != "passed") else None
         if marker is not None:
             rule = report.nodeid.rsplit("[", 1)[-1].rstrip("]")
-            c.ran.add(rule)
+            c.evidence.ran.add(rule)
         if c.out_of_time and self.session is not None:
             self.session.shouldstop = c.out_of_time
         if c.broker_lost is not None and self.session is not None:
@@ -340,6 +340,7 @@ class _CertificationPlugin:
     def _say_exit(self, config: pytest.Config, status: int) -> None:
         """The last line the terminal prints, after pytest's own counts (README 'Exit
         status'): the exit status and why, so a log says what a gate read."""
+        from conformance.conclusion import of as conclusion_of
         from conformance.suite.gate import last_line
 
         tr = config.pluginmanager.get_plugin("terminalreporter")
@@ -349,14 +350,16 @@ class _CertificationPlugin:
         report = c.report()
         row = report.units.get(str(c.unit))
         final = {r: res.verdict.value for r, res in row.rules.items()} if row else {}
-        failed_then = tuple(sorted(r for r, shown in c.enacted.items()
+        failed_then = tuple(sorted(r for r, shown in c.evidence.enacted.items()
                                    if shown.value == "fail" and final.get(r) != "fail"))
-        text = last_line(report, c.conclusion(report), str(c.unit), status,
+        text = last_line(report, conclusion_of(report), str(c.unit), status,
                          error_said=bool(c.error), failed_then=failed_then)
         tr.write_line(printable_lines(mask_password(text)),
                       green=status == 0, red=status != 0)
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
+        from conformance.conclusion import of as conclusion_of
+
         c = self.certification
         if c.collect_only:
             return
@@ -375,7 +378,7 @@ class _CertificationPlugin:
         for event in c.events:
             line(printable(event))
         report = c.report()
-        conclusion = c.conclusion(report)
+        conclusion = conclusion_of(report)
         counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
         head = conclusion.verdict if c.error else conclusion.headline()
         # The rules' counts, and the exploration apart: together they are pytest's tests.
@@ -400,11 +403,11 @@ class _CertificationPlugin:
                 # The evidence came from a later scenario: the whole run reproduces it.
                 for v in rules[rule].violations[:1]:
                     line(render_violation(rule, v, str(c.unit), rerun_hint=c.rerun_command()))
-        for kind, path in sorted(c.report_paths.items()):
+        for kind, path in sorted(c.reports.paths.items()):
             line(f"{kind} report: {printable(path)}")
-        if c.report_error:
-            line(c.report_error, red=True)
-        if not c.report_paths:
+        if c.reports.error:
+            line(c.reports.error, red=True)
+        if not c.reports.paths:
             line("no report was written")
         line(f"repeat this run: {printable(c.rerun_command())}")
 
