@@ -39,7 +39,7 @@ from conformance.reporting.bounds import file_stem
 from conformance.reporting.text import render_verdicts, render_violation
 from conformance.results import Party
 from conformance.rosbag import BagError, BagReader, is_bag
-from conformance.scorecard import Scorecard
+from conformance.lint.scorecard import Scorecard
 from conformance.violation import Verdict
 
 

@@ -15,7 +15,7 @@ from conformance.checks import Monitor
 from conformance.client import Message
 from conformance.lint.linter import Linter
 from conformance.profile import Profile
-from conformance.scorecard import Scorecard
+from conformance.lint.scorecard import Scorecard
 
 
 def heartbeat_type_fault(msgs: list[Message]) -> list[Message]:
@@ -76,7 +76,7 @@ def test_terminal_view_draws_control_characters_harmlessly() -> None:
     them, and the columns stay where they are."""
     from rich.console import Console
 
-    from conformance.scorecard import styled
+    from conformance.lint.scorecard import styled
 
     term = io.StringIO()
     table = ["UNIT        STATUS", "evil\x1b[2J\x07 FAIL"]

@@ -73,7 +73,7 @@ def test_the_plain_and_terminal_scorecards_escape_unit_names(prefix):
     from conformance.checks import Monitor
     from conformance.lint.linter import Linter
     from conformance.profile import Profile
-    from conformance.scorecard import Scorecard
+    from conformance.lint.scorecard import Scorecard
 
     name = "dji" + ESCAPES
     monitor = Monitor(Profile(), kind="lint")
