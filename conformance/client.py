@@ -53,7 +53,8 @@ class BrokerError(RuntimeError):
 
 
 class PublishRefused(PermissionError):
-    """A publish the safety rules forbid (DESIGN: safety). Never caught to carry on."""
+    """A publish the safety rules forbid (docs/ARCHITECTURE.md 'Safety'). Never caught to carry
+    on."""
 
 
 _LABEL = re.compile(r"[a-z0-9_](?:[a-z0-9_-]{0,61}[a-z0-9_])?", re.I)
@@ -204,7 +205,7 @@ class BrokerURL:
 
 
 PublishPolicy = Callable[[str], bool]
-"""Decides whether a topic may be published to (DESIGN: safety)."""
+"""Decides whether a topic may be published to (docs/ARCHITECTURE.md 'Safety')."""
 
 
 def publish_nowhere(topic: str) -> bool:
@@ -214,7 +215,8 @@ def publish_nowhere(topic: str) -> bool:
 
 PayloadPolicy = Callable[[str, bytes], "str | None"]
 """Why a payload may not be published to a topic the ``PublishPolicy`` allows, or None
-(DESIGN: 'the publish policy is the one gate': the suite's refuses motion on a real unit)."""
+(the publish policy is the one gate, so no scenario can send what it forbids: the suite's
+refuses motion on a real unit; docs/ARCHITECTURE.md 'Safety')."""
 
 
 READ_CHUNK = 65536
@@ -465,7 +467,7 @@ class MqttClient:
         ack (paho resends an unacknowledged one either way)."""
         if not self.may_publish(topic):
             raise PublishRefused(f"refusing to publish to {topic!r}: not a command topic of "
-                                 f"the unit under test (DESIGN: safety)")
+                                 f"the unit under test (docs/ARCHITECTURE.md 'Safety')")
         if self.refuse_payload is not None:
             why = self.refuse_payload(topic, payload.encode() if isinstance(payload, str)
                                       else bytes(payload))

@@ -82,7 +82,8 @@ def _unit_options(group: pytest.OptionGroup) -> None:
 
 
 def _safety_options(group: pytest.OptionGroup) -> None:
-    """What the suite may send to a real unit (DESIGN 'Safety'), and how strict it judges."""
+    """What the suite may send to a real unit (docs/ARCHITECTURE.md 'Safety'), and how strict it
+    judges."""
     group.addoption("--allow-motion", dest="waraps_allow_motion", action="store_true",
                     default=False, help="let the suite start the profile's motion-tasks on a "
                                         "real unit (every role but 'simulation' and the "
@@ -151,7 +152,8 @@ def _reference_unit_options(group: pytest.OptionGroup) -> None:
 
 
 def _ini_options(parser: pytest.Parser) -> None:
-    """The ini twin of every option a project would set once (DESIGN: every option has one)."""
+    """The ini twin of every option a project would set once (every option has one, so a project's
+    ini says what its command lines would)."""
     for name, help_ in (
             ("waraps_broker", "default for --broker"), ("waraps_profile", "default for --profile"),
             ("waraps_timing_scale", "default for --timing-scale"),

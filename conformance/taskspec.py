@@ -40,9 +40,9 @@ class Parameter:
 class TaskSpec:
     """A task of spec section 9 as its specification file states it.
 
-    ``tags`` are the suite's tags: ``vehicle`` means the task moves the unit (DESIGN: safety),
-    also where the spec gives no tag (``spec_tags`` keeps the spec's own, and the file says
-    why they differ).
+    ``tags`` are the suite's tags: ``vehicle`` means the task moves the unit (docs/ARCHITECTURE.md
+    'Safety'), also where the spec gives no tag (``spec_tags`` keeps the spec's own, and the file
+    says why they differ).
     """
 
     name: str

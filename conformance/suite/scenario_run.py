@@ -39,7 +39,8 @@ def run_scenario(c: Certification, name: str) -> None:
         return
     try:
         scenario.run(c.context)
-    except NotSent as e:  # --dry-run, or the publish policy refused it (DESIGN 'Safety')
+    except NotSent as e:
+        # --dry-run, or the publish policy refused it (docs/ARCHITECTURE.md 'Safety')
         for rule in scenario.rules:
             c.record(rule, seen=Observed.UNTESTABLE, reason=str(e))
     except OutOfTime as e:

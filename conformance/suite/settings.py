@@ -60,7 +60,8 @@ class Settings:
     reboot_cmd: str | None = None
     allow_motion: bool = False
     allow_hostile: bool = False
-    """--allow-hostile: hostile and malformed payloads may go to a real unit (DESIGN 'Safety')."""
+    """--allow-hostile: hostile and malformed payloads may go to a real unit
+    (docs/ARCHITECTURE.md 'Safety')."""
     dry_run: bool = False
     strict_rules: bool = False
     """--strict-rules: decided rules fail (the profile is made strict)."""

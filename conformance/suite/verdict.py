@@ -1,8 +1,10 @@
-"""Verdicts as pytest outcomes, without ever turning a skip into a pass (DESIGN 'Semantics').
+"""Verdicts as pytest outcomes, without ever turning a skip into a pass (docs/ARCHITECTURE.md
+'Verdicts').
 
-pass -> passed; fail -> failed, with the violations rendered as STYLE.md shows them; warn ->
-passed with a ``ConformanceWarning`` (and the verdict in the test's properties); skip ->
-skipped with its reason; could-not-test -> skipped, the reason prefixed "could not test:".
+pass -> passed; fail -> failed, with the violations rendered as every output shows them
+(``render_violation``); warn -> passed with a ``ConformanceWarning`` (and the verdict in the test's
+properties); skip -> skipped with its reason; could-not-test -> skipped, the reason prefixed "could
+not test:".
 """
 
 from __future__ import annotations

@@ -14,8 +14,8 @@ from lint_helpers import T0, run_lint, unit_traffic, write_recording
 from conformance.checks import Monitor
 from conformance.client import Message
 from conformance.lint.linter import Linter
-from conformance.profile import Profile
 from conformance.lint.scorecard import Scorecard
+from conformance.profile import Profile
 
 
 def heartbeat_type_fault(msgs: list[Message]) -> list[Message]:
