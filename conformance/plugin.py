@@ -394,17 +394,8 @@ class _CertificationPlugin:
             line(text, red=text.startswith("  failed"))
         for text in skipped_by_reason(report.units.get(str(c.unit))):
             line(text)
-        later = conclusion.judged_after_test
-        if later:  # their tests passed before the traffic that fails them came
-            line(f"failed after their tests ran (later traffic is evidence too; the "
-                 f"reports hold it): {printable(', '.join(later))}", red=True)
-            from conformance.reporting import render_violation
-
-            rules = report.units[str(c.unit)].rules
-            for rule in later:
-                # The evidence came from a later scenario: the whole run reproduces it.
-                for v in rules[rule].violations[:1]:
-                    line(render_violation(rule, v, str(c.unit), rerun_hint=c.rerun_command()))
+        if conclusion.judged_after_test:
+            _failed_after(c, report, conclusion.judged_after_test, line)
         for kind, path in sorted(c.reports.paths.items()):
             line(f"{kind} report: {printable(path)}")
         if c.reports.error:
@@ -412,6 +403,20 @@ class _CertificationPlugin:
         if not c.reports.paths:
             line("no report was written")
         line(f"repeat this run: {printable(c.rerun_command())}")
+
+
+def _failed_after(c: Certification, report: Any, later: Any, line: Any) -> None:
+    """The rules whose tests passed before the traffic that fails them came: said, each with
+    its first violation (the evidence came from a later scenario: the whole run reproduces
+    it)."""
+    from conformance.reporting import render_violation
+
+    line(f"failed after their tests ran (later traffic is evidence too; the "
+         f"reports hold it): {printable(', '.join(later))}", red=True)
+    rules = report.units[str(c.unit)].rules
+    for rule in later:
+        for v in rules[rule].violations[:1]:
+            line(render_violation(rule, v, str(c.unit), rerun_hint=c.rerun_command()))
 
 
 def _explore_outcome(report: pytest.TestReport, explored: str) -> str:

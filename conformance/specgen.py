@@ -272,10 +272,9 @@ def _command_schema(command: str, properties: dict[str, Any],
     }
 
 
-def start_tst_schema(specs: list[TaskSpec]) -> dict[str, Any]:
-    """start-tst (14.3.4, examples 11): a TST tree of nodes with recursive ``children``."""
-    names = [s.name for s in specs]
-    common = {
+def _common_params_schema() -> dict[str, Any]:
+    """A TST node's common parameters (11): the executing unit and the node's uuid."""
+    return {
         "type": "object",
         "description": "The node's common parameters (11): the executing unit and the node's "
                        "uuid (14.3.4: best set, at least for the top node).",
@@ -289,37 +288,46 @@ def start_tst_schema(specs: list[TaskSpec]) -> dict[str, Any]:
             "node-uuid": {"$ref": f"{COMMON}#/$defs/node-uuid"},
         },
     }
+
+
+def _node_name_schema(names: list[str]) -> dict[str, Any]:
+    """A TST node's name: seq, conc or a task of section 9 (TASK-002), never 11.1.1's
+    look-at-angle (ERR-005)."""
+    return {
+        "type": "string",
+        # A prohibition is a node of its own, applied to every name, so that
+        # its rule is examined (and passes) on every other name too.
+        "allOf": [{
+            "x-rule": "ERR-005",
+            "x-expected": "a task of section 9 (look-at-bearing is the closest)",
+            "x-detail": "11.1.1's look-at-angle with pan parameters is not a "
+                        "task of section 9; its params are not checked",
+            "not": {"const": "look-at-angle"},
+        }],
+        "if": {"const": "look-at-angle"},
+        "else": {
+            "x-rule": "TASK-002",
+            "x-expected": "seq, conc or a task of section 9: " + ", ".join(names),
+            "x-detail": "a unit may offer other tasks (5.3); their parameters "
+                        "are not checked",
+            "enum": list(COMPOSITES) + names,
+        },
+    }
+
+
+def start_tst_schema(specs: list[TaskSpec]) -> dict[str, Any]:
+    """start-tst (14.3.4, examples 11): a TST tree of nodes with recursive ``children``."""
     return _command_schema("start-tst", {
             "receiver": {"type": "string"},
             "sender": {"type": "string"},
             "tst": {"$ref": "#/$defs/node"},
         }, {
-            "common_params": common,
+            "common_params": _common_params_schema(),
             "node": {
                 "type": "object",
                 "required": ["name"],
                 "properties": {
-                    "name": {
-                        "type": "string",
-                        # A prohibition is a node of its own, applied to every name, so that
-                        # its rule is examined (and passes) on every other name too.
-                        "allOf": [{
-                            "x-rule": "ERR-005",
-                            "x-expected": "a task of section 9 (look-at-bearing is the closest)",
-                            "x-detail": "11.1.1's look-at-angle with pan parameters is not a "
-                                        "task of section 9; its params are not checked",
-                            "not": {"const": "look-at-angle"},
-                        }],
-                        "if": {"const": "look-at-angle"},
-                        "else": {
-                            "x-rule": "TASK-002",
-                            "x-expected": "seq, conc or a task of section 9: "
-                                          + ", ".join(names),
-                            "x-detail": "a unit may offer other tasks (5.3); their parameters "
-                                        "are not checked",
-                            "enum": list(COMPOSITES) + names,
-                        },
-                    },
+                    "name": _node_name_schema([s.name for s in specs]),
                     "children": {"type": "array", "items": {"$ref": "#/$defs/node"}},
                     "common_params": {"$ref": "#/$defs/common_params"},
                     "common-params": {"allOf": [{"$ref": "#/$defs/common_params"}, {

@@ -241,6 +241,15 @@ def _twice(raw: bytes) -> str:
     return f"named twice: {shown}" + (f" and {len(twice) - 5} more" if len(twice) > 5 else "")
 
 
+def _named_twice(plan: _TopicPlan, topic: str, raw: bytes, time: float | None) -> Violation:
+    """MSG-002's duplicate-names condition: an object of ``raw`` names a member twice."""
+    return Violation.of(
+        "MSG-002", condition="duplicate-names", expected="each member name once in "
+        "an object (RFC 8259 4: names SHOULD be unique)", observed=_twice(raw),
+        topic=topic, time=time, payload=raw, unit=plan.unit,
+        detail="this suite read the last value; another reader may take the first")
+
+
 def _decode(raw: bytes) -> Any:
     """The JSON value of a payload; ``Unreadable`` names the first rule that keeps it from
     being read: MSG-004 (size), MSG-001 (UTF-8), MSG-004 (depth), MSG-002 (JSON). The checks
@@ -301,24 +310,11 @@ class Validator:
         try:
             message = _decode(raw)
         except Unreadable as e:
-            shallow = _shallow(raw) if e.observed == _DEEPER else None
-            observed = e.observed if shallow is None else (
-                f"deeper in {shallow[1]} top-level field(s); judged on the other "
-                f"{len(shallow[0])}")
-            kind = (parsed.kind.value if shallow is None
-                    else plan.kind or self._kind(parsed, shallow[0]))
-            return _validation((parsed, kind, shallow and shallow[0], plan.naming + (Violation.of(
-                e.rule, expected=e.expected, observed=observed, topic=topic, time=time,
-                payload=raw, detail=e.detail, unit=plan.unit),)))
+            return self._unreadable(plan, topic, raw, time, e)
         plan.messages += 1
         if type(message) is dict and (plan.messages <= NAMES_CHECKED or not plan.messages
                                       % NAMES_SAMPLED) and _names_lost(raw, message):
-            twice = Violation.of(
-                "MSG-002", condition="duplicate-names", expected="each member name once in "
-                "an object (RFC 8259 4: names SHOULD be unique)", observed=_twice(raw),
-                topic=topic, time=time, payload=raw, unit=plan.unit,
-                detail="this suite read the last value; another reader may take the first")
-            plan_naming = plan.naming + (twice,)
+            plan_naming = plan.naming + (_named_twice(plan, topic, raw, time),)
         else:
             plan_naming = plan.naming
         kind = self._kind(parsed, message) if plan.kind is None else plan.kind
@@ -347,6 +343,21 @@ class Validator:
                     found = out if found is None else found + out
         return _validation((parsed, kind, message,
                             plan_naming + tuple(found) if found else plan_naming))
+
+    def _unreadable(self, plan: _TopicPlan, topic: str, raw: bytes, time: float | None,
+                    e: Unreadable) -> Validation:
+        """A payload that could not be read whole: the rule it breaks; one nested too deep is
+        judged on its shallower top-level fields (``_shallow``)."""
+        parsed = plan.parsed
+        shallow = _shallow(raw) if e.observed == _DEEPER else None
+        observed = e.observed if shallow is None else (
+            f"deeper in {shallow[1]} top-level field(s); judged on the other "
+            f"{len(shallow[0])}")
+        kind = (parsed.kind.value if shallow is None
+                else plan.kind or self._kind(parsed, shallow[0]))
+        return _validation((parsed, kind, shallow and shallow[0], plan.naming + (Violation.of(
+            e.rule, expected=e.expected, observed=observed, topic=topic, time=time,
+            payload=raw, detail=e.detail, unit=plan.unit),)))
 
     def examined(self, v: Validation) -> Examined:
         """The rules examined in validating ``v``: the topic's naming rules and MSG-004 on
