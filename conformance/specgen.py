@@ -151,6 +151,31 @@ def params_schema(task: TaskSpec) -> dict[str, Any]:
                         f"(strict: fail)",
             "not": {},
         }, _constrained(canonical.type, canonical.constraints, "../" + GEOPOINT_REF)]}
+    schema: dict[str, Any] = {
+        "$schema": DRAFT,
+        "$id": BASE_URI + f"{GENERATED}/params/{task.name}.json",
+        "title": f"{task.name} parameters (spec {task.section})",
+        "description": task.description,
+        "x-rule": "TASK-001",
+        "x-tags": list(task.tags),
+        "x-spec-tags": list(task.spec_tags),
+        "x-required-why": task.required_why,
+        "type": "object",
+        "properties": properties,
+        "required": list(task.required),
+        "allOf": _params_constraints(task, properties),
+    }
+    if task.example:
+        schema["examples"] = [task.example]
+    if task.feedback_statuses:
+        schema["x-feedback-statuses"] = list(task.feedback_statuses)
+    return schema
+
+
+def _params_constraints(task: TaskSpec, properties: dict[str, Any]) -> list[dict[str, Any]]:
+    """What a task's params must hold beyond each parameter: only its parameters (TASK-003),
+    one of each ``requires-one-of`` group, each ``required-unless`` parameter."""
+    raw = task.raw
     names = [p.name for p in task.parameters]
     all_of: list[dict[str, Any]] = [{
         "x-rule": "TASK-003",
@@ -171,25 +196,7 @@ def params_schema(task: TaskSpec) -> dict[str, Any]:
                    "properties": {k: {"const": v} for k, v in condition.items()}},
             "else": {"required": [name]},
         })
-    schema: dict[str, Any] = {
-        "$schema": DRAFT,
-        "$id": BASE_URI + f"{GENERATED}/params/{task.name}.json",
-        "title": f"{task.name} parameters (spec {task.section})",
-        "description": task.description,
-        "x-rule": "TASK-001",
-        "x-tags": list(task.tags),
-        "x-spec-tags": list(task.spec_tags),
-        "x-required-why": task.required_why,
-        "type": "object",
-        "properties": properties,
-        "required": list(task.required),
-        "allOf": all_of,
-    }
-    if task.example:
-        schema["examples"] = [task.example]
-    if task.feedback_statuses:
-        schema["x-feedback-statuses"] = list(task.feedback_statuses)
-    return schema
+    return all_of
 
 
 def _dispatch_by_name(specs: list[TaskSpec], generic_params: dict[str, Any]) -> list[dict]:

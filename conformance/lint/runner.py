@@ -293,9 +293,8 @@ MAX_FAILURES_SHOWN = 10
 
 
 def failures(report: Any, limit: int = MAX_FAILURES_SHOWN) -> str:
-    """The first violation of each failed (unit, rule), at most ``limit`` of them, in the form
-    the certification prints (``render_violation``): what a person reads before opening the
-    HTML."""
+    """The first violation of each failed (unit, rule), at most ``limit`` of them, as the
+    certification prints them: what a person reads before opening the HTML."""
     shown: list[str] = []
     more = 0
     # Most severe first (death, deafness, commands, messages): the cap cuts the least severe.

@@ -85,6 +85,16 @@ def parse_faults(specs: Sequence[str], count: int) -> tuple[frozenset[str], dict
     return frozenset(common), by_index
 
 
+def _switches(faults: Sequence[str], variants: frozenset[str] | set[str], tst: bool,
+              tst_operator: UnitAddress | None) -> str:
+    """The ready line's faults, variants and TST level, as the command line gave them."""
+    shown = ",".join(faults) or "none"
+    if variants:
+        shown += f" variants={','.join(sorted(variants))}"
+    tst_shown = f" tst=on{f' operator={tst_operator}' if tst_operator else ''}" if tst else ""
+    return f"faults={shown}{tst_shown}"
+
+
 def run(address: UnitAddress, broker: BrokerURL | None, *, count: int = 1, rate: float = 1.0,
         faults: Sequence[str] = (), variants: Sequence[str] = (), seed: int | None = None, tst: bool = False,
         tst_operator: UnitAddress | None = None, task_seconds: float = 3.0) -> int:
@@ -127,12 +137,8 @@ def run(address: UnitAddress, broker: BrokerURL | None, *, count: int = 1, rate:
             embedded.stop()
         return EXIT_UNREACHABLE
     _listen(runner, stop)
-    shown = ",".join(faults) or "none"
-    if variants:
-        shown += f" variants={','.join(sorted(variant_names))}"
-    tst_shown = f" tst=on{f' operator={tst_operator}' if tst_operator else ''}" if tst else ""
     print(shown_line(f"ready pid={os.getpid()} broker={broker} {units} rate={rate:g} "
-                     f"faults={shown}{tst_shown}"), flush=True)
+                     f"{_switches(faults, variant_names, tst, tst_operator)}"), flush=True)
     try:
         while not stop.wait(0.2):
             pass

@@ -22,7 +22,7 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 from conformance.client import BrokerURL, Message, MqttClient
-from conformance.sim.executor import MAX_COMMAND_BYTES
+from conformance.sim.command_reading import MAX_COMMAND_BYTES
 from conformance.sim.publisher import topic_base
 
 if TYPE_CHECKING:

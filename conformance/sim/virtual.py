@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from conformance.client import PayloadPolicy, PublishPolicy, PublishRefused
 from conformance.clock import VirtualClock
 from conformance.message import Gap, Message
-from conformance.sim.executor import MAX_COMMAND_BYTES
+from conformance.sim.command_reading import MAX_COMMAND_BYTES
 from conformance.sim.publisher import topic_base
 from conformance.sim.reference import ReferenceUnit
 from conformance.sim.runtime import OVERSIZE_KEEP
