@@ -95,17 +95,11 @@ class Monitor:
         self.version += 1
         topic = message.topic
         route = self._by_topic.get(topic)
-        if route is None:
-            route = self.routes.for_topic(topic)
-        if route.shared_tst:
-            route = self.routes.tst_route(route, message)
+        if route is None or route.shared_tst or route.entry is IGNORED or route.entry is OVERFLOW:
+            route = self._resolve(route, message)
+            if route is None:
+                return []
         entry = route.entry
-        if entry is IGNORED:
-            return []
-        if entry is OVERFLOW:
-            self._unexamined += 1
-            self._over_cap(topic)
-            return []
         t = message.time
         v = self._validate(topic, message.payload, t)
         if v.message is not None and len(message.payload) > bounds.ID_CHARS:
@@ -144,6 +138,22 @@ class Monitor:
                     found.extend(out)
         state.observe(message, v)
         return entry.add_all(found) if found else []
+
+    def _resolve(self, route: Route | None, message: Message) -> Route | None:
+        """The route of a message whose topic's route is not cached yet, or concerns another
+        unit (an operator's tst topic, 14.1); None when the message is not judged (a unit not
+        followed; a unit past ``MAX_UNITS``: counted unexamined)."""
+        if route is None:
+            route = self.routes.for_topic(message.topic)
+        if route.shared_tst:
+            route = self.routes.tst_route(route, message)
+        if route.entry is IGNORED:
+            return None
+        if route.entry is OVERFLOW:
+            self._unexamined += 1
+            self._over_cap(message.topic)
+            return None
+        return route
 
     def _feed_command(self, route: Route, entry: Row, message: Message, v: Validation,
                       examined: Examined) -> list[Violation]:

@@ -92,9 +92,7 @@ class UnitCore:
         self._emit = emit
         self.vehicle = Vehicle(address.agent_type, position or GeoPoint(*LINKOPING, 0.0), heading)
         self.specs = self._tasks_offered()
-        self.lives = (address,) + tuple(
-            address.with_name(f"{address.name}_{(0x9E37 * n) & 0xFFFF:04x}")
-            for n in range(1, RENAMES + 1) if "reboot-renames" in self.faults)
+        self.lives = self._lives()
         """The addresses of its lives: its own, then the names it takes after each reboot."""
         self.base = topic_base(address, self.faults)
         self.command_topic = f"{self.base}/exec/command"
@@ -124,6 +122,13 @@ class UnitCore:
         """Variant slow: (when, subtopic, body, base) of answers and feedback held back."""
         self._phase = phase
         self.due = 0.0
+
+    def _lives(self) -> tuple[UnitAddress, ...]:
+        """Its own address, then (fault reboot-renames) the names it takes after each reboot."""
+        address = self.address
+        return (address,) + tuple(
+            address.with_name(f"{address.name}_{(0x9E37 * n) & 0xFFFF:04x}")
+            for n in range(1, RENAMES + 1) if "reboot-renames" in self.faults)
 
     def _tasks_offered(self) -> dict[str, TaskSpec]:
         """Task name -> its spec: section 9's for its agent type, and the variants' (5.3: a
