@@ -69,7 +69,9 @@ CERTIFICATION = pytest.StashKey["Certification"]()
 
 
 class Certification:
-    """The state of one ``pytest --unit`` run (one unit, one broker, one profile)."""
+    """One ``pytest --unit`` run (one unit, one broker, one profile): its lifecycle and the
+    run's own facts, wiring the parts that each do one job (``evidence``, ``judging``,
+    ``reports``, the connection, the commanders, the observation)."""
 
     def __init__(self, config: pytest.Config, settings: Settings) -> None:
         self.config = config
