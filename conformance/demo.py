@@ -25,7 +25,7 @@ class _Collector:
     def pytest_unconfigure(self, config: Any) -> None:
         found = config.stash.get(CERTIFICATION, None)
         if found is not None:
-            self.paths = dict(found.report_paths)
+            self.paths = dict(found.reports.paths)
 
 
 def certify(unit: str, *, rate: float = 1.0, faults: Sequence[str] = (),
