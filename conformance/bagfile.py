@@ -55,6 +55,30 @@ def open_bag(path: Path) -> Any:
     """The opened rosbags reader of the bag at ``path``; BagError says how to fix what is
     wrong (checked before rosbags is trusted with it)."""
     ros2 = is_ros2(path)
+    _check_bag(path, ros2)
+    install()  # rosbags inflates with our bounds (baginflate.py)
+    try:
+        if ros2:
+            from rosbags.rosbag2 import Reader as Reader2
+
+            reader: Any = Reader2(path)
+        else:
+            from rosbags.rosbag1 import Reader as Reader1
+
+            reader = Reader1(path)
+        reader.open()
+    except Exception as e:  # rosbags raises many kinds on damaged input: say which bag
+        hint = (f"'ros2 bag reindex {path.parent if path.is_file() else path}'" if ros2
+                else f"'rosbag reindex {path}' (a recording that was cut off has no index)")
+        raise BagError(f"{path}: cannot read this {bag_format(path)} bag: {reason(e)}. "
+                       f"Fix: {hint}, or record it again") from None
+    return reader
+
+
+def _check_bag(path: Path, ros2: bool) -> None:
+    """What is wrong with the bag at ``path`` before rosbags reads it, as a BagError that says
+    how to fix it: missing, not a regular file, a ROS 2 directory without metadata.yaml or with
+    metadata or a store that cannot be trusted, a file that is no ROS 1 bag."""
     if not path.exists():
         raise BagError(f"{path}: no such file or directory (pass a ROS 1 .bag file, a ROS 2 "
                        f"bag directory holding metadata.yaml, or a JSON Lines recording)")
@@ -87,23 +111,6 @@ def open_bag(path: Path) -> Any:
     for store in ([path] if path.is_file() else sorted(path.glob("*.db3"))[:MAX_DIR_ENTRIES]):
         if ros2 and store.suffix == ".db3" and (why := check_sqlite(store)):
             raise BagError(f"{why}. Fix: record it again with 'ros2 bag record'")
-    install()  # rosbags inflates with our bounds (baginflate.py)
-    try:
-        if ros2:
-            from rosbags.rosbag2 import Reader as Reader2
-
-            reader: Any = Reader2(path)
-        else:
-            from rosbags.rosbag1 import Reader as Reader1
-
-            reader = Reader1(path)
-        reader.open()
-    except Exception as e:  # rosbags raises many kinds on damaged input: say which bag
-        hint = (f"'ros2 bag reindex {path.parent if path.is_file() else path}'" if ros2
-                else f"'rosbag reindex {path}' (a recording that was cut off has no index)")
-        raise BagError(f"{path}: cannot read this {bag_format(path)} bag: {reason(e)}. "
-                       f"Fix: {hint}, or record it again") from None
-    return reader
 
 
 def reason(e: BaseException) -> str:

@@ -32,7 +32,7 @@ MAX_VALIDATE_BYTES = 16 << 20
 """What ``validate`` reads of a file or standard input; past it (``/dev/zero``) it stops and
 says so (a message is examined up to 1 MiB, MSG-004)."""
 MAX_UNITS = 4096
-"""Units judged at once by lint (``checks.monitor.MAX_UNITS``); the messages of further units
+"""Units judged at once by lint (``checks.routes.MAX_UNITS``); the messages of further units
 are not judged, and the run fails naming them."""
 MAX_TOPICS_CACHED = 65536
 """Topics whose route is cached; further topics are still judged (looked up each time)."""

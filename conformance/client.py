@@ -1,7 +1,7 @@
 """MQTT through paho-mqtt 2.x: the only module that imports paho.
 
-A small typed API in the manner of aiomqtt: ``BrokerURL`` (parsed, password only from the
-environment), ``Message`` (arrival time in Unix seconds, topic, raw bytes), and ``MqttClient``
+A small typed API in the manner of aiomqtt: ``BrokerURL`` (``conformance/broker_url.py``,
+re-exported: parsed, password only from the environment), ``Message`` (arrival time in Unix seconds, topic, raw bytes), and ``MqttClient``
 whose every wait is bounded, whose subscriptions survive a reconnect, which records the
 connection gaps it lived through, and which refuses to publish where it may not (the linter's
 client may publish nowhere; the suite's only to the unit under test).
@@ -9,30 +9,23 @@ client may publish nowhere; the suite's only to the unit under test).
 
 from __future__ import annotations
 
-import ipaddress
 import logging
-import os
 import queue
-import re
 import ssl
 import threading
 import time
 import uuid
-from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable, Iterator
+from dataclasses import replace
 from typing import cast
-from urllib.parse import urlsplit
 
 import paho.mqtt.client as paho
 from paho.mqtt.properties import Properties
 from paho.mqtt.reasoncodes import ReasonCode
 
-from conformance.display import printable, shorten
-from conformance.masking import mask_password  # re-exported: a URL made fit to print
+from conformance.broker_url import BrokerError, BrokerURL  # re-exported, as before
+from conformance.masking import mask_password  # noqa: F401 (re-exported: a URL fit to print)
 from conformance.message import Gap, Message  # re-exported: ``from conformance.client import ...``
-
-SCHEMES = ("mqtt", "mqtts", "embedded")
-LOOPBACK = ("127.", "localhost", "::1")
 
 
 class _NotConnected(logging.Filter):
@@ -48,163 +41,13 @@ PAHO_LOG = logging.getLogger("paho.mqtt.client")
 PAHO_LOG.addFilter(_NotConnected())
 
 
-class BrokerError(RuntimeError):
-    """The broker cannot be reached or refused us; the message says which and how to fix it."""
-
-
 class PublishRefused(PermissionError):
-    """A publish the safety rules forbid (DESIGN: safety). Never caught to carry on."""
-
-
-_LABEL = re.compile(r"[a-z0-9_](?:[a-z0-9_-]{0,61}[a-z0-9_])?", re.I)
-"""One label of a host name (RFC 1123 2.1; '_' as resolvers accept it)."""
-
-
-def _is_host(host: str) -> bool:
-    """``host`` is an IP address or a host name a resolver can be asked about (labels of 1 to
-    63 characters, 253 in all, after IDNA): ``a..b`` is not."""
-    try:
-        ipaddress.ip_address(host)
-        return True
-    except ValueError:
-        pass
-    try:
-        name = host.encode("idna").decode("ascii")
-    except UnicodeError:
-        return False
-    labels = name.removesuffix(".").split(".")
-    return len(name) <= 253 and all(_LABEL.fullmatch(label) for label in labels)
-
-
-TLS_ON = ("1", "true", "yes", "on")
-TLS_OFF = ("", "0", "false", "no", "off")
-
-
-def tls_connection(value: str) -> bool:
-    """``WARAPS_TLS_CONNECTION`` read (any case, spaces around): on, off, or a ValueError
-    naming the accepted values. Never a guess: 'ture' or 'required' read as off would connect
-    in plaintext and send the password."""
-    word = value.strip().lower()
-    if word in TLS_ON or word in TLS_OFF:
-        return word in TLS_ON
-    raise ValueError(f"WARAPS_TLS_CONNECTION={shorten(printable(value), 40)!r} is neither on "
-                     f"({', '.join(TLS_ON)}) nor off ({', '.join(w for w in TLS_OFF if w)}, or "
-                     f"unset)")
-
-
-def _credential(value: str | None, name: str) -> str | None:
-    """A user name or password, None when unset or empty; ValueError when it is not UTF-8
-    text (MQTT strings are UTF-8, 3.1.3.5), which never shows the value."""
-    value = value or None
-    if value is not None:
-        try:
-            value.encode("utf-8")
-        except UnicodeEncodeError:  # bytes that are not UTF-8 (os.environ's surrogate escapes)
-            raise ValueError(f"{name} is not UTF-8 text (its value is not shown): MQTT sends "
-                             f"user names and passwords as UTF-8; set it again as UTF-8") from None
-    return value
-
-
-@dataclass(frozen=True)
-class BrokerURL:
-    """Where the broker is: ``mqtt://host:port``, ``mqtts://host:port`` or ``embedded``.
-
-    Username and password come from the environment (``WARAPS_USERNAME``,
-    ``WARAPS_PASSWORD``), never from the URL or the command line; ``repr`` hides the password.
-    """
-
-    scheme: str
-    host: str = "127.0.0.1"
-    port: int = 1883
-    username: str | None = None
-    password: str | None = field(default=None, repr=False)
-    ca_file: str | None = None
-    cert_file: str | None = None
-    key_file: str | None = None
-    insecure: bool = False
-    """mqtts without verifying the broker's certificate (a test broker with its own CA)."""
-
-    @classmethod
-    def parse(cls, text: str, env: Mapping[str, str] | None = None) -> BrokerURL:
-        """Parse a broker URL; credentials are read from ``env`` (default ``os.environ``)."""
-        env = os.environ if env is None else env
-        text = text.strip()
-        if text in ("embedded", "virtual"):  # virtual: the tests' in-memory double (sim/virtual)
-            return cls(text)
-        # What an error may say: never a password it wrongly has, a long URL excerpted.
-        # Escaped first, then cut: an escaped code point may take 10 characters.
-        shown = "'" + shorten(printable(mask_password(text, url=True)), 200) + "'"
-        try:
-            parts = urlsplit(text if "://" in text else f"mqtt://{text}")
-        except ValueError:  # urllib's own words quote the whole host (NFKC, brackets)
-            raise ValueError(f"broker URL {shown} is not a URL (for example "
-                             f"mqtt://127.0.0.1:1883)") from None
-        if parts.scheme not in ("mqtt", "mqtts"):
-            raise ValueError(
-                f"broker URL {shown}: scheme {parts.scheme!r} is not one of mqtt, mqtts, "
-                f"embedded (for example mqtt://127.0.0.1:1883)")
-        if parts.password:
-            raise ValueError(
-                f"broker URL {shown} carries a password: put it in WARAPS_PASSWORD instead, "
-                f"so it never appears on a command line or in a report")
-        try:
-            port = parts.port or (8883 if parts.scheme == "mqtts" else 1883)
-        except ValueError:
-            raise ValueError(
-                f"broker URL {shown}: the port is not a number from 1 to 65535") from None
-        if not parts.hostname:
-            raise ValueError(f"broker URL {shown} has no host (for example mqtt://127.0.0.1:1883)")
-        if not _is_host(parts.hostname):
-            raise ValueError(f"broker URL {shown}: {shorten(parts.hostname, 100)!r} is not a "
-                             f"host name or an IP address (for example mqtt://127.0.0.1:1883)")
-        return cls(parts.scheme, parts.hostname, port,
-                   username=_credential(parts.username or env.get("WARAPS_USERNAME"),
-                                        "the URL's user name" if parts.username
-                                        else "WARAPS_USERNAME"),
-                   password=_credential(env.get("WARAPS_PASSWORD"), "WARAPS_PASSWORD"))
-
-    @classmethod
-    def from_env(cls, env: Mapping[str, str] | None = None) -> BrokerURL | None:
-        """The arena's own variables: WARAPS_BROKER, WARAPS_PORT, WARAPS_TLS_CONNECTION, ..."""
-        env = os.environ if env is None else env
-        host = env.get("WARAPS_BROKER")
-        if not host:
-            return None
-        tls = tls_connection(env.get("WARAPS_TLS_CONNECTION", ""))
-        port = env.get("WARAPS_PORT") or ("8883" if tls else "1883")
-        if not (port.isascii() and port.isdigit()):
-            raise ValueError(f"WARAPS_PORT={shorten(printable(port), 40)!r} is not a port "
-                             f"number")
-        return cls.parse(f"{'mqtts' if tls else 'mqtt'}://{host}:{port}", env)
-
-    def with_tls_files(self, ca_file: str | None = None, cert_file: str | None = None,
-                       key_file: str | None = None, insecure: bool = False) -> BrokerURL:
-        return replace(self, ca_file=ca_file, cert_file=cert_file, key_file=key_file,
-                       insecure=insecure)
-
-    def tls_arguments(self) -> list[str]:
-        """The command-line options that give this broker's TLS files and checks, shell-quoted
-        (for a "repeat this run" line; '=' so that a path is never read as a test path)."""
-        import shlex
-
-        out = [f"{option}={shlex.quote(path)}" for option, path in (
-            ("--ca-file", self.ca_file), ("--cert-file", self.cert_file),
-            ("--key-file", self.key_file)) if path]
-        return out + ["--tls-insecure"] if self.insecure else out
-
-    @property
-    def is_loopback(self) -> bool:
-        return self.scheme in ("embedded", "virtual") or self.host.startswith(LOOPBACK)
-
-    def __str__(self) -> str:
-        if self.scheme in ("embedded", "virtual"):
-            return self.scheme
-        user = f"{self.username}@" if self.username else ""
-        return f"{self.scheme}://{user}{self.host}:{self.port}"
+    """A publish the safety rules forbid (docs/ARCHITECTURE.md 'Safety'). Never caught to carry
+    on."""
 
 
 PublishPolicy = Callable[[str], bool]
-"""Decides whether a topic may be published to (DESIGN: safety)."""
+"""Decides whether a topic may be published to (docs/ARCHITECTURE.md 'Safety')."""
 
 
 def publish_nowhere(topic: str) -> bool:
@@ -214,7 +57,8 @@ def publish_nowhere(topic: str) -> bool:
 
 PayloadPolicy = Callable[[str, bytes], "str | None"]
 """Why a payload may not be published to a topic the ``PublishPolicy`` allows, or None
-(DESIGN: 'the publish policy is the one gate': the suite's refuses motion on a real unit)."""
+(the publish policy is the one gate, so no scenario can send what it forbids: the suite's
+refuses motion on a real unit; docs/ARCHITECTURE.md 'Safety')."""
 
 
 READ_CHUNK = 65536
@@ -305,6 +149,10 @@ class MqttClient:
         self.mqtt5 = mqtt5
         """Whether it speaks MQTT 5 (else 3.1.1)."""
 
+        self._paho = self._make_paho(broker, mqtt5)
+
+    def _make_paho(self, broker: BrokerURL, mqtt5: bool) -> paho.Client:
+        """paho's client, set up for ``broker`` (credentials, TLS) and wired to this one."""
         # MQTT 5 has no clean_session: its clean start is paho's default.
         session = {"protocol": paho.MQTTv5} if mqtt5 else {"protocol": paho.MQTTv311,
                                                              "clean_session": True}
@@ -325,7 +173,7 @@ class MqttClient:
         c.on_connect = self._handle_connect
         c.on_disconnect = self._handle_disconnect
         c.on_message = self._handle_message
-        self._paho = c
+        return c
 
     def reconnect_backoff(self, max_delay: float) -> None:
         """Retry a dropped connection at least every ``max_delay`` seconds (default 30): a
@@ -465,7 +313,7 @@ class MqttClient:
         ack (paho resends an unacknowledged one either way)."""
         if not self.may_publish(topic):
             raise PublishRefused(f"refusing to publish to {topic!r}: not a command topic of "
-                                 f"the unit under test (DESIGN: safety)")
+                                 f"the unit under test (docs/ARCHITECTURE.md 'Safety')")
         if self.refuse_payload is not None:
             why = self.refuse_payload(topic, payload.encode() if isinstance(payload, str)
                                       else bytes(payload))

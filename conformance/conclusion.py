@@ -1,4 +1,4 @@
-"""What a run concludes: the one verdict model (DESIGN 'Semantics').
+"""What a run concludes: the one verdict model (docs/ARCHITECTURE.md 'Verdicts').
 
 The judge (``conformance.judge.judge``) calls ``conclude`` once, on the judged report and the
 run's typed facts (``report.facts``: ``conformance.facts.RunFacts``), and stores the result in

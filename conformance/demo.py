@@ -1,5 +1,5 @@
 """``waraps-conformance demo``: certify the bundled reference unit on the embedded broker, end to
-end, in one command (DESIGN: 'A newcomer sees it work in one command').
+end, in one command: a newcomer sees it work before reading anything.
 
 ``certify`` runs ``pytest --unit waraps/unit/air/simulation/dji0 --broker embedded`` in this
 process: the plugin starts the embedded amqtt broker on a free loopback port and the reference unit
@@ -25,7 +25,7 @@ class _Collector:
     def pytest_unconfigure(self, config: Any) -> None:
         found = config.stash.get(CERTIFICATION, None)
         if found is not None:
-            self.paths = dict(found.report_paths)
+            self.paths = dict(found.reports.paths)
 
 
 def certify(unit: str, *, rate: float = 1.0, faults: Sequence[str] = (),

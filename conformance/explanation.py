@@ -1,5 +1,5 @@
 """One message (or a TST plan) validated and explained to a person: its kind, every
-violation as the STYLE guide shows it, and the verdict under a profile. What
+violation as every output shows it (``render_violation``), and the verdict under a profile. What
 ``waraps-conformance validate`` prints (its command line: ``conformance.cli.validate``)."""
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ def unplaceable(topic: str) -> str:
 
 
 def render(validation: Validation, profile: profile_module.Profile) -> str:
-    """The kind, then each violation as the STYLE guide shows it, then a one-line verdict."""
+    """The kind, then each violation as every output shows it, then a one-line verdict."""
     # What the message holds is shown escaped: topic, paths, values.
     lines = [f"topic     {printable(validation.topic.topic)}", f"kind      {validation.kind}"]
     for v in validation.violations:

@@ -1,5 +1,5 @@
 """The one judge: the evidence a run gathered and its typed facts in, each rule's verdict and
-the run's conclusion out (STYLE.md 'Judging once').
+the run's conclusion out (docs/ARCHITECTURE.md 'Verdicts').
 
 - ``judge_rule``: one rule for one row, from its evidence (violations, times examined, what a
   scenario recorded, evidence excused by a death or an outage) and its basis: a *decided*
@@ -36,7 +36,7 @@ from conformance.topics import UnitAddress
 from conformance.violation import Observed, RuleResult, Verdict, Violation
 
 INTEROP_RISK = "interop risk: the spec does not say; this suite decided: "
-"""What a decided rule's warning says (DESIGN 'What a rule stands on')."""
+"""What a decided rule's warning says (docs/ARCHITECTURE.md 'What a rule stands on')."""
 
 
 def judge_rule(rule: Rule, *, severity: Severity, strict: bool, violations: list[Violation],
@@ -181,12 +181,11 @@ def _commander_rules_aside(unit: UnitReport) -> None:
 
 
 def _unprovoked(unit: UnitReport) -> None:
-    """A claimed level is certified only on evidence (DESIGN 'Semantics'): a rule of it that
-    needs a command (a conversation or active rule of the unit's side) and was skipped
-    because nothing it applies to was seen was not provoked by the suite: could-not-test,
-    saying so. A level the unit does not claim, and a skip for a reason its own declarations
-    or messages give (``NOT_APPLICABLE``: no task lists $pause, no root-flag sent), stay
-    skips."""
+    """A claimed level is certified only on evidence (docs/ARCHITECTURE.md 'Verdicts'): a rule of it
+    that needs a command (a conversation or active rule of the unit's side) and was skipped because
+    nothing it applies to was seen was not provoked by the suite: could-not-test, saying so. A level
+    the unit does not claim, and a skip for a reason its own declarations or messages give
+    (``NOT_APPLICABLE``: no task lists $pause, no root-flag sent), stay skips."""
     from conformance.topics import level_name
 
     claimed = {level_name(level) for level in unit.levels}

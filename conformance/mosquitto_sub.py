@@ -155,28 +155,7 @@ class MosquittoLines:
             if length:
                 self.formats.add(FORMAT_MOSQUITTO_JJ)
         elif isinstance(value, str):
-            raw = value.encode("utf-8", "surrogateescape")
-            try:
-                as_json = orjson.dumps(value)
-            except orjson.JSONEncodeError:  # surrogate escapes: raw bytes, so -F %j
-                as_json = b""
-            # Told per line (a -F %J line among -F %j lines must not turn them
-            # all into JSON strings): the lengths decide; only a line they leave open follows
-            # the format seen before it.
-            if len(raw) == length:
-                payload = raw  # -F %j: the payload as it was
-                self.formats.add(FORMAT_MOSQUITTO_J)
-            elif len(as_json) == length or (FORMAT_MOSQUITTO_JJ in self.formats
-                                            and FORMAT_MOSQUITTO_J not in self.formats):
-                payload = as_json  # -F %J: the payload was a JSON string
-                self.formats.add(FORMAT_MOSQUITTO_JJ)
-            elif len(raw) < length:
-                payload = cut_at_nul(raw, length)
-                self.truncated += 1
-                self.formats.add(FORMAT_MOSQUITTO_J)
-            else:
-                payload = raw
-                self.formats.add(FORMAT_MOSQUITTO_J)
+            payload = self._text_payload(value, length)
         else:
             payload = json_text(value)  # any depth a line may take, without recursion
             self.formats.add(FORMAT_MOSQUITTO_JJ)
@@ -184,3 +163,26 @@ class MosquittoLines:
         if qos not in (0, 1, 2) or isinstance(qos, bool):
             raise ValueError(f"'qos' is {qos!r}, not 0, 1 or 2")
         return Message(ts, topic, payload, int(qos), bool(retain))
+
+    def _text_payload(self, value: str, length: int) -> bytes:
+        """A payload written as a JSON string: the bytes themselves (-F %j), or a JSON string
+        (-F %J), or cut at a NUL byte. Told per line (a -F %J line among -F %j lines must not
+        turn them all into JSON strings): the lengths decide; only a line they leave open
+        follows the format seen before it."""
+        raw = value.encode("utf-8", "surrogateescape")
+        try:
+            as_json = orjson.dumps(value)
+        except orjson.JSONEncodeError:  # surrogate escapes: raw bytes, so -F %j
+            as_json = b""
+        if len(raw) == length:
+            self.formats.add(FORMAT_MOSQUITTO_J)
+            return raw  # -F %j: the payload as it was
+        if len(as_json) == length or (FORMAT_MOSQUITTO_JJ in self.formats
+                                      and FORMAT_MOSQUITTO_J not in self.formats):
+            self.formats.add(FORMAT_MOSQUITTO_JJ)
+            return as_json  # -F %J: the payload was a JSON string
+        self.formats.add(FORMAT_MOSQUITTO_J)
+        if len(raw) < length:
+            self.truncated += 1
+            return cut_at_nul(raw, length)
+        return raw

@@ -82,7 +82,8 @@ def _unit_options(group: pytest.OptionGroup) -> None:
 
 
 def _safety_options(group: pytest.OptionGroup) -> None:
-    """What the suite may send to a real unit (DESIGN 'Safety'), and how strict it judges."""
+    """What the suite may send to a real unit (docs/ARCHITECTURE.md 'Safety'), and how strict it
+    judges."""
     group.addoption("--allow-motion", dest="waraps_allow_motion", action="store_true",
                     default=False, help="let the suite start the profile's motion-tasks on a "
                                         "real unit (every role but 'simulation' and the "
@@ -151,7 +152,8 @@ def _reference_unit_options(group: pytest.OptionGroup) -> None:
 
 
 def _ini_options(parser: pytest.Parser) -> None:
-    """The ini twin of every option a project would set once (DESIGN: every option has one)."""
+    """The ini twin of every option a project would set once (every option has one, so a project's
+    ini says what its command lines would)."""
     for name, help_ in (
             ("waraps_broker", "default for --broker"), ("waraps_profile", "default for --profile"),
             ("waraps_timing_scale", "default for --timing-scale"),
@@ -283,8 +285,8 @@ class _CertificationPlugin:
 
         items.sort(key=key)  # stable: the file order within each group stays
         c = self.certification
-        c.selected = [r for r in map(rule_of, items) if r]
-        if set(c.selected) != set(CATALOGUE):  # -k, -m, --rule or test ids: a partial run
+        c.evidence.selected = [r for r in map(rule_of, items) if r]
+        if set(c.evidence.selected) != set(CATALOGUE):  # -k, -m, --rule or test ids: a partial run
             c.selection = c.settings.selection_words() or "not every rule's test was selected"
 
     @pytest.hookimpl(tryfirst=True)
@@ -312,7 +314,7 @@ class _CertificationPlugin:
             report.when == "setup" and report.outcome != "passed") else None
         if marker is not None:
             rule = report.nodeid.rsplit("[", 1)[-1].rstrip("]")
-            c.ran.add(rule)
+            c.evidence.ran.add(rule)
         if c.out_of_time and self.session is not None:
             self.session.shouldstop = c.out_of_time
         if c.broker_lost is not None and self.session is not None:
@@ -340,6 +342,7 @@ class _CertificationPlugin:
     def _say_exit(self, config: pytest.Config, status: int) -> None:
         """The last line the terminal prints, after pytest's own counts (README 'Exit
         status'): the exit status and why, so a log says what a gate read."""
+        from conformance.conclusion import of as conclusion_of
         from conformance.suite.gate import last_line
 
         tr = config.pluginmanager.get_plugin("terminalreporter")
@@ -349,14 +352,16 @@ class _CertificationPlugin:
         report = c.report()
         row = report.units.get(str(c.unit))
         final = {r: res.verdict.value for r, res in row.rules.items()} if row else {}
-        failed_then = tuple(sorted(r for r, shown in c.enacted.items()
+        failed_then = tuple(sorted(r for r, shown in c.evidence.enacted.items()
                                    if shown.value == "fail" and final.get(r) != "fail"))
-        text = last_line(report, c.conclusion(report), str(c.unit), status,
+        text = last_line(report, conclusion_of(report), str(c.unit), status,
                          error_said=bool(c.error), failed_then=failed_then)
         tr.write_line(printable_lines(mask_password(text)),
                       green=status == 0, red=status != 0)
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
+        from conformance.conclusion import of as conclusion_of
+
         c = self.certification
         if c.collect_only:
             return
@@ -375,7 +380,7 @@ class _CertificationPlugin:
         for event in c.events:
             line(printable(event))
         report = c.report()
-        conclusion = c.conclusion(report)
+        conclusion = conclusion_of(report)
         counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
         head = conclusion.verdict if c.error else conclusion.headline()
         # The rules' counts, and the exploration apart: together they are pytest's tests.
@@ -389,24 +394,29 @@ class _CertificationPlugin:
             line(text, red=text.startswith("  failed"))
         for text in skipped_by_reason(report.units.get(str(c.unit))):
             line(text)
-        later = conclusion.judged_after_test
-        if later:  # their tests passed before the traffic that fails them came
-            line(f"failed after their tests ran (later traffic is evidence too; the "
-                 f"reports hold it): {printable(', '.join(later))}", red=True)
-            from conformance.reporting import render_violation
-
-            rules = report.units[str(c.unit)].rules
-            for rule in later:
-                # The evidence came from a later scenario: the whole run reproduces it.
-                for v in rules[rule].violations[:1]:
-                    line(render_violation(rule, v, str(c.unit), rerun_hint=c.rerun_command()))
-        for kind, path in sorted(c.report_paths.items()):
+        if conclusion.judged_after_test:
+            _failed_after(c, report, conclusion.judged_after_test, line)
+        for kind, path in sorted(c.reports.paths.items()):
             line(f"{kind} report: {printable(path)}")
-        if c.report_error:
-            line(c.report_error, red=True)
-        if not c.report_paths:
+        if c.reports.error:
+            line(c.reports.error, red=True)
+        if not c.reports.paths:
             line("no report was written")
         line(f"repeat this run: {printable(c.rerun_command())}")
+
+
+def _failed_after(c: Certification, report: Any, later: Any, line: Any) -> None:
+    """The rules whose tests passed before the traffic that fails them came: said, each with
+    its first violation (the evidence came from a later scenario: the whole run reproduces
+    it)."""
+    from conformance.reporting import render_violation
+
+    line(f"failed after their tests ran (later traffic is evidence too; the "
+         f"reports hold it): {printable(', '.join(later))}", red=True)
+    rules = report.units[str(c.unit)].rules
+    for rule in later:
+        for v in rules[rule].violations[:1]:
+            line(render_violation(rule, v, str(c.unit), rerun_hint=c.rerun_command()))
 
 
 def _explore_outcome(report: pytest.TestReport, explored: str) -> str:

@@ -52,10 +52,11 @@ class Profile:
     task_scenarios: dict[str, tuple[str, ...]] = field(default_factory=dict)
     """Task name -> the scenarios that may start it (absent: every scenario)."""
     motion_tasks: tuple[str, ...] = ()
-    """Tasks allowed to move a real unit, and only with --allow-motion (DESIGN: safety)."""
+    """Tasks allowed to move a real unit, and only with --allow-motion (docs/ARCHITECTURE.md
+    'Safety')."""
     simulated_roles: tuple[str, ...] = ()
-    """Roles besides ``simulation`` that are simulations; every other role is real (DESIGN
-    'Safety': fail closed)."""
+    """Roles besides ``simulation`` that are simulations; every other role is real
+    (docs/ARCHITECTURE.md 'Safety': fail closed)."""
     robustness: bool = False
     """Hostile and malformed payloads may be sent to a real unit (as --allow-hostile)."""
     safe_radius: float = 50.0
@@ -93,7 +94,8 @@ class Profile:
 
     def is_simulation(self, role: str) -> bool:
         """Whether a unit of ``role`` (3.1) is a simulation: ``simulation`` or one of the
-        ``simulated_roles``; every other role, known or not, is real (DESIGN 'Safety')."""
+        ``simulated_roles``; every other role, known or not, is real (docs/ARCHITECTURE.md
+        'Safety')."""
         return role == "simulation" or role in self.simulated_roles
 
     @property

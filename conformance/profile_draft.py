@@ -91,7 +91,8 @@ def _moves(task: str) -> bool:
     try:
         return task_spec(task).moves_unit or task in MOVES_WITHOUT_TAG
     except KeyError:
-        return True  # a task this suite does not know: treated as moving (DESIGN: safety)
+        # A task this suite does not know is treated as moving (docs/ARCHITECTURE.md 'Safety').
+        return True
 
 
 def _q(value: Any) -> str:

@@ -21,7 +21,7 @@ from conformance.violation import RuleResult, Verdict, Violation
 
 
 class Party(enum.StrEnum):
-    """Whose row a report's row is (DESIGN 'Conversations, and whose fault it is'). A
+    """Whose row a report's row is (docs/ARCHITECTURE.md 'Whose fault it is'). A
     ``StrEnum``: it prints, serialises and compares as the word the reports carry."""
 
     UNIT = "unit"
@@ -360,7 +360,8 @@ class UnitReport:
     role: str
     name: str
     party: Party = Party.UNIT
-    """A unit's row, or a row of what one commander sent (DESIGN: blame)."""
+    """A unit's row, or a row of what one commander sent (docs/ARCHITECTURE.md 'Whose fault
+    it is')."""
     agent_uuids: list[str] = field(default_factory=list)
     levels: list[str] = field(default_factory=list)
     message_count: int = 0
@@ -408,7 +409,8 @@ def _rule_result_to_dict(r: RuleResult) -> dict[str, Any]:
            "violations": [v.to_dict() for v in r.violations]}
     rule = CATALOGUE.get(r.rule)
     if rule is not None and r.verdict in (Verdict.FAIL, Verdict.WARN):
-        # A finding carries what its rule stands on (STYLE 'Judging once').
+        # A finding carries what its rule stands on (docs/ARCHITECTURE.md 'What a rule stands
+        # on').
         out["basis"] = {"basis": rule.basis.value, "quote": rule.quote,
                         "because": rule.because, "decision": rule.decision}
         found = dict.fromkeys(v.condition for v in r.violations if v.condition)

@@ -134,17 +134,8 @@ class BagReader:
         self.undecodable = self.not_topic_msg = 0  # counted again by the main pass
         self._attribute(routes)
         linted = [c for c in reader.connections if routes.get(c.id, _SKIP).deserialize]
-        total = getattr(reader, "message_count", None)
-        why = odd_count(self.path, [*(c.msgcount for c in reader.connections), total])
-        if why:  # metadata.yaml's counts, as rosbags read them
-            raise BagError(why)
+        self._check_counts(reader)
         indexed = sum(c.msgcount for c in linted)
-        if total is not None and total != sum(c.msgcount for c in reader.connections):
-            raise BagError(
-                f"{self.path}: the bag's own counts disagree ({total} messages in all, "
-                f"{sum(c.msgcount for c in reader.connections)} over its topics): its index "
-                f"or metadata.yaml is damaged, so nothing was judged. Fix: reindex it "
-                f"('rosbag reindex' / 'ros2 bag reindex') or record it again")
         last = 0.0
         try:
             for conn, stamp, raw in reader.messages(connections=linted):
@@ -175,6 +166,20 @@ class BagReader:
                            f"with their connection's type (the bag is damaged), so nothing was "
                            f"judged. Fix: record it again")
         yield from self._mandatory_sensors(routes, last)
+
+    def _check_counts(self, reader: Any) -> None:
+        """The bag's own counts (metadata.yaml's, as rosbags read them, or its index) agree
+        with each other, else a BagError: nothing is judged on a damaged index."""
+        total = getattr(reader, "message_count", None)
+        why = odd_count(self.path, [*(c.msgcount for c in reader.connections), total])
+        if why:
+            raise BagError(why)
+        if total is not None and total != sum(c.msgcount for c in reader.connections):
+            raise BagError(
+                f"{self.path}: the bag's own counts disagree ({total} messages in all, "
+                f"{sum(c.msgcount for c in reader.connections)} over its topics): its index "
+                f"or metadata.yaml is damaged, so nothing was judged. Fix: reindex it "
+                f"('rosbag reindex' / 'ros2 bag reindex') or record it again")
 
     def _damaged(self, e: Exception) -> BagError:
         return BagError(f"{self.path}: the bag is damaged after {self.read} messages "

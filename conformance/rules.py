@@ -55,8 +55,9 @@ class Mode(str, enum.Enum):
 
 
 class Basis(str, enum.Enum):
-    """What a rule stands on (DESIGN 'What a rule stands on'): only ``stated`` and ``implied``
-    rules fail a unit; a ``decided`` rule warns as an interop risk unless the run is strict."""
+    """What a rule stands on (docs/ARCHITECTURE.md 'What a rule stands on'): only ``stated`` and
+    ``implied`` rules fail a unit; a ``decided`` rule warns as an interop risk unless the run is
+    strict."""
 
     STATED = "stated"
     """Words of the spec (``quote``, verbatim) from which the rule follows with nothing added."""
@@ -67,7 +68,7 @@ class Basis(str, enum.Enum):
 
 
 class Side(str, enum.Enum):
-    """Whose fault a violation is (DESIGN 'Conversations, and whose fault it is')."""
+    """Whose fault a violation is (docs/ARCHITECTURE.md 'Whose fault it is')."""
 
     UNIT = "unit"
     """What the unit publishes and how it answers."""
@@ -79,10 +80,10 @@ class Side(str, enum.Enum):
 
 @dataclass(frozen=True)
 class Condition:
-    """One condition a rule's checks find (DESIGN 'What a condition stands on'): the unit of
-    judgement. A rule's own words are its default condition (``id`` ""); every threshold,
-    deadline, tolerance, closed list or schema keyword its quote does not contain is a condition
-    of its own, decided, so it warns unless the run adopts it (``[[rule.condition]]`` in
+    """One condition a rule's checks find (docs/ARCHITECTURE.md 'What a rule stands on'): the unit
+    of judgement. A rule's own words are its default condition (``id`` ""); every threshold,
+    deadline, tolerance, closed list or schema keyword its quote does not contain is a condition of
+    its own, decided, so it warns unless the run adopts it (``[[rule.condition]]`` in
     ``rules.toml``)."""
 
     id: str
@@ -101,7 +102,7 @@ class Condition:
         decision (an interop risk: the spec does not say)."""
         if self.basis is Basis.DECIDED:
             # What the decision calls a fault warns: next to a warn badge it must not read
-            # as a failure (DESIGN 'What a condition stands on').
+            # as a failure (docs/ARCHITECTURE.md 'What a rule stands on').
             said = ("decided (the spec does not say; a finding warns, and fails only where "
                     "the arena adopts it: --strict-rules, or the profile's severity)")
             return f"{said}: {self.decision}" if self.decision else said
@@ -227,7 +228,7 @@ def condition_counts() -> dict[str, int]:
 
 def reading(strict: bool) -> str:
     """How a run reads the catalogue: the counts by basis and what a decided rule does
-    (DESIGN 'What a rule stands on'); every output's header says it."""
+    (docs/ARCHITECTURE.md 'What a rule stands on'); every output's header says it."""
     counts = basis_counts()
     said = f"{counts['stated']} stated, {counts['implied']} implied, {counts['decided']} decided"
     if strict:

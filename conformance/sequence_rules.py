@@ -7,27 +7,14 @@ model's commands and answers and the task's record, and returns its ``Finding``s
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from conformance.expectation import Finding
 from conformance.status import accepts_signal
 from conformance.taskrecord import TaskRecord
 
 if TYPE_CHECKING:
     from conformance.protocol import Command, Model
-
-
-@dataclass(frozen=True)
-class Finding:
-    """The unit disagrees with the model: ``rule`` is broken."""
-
-    rule: str
-    task_uuid: str | None
-    com_uuid: str | None
-    expected: str
-    observed: str
-    time: float
-    condition: str = ""  # which condition of ``rule`` (rules.toml), "" its own words
 
 
 def wanted_signal(status: str, previous: str | None) -> str | None:

@@ -151,6 +151,31 @@ def params_schema(task: TaskSpec) -> dict[str, Any]:
                         f"(strict: fail)",
             "not": {},
         }, _constrained(canonical.type, canonical.constraints, "../" + GEOPOINT_REF)]}
+    schema: dict[str, Any] = {
+        "$schema": DRAFT,
+        "$id": BASE_URI + f"{GENERATED}/params/{task.name}.json",
+        "title": f"{task.name} parameters (spec {task.section})",
+        "description": task.description,
+        "x-rule": "TASK-001",
+        "x-tags": list(task.tags),
+        "x-spec-tags": list(task.spec_tags),
+        "x-required-why": task.required_why,
+        "type": "object",
+        "properties": properties,
+        "required": list(task.required),
+        "allOf": _params_constraints(task, properties),
+    }
+    if task.example:
+        schema["examples"] = [task.example]
+    if task.feedback_statuses:
+        schema["x-feedback-statuses"] = list(task.feedback_statuses)
+    return schema
+
+
+def _params_constraints(task: TaskSpec, properties: dict[str, Any]) -> list[dict[str, Any]]:
+    """What a task's params must hold beyond each parameter: only its parameters (TASK-003),
+    one of each ``requires-one-of`` group, each ``required-unless`` parameter."""
+    raw = task.raw
     names = [p.name for p in task.parameters]
     all_of: list[dict[str, Any]] = [{
         "x-rule": "TASK-003",
@@ -171,25 +196,7 @@ def params_schema(task: TaskSpec) -> dict[str, Any]:
                    "properties": {k: {"const": v} for k, v in condition.items()}},
             "else": {"required": [name]},
         })
-    schema: dict[str, Any] = {
-        "$schema": DRAFT,
-        "$id": BASE_URI + f"{GENERATED}/params/{task.name}.json",
-        "title": f"{task.name} parameters (spec {task.section})",
-        "description": task.description,
-        "x-rule": "TASK-001",
-        "x-tags": list(task.tags),
-        "x-spec-tags": list(task.spec_tags),
-        "x-required-why": task.required_why,
-        "type": "object",
-        "properties": properties,
-        "required": list(task.required),
-        "allOf": all_of,
-    }
-    if task.example:
-        schema["examples"] = [task.example]
-    if task.feedback_statuses:
-        schema["x-feedback-statuses"] = list(task.feedback_statuses)
-    return schema
+    return all_of
 
 
 def _dispatch_by_name(specs: list[TaskSpec], generic_params: dict[str, Any]) -> list[dict]:
@@ -272,10 +279,9 @@ def _command_schema(command: str, properties: dict[str, Any],
     }
 
 
-def start_tst_schema(specs: list[TaskSpec]) -> dict[str, Any]:
-    """start-tst (14.3.4, examples 11): a TST tree of nodes with recursive ``children``."""
-    names = [s.name for s in specs]
-    common = {
+def _common_params_schema() -> dict[str, Any]:
+    """A TST node's common parameters (11): the executing unit and the node's uuid."""
+    return {
         "type": "object",
         "description": "The node's common parameters (11): the executing unit and the node's "
                        "uuid (14.3.4: best set, at least for the top node).",
@@ -289,37 +295,46 @@ def start_tst_schema(specs: list[TaskSpec]) -> dict[str, Any]:
             "node-uuid": {"$ref": f"{COMMON}#/$defs/node-uuid"},
         },
     }
+
+
+def _node_name_schema(names: list[str]) -> dict[str, Any]:
+    """A TST node's name: seq, conc or a task of section 9 (TASK-002), never 11.1.1's
+    look-at-angle (ERR-005)."""
+    return {
+        "type": "string",
+        # A prohibition is a node of its own, applied to every name, so that
+        # its rule is examined (and passes) on every other name too.
+        "allOf": [{
+            "x-rule": "ERR-005",
+            "x-expected": "a task of section 9 (look-at-bearing is the closest)",
+            "x-detail": "11.1.1's look-at-angle with pan parameters is not a "
+                        "task of section 9; its params are not checked",
+            "not": {"const": "look-at-angle"},
+        }],
+        "if": {"const": "look-at-angle"},
+        "else": {
+            "x-rule": "TASK-002",
+            "x-expected": "seq, conc or a task of section 9: " + ", ".join(names),
+            "x-detail": "a unit may offer other tasks (5.3); their parameters "
+                        "are not checked",
+            "enum": list(COMPOSITES) + names,
+        },
+    }
+
+
+def start_tst_schema(specs: list[TaskSpec]) -> dict[str, Any]:
+    """start-tst (14.3.4, examples 11): a TST tree of nodes with recursive ``children``."""
     return _command_schema("start-tst", {
             "receiver": {"type": "string"},
             "sender": {"type": "string"},
             "tst": {"$ref": "#/$defs/node"},
         }, {
-            "common_params": common,
+            "common_params": _common_params_schema(),
             "node": {
                 "type": "object",
                 "required": ["name"],
                 "properties": {
-                    "name": {
-                        "type": "string",
-                        # A prohibition is a node of its own, applied to every name, so that
-                        # its rule is examined (and passes) on every other name too.
-                        "allOf": [{
-                            "x-rule": "ERR-005",
-                            "x-expected": "a task of section 9 (look-at-bearing is the closest)",
-                            "x-detail": "11.1.1's look-at-angle with pan parameters is not a "
-                                        "task of section 9; its params are not checked",
-                            "not": {"const": "look-at-angle"},
-                        }],
-                        "if": {"const": "look-at-angle"},
-                        "else": {
-                            "x-rule": "TASK-002",
-                            "x-expected": "seq, conc or a task of section 9: "
-                                          + ", ".join(names),
-                            "x-detail": "a unit may offer other tasks (5.3); their parameters "
-                                        "are not checked",
-                            "enum": list(COMPOSITES) + names,
-                        },
-                    },
+                    "name": _node_name_schema([s.name for s in specs]),
                     "children": {"type": "array", "items": {"$ref": "#/$defs/node"}},
                     "common_params": {"$ref": "#/$defs/common_params"},
                     "common-params": {"allOf": [{"$ref": "#/$defs/common_params"}, {

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any
@@ -40,9 +41,9 @@ class Parameter:
 class TaskSpec:
     """A task of spec section 9 as its specification file states it.
 
-    ``tags`` are the suite's tags: ``vehicle`` means the task moves the unit (DESIGN: safety),
-    also where the spec gives no tag (``spec_tags`` keeps the spec's own, and the file says
-    why they differ).
+    ``tags`` are the suite's tags: ``vehicle`` means the task moves the unit (docs/ARCHITECTURE.md
+    'Safety'), also where the spec gives no tag (``spec_tags`` keeps the spec's own, and the file
+    says why they differ).
     """
 
     name: str
@@ -92,32 +93,8 @@ def parse_task(data: Any, source: str) -> TaskSpec:
         raise bad(f"group {data['group']!r} is not general or vehicle-specific")
     params_in = data["parameters"] or {}
     required = tuple(data.get("required") or ())
-    for r in required:
-        if r not in params_in:
-            raise bad(f"required parameter {r!r} is not among the parameters")
-    for group in data.get("requires-one-of") or ():
-        for r in group:
-            if r not in params_in:
-                raise bad(f"requires-one-of names {r!r}, not a parameter")
-    for r, cond in (data.get("required-unless") or {}).items():
-        if r not in params_in or not all(k in params_in for k in cond):
-            raise bad(f"required-unless {r!r}: {cond!r} names an unknown parameter")
-    params = []
-    for pname, p in params_in.items():
-        if not isinstance(p, dict):
-            raise bad(f"parameter {pname!r} must be a mapping")
-        unknown = set(p) - _PARAM_KEYS
-        if unknown:
-            raise bad(f"parameter {pname!r}: unknown keys {sorted(unknown)}; valid: "
-                      f"{sorted(_PARAM_KEYS)}")
-        if p.get("type") not in SPEC_TYPES:
-            raise bad(f"parameter {pname!r}: type {p.get('type')!r} is not one of "
-                      f"{', '.join(SPEC_TYPES)} (spec 9)")
-        if not p.get("description"):
-            raise bad(f"parameter {pname!r} has no description")
-        constraints = {k: v for k, v in p.items() if k not in ("type", "description")}
-        params.append(Parameter(pname, p["type"], " ".join(p["description"].split()),
-                                pname in required, constraints))
+    _check_requirements(data, params_in, required, bad)
+    params = [_parameter(pname, p, pname in required, bad) for pname, p in params_in.items()]
     for alias, a in (data.get("aliases") or {}).items():
         if a.get("canonical") not in params_in or not str(a.get("rule", "")).startswith("ERR-"):
             raise bad(f"alias {alias!r} needs canonical (a parameter) and rule (an ERR-* id)")
@@ -129,6 +106,41 @@ def parse_task(data: Any, source: str) -> TaskSpec:
         required_why=" ".join(data["required-why"].split()),
         feedback_statuses=tuple(data.get("feedback-statuses") or ()),
         example=dict(data.get("example") or {}), raw=data)
+
+
+def _check_requirements(data: dict[str, Any], params_in: dict[str, Any],
+                        required: tuple[str, ...], bad: Callable[[str], SchemaError]) -> None:
+    """Every parameter named by ``required``, ``requires-one-of`` and ``required-unless`` is
+    one of the task's."""
+    for r in required:
+        if r not in params_in:
+            raise bad(f"required parameter {r!r} is not among the parameters")
+    for group in data.get("requires-one-of") or ():
+        for r in group:
+            if r not in params_in:
+                raise bad(f"requires-one-of names {r!r}, not a parameter")
+    for r, cond in (data.get("required-unless") or {}).items():
+        if r not in params_in or not all(k in params_in for k in cond):
+            raise bad(f"required-unless {r!r}: {cond!r} names an unknown parameter")
+
+
+def _parameter(pname: str, p: Any, required: bool,
+               bad: Callable[[str], SchemaError]) -> Parameter:
+    """One parameter of a task file, its keys checked (spec 9's types)."""
+    if not isinstance(p, dict):
+        raise bad(f"parameter {pname!r} must be a mapping")
+    unknown = set(p) - _PARAM_KEYS
+    if unknown:
+        raise bad(f"parameter {pname!r}: unknown keys {sorted(unknown)}; valid: "
+                  f"{sorted(_PARAM_KEYS)}")
+    if p.get("type") not in SPEC_TYPES:
+        raise bad(f"parameter {pname!r}: type {p.get('type')!r} is not one of "
+                  f"{', '.join(SPEC_TYPES)} (spec 9)")
+    if not p.get("description"):
+        raise bad(f"parameter {pname!r} has no description")
+    constraints = {k: v for k, v in p.items() if k not in ("type", "description")}
+    return Parameter(pname, p["type"], " ".join(p["description"].split()), required,
+                     constraints)
 
 
 @lru_cache(maxsize=1)

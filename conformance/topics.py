@@ -181,8 +181,8 @@ class UnitAddress:
     @property
     def is_real(self) -> bool:
         """Whether this unit is taken for hardware when nothing else is known: every role but
-        ``simulation`` (DESIGN 'Safety': fail closed; 3.1 lists real, simulation, playback,
-        and a role outside the list only warns). A profile may name more simulated roles:
+        ``simulation`` (docs/ARCHITECTURE.md 'Safety': fail closed; 3.1 lists real, simulation,
+        playback, and a role outside the list only warns). A profile may name more simulated roles:
         ``Profile.is_simulation``."""
         return self.role != "simulation"
 

@@ -7,13 +7,13 @@ rule that names the problem (MSG-001..MSG-004).
 Then the message is checked against the JSON Schema of its kind (``conformance.schema``:
 jsonschema-rs, compiled once per process, ``is_valid`` first; errors are collected only when it
 fails, docs/FIELD-NOTES.md 'Validation cost'). Each schema error becomes a violation of the rule
-named by the nearest
-``x-rule`` along its evaluation path, with the JSON path of the offending value
-(``$.task.params.waypoints[2].latitude``), what was expected and what was observed; one
-violation per rule and spot. An erratum reading (ERR-*) yields only its ERR violation: the
-profile, not the validator, decides whether it warns or fails. Last come the content rules a
-schema cannot state: MSG-005 (stamp near arrival), MSG-006 and HB-004 (name and agent-type
-against the topic), EXEC-005 (a response's own com-uuid) and EXEC-FB-002 (feedback status).
+named by the nearest ``x-rule`` along its evaluation path (``conformance/schema_errors.py``), with
+the JSON path of the offending value (``$.task.params.waypoints[2].latitude``), what was expected
+and what was observed; one violation per rule and spot. An erratum reading (ERR-*) yields only its
+ERR violation: the profile, not the validator, decides whether it warns or fails. Last come the
+content rules a schema cannot state: MSG-005 (stamp near arrival), MSG-006 and HB-004 (name and
+agent-type against the topic), EXEC-005 (a response's own com-uuid) and EXEC-FB-002 (feedback
+status).
 
 One path for every message: what depends on the topic alone is worked out once per topic,
 and the checks that cannot fail on a short ASCII payload are not run on one (``_decode``).
@@ -29,15 +29,12 @@ matching commands) is in ``conformance.checks``.
 
 from __future__ import annotations
 
-import re
 import sys
 from collections.abc import Iterator
-from functools import cache, cached_property, partial
+from functools import cached_property, partial
 from typing import Any, NamedTuple
 
-import jsonschema_rs
 import orjson
-from jsonschema_rs import ValidationErrorKind as _Kind
 from orjson import JSONDecodeError as _JSONDecodeError
 from orjson import loads as _loads
 
@@ -45,6 +42,7 @@ from conformance import schema
 from conformance.content import CONTENT_CHECKS, statuses_allowed, unit_of
 from conformance.jsontext import shallow_members
 from conformance.profile import Profile
+from conformance.schema_errors import expects_object, json_type, schema_violations, short
 from conformance.topics import (
     ParsedTopic,
     TopicKind,
@@ -239,8 +237,17 @@ def _twice(raw: bytes) -> str:
         return dict(items)
 
     json.loads(raw, object_pairs_hook=pairs)  # nesting at most MAX_DEPTH: no deep recursion
-    shown = ", ".join(_short(name, 40) for name in twice[:5])
+    shown = ", ".join(short(name, 40) for name in twice[:5])
     return f"named twice: {shown}" + (f" and {len(twice) - 5} more" if len(twice) > 5 else "")
+
+
+def _named_twice(plan: _TopicPlan, topic: str, raw: bytes, time: float | None) -> Violation:
+    """MSG-002's duplicate-names condition: an object of ``raw`` names a member twice."""
+    return Violation.of(
+        "MSG-002", condition="duplicate-names", expected="each member name once in "
+        "an object (RFC 8259 4: names SHOULD be unique)", observed=_twice(raw),
+        topic=topic, time=time, payload=raw, unit=plan.unit,
+        detail="this suite read the last value; another reader may take the first")
 
 
 def _decode(raw: bytes) -> Any:
@@ -303,24 +310,11 @@ class Validator:
         try:
             message = _decode(raw)
         except Unreadable as e:
-            shallow = _shallow(raw) if e.observed == _DEEPER else None
-            observed = e.observed if shallow is None else (
-                f"deeper in {shallow[1]} top-level field(s); judged on the other "
-                f"{len(shallow[0])}")
-            kind = (parsed.kind.value if shallow is None
-                    else plan.kind or self._kind(parsed, shallow[0]))
-            return _validation((parsed, kind, shallow and shallow[0], plan.naming + (Violation.of(
-                e.rule, expected=e.expected, observed=observed, topic=topic, time=time,
-                payload=raw, detail=e.detail, unit=plan.unit),)))
+            return self._unreadable(plan, topic, raw, time, e)
         plan.messages += 1
         if type(message) is dict and (plan.messages <= NAMES_CHECKED or not plan.messages
                                       % NAMES_SAMPLED) and _names_lost(raw, message):
-            twice = Violation.of(
-                "MSG-002", condition="duplicate-names", expected="each member name once in "
-                "an object (RFC 8259 4: names SHOULD be unique)", observed=_twice(raw),
-                topic=topic, time=time, payload=raw, unit=plan.unit,
-                detail="this suite read the last value; another reader may take the first")
-            plan_naming = plan.naming + (twice,)
+            plan_naming = plan.naming + (_named_twice(plan, topic, raw, time),)
         else:
             plan_naming = plan.naming
         kind = self._kind(parsed, message) if plan.kind is None else plan.kind
@@ -332,15 +326,15 @@ class Validator:
         if path is None or validator is None:  # an optional sensor, an unknown subtopic
             return _validation((parsed, kind, message, plan_naming))
         found: list[Violation] | None
-        if type(message) is not dict and _expects_object(path):
+        if type(message) is not dict and expects_object(path):
             found = [Violation.of(
                 "MSG-003", expected=f"a JSON object ({kind})",
-                observed=f"{_json_type(message)} {_short(message)}", topic=topic, path="$",
+                observed=f"{json_type(message)} {short(message)}", topic=topic, path="$",
                 time=time, payload=raw, unit=plan.unit)]
         else:
             found = None
             if not validator.is_valid(message):  # docs/FIELD-NOTES.md 'Validation cost'
-                found = _schema_violations(path, validator, message, topic, raw, time,
+                found = schema_violations(path, validator, message, topic, raw, time,
                                            plan.unit)
             content = plan.content
             if content is not None and type(message) is dict:
@@ -349,6 +343,21 @@ class Validator:
                     found = out if found is None else found + out
         return _validation((parsed, kind, message,
                             plan_naming + tuple(found) if found else plan_naming))
+
+    def _unreadable(self, plan: _TopicPlan, topic: str, raw: bytes, time: float | None,
+                    e: Unreadable) -> Validation:
+        """A payload that could not be read whole: the rule it breaks; one nested too deep is
+        judged on its shallower top-level fields (``_shallow``)."""
+        parsed = plan.parsed
+        shallow = _shallow(raw) if e.observed == _DEEPER else None
+        observed = e.observed if shallow is None else (
+            f"deeper in {shallow[1]} top-level field(s); judged on the other "
+            f"{len(shallow[0])}")
+        kind = (parsed.kind.value if shallow is None
+                else plan.kind or self._kind(parsed, shallow[0]))
+        return _validation((parsed, kind, shallow and shallow[0], plan.naming + (Violation.of(
+            e.rule, expected=e.expected, observed=observed, topic=topic, time=time,
+            payload=raw, detail=e.detail, unit=plan.unit),)))
 
     def examined(self, v: Validation) -> Examined:
         """The rules examined in validating ``v``: the topic's naming rules and MSG-004 on
@@ -368,9 +377,9 @@ class Validator:
         if path is None:
             return _examined(rules)
         is_object = type(message) is dict
-        if is_object or _expects_object(path):
+        if is_object or expects_object(path):
             rules.add("MSG-003")
-        if not is_object and _expects_object(path):
+        if not is_object and expects_object(path):
             return _examined(rules)  # not an object: the schema was not applied
         reach = schema.reach(path, message)
         rules |= reach.rules
@@ -397,111 +406,6 @@ class Validator:
                 message, dict) and isinstance(message.get("command"), str):
             return f"{parsed.kind.value}/{message['command']}"
         return parsed.kind.value
-
-
-# --- schema errors -> violations ---------------------------------------------------------------
-
-@cache
-def _expects_object(path: str) -> bool:
-    return schema.load(path).get("type") == "object"
-
-
-_IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
-
-
-def json_path(parts: Any) -> str:
-    """``$.params.waypoints[2].latitude`` from instance-path parts (names and indices)."""
-    out = ["$"]
-    for part in parts:
-        if isinstance(part, int):
-            out.append(f"[{part}]")
-        elif _IDENTIFIER.match(part):
-            out.append(f".{part}")
-        else:
-            out.append("[" + orjson.dumps(part).decode() + "]")
-    return "".join(out)
-
-
-def _json_type(value: Any) -> str:
-    if value is None:
-        return "null"
-    if isinstance(value, bool):
-        return "boolean"
-    if isinstance(value, (int, float)):
-        return "number"
-    if isinstance(value, str):
-        return "string"
-    if isinstance(value, list):
-        return "array"
-    return "object"
-
-
-def _short(value: Any, limit: int = 80) -> str:
-    try:
-        text = orjson.dumps(value).decode()
-    except (TypeError, orjson.JSONEncodeError):
-        text = repr(value)
-    return text if len(text) <= limit else text[: limit - 1] + "…"
-
-
-def _words(kind: Any, instance: Any, message: str) -> tuple[str, str]:
-    """Expected and observed, for a person, from a jsonschema-rs error kind."""
-    name = type(kind).__name__
-    observed = _short(instance)
-    if name == "Required":
-        return f"property '{kind.property}'", "missing"
-    if name == "Type":
-        return " or ".join(kind.types), f"{_json_type(instance)} {observed}"
-    if name == "Enum":
-        return "one of " + " | ".join(str(o) for o in kind.options), observed
-    if name == "Constant":
-        return _short(kind.expected_value), observed
-    limits = {"Minimum": ">=", "Maximum": "<=", "ExclusiveMinimum": ">",
-              "ExclusiveMaximum": "<"}
-    if name in limits:
-        return f"{limits[name]} {kind.limit}", observed
-    if name in ("MinItems", "MaxItems"):
-        bound = "at least" if name == "MinItems" else "at most"
-        return f"{bound} {kind.limit} items", f"{len(instance)} items"
-    if name in ("MinLength", "MaxLength"):
-        bound = "at least" if name == "MinLength" else "at most"
-        return f"{bound} {kind.limit} characters", observed
-    if name == "Pattern":
-        return f"a string matching {kind.pattern}", observed
-    if name == "UniqueItems":
-        return "unique items", observed
-    return message, observed
-
-
-def _schema_violations(path: str, validator: jsonschema_rs.Validator, message: Any, topic: str,
-                       raw: bytes, time: float | None, unit: str) -> list[Violation]:
-    """Every schema error as a violation of its rule, one per rule and spot."""
-    found: dict[tuple[str, str], Violation] = {}
-    for error in validator.iter_errors(message):
-        notes = schema.rule_annotations(path, tuple(error.evaluation_path))
-        rule = notes.rule or "MSG-003"
-        kind = error.kind
-        spots: list[tuple[list[Any], str, str]]
-        if isinstance(kind, _Kind.AdditionalProperties):
-            instance = error.instance if isinstance(error.instance, dict) else {}
-            spots = [([*error.instance_path, key], f"no parameter '{key}'",
-                      _short(instance.get(key))) for key in kind.unexpected]
-        else:
-            where = list(error.instance_path)
-            if isinstance(kind, _Kind.Required):
-                where.append(kind.property)
-            expected, observed = _words(kind, error.instance, error.message)
-            spots = [(where, expected, observed)]
-        for where, expected, observed in spots:
-            spot = json_path(where)
-            if (rule, spot) in found:
-                continue
-            if notes.expected:
-                expected = notes.expected
-            found[(rule, spot)] = Violation.of(
-                rule, expected=expected, observed=observed, topic=topic, path=spot, time=time,
-                payload=raw, unit=unit, detail=notes.detail or "", condition=notes.condition)
-    return list(found.values())
 
 
 _default: Validator | None = None

@@ -10,7 +10,7 @@ from conformance.display import shorten
 
 
 class Verdict(str, enum.Enum):
-    """The outcome of one rule for one unit (DESIGN: shared semantics), worst last."""
+    """The outcome of one rule for one unit (docs/ARCHITECTURE.md 'Verdicts'), worst last."""
 
     PASS = "pass"
     SKIP = "skip"                      # not claimed by the unit or profile (reason given)

@@ -10,7 +10,7 @@ never holds the password. Time proportional to the input.
 
 from __future__ import annotations
 
-from conformance.client import TLS_OFF, TLS_ON, BrokerURL
+from conformance.broker_url import TLS_OFF, TLS_ON, BrokerURL
 from fuzz.harness import Broken, one_line, within_time
 
 MARK = "pw-MARK-7d1c"

@@ -5,7 +5,7 @@ conversations have in common.
 of commands has to keep track of the history of commands' (and a new agent-uuid says it lost
 it). The observer keeps the same history to judge the answers: commands known by com-uuid,
 answers matched by response-to, resends, answers overdue, the unit's lives. TST is the same
-pattern one level up (DESIGN): ``conversation`` and ``tst_conversation`` build on this module.
+pattern one level up: ``conversation`` and ``tst_conversation`` build on this module.
 """
 
 from __future__ import annotations

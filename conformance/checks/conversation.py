@@ -1,4 +1,4 @@
-"""Conversations (spec 12; DESIGN 'Conversations, and whose fault it is'): what one unit was
+"""Conversations (spec 12; docs/ARCHITECTURE.md 'Whose fault it is'): what one unit was
 told on ``exec/command`` and how it answered, as the traffic showed it.
 
 A command on ``exec/command`` opens a conversation (``exec_command``): its response

@@ -4,7 +4,7 @@ The same object serves the linter (``kind="lint"``) and the certification suite
 (``kind="certification"``), which also records its active scenarios into it (``record``).
 
 ``feed`` runs on every message of a fleet (bench/bench_lint.py), so what depends on the topic
-alone is worked out once per topic (a ``_Route``: the unit's entry, the checks of its kind).
+alone is worked out once per topic (a ``Route``: the unit's entry, the checks of its kind).
 Which rules the validator examined on a message (``Validator.examined``) costs an evaluation
 of its schema, 10-100 times validating it: ``feed`` asks once per message shape and keeps the
 answer on the route (``checks/shapes.py``), and counts messages per examined set, expanded into
@@ -15,18 +15,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import re
-import sys
 import time as _time
 from collections.abc import Collection
 from typing import Any
 
-import orjson
-
 from conformance import bounds
 from conformance.checks.base import CheckContext, UnitState
 from conformance.checks.rates import live_findings as live_rate_findings
-from conformance.checks.registry import build
+from conformance.checks.routes import IGNORED, OVERFLOW, REGISTRY, Route, Routes
 from conformance.checks.rows import (
     UNATTRIBUTED,
     Findings,
@@ -38,37 +34,17 @@ from conformance.checks.rows import (
 )
 from conformance.checks.shapes import Shapes
 from conformance.checks.suite_commands import suite_row
-from conformance.checks.tst_routing import TstRouting
 from conformance.facts import RunKind
 from conformance.message import Message
 from conformance.profile import Profile
-from conformance.results import Party, RunMeta, RunReport, UnitReport
+from conformance.results import RunMeta, RunReport, UnitReport
 from conformance.rules import CATALOGUE, Side, get
-from conformance.topics import TST_EXECUTION, TopicKind, UnitAddress, parse_topic
+from conformance.topics import TopicKind, UnitAddress, parse_topic
 from conformance.validator import Examined, Validation, Validator
 from conformance.violation import Observed, Violation
 
-REGISTRY = build()  # built here: the package __init__ imported every check module first
-MAX_UNITS = bounds.MAX_UNITS
-"""Units tracked at once; further units' messages are unexamined: lint fails (``not_judged``)."""
 MAX_NAMED_OVER_CAP = 8
 """Units past MAX_UNITS named when the run says what it did not judge."""
-MAX_TOPICS = bounds.MAX_TOPICS_CACHED
-"""Topics whose unit is cached; further ones are looked up each time (still correct)."""
-MAX_TOPIC_CHARS = 16 << 20
-"""Characters of the cached topics' names, all told."""
-MAX_COMMANDERS = bounds.MAX_COMMANDERS
-"""Commanders with a row of their own; the commands of further ones share one row."""
-MAX_SENDER = 64
-_SENDER = re.compile(rb'"sender"\s*:\s*"([^"\\]{1,64})"')
-
-_IGNORED = Row(UnitState(UnitAddress(UNATTRIBUTED, "", "", "ignored")))
-_UNRESOLVED = Row(UnitState(UnitAddress(UNATTRIBUTED, "", "", "unresolved")))
-"""The entry of a tst topic until a message shows whose it is (``Monitor._tst_route``)."""
-_OVERFLOW = Row(UnitState(UnitAddress(UNATTRIBUTED, "", "", "overflow")))
-
-
-_COMMAND_KINDS = (TopicKind.EXEC_COMMAND, TopicKind.TST_COMMAND)
 
 
 def _is_command(m: Any) -> bool:
@@ -77,60 +53,9 @@ def _is_command(m: Any) -> bool:
             and isinstance(m.get("com-uuid"), str))
 
 
-class _Route:
-    """Where the messages of one topic go, worked out once per topic: the unit's entry, the
-    checks that re-read the validator's violations, and the message checks of the topic's kind
-    (plus those of its validation kind where the topic fixes it: ``sensor/position``)."""
-
-    __slots__ = ("entry", "reinterpret", "checks", "kind", "topic_kind", "content_fields",
-                 "shapes", "decided_by", "last_decided", "address", "shared_tst", "command")
-
-    def __init__(self, entry: Row, topic: str,
-                 content_fields: tuple[str, ...] = ()) -> None:
-        parsed = parse_topic(topic)
-        self.entry = entry
-        self.address = parsed.unit
-        self.topic_kind = parsed.kind
-        self.command = parsed.kind in _COMMAND_KINDS
-        """A command topic: what is found in its messages is the commander's."""
-        self.shared_tst = False
-        """A tst topic: its messages may concern another unit (14.1, ``checks/tst_routing``)."""
-        if parsed.kind is TopicKind.SENSOR:
-            self.kind: str | None = sys.intern(f"sensor/{parsed.sensor}")  # as the validator's
-        elif parsed.kind in (TopicKind.EXEC_COMMAND, TopicKind.TST_COMMAND):
-            self.kind = None  # exec/command/<command>: the message says
-        else:
-            self.kind = parsed.kind.value
-        self.reinterpret = tuple(c.fn for c in REGISTRY.reinterpret.get(parsed.kind, ()))
-        self.checks = self.checks_for(self.kind)
-        # What the validator examined, by message shape (``checks/shapes.py``).
-        self.content_fields = content_fields
-        """Fields whose types are part of a shape (``Validator.content_fields``)."""
-        self.shapes: dict[tuple[Any, ...], Examined] = {}
-        """Shape (and, where values decide, their values when scalars) -> examined set."""
-        self.decided_by: tuple[str, ...] = ()
-        """Top-level fields whose values decided a branch on some message of this topic (the
-        union of ``Examined.decided_by``): their values are part of the key; the last
-        message's (shape, values, examined) is kept too, for values that are lists or
-        objects."""
-        self.last_decided: tuple[Any, Any, Examined] | None = None
-
-    def checks_for(self, kind: str | None) -> tuple[Any, ...]:
-        """The message checks of a message of validation kind ``kind`` on this topic."""
-        narrower = REGISTRY.on_kind.get(kind or "")
-        return tuple(c.fn for c in REGISTRY.on_message.get(self.topic_kind, ())) + (
-            tuple(c.fn for c in narrower) if narrower else ())
-
-
-_TST_KINDS = (TopicKind.TST_COMMAND, TopicKind.TST_RESPONSE, TopicKind.TST_FEEDBACK)
-MAX_TST_ROUTES = 4096
-_IGNORED_ROUTE = _Route(_IGNORED, "")
-_OVERFLOW_ROUTE = _Route(_OVERFLOW, "")
-
-
 class Monitor:
     """Passive checks over a stream of messages, per unit: the same code in the linter and in
-    the certification suite (DESIGN: 'Passive checks').
+    the certification suite, so the two never disagree on the same traffic.
 
     ``units`` limits the observation to those units (None: every unit seen). Times are the
     messages' arrival times (Unix seconds); the monitor never reads the clock while feeding, so a
@@ -146,15 +71,9 @@ class Monitor:
         self.validator = validator or Validator(self.profile)
         self.kind = RunKind(kind)
         self.ctx = CheckContext(self.profile, self.kind)
-        self._only = frozenset(units) if units is not None else None
-        self._entries: dict[UnitAddress | None, Row] = {}
-        self._commanders: dict[str, Row] = {}
-        """Commander name -> its row: what is wrong in a command is the commander's fault."""
-        self._by_topic: dict[str, _Route] = {}
-        self._topic_chars = 0
-        self._tst_routing = TstRouting()
-        self._tst_routes: dict[tuple[str, UnitAddress], _Route] = {}
-        """(operator's tst topic, unit it concerns) -> the route of such messages."""
+        self.routes = Routes(self.validator, units)
+        """Where each message goes: its unit's row, its commander's, its topic's route."""
+        self._by_topic = self.routes.by_topic  # read on every message
         self._examined = Shapes(self.validator).examined
         """What the validator examined on a message, asked once per shape (``shapes.py``)."""
         self._unexamined = 0
@@ -176,17 +95,11 @@ class Monitor:
         self.version += 1
         topic = message.topic
         route = self._by_topic.get(topic)
-        if route is None:
-            route = self._route_for_topic(topic)
-        if route.shared_tst:
-            route = self._tst_route(route, message)
+        if route is None or route.shared_tst or route.entry is IGNORED or route.entry is OVERFLOW:
+            route = self._resolve(route, message)
+            if route is None:
+                return []
         entry = route.entry
-        if entry is _IGNORED:
-            return []
-        if entry is _OVERFLOW:
-            self._unexamined += 1
-            self._over_cap(topic)
-            return []
         t = message.time
         v = self._validate(topic, message.payload, t)
         if v.message is not None and len(message.payload) > bounds.ID_CHARS:
@@ -202,7 +115,7 @@ class Monitor:
         if route.topic_kind is TopicKind.UNKNOWN and _is_command(v.message):
             # A command on a topic of its sender's making (an operator's '.../None/command',
             # docs/FIELD-NOTES.md 'Precision'): what is wrong in it is the sender's, on its row.
-            entry = self._commander_entry(entry, v.message, message.payload)
+            entry = self.routes.commander(entry, v.message, message.payload)
         groups = entry.groups
         groups[examined] = groups.get(examined, 0) + 1
         ctx, state = self.ctx, entry.state
@@ -226,13 +139,29 @@ class Monitor:
         state.observe(message, v)
         return entry.add_all(found) if found else []
 
-    def _feed_command(self, route: _Route, entry: Row, message: Message, v: Validation,
+    def _resolve(self, route: Route | None, message: Message) -> Route | None:
+        """The route of a message whose topic's route is not cached yet, or concerns another
+        unit (an operator's tst topic, 14.1); None when the message is not judged (a unit not
+        followed; a unit past ``MAX_UNITS``: counted unexamined)."""
+        if route is None:
+            route = self.routes.for_topic(message.topic)
+        if route.shared_tst:
+            route = self.routes.tst_route(route, message)
+        if route.entry is IGNORED:
+            return None
+        if route.entry is OVERFLOW:
+            self._unexamined += 1
+            self._over_cap(message.topic)
+            return None
+        return route
+
+    def _feed_command(self, route: Route, entry: Row, message: Message, v: Validation,
                       examined: Examined) -> list[Violation]:
         """A command: the unit's state learns of it (its conversations), but what is wrong in
         it is the commander's (by ``sender``; the suite's own: no one's, ``suite_commands``),
         never the unit's. Commands are rare: the bookkeeping may cost what the hot path may not."""
         commander = suite_row(entry.state, v.message, message.payload) or \
-            self._commander_entry(entry, v.message, message.payload)
+            self.routes.commander(entry, v.message, message.payload)
         commander.groups[examined] = commander.groups.get(examined, 0) + 1
         commander.state.observe(message, v)
         state = entry.state
@@ -254,7 +183,8 @@ class Monitor:
                 commander.state.examine(rule, gained)
                 state.examined[rule] = n - gained
         # The unit's own topic (its address: 3.1's TYPE, ROLE, UNIT) is the unit's finding,
-        # recorded once on its row, never on each commander that addresses it (DESIGN: blame).
+        # recorded once on its row, never on each commander that addresses it (docs/ARCHITECTURE.md
+        # 'Whose fault it is').
         own = [f for f in found if CATALOGUE[f.rule].level.value == "topic"]
         if own:
             found = [f for f in found if CATALOGUE[f.rule].level.value != "topic"]
@@ -266,108 +196,16 @@ class Monitor:
             commander.add(f)
         return found
 
-    def _commander_entry(self, unit_entry: Row, m: Any, payload: Any = None) -> Row:
-        """The row of the commander that sent a command: its ``sender``, else 'the commander
-        of UNIT' (v0.7 has no sender field in 12.2; implementations add one)."""
-        sender = m.get("sender") if isinstance(m, dict) else None
-        if m is None and isinstance(payload, bytes):  # not JSON: the sender may still be read
-            match = _SENDER.search(payload, 0, 65536)
-            sender = match.group(1).decode("utf-8", "replace") if match else None
-        if isinstance(sender, str) and sender.strip():
-            name = "".join(ch if ch.isprintable() else "?" for ch in sender.strip()[:MAX_SENDER])
-        else:
-            name = f"of {unit_entry.state.address.name or unit_entry.unit}"
-        found = self._commanders.get(name)
-        if found is None:
-            if len(self._commanders) >= MAX_COMMANDERS:
-                name = "(other commanders)"
-                found = self._commanders.get(name)
-            if found is None:
-                label = f"commander {name}"
-                found = self._commanders[name] = Row(
-                    UnitState(UnitAddress(UNATTRIBUTED, "", "", label)), Party.COMMANDER, label)
-        return found
 
     @staticmethod
     def _checks_for(v: Validation) -> tuple[Any, ...]:
         return (tuple(c.fn for c in REGISTRY.on_message.get(v.topic.kind, ()))
                 + tuple(c.fn for c in REGISTRY.on_kind.get(v.kind, ())))
 
-    def _tst_route(self, route: _Route, message: Message) -> _Route:
-        """14.1: a message on an operator's tst topic (op0/tst/...) is the conversation of the
-        unit it concerns (``checks/tst_routing``); else the topic's own unit's. TST messages
-        are rare: decoding one twice costs nothing that matters."""
-        try:
-            m = orjson.loads(message.payload)
-        except (orjson.JSONDecodeError, TypeError, ValueError):
-            m = None
-        if m is not None and len(message.payload) > bounds.ID_CHARS:
-            bounds.bound_ids(m)  # as the checks see it: routes are kept by these ids
-        own = route.address
-        entry = self._entries.get(own) if own is not None else None
-        # An operator that runs or delegates trees itself answers for them: its own.
-        address = None if entry is not None and entry.state.claims(TST_EXECUTION) else \
-            self._tst_routing.party(route.topic_kind, m, lambda name: self._follows(name, own))
-        if address is None or address == own:
-            if route.entry is _UNRESOLVED:
-                route.entry = self._entry_for_topic(message.topic)
-            return route
-        key = (message.topic, address)
-        found = self._tst_routes.get(key)
-        if found is None:
-            entry = self._entries.get(address) or self._new_entry(address, force=True)
-            assert entry is not None
-            found = _Route(entry, message.topic, route.content_fields)
-            if len(self._tst_routes) < MAX_TST_ROUTES:
-                self._tst_routes[key] = found
-        return found
 
-    def _follows(self, name: str, near: UnitAddress | None) -> UnitAddress | None:
-        """The unit named ``name`` that this observation follows (under ``near``'s prefix
-        first), or None."""
-        if near is not None and near.name == name:
-            return None
-        units = self._only if self._only is not None else [a for a in self._entries if a]
-        named = [a for a in units if a.name == name]
-        named.sort(key=lambda a: near is None or a.prefix != near.prefix)
-        return named[0] if named else None
 
-    def _route_for_topic(self, topic: str) -> _Route:
-        """The route of a topic not seen before (cached: topic strings hash fast, unit
-        addresses do not)."""
-        if parse_topic(topic).kind in _TST_KINDS:
-            # The topic's own unit gets a row only when a message is its own (_tst_route).
-            route = _Route(_UNRESOLVED, topic,
-                           self.validator.content_fields(parse_topic(topic).kind))
-            route.shared_tst = True
-            self._cache(topic, route)
-            return route
-        entry = self._entry_for_topic(topic)
-        if entry is _IGNORED:
-            route = _IGNORED_ROUTE
-        elif entry is _OVERFLOW:
-            route = _OVERFLOW_ROUTE
-        else:
-            route = _Route(entry, topic,
-                           self.validator.content_fields(parse_topic(topic).kind))
-        self._cache(topic, route)
-        return route
 
-    def _cache(self, topic: str, route: _Route) -> None:
-        """Keep a topic's route, up to MAX_TOPICS topics and MAX_TOPIC_CHARS of their names (an
-        MQTT topic may be 64 KiB long: 65536 of them would be 4 GiB)."""
-        if len(self._by_topic) < MAX_TOPICS and \
-                self._topic_chars + len(topic) <= MAX_TOPIC_CHARS:
-            self._by_topic[topic] = route
-            self._topic_chars += len(topic)
 
-    def _entry_for_topic(self, topic: str) -> Row:
-        """The entry of the unit a topic belongs to."""
-        address = parse_topic(topic).unit
-        if self._only is not None and address not in self._only:
-            return _IGNORED
-        found = self._entries.get(address)
-        return found if found is not None else (self._new_entry(address) or _OVERFLOW)
 
     def connection_gap(self, start: float, end: float | None) -> None:
         """The observer was disconnected from ``start`` to ``end`` (Unix seconds): intervals
@@ -420,7 +258,7 @@ class Monitor:
         seen, so a replay ends where the recording ended). Calling it again re-judges."""
         self.version += 1
         now = self._now(now)
-        for entry in self._entries.values():
+        for entry in self.routes.entries.values():
             entry.final = self._run_finish(entry, now)
         self._finished = now
 
@@ -428,17 +266,17 @@ class Monitor:
 
     def units(self) -> list[UnitAddress]:
         """Every unit seen (or recorded into), in address order."""
-        return sorted(a for a in self._entries if a is not None)
+        return sorted(a for a in self.routes.entries if a is not None)
 
     def commanders(self) -> list[str]:
         """The rows of commanders seen so far (lint), by label (``commander op0``), sorted."""
-        return sorted(entry.unit for entry in self._commanders.values())
+        return sorted(entry.unit for entry in self.routes.commanders.values())
 
     def live_findings(self, unit: UnitAddress) -> list[Violation]:
         """What is wrong with ``unit`` right now that the rules judge only over the whole
         observation (its rates over their latest intervals: ``rates.live_findings``). A view
         for lint's live scorecard; nothing here is recorded."""
-        entry = self._entries.get(unit)
+        entry = self.routes.entries.get(unit)
         return [] if entry is None else live_rate_findings(self.ctx, entry.state)
 
     def topics_cached(self) -> int:
@@ -447,51 +285,68 @@ class Monitor:
 
     def state(self, unit: UnitAddress) -> UnitState:
         """What is known about ``unit`` (an empty state when nothing was seen yet)."""
-        entry = self._entries.get(unit)
+        entry = self.routes.entries.get(unit)
         if entry is None:
-            entry = self._new_entry(unit, force=True)
+            entry = self.routes.new_entry(unit, force=True)
         assert entry is not None
         return entry.state
 
     def record(self, unit: UnitAddress | None, rule: str, *, violation: Violation | None = None,
                seen: Observed | None = None, reason: str = "", excused: str = "") -> None:
-        """Record what an active scenario saw of ``rule`` (evidence for the judge): a violation,
-        or ``seen`` (examined; not applicable or untestable, with its reason).
-        ``excused``: a violation that is no evidence, and why (the unit had died, the link was
-        down): the judge says could-not-test. ``unit`` None: a finding that names no unit (a
-        ROS bag's, reported unattributed)."""
+        """Record what an active scenario saw of ``rule`` (evidence for the judge): a violation
+        (``found``; with ``excused``, why it is no evidence: ``excuse``), or ``seen`` (``seen``:
+        examined; not applicable or untestable, with its reason), or neither (examined).
+        ``unit`` None: a finding that names no unit (a ROS bag's, reported unattributed)."""
         self.version += 1
         if rule not in CATALOGUE:
             get(rule)  # raises naming close ids
-        entry = self._entries.get(unit) or self._new_entry(unit, force=True)
+        entry = self.routes.entries.get(unit) or self.routes.new_entry(unit, force=True)
         assert entry is not None
         if violation is not None and excused:
-            rec = entry.records.get(rule)
-            if rec is None:
-                rec = entry.records[rule] = RuleRecord()
-            rec.excused = rec.excused or excused
+            self._excuse(entry, rule, excused)
             return
         if violation is not None:
-            if violation.rule != rule:
-                violation = dataclasses.replace(violation, rule=rule)
-            if violation.time is None and self._latest > float("-inf"):
-                # when it was found (no answer came by then): a death before it explains it
-                violation = dataclasses.replace(violation, time=self._latest)
-            if not violation.unit and unit is not None:
-                violation = dataclasses.replace(violation, unit=str(unit))
-            entry.add(violation)
-        if seen is Observed.EXAMINED:
-            entry.state.examine(rule)
-        elif seen is not None:
-            rec = entry.records.get(rule)
-            if rec is None:
-                rec = entry.records[rule] = RuleRecord()
-            if rec.explicit is None or seen is Observed.UNTESTABLE:
-                rec.explicit, rec.reason = seen, reason
+            self._found(entry, unit, rule, violation)
+        if seen is not None:
+            self._seen(entry, rule, seen, reason)
         elif violation is None:
             entry.state.examine(rule)
         if reason and seen in (None, Observed.EXAMINED):
             entry.state.note(rule, reason)
+
+    @staticmethod
+    def _excuse(entry: Row, rule: str, excused: str) -> None:
+        """A violation that is no evidence (the unit had died, the link was down), and why:
+        the judge says could-not-test."""
+        rec = entry.records.get(rule)
+        if rec is None:
+            rec = entry.records[rule] = RuleRecord()
+        rec.excused = rec.excused or excused
+
+    def _found(self, entry: Row, unit: UnitAddress | None, rule: str,
+               violation: Violation) -> None:
+        """A violation a scenario found, on ``rule``, at the time it was found, of ``unit``."""
+        if violation.rule != rule:
+            violation = dataclasses.replace(violation, rule=rule)
+        if violation.time is None and self._latest > float("-inf"):
+            # when it was found (no answer came by then): a death before it explains it
+            violation = dataclasses.replace(violation, time=self._latest)
+        if not violation.unit and unit is not None:
+            violation = dataclasses.replace(violation, unit=str(unit))
+        entry.add(violation)
+
+    @staticmethod
+    def _seen(entry: Row, rule: str, seen: Observed, reason: str) -> None:
+        """Examined, or said not applicable or untestable (and why); an untestable outweighs
+        what was said before."""
+        if seen is Observed.EXAMINED:
+            entry.state.examine(rule)
+            return
+        rec = entry.records.get(rule)
+        if rec is None:
+            rec = entry.records[rule] = RuleRecord()
+        if rec.explicit is None or seen is Observed.UNTESTABLE:
+            rec.explicit, rec.reason = seen, reason
 
     def report(self, meta: RunMeta | None = None, **run: Any) -> RunReport:
         """The results so far as a ``RunReport``, with ``meta``. Before ``finish`` the
@@ -503,14 +358,14 @@ class Monitor:
             raise TypeError(f"not fields of a run (what it was is a RunMeta): {sorted(unknown)}")
         now = self._finished if self._finished is not None else self._now(None)
         units: dict[str, UnitReport] = {}
-        for address, entry in sorted(self._entries.items(),
+        for address, entry in sorted(self.routes.entries.items(),
                                      key=lambda kv: (kv[0] is None, str(kv[0] or ""))):
             final = entry.final if entry.final is not None else self._run_finish(entry, now)
             report = row_report(self.ctx, self.profile, self.kind, address, entry, final, now)
             units[report.unit] = report
         # In a certification the suite itself is the commander: no row of its own.
         if self.kind is RunKind.LINT:
-            for _, entry in sorted(self._commanders.items()):
+            for _, entry in sorted(self.routes.commanders.items()):
                 report = row_report(self.ctx, self.profile, self.kind, None, entry, Findings(), now)
                 units[report.unit] = report
         started = run.pop("started", None)
@@ -532,12 +387,6 @@ class Monitor:
             return float(now)
         return self._latest if self._latest > float("-inf") else _time.time()
 
-    def _new_entry(self, address: UnitAddress | None, force: bool = False) -> Row | None:
-        if not force and len(self._entries) >= MAX_UNITS:
-            return None
-        state_address = address or UnitAddress(UNATTRIBUTED, "", "", "")
-        entry = self._entries[address] = Row(UnitState(state_address))
-        return entry
 
     def _run_finish(self, entry: Row, now: float) -> Findings:
         findings = Findings()

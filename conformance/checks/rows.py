@@ -1,5 +1,5 @@
-"""A row of the report: what was found for one unit, or for one commander (DESIGN: blame),
-and the ``UnitReport`` made of it (verdicts per rule, facts, rates).
+"""A row of the report: what was found for one unit, or for one commander (docs/ARCHITECTURE.md
+'Whose fault it is'), and the ``UnitReport`` made of it (verdicts per rule, facts, rates).
 
 The Monitor keeps a ``Row`` per unit and per commander while it feeds; ``row_report`` turns one
 into the report's row at report time (examined sets expanded into per-rule counts there).
@@ -111,7 +111,7 @@ class Row:
     def __init__(self, state: UnitState, party: Party = Party.UNIT, label: str = "") -> None:
         self.state = state
         self.party = party
-        """A unit's, or a row of what commanders sent (DESIGN: blame)."""
+        """A unit's, or a row of what commanders sent (docs/ARCHITECTURE.md 'Whose fault it is')."""
         self.unit = label or ("" if state.address.prefix == UNATTRIBUTED else str(state.address))
         self.records: dict[str, RuleRecord] = {}
         self.groups: dict[Examined, int] = {}

@@ -1,5 +1,5 @@
 """A broker that stalls (frozen, overloaded, a link that holds traffic) is the broker's fault,
-never the unit's (DESIGN 'Safety'): found from the traffic and marked as a gap of
+never the unit's (docs/ARCHITECTURE.md 'Safety'): found from the traffic and marked as a gap of
 the observer, so that rates, silences, uuid changes and deadlines over it are not judged.
 
 A stall shows as a silence of every topic of every unit followed by a burst: what the broker

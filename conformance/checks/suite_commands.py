@@ -2,7 +2,7 @@
 deliberate probes it sends to test a unit's robustness (12.1: a unit must survive any command).
 
 A recording made during a certification holds them. They are the suite's, never a commander's
-fault (DESIGN 'Conversations, and whose fault it is'): the Monitor still lets the unit's
+fault (docs/ARCHITECTURE.md 'Whose fault it is'): the Monitor still lets the unit's
 conversations learn of them (how the unit answers is the unit's), but judges no commander on
 them, so lint of such a recording shows the unit's findings only.
 """

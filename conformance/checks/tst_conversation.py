@@ -1,4 +1,4 @@
-"""TST conversations (spec 14; DESIGN 'TST is the same pattern one level up'): what one unit
+"""TST conversations (spec 14; the exec conversations' pattern one level up): what one unit
 was told on ``tst/command`` and how it answered, as the traffic showed it: commands, the trees
 they started and their nodes.
 

@@ -1,5 +1,5 @@
 """``waraps-conformance demo``: certify the bundled reference unit on the embedded broker, end to
-end, in one command (DESIGN: 'A newcomer sees it work in one command'); the run is
+end, in one command (a newcomer sees it work before reading anything); the run is
 ``conformance.demo.certify``."""
 
 from __future__ import annotations

@@ -17,12 +17,15 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import IO
+from typing import IO, TYPE_CHECKING
 
 from conformance.bounds import bounds_help
 from conformance.cli import options as opts
 from conformance.facts import GATES, Gate
 from conformance.lint import EXIT_NOT_RUN, EXIT_USAGE, REPORT_FORMATS
+
+if TYPE_CHECKING:
+    from conformance.topics import UnitAddress
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -50,6 +53,13 @@ def build_parser() -> argparse.ArgumentParser:
                      help="the unit address of a ROS bag's namespaced topics when no "
                           "/heartbeat_info TopicMsg names it, e.g. waraps/unit/ground/real/husky0")
     opts.add_capture_options(p)
+    _add_judging_options(p)
+    _add_serve_options(p)
+    return p
+
+
+def _add_judging_options(p: argparse.ArgumentParser) -> None:
+    """How lint judges (profile, gate, strict) and what it writes."""
     out = p.add_argument_group("judging and reports")
     opts.add_profile_option(out)
     opts.add_reports_dir_option(out)
@@ -66,6 +76,10 @@ def build_parser() -> argparse.ArgumentParser:
                      help="adopt the suite's decisions as conventions: a rule whose basis is "
                           "'decided' (the spec is silent) fails instead of warning (as "
                           "'strict: true' in the profile)")
+
+
+def _add_serve_options(p: argparse.ArgumentParser) -> None:
+    """``--serve``: the live fleet page while lint runs."""
     web = p.add_argument_group("serving the fleet page (read-only)")
     web.add_argument("--serve", metavar="[HOST:]PORT",
                      help="while linting, serve the live fleet page on http://127.0.0.1:PORT/ "
@@ -77,7 +91,6 @@ def build_parser() -> argparse.ArgumentParser:
                      help="how long to keep serving once lint has ended: 0, or a time like "
                           "90s, 10m (default: until Ctrl-C after a recording (--from), not at "
                           "all after live linting)")
-    return p
 
 
 def parse_linger(text: str | None, recorded: bool) -> float | None:
@@ -99,6 +112,23 @@ def parse_formats(text: str) -> tuple[str, ...]:
         raise ValueError(f"--format {text!r}: use a comma-separated list of "
                          f"{', '.join(REPORT_FORMATS)}, or none")
     return wanted
+
+
+def _ros_unit(args: argparse.Namespace) -> UnitAddress | None:
+    """``--ros-unit``'s address (None without it); ValueError when it is no address or the
+    source is no ROS bag."""
+    if not args.ros_unit:
+        return None
+    from conformance.rosbag import is_bag
+    from conformance.topics import TopicError, UnitAddress
+
+    if not (args.source and is_bag(args.source)):
+        raise ValueError("--ros-unit applies to ROS bags only (--from run.bag or a ROS 2 bag "
+                         "directory)")
+    try:
+        return UnitAddress.parse(args.ros_unit)
+    except TopicError as e:
+        raise ValueError(f"--ros-unit: {e}") from None
 
 
 def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
@@ -134,18 +164,10 @@ def main(argv: list[str] | None = None, *, stdout: IO[str] | None = None,
         return usage(str(e))
     if args.serve_linger is not None and serve is None:
         return usage("--serve-linger applies with --serve only")
-    ros_unit = None
-    if args.ros_unit:
-        from conformance.rosbag import is_bag
-        from conformance.topics import TopicError, UnitAddress
-
-        if not (args.source and is_bag(args.source)):
-            return usage("--ros-unit applies to ROS bags only (--from run.bag or a ROS 2 bag "
-                         "directory)")
-        try:
-            ros_unit = UnitAddress.parse(args.ros_unit)
-        except TopicError as e:
-            return usage(f"--ros-unit: {e}")
+    try:
+        ros_unit = _ros_unit(args)
+    except ValueError as e:
+        return usage(str(e))
     try:
         return lint(options, profile, source=args.source, ros_unit=ros_unit,
                     reports_dir=Path(args.reports_dir), formats=formats, gate=Gate(args.gate),

@@ -39,6 +39,29 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _output_problem(out: Path | None) -> str:
+    """Why the draft cannot go to ``out`` ('' when it can; None: standard output)."""
+    if out is not None and out.exists():
+        return f"{out} exists; name a new file (a profile you edited is never overwritten)"
+    if out is not None and not out.absolute().parent.is_dir():
+        return f"cannot write {out}: {out.parent} is not a folder"
+    return ""
+
+
+def _write(text: str, out: Path | None) -> bool:
+    """The draft written to ``out`` (None: standard output); False when it could not be."""
+    if out is None:
+        sys.stdout.write(text)
+        return True
+    try:
+        out.write_text(text, "utf-8")
+    except OSError as e:  # a full disk
+        opts.say("profile", f"cannot write {out}: {e.strerror or e}")
+        return False
+    print(opts.shown(f"wrote {out}"), file=sys.stderr)
+    return True
+
+
 def main(argv: list[str] | None = None) -> int:
     from conformance.client import BrokerError, BrokerURL, MqttClient
     from conformance.profile_draft import draft, observe, problems
@@ -59,13 +82,11 @@ def main(argv: list[str] | None = None) -> int:
         opts.say("profile", "no broker: pass --broker mqtt://host:port or set WARAPS_BROKER")
         return 2
     out = None if args.output == "-" else Path(args.output)
-    if out is not None and out.exists():
-        opts.say("profile", f"{out} exists; name a new file (a profile you edited is never "
-                 f"overwritten)")
+    problem = _output_problem(out)
+    if problem:  # said before observing
+        opts.say("profile", problem)
         return 2
-    if out is not None and not out.absolute().parent.is_dir():  # said before observing
-        opts.say("profile", f"cannot write {out}: {out.parent} is not a folder")
-        return 2
+
     def say(text: str) -> None:
         print(opts.shown(text), file=sys.stderr)
 
@@ -78,15 +99,8 @@ def main(argv: list[str] | None = None) -> int:
     text = draft(seen)
     for problem in problems(seen):  # said, not only written: the unit contradicts itself
         print(opts.shown(f"PROBLEM: {problem}"), file=sys.stderr)
-    if out is None:
-        sys.stdout.write(text)
-    else:
-        try:
-            out.write_text(text, "utf-8")
-        except OSError as e:  # a full disk
-            opts.say("profile", f"cannot write {out}: {e.strerror or e}")
-            return 3
-        print(opts.shown(f"wrote {out}"), file=sys.stderr)
+    if not _write(text, out):
+        return 3
     if seen.heartbeat is None:  # said, not only in the draft's comments
         opts.say("profile", f"no heartbeat of {unit} within {args.observe} on "
                             f"{mask_password(str(broker), url=True)}: the draft says what "

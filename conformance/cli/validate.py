@@ -76,10 +76,7 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         stamp = validation.message.get("stamp") if isinstance(validation.message, dict) else None
         if judging is not profile and type(stamp) in (int, float):
-            notes.append(f"the stamp was judged for plausibility only (Unix seconds within "
-                         f"{PLAUSIBLE_CLOCK / 86400:.0f} days of now: not milliseconds, not a "
-                         f"clock left at 1970); pass --now for a message just captured, or "
-                         f"--time T, to judge it within {profile.clock_tolerance:g} s (MSG-005)")
+            notes.append(_plausibility_only(profile))
     if args.json:
         print(json.dumps({**to_dict(validation, profile), "notes": notes}, indent=2))
     else:
@@ -89,6 +86,14 @@ def main(argv: list[str] | None = None) -> int:
     # Not examined whole (MSG-004) is no pass either: 1, as a failure.
     return 1 if overall_verdict(validation, profile) in (Verdict.FAIL,
                                                          Verdict.COULD_NOT_TEST) else 0
+
+
+def _plausibility_only(profile: profile_module.Profile) -> str:
+    """The note on a stamp judged without an arrival time."""
+    return (f"the stamp was judged for plausibility only (Unix seconds within "
+            f"{PLAUSIBLE_CLOCK / 86400:.0f} days of now: not milliseconds, not a "
+            f"clock left at 1970); pass --now for a message just captured, or "
+            f"--time T, to judge it within {profile.clock_tolerance:g} s (MSG-005)")
 
 
 def _parser() -> argparse.ArgumentParser:

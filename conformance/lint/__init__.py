@@ -2,9 +2,9 @@
 
 Parts: ``capture`` (live subscription, bounded buffer, connection events), ``linter`` (feeds the
 shared passive checks, ``conformance.checks.Monitor``, and keeps tallies), ``runner`` (one lint
-run: source, scorecard, reports, exit status), ``recorder`` (``waraps-conformance record``); the
-scorecard is ``conformance.scorecard``, the recording formats ``conformance.recording``, the
-command line ``conformance.cli.lint``. Importing this package loads nothing else.
+run: source, scorecard, reports, exit status), ``recorder`` (``waraps-conformance record``),
+``scorecard`` (the live per-unit view on the terminal); the recording formats are
+``conformance.recording``, the command line ``conformance.cli.lint``. Importing this package loads nothing else.
 """
 
 from __future__ import annotations

@@ -9,7 +9,9 @@ import time
 from collections import Counter, deque
 from typing import Any
 
-from conformance.checks.monitor import MAX_COMMANDERS, MAX_UNITS, UNATTRIBUTED, Monitor
+from conformance.checks.monitor import Monitor
+from conformance.checks.routes import MAX_COMMANDERS, MAX_UNITS
+from conformance.checks.rows import UNATTRIBUTED
 from conformance.judge import violation_verdict
 from conformance.message import Gap, Message
 from conformance.profile import Profile

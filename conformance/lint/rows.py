@@ -1,6 +1,6 @@
 """What lint saw of each unit and commander: one ``LintRow`` each, made here only, live from
 the ``Linter`` or at the end from the run report, and rendered by the terminal scorecard
-(``conformance.scorecard``) and the fleet page (``lint.fleetview``) alike, so the two cannot
+(``lint.scorecard``) and the fleet page (``lint.fleetview``) alike, so the two cannot
 disagree on a row's type, role, levels, messages, last seen, findings or status.
 """
 

@@ -23,6 +23,7 @@ from conformance.judge import judge
 from conformance.lint import EXIT_FAIL, EXIT_NOT_RUN, EXIT_PARTIAL, EXIT_PASS, REPORT_FORMATS
 from conformance.lint.capture import LiveCapture
 from conformance.lint.linter import Linter
+from conformance.lint.scorecard import Scorecard
 from conformance.lint.serve import Serving
 from conformance.message import Message
 from conformance.recording import (
@@ -39,7 +40,6 @@ from conformance.reporting.bounds import file_stem
 from conformance.reporting.text import render_verdicts, render_violation
 from conformance.results import Party, RunMeta
 from conformance.rosbag import BagError, BagReader, is_bag
-from conformance.scorecard import Scorecard
 from conformance.violation import Verdict
 
 
@@ -250,7 +250,7 @@ def _tell(out: IO[str], linter: Any, report: Any, read: _Read) -> None:
 
 def _verdict(out: IO[str], report: Any, gate: Gate, not_judged: str) -> int:
     """The evidence of the failures, the last line (what was observed, never a certificate:
-    DESIGN 'Semantics', 'clean', not 'pass'), and the exit status."""
+    docs/ARCHITECTURE.md 'Verdicts', 'clean', not 'pass'), and the exit status."""
     evidence = failures(report)
     if evidence:
         print(f"\n{printable_lines(evidence)}\n", file=out)
@@ -292,8 +292,8 @@ MAX_FAILURES_SHOWN = 10
 
 
 def failures(report: Any, limit: int = MAX_FAILURES_SHOWN) -> str:
-    """The first violation of each failed (unit, rule), at most ``limit`` of them, in the form
-    the certification prints (STYLE.md): what a person reads before opening the HTML."""
+    """The first violation of each failed (unit, rule), at most ``limit`` of them, as the
+    certification prints them: what a person reads before opening the HTML."""
     shown: list[str] = []
     more = 0
     # Most severe first (death, deafness, commands, messages): the cap cuts the least severe.

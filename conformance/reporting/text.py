@@ -1,4 +1,5 @@
-"""Reports for people, as text: one violation in STYLE.md's form, and a run's summary."""
+"""Reports for people, as text: one violation in the form every output shares, and a
+run's summary."""
 
 from __future__ import annotations
 
@@ -60,9 +61,9 @@ def rerun_command(report: Any, unit: str, rule_id: str, topic: str = "") -> str:
 def render_violation(rule: str | Rule, violation: Violation, unit: str = "",
                      rerun_hint: str | None = None, verdict: Verdict | None = None,
                      report: Any = None) -> str:
-    """One violation for a person (STYLE.md): rule id, title and verdict; expected; observed;
-    topic; spec section; how to rerun. ``rerun_hint`` None gives the command for the unit
-    (``rerun_command``: the lint command for a lint ``report``, else pytest), '' leaves the
+    """One violation for a person (the form every output shares): rule id, title and verdict;
+    expected; observed; topic; spec section; how to rerun. ``rerun_hint`` None gives the command for
+    the unit (``rerun_command``: the lint command for a lint ``report``, else pytest), '' leaves the
     line out. ``verdict`` defaults to the rule's own severity."""
     r = rule if isinstance(rule, Rule) else CATALOGUE.get(rule)
     rule_id = r.id if r else str(rule)

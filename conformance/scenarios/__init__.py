@@ -1,5 +1,5 @@
 """Active scenarios: the stimuli the certification suite sends to the unit under test, and the
-expectations it checks (DESIGN 'Active scenarios').
+expectations it checks.
 
 Each scenario drives the unit through one part of spec 12 (``tst``: spec 14) and records a verdict for each of
 its rules through ``Context.record``, the same way the passive checks do. ``SCENARIOS`` lists

@@ -1,8 +1,8 @@
 """The commander side of spec 12: send commands to the unit under test and wait for its answers.
 
 Only the unit's own ``exec/command`` topic is ever published to (the MQTT client's publish
-policy enforces it as well: DESIGN 'Safety'). Every task the commander starts is remembered
-until a final status is seen, so ``abort_all`` can end it at teardown, on failure and on
+policy enforces it as well: docs/ARCHITECTURE.md 'Safety'). Every task the commander starts is
+remembered until a final status is seen, so ``abort_all`` can end it at teardown, on failure and on
 Ctrl-C. Under ``--dry-run`` nothing is published: ``send`` prints what it would publish and
 raises ``DryRun``. Whether a task has ended is the Monitor's model's to say (``task_state``,
 the suite's), and read from the raw feedback only without one.
@@ -382,9 +382,10 @@ class Commander(Sender):
 
     # --- safety ----------------------------------------------------------------------------
     def abort_all(self, timeout: float, *, stuck: bool = True) -> list[str]:
-        """Send ``$abort`` to every task this commander started that has not ended (DESIGN
-        'Safety'); wait up to ``timeout`` seconds in all for the answers (a fifth of it when
-        the unit has answered no signal-task so far). Returns the task-uuids aborted.
+        """Send ``$abort`` to every task this commander started that has not ended
+        (docs/ARCHITECTURE.md 'Safety'); wait up to ``timeout`` seconds in all for the answers (a
+        fifth of it when the unit has answered no signal-task so far). Returns the task-uuids
+        aborted.
 
         ``stuck=False`` (between scenarios) leaves out the tasks whose $abort went unanswered
         before: sending it again in every scenario proves nothing and costs a deadline each

@@ -1,7 +1,7 @@
 """What every active scenario works with: the unit, its traffic, the commander, deadlines.
 
 Deadlines come from the profile and the unit's declared rates, times ``--timing-scale`` for slow
-links (DESIGN: 'no fixed sleeps'). Scenarios report what they saw with ``record``, as evidence
+links (docs/ARCHITECTURE.md 'Waits'). Scenarios report what they saw with ``record``, as evidence
 for the judge (``Monitor.record``): a violation, or ``seen`` (``violation.Observed``: examined;
 not applicable or untestable, with the reason). They make no verdict.
 """
@@ -201,7 +201,8 @@ class Context:
         when the unit refuses the signal (the task is no longer running)."""
         final = self.commander.feedback(task_uuid, FINAL_STATUSES, 0, after=after)
         if final is not None or self.commander.blind():
-            if final is None:  # still end it (DESIGN 'Safety'), without waiting for feedback
+            # Still end it (docs/ARCHITECTURE.md 'Safety'), without waiting for feedback.
+            if final is None:
                 self.commander.signal(task_uuid, "$abort", self.timing.response)
             return final
         # 12.2.2: the built-in signals; $abort when the task does not list $enough.

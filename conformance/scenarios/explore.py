@@ -1,5 +1,5 @@
 """Exploration: a hypothesis state machine sends spec-12 commands in orders no script has,
-and the Monitor judges every answer (DESIGN 'One model of the protocol's states').
+and the Monitor judges every answer (docs/MODEL.md).
 
 Its rules are the commands: start-task (with or without task-uuid, of the tasks the unit lists
 and the suite may start, parameters drawn from the task's schema inside the safe radius),

@@ -7,7 +7,7 @@ same way for both. Tasks are named by their slot (the n-th start-task of the exa
 commands by the step that first sent them (for a resend), so a stored story means the same
 thing when it is run again with fresh uuids.
 
-The oracle is the Monitor (DESIGN 'One model of the protocol's states'): every violation it
+The oracle is the Monitor (docs/MODEL.md): every violation it
 finds in the unit's traffic while a step runs, of a conversation rule the profile makes an
 error, is a disagreement between the model and the unit at that step.
 """
@@ -198,7 +198,8 @@ class Explorer:
         """The protocol model's state of a task-uuid (``conformance.protocol``: what the
         Monitor's model holds from the traffic), None where it knows nothing."""
         self.tasks = ctx.startable("explore")
-        """Tasks the suite may start (tasks-available, the profile, DESIGN 'Safety')."""
+        """Tasks the suite may start (tasks-available, the profile, docs/ARCHITECTURE.md
+        'Safety')."""
         self.slots: list[Slot] = []
         self.commands: dict[int, Sent] = {}
         """Step index -> the command it sent (what a resend resends)."""
@@ -363,13 +364,14 @@ class Explorer:
     def _start(self, step: Step, action: Start) -> None:
         name = action.task
         allowed, why = self.ctx.safety.may_start(name, "explore")
-        if not allowed:  # a stored story replayed on a unit it may not move (DESIGN 'Safety')
+        # A stored story replayed on a unit it may not move (docs/ARCHITECTURE.md 'Safety').
+        if not allowed:
             self.slots.append(Slot(name, None, self.ctx.traffic.mark(), "refused"))
             step.came.append(f"not sent: {why}")
             return
         origin = self.ctx.position()
-        # The profile's or the spec example's, never invented, inside the safe radius (DESIGN
-        # 'Safety'; ``may_start`` above knows there are some).
+        # The profile's or the spec example's, never invented, inside the safe radius
+        # (docs/ARCHITECTURE.md 'Safety'; ``may_start`` above knows there are some).
         params = valid_params(name, origin, self.ctx.safety, self.ctx.seed) \
             if origin is not None else {}
         body: dict[str, Any] = {"command": "start-task", "execution-unit": self.ctx.unit.name,

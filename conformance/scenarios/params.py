@@ -1,4 +1,4 @@
-"""Task parameters for start-task: never invented (DESIGN 'Safety').
+"""Task parameters for start-task: never invented (docs/ARCHITECTURE.md 'Safety').
 
 A task is started with the parameters the profile gives it, else, for a section 9 task, with
 the parameters of the spec's own example (``schemas/tasks/<task>.yaml``); a task with neither

@@ -22,8 +22,8 @@ ALIVE_WAITS = 3
 def malformed(com_uuid: str) -> list[tuple[str, bytes]]:
     """Malformed commands whose com-uuid can be read: each should be answered 'failed'
     (the answer's fail-reason is EXEC-007's business). None names a real task: a lenient
-    parser on a real unit could run it (DESIGN 'Safety'; the publish policy would refuse a
-    motion task anyway)."""
+    parser on a real unit could run it (docs/ARCHITECTURE.md 'Safety'; the publish policy would
+    refuse a motion task anyway)."""
     def body(**fields: object) -> bytes:
         return orjson.dumps({"com-uuid": com_uuid, "sender": SENDER, **fields})
 

@@ -1,5 +1,5 @@
 """Which tasks the suite may start on the unit under test, what it may send, and where
-(DESIGN 'Safety').
+(docs/ARCHITECTURE.md 'Safety').
 
 Safety fails closed: a unit is a simulation only when its role is ``simulation`` or one of the
 profile's ``simulated-roles``; every other role (real, playback, live, a misspelling, an
@@ -9,9 +9,9 @@ or malformed payload (``hostility``) unless ``--allow-hostile`` is given or the 
 ``robustness: true``. Positions for any task are computed near the unit's own reported
 position, within the profile's ``safe_radius`` (metres), never the spec's example coordinates.
 
-``MotionGate`` makes the decision on the bytes about to be published (DESIGN: 'the publish
-policy is the one gate'): the suite's connection asks it about every payload, so nothing the
-decision forbids reaches a real unit, whatever the scenario meant to send.
+``MotionGate`` makes the decision on the bytes about to be published (the publish policy
+is the one gate, docs/ARCHITECTURE.md 'Safety'): the suite's connection asks it about every payload,
+so nothing the decision forbids reaches a real unit, whatever the scenario meant to send.
 """
 
 from __future__ import annotations
@@ -186,8 +186,8 @@ class Safety:
 
 
 class NoParams(LookupError):
-    """A task the suite would have to invent parameters for (DESIGN 'Safety'); the message
-    says what to add to the profile."""
+    """A task the suite would have to invent parameters for (docs/ARCHITECTURE.md 'Safety'); the
+    message says what to add to the profile."""
 
 
 def no_params_reason(task: str) -> str:
@@ -325,7 +325,7 @@ def hostility(topic: str, payload: bytes, *, given: dict[str, Any] | None = None
 
 
 class MotionGate:
-    """The payload half of the suite's publish policy (DESIGN 'Safety').
+    """The payload half of the suite's publish policy (docs/ARCHITECTURE.md 'Safety').
 
     On a real unit (``SafetyDecision``), a payload that names a motion task is refused unless
     ``--allow-motion`` is given and the profile lists that task in ``motion_tasks``; a hostile
@@ -365,7 +365,7 @@ class MotionGate:
         how = ("list it in the profile's motion-tasks" if self.allow_motion else
                "pass --allow-motion and list it in the profile's motion-tasks")
         return (f"not sent: the payload names the motion task(s) {', '.join(named)} and "
-                f"{self.unit} is a real unit ({how}; DESIGN 'Safety')")
+                f"{self.unit} is a real unit ({how}; docs/ARCHITECTURE.md 'Safety')")
 
     def _hostile(self, payload: bytes, topic: str | None) -> str | None:
         if self.decision.hostile_allowed:

@@ -1,6 +1,6 @@
 """The suite as the sender of commands (spec 12's and spec 14's commanders alike): publish a
-command to the one command topic allowed (DESIGN 'Safety'), never under ``--dry-run``, and wait
-for the response whose ``response-to`` is its com-uuid (12.3, 14.4)."""
+command to the one command topic allowed (docs/ARCHITECTURE.md 'Safety'), never under
+``--dry-run``, and wait for the response whose ``response-to`` is its com-uuid (12.3, 14.4)."""
 
 from __future__ import annotations
 
@@ -31,8 +31,8 @@ class DryRun(NotSent):
 
 
 class Refused(NotSent):
-    """The publish policy refused the payload (DESIGN 'Safety': e.g. a motion task named to a
-    real unit without --allow-motion); the message says why."""
+    """The publish policy refused the payload (docs/ARCHITECTURE.md 'Safety': e.g. a motion task
+    named to a real unit without --allow-motion); the message says why."""
 
 
 @dataclass

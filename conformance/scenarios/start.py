@@ -1,8 +1,8 @@
 """start-task (12.2.3, 12.3.3, 12.4, 5.3): every task the profile lets the suite run.
 
-For each task in tasks-available that may be started (DESIGN 'Safety'), with parameters
-generated from its schema near the unit's own position: the answer is one of 12.1's values
-(EXEC-START-001, judged by the Monitor) and carries the task-uuid sent (EXEC-START-002); a
+For each task in tasks-available that may be started (docs/ARCHITECTURE.md 'Safety'), with
+parameters generated from its schema near the unit's own position: the answer is one of 12.1's
+values (EXEC-START-001, judged by the Monitor) and carries the task-uuid sent (EXEC-START-002); a
 running task sends feedback until a final status (EXEC-START-003) and appears in, then leaves,
 ``tasks-executing`` (DEI-004). One start-task goes without a task-uuid: the unit must generate
 one (12.1); when no task ran yet and that one is not answered, it is asked again with a
@@ -131,7 +131,7 @@ def _cannot_start(ctx: Context, available: dict[str, list[str]], startable: list
         reason = f"no task the suite may start: {why}"
     elif origin is None:
         reason = ("the unit reports no sensor/position: task positions are generated near it "
-                  "(DESIGN 'Safety')")
+                  "(docs/ARCHITECTURE.md 'Safety')")
     else:
         return False
     for rule in RULES:
@@ -341,7 +341,7 @@ def _expect_refusal(ctx: Context, rule: str, answer: Entry | None, what: str, *,
         ctx.record(rule, seen=Observed.EXAMINED)
         return
     if answer.get("response") == "running" and isinstance(answer.get("task-uuid"), str):
-        # Accepted what it should have refused: end it at once (DESIGN 'Safety').
+        # Accepted what it should have refused: end it at once (docs/ARCHITECTURE.md 'Safety').
         ctx.commander.signal(answer.get("task-uuid"), "$abort", ctx.timing.response)
     ctx.record(rule, violation=ctx.violation(
         rule, expected=f"{wanted} for {what}",

@@ -1,6 +1,6 @@
 """A failure found by exploration, told as a story: numbered steps, each command sent (its
 JSON), what came back, and the step where the model and the unit disagree, with the rule,
-its spec section and hint as every finding shows them (STYLE.md); stored as JSON so that
+its spec section and hint as every finding shows them (``render_violation``); stored as JSON so that
 ``--explore-replay FILE`` runs exactly those steps again.
 """
 

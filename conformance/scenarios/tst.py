@@ -7,8 +7,8 @@ of the conversation rules (TST-004, TST-006..TST-013) are the Monitor's
 it alone knows: which trees the unit can run (TST-004 for a refused tree of a task the unit
 lists, TST-005 for the trees it must refuse).
 
-The stimuli, with tasks the safety policy lets it start (DESIGN 'Safety'; positions near the
-unit), every node written as 11's examples write them (``tst_commander.node``):
+The stimuli, with tasks the safety policy lets it start (docs/ARCHITECTURE.md 'Safety'; positions
+near the unit), every node written as 11's examples write them (``tst_commander.node``):
 - seq [a, b, c]: node $pause, $continue and $enough of a (then b runs), tree $pause and
   $continue, node $abort of b (the seq then revokes c and ends aborted);
 - conc [a, b] of two tasks of different kinds: unit $pause and $continue, node $abort of b
@@ -247,7 +247,7 @@ def run(ctx: Context) -> None:
     if tc is None or origin is None or not tasks:
         reason = ("no TST command topic" if tc is None else
                   "the unit reports no sensor/position: task positions are generated near it "
-                  "(DESIGN 'Safety')" if origin is None else
+                  "(docs/ARCHITECTURE.md 'Safety')" if origin is None else
                   ctx.none_startable("tst"))
         for rule in RULES:
             ctx.record(rule, seen=Observed.UNTESTABLE, reason=reason)

@@ -2,12 +2,12 @@
 
 Commands go to ONE topic, the one the run was told (14.1): the unit's own ``tst/command`` by
 default, or an operator's such as ``op0/tst/command``, where they name the unit (execunit,
-signal-unit's ``unit``); the MQTT client's publish policy allows exactly that topic (DESIGN
-'Safety'). Answers are read on the matching ``tst/response`` and ``tst/feedback`` (``Traffic``
-files an operator's under the same subtopics). Every tree it starts is remembered until its
-root reports a final status, so ``abort_all`` can end it with ``signal-tst-tree $abort`` at
-teardown, on failure and on Ctrl-C. Under ``--dry-run`` nothing is published: ``send`` prints
-what it would publish and raises ``DryRun``.
+signal-unit's ``unit``); the MQTT client's publish policy allows exactly that topic
+(docs/ARCHITECTURE.md 'Safety'). Answers are read on the matching ``tst/response`` and
+``tst/feedback`` (``Traffic`` files an operator's under the same subtopics). Every tree it starts is
+remembered until its root reports a final status, so ``abort_all`` can end it with ``signal-tst-tree
+$abort`` at teardown, on failure and on Ctrl-C. Under ``--dry-run`` nothing is published: ``send``
+prints what it would publish and raises ``DryRun``.
 """
 
 from __future__ import annotations
@@ -315,9 +315,9 @@ class TstCommander(Sender):
     # --- safety -------------------------------------------------------------------------
     def abort_all(self, timeout: float, *, stuck: bool = True) -> list[str]:
         """``signal-tst-tree $abort`` to every tree this commander started whose root has not
-        ended (DESIGN 'Safety'); wait up to ``timeout`` seconds in all for the answers.
-        Returns the root node-uuids aborted. ``stuck=False`` (between scenarios) leaves out
-        the trees whose $abort went unanswered or was refused while they ran (i20 6); the
+        ended (docs/ARCHITECTURE.md 'Safety'); wait up to ``timeout`` seconds in all for the
+        answers. Returns the root node-uuids aborted. ``stuck=False`` (between scenarios) leaves
+        out the trees whose $abort went unanswered or was refused while they ran (i20 6); the
         run's last teardown tries them once more."""
         if self.dry_run:
             return []

@@ -1,5 +1,5 @@
 """The reference unit: a spec-conformant simulated WARA-PS unit with a switch for every fault
-the suite detects (``waraps-conformance sim``; DESIGN: 'Reference unit').
+the suite detects (``waraps-conformance sim``): each check passes on it and fails on its fault.
 
 ``SimUnit`` runs one unit, ``Fleet`` N units on one connection; ``FAULTS`` lists the fault
 switches and the rule ids each one breaks.

@@ -3,17 +3,20 @@
 resent command again instead of running it twice.
 
 The tasks it starts run on the unit's ``TaskRunner`` (``conformance.sim.runner``). Hostile
-input never raises: what cannot be read is refused when its com-uuid can be read
-(EXEC-ROBUST-002), else dropped.
+input never raises: what cannot be read (``conformance.sim.command_reading``) is refused when
+its com-uuid can be read (EXEC-ROBUST-002), else dropped.
 """
 
 from __future__ import annotations
 
-import re
 from typing import TYPE_CHECKING, Any
 
-import orjson
-
+from conformance.sim.command_reading import (
+    EXAMPLE_FIELDS,
+    decode,
+    readable_com_uuid,
+    unlike_examples,
+)
 from conformance.sim.memory import Resends
 from conformance.sim.tasks import BUILTIN_SIGNALS, SKIP_WAYPOINT, Task, plan
 from conformance.sim.tst import misdirected
@@ -23,27 +26,13 @@ if TYPE_CHECKING:
     from conformance.sim.unit import UnitCore
 
 COMMANDS = ("ping", "start-task", "signal-task", "query-status")  # 12.1
-MAX_COMMAND_BYTES = 1 << 20
-"""A command larger than this is refused unread (no WARA-PS command comes near 1 MiB)."""
 LATE_PONG_PERIODS = 3.0
 """Fault pong-late: a pong is held back 3 periods (1.5 s at the fault matrix's 2 Hz, past its
 1 s response timeout; 3 s at the workout's 1 Hz, past its 2 s), so it arrives before the
 suite's reboot kills the process that held it."""
-EXAMPLE_FIELDS = {  # variant strict: the fields of the spec's examples, per command
-    "ping": frozenset({"com-uuid", "command", "sender"}),  # 12.2.1
-    "signal-task": frozenset({"com-uuid", "command", "signal", "sender", "task-uuid"}),  # 12.2.2
-    "start-task": frozenset({"com-uuid", "command", "execution-unit", "sender", "task",
-                             "task-uuid"}),  # 10's examples (12.2.3)
-    # 12.1 names query-status without an example: signal-task's fields but the signal.
-    "query-status": frozenset({"com-uuid", "command", "sender", "task-uuid"}),
-}
 QUERY_WORDS_12_1 = {"finished": "success", "paused": "running", "aborted": "failed"}
 """Variant success-vocabulary: query-status answered in 12.1's words only (running, failed,
 success, unknown), 12.4's paused and aborted read as the nearest of them."""
-OPTIONAL_FIELDS = frozenset({"task-uuid"})
-"""12.1: 'task-uuid should be optionally sent in start-task'; every other field of an example
-is required by variant strict."""
-_COM_UUID = re.compile(rb'"com-uuid"\s*:\s*"([^"\\\x00-\x1f]{1,128})"')
 
 
 class CommandExecutor:
@@ -71,37 +60,51 @@ class CommandExecutor:
         if not self.subscribed:
             self.subscribed = True
             return
-        msg, problem = _decode(payload, size)
+        msg, problem = decode(payload, size)
         if problem is not None:
-            readable = _readable_com_uuid(payload, msg)
-            if "crash-on-malformed" in self.faults:
-                self.unit.crashed = True
-                return
-            if readable is not None and "malformed-unanswered" not in self.faults:
-                self._answer(readable, "failed", fail_reason=problem)
+            self._malformed(payload, msg, problem)
             return
         assert isinstance(msg, dict)
         com = msg["com-uuid"]
-        known = com in self.history and not self._forgets_ended(com) and not (
-            msg.get("command") == "signal-task" and "resend-signal-reapplied" in self.faults)
-        if (known and ("resend-answered-failed" in self.faults or "resend-refused" in
-                       self.variants) and msg.get("command") == "start-task"):
-            self._refuse_resend(com, msg)
-            return
-        if known and "resend-executes-twice" not in self.faults:
-            # 12.1: a resent command reuses its com-uuid; answer it again, do not run it twice.
-            cached = self.history.resent(com)
-            if cached is not None and "resend-unanswered" not in self.faults:
-                self._send_response(dict(cached))
+        if com in self.history and not self._forgets_ended(com) and self._resent(com, msg):
             return
         command = msg.get("command")
         if "strict" in self.variants and command in EXAMPLE_FIELDS:
-            reason = _unlike_examples(command, msg, self.unit.address.name)
+            reason = unlike_examples(command, msg, self.unit.address.name)
             if reason is not None:
                 sent = msg.get("task-uuid")
                 self._answer(com, "failed", fail_reason=reason, task_uuid=sent if isinstance(
                     sent, str) and 0 < len(sent) <= 128 else None)
                 return
+        self._dispatch(com, command, msg, now)
+
+    def _malformed(self, payload: bytes, msg: Any, problem: str) -> None:
+        """A command that cannot be read: refused where its com-uuid can be (12.1), unless a
+        fault crashes on it or leaves it unanswered."""
+        readable = readable_com_uuid(payload, msg)
+        if "crash-on-malformed" in self.faults:
+            self.unit.crashed = True
+            return
+        if readable is not None and "malformed-unanswered" not in self.faults:
+            self._answer(readable, "failed", fail_reason=problem)
+
+    def _resent(self, com: str, msg: dict[str, Any]) -> bool:
+        """A command whose com-uuid was seen before (12.1: a resend): answered again, not run
+        twice; False where a fault runs it again."""
+        if ("resend-answered-failed" in self.faults or "resend-refused" in self.variants) \
+                and msg.get("command") == "start-task":
+            self._refuse_resend(com, msg)
+            return True
+        if "resend-executes-twice" in self.faults or (
+                "resend-signal-reapplied" in self.faults and msg.get("command") == "signal-task"):
+            return False
+        cached = self.history.resent(com)
+        if cached is not None and "resend-unanswered" not in self.faults:
+            self._send_response(dict(cached))
+        return True
+
+    def _dispatch(self, com: str, command: Any, msg: dict[str, Any], now: float) -> None:
+        """One of 12.1's commands run; any other refused."""
         if command == "ping":
             self._answer(com, "pong", kind="ping")
         elif command in ("start-task", "signal-task"):
@@ -351,6 +354,14 @@ class CommandExecutor:
         paused = task.status == "paused"
         if paused and signal == "$abort" and "abort-paused-resumes" in self.faults:
             runner.resume(task, now)  # continue() before cancel(): it runs again, then ends
+        self._signal_effect(task, signal, paused, now)
+        if task.status == "running":
+            runner.advance(task, now)
+
+    def _signal_effect(self, task: Task, signal: str, paused: bool, now: float) -> None:
+        """What an accepted signal does to ``task`` (12.2.2; the faults' ways of getting it
+        wrong)."""
+        runner = self.runner
         if signal == "$abort":
             self._abort(task, paused)
         elif signal == "$enough":
@@ -372,8 +383,6 @@ class CommandExecutor:
                 task.leg_started = now
                 if task.leg < len(task.legs) and task.status == "running":
                     runner.start_leg(task)
-        if task.status == "running":
-            runner.advance(task, now)
 
     def _abort(self, task: Task, paused: bool) -> None:
         """$abort accepted: the task ends 'aborted' (faults: it goes on)."""
@@ -426,57 +435,3 @@ class CommandExecutor:
             status = "success"
         reason = task.fail_reason if status == "failed" else ""
         self._answer(com, status, task_uuid=task_uuid, fail_reason=reason, kind="query")
-
-
-def _decode(payload: bytes, size: int) -> tuple[Any, str | None]:
-    """The command (``size`` bytes, ``payload`` its head when too large) as a dict with a
-    string com-uuid, or what is wrong with it."""
-    if size > MAX_COMMAND_BYTES:
-        return None, f"a command of {size} bytes is larger than {MAX_COMMAND_BYTES}"
-    try:
-        msg = orjson.loads(payload)
-    except orjson.JSONDecodeError as e:
-        return None, f"the command is not valid JSON (UTF-8, RFC 8259): {str(e)[:120]}"
-    if not isinstance(msg, dict):
-        return msg, f"a command is a JSON object, not a JSON {type(msg).__name__}"
-    com = msg.get("com-uuid")
-    if not isinstance(com, str) or not com or len(com) > 128:
-        return msg, "the command has no com-uuid string"
-    return msg, None
-
-
-def _unlike_examples(command: str, msg: dict[str, Any], me: str) -> str | None:
-    """Variant strict: why ``msg`` is not shaped like the spec's examples of ``command``, or
-    None."""
-    allowed = EXAMPLE_FIELDS[command]
-    extra = sorted(set(msg) - allowed)
-    if extra:
-        return (f"field {str(extra[0])[:64]!r} is in no example of {command} (this unit reads "
-                f"only {', '.join(sorted(allowed))})")
-    optional = OPTIONAL_FIELDS if command == "start-task" else frozenset()
-    missing = sorted(allowed - optional - set(msg))
-    if missing:
-        return f"{command} without {', '.join(missing)} (the spec's examples have it)"
-    if command == "start-task":
-        unit, task = msg["execution-unit"], msg["task"]
-        if unit != me:
-            return f"execution-unit {str(unit)[:64]!r} is not this unit ({me})"
-        if not isinstance(task, dict) or set(task) != {"name", "params"}:
-            return "task is {'name': ..., 'params': {...}} in every example of section 10"
-    return None
-
-
-def _readable_com_uuid(payload: bytes, msg: Any) -> str | None:
-    """A com-uuid that can be read from a malformed command, if any (EXEC-ROBUST-002)."""
-    if isinstance(msg, dict):
-        com = msg.get("com-uuid")
-        return com if isinstance(com, str) and 0 < len(com) <= 128 else None
-    if msg is not None:
-        return None  # valid JSON but not an object: nothing to read it from
-    m = _COM_UUID.search(payload, 0, 65536)
-    if m is None:
-        return None
-    try:
-        return m.group(1).decode("utf-8")
-    except UnicodeDecodeError:
-        return None

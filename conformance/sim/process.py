@@ -21,6 +21,7 @@ import signal
 import sys
 import threading
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 from conformance.client import BrokerError, BrokerURL
 from conformance.display import shown as shown_line
@@ -28,6 +29,9 @@ from conformance.sim.faults import FAULTS, NOT_UNIT_BREAKABLE, FaultError, check
 from conformance.sim.fleet import Fleet, SimUnit
 from conformance.sim.variants import VariantError, check_variants
 from conformance.topics import UnitAddress
+
+if TYPE_CHECKING:
+    from conformance.broker import EmbeddedBroker
 
 EXIT_UNREACHABLE = 3
 """The broker could not be reached: the status ``lint``, ``record`` and ``profile`` give it."""
@@ -86,6 +90,25 @@ def parse_faults(specs: Sequence[str], count: int) -> tuple[frozenset[str], dict
     return frozenset(common), by_index
 
 
+def _switches(faults: Sequence[str], variants: frozenset[str] | set[str], tst: bool,
+              tst_operator: UnitAddress | None) -> str:
+    """The ready line's faults, variants and TST level, as the command line gave them."""
+    shown = ",".join(faults) or "none"
+    if variants:
+        shown += f" variants={','.join(sorted(variants))}"
+    tst_shown = f" tst=on{f' operator={tst_operator}' if tst_operator else ''}" if tst else ""
+    return f"faults={shown}{tst_shown}"
+
+
+def _embedded_broker() -> tuple[EmbeddedBroker, BrokerURL]:
+    """An embedded broker started here, its URL printed first (the caller stops it)."""
+    from conformance.broker import EmbeddedBroker  # amqtt loads only when it is needed
+
+    embedded = EmbeddedBroker().start()
+    print(embedded.url, flush=True)
+    return embedded, BrokerURL.parse(embedded.url)
+
+
 def run(address: UnitAddress, broker: BrokerURL | None, *, count: int = 1, rate: float = 1.0,
         faults: Sequence[str] = (), variants: Sequence[str] = (), seed: int | None = None, tst: bool = False,
         tst_operator: UnitAddress | None = None, task_seconds: float = 3.0) -> int:
@@ -101,11 +124,7 @@ def run(address: UnitAddress, broker: BrokerURL | None, *, count: int = 1, rate:
                            "embedded amqtt broker refuses it (pass --broker mqtt://HOST:PORT)")
     embedded = None
     if broker is None:
-        from conformance.broker import EmbeddedBroker  # amqtt loads only when it is needed
-
-        embedded = EmbeddedBroker().start()
-        print(embedded.url, flush=True)
-        broker = BrokerURL.parse(embedded.url)
+        embedded, broker = _embedded_broker()
 
     runner: SimUnit | Fleet
     if count == 1:
@@ -128,12 +147,8 @@ def run(address: UnitAddress, broker: BrokerURL | None, *, count: int = 1, rate:
             embedded.stop()
         return EXIT_UNREACHABLE
     _listen(runner, stop)
-    shown = ",".join(faults) or "none"
-    if variants:
-        shown += f" variants={','.join(sorted(variant_names))}"
-    tst_shown = f" tst=on{f' operator={tst_operator}' if tst_operator else ''}" if tst else ""
     print(shown_line(f"ready pid={os.getpid()} broker={broker} {units} rate={rate:g} "
-                     f"faults={shown}{tst_shown}"), flush=True)
+                     f"{_switches(faults, variant_names, tst, tst_operator)}"), flush=True)
     try:
         while not stop.wait(0.2):
             pass

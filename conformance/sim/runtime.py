@@ -6,8 +6,9 @@ handed to their unit on the runtime thread, so a unit's state is only ever touch
 thread. One connection for a whole fleet is what lets 500 units at 1 Hz run on one core
 (docs/FIELD-NOTES.md 'MQTT on loopback': per-message cost is what counts).
 
-Safety (DESIGN): the client may publish only under the bases of its own units (and of the TST
-operator whose tst/command they were told to listen to, 14.1), and never to a command topic.
+Safety (docs/ARCHITECTURE.md 'Safety'): the client may publish only under the bases of its own
+units (and of the TST operator whose tst/command they were told to listen to, 14.1), and never
+to a command topic.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 from conformance.client import BrokerURL, Message, MqttClient
-from conformance.sim.executor import MAX_COMMAND_BYTES
+from conformance.sim.command_reading import MAX_COMMAND_BYTES
 from conformance.sim.publisher import topic_base
 
 if TYPE_CHECKING:
@@ -109,7 +110,8 @@ class Runtime:
 
     # --- safety -------------------------------------------------------------------------------
     def may_publish(self, topic: str) -> bool:
-        """Only under one of our units' bases, never to a command topic (DESIGN: safety)."""
+        """Only under one of our units' bases, never to a command topic (docs/ARCHITECTURE.md
+        'Safety')."""
         lead = 1 if topic.startswith("/") else 0
         parts = topic.split("/", 5 + lead)
         if len(parts) <= 5 + lead or topic.endswith(("/exec/command", "/tst/command")):

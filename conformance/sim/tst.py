@@ -224,25 +224,8 @@ class TstEngine:
                 return
             targets = self.trees.live_roots()
         else:
-            node_uuid = msg.get("node-uuid")
-            node = self.trees.nodes.get(node_uuid) if isinstance(node_uuid, str) else None
+            node = self._signalled_node(com, msg, reply, shared, command)
             if node is None:
-                if shared:  # on an operator's topic (14.1): another unit's node, maybe
-                    return
-                if "tst-signal-unknown-node-ok" in self.faults:
-                    self._answer(com, reply, "ok")
-                else:
-                    refuse(f"no TST node with node-uuid {str(node_uuid)[:64]} is known")
-                return
-            if command == "signal-tst-tree" and node.parent is not None:
-                refuse(f"{node.uuid} is not the root of a tree: signal-tst-tree takes the "
-                       f"root node-uuid {node.tree.root.uuid} (14.3.2)")
-                return
-            if node.tree.ended:
-                refuse(f"the tree of node {node.uuid} has ended ({node.tree.root.status})")
-                return
-            if node.ended:
-                refuse(f"node {node.uuid} has ended ({node.status})")
                 return
             targets = [node]
         if signal not in SIGNALS:
@@ -259,6 +242,32 @@ class TstEngine:
         self.unit.runner.step(now)
         for target in targets:
             self.trees.apply(target, signal, now)
+
+    def _signalled_node(self, com: str, msg: dict[str, Any], reply: str, shared: bool,
+                        command: str) -> TstNode | None:
+        """The live node a signal-tst-node or -tree names, or None when there is none (the
+        command then answered, or left to the unit it concerns: 14.1)."""
+        node_uuid = msg.get("node-uuid")
+        node = self.trees.nodes.get(node_uuid) if isinstance(node_uuid, str) else None
+        why = None
+        if node is None:
+            if shared:  # on an operator's topic (14.1): another unit's node, maybe
+                return None
+            if "tst-signal-unknown-node-ok" in self.faults:
+                self._answer(com, reply, "ok")
+                return None
+            why = f"no TST node with node-uuid {str(node_uuid)[:64]} is known"
+        elif command == "signal-tst-tree" and node.parent is not None:
+            why = (f"{node.uuid} is not the root of a tree: signal-tst-tree takes the "
+                   f"root node-uuid {node.tree.root.uuid} (14.3.2)")
+        elif node.tree.ended:
+            why = f"the tree of node {node.uuid} has ended ({node.tree.root.status})"
+        elif node.ended:
+            why = f"node {node.uuid} has ended ({node.status})"
+        if why is not None:
+            self._answer(com, reply, "failed", why)
+            return None
+        return node
 
     # --- tst_execution_info -----------------------------------------------------------------------
     def fill_info(self, msg: dict[str, Any]) -> None:

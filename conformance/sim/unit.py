@@ -91,16 +91,9 @@ class UnitCore:
         self.task_seconds = task_seconds
         self._emit = emit
         self.vehicle = Vehicle(address.agent_type, position or GeoPoint(*LINKOPING, 0.0), heading)
-        self.specs: dict[str, TaskSpec] = {t.name: t for t in tasks_for(address.agent_type)}
-        self.lives = (address,) + tuple(
-            address.with_name(f"{address.name}_{(0x9E37 * n) & 0xFFFF:04x}")
-            for n in range(1, RENAMES + 1) if "reboot-renames" in self.faults)
+        self.specs = self._tasks_offered()
+        self.lives = self._lives()
         """The addresses of its lives: its own, then the names it takes after each reboot."""
-        if "own-task" in self.variants:  # 5.3: a task beyond section 9
-            self.specs[GO_HOME.name] = GO_HOME
-        if "two-signals" in self.variants:  # 5.3: the signals each task understands
-            for name in [n for n in self.specs if n.startswith("look-at-")]:
-                self.specs[name] = dataclasses.replace(self.specs[name], signals=TWO_SIGNALS)
         self.base = topic_base(address, self.faults)
         self.command_topic = f"{self.base}/exec/command"
         # Identity of one life (12.1: history is lost with a reboot).
@@ -129,6 +122,24 @@ class UnitCore:
         """Variant slow: (when, subtopic, body, base) of answers and feedback held back."""
         self._phase = phase
         self.due = 0.0
+
+    def _lives(self) -> tuple[UnitAddress, ...]:
+        """Its own address, then (fault reboot-renames) the names it takes after each reboot."""
+        address = self.address
+        return (address,) + tuple(
+            address.with_name(f"{address.name}_{(0x9E37 * n) & 0xFFFF:04x}")
+            for n in range(1, RENAMES + 1) if "reboot-renames" in self.faults)
+
+    def _tasks_offered(self) -> dict[str, TaskSpec]:
+        """Task name -> its spec: section 9's for its agent type, and the variants' (5.3: a
+        task beyond section 9, the signals each task understands)."""
+        specs = {t.name: t for t in tasks_for(self.address.agent_type)}
+        if "own-task" in self.variants:
+            specs[GO_HOME.name] = GO_HOME
+        if "two-signals" in self.variants:
+            for name in [n for n in specs if n.startswith("look-at-")]:
+                specs[name] = dataclasses.replace(specs[name], signals=TWO_SIGNALS)
+        return specs
 
     # --- what one life remembers ------------------------------------------------------------------
     @property

@@ -5,10 +5,10 @@ The unit is the same ``UnitCore`` the real runtime drives (``conformance.sim.run
 when it is due, handed each command, its stamps read from the clock. The broker delivers each
 message ``LATENCY`` seconds after it was published, in publishing order, keeps retained
 messages for later subscribers, and applies the suite's publish policy as ``MqttClient`` does
-(DESIGN 'Safety'), and can stop for a while (``outage``: what is published meanwhile is
-lost, the suite's side is told its link went and came back), so that an outage at an exact
-moment of a conversation is a deterministic test. Nothing here touches a socket or a thread:
-the real-broker behaviours (reconnects, freezes, QoS) stay tested on amqtt and Mosquitto.
+(docs/ARCHITECTURE.md 'Safety'), and can stop for a while (``outage``: what is published meanwhile
+is lost, the suite's side is told its link went and came back), so that an outage at an exact moment
+of a conversation is a deterministic test. Nothing here touches a socket or a thread: the
+real-broker behaviours (reconnects, freezes, QoS) stay tested on amqtt and Mosquitto.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from conformance.client import PayloadPolicy, PublishPolicy, PublishRefused
 from conformance.clock import VirtualClock
 from conformance.message import Gap, Message
-from conformance.sim.executor import MAX_COMMAND_BYTES
+from conformance.sim.command_reading import MAX_COMMAND_BYTES
 from conformance.sim.publisher import topic_base
 from conformance.sim.reference import ReferenceUnit
 from conformance.sim.runtime import OVERSIZE_KEEP
@@ -179,7 +179,7 @@ class VirtualClient:
         data = payload.encode() if isinstance(payload, str) else bytes(payload)
         if not self.may_publish(topic):
             raise PublishRefused(f"refusing to publish to {topic!r}: not a command topic of "
-                                 f"the unit under test (DESIGN: safety)")
+                                 f"the unit under test (docs/ARCHITECTURE.md 'Safety')")
         why = self.refuse_payload(topic, data) if self.refuse_payload is not None else None
         if why:
             raise PublishRefused(f"refusing to publish to {topic!r}: {why}")

@@ -7,6 +7,7 @@ from typing import Any
 
 import pytest
 
+from conformance.conclusion import of as conclusion_of
 from conformance.suite.session import CERTIFICATION, Certification
 
 
@@ -60,7 +61,7 @@ def certification_properties(certification: Certification,
     record_testsuite_property("broker", report.broker)
     record_testsuite_property("seed", str(certification.settings.seed))
     # The verdict model's words (conformance.conclusion): the same in every output.
-    conclusion = certification.conclusion(report)
+    conclusion = conclusion_of(report)
     record_testsuite_property("verdict", conclusion.verdict)
     record_testsuite_property("partial", str(conclusion.partial).lower())
     status = conclusion.units.get(str(certification.unit))

@@ -1,9 +1,10 @@
 """A certification's link to the broker: the reference pair first under ``--broker embedded``,
-then the suite's one MQTT client with its publish policy (DESIGN 'Safety'), the wait for the
-unit's first live heartbeat, and the connection gaps marked in the Monitor.
+then the suite's one MQTT client with its publish policy (docs/ARCHITECTURE.md 'Safety'), the wait
+for the unit's first live heartbeat, and the connection gaps marked in the Monitor.
 
-Data flows one way (DESIGN): every message of ``<unit>/#`` goes to the ``Monitor`` (the same
-passive checks as the linter) and to ``Traffic`` (which the scenarios wait on).
+Data flows one way, so lint and the suite judge the same evidence alike: every message of
+``<unit>/#`` goes to the ``Monitor`` (the same passive checks as the linter) and to ``Traffic``
+(which the scenarios wait on).
 """
 
 from __future__ import annotations
@@ -117,7 +118,8 @@ class Connection:
                                  allow_motion=self.settings.allow_motion,
                                  allow_hostile=self.settings.allow_hostile,
                                  listed=self._tasks_listed, task_moves=task_moves)
-        """What may not be said to a real unit (DESIGN 'Safety'), asked about every payload."""
+        """What may not be said to a real unit (docs/ARCHITECTURE.md 'Safety'), asked about every
+        payload."""
         self._heard_again.set()  # no reconnect yet
 
     def host_held(self, start: float, end: float) -> None:
@@ -326,12 +328,13 @@ class Connection:
         return self._last_beat is None or message.time - self._last_beat >= self._pace
 
     def may_publish(self, topic: str) -> bool:
-        # DESIGN 'Safety': only the command topic of the unit under test, and the one TST
-        # command topic the run was told (14.1: the unit's own, or an operator's).
+        # docs/ARCHITECTURE.md 'Safety': only the command topic of the unit under test, and the one
+        # TST command topic the run was told (14.1: the unit's own, or an operator's).
         return topic == self.unit.topic("exec/command") or topic == self.settings.tst_topic
 
     def refuse_payload(self, topic: str, payload: bytes) -> str | None:
-        # DESIGN 'Safety': the policy, not each scenario, decides; malformed probes included.
+        # docs/ARCHITECTURE.md 'Safety': the policy, not each scenario, decides; malformed probes
+        # included.
         return self.motion.refusal(payload, topic)
 
     def _tasks_listed(self) -> list[str]:

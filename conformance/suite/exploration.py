@@ -89,7 +89,7 @@ def run_budget_left(c: Certification) -> float:
 
 
 def story_path(c: Certification) -> Path:
-    return c.settings.reports_dir / f"{c.stem}-explore.json"
+    return c.settings.reports_dir / f"{c.reports.stem}-explore.json"
 
 
 def rerun(c: Certification, path: Path) -> str:
@@ -111,7 +111,7 @@ def remember(c: Certification, story: Story, path: Path, began: float) -> None:
     """Each rule ``story`` broke is repeated by replaying it (``Certification.rerun_command``),
     unless the rule was also found before exploration ``began`` (Unix seconds)."""
     for rule in story.rules:
-        c.replays.setdefault(rule, (began, rerun(c, path)))
+        c.evidence.replays.setdefault(rule, (began, rerun(c, path)))
 
 
 def run(c: Certification, node: pytest.Item) -> None:
@@ -166,7 +166,7 @@ def run(c: Certification, node: pytest.Item) -> None:
         c.connection.listeners.remove(collector)
         if not s.dry_run:
             c.commander.abort_all(c.timing.response)
-        c.write_reports()
+        c.reports.write()
     if died:
         _died(c, explorer, died, node, began)
 

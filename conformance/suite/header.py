@@ -1,6 +1,6 @@
 """How a certification presents itself: the header of its pytest run (what is certified,
-where, how safely, and the line that repeats it: STYLE 'pytest-randomly', every run
-repeatable; the line itself is ``Settings.rerun_command``)."""
+where, how safely, and the line that repeats it, seed included, as pytest-randomly
+does: every run repeatable; the line itself is ``Settings.rerun_command``)."""
 
 from __future__ import annotations
 

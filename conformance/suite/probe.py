@@ -65,11 +65,7 @@ def not_alive(unit: UnitAddress, profile: Profile, broker: BrokerURL, *, waited:
         lines.append(f"Its own topics were seen ({printable(', '.join(sorted(own_subtopics)))}"
                      f"), but no live heartbeat (retained ones do not count).")
 
-    def base(topic: str) -> str:
-        lead = "/" if topic.startswith("/") else ""
-        return lead + "/".join(topic.lstrip("/").split("/")[:5])
-
-    others = sorted({base(t) for t in seen if t.lstrip("/").split("/")[1:2] == ["unit"]
+    others = sorted({_base(t) for t in seen if t.lstrip("/").split("/")[1:2] == ["unit"]
                      and len(t.lstrip("/").split("/")) > 5} - {unit.base})
     prefix = unit.prefix
     # Only a unit whose address is close to this one is worth a line (a typo, a leading
@@ -81,21 +77,12 @@ def not_alive(unit: UnitAddress, profile: Profile, broker: BrokerURL, *, waited:
                          f"{printable(close[0])}?")
         else:
             lines.append(f"A unit publishes at {printable(close[0])}.")
+        broken = _naming_broken(profile, seen, close[0])
+        if broken:
+            lines.append("Its topics break: " + "; ".join(broken[r] for r in sorted(broken)))
     elif others:
         lines.append(f"{len(others)} other unit(s) publish under {prefix}/, none at a "
                      "similar address.")
-    # A unit publishing where it should not (a leading '/', an unknown agent type or
-    # role) breaks the naming rules of spec 3: say which, that is the finding.
-    broken: dict[str, str] = {}
-    validator = Validator(profile)
-    for topic, payload in sorted(seen.items()):
-        if close and base(topic) != close[0]:
-            continue
-        for v in validator.validate(topic, payload).violations:
-            if profile.severity_of(v.rule).value == "error":
-                broken.setdefault(v.rule, f"{v.rule} {CATALOGUE[v.rule].title} ({printable(topic)})")
-    if broken and close:
-        lines.append("Its topics break: " + "; ".join(broken[r] for r in sorted(broken)))
     if not seen:
         lines.append(f"Nothing at all was published under {prefix}/ meanwhile: is the unit "
                      f"running and connected to this broker, under this prefix?")
@@ -107,6 +94,27 @@ def not_alive(unit: UnitAddress, profile: Profile, broker: BrokerURL, *, waited:
     if timing_scale == 1.0:
         lines.append("On a slow link, give it longer with --timing-scale 3.")
     return "\n".join(lines)
+
+
+def _base(topic: str) -> str:
+    """The unit address a topic is under (its first five levels)."""
+    lead = "/" if topic.startswith("/") else ""
+    return lead + "/".join(topic.lstrip("/").split("/")[:5])
+
+
+def _naming_broken(profile: Profile, seen: dict[str, bytes], address: str) -> dict[str, str]:
+    """Rule -> a line: the rules the topics seen under ``address`` break (a unit publishing
+    where it should not, a leading '/', an unknown agent type or role, breaks the naming
+    rules of spec 3: that is the finding)."""
+    broken: dict[str, str] = {}
+    validator = Validator(profile)
+    for topic, payload in sorted(seen.items()):
+        if _base(topic) != address:
+            continue
+        for v in validator.validate(topic, payload).violations:
+            if profile.severity_of(v.rule).value == "error":
+                broken.setdefault(v.rule, f"{v.rule} {CATALOGUE[v.rule].title} ({printable(topic)})")
+    return broken
 
 
 def _is_address(text: str) -> bool:

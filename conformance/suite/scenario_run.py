@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 from conformance.client import BrokerError
 from conformance.scenarios import SCENARIOS, NotSent, Scenario
 from conformance.scenarios.traffic import OutOfTime
+from conformance.suite.evidence import outage
 from conformance.topics import DIRECT_EXECUTION
 from conformance.violation import Observed, Verdict
 
@@ -22,7 +23,7 @@ if TYPE_CHECKING:
 def run_scenario(c: Certification, name: str) -> None:
     """Run scenario ``name`` once (later calls return at once), after what it needs; its
     tasks are aborted when it ends, and the reports written."""
-    if name in c.scenarios_done:
+    if name in c.evidence.scenarios_done:
         return
     scenario = SCENARIOS[name]
     c.check_broker(scenario.rules)
@@ -34,11 +35,12 @@ def run_scenario(c: Certification, name: str) -> None:
     if why_not is not None:
         for rule in scenario.rules if why_not else ():  # "": not claimed, the Monitor's reason
             c.record(rule, seen=Observed.UNTESTABLE, reason=why_not)
-        c.scenarios_done[name] = False
+        c.evidence.scenarios_done[name] = False
         return
     try:
         scenario.run(c.context)
-    except NotSent as e:  # --dry-run, or the publish policy refused it (DESIGN 'Safety')
+    except NotSent as e:
+        # --dry-run, or the publish policy refused it (docs/ARCHITECTURE.md 'Safety')
         for rule in scenario.rules:
             c.record(rule, seen=Observed.UNTESTABLE, reason=str(e))
     except OutOfTime as e:
@@ -47,9 +49,9 @@ def run_scenario(c: Certification, name: str) -> None:
         # The link went down under a publish: the broker's fault, never the unit's.
         lost = c.connection.lost_since() or c.traffic.clock.now()
         for rule in scenario.rules:
-            c.record(rule, seen=Observed.UNTESTABLE, reason=f"{c.outage(lost)} ({e})")
+            c.record(rule, seen=Observed.UNTESTABLE, reason=f"{outage(lost)} ({e})")
     finally:
-        c.scenarios_done[name] = True
+        c.evidence.scenarios_done[name] = True
         # Into a lost link an $abort would be lost too: the teardown sends it (finish).
         # What ignored an $abort before is left to the last teardown (i20 6).
         if not c.settings.dry_run and c.connection.is_connected:
@@ -57,7 +59,7 @@ def run_scenario(c: Certification, name: str) -> None:
             aborted += c.tst.abort_all(c.timing.response, stuck=False)
             if aborted and c.out_of_time:
                 c.say_aborted(aborted)
-        c.write_reports()
+        c.reports.write()
     c.fail_if_out_of_time()
 
 

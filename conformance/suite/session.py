@@ -1,29 +1,30 @@
 """One certification run: the unit under test, the passive Monitor, the active scenarios, and
 the reports. Created by the plugin when ``--unit`` is given.
 
-Data flows one way (DESIGN): every message of ``<unit>/#`` goes to the ``Monitor`` (the same
+Data flows one way, so lint and the suite judge the same evidence alike: every message of ``<unit>/#`` goes to the ``Monitor`` (the same
 passive checks as the linter) and to ``Traffic`` (which the scenarios wait on); scenarios
 record their verdicts into the same Monitor; the Monitor's report is what the tests, the JSON
 and HTML reports and the JUnit properties show.
 
-Its parts: the link to the broker ``connection.py`` (and ``probe.py`` when the unit is not
-there), how long the unit is watched ``observation.py``, rebooting it ``reboot.py``, the verdicts
-and the conclusion come from the one judge (``conformance.judge``), the header ``header.py``.
+``Certification`` keeps the run's lifecycle (start, the broker and --max-duration checked
+before each test, the passive window, finish, close) and wires its parts, each with one job:
+the link to the broker ``connection.py`` (and ``probe.py`` when the unit is not there), how
+long the unit is watched ``observation.py``, rebooting it ``reboot.py``, what the scenarios and
+the tests gather for the judge ``evidence.py``, the judged report ``judging.py`` (the verdicts
+and the conclusion come from the one judge, ``conformance.judge``), the report files
+``writing.py``, the header ``header.py``.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import threading
-import time
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
 
 from conformance import __version__
 from conformance.checks import Monitor
-from conformance.checks.conversation import answered
 from conformance.checks.exec_sequence import state_held
 from conformance.client import MqttClient
 from conformance.clock import REAL, VirtualClock
@@ -31,12 +32,8 @@ from conformance.conclusion import INTERRUPTED, NOT_CERTIFIED, Conclusion
 from conformance.conclusion import of as conclusion_of
 from conformance.display import LINE_CHARS, shorten, shown
 from conformance.facts import CTRL_C, RunFacts, RunKind
-from conformance.judge import judge, unexamined
 from conformance.protocol import State
-from conformance.reporting import write_all
-from conformance.reporting.bounds import file_stem
 from conformance.results import RunMeta, RunReport
-from conformance.rules import CATALOGUE, Mode
 from conformance.scenarios import (
     RULE_SCENARIO,
     Commander,
@@ -51,16 +48,19 @@ from conformance.scenarios.deviation import Deviation, Deviations
 from conformance.scenarios.params import task_moves
 from conformance.scenarios.traffic import OutOfTime
 from conformance.suite.connection import Connection
-from conformance.suite.events import Events, clock
+from conformance.suite.events import Events
+from conformance.suite.evidence import Evidence
 from conformance.suite.header import header_lines
+from conformance.suite.judging import Judging
 from conformance.suite.observation import Observation
 from conformance.suite.probe import NotAlive
 from conformance.suite.progress import Progress
 from conformance.suite.reboot import Reboot
 from conformance.suite.scenario_run import run_scenario
 from conformance.suite.settings import Settings
+from conformance.suite.writing import Reports
 from conformance.topics import UnitAddress, level_name
-from conformance.violation import Observed, RuleResult, Verdict
+from conformance.violation import Observed, RuleResult
 
 if TYPE_CHECKING:
     from conformance.sim.virtual import VirtualClient
@@ -69,7 +69,9 @@ CERTIFICATION = pytest.StashKey["Certification"]()
 
 
 class Certification:
-    """The state of one ``pytest --unit`` run (one unit, one broker, one profile)."""
+    """One ``pytest --unit`` run (one unit, one broker, one profile): its lifecycle and the
+    run's own facts, wiring the parts that each do one job (``evidence``, ``judging``,
+    ``reports``, the connection, the commanders, the observation)."""
 
     def __init__(self, config: pytest.Config, settings: Settings) -> None:
         self.config = config
@@ -95,26 +97,11 @@ class Certification:
                                      self.events)
         self.reboot = Reboot(config, self.connection, self.timing.reboot,
                              self._reboot_requested, self.events)
-        when = time.strftime('%Y%m%dT%H%M%S', time.localtime())
-        self.stem = f"{file_stem(self.unit.name)}-{when}"  # a bounded file name
-        self.report_paths: dict[str, Path] = {}
-        self.report_error = ""
-        """Why the last report could not be written ('' when it was)."""
         self.collect_only = False  # --collect-only: nothing is connected, run or written
         self.error = ""
         """Why the run stopped before the tests (broker unreachable, unit not alive)."""
-        self.scenarios_done: dict[str, bool] = {}
-        """Scenario -> whether it ran (False: its rules could not be tested)."""
         self.revived = 0  # how often the unit was restarted after it died (scenario_run.revive)
         self._passive_ready = False
-        self._last_write = 0.0
-        self.selected: list[str] = []
-        """The rules whose tests were selected to run (after -k, -m, --rule)."""
-        self.ran: set[str] = set()
-        """The rules whose tests ran (a test that never ran judged nothing)."""
-        self.enacted: dict[str, Verdict] = {}
-        """The verdict each rule's test showed when it ran (``suite.verdict.enact``)."""
-        self._judged_at: tuple[tuple[int, float | None], RunReport] | None = None
         self.out_of_time: str | None = None
         """--max-duration passed: what the run was waiting for then."""
         self.interrupted = False
@@ -128,9 +115,12 @@ class Certification:
         """The story exploration found, as told (the HTML report shows it step by step)."""
         self.unexplored = ""
         """Why the exploration did not run for want of time (``RunFacts.unexplored``)."""
-        self.replays: dict[str, tuple[float, str]] = {}
-        """Rule -> (when exploration began, the replay line of the story that found it)."""
         self._commanders(config, settings)
+        self.evidence = Evidence(self.unit, self.monitor, self._lock, self.connection,
+                                 lambda: self.unit_died(settle=True))
+        self.judging = Judging(self.unit, self.monitor, self._lock, self.facts, self.meta)
+        self.reports = Reports(self.unit, settings.reports_dir, self.traffic.clock, self.events,
+                               self.judging.report, self.rerun_command)
 
     def _commanders(self, config: pytest.Config, settings: Settings) -> None:
         """What drives the unit: the commanders (12, 14), the safety decision, the scenarios'
@@ -214,40 +204,12 @@ class Certification:
         with self._lock:
             self.monitor.reboot_requested(t)
 
-    # --- verdicts ------------------------------------------------------------------------------
+    # --- evidence and verdicts ----------------------------------------------------------------
     def record(self, rule: str, *, violation: Any = None, seen: Observed | None = None,
                reason: str = "", missing: bool = True) -> None:
-        """Where scenarios report what they saw (``Context.record``): into the Monitor, for the
-        judge. What a
-        scenario found missing from a unit that has died is not a fault of its own: the death
-        is the finding (HB-012), so the rule could not be tested."""
-        excused = ""  # ``missing`` False: a finding of what came (a new name), not of silence
-        if violation is not None and missing and CATALOGUE[rule].mode is not Mode.PASSIVE:
-            lost, back = self.connection.lost_since(), self.connection.away_since()
-            if lost is not None:
-                excused = self.outage(lost)
-            elif back is not None:
-                excused = self.not_back(back)
-            else:
-                excused = self.unit_died(settle=True)
-        with self._lock:
-            if violation is not None and violation.command and answered(
-                    self.monitor.state(self.unit), violation.command):
-                return  # answered meanwhile: late (the Monitor's own finding), not unanswered
-            self.monitor.record(self.unit, rule, violation=violation, seen=seen,
-                                reason=reason, excused=excused)
-
-    @staticmethod
-    def outage(lost: float) -> str:
-        """Why nothing the unit should have sent since ``lost`` is its fault."""
-        return f"the broker link was lost at {clock(lost)}: no answer could arrive"
-
-    @staticmethod
-    def not_back(since: float) -> str:
-        """Why nothing the unit should have sent while it was not back on the broker (after
-        a reconnect or a stall at ``since``) is its fault."""
-        return (f"the unit was not heard again after the broker's outage or stall "
-                f"({clock(since)}): the command may never have reached it")
+        """Where scenarios report what they saw (``Context.record``): ``Evidence.record``."""
+        self.evidence.record(rule, violation=violation, seen=seen, reason=reason,
+                             missing=missing)
 
     def broker_budget(self) -> float:
         """Seconds a lost broker is waited for before the run stops (and, at teardown, before
@@ -271,7 +233,7 @@ class Certification:
         why = self.facts().not_run_reason()[len("not run: "):]
         for rule in rules:
             self.record(rule, seen=Observed.UNTESTABLE, reason=why)
-        self.write_reports(force=True)
+        self.reports.write(force=True)
         pytest.skip(f"could not test: {why}")
 
     def model_state(self, task_uuid: str) -> State | None:
@@ -289,51 +251,21 @@ class Certification:
     def facts(self) -> RunFacts:
         """What the judge must know of this run so far (``conformance.facts.RunFacts``)."""
         cut = self.out_of_time or (CTRL_C if self.interrupted else "")
+        selected, ran, passed = self.evidence.judged_rules()
         return RunFacts(
             kind=RunKind.CERTIFICATION, unit=str(self.unit), strict=self.profile.is_strict,
             error=self.error, broker_lost=self.broker_lost,
             interrupted=bool(cut), cut_short=cut, selection=self.selection,
-            # A rule the exploration (or its replay) judged was judged, selected or not.
-            selected=tuple(dict.fromkeys([*self.selected, *self.replays]))
-            if self.selected or self.selection else (),
-            ran=tuple(sorted(self.ran | set(self.replays))),
-            enacted_pass=tuple(sorted(r for r, shown in self.enacted.items()
-                                      if shown is not Verdict.FAIL)),
-            unexplored=self.unexplored)
+            selected=selected if self.evidence.selected or self.selection else (),
+            ran=ran, enacted_pass=passed, unexplored=self.unexplored)
 
     def report(self, **extra: Any) -> RunReport:
-        """The run's report, judged (``conformance.judge``) under the run's facts: every rule's
-        verdict and the conclusion every output shows."""
-        with self._lock:
-            report = self.monitor.report(**self.meta(), **extra)
-        return judge(report, self.facts())
+        """The run's report, judged under the run's facts (``Judging.report``)."""
+        return self.judging.report(**extra)
 
-    def _judged(self) -> RunReport:
-        """The report as each rule's test enacts it: judged under the facts known mid-run (a
-        selection and a cut short run mark rules not run only in ``report``). Made once per
-        change of what the Monitor knows: a hundred rule tests in a row read the same one."""
-        with self._lock:
-            key = (self.monitor.version, self.broker_lost)
-            if self._judged_at is not None and self._judged_at[0] == key:
-                return self._judged_at[1]
-            report = self.monitor.report(**self.meta())
-        facts = self.facts()
-        judged = judge(report, RunFacts(kind=facts.kind, unit=facts.unit, strict=facts.strict,
-                                        broker_lost=facts.broker_lost))
-        self._judged_at = (key, judged)
-        return judged
-
-    def conclusion(self, report: RunReport) -> Conclusion:
-        """What the run concludes: the judge's conclusion stored in ``report``."""
-        return conclusion_of(report)
-
-    def verdict(self, report: RunReport) -> str:
-        """The run's verdict (``conclusion``)."""
-        return self.conclusion(report).verdict
-
-    def counts(self, report: RunReport) -> dict[str, int]:
-        """Verdict counts, with the rules that never ran counted as 'not run'."""
-        return self.conclusion(report).counts
+    def result(self, rule: str) -> RuleResult:
+        """``rule``'s result as its test enacts it (``Judging.result``)."""
+        return self.judging.result(rule)
 
     def meta(self) -> dict[str, Any]:
         """The report's fields for ``Monitor.report``, its ``meta`` (``RunMeta``) with them."""
@@ -361,7 +293,7 @@ class Certification:
     def rerun_command(self, rule: str | None = None) -> str:
         """The pytest command that repeats this run (of ``rule`` alone, when given); a rule
         only exploration found, by replaying its story (``-k RULE`` sends no such order)."""
-        since, replay = self.replays.get(rule or "", (0.0, ""))
+        since, replay = self.evidence.replays.get(rule or "", (0.0, ""))
         if replay and rule and all((v.time or since) >= since
                                    for v in self.result(rule).violations):
             return replay
@@ -373,18 +305,6 @@ class Certification:
             return 0
         return self.observation.observe_for(
             [v.time for v in self.result(rule).violations if v.time is not None])
-
-    def violation_total(self, rule: str) -> int:
-        """How many violations of ``rule`` the unit committed in all (not only those kept)."""
-        unit = self._judged().units.get(str(self.unit))
-        return unit.violation_counts.get(rule, 0) if unit is not None else 0
-
-    def result(self, rule: str) -> RuleResult:
-        report = self._judged()
-        unit = report.units.get(str(self.unit))
-        if unit is None or rule not in unit.rules:
-            return unexamined(rule)
-        return unit.rules[rule]
 
     def run_evidence(self, rule: str) -> None:
         """Run (once) every scenario whose traffic is evidence for ``rule``."""
@@ -438,35 +358,7 @@ class Certification:
             self.monitor.finish(self.traffic.clock.now())
         self._passive_ready = True
 
-    # --- reports and the end ---------------------------------------------------------------------
-    def write_reports(self, *, force: bool = False, exit_status: str | None = None,
-                      **extra: Any) -> dict[str, Path]:
-        """Write reports/<unit>-<time>.json and .html (atomically; at most once a second unless
-        ``force``), so they survive a Ctrl-C; ``exit_status``: the finished run's."""
-        now = self.traffic.clock.monotonic()
-        if not force and now - self._last_write < 1.0:
-            return self.report_paths
-        self._last_write = now
-
-        report = self.report(**extra)
-        unit = report.units.get(str(self.unit))
-        reruns = [r.rule for r in (unit.rules.values() if unit is not None else ())
-                  if r.verdict in (Verdict.FAIL, Verdict.WARN)]  # the lines the terminal prints
-        report.meta = dataclasses.replace(report.meta, exit_status=exit_status,
-                                          rerun_of={r: self.rerun_command(r) for r in reruns})
-        try:
-            self.report_paths = write_all(report, self.settings.reports_dir, self.stem)
-        except OSError as e:
-            # The next write tries again; the final one says it, and the run keeps its own
-            # exit status (a folder removed or filled during the run is no traceback).
-            self.report_error = (f"could not write the reports into "
-                                 f"{self.settings.reports_dir}: {e.strerror or e}")
-            if not force:
-                self.events.append(self.report_error)
-        else:
-            self.report_error = ""
-        return self.report_paths
-
+    # --- the end ---------------------------------------------------------------------------------
     def finish(self, *, interrupted: bool, exitstatus: int) -> int:
         """End the run: abort every task the suite started (also after a failure or Ctrl-C),
         judge the end of the observation, write the final reports, disconnect. Returns the
@@ -505,8 +397,8 @@ class Certification:
                 # Lost for good: the observation ended then (an outage is no death).
                 self.monitor.finish(self.broker_lost or self.traffic.clock.now())
             finished = self.traffic.clock.now()
-            status = exit_status(self.conclusion(self.report(finished=finished)), exitstatus)
-            self.write_reports(force=True, finished=finished, exit_status=str(status))
+            status = exit_status(conclusion_of(self.report(finished=finished)), exitstatus)
+            self.reports.write(force=True, finished=finished, exit_status=str(status))
         finally:
             self.close()
         return status
@@ -522,9 +414,8 @@ class Certification:
             self.settings, broker=self.connection.broker_url, heartbeat=self.context.heartbeat(),
             levels=self.context.levels(),
             reboot=self.reboot.how() if self.context.reboot else None,
-            reports=self.settings.reports_dir / self.stem, rerun=self.rerun_command(),
+            reports=self.settings.reports_dir / self.reports.stem, rerun=self.rerun_command(),
             decision=self.connection.motion.decision)]
-
 
 
 def exit_status(conclusion: Conclusion, pytest_status: int) -> int:
@@ -538,6 +429,7 @@ def exit_status(conclusion: Conclusion, pytest_status: int) -> int:
     if pytest_status in (pytest.ExitCode.NO_TESTS_COLLECTED, pytest.ExitCode.TESTS_FAILED):
         return int(pytest_status)
     return 0
+
 
 __all__ = ["CERTIFICATION", "INTERRUPTED", "NOT_CERTIFIED", "Certification",
            "NotAlive"]

@@ -60,7 +60,8 @@ class Settings:
     reboot_cmd: str | None = None
     allow_motion: bool = False
     allow_hostile: bool = False
-    """--allow-hostile: hostile and malformed payloads may go to a real unit (DESIGN 'Safety')."""
+    """--allow-hostile: hostile and malformed payloads may go to a real unit
+    (docs/ARCHITECTURE.md 'Safety')."""
     dry_run: bool = False
     strict_rules: bool = False
     """--strict-rules: decided rules fail (the profile is made strict)."""
@@ -127,12 +128,7 @@ class Settings:
         q = shlex.quote  # every value shell-quoted: a unit name may be `x;rm -rf ~`
         parts = ["pytest", "--unit", q(str(self.unit)), "--broker", q(str(b))]
         parts += b.tls_arguments()
-        parts += [q(f"--sim-fault={f}") for f in self.sim_faults]
-        parts += [q(f"--sim-variant={v}") for v in self.sim_variants]
-        if self.embedded and self.sim_rate != 1.0:
-            parts += ["--sim-rate", f"{self.sim_rate:g}"]
-        if self.sim_tst:
-            parts.append("--sim-tst")
+        parts += self._reference_unit_options()
         if self.tst_command_topic:
             parts += ["--tst-command-topic", q(self.tst_command_topic)]
         if self.profile.source.startswith("<built-in"):
@@ -155,12 +151,7 @@ class Settings:
         if self.max_duration != MAX_DURATION:
             parts += ["--max-duration", f"{self.max_duration:g}"]
         parts += ["--seed", str(self.seed)]
-        if self.explore is not None:
-            parts += ["--explore", f"{self.explore:g}"]
-        if self.explore_order != "model":
-            parts += ["--explore-order", self.explore_order]
-        if self.explore_replay is not None:
-            parts += [f"--explore-replay={shlex.quote(str(self.explore_replay))}"]
+        parts += self._explore_options()
         if observe or self.observe:
             parts += ["--observe", f"{max(int(observe), int(self.observe))}"]
         if rule:
@@ -168,6 +159,28 @@ class Settings:
         else:
             parts += [w for w in [self.selection_words()] if w]
         return " ".join(parts)
+
+    def _reference_unit_options(self) -> list[str]:
+        """The reference unit's options of the rerun line: its faults, variants, rate, TST."""
+        q = shlex.quote
+        parts = [q(f"--sim-fault={f}") for f in self.sim_faults]
+        parts += [q(f"--sim-variant={v}") for v in self.sim_variants]
+        if self.embedded and self.sim_rate != 1.0:
+            parts += ["--sim-rate", f"{self.sim_rate:g}"]
+        if self.sim_tst:
+            parts.append("--sim-tst")
+        return parts
+
+    def _explore_options(self) -> list[str]:
+        """The exploration's options of the rerun line: its budget, order and replay."""
+        parts = []
+        if self.explore is not None:
+            parts += ["--explore", f"{self.explore:g}"]
+        if self.explore_order != "model":
+            parts += ["--explore-order", self.explore_order]
+        if self.explore_replay is not None:
+            parts += [f"--explore-replay={shlex.quote(str(self.explore_replay))}"]
+        return parts
 
     def selection_words(self) -> str:
         """How this run selects rules, as options of its command line (shell-quoted): ``-k

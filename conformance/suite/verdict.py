@@ -1,8 +1,10 @@
-"""Verdicts as pytest outcomes, without ever turning a skip into a pass (DESIGN 'Semantics').
+"""Verdicts as pytest outcomes, without ever turning a skip into a pass (docs/ARCHITECTURE.md
+'Verdicts').
 
-pass -> passed; fail -> failed, with the violations rendered as STYLE.md shows them; warn ->
-passed with a ``ConformanceWarning`` (and the verdict in the test's properties); skip ->
-skipped with its reason; could-not-test -> skipped, the reason prefixed "could not test:".
+pass -> passed; fail -> failed, with the violations rendered as every output shows them
+(``render_violation``); warn -> passed with a ``ConformanceWarning`` (and the verdict in the test's
+properties); skip -> skipped with its reason; could-not-test -> skipped, the reason prefixed "could
+not test:".
 """
 
 from __future__ import annotations
@@ -36,12 +38,12 @@ def explain(certification: Certification, result: RuleResult) -> str:
         texts = [f"{rule.id} {rule.title}  [{result.verdict.value}]\n  {printable(result.reason)}\n"
                  f"  spec      {rule.section}\n  basis     {printable(rule.basis_text())}\n"
                  f"  rerun     {printable(rerun)}"]
-    total = certification.violation_total(result.rule) or len(result.violations)
+    total = certification.judging.violation_total(result.rule) or len(result.violations)
     shown = min(SHOWN, len(result.violations))
     if total > shown:
         # A total, not the number kept as evidence (the Monitor keeps the first few).
         kept = len(result.violations)
-        paths = certification.report_paths.get("html")
+        paths = certification.reports.paths.get("html")
         where = "" if not paths or kept <= shown else (
             f"; all in {printable(paths)}" if kept >= total
             else f"; the first {kept} in {printable(paths)}")
@@ -61,7 +63,7 @@ def locate_skip(item: pytest.Item, report: pytest.TestReport) -> None:
 def enact(certification: Certification, rule: str, node: pytest.Item) -> None:
     """Turn the verdict of ``rule`` for the unit under test into this test's outcome."""
     result = certification.result(rule)
-    certification.enacted[rule] = result.verdict
+    certification.evidence.enacted[rule] = result.verdict
     node.user_properties.append(("verdict", result.verdict.value))
     if result.reason:
         node.user_properties.append(("reason", result.reason))

@@ -1,7 +1,6 @@
-"""Each finding is charged to the party whose message it is about (DESIGN: blame;
-docs/FIELD-NOTES.md
-precision: whose topic, operators): a unit's own topic is the unit's, once, never each
-commander's; a command on a topic of its sender's making is that commander's."""
+"""Each finding is charged to the party whose message it is about (docs/ARCHITECTURE.md 'Whose fault
+it is'; docs/FIELD-NOTES.md precision: whose topic, operators): a unit's own topic is the unit's,
+once, never each commander's; a command on a topic of its sender's making is that commander's."""
 
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ import uuid
 
 import orjson
 
-from conformance.checks import Monitor, base, conversation, monitor, rows
+from conformance.checks import Monitor, base, conversation, routes, rows
 from conformance.checks.conversation import CONVERSATIONS
 from conformance.message import Message
 from conformance.topics import UnitAddress
@@ -19,8 +19,8 @@ def test_hostile_variety_is_capped(stream, monkeypatch):
     monkeypatch.setattr(conversation, "TASKS_KEPT", 32)
     monkeypatch.setattr(base, "MAX_SENSORS", 16)
     monkeypatch.setattr(base, "MAX_KIND_COUNTS", 8)
-    monkeypatch.setattr(monitor, "MAX_UNITS", 8)
-    monkeypatch.setattr(monitor, "MAX_TOPICS", 50)
+    monkeypatch.setattr(routes, "MAX_UNITS", 8)
+    monkeypatch.setattr(routes, "MAX_TOPICS", 50)
     m = Monitor()
     u = stream.address
     for i in range(400):

@@ -48,7 +48,7 @@ def test_round_trip_and_publish_policy(broker_url: str, prefix: str) -> None:
         c.publish(allowed, b'{"command": "ping"}')
         m = c.get(timeout=5)
         assert m is not None and (m.topic, m.payload) == (allowed, b'{"command": "ping"}')
-        with pytest.raises(PublishRefused, match="DESIGN: safety"):
+        with pytest.raises(PublishRefused, match="docs/ARCHITECTURE.md 'Safety'"):
             c.publish(f"{prefix}/unit/air/simulation/other0/exec/command", b"{}")
         assert c.get(timeout=0.2) is None  # nothing went out
 

@@ -165,8 +165,8 @@ UNSEEN = "no message this rule applies to was seen"
 
 def test_a_rule_of_a_claimed_level_never_provoked_is_could_not_test_and_the_level_is_not_certified(
         ) -> None:
-    """DESIGN 'Semantics': a level is certified only when every rule of it was judged on
-    evidence. A conversation rule skipped for want of its messages means the suite did not
+    """docs/ARCHITECTURE.md 'Verdicts': a level is certified only when every rule of it was judged
+    on evidence. A conversation rule skipped for want of its messages means the suite did not
     provoke them (a signal accepted in words the suite did not read as acceptance)."""
     report = judge(claimed(a=RuleResult("EXEC-SEQ-001", Verdict.SKIP, UNSEEN)),
                    RunFacts(kind="certification", unit=UNIT))

@@ -1,8 +1,10 @@
 """The repository stands alone: what its code, tests and docs cite is in the repository.
 
 A maintainer who takes the project over has its files, not the tracker it was built with nor
-the notes beside it: no "issue N", no path out of the repository (``../shared``), and the
-measured facts cited from ``docs/FIELD-NOTES.md`` only."""
+the notes beside it: no "issue N", no path out of the repository (``../shared``), no design or
+style notes kept beside it (the why said in our own words, or cited from ``docs/``), the
+measured facts cited from ``docs/FIELD-NOTES.md`` only, and every heading cited from ``docs/``
+there."""
 
 from __future__ import annotations
 
@@ -17,6 +19,8 @@ FORBIDDEN = {
     "a path out of the repository": re.compile(r"\.\./shared|/work/shared"),
     "FIELD-NOTES outside docs/ (cite docs/FIELD-NOTES.md)": re.compile(
         r"(?<!docs/)FIELD-NOTES"),
+    "a design or style note not in the repository (say why, or cite docs/)": re.compile(
+        r"\b(?:DESIGN|STYLE)\b"),
 }
 TEXT = {".py", ".md", ".toml", ".txt", ".yaml", ".yml", ".json", ".j2", ".html", ".css",
         ".js", ".cfg", ".ini", ""}
@@ -47,13 +51,19 @@ def test_nothing_cites_what_a_maintainer_does_not_have() -> None:
     assert found == []
 
 
-def test_the_field_notes_cited_are_there() -> None:
-    notes = (ROOT / "docs" / "FIELD-NOTES.md").read_text(encoding="utf-8")
-    headings = {line.lstrip("#").strip() for line in notes.splitlines()
-                if line.startswith("## ")}
-    cited = re.compile(r"docs/FIELD-NOTES\.md '([^']+)'")
-    missing = [f"{path.relative_to(ROOT)}: {m.group(1)!r}" for path in _files()
-               if path.name != "FIELD-NOTES.md"
-               for m in cited.finditer(path.read_text(encoding="utf-8", errors="replace"))
-               if m.group(1) not in headings]
+def test_the_headings_cited_from_docs_are_there() -> None:
+    """``docs/FIELD-NOTES.md 'Precision'``, ``docs/ARCHITECTURE.md 'Safety'``: a heading of
+    that document (any level), so a reader who follows the citation finds it."""
+    cited = re.compile(r"docs/([A-Z][A-Z-]*)\.md\s+'([^']+)'")
+    missing = []
+    for path in _files():
+        if path.name == "FIELD-NOTES.md":
+            continue  # it shows how to cite one of its headings, with a placeholder
+        for m in cited.finditer(path.read_text(encoding="utf-8", errors="replace")):
+            doc = ROOT / "docs" / f"{m.group(1)}.md"
+            text = doc.read_text(encoding="utf-8") if doc.is_file() else ""
+            headings = {line.lstrip("#").strip() for line in text.splitlines()
+                        if line.startswith("#")}
+            if " ".join(m.group(2).replace("#", " ").split()) not in headings:
+                missing.append(f"{path.relative_to(ROOT)}: {m.group(1)}.md {m.group(2)!r}")
     assert missing == []

@@ -18,9 +18,9 @@ from conformance.facts import RunFacts
 from conformance.judge import judge
 from conformance.lint.fleetview import FleetView
 from conformance.lint.linter import Linter
+from conformance.lint.scorecard import Scorecard, rows_from_report
 from conformance.lint.serve import App
 from conformance.profile import Profile
-from conformance.scorecard import Scorecard, rows_from_report
 
 DJI0 = "4774daa2-246c-4124-8d92-5e7806c5b385"
 

@@ -14,8 +14,8 @@ from lint_helpers import T0, run_lint, unit_traffic, write_recording
 from conformance.checks import Monitor
 from conformance.client import Message
 from conformance.lint.linter import Linter
+from conformance.lint.scorecard import Scorecard
 from conformance.profile import Profile
-from conformance.scorecard import Scorecard
 
 
 def heartbeat_type_fault(msgs: list[Message]) -> list[Message]:
@@ -76,7 +76,7 @@ def test_terminal_view_draws_control_characters_harmlessly() -> None:
     them, and the columns stay where they are."""
     from rich.console import Console
 
-    from conformance.scorecard import styled
+    from conformance.lint.scorecard import styled
 
     term = io.StringIO()
     table = ["UNIT        STATUS", "evil\x1b[2J\x07 FAIL"]

@@ -72,8 +72,8 @@ def test_a_violation_rendered_for_a_person_cannot_forge_lines():
 def test_the_plain_and_terminal_scorecards_escape_unit_names(prefix):
     from conformance.checks import Monitor
     from conformance.lint.linter import Linter
+    from conformance.lint.scorecard import Scorecard
     from conformance.profile import Profile
-    from conformance.scorecard import Scorecard
 
     name = "dji" + ESCAPES
     monitor = Monitor(Profile(), kind="lint")

@@ -77,7 +77,8 @@ SUITE_ALSO = {"twin-agent": ("EXEC-QUERY-001",)}
 # alone). They join combined groups, one of each area per group.
 JOIN = {"heartbeat-type-case", "level-unknown", "stamp-clock-skew", "stamp-milliseconds"}
 # Faults that leave the unit without a readable position: the scenarios that start tasks
-# place them near it (DESIGN 'Safety') and cannot test without one, whatever their area.
+# place them near it (docs/ARCHITECTURE.md 'Safety') and cannot test without one, whatever their
+# area.
 ALONE_FAULTS = {"position-deg-e7", "position-as-list"}
 
 

@@ -1,6 +1,6 @@
-"""Safety (DESIGN): commands only to the unit under test; no motion on a real unit unless
---allow-motion AND the profile's motion-tasks say so, decided by the publish policy on every
-payload (malformed ones too), proven from the broker's traffic; positions near the unit,
+"""Safety (docs/ARCHITECTURE.md 'Safety'): commands only to the unit under test; no motion on a real
+unit unless --allow-motion AND the profile's motion-tasks say so, decided by the publish policy on
+every payload (malformed ones too), proven from the broker's traffic; positions near the unit,
 inside the profile's safe radius."""
 
 from __future__ import annotations
@@ -149,10 +149,10 @@ def test_probes_the_policy_refuses_on_a_real_unit_are_no_broker_stall(
 def test_the_publish_policy_refuses_a_motion_task_whatever_the_scenario_sends(
         pytester: pytest.Pytester, mosquitto: str, prefix: str,
         monkeypatch: pytest.MonkeyPatch) -> None:
-    """DESIGN 'Safety': the policy, not the scenario, decides. A robustness probe made to
-    name move-to (cut off, upper case, '_': as a lenient parser may still read it) is not
-    published to a real unit without --allow-motion; the scenario's rules are could-not-test
-    saying why, and the run goes on (no crash)."""
+    """docs/ARCHITECTURE.md 'Safety': the policy, not the scenario, decides. A robustness probe made
+    to name move-to (cut off, upper case, '_': as a lenient parser may still read it) is not
+    published to a real unit without --allow-motion; the scenario's rules are could-not-test saying
+    why, and the run goes on (no crash)."""
     probe = b'{"command": "start-task", "task": "MOVE_TO", "com-uuid": '
     monkeypatch.setattr(robust, "UNREADABLE", (*robust.UNREADABLE, ("a motion probe", probe)))
     unit = f"{prefix}/unit/air/real/dji0"
@@ -216,7 +216,7 @@ ROLES = ("real", "simulation", "playback", "live", "xyz-unknown", "simulated")
 
 @pytest.mark.parametrize("role", ROLES)
 def test_only_simulation_and_the_profile_simulated_roles_are_simulations(role: str) -> None:
-    """DESIGN 'Safety' fails closed: every role word but 'simulation' (and a profile's
+    """docs/ARCHITECTURE.md 'Safety' fails closed: every role word but 'simulation' (and a profile's
     simulated-roles) is a real unit: no motion task without --allow-motion and motion-tasks,
     no hostile payload without --allow-hostile or robustness: true."""
     from conformance.scenarios.params import task_moves

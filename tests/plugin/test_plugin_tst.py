@@ -95,7 +95,8 @@ def test_tst_commands_go_to_the_chosen_topic_only_and_the_unit_passes(
     assert run.result.ret == 0, run.text
     assert {r: run.outcomes[r] for r in TST_RULES} == dict.fromkeys(TST_RULES, "passed")
     assert f"TST commands to {topic}" in run.text
-    # DESIGN 'Safety': the unit's exec/command and the one TST topic chosen, nothing else.
+    # docs/ARCHITECTURE.md 'Safety': the unit's exec/command and the one TST topic chosen, nothing
+    # else.
     sent = {m.topic for m, _ in wire.commands()}
     assert sent == {f"{unit}/exec/command", topic}
     starts = [b for m, b in wire.commands() if b.get("command") == "start-tst"]

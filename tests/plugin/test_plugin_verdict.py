@@ -4,25 +4,24 @@
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 from conformance.suite.verdict import SHOWN, explain
 from conformance.violation import RuleResult, Verdict, Violation
 
 
 class Certification:
-    """The part of a Certification that ``explain`` reads."""
+    """The part of a Certification that ``explain`` reads: its judged totals and its report
+    files (``suite/judging.py``, ``suite/writing.py``)."""
 
     unit = "waraps/unit/air/simulation/dji0"
 
     def __init__(self, total: int, html: Path | None) -> None:
-        self.total = total
-        self.report_paths = {"html": html} if html else {}
+        self.judging = SimpleNamespace(violation_total=lambda rule: total)
+        self.reports = SimpleNamespace(paths={"html": html} if html else {})
 
     def rerun_command(self, rule: str) -> str:
         return f"pytest --unit {self.unit} -k {rule}"
-
-    def violation_total(self, rule: str) -> int:
-        return self.total
 
 
 def failing(kept: int) -> RuleResult:

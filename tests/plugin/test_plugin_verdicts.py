@@ -1,6 +1,6 @@
-"""False greens (DESIGN 'Semantics': certified is earned only by a complete run that judged
-every rule of the level on evidence): a unit that dies, a run of selected rules, a broker lost
-for good. None of them shows a level certified or a ``pass`` verdict, in any output: the
+"""False greens (docs/ARCHITECTURE.md 'Verdicts': certified is earned only by a complete run that
+judged every rule of the level on evidence): a unit that dies, a run of selected rules, a broker
+lost for good. None of them shows a level certified or a ``pass`` verdict, in any output: the
 terminal, the JSON and HTML reports, pytest's JUnit file."""
 
 from __future__ import annotations

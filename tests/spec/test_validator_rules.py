@@ -11,7 +11,8 @@ import orjson
 import pytest
 
 from conformance.profile import Profile
-from conformance.validator import Validator, json_path, validate
+from conformance.schema_errors import json_path
+from conformance.validator import Validator, validate
 
 UNIT = "waraps/unit/air/simulation/dji0"
 NOW = 1_700_000_000.0
