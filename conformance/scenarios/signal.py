@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from conformance.protocol import BUILTIN_SIGNALS, SIGNAL_EFFECT, SIGNAL_RULE
 from conformance.scenarios.context import Context, describe
+from conformance.scenarios.deviation import FINAL_STATUSES
 from conformance.scenarios.params import valid_params
 from conformance.scenarios.sender import new_uuid
 from conformance.scenarios.traffic import Entry
@@ -59,7 +60,18 @@ def _signal(ctx: Context, task: str, task_uuid: str, signal: str, mark: int) -> 
     if not _answered(ctx, signal, task, answer, sent.com_uuid) or signal not in IMPLIED:
         return answer is not None
     rule, status = RULE_OF[signal], IMPLIED[signal]
-    got = ctx.commander.feedback(task_uuid, {status}, ctx.timing.feedback, after=after)
+    timeout = ctx.timing.feedback_for(task)
+    if status in FINAL_STATUSES:
+        # What the unit showed shortens the wait (the Monitor judges the profile's deadline
+        # from the traffic): once it is known to end tasks unsaid, the response deadline;
+        # its leaving tasks-executing (5.3: it ended) ends the wait early, its final status
+        # then getting the response deadline more, or none once that is known.
+        known = ctx.final_known()
+        timeout = ctx.timing.response if known else timeout
+        ended, left = ctx.wait_ended(task_uuid, timeout, after=after,
+                                     listed=ctx.listing(task_uuid))
+        timeout = min(0.0 if known else ctx.timing.response, left) if ended else 0.0
+    got = ctx.commander.feedback(task_uuid, {status}, timeout, after=after)
     if got is not None:
         ctx.record(rule, seen=Observed.EXAMINED)
         return True
@@ -70,7 +82,8 @@ def _signal(ctx: Context, task: str, task_uuid: str, signal: str, mark: int) -> 
     statuses = ctx.commander.statuses(task_uuid, after)
     ctx.record(rule, violation=ctx.violation(
         rule, expected=f"feedback '{status}' after {signal}", observed=f"statuses "
-        f"{statuses or 'none'} within {ctx.timing.feedback:.1f} s", subtopic="exec/feedback",
+        f"{statuses or 'none'} within {ctx.timing.feedback_for(task):.1f} s",
+        subtopic="exec/feedback",
         entry=answer, detail=f"task '{task}' {task_uuid}; answer: {describe(answer)}"))
     return False
 
