@@ -65,6 +65,9 @@ GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
     # A unit written from the spec alone: signals accepted 'running' (12.1's word), look-at
     # tasks that list only $abort and $enough (5.3), on both levels (TST too).
     (("signal-running", "two-signals"), True),
+    # Tasks at their real speeds: the task left to end on its own is still moving when the
+    # own-end deadline passes (it warns, decided); every other wait ends on what it shows.
+    (("real-speed",), False),
 ]
 PACED: dict[tuple[str, ...], float] = {  # variants -> heartbeat rate (Hz)
     # The same unit as a ground unit at 0.5 Hz answering after 1-3 s, under the default

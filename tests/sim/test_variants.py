@@ -125,11 +125,13 @@ def without(msg: Any, *keys: str) -> Any:
 
 def test_every_variant_cites_the_spec_and_warns_only_on_decided_rules() -> None:
     """A variant does what the spec allows: it may warn only on a decided rule (an erratum
-    reading, or a decision where the spec is silent: rules.toml), never on the spec's words."""
+    reading, or a decision where the spec is silent: rules.toml) or a decided condition of a
+    rule (real-speed: EXEC-START-003's own-end deadline), never on the spec's words."""
     for v in VARIANTS.values():
         assert v.section and v.description, v.name
         for rule in v.warns:
-            assert CATALOGUE[rule].is_decided, (v.name, rule)
+            r = CATALOGUE[rule]
+            assert r.is_decided or any(c.is_decided for c in r.conditions), (v.name, rule)
 
 
 def test_unknown_or_conflicting_variants_are_refused_naming_close_ones() -> None:
@@ -621,3 +623,24 @@ def test_two_signals_lists_and_takes_only_abort_and_enough_for_look_at_tasks(
     # the rest of the script as before: $enough ends the look-at task, 'finished'
     assert run.answer(com(3))["response"] == "ok"
     assert [m["status"] for _, m in run.messages("/exec/feedback")] == ["running", "finished"]
+
+
+def test_real_speed_keeps_a_short_move_running_where_the_plain_unit_arrives() -> None:
+    """A move-to 100 m away: the plain unit (time compressed) arrives within seconds, the
+    real-speed unit is still moving, and so still lists it, well past them; then $enough
+    ends both alike."""
+    here = GeoPoint(58.3945, 15.5645, 0.0)
+    there = {"latitude": 58.3954, "longitude": 15.5645, "altitude": 0.0, "rostype": "GeoPoint"}
+    assert 90 < distance(here, GeoPoint(58.3954, 15.5645, 0.0)) < 110
+    script = [(1.0, "exec", {"com-uuid": com(90), "command": "start-task",
+                             "sender": "commander", "task-uuid": T1,
+                             "task": {"name": "move-to", "params": {"waypoint": there}}}),
+              (11.0, "exec", {"com-uuid": com(91), "command": "signal-task",
+                              "sender": "commander", "signal": "$enough", "task-uuid": T1})]
+
+    def ends(r: Run) -> list[tuple[float, str]]:
+        return [(t, json.loads(p)["status"]) for t, sub, p in r.sent if sub == "/exec/feedback"]
+
+    plain, real = Run(script=script, seconds=12.0), Run("real-speed", script=script, seconds=12.0)
+    assert [s for _, s in ends(plain)] == ["running", "finished"] and ends(plain)[1][0] < 11.0
+    assert [s for _, s in ends(real)] == ["running", "finished"] and ends(real)[1][0] >= 11.0
