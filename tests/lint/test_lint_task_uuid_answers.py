@@ -62,3 +62,31 @@ def test_a_resend_answered_under_its_task_uuid_alone_is_answered(
     got = verdicts(told.report, unit)
     assert got["EXEC-RESEND-002"] == "pass", told.out
     assert {r for r, v in got.items() if v in ("fail", "warn")} == {fault}, told.out
+
+
+QUERIES = ("638a433d-07fb-4bcf-af97-228114638907", "a1587d98-b253-4e8a-bb8c-c937693881c0")
+
+
+@pytest.mark.parametrize("wrong", [0, 1])
+def test_each_query_status_of_a_task_is_judged_on_its_own(
+        tmp_path: Path, reports_dir: Path, prefix: str, wrong: int) -> None:
+    """Two query-status of one running task, each with its own com-uuid (12.1): each is a
+    conversation of its own, so an answer that contradicts the task's feedback fails
+    EXEC-QUERY-001 whether it is the first or the second ('finished' while it runs)."""
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    agent = "3887ced0-4e2d-4be4-aeff-6ba7242853a1"
+    msgs = unit_traffic(prefix, "dji0", seconds=30, agent_uuid=agent) + _started(unit, agent)
+    msgs = [m for m in msgs if not (m.time == T0 + 12.0 and m.topic.endswith("command"))]
+    for i, (com_uuid, t) in enumerate(zip(QUERIES, (14.0, 16.0))):
+        msgs += [_exec(unit, t, "command", {"com-uuid": com_uuid, "command": "query-status",
+                                             "sender": "op0", "task-uuid": TASK}),
+                 _exec(unit, t + 0.1, "response", {
+                     "agent-uuid": agent, "com-uuid": f"{com_uuid[:-2]}99", "fail-reason": "",
+                     "response": "finished" if i == wrong else "running",
+                     "response-to": com_uuid, "task-uuid": TASK})]
+    run = run_lint(["--from", str(write_recording(tmp_path / "queries.jsonl", msgs))],
+                   reports_dir)
+    rules = run.report["units"][unit]["rules"]
+    assert rules["EXEC-QUERY-001"]["verdict"] == "fail", run.out
+    (found,) = rules["EXEC-QUERY-001"]["violations"]
+    assert found["time"] == pytest.approx(T0 + (14.1 if wrong == 0 else 16.1)), found
