@@ -232,8 +232,11 @@ def _await_signalled(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: 
     elif accepted and expected and task is not None and task.final is None \
             and task.life == c.life and not unchanged:
         if len(c.expects) < EXPECTS_KEPT:
-            c.expects.append(Expect(task.task_uuid, expected[0], expected[1],
-                                    t + ctx.profile.feedback_timeout, cmd))
+            # The task's own feedback deadline where the profile gives one (its tasks).
+            deadline = ctx.profile.task_feedback_timeouts.get(
+                task.name or "", ctx.profile.feedback_timeout)
+            c.expects.append(Expect(task.task_uuid, expected[0], expected[1], t + deadline,
+                                    cmd))
         else:
             c.dropped += 1
 

@@ -77,7 +77,7 @@ def test_each_query_status_of_a_task_is_judged_on_its_own(
     agent = "3887ced0-4e2d-4be4-aeff-6ba7242853a1"
     msgs = unit_traffic(prefix, "dji0", seconds=30, agent_uuid=agent) + _started(unit, agent)
     msgs = [m for m in msgs if not (m.time == T0 + 12.0 and m.topic.endswith("command"))]
-    for i, (com_uuid, t) in enumerate(zip(QUERIES, (14.0, 16.0))):
+    for i, (com_uuid, t) in enumerate(zip(QUERIES, (14.0, 16.0), strict=True)):
         msgs += [_exec(unit, t, "command", {"com-uuid": com_uuid, "command": "query-status",
                                              "sender": "op0", "task-uuid": TASK}),
                  _exec(unit, t + 0.1, "response", {
