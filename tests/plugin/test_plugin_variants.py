@@ -65,8 +65,7 @@ GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
     # A unit written from the spec alone: signals accepted 'running' (12.1's word), look-at
     # tasks that list only $abort and $enough (5.3), on both levels (TST too).
     (("signal-running", "two-signals"), True),
-    # Tasks at their real speeds: the task left to end on its own is still moving when the
-    # own-end deadline passes (it warns, decided); every other wait ends on what it shows.
+    # Tasks at their real speeds (a unit written elsewhere): waits end on what it shows.
     (("real-speed",), False),
 ]
 PACED: dict[tuple[str, ...], float] = {  # variants -> heartbeat rate (Hz)
