@@ -88,7 +88,9 @@ class Certification:
         # report; it judges the unit's answers with the deadlines the scenarios wait for.
         self.monitor = Monitor(dataclasses.replace(
             self.profile, response_timeout=self.timing.response,
-            feedback_timeout=self.timing.feedback), units=[self.unit], kind=RunKind.CERTIFICATION)
+            feedback_timeout=self.timing.feedback, task_feedback_timeouts={
+                t: self.timing.feedback_for(t) for t in self.profile.task_feedback_timeouts}),
+            units=[self.unit], kind=RunKind.CERTIFICATION)
         self._lock = threading.RLock()
         self.events = Events()
         """What happened to the connection and the unit, for the terminal summary."""
