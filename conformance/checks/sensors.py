@@ -33,7 +33,7 @@ period apart): their arrival times are not when they were sent, so the latest of
 new anchor and none is compared with one from before the burst."""
 SAME_INSTANT = 0.05
 """Seconds within which a speed belongs to the position published with it (SENS-005): a unit
-publishes its sensors of one instant together, in any order (12: no order between topics),
+publishes its sensors of one instant together, in an order of its own (6.1 sets none),
 and they arrive a few ms apart (docs/FIELD-NOTES.md 'Timing jitter': 1-7 ms loaded)."""
 EARTH_RADIUS = 6_371_000.0  # metres
 
