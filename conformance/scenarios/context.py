@@ -8,6 +8,7 @@ not applicable or untestable, with the reason). They make no verdict.
 
 from __future__ import annotations
 
+import dataclasses
 import random
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -55,6 +56,13 @@ class Timing:
         profile's ``feedback_timeout`` (a deadline of ours: 12.4 gives none)."""
         return self.profile.task_feedback_timeouts.get(task, self.profile.feedback_timeout) \
             * self.scale
+
+    def scaled(self) -> Profile:
+        """The profile with these deadlines (the Monitor's in a certification)."""
+        return dataclasses.replace(
+            self.profile, response_timeout=self.response, feedback_timeout=self.feedback,
+            task_feedback_timeouts={t: self.feedback_for(t)
+                                    for t in self.profile.task_feedback_timeouts})
 
     def periods(self, count: float, rate_hz: float | None) -> float:
         """``count`` periods of a message declared at ``rate_hz``, plus the response margin."""
