@@ -51,6 +51,10 @@ class Profile:
     """Task name -> the parameters to start it with (the profile's ``tasks`` as a mapping)."""
     task_scenarios: dict[str, tuple[str, ...]] = field(default_factory=dict)
     """Task name -> the scenarios that may start it (absent: every scenario)."""
+    task_feedback_timeouts: dict[str, float] = field(default_factory=dict)
+    """Task name -> its own feedback deadline in seconds, before --timing-scale (absent: the
+    profile's ``feedback_timeout``): how long it may take to end on its own, or to send the
+    final status a signal implies (a unit moving at its real speed)."""
     motion_tasks: tuple[str, ...] = ()
     """Tasks allowed to move a real unit, and only with --allow-motion (docs/ARCHITECTURE.md
     'Safety')."""
@@ -270,14 +274,18 @@ def describe(prop: dict[str, Any]) -> str:
 
 def _tasks(value: Any) -> dict[str, Any]:
     """``tasks`` (checked against the schema already): a list of names, or a mapping of names
-    to ``{params, scenarios}``, as the Profile's ``tasks``, ``task_params``, ``task_scenarios``."""
+    to ``{params, scenarios, feedback-timeout}``, as the Profile's ``tasks``, ``task_params``,
+    ``task_scenarios``, ``task_feedback_timeouts``."""
     if isinstance(value, list):
-        return {"tasks": tuple(value), "task_params": {}, "task_scenarios": {}}
+        return {"tasks": tuple(value), "task_params": {}, "task_scenarios": {},
+                "task_feedback_timeouts": {}}
     params = {str(k): v["params"] for k, v in value.items() if v and "params" in v}
     scenarios = {str(k): tuple(v["scenarios"]) for k, v in value.items()
                  if v and "scenarios" in v}
+    timeouts = {str(k): float(v["feedback-timeout"]) for k, v in value.items()
+                if v and "feedback-timeout" in v}
     return {"tasks": tuple(str(k) for k in value), "task_params": params,
-            "task_scenarios": scenarios}
+            "task_scenarios": scenarios, "task_feedback_timeouts": timeouts}
 
 
 def _coerce(attr: str, value: Any, source: str) -> Any:

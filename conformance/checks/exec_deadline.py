@@ -106,9 +106,11 @@ def _expire(ctx: CheckContext, unit: UnitState, c: Conversations, now: float,
             unit.examine(e.rule)
             task = c.followed(e.task_uuid)
             said = latest_status(task) if task is not None else None
+            waited = ctx.profile.task_feedback_timeouts.get(
+                task.name or "" if task is not None else "", ctx.profile.feedback_timeout)
             found.append(late(e.rule, unit.address.topic("exec/command"), e.command,
                               f"{' or '.join(sorted(e.wanted))} within "
-                              f"{ctx.profile.feedback_timeout:.1f} s of accepting "
+                              f"{waited:.1f} s of accepting "
                               f"{e.command.describe()}", f"latest status {said!r}",
                               e.command.last_sent, "12.2.2: do what the signal says, and "
                               "say so in feedback"))

@@ -68,14 +68,15 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
     with a value that fits the command."""
     m = v.message
     response_to = str_of(m, "response-to")
-    if response_to is None:
-        return
     c = conversations(unit, ctx)
     t = msg.time
-    cmd = c.commands.get(response_to)
+    cmd = c.commands.get(response_to) if response_to is not None else None
     if cmd is None:
-        yield from _answers_nothing(ctx, unit, c, msg, m, response_to)
-        return
+        if response_to is not None:
+            yield from _answers_nothing(ctx, unit, c, msg, m, response_to)
+        cmd = _start_named(unit, c, m)
+        if cmd is None:
+            return
     unit.examine("EXEC-006")
     c.answered_any = True
     # credited at any time, late or not (docs/FIELD-NOTES.md 'Precision': answers in flight)
@@ -105,6 +106,25 @@ def response_answers_command(ctx: CheckContext, unit: UnitState, msg: Message,
             yield from judge_unanswered(ctx, unit, c, earlier)
     if in_time:
         yield from _judge_first_answer(ctx, unit, c, cmd, msg, value, task_uuid, tracked)
+
+
+def _start_named(unit: UnitState, c: Conversations, m: Any) -> Command | None:
+    """The start-task a response without a known response-to (its own fault: the schema's,
+    EXEC-006) answers by the task-uuid it carries (12.3.3: a start-task response names its
+    task): the one start-task of that task-uuid awaiting an answer. None when the answer is
+    not a start-task's, names no task, or when none or several await one (the task-uuid
+    does not tell which): said on EXEC-RESEND-002 when a resend awaits."""
+    task_uuid = str_of(m, "task-uuid")
+    if not task_uuid or str_of(m, "response") not in START_ANSWERS:
+        return None
+    waiting = [cmd for cmd in c.pending.values() if cmd.name == "start-task"
+               and cmd.task_uuid == task_uuid and not cmd.judged and cmd.answers < cmd.owed]
+    if len(waiting) > 1 and any(cmd.sends > 1 for cmd in waiting):
+        unit.note("EXEC-RESEND-002", f"a response without its command's com-uuid in "
+                                     f"response-to names task {task_uuid}, which "
+                                     f"{len(waiting)} start-tasks await: which one it answers "
+                                     f"cannot be told")
+    return waiting[0] if len(waiting) == 1 else None
 
 
 def _answers_nothing(ctx: CheckContext, unit: UnitState, c: Conversations, msg: Message,
@@ -212,8 +232,11 @@ def _await_signalled(ctx: CheckContext, unit: UnitState, c: Conversations, cmd: 
     elif accepted and expected and task is not None and task.final is None \
             and task.life == c.life and not unchanged:
         if len(c.expects) < EXPECTS_KEPT:
-            c.expects.append(Expect(task.task_uuid, expected[0], expected[1],
-                                    t + ctx.profile.feedback_timeout, cmd))
+            # The task's own feedback deadline where the profile gives one (its tasks).
+            deadline = ctx.profile.task_feedback_timeouts.get(
+                task.name or "", ctx.profile.feedback_timeout)
+            c.expects.append(Expect(task.task_uuid, expected[0], expected[1], t + deadline,
+                                    cmd))
         else:
             c.dropped += 1
 

@@ -31,6 +31,10 @@ catching up; docs/FIELD-NOTES.md 'Timing jitter': +-0.7 ms idle, 1-7 ms loaded b
 sent a
 period apart): their arrival times are not when they were sent, so the latest of them is the
 new anchor and none is compared with one from before the burst."""
+SAME_INSTANT = 0.05
+"""Seconds within which a speed belongs to the position published with it (SENS-005): a unit
+publishes its sensors of one instant together, in an order of its own (6.1 sets none),
+and they arrive a few ms apart (docs/FIELD-NOTES.md 'Timing jitter': 1-7 ms loaded)."""
 EARTH_RADIUS = 6_371_000.0  # metres
 
 
@@ -38,7 +42,7 @@ class SensorsSeen:
     """What the sensor checks keep of a unit between its messages."""
 
     __slots__ = ("heading_range_said", "missing_listed", "unlisted_reported", "anchor",
-                 "last_position")
+                 "last_position", "held")
 
     def __init__(self) -> None:
         self.heading_range_said = False
@@ -51,6 +55,39 @@ class SensorsSeen:
         """(point, time, life) the next position is compared with (SENS-005)."""
         self.last_position: float | None = None
         """Arrival time of the latest live position (SENS-005: bursts)."""
+        self.held: Jump | None = None
+        """A position step too fast for the speeds known when it came, held until the speed
+        of the same instant is known (SENS-005: the pair is judged together)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Jump:
+    """A position step (SENS-005): ``metres`` in ``seconds``, the position's ``time``,
+    ``topic`` and ``payload``, and the largest speed reported so far (m/s)."""
+
+    metres: float
+    seconds: float
+    time: float
+    topic: str
+    payload: bytes
+    speed: float
+
+    @property
+    def limit(self) -> float:
+        """The fastest plausible step, m/s: 3x the largest reported speed + 5 m/s."""
+        return 3 * self.speed + 5.0
+
+    def too_fast(self) -> bool:
+        return self.metres > self.limit * self.seconds
+
+    def violation(self) -> Violation:
+        return Violation.of(
+            "SENS-005", expected=f"at most {self.limit:.1f} m/s (3x the largest reported "
+                                 f"speed {self.speed:.1f} m/s, + 5 m/s)",
+            observed=f"moved {self.metres:.1f} m in {self.seconds:.2f} s "
+                     f"({self.metres / self.seconds:.1f} m/s)", topic=self.topic,
+            time=self.time, payload=self.payload,
+            detail="check units: speed in m/s (6.1), latitude/longitude in degrees")
 
 
 SENSORS_SEEN: StashKey[SensorsSeen] = StashKey("sensors-seen")
@@ -241,6 +278,15 @@ def position_moves_plausibly(ctx: CheckContext, unit: UnitState, msg: Message,
     if msg.retain:
         return None
     seen = unit.stash.setdefault(SENSORS_SEEN, SensorsSeen)
+    held, seen.held = seen.held, None  # its instant has passed: judged on what came with it
+    found = _step(ctx, unit, seen, msg, v)
+    return [held.violation(), *(found or [])] if held is not None else found
+
+
+def _step(ctx: CheckContext, unit: UnitState, seen: SensorsSeen, msg: Message,
+          v: Validation) -> list[Violation] | None:
+    """SENS-005 on one position: the step from the anchor, held when too fast for the speeds
+    known so far (the speed of the same instant may come just after it)."""
     anchor = seen.anchor
     t = msg.time
     last, seen.last_position = seen.last_position, t
@@ -271,12 +317,32 @@ def position_moves_plausibly(ctx: CheckContext, unit: UnitState, msg: Message,
     limit = 3 * unit.max_speed + 5.0
     if _distance_bound(prev, point) <= limit * dt:
         return None  # cannot be too fast: the exact distance (trigonometry) is not needed
-    d = distance(prev, point)
-    if d <= limit * dt:
+    jump = Jump(distance(prev, point), dt, t, msg.topic, msg.payload, unit.max_speed)
+    if jump.too_fast():
+        seen.held = jump
+    return None
+
+
+@check("SENS-005", on=("sensor/speed",), reads=(SENSORS_SEEN,))
+def speed_of_the_same_instant(ctx: CheckContext, unit: UnitState, msg: Message,
+                              v: Validation) -> list[Violation] | None:
+    """A position step held as too fast (``position_moves_plausibly``) is judged with the speed
+    published at the same instant, which may come just after it: the pair together."""
+    seen = unit.stash.get(SENSORS_SEEN)
+    if seen is None or seen.held is None or msg.retain:
         return None
-    return [Violation.of(
-        "SENS-005", expected=f"at most {limit:.1f} m/s (3x the largest reported speed "
-                             f"{unit.max_speed:.1f} m/s, + 5 m/s)",
-        observed=f"moved {d:.1f} m in {dt:.2f} s ({d / dt:.1f} m/s)", topic=msg.topic,
-        time=t, payload=msg.payload,
-        detail="check units: speed in m/s (6.1), latitude/longitude in degrees")]
+    held, seen.held = seen.held, None
+    m = v.message
+    if msg.time - held.time <= SAME_INSTANT and isinstance(m, (int, float)) \
+            and not isinstance(m, bool) and math.isfinite(m):
+        held = dataclasses.replace(held, speed=max(held.speed, abs(float(m))))
+    return [held.violation()] if held.too_fast() else None
+
+
+@check("SENS-005", finish=True, reads=(SENSORS_SEEN,))
+def position_held_at_the_end(ctx: CheckContext, unit: UnitState, now: float,
+                             findings: Any) -> Iterator[Violation]:
+    """A position step still held when the observation ends (no speed came after it)."""
+    seen = unit.stash.get(SENSORS_SEEN)
+    if seen is not None and seen.held is not None:
+        yield seen.held.violation()

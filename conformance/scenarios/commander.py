@@ -262,7 +262,7 @@ class Commander(Sender):
                   "the '" + "' or '".join(sorted(statuses)) + "' feedback")
         found = self.traffic.wait_for(
             match, timeout, after=after, subtopic="exec/feedback",
-            what=what or f"{wanted} of {self._task_name(task_uuid)} {uuid_[:8]}")
+            what=what or f"{wanted} of {self.task_name(task_uuid)} {uuid_[:8]}")
         if found is not None and blind and found is blind[-1]:
             self.deviations.note(
                 Kind.FEEDBACK_WITHOUT_TASK_UUID,
@@ -289,7 +289,8 @@ class Commander(Sender):
         """Why feedback for a task cannot be found: the unit sends it without task-uuid."""
         return self.deviations.reason(Kind.FEEDBACK_WITHOUT_TASK_UUID)
 
-    def _task_name(self, task_uuid: str) -> str:
+    def task_name(self, task_uuid: str) -> str:
+        """The name of the task the suite started as ``task_uuid`` ("task" when unknown)."""
         with self._lock:
             task = self.open_tasks.get(task_uuid) or self.open_tasks.get(
                 self._unit_uuid.get(task_uuid, ""))

@@ -8,6 +8,7 @@ not applicable or untestable, with the reason). They make no verdict.
 
 from __future__ import annotations
 
+import dataclasses
 import random
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -49,6 +50,19 @@ class Timing:
     @property
     def feedback(self) -> float:
         return self.profile.feedback_timeout * self.scale
+
+    def feedback_for(self, task: str) -> float:
+        """The feedback deadline of ``task``: its own in the profile's ``tasks``, else the
+        profile's ``feedback_timeout`` (a deadline of ours: 12.4 gives none)."""
+        return self.profile.task_feedback_timeouts.get(task, self.profile.feedback_timeout) \
+            * self.scale
+
+    def scaled(self) -> Profile:
+        """The profile with these deadlines (the Monitor's in a certification)."""
+        return dataclasses.replace(
+            self.profile, response_timeout=self.response, feedback_timeout=self.feedback,
+            task_feedback_timeouts={t: self.feedback_for(t)
+                                    for t in self.profile.task_feedback_timeouts})
 
     def periods(self, count: float, rate_hz: float | None) -> float:
         """``count`` periods of a message declared at ``rate_hz``, plus the response margin."""
@@ -212,43 +226,70 @@ class Context:
             return self.commander.feedback(task_uuid, FINAL_STATUSES, 0, after=after)
         return self.wait_final(task_uuid, after=after, gaps_before=gaps_before)
 
+    def listing(self, task_uuid: str) -> Entry | None:
+        """The latest direct_execution_info, when it lists ``task_uuid`` in tasks-executing."""
+        info = self.traffic.latest("direct_execution_info")
+        unit_uuid = self.commander.unit_task_uuid(task_uuid)
+        return info if info is not None and unit_uuid in self.executing(info) else None
+
+    def wait_ended(self, task_uuid: str, timeout: float, *, after: int,
+                   listed: Entry | None) -> tuple[bool, float]:
+        """Wait up to ``timeout`` seconds for the task's final feedback (12.4) or its leaving
+        tasks-executing (5.3: the unit says it ended) in a direct_execution_info later than
+        ``listed`` (one that listed it), or later than one after ``after`` that listed it.
+        Whether it ended, and the seconds of ``timeout`` left."""
+        unit_uuid = self.commander.unit_task_uuid(task_uuid)
+        seen = [listed] if listed is not None else []
+
+        def over(e: Entry) -> bool:
+            if e.subtopic == "direct_execution_info":
+                if unit_uuid in self.executing(e):
+                    seen.append(e)
+                    return False
+                return bool(seen) and e.seq > seen[0].seq
+            return e.subtopic == "exec/feedback" and e.get("task-uuid") in (
+                unit_uuid, None, "") and meaning(e.get("status")) in FINAL_STATUSES
+        clock = self.traffic.clock
+        started = clock.monotonic()
+        ended = self.traffic.wait_for(over, timeout, after=after,
+                                      what=f"the end of task {unit_uuid[:8]}") is not None
+        return ended, max(0.0, timeout - (clock.monotonic() - started))
+
     def wait_final(self, task_uuid: str, *, after: int, why: str = "",
-                   listed: Entry | None = None, gaps_before: int | None = None
-                   ) -> Entry | None:
-        """The task's final feedback (12.4), waiting the feedback deadline; once a task's final
-        status has failed to come (a systematic deviation), only the response deadline. Not
-        noted as the unit's deviation when the suite's link was lost since ``gaps_before``
-        (the task's start-task's ``Sent.gaps_before``): it may have come meanwhile.
+                   listed: Entry | None = None, gaps_before: int | None = None,
+                   timeout: float | None = None) -> Entry | None:
+        """The task's final feedback (12.4), waiting ``timeout`` (default: the task's feedback
+        deadline, ``Timing.feedback_for``); once a task's final status has failed to come (a
+        systematic deviation), only the response deadline. Not noted as the unit's deviation
+        when the suite's link was lost since ``gaps_before`` (the task's start-task's
+        ``Sent.gaps_before``): it may have come meanwhile, nor while the unit still lists the
+        task in tasks-executing (it has not ended: a slow task, not a missing status).
 
-        ``listed``: a direct_execution_info that listed the task. Then a later one that no
-        longer lists it (5.3: the unit says the task ended) ends the wait early: its final
-        status gets the response deadline more to arrive."""
+        ``listed``: a direct_execution_info that listed the task (default: the latest, if it
+        does). Then a later one that no longer lists it (5.3: the unit says the task ended)
+        ends the wait early: its final status gets the response deadline more to arrive, or
+        none once the deviation is known (what the unit showed: it ends tasks unsaid)."""
         known = self.commander.deviations.get(Kind.NO_FINAL_FEEDBACK)
-        timeout = self.timing.response if known else self.timing.feedback
-        if listed is not None and not known:
-            unit_uuid = self.commander.unit_task_uuid(task_uuid)
-
-            def over(e: Entry) -> bool:
-                if e.subtopic == "direct_execution_info":
-                    return e.seq > listed.seq and unit_uuid not in self.executing(e)
-                return e.subtopic == "exec/feedback" and e.get("task-uuid") in (
-                    unit_uuid, None, "") and meaning(e.get("status")) in FINAL_STATUSES
-            clock = self.traffic.clock
-            started = clock.monotonic()
-            self.traffic.wait_for(over, timeout, after=after,
-                                  what=f"the end of task {unit_uuid[:8]}")
-            timeout = min(self.timing.response, max(0.0, timeout - (clock.monotonic() - started)))
+        timeout = timeout if timeout is not None else self.timing.feedback_for(
+            self.commander.task_name(task_uuid))
+        timeout = self.timing.response if known else timeout
+        listed = listed if listed is not None else self.listing(task_uuid)
+        deadline = timeout
+        ended, left = self.wait_ended(task_uuid, timeout, after=after, listed=listed)
+        # Ended: its final status gets the response deadline more (none once known); else
+        # the whole deadline was waited.
+        timeout = min(0.0 if known else self.timing.response, left) if ended else 0.0
         final = self.commander.feedback(task_uuid, FINAL_STATUSES, timeout, after=after)
         lost = gaps_before is not None and self.commander.gaps() != gaps_before
-        if final is None and not lost and not self.commander.blind():
+        running = final is None and not ended and self.listing(task_uuid) is not None
+        if final is None and not lost and not running and not self.commander.blind():
             self.commander.deviations.note(
                 Kind.NO_FINAL_FEEDBACK,
                 f"no final status for task {self.commander.unit_task_uuid(task_uuid)}"
                 f"{' ' + why if why else ''}"
-                + (" after it left tasks-executing" if listed is not None and not known else
-                   f" within {timeout:.1f} s"),
-                f"later waits for a final status last {self.timing.response:.1f} s; what "
-                "they judge is could-not-test")
+                + (" after it left tasks-executing" if ended else f" within {deadline:.1f} s"),
+                f"later waits for a final status end when the task leaves tasks-executing, "
+                f"or after {self.timing.response:.1f} s; what they judge is could-not-test")
         return final
 
     def final_known(self) -> Deviation | None:

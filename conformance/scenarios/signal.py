@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from conformance.protocol import BUILTIN_SIGNALS, SIGNAL_EFFECT, SIGNAL_RULE
 from conformance.scenarios.context import Context, describe
+from conformance.scenarios.deviation import FINAL_STATUSES
 from conformance.scenarios.params import valid_params
 from conformance.scenarios.sender import new_uuid
 from conformance.scenarios.traffic import Entry
@@ -54,23 +55,42 @@ def _start(ctx: Context, task: str) -> tuple[str, int] | None:
 def _signal(ctx: Context, task: str, task_uuid: str, signal: str, mark: int) -> bool:
     """Send one signal and judge its answer and the feedback it implies; False when that
     feedback did not come."""
+    if IMPLIED.get(signal) in FINAL_STATUSES and ctx.final_known() \
+            and ctx.listing(task_uuid) is None:
+        # A unit known to end tasks unsaid: see the task listed first, so that its leaving
+        # tasks-executing shows the end the signal asks for (5.3).
+        ctx.wait_listed(task_uuid, after=mark)
     after = ctx.traffic.mark()
     sent, answer = ctx.commander.signal(task_uuid, signal, ctx.timing.response)
     if not _answered(ctx, signal, task, answer, sent.com_uuid) or signal not in IMPLIED:
         return answer is not None
     rule, status = RULE_OF[signal], IMPLIED[signal]
-    got = ctx.commander.feedback(task_uuid, {status}, ctx.timing.feedback, after=after)
+    deadline = timeout = ctx.timing.feedback_for(task)
+    known, ended = None, False
+    if status in FINAL_STATUSES:
+        # What the unit showed shortens the wait (the Monitor judges the whole deadline from
+        # the traffic): once it is known to end tasks unsaid, the response deadline; its
+        # leaving tasks-executing (5.3: it ended) ends the wait early, its final status then
+        # getting the response deadline more, or none once that is known.
+        known = ctx.final_known()
+        timeout = ctx.timing.response if known else timeout
+        ended, left = ctx.wait_ended(task_uuid, timeout, after=after,
+                                     listed=ctx.listing(task_uuid))
+        timeout = min(0.0 if known else ctx.timing.response, left) if ended else 0.0
+    got = ctx.commander.feedback(task_uuid, {status}, timeout, after=after)
     if got is not None:
         ctx.record(rule, seen=Observed.EXAMINED)
         return True
-    blind = ctx.commander.blind()
-    if blind:
+    blind = ctx.commander.blind() or (None if ended else ctx.untestable(known))
+    if blind:  # the known deviation, held against it once: the Monitor judges the deadline
         ctx.record(rule, seen=Observed.UNTESTABLE, reason=blind)
         return False
     statuses = ctx.commander.statuses(task_uuid, after)
     ctx.record(rule, violation=ctx.violation(
         rule, expected=f"feedback '{status}' after {signal}", observed=f"statuses "
-        f"{statuses or 'none'} within {ctx.timing.feedback:.1f} s", subtopic="exec/feedback",
+        f"{statuses or 'none'} " + ("until it left tasks-executing" if ended else
+                                    f"within {deadline:.1f} s"),
+        subtopic="exec/feedback",
         entry=answer, detail=f"task '{task}' {task_uuid}; answer: {describe(answer)}"))
     return False
 

@@ -212,7 +212,7 @@ def _ended(ctx: Context, task: str, task_uuid: str, sent: Sent, signals: list[st
             judged = True
             _no_final(ctx, ctx.untestable(noted), sent, violation=dataclasses.replace(ctx.violation(
                 "EXEC-START-003", expected=f"'{task}' ends on its own with a final status "
-                f"(finished or failed) within {ctx.timing.feedback:.1f} s",
+                f"(finished or failed) within {ctx.timing.feedback_for(task):.1f} s",
                 observed=f"statuses {ctx.commander.statuses(task_uuid, sent.mark) or 'none'}",
                 subtopic="exec/feedback", detail=f"task-uuid {task_uuid}; params "
                 f"{sent.body.get('task', {}).get('params')}"), condition="own-end"))
@@ -228,7 +228,7 @@ def _ended(ctx: Context, task: str, task_uuid: str, sent: Sent, signals: list[st
         _no_final(ctx, ctx.untestable(noted), sent, violation=ctx.violation(
             "EXEC-START-003", expected=f"feedback for task '{task}' until finished, "
             "failed or aborted (12.4)", observed=f"statuses {statuses or 'none'} within "
-            f"{ctx.timing.feedback:.1f} s", subtopic="exec/feedback",
+            f"{ctx.timing.feedback_for(task):.1f} s", subtopic="exec/feedback",
             detail=f"task-uuid {task_uuid}"))
     return final
 

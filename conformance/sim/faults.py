@@ -219,6 +219,10 @@ _ALL: tuple[Fault, ...] = (
        "and answers nothing, while the process lives on.", stimulus=True),
     _f("no-final-feedback", "EXEC-START-003",
        "Sends no feedback when a task ends on its own (only on signals)."),
+    _f("no-final-status", "EXEC-START-003 EXEC-SIG-002 EXEC-SIG-004",
+       "Sends no final status at all: neither when a task ends on its own nor when $abort or "
+       "$enough ends it (the task only leaves tasks-executing), as a unit written elsewhere "
+       "did."),
     _f("accept-invalid-params", "EXEC-START-004",
        "Accepts start-task with invalid parameters ('running'); the task fails a moment "
        "later."),

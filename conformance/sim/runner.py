@@ -170,7 +170,8 @@ class TaskRunner:
             task.node(status, reason)
             return
         on_its_own = status == "finished" and not reason
-        if not (on_its_own and "no-final-feedback" in self.faults):
+        if not (on_its_own and "no-final-feedback" in self.faults
+                or "no-final-status" in self.faults):
             self.feedback(task, status)
             if "feedback-after-final" in self.faults:
                 self.feedback(task, status)

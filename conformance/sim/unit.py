@@ -35,6 +35,7 @@ from conformance.sim.runner import STEP, TaskRunner
 from conformance.sim.tasks import GO_HOME, Task, TaskSpec, tasks_for
 from conformance.sim.tst import TstEngine
 from conformance.sim.variants import (
+    REAL_SPEED_SECONDS,
     REBOOT_AWAY,
     RESPAWN_METRES,
     SLOW_ANSWERS,
@@ -88,7 +89,8 @@ class UnitCore:
         self.period = 1.0 / self.rate
         self.rng = rng or random.Random()
         self.clock = clock
-        self.task_seconds = task_seconds
+        self.task_seconds = REAL_SPEED_SECONDS if "real-speed" in self.variants \
+            else task_seconds
         self._emit = emit
         self.vehicle = Vehicle(address.agent_type, position or GeoPoint(*LINKOPING, 0.0), heading)
         self.specs = self._tasks_offered()

@@ -45,6 +45,11 @@ _READINGS = (
     Variant("two-signals", "5.3 ('for each task a list of signals it understands')",
             "Lists only $abort and $enough for its look-at tasks (9.2-9.4 end on $enough), and "
             "refuses any other signal to them, in direct execution and as TST leaves."),
+    Variant("real-speed", "12.4 (feedback until the end; how long a task takes is not said)",
+            "Runs its tasks at their real speeds, without the time compression of the plain "
+            "unit: a move of a hundred metres takes over ten seconds at its qualitative speed "
+            "(8 m/s standard in the air), where the plain unit takes 3 s (REAL_SPEED_SECONDS), "
+            "as a unit written elsewhere did; a move of a few metres still ends in seconds."),
 )
 
 _ALL = _READINGS + (
@@ -189,6 +194,9 @@ REBOOT_AWAY = 4.0
 SLOW_ANSWERS = (1.0, 3.0)
 """Variant slow-answers: the shortest and longest hold of a response, seconds
 (inside the 5 s response_timeout every profile but the tests' short ones has)."""
+REAL_SPEED_SECONDS = 120.0
+"""Variant real-speed: the ``task_seconds`` it runs with (the plain unit's is 3 s): only a
+plan longer than its qualitative speed covers in this many seconds goes faster."""
 TWO_SIGNALS = ("$abort", "$enough")
 """Variant two-signals: what its look-at tasks list (5.3)."""
 RESPAWN_METRES = 400.0

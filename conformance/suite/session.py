@@ -17,7 +17,6 @@ and the conclusion come from the one judge, ``conformance.judge``), the report f
 
 from __future__ import annotations
 
-import dataclasses
 import threading
 from typing import TYPE_CHECKING, Any
 
@@ -87,9 +86,8 @@ class Certification:
         # The Monitor puts what is wrong in the suite's own commands (some broken on purpose:
         # the robustness scenario) on the commander's account, which a certification does not
         # report; it judges the unit's answers with the deadlines the scenarios wait for.
-        self.monitor = Monitor(dataclasses.replace(
-            self.profile, response_timeout=self.timing.response,
-            feedback_timeout=self.timing.feedback), units=[self.unit], kind=RunKind.CERTIFICATION)
+        self.monitor = Monitor(self.timing.scaled(), units=[self.unit],
+                               kind=RunKind.CERTIFICATION)
         self._lock = threading.RLock()
         self.events = Events()
         """What happened to the connection and the unit, for the terminal summary."""

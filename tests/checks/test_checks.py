@@ -523,13 +523,40 @@ def test_unlisted_sensor_seen_before_the_list_warns_at_finish(stream):
 def test_position_jump_warns(stream):
     m = Monitor()
     msgs = [stream.sensor("speed", 2.0, 0), stream.position(58.4, 15.6, 0.1),
-            stream.position(58.41, 15.6, 1.1)]  # 1.1 km in 1 s at 2 m/s
+            stream.position(58.41, 15.6, 1.1),  # 1.1 km in 1 s at 2 m/s
+            stream.sensor("speed", 2.0, 1.102)]  # the speed of the same instant: still 2 m/s
     found = stream.feed(m, msgs)
     assert rules_found(found) == {"SENS-005"}
     good = Monitor()
     stream.feed(good, [stream.sensor("speed", 2.0, 0), stream.position(58.4, 15.6, 0.1),
                        stream.position(58.40001, 15.6, 1.1)])  # 1.1 m
     assert verdict(good, stream, "SENS-005").verdict is Verdict.PASS
+
+
+def test_a_position_is_judged_with_the_speed_published_at_the_same_instant(stream):
+    """A unit that publishes each instant's position just before its speed (12: no order
+    between topics), setting off from standstill at 20 m/s: the step of 20 m in 1 s is
+    judged with the 20 m/s of its own instant, not the 0 m/s before it (no SENS-005). A
+    step too fast even for it still warns, also when nothing follows it."""
+    def steps(metres: float, speed: float, last: bool = False) -> list:
+        msgs = []
+        for i in range(4):
+            moving = i == 3
+            msgs.append(stream.position(58.4 + (metres / 111_195 if moving else 0.0), 15.6,
+                                        0.1 + i))
+            if not (last and moving):
+                msgs.append(stream.sensor("speed", speed if moving else 0.0, 0.102 + i))
+        return msgs
+
+    good = Monitor()
+    stream.feed(good, steps(20.0, 20.0))
+    assert verdict(good, stream, "SENS-005").verdict is Verdict.PASS
+    for last in (False, True):
+        bad = Monitor()
+        stream.feed(bad, steps(1_100.0, 20.0, last=last))  # 1.1 km in 1 s at 20 m/s
+        r = verdict(bad, stream, "SENS-005")
+        assert r.verdict is Verdict.WARN and len(r.violations) == 1, (last, r)
+        assert "moved 1100" in r.violations[0].observed
 
 
 # -- execution: EXEC-004, EXEC-FB-003, EXEC-006, EXEC-008, EXEC-FB-004 -----------------------------

@@ -596,6 +596,27 @@ def test_a_signal_answered_ok_implies_its_feedback(stream):
     assert wrong["EXEC-SIG-004"].verdict is Verdict.FAIL
 
 
+def test_a_signal_gets_the_feedback_deadline_of_its_task_where_the_profile_gives_one(stream):
+    """A move-to that takes 6 s to stop ('aborted' 6 s after its $abort): late for the
+    profile's feedback_timeout (3 s), in time for move-to's own (tasks: move-to:
+    feedback-timeout: 8), which the finding then names."""
+    import dataclasses
+
+    task = new()
+    cmd = start(stream, 2.1, task)
+    sig = stream.command(3.1, "signal-task", **{"task-uuid": task, "signal": "$abort"})
+    run = [cmd, stream.response(2.2, com_of(cmd), "running", **{"task-uuid": task}),
+           stream.feedback(2.3, task, "running"), sig,
+           stream.response(3.2, com_of(sig), "ok", **{"task-uuid": task})]
+    slow = dataclasses.replace(TIMEOUTS, task_feedback_timeouts={"move-to": 8.0})
+    assert judge(stream, [*run, stream.feedback(9.2, task, "aborted")],
+                 profile=slow)["EXEC-SIG-002"].verdict is Verdict.PASS
+    late = judge(stream, [*run, stream.feedback(9.2, task, "aborted")])["EXEC-SIG-002"]
+    assert late.verdict is Verdict.FAIL and "within 3.0 s" in late.violations[0].expected
+    never = judge(stream, run, profile=slow)["EXEC-SIG-002"]
+    assert never.verdict is Verdict.FAIL and "within 8.0 s" in never.violations[0].expected
+
+
 def test_a_signal_whose_feedback_comes_before_its_ok_is_credited(stream):
     """12 orders nothing between exec/feedback and exec/response: 'paused' published before
     the $pause's 'ok' (the reference unit's variant feedback-first) proves EXEC-SIG-003; it

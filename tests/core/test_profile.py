@@ -54,6 +54,23 @@ def test_bad_profile_names_file_key_and_fix(tmp_path: Path, text: str, message: 
     assert str(path) in str(err.value)
 
 
+def test_a_task_has_its_own_feedback_deadline(tmp_path: Path) -> None:
+    """A unit moving at its real speed: one task's feedback deadline from the profile, the
+    others keep the profile's feedback_timeout (scenarios' Timing.feedback_for)."""
+    from conformance.scenarios.context import Timing
+
+    path = tmp_path / "slow.yaml"
+    path.write_text("extends: default\nfeedback_timeout: 20\ntasks:\n  move-to:\n"
+                    "    feedback-timeout: 90\n  look-at-bearing:\n")
+    p = profile.load(path)
+    assert p.task_feedback_timeouts == {"move-to": 90.0}
+    timing = Timing(p, scale=2.0)
+    assert (timing.feedback_for("move-to"), timing.feedback_for("look-at-bearing")) == (180, 40)
+    path.write_text("tasks:\n  move-to:\n    feedback-timeout: 0\n")
+    with pytest.raises(ProfileError):
+        profile.load(path)
+
+
 def test_unknown_profile_name_lists_the_builtins() -> None:
     with pytest.raises(ProfileError, match=r"neither a built-in profile \(.*strict.*\)"):
         profile.load("strickt")
@@ -62,9 +79,10 @@ def test_unknown_profile_name_lists_the_builtins() -> None:
 def test_the_schema_states_exactly_the_profile_keys() -> None:
     """profiles/profile.schema.json is the one statement of the format: a key of Profile
     without a schema entry (or the reverse) would be undocumented or unloadable."""
-    # task-params and task-scenarios are read from 'tasks' written as a mapping
+    # task-params, task-scenarios and task-feedback-timeouts are read from 'tasks' written
+    # as a mapping
     fields = {f.replace("_", "-") for f in profile.Profile.__dataclass_fields__} - {
-        "source", "task-params", "task-scenarios"}
+        "source", "task-params", "task-scenarios", "task-feedback-timeouts"}
     assert set(profile.schema()["properties"]) == fields | {"extends"}
     for key, prop in profile.schema()["properties"].items():
         assert prop.get("description"), f"{key} has no description"

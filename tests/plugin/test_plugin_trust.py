@@ -16,6 +16,7 @@ import re
 
 import pytest
 from certify_helpers import (
+    DEADLINE,
     MATRIX,
     REAL_STALL,
     STALL,
@@ -23,9 +24,11 @@ from certify_helpers import (
     certify,
     certify_sim,
     certify_stalling,
+    certify_virtual,
 )
 
 from conformance.plugin import INTERRUPTED_EXIT
+from conformance.sim import FAULTS
 
 STALLING = {"feedback-status-done": "EXEC-FB-002", "feedback-no-task-uuid": "EXEC-FB-001",
             "task-uuid-ignored": "EXEC-START-002", "no-final-feedback": "EXEC-START-003"}
@@ -130,3 +133,18 @@ def test_help_documents_the_exit_statuses_and_the_guard(pytester: pytest.Pyteste
     assert "6 not certified" in words and "7 not certified (no rule failed, but a rule a " \
            "claimed level needs could not be tested)" in words
     assert "--max-duration" in text and "--rule" in text
+
+
+def test_a_slow_unit_without_final_statuses_is_certified_within_the_deadline(
+        pytester: pytest.Pytester, prefix: str) -> None:
+    """A 1 Hz unit whose tasks move at their real speeds (longer than the default profile's
+    30 s feedback_timeout) and which sends no final status at all, certified with the default
+    options (in virtual time: the deadline is the unit's time): the waits end on what the
+    unit showed (a task leaving tasks-executing, the deviation once noted), not each on the
+    full feedback deadline (133-136 s before), and exactly the fault's rules fail."""
+    run = certify_virtual(pytester, f"{prefix}/unit/air/simulation/dji0", "--seed", "1", "-q",
+                          faults=("no-final-status",), variants=("real-speed",), rate=1.0)
+    assert run.report is not None, run.text[-3000:]
+    assert run.report["finished"] - run.report["started"] < DEADLINE
+    assert run.failed == set(FAULTS["no-final-status"].rules), run.text[-3000:]
+    assert run.text.count("adapted to EXEC-START-003:") == 1, run.text[-3000:]

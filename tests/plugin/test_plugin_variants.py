@@ -65,6 +65,8 @@ GROUPS: list[tuple[tuple[str, ...], bool]] = [  # (variants, with the TST level)
     # A unit written from the spec alone: signals accepted 'running' (12.1's word), look-at
     # tasks that list only $abort and $enough (5.3), on both levels (TST too).
     (("signal-running", "two-signals"), True),
+    # Tasks at their real speeds (a unit written elsewhere): waits end on what it shows.
+    (("real-speed",), False),
 ]
 PACED: dict[tuple[str, ...], float] = {  # variants -> heartbeat rate (Hz)
     # The same unit as a ground unit at 0.5 Hz answering after 1-3 s, under the default

@@ -621,3 +621,24 @@ def test_two_signals_lists_and_takes_only_abort_and_enough_for_look_at_tasks(
     # the rest of the script as before: $enough ends the look-at task, 'finished'
     assert run.answer(com(3))["response"] == "ok"
     assert [m["status"] for _, m in run.messages("/exec/feedback")] == ["running", "finished"]
+
+
+def test_real_speed_keeps_a_short_move_running_where_the_plain_unit_arrives() -> None:
+    """A move-to 100 m away: the plain unit (time compressed) arrives within seconds, the
+    real-speed unit is still moving, and so still lists it, well past them; then $enough
+    ends both alike."""
+    here = GeoPoint(58.3945, 15.5645, 0.0)
+    there = {"latitude": 58.3954, "longitude": 15.5645, "altitude": 0.0, "rostype": "GeoPoint"}
+    assert 90 < distance(here, GeoPoint(58.3954, 15.5645, 0.0)) < 110
+    script = [(1.0, "exec", {"com-uuid": com(90), "command": "start-task",
+                             "sender": "commander", "task-uuid": T1,
+                             "task": {"name": "move-to", "params": {"waypoint": there}}}),
+              (11.0, "exec", {"com-uuid": com(91), "command": "signal-task",
+                              "sender": "commander", "signal": "$enough", "task-uuid": T1})]
+
+    def ends(r: Run) -> list[tuple[float, str]]:
+        return [(t, json.loads(p)["status"]) for t, sub, p in r.sent if sub == "/exec/feedback"]
+
+    plain, real = Run(script=script, seconds=12.0), Run("real-speed", script=script, seconds=12.0)
+    assert [s for _, s in ends(plain)] == ["running", "finished"] and ends(plain)[1][0] < 11.0
+    assert [s for _, s in ends(real)] == ["running", "finished"] and ends(real)[1][0] >= 11.0
