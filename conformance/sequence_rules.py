@@ -85,7 +85,7 @@ def reapplied(model: Model, task: TaskRecord, status: str, previous: str | None,
     executed again): a task says a $pause's or $continue's effect again ('paused' after
     'running', 'running' after 'paused') within the response timeout of a resend of that
     signal to it, whose first sending it had already shown, with no other such signal to it
-    in that time whose effect it still owed (docs/MODEL.md 'resends')."""
+    in that time whose effect it still owed (docs/MODEL.md 'Where the spec is silent: the decisions (also in `conformance/rules.toml`)')."""
     wanted = wanted_signal(status, previous)
     if wanted not in ("$pause", "$continue"):
         return []  # $abort's and $enough's ends are final: a second one is EXEC-FB-004's
