@@ -29,9 +29,10 @@ LIVES_KEPT = 8
 VALUES_KEPT = 4
 KINDS_KEPT = 16
 OVER_A_GAP = ("could not be judged: the broker lost or held the unit's traffic meanwhile (the "
-              "observer's connection was down, or the broker stalled), or the capture cut a "
-              "message then, so what the unit sent then is unknown (a broker's or a capture's "
-              "fault is never the unit's)")
+              "observer's connection was down, or the broker stalled), the capture cut a "
+              "message then, or the host held the bundled unit (a loaded machine), so what the "
+              "unit sent then is unknown (a broker's, a capture's or a host's fault is never "
+              "the unit's)")
 """The reason a deadline over a gap of the observer is not judged."""
 
 Judge = Callable[[CheckContext, UnitState, Any, float], list[Violation]]

@@ -89,12 +89,22 @@ def certify_sim(pytester: pytest.Pytester, broker: str, unit: str, *args: str,
                 faults: tuple[str, ...] = (), rate: float = 2.0) -> Certified:
     """Certify a reference unit (with ``faults``) that this process runs on ``broker``. The
     host may hold the unit's thread on a loaded machine (CI's 2 shared cores held it 1.6 s at
-    2 Hz): ``Rebooter`` tells the certification, which does not judge that time."""
+    2 Hz): ``Rebooter`` tells the certification, which does not judge that time, and a run
+    the host held a heartbeat period or more is run once more (what the hold hid is then
+    could-not-test, not what the test asserts), and says so."""
     from conformance.sim import SimUnit
 
-    with SimUnit(unit, broker, faults=faults, rate=rate, seed=1) as sim:
-        return certify(pytester, "--unit", unit, "--broker", broker, *args,
-                       plugins=(Rebooter(sim),))
+    def once() -> tuple[Certified, float]:
+        with SimUnit(unit, broker, faults=faults, rate=rate, seed=1) as sim:
+            return certify(pytester, "--unit", unit, "--broker", broker, *args,
+                           plugins=(Rebooter(sim),)), sim.runtime.held
+
+    run, held = once()
+    if held >= 1.0 / rate:  # what the hold hid (could-not-test) is tested once more
+        print(f"the host held the reference unit {held:.2f} s past a step (period "
+              f"{1.0 / rate:g} s): certifying again")
+        run, _ = once()
+    return run
 
 
 def certify_virtual(pytester: pytest.Pytester, unit: str, *args: str,

@@ -27,6 +27,8 @@ class Driver:
     def __init__(self, broker: str, unit: str) -> None:
         self.unit = unit
         self.messages: list[Message] = []
+        self.holds: list[tuple[float, float]] = []
+        """When the host held the unit (it runs in this process: ``Runtime.on_hold``)."""
         self._new = threading.Condition()
         self.client = MqttClient(BrokerURL.parse(broker), on_message=self._keep,
                                  may_publish=lambda t: t == f"{unit}/exec/command")
@@ -188,8 +190,9 @@ def drive(broker: str, unit: str, faults: tuple[str, ...],
           sequence: Callable[[Driver], None]) -> Driver:
     """Run ``sequence`` against the reference unit with ``faults``; the driver holds the
     traffic (two heartbeats after the last step, so the last answers are in)."""
-    with SimUnit(unit, broker, faults=faults, rate=RATE, seed=1, task_seconds=1.0):
+    with SimUnit(unit, broker, faults=faults, rate=RATE, seed=1, task_seconds=1.0) as sim:
         d = Driver(broker, unit)
+        sim.runtime.on_hold = lambda start, end: d.holds.append((start, end))
         try:
             d.heartbeats(2)
             sequence(d)

@@ -245,6 +245,8 @@ def test_each_tst_fault_breaks_exactly_its_rules(observe, mosquitto: str,
     plan = {i + 1: (f,) for i, f in enumerate(faults)}
     with Fleet(address, mosquitto, len(plan) + 1, faults_by_index=plan, rate=FLEET_RATE,
                task_seconds=1.0, tst_execution=True) as fleet:
+        holds: list[tuple[float, float]] = []  # a loaded host held the fleet (this process)
+        fleet.runtime.on_hold = lambda t0, t1: holds.append((t0, t1))
         bases = [c.base for c in fleet.cores]
         obs = observe(mosquitto, f"{address.prefix}/#",
                       tuple(f"{b}/tst/command" for b in bases))
@@ -263,6 +265,8 @@ def test_each_tst_fault_breaks_exactly_its_rules(observe, mosquitto: str,
             t.join(120)
         assert fleet.errors == 0, fleet.runtime.last_error
     monitor = Monitor(Profile(max_gap_periods=3.0))
+    for held_from, held_to in holds:
+        monitor.host_held(held_from, held_to)
     for m in obs.messages:
         monitor.feed(m)
     monitor.finish()
