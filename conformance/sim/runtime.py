@@ -37,9 +37,8 @@ refuse it."""
 BATCH = 256
 """Commands handled between two looks at the schedule, so a flood cannot delay heartbeats."""
 HOLD_MARK = 0.25
-"""A step run this many seconds or more after it was due was held by the host (a loaded
-machine), not by the unit's own code: ``on_hold`` is told (a unit at 2 Hz is then half a
-period late)."""
+"""A wait that returns this many seconds or more late was held by the host (a loaded machine),
+not by the units' own code: ``on_hold`` is told (a unit at 2 Hz is then half a period late)."""
 
 
 class Runtime:
@@ -74,7 +73,7 @@ class Runtime:
         """The most seconds a unit's step ran after it was due: how long the host held this
         thread (a loaded machine), so that a silence it caused is not taken for the unit's."""
         self.on_hold: Callable[[float, float], None] | None = None
-        """Told each time the host held this thread ``HOLD_MARK`` or more past a due step:
+        """Told each time the host held this thread ``HOLD_MARK`` or more past the end of a wait:
         from when to when (Unix seconds). A certification of the bundled unit in its own
         process marks that time as the observer's (``suite/connection.py``)."""
 
@@ -232,16 +231,25 @@ class Runtime:
                 if due != unit.due:
                     continue  # superseded by an earlier entry for this unit
                 self.held = max(self.held, now - due)
-                if now - due >= HOLD_MARK and self.on_hold is not None:
-                    wall = time.time()
-                    self.on_hold(wall - (now - due), wall)
                 self._guarded(unit.run, now)
                 self._reschedule(i)
             if self._inbox:
                 continue
             wait = (heap[0][0] - time.monotonic()) if heap else 0.5
             if wait > 0:
-                self._wake.wait(min(wait, 0.5))
+                self._sleep(min(wait, 0.5))
+
+    def _sleep(self, seconds: float) -> None:
+        """Wait ``seconds`` or until woken. A wait that ran out and returned ``HOLD_MARK`` or
+        more late was the host's (the thread was ready and not run), never the units' own work
+        (a reboot, a flood of commands): ``on_hold`` is told."""
+        began = time.monotonic()
+        if self._wake.wait(seconds) or self.on_hold is None:
+            return
+        late = time.monotonic() - began - seconds
+        if late >= HOLD_MARK:
+            wall = time.time()
+            self.on_hold(wall - late, wall)
 
     def _reschedule(self, i: int) -> None:
         unit = self.units[i]
