@@ -175,16 +175,22 @@ class Rebooter:
         self.calls = 0
 
     def pytest_sessionstart(self, session: pytest.Session) -> None:
-        from conformance.suite.session import CERTIFICATION
-
-        certification = session.config.stash.get(CERTIFICATION, None)
-        if certification is not None:
-            self.sim.runtime.on_hold = certification.connection.host_held
+        tell_holds(session, self.sim.runtime)
 
     def pytest_waraps_reboot(self, config: pytest.Config, unit: str) -> bool:
         self.calls += 1
         self.sim.reboot()
         return True
+
+
+def tell_holds(session: pytest.Session, runtime: Any) -> None:
+    """The certification of ``session`` is told when the host held ``runtime``'s units (they
+    share this process: ``Connection.host_held``)."""
+    from conformance.suite.session import CERTIFICATION
+
+    certification = session.config.stash.get(CERTIFICATION, None)
+    if certification is not None:
+        runtime.on_hold = certification.connection.host_held
 
 
 class SilentUnit:

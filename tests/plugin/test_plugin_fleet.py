@@ -12,7 +12,7 @@ import json
 from pathlib import Path
 
 import pytest
-from certify_helpers import Certified, certify, recorded
+from certify_helpers import Certified, certify, recorded, tell_holds
 from test_plugin_variants import PROFILE, accusations, first_violations
 
 from conformance.sim import Fleet
@@ -40,11 +40,7 @@ class ProcessRebooter:
     def pytest_sessionstart(self, session: pytest.Session) -> None:
         """The fleet shares this process: the certification is told when the host held it
         (as ``certify_helpers.Rebooter`` does; the lint of the recording cannot be)."""
-        from conformance.suite.session import CERTIFICATION
-
-        certification = session.config.stash.get(CERTIFICATION, None)
-        if certification is not None:
-            self.fleet.runtime.on_hold = certification.connection.host_held
+        tell_holds(session, self.fleet.runtime)
 
 
 def certify_both(pytester: pytest.Pytester, broker: str, base: UnitAddress,
