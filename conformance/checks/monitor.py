@@ -37,7 +37,8 @@ from conformance.checks.suite_commands import suite_row
 from conformance.facts import RunKind
 from conformance.message import Message
 from conformance.profile import Profile
-from conformance.results import RunMeta, RunReport, UnitReport
+from conformance.report_meta import RunMeta
+from conformance.results import RunReport, UnitReport
 from conformance.rules import CATALOGUE, Side, get
 from conformance.topics import TopicKind, UnitAddress, parse_topic
 from conformance.validator import Examined, Validation, Validator
@@ -196,16 +197,10 @@ class Monitor:
             commander.add(f)
         return found
 
-
     @staticmethod
     def _checks_for(v: Validation) -> tuple[Any, ...]:
         return (tuple(c.fn for c in REGISTRY.on_message.get(v.topic.kind, ()))
                 + tuple(c.fn for c in REGISTRY.on_kind.get(v.kind, ())))
-
-
-
-
-
 
     def connection_gap(self, start: float, end: float | None) -> None:
         """The observer was disconnected from ``start`` to ``end`` (Unix seconds): intervals

@@ -18,7 +18,8 @@ from conformance.checks.rates import rate_stats
 from conformance.facts import RunKind
 from conformance.judge import judge_rates, judge_rule
 from conformance.profile import Profile
-from conformance.results import Party, UnitFacts, UnitReport, skip_reason
+from conformance.report_meta import UnitFacts
+from conformance.results import Party, UnitReport, skip_reason
 from conformance.rules import CATALOGUE, Mode, Rule, Side
 from conformance.topics import UnitAddress
 from conformance.validator import Examined

@@ -26,8 +26,9 @@ from conformance.facts import RunFacts, RunKind
 from conformance.judge import judge
 from conformance.lint.linter import FLEET_RULES
 from conformance.lint.rows import STATUS_ORDER, LintRow, live_rows, report_rows, seen_fields
+from conformance.report_meta import RunMeta
 from conformance.reporting.jsonreport import dumps
-from conformance.results import Party, RunMeta
+from conformance.results import Party
 from conformance.violation import Verdict, Violation
 
 SNAPSHOT_EVERY = 1.0

@@ -35,10 +35,11 @@ from conformance.recording import (
     RecordingReader,
     open_recording,
 )
+from conformance.report_meta import RunMeta
 from conformance.reporting import write_html, write_json, write_junit
 from conformance.reporting.bounds import file_stem
 from conformance.reporting.text import render_verdicts, render_violation
-from conformance.results import Party, RunMeta
+from conformance.results import Party
 from conformance.rosbag import BagError, BagReader, is_bag
 from conformance.violation import Verdict
 

@@ -16,7 +16,8 @@ import hashlib
 from collections.abc import Callable
 from typing import TypeVar
 
-from conformance.results import RunMeta, RunReport
+from conformance.report_meta import RunMeta
+from conformance.results import RunReport
 from conformance.violation import Verdict
 
 MAX_REPORT_BYTES = 10_000_000

@@ -26,10 +26,11 @@ from typing import TYPE_CHECKING, Any
 from conformance.conclusion import NOT_RUN, Conclusion, UnitStatus, facts_of, ranked_findings
 from conformance.conclusion import of as conclusion_of
 from conformance.display import shorten
+from conformance.report_meta import RERUN_OF
 from conformance.reporting.bounds import bounded
 from conformance.reporting.files import atomic_write
 from conformance.reporting.text import iso_time, printable, rerun_command
-from conformance.results import RERUN_OF, Party, RateStat, RunReport, UnitReport
+from conformance.results import Party, RateStat, RunReport, UnitReport
 from conformance.rules import CATALOGUE, reading
 from conformance.violation import RuleResult, Verdict, Violation
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import shlex
 from datetime import UTC, datetime
-from typing import Any
 
 from conformance.conclusion import LINT_NEVER_CERTIFIES, TRIAGE, ranked_findings
 from conformance.conclusion import of as conclusion_of
@@ -14,7 +13,7 @@ from conformance.facts import RunKind
 from conformance.results import RunReport
 from conformance.rules import CATALOGUE, Rule, Severity
 from conformance.topics import TopicError, UnitAddress, parse_topic
-from conformance.violation import Verdict, Violation
+from conformance.violation import RuleResult, Verdict, Violation
 
 TITLE_WIDTH = 64
 
@@ -29,14 +28,14 @@ def iso_time(t: float | None) -> str:
         return repr(t)
 
 
-def rerun_command(report: Any, unit: str, rule_id: str, topic: str = "") -> str:
+def rerun_command(report: RunReport | None, unit: str, rule_id: str, topic: str = "") -> str:
     """How to repeat what found a violation of ``rule_id`` on ``unit``: for a lint report
     ``waraps-conformance lint --from <recording> --unit <unit>`` (or ``--broker <url>`` and
     its TLS options when it linted live traffic); for a certification (or no report) ``pytest --unit <unit> -k
     <rule>``. ``report`` is a ``RunReport``: its kind, broker and meta say which. A
     commander's row ('commander alice') is no unit: its finding is repeated by linting the
     unit whose command ``topic`` it was found on (or every unit, when the topic names none)."""
-    if getattr(report, "kind", RunKind.CERTIFICATION) != RunKind.LINT:
+    if report is None or report.kind != RunKind.LINT:
         return f"pytest --unit {shlex.quote(unit)} -k {shlex.quote(rule_id)}"
     try:
         unit = UnitAddress.parse(unit).base
@@ -60,7 +59,7 @@ def rerun_command(report: Any, unit: str, rule_id: str, topic: str = "") -> str:
 
 def render_violation(rule: str | Rule, violation: Violation, unit: str = "",
                      rerun_hint: str | None = None, verdict: Verdict | None = None,
-                     report: Any = None) -> str:
+                     report: RunReport | None = None) -> str:
     """One violation for a person (the form every output shares): rule id, title and verdict;
     expected; observed; topic; spec section; how to rerun. ``rerun_hint`` None gives the command for
     the unit (``rerun_command``: the lint command for a lint ``report``, else pytest), '' leaves the
@@ -101,9 +100,8 @@ def render_violation(rule: str | Rule, violation: Violation, unit: str = "",
     return "\n".join(lines)
 
 
-def render_summary(report: object) -> str:
+def render_summary(report: RunReport) -> str:
     """A few lines per unit: verdict counts and the failing and warning rules."""
-    assert isinstance(report, RunReport)
     conclusion = conclusion_of(report)  # the one verdict model: its words and counts
     out = [f"{report.kind} report, profile {report.profile}, broker {report.broker or '-'}: "
            f"{printable(conclusion.headline())}; "
@@ -127,7 +125,7 @@ FINDINGS_PER_UNIT = 5
 """Findings shown per unit in the verdicts that open lint's text output (the reports hold all)."""
 
 
-def render_verdicts(report: Any, per_unit: int = FINDINGS_PER_UNIT) -> str:
+def render_verdicts(report: RunReport, per_unit: int = FINDINGS_PER_UNIT) -> str:
     """What lint's text output opens with: the run's verdict and counts (the same
     counts as the JSON and HTML reports), then each unit's verdict and its most severe findings
     first (``conformance.conclusion.TRIAGE``), units with the most severe findings first. A
@@ -136,7 +134,7 @@ def render_verdicts(report: Any, per_unit: int = FINDINGS_PER_UNIT) -> str:
     counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
     out = [f"verdict: {conclusion.verdict} ({counts})"
            + (f"; {LINT_NEVER_CERTIFIES}" if report.kind == RunKind.LINT else "")]
-    by_unit: dict[str, list[tuple[int, Any]]] = {}
+    by_unit: dict[str, list[tuple[int, RuleResult]]] = {}
     for rank, unit, result in ranked_findings(report):
         by_unit.setdefault(unit, []).append((rank, result))
     order = sorted(conclusion.units, key=lambda u: (

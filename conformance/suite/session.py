@@ -32,7 +32,8 @@ from conformance.conclusion import of as conclusion_of
 from conformance.display import LINE_CHARS, shorten, shown
 from conformance.facts import CTRL_C, RunFacts, RunKind
 from conformance.protocol import State
-from conformance.results import RunMeta, RunReport
+from conformance.report_meta import RunMeta
+from conformance.results import RunReport
 from conformance.scenarios import (
     RULE_SCENARIO,
     Commander,

@@ -8,7 +8,7 @@ from conformance.checks import Monitor, covered_rules
 from conformance.conclusion import conclude
 from conformance.message import Message
 from conformance.profile import Profile
-from conformance.results import RunMeta
+from conformance.report_meta import RunMeta
 from conformance.topics import UnitAddress
 from conformance.violation import Observed, Verdict, Violation
 

@@ -10,8 +10,9 @@ from types import SimpleNamespace
 
 import pytest
 
+from conformance.report_meta import RunMeta
 from conformance.reporting.text import rerun_command as report_rerun
-from conformance.results import RunMeta, skip_reason
+from conformance.results import skip_reason
 from conformance.rules import get
 from conformance.suite.settings import read
 

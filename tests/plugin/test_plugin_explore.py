@@ -80,52 +80,6 @@ def test_sequence_fault_found_told_and_replayed(pytester: pytest.Pytester) -> No
     assert "no longer fails" in clean.text
 
 
-def test_a_task_dropped_silently_is_shrunk_to_the_steps_that_drop_it(
-        pytester: pytest.Pytester) -> None:
-    """preempt-paused-silently: shrinking by replay leaves out what is not needed and ends
-    at start, $pause, start another of its kind, then what shows the paused task gone: a
-    query (EXEC-QUERY-001: the unit forgot it), or, where the paused task was held while
-    tasks-executing listed it paused (the transition 'held-paused'), the second start itself
-    (EXEC-START-003: listed paused, it left the list with no final status). A paused task may
-    be left out of tasks-executing (5.3 does not say), so its leaving the list is no end
-    unless the unit listed it while paused (docs/MODEL.md)."""
-    run = certify(pytester, *EMBEDDED, "--sim-fault=preempt-paused-silently", "--explore=60s",
-                  "--seed", "2", "-k", "test_explore")
-    assert run.result.ret == 1, run.text
-    (stored,) = run.reports_dir.glob("*-explore.json")
-    story = json.loads(stored.read_text())
-    actions = [s["action"] for s in story["steps"] if not s["action"].get("teardown")]
-    shapes = {"EXEC-QUERY-001": [("start", None), ("signal", "$pause"), ("start", None),
-                                 ("query", None)],
-              "EXEC-START-003": [("start", None), ("signal", "$pause"), ("wait", None),
-                                 ("start", None)]}
-    (rule,) = story["rules"]
-    assert [(a["do"], a.get("signal")) for a in actions] == shapes[rule], story
-    starts = [a for a in actions if a["do"] == "start"]
-    assert starts[0]["task"] == starts[1]["task"]
-    assert story["failing_step"] == 4  # the step that finds it gone
-    assert "replays to shrink it" in run.report["meta"]["explore"]  # type: ignore[index]
-
-
-def test_a_unit_that_dies_on_an_order_of_commands_ends_the_exploration_with_its_steps(
-        pytester: pytest.Pytester) -> None:
-    """dies-on-missing-task-uuid: exploration sends a start-task without task-uuid and the
-    unit stops heartbeating. No answer can come: the exploration ends there (not 'answered as
-    the model says', not waiting out every step and teardown), telling the steps that led
-    there; HB-012 fails on its own, naming the command."""
-    run = certify(pytester, *EMBEDDED, "--sim-fault=dies-on-missing-task-uuid", "--explore=40s",
-                  "--seed", "3", "-k", "test_explore or HB-012")
-    assert run.result.ret == 1, run.text
-    assert explore_outcome(run) == "failed", run.text
-    assert "exploration: the unit died during step" in run.text, run.text
-    assert "no task-uuid (the unit makes one)" in run.text
-    assert "answered as the model says" not in run.text
-    assert "The above exception" not in run.text
-    assert run.outcomes.get("HB-012") == "failed"
-    (stored,) = run.reports_dir.glob("*-explore.json")
-    assert json.loads(stored.read_text())["steps"][-1]["action"]["task_uuid"] is False
-
-
 def test_random_order_explores_without_the_models_guidance_and_its_rerun_keeps_it(
         pytester: pytest.Pytester) -> None:
     """--explore-order random (what bench_explore --order random measures): the conformant

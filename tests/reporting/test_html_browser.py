@@ -70,7 +70,8 @@ HOSTILE = (f"<script>{PWN}</script>", f'"><img src=x onerror="{PWN}">',
 def hostile_report() -> RunReport:
     """A report whose wire-borne fields all hold markup: the unit name, a topic, a rule detail,
     a payload excerpt, a reason, a rate's kind (in an attribute), and a run fact."""
-    from conformance.results import RateStat, RunMeta, UnitFacts, UnitReport
+    from conformance.report_meta import RunMeta, UnitFacts
+    from conformance.results import RateStat, UnitReport
     from conformance.violation import RuleResult, Verdict, Violation
 
     every = " ".join(HOSTILE)

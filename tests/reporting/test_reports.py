@@ -12,6 +12,7 @@ from conformance.client import BrokerURL
 from conformance.conclusion import conclude
 from conformance.display import printable, shorten
 from conformance.facts import RunFacts
+from conformance.report_meta import RunMeta
 from conformance.reporting import files as files_mod
 from conformance.reporting import (
     read_json,
@@ -21,7 +22,7 @@ from conformance.reporting import (
     to_junit,
     write_all,
 )
-from conformance.results import RunMeta, RunReport
+from conformance.results import RunReport
 from conformance.rules import CATALOGUE
 from conformance.violation import Verdict, Violation
 

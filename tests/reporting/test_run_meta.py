@@ -9,9 +9,10 @@ import dataclasses
 import orjson
 import pytest
 
+from conformance.report_meta import MalformedReport, RunMeta, UnitFacts
 from conformance.reporting import read_json, write_all
 from conformance.reporting.htmlreport import META_SHOWN_ELSEWHERE, META_WORDS
-from conformance.results import MalformedReport, RunMeta, RunReport, UnitFacts, UnitReport
+from conformance.results import RunReport, UnitReport
 
 CERTIFICATION_KEYS = [
     "agent_uuid", "allow_hostile", "allow_motion", "commands_sent", "dry_run", "exit_status",
