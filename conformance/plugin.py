@@ -1,7 +1,8 @@
 """The pytest11 entry point: ``pytest --unit waraps/unit/air/simulation/dji0`` certifies a unit.
 
 Importing this module is cheap and changes nothing unless ``--unit`` is given: the options
-are declared, and that is all. With ``--unit``, a ``Certification`` (``conformance.suite``) is
+are declared, and that is all (every pytest run on the machine loads this entry point, so the
+suite's modules are imported inside the hooks that need them, once ``--unit`` is given). With ``--unit``, a ``Certification`` (``conformance.suite``) is
 registered for the run; with ``--unit`` and no test paths, pytest runs exactly the conformance
 suite packaged in ``conformance.suite``, from any working directory.
 """
@@ -14,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from conformance.cli.options import BROKER_ENV, CREDENTIALS, TLS_FILES, TLS_INSECURE, parse_rate
-from conformance.display import printable, printable_lines
+from conformance.display import printable
 from conformance.exits import EXIT_NOT_CERTIFIED, EXIT_UNTESTED
 from conformance.masking import mask_password
 
@@ -309,7 +310,9 @@ class _CertificationPlugin:
         c.progress.clear()
         if report.nodeid.endswith("::test_explore") and (
                 report.when == "call" or report.outcome != "passed"):
-            self.explore_outcome = _explore_outcome(report, c.explored)
+            from conformance.suite.summary import explore_outcome
+
+            self.explore_outcome = explore_outcome(report, c.explored)
         marker = report.keywords.get("waraps_rule") if report.when == "call" or (
             report.when == "setup" and report.outcome != "passed") else None
         if marker is not None:
@@ -341,139 +344,16 @@ class _CertificationPlugin:
 
     def _say_exit(self, config: pytest.Config, status: int) -> None:
         """The last line the terminal prints, after pytest's own counts (README 'Exit
-        status'): the exit status and why, so a log says what a gate read."""
-        from conformance.conclusion import of as conclusion_of
-        from conformance.suite.gate import last_line
+        status')."""
+        from conformance.suite.summary import exit_line
 
         tr = config.pluginmanager.get_plugin("terminalreporter")
-        if tr is None:
-            return
-        c = self.certification
-        report = c.report()
-        row = report.units.get(str(c.unit))
-        final = {r: res.verdict.value for r, res in row.rules.items()} if row else {}
-        failed_then = tuple(sorted(r for r, shown in c.evidence.enacted.items()
-                                   if shown.value == "fail" and final.get(r) != "fail"))
-        text = last_line(report, conclusion_of(report), str(c.unit), status,
-                         error_said=bool(c.error), failed_then=failed_then)
-        tr.write_line(printable_lines(mask_password(text)),
-                      green=status == 0, red=status != 0)
+        if tr is not None:
+            tr.write_line(exit_line(self.certification, status),
+                          green=status == 0, red=status != 0)
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
-        from conformance.conclusion import of as conclusion_of
+        from conformance.suite.summary import write_summary
 
-        c = self.certification
-        if c.collect_only:
-            return
-        tr = terminalreporter
-
-        def line(text: str, **markup: bool) -> None:
-            # Every line through the one escape: the unit's own words (its
-            # levels, names, reasons) never reach the terminal raw; our own line breaks stay.
-            # Never a password (§5): the repeat line, an error naming a URL.
-            tr.line(printable_lines(mask_password(text)), **markup)
-
-        c.progress.clear()
-        tr.section("waraps-conformance")
-        if c.error:  # what went wrong and how to fix it; the verdict line below says no more
-            line(f"not certified: {c.error}", red=True)
-        for event in c.events:
-            line(printable(event))
-        report = c.report()
-        conclusion = conclusion_of(report)
-        counts = ", ".join(f"{n} {v}" for v, n in conclusion.counts.items() if n)
-        head = conclusion.verdict if c.error else conclusion.headline()
-        # The rules' counts, and the exploration apart: together they are pytest's tests.
-        explored = f"; exploration: {self.explore_outcome}" if self.explore_outcome else ""
-        line(f"{printable(c.unit)}: {printable(head)}; rules: {counts}{printable(explored)}",
-             red=conclusion.verdict not in ("pass", "warn"))
-        unit = conclusion.units.get(str(c.unit))
-        for level in unit.levels if unit is not None else ():
-            line(f"  {printable(level)}")
-        for text in findings(report, str(c.unit), error_said=bool(c.error)):
-            line(text, red=text.startswith("  failed"))
-        for text in skipped_by_reason(report.units.get(str(c.unit))):
-            line(text)
-        if conclusion.judged_after_test:
-            _failed_after(c, report, conclusion.judged_after_test, line)
-        for kind, path in sorted(c.reports.paths.items()):
-            line(f"{kind} report: {printable(path)}")
-        if c.reports.error:
-            line(c.reports.error, red=True)
-        if not c.reports.paths:
-            line("no report was written")
-        line(f"repeat this run: {printable(c.rerun_command())}")
-
-
-def _failed_after(c: Certification, report: Any, later: Any, line: Any) -> None:
-    """The rules whose tests passed before the traffic that fails them came: said, each with
-    its first violation (the evidence came from a later scenario: the whole run reproduces
-    it)."""
-    from conformance.reporting import render_violation
-
-    line(f"failed after their tests ran (later traffic is evidence too; the "
-         f"reports hold it): {printable(', '.join(later))}", red=True)
-    rules = report.units[str(c.unit)].rules
-    for rule in later:
-        for v in rules[rule].violations[:1]:
-            line(render_violation(rule, v, str(c.unit), rerun_hint=c.rerun_command()))
-
-
-def _explore_outcome(report: pytest.TestReport, explored: str) -> str:
-    """``pass (5 examples, 120 steps in 50 s ...)``, ``fail``, ``could-not-test (why)``."""
-    if report.skipped:
-        reason = str(report.longrepr[-1]) if isinstance(report.longrepr, tuple) else ""
-        reason = reason.removeprefix("Skipped: ")
-        if reason.startswith("could not test: "):
-            return f"could-not-test ({reason.removeprefix('could not test: ')})"
-        return f"skip ({reason})" if reason else "skip"
-    word = "pass" if report.passed else "fail"
-    return f"{word} ({explored})" if explored else word
-
-
-def findings(report: Any, unit: str, *, error_said: bool = False) -> list[str]:
-    """What the summary names after the levels: each failed rule with its title
-    (its evidence is in pytest's failures above), then the rules that could not be tested,
-    grouped by their reason, which names the option that would test them (``--reboot-cmd``),
-    and the rules not run, counted (unless the error that kept them from running was said:
-    ``error_said``)."""
-    from conformance.reporting.htmlreport import untested
-    from conformance.rules import CATALOGUE
-    from conformance.violation import Verdict
-
-    row = report.units.get(unit)
-    if row is None:
-        return []
-    from conformance.conclusion import ranked_findings
-
-    # Most severe first, the order of the reports (conclusion.TRIAGE).
-    lines = [f"  failed  {r.rule} {printable(CATALOGUE[r.rule].title)}"
-             for _, name, r in ranked_findings(report)
-             if name == unit and r.verdict is Verdict.FAIL and r.rule in CATALOGUE]
-    for group in untested(report):
-        if group.unit != unit:
-            continue
-        if group.not_run:
-            if error_said:
-                continue
-            why = group.reason.removeprefix("not run: ")  # each word once
-            lines.append(f"  not run {len(group.rules):>3}  {printable(why)}")
-        else:
-            lines.append(f"  could not test {', '.join(group.rules)}: "
-                         f"{printable(group.reason)}")
-    return lines
-
-
-def skipped_by_reason(unit: Any) -> list[str]:
-    """The rules skipped as not applicable, grouped by their reason (one line a reason, not
-    one a rule): ``skipped  17 not claimed: unit declares no 'tst execution' level``."""
-    from collections import Counter
-
-    from conformance.display import printable
-    from conformance.violation import Verdict
-
-    if unit is None:
-        return []
-    reasons = Counter(r.reason or "not examined" for r in unit.rules.values()
-                      if r.verdict is Verdict.SKIP)
-    return [f"  skipped {n:>3}  {printable(reason)}" for reason, n in reasons.most_common()]
+        if not self.certification.collect_only:
+            write_summary(self.certification, terminalreporter, self.explore_outcome)
