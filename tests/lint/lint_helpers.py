@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import orjson
+from machine import deadline
 from private_mosquitto import PrivateMosquitto as SharedMosquitto
 
 from conformance.cli.lint import main as lint_main
@@ -151,14 +152,16 @@ class Process:
         return "\n".join(self.lines)
 
     def wait_for(self, text: str, timeout: float = 15.0) -> str:
-        """The first output line containing ``text``; AssertionError after ``timeout`` s."""
-        deadline = time.monotonic() + timeout
+        """The first output line containing ``text``; AssertionError after ``timeout`` s (on
+        an idle machine: more on a busy one, ``machine.deadline``)."""
+        timeout = deadline(timeout)
+        due = time.monotonic() + timeout
         with self._new:
             while True:
                 for line in self.lines:
                     if text in line:
                         return line
-                left = deadline - time.monotonic()
+                left = due - time.monotonic()
                 if left <= 0 or (self.proc.poll() is not None and not self._thread.is_alive()):
                     raise AssertionError(f"no line with {text!r} within {timeout} s; output:\n"
                                          f"{self.output}")
@@ -166,10 +169,11 @@ class Process:
 
     def interrupt(self, timeout: float = 30.0, sig: int = 2) -> int:
         """Ctrl-C (or signal ``sig``: 15, SIGTERM, as a service manager stops it), then the
-        exit code."""
+        exit code, within ``timeout`` s (more on a busy machine: the reports are written and
+        synced to disk on the way out)."""
         if self.proc.poll() is None:
             self.proc.send_signal(sig)
-        code = self.proc.wait(timeout)
+        code = self.proc.wait(deadline(timeout))
         self._thread.join(5)
         return code
 
