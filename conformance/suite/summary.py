@@ -6,7 +6,7 @@ one escape (``printable_lines``) and never shows a password."""
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import pytest
@@ -59,6 +59,10 @@ def write_summary(c: Certification, tr: Any, explore_outcome: str) -> None:
         line(text)
     if conclusion.judged_after_test:
         _failed_after(c, report, conclusion.judged_after_test, line)
+    untested = untested_after_passing(c.evidence.enacted, report.units.get(str(c.unit)))
+    if untested:
+        line(f"passed when their tests ran, could not be tested in the end (what came later "
+             f"took their evidence: the reason is above): {', '.join(untested)}")
     for kind, path in sorted(c.reports.paths.items()):
         line(f"{kind} report: {printable(path)}")
     if c.reports.error:
@@ -92,6 +96,18 @@ def _failed_after(c: Certification, report: RunReport, later: tuple[str, ...],
     for rule in later:
         for v in rules[rule].violations[:1]:
             line(render_violation(rule, v, str(c.unit), rerun_hint=c.rerun_command()))
+
+
+def untested_after_passing(enacted: Mapping[str, Verdict],
+                           row: UnitReport | None) -> tuple[str, ...]:
+    """The rules whose tests passed when they ran that the whole run could not test: a gap
+    of the observation found later (the broker stalled, the host held the unit) excuses what
+    fell in it, the evidence a test had read too, so pytest's PASSED is not the last word."""
+    if row is None:
+        return ()
+    return tuple(sorted(r for r, shown in enacted.items()
+                        if shown in (Verdict.PASS, Verdict.WARN) and r in row.rules
+                        and row.rules[r].verdict is Verdict.COULD_NOT_TEST))
 
 
 def explore_outcome(report: pytest.TestReport, explored: str) -> str:
