@@ -4,6 +4,7 @@ prefix of its own for every test, so tests never see each other's traffic."""
 from __future__ import annotations
 
 import os
+import signal
 import uuid
 from collections.abc import Iterator
 
@@ -32,6 +33,12 @@ unit fails one test instead of the whole run. The slowest test takes about 40 s 
 
 @pytest.hookimpl(trylast=True)  # after hypothesis loaded the profile of --hypothesis-profile
 def pytest_configure(config: pytest.Config) -> None:
+    # A run started in the background by a script (`nohup ... &`, some CI runners) inherits
+    # SIGINT ignored, and so would every lint, record and pytest process these tests start
+    # and Ctrl-C: the Ctrl-C would never arrive. Each test process (xdist's workers too)
+    # takes Python's own handler back.
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     active = settings.default
     # A property run once per message kind (a dozen tests) takes a sixth of the active
     # profile's examples, so the family costs about what a few tests do: 10 under ci.

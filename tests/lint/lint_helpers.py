@@ -173,7 +173,13 @@ class Process:
         synced to disk on the way out)."""
         if self.proc.poll() is None:
             self.proc.send_signal(sig)
-        code = self.proc.wait(deadline(timeout))
+        due = deadline(timeout)
+        try:
+            code = self.proc.wait(due)
+        except subprocess.TimeoutExpired:
+            self.kill()  # never left behind, serving or subscribed, after the test
+            raise AssertionError(f"still running {due:.0f} s after signal {sig} (killed); "
+                                 f"output:\n{self.output}") from None
         self._thread.join(5)
         return code
 
