@@ -52,7 +52,7 @@ def pytest_configure(config: pytest.Config) -> None:
 # optionalhook: `-p no:xdist` (tests/README: --durations) has no such hook to validate.
 @pytest.hookimpl(tryfirst=True, optionalhook=True)
 def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object | None:
-    """-n 4 (xdist's default, --dist load) schedules by work stealing: a worker that runs out
+    """-n 6 (xdist's default, --dist load) schedules by work stealing: a worker that runs out
     takes half of another's queue, so the slow tests (first, below) are shared out, not
     sent in one consecutive chunk to one worker. Any other --dist is left as asked."""
     if config.getoption("dist") != "load":
@@ -64,7 +64,7 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object | 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     # Slow tests first (a stable sort: file order otherwise). They mostly wait on units and
-    # brokers; started early under -n 4, the many short tests fill in around them instead of
+    # brokers; started early under -n 6, the many short tests fill in around them instead of
     # one worker running the last long test alone at the end (with work stealing, below).
     items.sort(key=lambda item: item.get_closest_marker("slow") is None)
     # pytest-timeout is a test extra; set here, not in the ini, so that `pytest --unit` run from
