@@ -2,9 +2,10 @@
 
 Importing this module is cheap and changes nothing unless ``--unit`` is given: the options
 are declared, and that is all (every pytest run on the machine loads this entry point, so the
-suite's modules are imported inside the hooks that need them, once ``--unit`` is given). With ``--unit``, a ``Certification`` (``conformance.suite``) is
-registered for the run; with ``--unit`` and no test paths, pytest runs exactly the conformance
-suite packaged in ``conformance.suite``, from any working directory.
+suite's modules are imported inside the hooks that need them). With ``--unit``, a
+``Certification`` (``conformance.suite``) is registered for the run; with ``--unit`` and no
+test paths, pytest runs exactly the conformance suite packaged in ``conformance.suite``, from
+any working directory.
 """
 
 from __future__ import annotations
