@@ -25,13 +25,25 @@ class Judging:
         self.unit, self.monitor, self._lock = unit, monitor, lock
         self.facts, self.meta = facts, meta
         self._judged_at: tuple[tuple[int, float | None], RunReport] | None = None
+        self.final: RunReport | None = None
+        """The finished run's report (``conclude``): what was written, what the terminal and
+        the exit status say, however late a message still comes."""
 
     def report(self, **extra: Any) -> RunReport:
         """The run's report, judged (``conformance.judge``) under the run's facts: every rule's
-        verdict and the conclusion every output shows."""
+        verdict and the conclusion every output shows; once the run is finished, its final
+        report."""
+        if self.final is not None and not extra:
+            return self.final
         with self._lock:
             report = self.monitor.report(**self.meta(), **extra)
         return judge(report, self.facts())
+
+    def conclude(self, finished: float) -> RunReport:
+        """Judge the finished run once: every output reads this report from now on (judged
+        again later, the end of the observation would move and with it what a rule saw)."""
+        self.final = self.report(finished=finished)
+        return self.final
 
     def judged(self) -> RunReport:
         """The report as each rule's test enacts it: judged under the facts known mid-run (a

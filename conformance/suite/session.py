@@ -395,9 +395,9 @@ class Certification:
             with self._lock:
                 # Lost for good: the observation ended then (an outage is no death).
                 self.monitor.finish(self.broker_lost or self.traffic.clock.now())
-            finished = self.traffic.clock.now()
-            status = exit_status(conclusion_of(self.report(finished=finished)), exitstatus)
-            self.reports.write(force=True, finished=finished, exit_status=str(status))
+            final = self.judging.conclude(finished=self.traffic.clock.now())
+            status = exit_status(conclusion_of(final), exitstatus)
+            self.reports.write(force=True, exit_status=str(status), final=final)
         finally:
             self.close()
         return status

@@ -59,10 +59,11 @@ def write_summary(c: Certification, tr: Any, explore_outcome: str) -> None:
         line(text)
     if conclusion.judged_after_test:
         _failed_after(c, report, conclusion.judged_after_test, line)
-    untested = untested_after_passing(c.evidence.enacted, report.units.get(str(c.unit)))
-    if untested:
-        line(f"passed when their tests ran, could not be tested in the end (what came later "
-             f"took their evidence: the reason is above): {', '.join(untested)}")
+    changed = judged_otherwise(c.evidence.enacted, report.units.get(str(c.unit)))
+    if changed:
+        line("judged otherwise at the end than when their tests ran (pytest shows the "
+             "latter; the whole run has the last word, the reason is above): "
+             + "; ".join(f"{r} {shown.value} -> {final.value}" for r, shown, final in changed))
     for kind, path in sorted(c.reports.paths.items()):
         line(f"{kind} report: {printable(path)}")
     if c.reports.error:
@@ -98,16 +99,16 @@ def _failed_after(c: Certification, report: RunReport, later: tuple[str, ...],
             line(render_violation(rule, v, str(c.unit), rerun_hint=c.rerun_command()))
 
 
-def untested_after_passing(enacted: Mapping[str, Verdict],
-                           row: UnitReport | None) -> tuple[str, ...]:
-    """The rules whose tests passed when they ran that the whole run could not test: a gap
-    of the observation found later (the broker stalled, the host held the unit) excuses what
-    fell in it, the evidence a test had read too, so pytest's PASSED is not the last word."""
+def judged_otherwise(enacted: Mapping[str, Verdict], row: UnitReport | None
+                     ) -> list[tuple[str, Verdict, Verdict]]:
+    """(rule, the verdict its test showed, the whole run's) where the two differ and the run's
+    is no fail (those are "failed after their tests ran"): a gap found later (the broker
+    stalled, the host held the unit) or the unit's death excuses what fell in it, the
+    evidence a test had read too; an answer that came late is no longer missing."""
     if row is None:
-        return ()
-    return tuple(sorted(r for r, shown in enacted.items()
-                        if shown in (Verdict.PASS, Verdict.WARN) and r in row.rules
-                        and row.rules[r].verdict is Verdict.COULD_NOT_TEST))
+        return []
+    return [(r, shown, row.rules[r].verdict) for r, shown in sorted(enacted.items())
+            if r in row.rules and row.rules[r].verdict not in (shown, Verdict.FAIL)]
 
 
 def explore_outcome(report: pytest.TestReport, explored: str) -> str:

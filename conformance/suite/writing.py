@@ -8,7 +8,6 @@ import dataclasses
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 from conformance.clock import Clock
 from conformance.reporting import write_all
@@ -34,14 +33,14 @@ class Reports:
         self._last_write = 0.0
 
     def write(self, *, force: bool = False, exit_status: str | None = None,
-              **extra: Any) -> dict[str, Path]:
-        """Write the reports (at most once a second unless ``force``); ``exit_status``: the
-        finished run's; ``extra``: the report's fields known only at the end (``finished``)."""
+              final: RunReport | None = None) -> dict[str, Path]:
+        """Write the reports (at most once a second unless ``force``); ``exit_status`` and
+        ``final``: the finished run's status and report (``Judging.conclude``)."""
         now = self.clock.monotonic()
         if not force and now - self._last_write < 1.0:
             return self.paths
         self._last_write = now
-        report = self._report(**extra)
+        report = final if final is not None else self._report()
         unit = report.units.get(str(self.unit))
         reruns = [r.rule for r in (unit.rules.values() if unit is not None else ())
                   if r.verdict in (Verdict.FAIL, Verdict.WARN)]  # the lines the terminal prints

@@ -1,29 +1,31 @@
-"""The terminal's summary: a rule whose test passed when it ran and that the whole run could
-not test (a gap found later excused its evidence) is named, so pytest's PASSED is not taken
-for the last word."""
+"""The terminal's summary: a rule whose test showed one verdict and the whole run another
+(a gap or a death found later excused its evidence) is named with both, so pytest's PASSED
+or FAILED is not taken for the last word; one the whole run fails is said elsewhere
+("failed after their tests ran")."""
 
 from __future__ import annotations
 
 from conformance.results import UnitReport
-from conformance.suite.summary import untested_after_passing
+from conformance.suite.summary import judged_otherwise
 from conformance.violation import RuleResult, Verdict
 
+CNT, PASS, FAIL, WARN = Verdict.COULD_NOT_TEST, Verdict.PASS, Verdict.FAIL, Verdict.WARN
 
-def _row(**verdicts: Verdict) -> UnitReport:
+
+def _row(verdicts: dict[str, Verdict]) -> UnitReport:
     return UnitReport(unit="waraps/unit/air/simulation/dji0", agent_type="air",
                       role="simulation", name="dji0",
-                      rules={r.replace("_", "-"): RuleResult(r.replace("_", "-"), v)
-                             for r, v in verdicts.items()})
+                      rules={r: RuleResult(r, v) for r, v in verdicts.items()})
 
 
-def test_a_rule_passed_then_untested_is_named_and_no_other() -> None:
-    row = _row(REBOOT_002=Verdict.COULD_NOT_TEST, PING_001=Verdict.PASS,
-               QUERY_001=Verdict.COULD_NOT_TEST, START_001=Verdict.COULD_NOT_TEST)
-    enacted = {"REBOOT-002": Verdict.PASS, "PING-001": Verdict.PASS,
-               "QUERY-001": Verdict.COULD_NOT_TEST,  # its test said so itself
-               "START-001": Verdict.WARN}
-    assert untested_after_passing(enacted, row) == ("REBOOT-002", "START-001")
+def test_a_rule_judged_otherwise_is_named_with_both_verdicts() -> None:
+    final = {"REBOOT-002": CNT, "EXEC-QUERY-002": CNT, "PING-001": PASS, "QUERY-001": CNT,
+             "START-001": FAIL, "FB-001": CNT}
+    shown = {"REBOOT-002": PASS, "EXEC-QUERY-002": FAIL, "PING-001": PASS, "QUERY-001": CNT,
+             "START-001": PASS, "FB-001": WARN, "NOT-IN-ROW": PASS}
+    assert judged_otherwise(shown, _row(final)) == [
+        ("EXEC-QUERY-002", FAIL, CNT), ("FB-001", WARN, CNT), ("REBOOT-002", PASS, CNT)]
 
 
 def test_no_row_names_nothing() -> None:
-    assert untested_after_passing({"REBOOT-002": Verdict.PASS}, None) == ()
+    assert judged_otherwise({"REBOOT-002": PASS}, None) == []
