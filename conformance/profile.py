@@ -76,7 +76,7 @@ class Profile:
     feedback_timeout: float = 30.0
     """Deadline for a started task to reach a final status, before --timing-scale."""
     alive_timeout: float = 0.0
-    """Deadline for the first heartbeat; 0 means three declared periods, at least 5 s."""
+    """Deadline for the first heartbeat; 0 means 5 s (``Certification.alive_timeout``)."""
     reboot_timeout: float = 30.0
     info_wait: float = 30.0
     """How long a declared level may go without its info message before HB-008 fails: at least

@@ -13,6 +13,7 @@ publishes can become a key of the profile.
 from __future__ import annotations
 
 import json
+import math
 import time
 from collections import defaultdict
 from dataclasses import dataclass, field
@@ -194,8 +195,22 @@ def draft(seen: Observed) -> str:
     lines += _task_lines(seen)
     lines += ["", "# Timing (seconds); a slow link is better served by --timing-scale.",
               "response-timeout: 5", "feedback-timeout: 30", "reboot-timeout: 30",
-              "rate-tolerance: 0.2"]
+              "rate-tolerance: 0.2", *_alive_lines(seen)]
     return "\n".join(lines) + "\n"
+
+
+ALIVE_PERIODS = 3
+"""The first heartbeat is awaited this many of its measured periods where they pass the
+suite's default 5 s (a slow heartbeat: a public operator's is 0.2 Hz)."""
+
+
+def _alive_lines(seen: Observed) -> list[str]:
+    rate = _rate(seen.arrivals.get("heartbeat", []))
+    if not rate or ALIVE_PERIODS / rate <= 5.0:
+        return []
+    wait = math.ceil(ALIVE_PERIODS / rate)
+    return [f"alive-timeout: {wait}   # the first heartbeat, awaited {ALIVE_PERIODS} of its "
+            f"measured periods ({1 / rate:.1f} s)"]
 
 
 def _sensor_lines(seen: Observed) -> list[str]:
@@ -256,6 +271,8 @@ def _task_lines(seen: Observed) -> list[str]:
 def _rate_comment(what: str, declared: Any, times: list[float]) -> list[str]:
     rate = _rate(times)
     measured = f"{rate:.2f} Hz over {len(times) - 1} intervals" if rate else "too few arrivals"
+    if rate and len(times) - 1 < 10:  # the --observe help's aim
+        measured += " (fewer than ten: observe longer for a steadier figure)"
     return [f"# {what}: declares rate {_c(declared)} Hz, measured {measured}."]
 
 

@@ -43,6 +43,10 @@ HEARD_AGAIN = 5.0
 """Seconds a command waits for the unit to be heard again after a reconnect or a stall (and
 two of its longest heartbeat intervals): paho's backoff after a 5 s outage brings a unit back
 within about 2 s of the broker."""
+SLOW_HEARTBEAT_WAITS = 2.0
+"""A unit whose other topics are live while its first heartbeat is awaited is there, its
+heartbeat maybe slow (a public operator's is 0.2 Hz): it gets this many first waits more
+before it is judged not alive (our decision; the spec gives no deadline)."""
 MAX_HEARTBEAT_BYTES = 64 * 1024
 """A heartbeat larger than this is not read for its stamp (``_fresh``; the Monitor judges it)."""
 
@@ -74,7 +78,11 @@ class Connection:
     listeners: list[Callable[[list[Violation]], None]] = field(default_factory=list,
                                                                 init=False)
     """Told the violations the Monitor finds in each message (the exploration's oracle)."""
+    say: Callable[[str], None] = field(default=lambda text: None, init=False)
+    """Writes a line on the terminal (the certification's)."""
     _alive: bool = field(default=False, init=False)
+    _others_live: bool = field(default=False, init=False)
+    """Whether a live message of the unit other than its heartbeat came (``open``)."""
     _alive_changed: threading.Condition = field(default_factory=threading.Condition, init=False)
     _gap_start: float | None = field(default=None, init=False)
     _linked: bool = field(default=False, init=False)
@@ -159,7 +167,14 @@ class Connection:
             self.reference.sim.runtime.on_hold = self.host_held
         probe = None if s.virtual else self._open_mqtt()
         try:
-            if not self._wait_alive(alive_timeout):
+            if not self._wait_alive(alive_timeout) and self._others_live:
+                more = SLOW_HEARTBEAT_WAITS * alive_timeout
+                self.say(f"{self.unit}: its other topics are live, but no heartbeat came "
+                         f"within {alive_timeout:.0f} s: waiting up to {more:.0f} s more (a "
+                         f"slow heartbeat? the profile's alive-timeout sets the first wait)")
+                alive_timeout += more
+                self._wait_alive(more)
+            if not self._alive:
                 revived = self._revive(revive, alive_timeout) if revive else None
                 if revived is None or revived[1]:
                     raise NotAlive(not_alive(
@@ -230,6 +245,8 @@ class Connection:
     def _on_message(self, message: Message) -> None:
         """Every message of ``<unit>/#``, on the MQTT network thread: keep it quick."""
         heartbeat = not message.retain and message.topic == self.unit.topic("heartbeat")
+        if not heartbeat and not message.retain and not message.topic.endswith("/command"):
+            self._others_live = True  # the unit's own (a command is a commander's)
         if message.topic == self.unit.topic("exec/command"):
             if self._unechoed is not None:
                 now = self.traffic.clock.now()  # the clock _unechoed was read on

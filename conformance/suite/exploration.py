@@ -211,8 +211,8 @@ def _skip_without_time(c: Certification, seconds: float) -> None:
         return
     if c.settings.explore is None:
         spent = c.traffic.clock.now() - c.started
-        c.unexplored = (f"the scripted scenarios took {spent:.0f} s of the {run_budget(c):.0f} "
-                        f"s a default run aims for at this unit's pace: no time left to "
+        c.unexplored = (f"the scripted scenarios took {spent:.0f} s; a default run aims for "
+                        f"{run_budget(c):.0f} s at this unit's pace, so no time was left to "
                         f"explore command orders (--explore 50s explores anyway)")
     else:
         c.unexplored = ("no time left for exploration within --max-duration "

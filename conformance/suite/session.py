@@ -94,6 +94,7 @@ class Certification:
         """What happened to the connection and the unit, for the terminal summary."""
         self.connection = Connection(settings, self.monitor, self.traffic, self._lock,
                                      self.events)
+        self.connection.say = self._say
         self.reboot = Reboot(config, self.connection, self.timing.reboot,
                              self._reboot_requested, self.events)
         self.collect_only = False  # --collect-only: nothing is connected, run or written
@@ -187,13 +188,9 @@ class Certification:
         return base * self.settings.timing_scale
 
     def _say(self, text: str) -> None:
-        tw = self.config.get_terminal_writer()
-        capman = self.config.pluginmanager.getplugin("capturemanager")
-        if capman is not None:
-            with capman.global_and_fixture_disabled():
-                tw.line(shown(text))
-        else:
-            tw.line(shown(text))
+        """A line of its own (``Progress.line``), never appended to pytest's row of results;
+        escaped, never a password."""
+        self.progress.line(shown(text))
 
     def _adapted(self, deviation: Deviation) -> None:
         """A systematic deviation, seen for the first time: say so once (summary and -v)."""

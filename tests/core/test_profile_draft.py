@@ -225,3 +225,23 @@ def test_a_hostile_heartbeat_is_read_within_the_bounds(payload: bytes,
     text = draft(seen)
     problems(seen)
     assert yaml.safe_load(text)["extends"]
+
+
+def test_a_slow_heartbeat_gets_an_alive_timeout_of_three_of_its_periods(tmp_path: Path) -> None:
+    """The public drone operator's heartbeat comes every 5 s: the suite's default wait for
+    the first heartbeat (5 s) could miss it, so the draft writes three of its measured periods;
+    six intervals are said to be fewer than the ten the --observe help aims for. A unit at
+    1 Hz keeps the default."""
+    unit = UnitAddress.parse("waraps/unit/ground/real/dop1")
+    slow = Observed(unit, 30.0, heartbeat={"levels": ["sensor"], "rate": 0.2})
+    slow.arrivals["heartbeat"] = [100.0 + 5.0 * i for i in range(7)]
+    text = draft(slow)
+    assert "\nalive-timeout: 15   # the first heartbeat, awaited 3 of its measured periods " \
+           "(5.0 s)" in text, text
+    assert "measured 0.20 Hz over 6 intervals (fewer than ten" in text
+    path = tmp_path / "dop1.yaml"
+    path.write_text(text)
+    assert profile.load(path).alive_timeout == 15
+    fast = Observed(unit, 30.0, heartbeat={"levels": ["sensor"], "rate": 1.0})
+    fast.arrivals["heartbeat"] = [100.0 + i for i in range(30)]
+    assert "alive-timeout" not in draft(fast) and "fewer than ten" not in draft(fast)

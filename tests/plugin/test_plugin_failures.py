@@ -83,6 +83,60 @@ def test_a_unit_that_is_not_there(pytester: pytest.Pytester, mosquitto: str,
     assert f"Nothing at all was published under {prefix}/" in run.text
 
 
+class Position:
+    """The unit's sensor/position, live every 0.5 s, and (``beat_after``) the reference unit
+    started that many seconds later: a unit that is there, its first heartbeat slow."""
+
+    def __init__(self, broker: str, unit: str, beat_after: float | None = None) -> None:
+        import threading
+
+        self.broker, self.unit, self.beat_after = broker, unit, beat_after
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self) -> None:
+        started = time.monotonic()
+        sim = None
+        position = f"{self.unit}/sensor/position"
+        with MqttClient(BrokerURL.parse(self.broker), may_publish=lambda t: t == position
+                        ) as client:
+            while not self.stop.wait(0.5):  # the unit's pace: a schedule, not a wait
+                client.publish(position, b'{"latitude": 57.76, "longitude": 16.68, "altitude": 10.0}')
+                if (sim is None and self.beat_after is not None
+                        and time.monotonic() - started >= self.beat_after):
+                    sim = SimUnit(self.unit, self.broker, rate=3.0).start()
+        if sim is not None:
+            sim.stop()
+
+    def __enter__(self) -> Position:
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop.set()
+        self.thread.join(10)
+
+
+def test_a_unit_whose_other_topics_are_live_gets_longer_for_its_first_heartbeat(
+        pytester: pytest.Pytester, mosquitto: str, prefix: str) -> None:
+    """FAST's alive-timeout is 3 s: the unit's position is live, its heartbeat comes 4 s in
+    (a slow heartbeat), and the run goes on, having said why it waited longer; one that never
+    sends a heartbeat is not alive after the whole wait, 3 s and 6 s more, said as such."""
+    unit = f"{prefix}/unit/air/simulation/dji0"
+    with Position(mosquitto, unit, beat_after=4.0):
+        run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={FAST}",
+                      "-k", "HB-001")
+    assert (f"{unit}: its other topics are live, but no heartbeat came within 3 s: waiting "
+            f"up to 6 s more") in run.text, run.text
+    assert "is not alive" not in run.text and run.outcomes.get("HB-001") == "passed", run.text
+    with Position(mosquitto, unit):
+        run = certify(pytester, "--unit", unit, "--broker", mosquitto, f"--profile={FAST}")
+    assert run.result.ret == NOT_CERTIFIED_EXIT
+    assert "waiting up to 6 s more" in run.text
+    assert f"the unit {unit} is not alive: no heartbeat on {unit}/heartbeat within 9.0 s" \
+        in run.text, run.text
+
+
 def test_a_unit_by_another_name_is_suggested(pytester: pytest.Pytester, mosquitto: str,
                                              prefix: str) -> None:
     with SimUnit(f"{prefix}/unit/air/simulation/dji1", mosquitto, rate=3.0):

@@ -89,7 +89,7 @@ def test_an_exploration_cut_for_time_is_said_beside_the_verdict() -> None:
     """A slow unit's exploration that found no time left is never a silent skip: the unit's
     verdict says so (its levels stand on the rules judged)."""
     run = report()
-    why = "the scripted scenarios took 87 s of the 80 s a default run aims for"
+    why = "the scripted scenarios took 87 s; a default run aims for 80 s at this unit's pace"
     run.facts = RunFacts(unit=UNIT, unexplored=why)
     found = conclude(run)
     assert found.units[UNIT].summary == (f"certified: sensor, direct execution; exploration "
