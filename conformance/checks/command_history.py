@@ -214,11 +214,12 @@ def died_on(c: CommandHistory, last: float, period: float) -> Any:
 
 def died_on_any(c: CommandHistory, last: float, period: float) -> list[Any]:
     """Every command a unit heard until its last heartbeat ``last`` may have died on, the last
-    first: those it left unanswered within a period before ``last`` (else the first within a
-    period after it), sent after the last command it answered: a command it answered another
-    one after did not kill it. Which of a burst killed it the traffic cannot tell
-    (docs/FIELD-NOTES.md 'Precision':
-    a non-UTF-8 payload killed a unit that then received an unknown command)."""
+    first: those it left unanswered within a period before ``last``, and the first within a
+    period after it, sent after the last command it answered: a command it answered another
+    one after did not kill it. Which of them killed it the traffic cannot tell
+    (docs/FIELD-NOTES.md 'Precision': a non-UTF-8 payload killed a unit that then received
+    an unknown command; a unit with a 5 s heartbeat left one command unanswered and died on
+    the next, sent after its last heartbeat)."""
     answered = max((cmd.last_sent for cmd in c.commands.values() if cmd.answers),
                    default=float("-inf"))
     near = [cmd for cmd in c.commands.values()
@@ -226,9 +227,8 @@ def died_on_any(c: CommandHistory, last: float, period: float) -> list[Any]:
             and cmd.last_sent > answered]
     before = sorted((cmd for cmd in near if cmd.last_sent <= last),
                     key=lambda cmd: cmd.last_sent, reverse=True)
-    if before:
-        return before
-    return [min(near, key=lambda cmd: cmd.last_sent)] if near else []
+    after = [cmd for cmd in near if cmd.last_sent > last]
+    return ([min(after, key=lambda cmd: cmd.last_sent)] if after else []) + before
 
 
 def dying_from(c: CommandHistory, last: float, period: float) -> float:

@@ -87,6 +87,10 @@ class Command(SentCommand):
             what += f" '{self.task_name}'"
         if self.signal:
             what += f" {self.signal}"
+        if self.name == "start-task" and not self.task_uuid:
+            what += " without task-uuid"  # what public agents die on (12.1 makes it optional)
+        elif self.invalid:
+            what += " with parameters its task's specification refuses"
         return f"{what} (com-uuid {self.com_uuid})"
 
 
@@ -263,8 +267,9 @@ def _model(ctx: CheckContext | None) -> protocol.Model:
 
 def commands_died_on(unit: UnitState, last: float, period: float) -> list[Command]:
     """The commands a unit whose last heartbeat was at ``last`` may have died on, the last
-    first (``command_history.died_on_any``), else the last it received before it fell silent
-    if it answered none after it: HB-012's finding names them."""
+    first (``command_history.died_on_any``: those unanswered in the period before it and the
+    first in the period after), else the last it received before it fell silent: HB-012's
+    finding names them."""
     c = unit.stash.get(CONVERSATIONS)
     if c is None:
         return []

@@ -247,7 +247,7 @@ def _commands_said(commands: list[Any], last: float) -> str:
             + (" (answered)" if cmd.answers else "") for cmd in commands[:NAMED_KEPT]]
     more = len(commands) - NAMED_KEPT
     if len(commands) == 1:
-        return f"; the last command it received: {said[0]}"
+        return f"; the command it may have died on: {said[0]}"
     return (f"; the commands it received as it fell silent, the last first: {'; '.join(said)}"
             + (f"; and {more} more" if more > 0 else ""))
 

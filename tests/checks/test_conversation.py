@@ -543,7 +543,7 @@ def test_a_unit_that_dies_on_a_command_is_one_death_naming_it(stream):
                   alive=stream.alive(10.0) + [stream.sensor("speed", 1.0, 30.0)])
     r = rules["HB-012"]
     assert r.verdict is Verdict.FAIL
-    assert f"start-task 'move-to' (com-uuid {com_of(cmd)})" in r.violations[0].observed
+    assert f"start-task 'move-to' without task-uuid (com-uuid {com_of(cmd)})" in r.violations[0].observed
     assert rules["EXEC-START-001"].verdict is not Verdict.FAIL
     assert rules["EXEC-PING-001"].verdict is not Verdict.FAIL
     assert rules["HB-010"].verdict is not Verdict.WARN
@@ -863,3 +863,18 @@ def test_info_without_tasks_executing_says_why_dei_004_was_not_judged(stream):
     assert "no tasks-executing list (DEI-001)" in bare["DEI-004"].reason, bare["DEI-004"]
     listed = judge(stream, traffic, alive=alive + [info(t + 0.02, t >= 6) for t in range(13)])
     assert "DEI-001" not in listed["DEI-004"].reason, listed["DEI-004"]
+
+
+def test_a_death_after_the_last_heartbeat_names_the_command_sent_after_it_too(stream):
+    """docs/FIELD-NOTES.md 'Precision' (a slow heartbeat): a command left unanswered before the
+    last heartbeat (the unit blocked on it, alive) and the start-task without task-uuid sent
+    after it, which the unit died on: HB-012 names both, the later first, and what it lacked."""
+    blocked = start(stream, 9.3, new())
+    fatal = start(stream, 10.4)  # no task-uuid, after the last heartbeat (10.0)
+    rules = judge(stream, [blocked, fatal],
+                  alive=stream.alive(10.0) + [stream.sensor("speed", 1.0, 30.0)])
+    said = rules["HB-012"].violations[0].observed
+    assert "the commands it received as it fell silent, the last first" in said, said
+    assert f"start-task 'move-to' without task-uuid (com-uuid {com_of(fatal)}), 0.40 s after" \
+        in said, said
+    assert said.index(com_of(fatal)) < said.index(com_of(blocked))
