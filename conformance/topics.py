@@ -9,6 +9,7 @@ and never raises; ``naming_violations`` checks section 3.2.
 
 from __future__ import annotations
 
+import difflib
 import enum
 import functools
 import re
@@ -262,6 +263,12 @@ def naming_violations(topic: str) -> list[Violation]:
     return list(_naming_cached(topic) if len(topic) <= LONG_TOPIC else _naming_violations(topic))
 
 
+
+def _did_you_mean(word: str, known: tuple[str, ...], lead: str = "") -> str:
+    """``did you mean 'simulation'?`` for a near miss of one of ``known`` ('' for none)."""
+    close = difflib.get_close_matches(word.lower(), known, n=1, cutoff=0.7)
+    return f"{lead}did you mean {close[0]!r}?" if close else ""
+
 def _naming_violations(topic: str) -> tuple[Violation, ...]:
     found: list[Violation] = []
 
@@ -285,9 +292,11 @@ def _naming_violations(topic: str) -> tuple[Violation, ...]:
         return tuple(found)
     _, _, agent_type, role, name = parts[:5]
     if agent_type.lower() not in AGENT_TYPES:
-        bad("TOPIC-005", " | ".join(AGENT_TYPES), agent_type)
+        bad("TOPIC-005", " | ".join(AGENT_TYPES), agent_type, _did_you_mean(agent_type,
+                                                                             AGENT_TYPES))
     if role.lower() not in ROLES:
-        bad("TOPIC-006", " | ".join(ROLES), role, "3.1 lists real, simulation, playback")
+        bad("TOPIC-006", " | ".join(ROLES), role, "3.1 lists real, simulation, playback"
+            + _did_you_mean(role, ROLES, "; "))
     sub = "/".join(parts[5:])
     if sub == "sensor.info":
         bad("ERR-001", "sensor_info", "sensor.info", "5.2 writes sensor.info; 3.1 sensor_info")

@@ -83,7 +83,7 @@ class SafetyDecision:
     def sentence(self) -> str:
         """The decision and why, in one line (the run header's ``safety:``)."""
         if self.simulation:
-            why = ("'simulation'" if self.role == "simulation"
+            why = ("3.1's role of a simulation" if self.role == "simulation"
                    else "listed in the profile's simulated-roles")
             return f"role {self.role!r} is a simulation ({why}): motion and hostile payloads allowed"
         motion = ("motion tasks: " + (", ".join(self.motion_tasks) or "none (no motion-tasks "

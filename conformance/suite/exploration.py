@@ -299,9 +299,11 @@ def _replay(c: Certification, explorer: Explorer, actions: list[Action],
     was, rules = stored.get("failing_step"), stored.get("rules")
     rules = [str(r) for r in rules] if isinstance(rules, list) else []
     told = f"step {printable(str(was))[:20]}: {printable(', '.join(rules))[:200] or '?'}"
-    if was == story.failing + 1 and set(rules) & set(story.rules):
+    if set(rules) & set(story.rules):
         heading += f" again, at step {story.failing + 1}"
-        if set(rules) != set(story.rules):  # a warning the unit gave then, not now
+        if was != story.failing + 1 or set(rules) != set(story.rules):
+            # a warning the unit gave then, not now; or the finding's message came a step
+            # later or earlier (the unit's messages arrive at its own pace, not the steps')
             heading += f" ({', '.join(story.rules)}; the stored story's {told})"
     else:  # the unit answers otherwise now: never told as the stored story's repeat
         heading += (f" at step {story.failing + 1} ({', '.join(story.rules)}), unlike the "

@@ -103,3 +103,14 @@ def test_a_name_in_another_script_is_lowercase_words_and_only_topic_008_s_decisi
     assert violation_verdict(rule, strict.severity_of(rule.id), strict=True) is Verdict.FAIL
     assert [v.rule for v in naming_violations("waraps/unit/surface/real/bat-0/heartbeat")] == [
         "TOPIC-003"]
+
+
+def test_a_near_miss_of_a_role_or_type_is_told_what_it_may_mean() -> None:
+    """The RISE agent's role 'simulated': TOPIC-006 says which of 3.1's roles it may mean;
+    nothing is suggested where nothing is close."""
+    (role,) = naming_violations("waraps/unit/air/simulated/dss001/heartbeat")
+    assert role.rule == "TOPIC-006" and role.detail.endswith("did you mean 'simulation'?")
+    (kind,) = naming_violations("waraps/unit/aire/real/dji0/heartbeat")
+    assert kind.rule == "TOPIC-005" and kind.detail == "did you mean 'air'?"
+    (far,) = naming_violations("waraps/unit/hexacopter/real/dji0/heartbeat")
+    assert far.rule == "TOPIC-005" and "did you mean" not in far.detail

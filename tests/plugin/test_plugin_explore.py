@@ -180,6 +180,14 @@ def test_a_replay_adapts_as_the_stored_run_did_and_says_where_it_disagrees_now(
                     f"--explore-replay={story}", "-k", "test_explore")
     assert ("disagree again, at step 2 (EXEC-QUERY-001; the stored story's step 2: "
             "EXEC-FB-004, EXEC-QUERY-001)") in again.text, again.text
+    # The same rule a step off (its message came at the unit's pace, after the next step
+    # began: a loaded machine's replay of a $pause that paused both tasks): the repeat.
+    story.write_text(json.dumps({**data, "failing_step": 3, "rules": ["EXEC-QUERY-001"]}))
+    later = certify(pytester, "--unit", UNIT, "--broker", "virtual", "--sim-rate", "1",
+                    "--sim-fault=query-unanswered", f"--profile={FAST}", "--seed", "1",
+                    f"--explore-replay={story}", "-k", "test_explore")
+    assert ("disagree again, at step 2 (EXEC-QUERY-001; the stored story's step 3: "
+            "EXEC-QUERY-001)") in later.text, later.text
 
 
 def test_replay_never_moves_a_real_unit_without_allow_motion(pytester: pytest.Pytester) -> None:
