@@ -23,7 +23,8 @@ from fuzz.harness import Broken, within_time
 
 UNIT = UnitAddress.parse("waraps/unit/air/simulation/dji0")
 KEYS = {"extends", "name", "levels", "sensors", "tasks", "motion-tasks", "safe-radius",
-        "response-timeout", "feedback-timeout", "reboot-timeout", "rate-tolerance"}
+        "response-timeout", "feedback-timeout", "reboot-timeout", "rate-tolerance",
+        "alive-timeout"}
 """The keys the drafter writes (never one of the unit's making)."""
 
 
