@@ -251,3 +251,27 @@ def test_the_evidence_cap_never_cuts_a_death_for_a_rate(prefix: str) -> None:
     opening = render_verdicts(report, per_unit=1)
     assert opening.splitlines()[1].startswith("  FAIL ") and "zzz0" in opening.splitlines()[1]
     assert opening.splitlines()[2].split()[:2] == ["death", "HB-012"]
+
+
+def test_the_suites_probes_seen_live_are_shown_as_in_the_final_outputs(prefix: str) -> None:
+    """Lint beside a certification sees the suite's commands and its deliberately malformed
+    probes: they are no commander's fault (docs/ARCHITECTURE.md 'Whose fault it is') and the
+    final report has no row for them, so no live line shows them failing either."""
+    from conformance.checks.suite_commands import LABEL, SENDER, UNREADABLE
+
+    out = io.StringIO()
+    card = Scorecard(out, tty=False)
+    linter = Linter(Monitor(Profile(), kind="lint"), Profile())
+    msgs = unit_traffic(prefix, "dji0", seconds=6, agent_uuid=DJI0)
+    command = f"{prefix}/unit/air/simulation/dji0/exec/command"
+    msgs.append(Message(T0 + 2.1, command, orjson.dumps(
+        {"com-uuid": "not-a-uuid", "command": "no-such-command", "sender": SENDER})))
+    msgs += [Message(T0 + 2.2 + i * 0.01, command, payload)
+             for i, (_, payload) in enumerate(UNREADABLE)]
+    linter.feed(sorted(msgs, key=lambda m: m.time))
+    card.update(linter, force=True)
+    assert LABEL not in out.getvalue() and LABEL not in linter.by_unit
+    assert linter.failing_units() == []
+    linter.finish(T0 + 6.5)
+    assert LABEL not in linter.monitor.report().units
+
