@@ -275,3 +275,34 @@ def test_the_suites_probes_seen_live_are_shown_as_in_the_final_outputs(prefix: s
     linter.finish(T0 + 6.5)
     assert LABEL not in linter.monitor.report().units
 
+
+def test_a_finding_judged_after_its_evidence_is_printed_in_time_order(prefix: str) -> None:
+    """A ping left unanswered is judged when the unit next answers, its finding stamped
+    when the ping was sent: the live line is printed at the time it was found, in order
+    with the others, and says when its evidence was sent."""
+    import time as time_module
+    import uuid
+
+    out = io.StringIO()
+    card = Scorecard(out, tty=False)
+    linter = Linter(Monitor(Profile(), kind="lint"), Profile())
+    base = f"{prefix}/unit/air/simulation/dji0"
+    first, second = str(uuid.uuid4()), str(uuid.uuid4())
+    msgs = unit_traffic(prefix, "dji0", seconds=12, agent_uuid=DJI0)
+    msgs += [Message(T0 + 2.0, f"{base}/exec/command", orjson.dumps(
+                 {"com-uuid": first, "command": "ping", "sender": "op0"})),
+             Message(T0 + 8.0, f"{base}/exec/command", orjson.dumps(
+                 {"com-uuid": second, "command": "ping", "sender": "op0"})),
+             Message(T0 + 8.1, f"{base}/exec/response", orjson.dumps(
+                 {"agent-uuid": DJI0, "com-uuid": str(uuid.uuid4()), "response": "pong",
+                  "response-to": second}))]
+    for m in sorted(msgs, key=lambda m: m.time):
+        linter.feed([m])
+        card.update(linter)
+    (line,) = [ln for ln in out.getvalue().splitlines() if " EXEC-PING-001 " in ln]
+
+    def clock(t: float) -> str:
+        return time_module.strftime("%H:%M:%S", time_module.localtime(t))
+
+    assert line.startswith(f"{clock(T0 + 8.1)} FAIL {base} EXEC-PING-001 "), line
+    assert f"(its evidence sent at {clock(T0 + 2.0)})" in line
