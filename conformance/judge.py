@@ -42,7 +42,7 @@ INTEROP_RISK = "interop risk: the spec does not say; this suite decided: "
 def judge_rule(rule: Rule, *, severity: Severity, strict: bool, violations: list[Violation],
                count: int = -1, examined: int = 0, explicit: Observed | None = None,
                explicit_reason: str = "", default_reason: str = "",
-               excused: str = "", firm: int = -1) -> RuleResult:
+               excused: str = "", firm: int = -1, keep: int | None = None) -> RuleResult:
     """The verdict of one rule for one row:
 
     - any violation: fail when the rule's severity (under the profile) is ``error`` and a
@@ -57,7 +57,9 @@ def judge_rule(rule: Rule, *, severity: Severity, strict: bool, violations: list
 
     ``count`` is the number of violations seen (``violations`` holds the first few as
     evidence; -1 means ``len(violations)``), ``firm`` how many of them found a condition
-    that is not decided (-1: counted in ``violations``); a skip never becomes a pass.
+    that is not decided (-1: counted in ``violations``); a skip never becomes a pass. The
+    result holds at most ``keep`` of them (None: all), those that fail the rule first
+    (``failing_first``).
     """
     count = len(violations) if count < 0 else count
     if firm < 0:
@@ -68,8 +70,9 @@ def judge_rule(rule: Rule, *, severity: Severity, strict: bool, violations: list
         verdict = Verdict.FAIL if fails else Verdict.WARN
         risk = _risks(rule, violations) if lenient and not firm else ""
         noun = "violation" if count == 1 else "violations"
+        shown = failing_first(rule, violations, strict=strict) if fails else list(violations)
         return RuleResult(rule.id, verdict, "; ".join(x for x in (f"{count} {noun}", risk) if x),
-                          list(violations))
+                          shown[:keep])
     if examined:
         noun = "time" if examined == 1 else "times"
         return RuleResult(rule.id, Verdict.PASS, f"examined {examined} {noun}", [])
@@ -82,6 +85,17 @@ def judge_rule(rule: Rule, *, severity: Severity, strict: bool, violations: list
             reason = NOT_APPLICABLE + reason  # what keeps a claimed level certified
         return RuleResult(rule.id, verdict, reason, [])
     return RuleResult(rule.id, Verdict.SKIP, default_reason or "not examined", [])
+
+
+def failing_first(rule: Rule, violations: list[Violation], *, strict: bool) -> list[Violation]:
+    """A failed rule's evidence, the violations that make it fail first (a condition stated
+    or implied; in a strict run every one), then the decided ones, each part in its order:
+    what every output shows first (the terminal, lint's text, the HTML and JSON reports)
+    is then what the verdict stands on, never a decided finding that only warns
+    (docs/ARCHITECTURE.md 'What a rule stands on')."""
+    if strict:
+        return list(violations)
+    return sorted(violations, key=lambda v: rule.decided(v.condition))  # stable
 
 
 def judge_rates(stats: Iterable[RateStat], rules: Mapping[str, RuleResult]) -> None:

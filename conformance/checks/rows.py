@@ -55,9 +55,19 @@ class RuleRecord:
         if v.supersedes:
             self._supersede(v.supersedes, CATALOGUE.get(v.rule))
         self.count += 1
-        self.firm += not _decided(CATALOGUE.get(v.rule), v.condition)
-        if len(self.evidence) < MAX_EVIDENCE:
-            self.evidence.append(v)
+        rule = CATALOGUE.get(v.rule)
+        firm = not _decided(rule, v.condition)
+        self.firm += firm
+        evidence = self.evidence
+        if len(evidence) < MAX_EVIDENCE:
+            evidence.append(v)
+        elif firm:
+            # Full of decided findings that only warn: the latest of them makes room for one
+            # the verdict stands on (what every output shows first: ``judge.failing_first``).
+            decided = [i for i, e in enumerate(evidence) if _decided(rule, e.condition)]
+            if decided:
+                del evidence[decided[-1]]
+                evidence.append(v)
         t = v.time
         if t is not None:
             if self.first is None or t < self.first:
@@ -173,7 +183,7 @@ def row_report(ctx: CheckContext, profile: Profile, kind: RunKind, address: Unit
                 times[rid] = (min(when), max(when))
         rules[rid] = judge_rule(
             rule, severity=profile.severity_of(rid), strict=profile.adopts(rid),
-            violations=evidence[:MAX_EVIDENCE], count=count, firm=firm, examined=seen,
+            violations=evidence, keep=MAX_EVIDENCE, count=count, firm=firm, examined=seen,
             explicit=explicit, explicit_reason=reason, excused=excused,
             default_reason=skip_reason(rule, kind=kind, unit=unit,
                                        levels=state.levels, note=notes.get(rid, ""),

@@ -13,7 +13,7 @@ from conformance.checks.base import CheckContext, UnitState, geopoint
 from conformance.checks.registry import check, reinterprets
 from conformance.checks.stash import StashKey
 from conformance.message import Message
-from conformance.topics import MANDATORY_SENSORS, TopicKind
+from conformance.topics import MANDATORY_SENSORS, SENSOR_LEVEL, TopicKind
 from conformance.validator import Validation
 from conformance.violation import Violation
 
@@ -153,11 +153,11 @@ def _window(unit: UnitState) -> float | None:
     return PUBLISH_WINDOW_PERIODS * max(periods) if periods else None
 
 
-@check("SI-003", "SI-004", finish=True)
+@check("SI-003", finish=True)
 def listed_sensors_published(ctx: CheckContext, unit: UnitState, now: float,
                              findings: Any) -> Iterator[Violation]:
     """5.2: 'The string in sensor-data-provided is the string used in sensor topic': each
-    listed sensor (and each mandatory one) is published within the window after sensor_info."""
+    listed sensor is published within the window after sensor_info."""
     listed = unit.sensors_listed
     first = unit.first_by_kind.get(SI)
     if listed is None or first is None:
@@ -169,7 +169,6 @@ def listed_sensors_published(ctx: CheckContext, unit: UnitState, now: float,
     window = _window(unit)
     observed = now - first
     unpublished = [s for s in listed if s not in seen]
-    unpublished_mandatory = [s for s in MANDATORY_SENSORS if s not in seen]
     if window is None or observed < window:
         need = f"{window:.1f} s" if window else "a declared rate"
         if unpublished:
@@ -177,23 +176,71 @@ def listed_sensors_published(ctx: CheckContext, unit: UnitState, now: float,
                                     f"need {need}")
         else:
             findings.examine("SI-003")
-        if not unpublished_mandatory:
-            findings.examine("SI-004")
         return
     findings.examine("SI-003")
-    findings.examine("SI-004")
-    topic = unit.address.topic("sensor/")
     if unpublished:
         yield Violation.of(
             "SI-003", expected="a message on sensor/<name> for every sensor listed",
             observed=f"nothing on {', '.join(unpublished)} in {observed:.1f} s",
-            topic=topic + "<name>", time=now,
+            topic=unit.address.topic("sensor/") + "<name>", time=now,
             detail="publish every sensor listed in sensor-data-provided, or stop listing it")
-    if unpublished_mandatory:
-        yield Violation.of(
-            "SI-004", expected=f"messages on sensor/{{{','.join(MANDATORY_SENSORS)}}}",
-            observed=f"nothing on {', '.join(unpublished_mandatory)} in {observed:.1f} s",
-            topic=topic + "<name>", time=now)
+
+
+def _sensor_level_since(unit: UnitState) -> float | None:
+    """When the unit was first seen to be of the sensor level, live: its first sensor_info,
+    else its first sensor message or its first heartbeat if that level is claimed (6.1 makes
+    the four sensors mandatory whether or not sensor_info is sent); None: it never was."""
+    first = unit.first_by_kind
+    if (si := first.get(SI)) is not None:
+        return si  # the window SI-003 judges by too: the same unit, the same deadline
+    since = [first.get(TopicKind.SENSOR)]
+    if unit.claims(SENSOR_LEVEL):
+        since.append(first.get(TopicKind.HEARTBEAT))
+    return min((t for t in since if t is not None), default=None)
+
+
+def _sensor_level(unit: UnitState) -> bool:
+    """Whether 6.1's mandatory sensors apply: the unit claims the sensor level (5.1), lists
+    sensors (5.2) or publishes any (6)."""
+    return unit.claims(SENSOR_LEVEL) or unit.sensors_listed is not None \
+        or TopicKind.SENSOR in unit.kinds_seen
+
+
+@check("SI-004", finish=True)
+def mandatory_sensors_published(ctx: CheckContext, unit: UnitState, now: float,
+                                findings: Any) -> Iterator[Violation]:
+    """6.1: 'The following sensors are mandatory: positon, heading, course, speed': a unit of
+    the sensor level publishes each within the window (3 declared periods of the slower of
+    heartbeat and sensor_info) from when it was first seen to be of that level, whether it
+    sends sensor_info or not (whether sensor_info lists them is the 'listed' condition)."""
+    if not _sensor_level(unit):
+        return  # no sensor level claimed or shown: the skip says so (``skip_reason``)
+    since = _sensor_level_since(unit)
+    if since is None:
+        findings.note("SI-004", "only retained messages seen (their time is unknown)")
+        return
+    # Up to the unit's latest message: a unit that died publishes nothing, and its death is
+    # HB-012's finding (docs/ARCHITECTURE.md 'Whose fault it is': the root cause).
+    last = unit.last_seen
+    end = now if last is None else min(now, last)
+    observed = end - since
+    window = _window(unit)
+    unpublished = [s for s in MANDATORY_SENSORS if s not in unit.sensors_seen]
+    if not unpublished:
+        findings.examine("SI-004")
+        return
+    if window is None or observed < window:
+        need = f"{window:.1f} s" if window else "a declared rate"
+        findings.note("SI-004", f"observed {observed:.1f} s of the sensor level; need {need} "
+                                f"to judge {', '.join(unpublished)} unpublished")
+        return
+    findings.examine("SI-004")
+    yield Violation.of(
+        "SI-004", expected=f"messages on sensor/{{{','.join(MANDATORY_SENSORS)}}}",
+        observed=f"nothing on {', '.join(unpublished)} in {observed:.1f} s",
+        topic=unit.address.topic("sensor/") + "<name>", time=end,
+        detail="6.1: position, heading, course and speed are mandatory for a unit of the "
+               "sensor level, whether or not it sends sensor_info")
 
 
 def _reported(unit: UnitState) -> set[str]:

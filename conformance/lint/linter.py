@@ -265,7 +265,7 @@ class Linter:
                 else:
                     counts = by_unit[unit] = Counter()
             if v.rule not in counts:
-                self.fresh.append((v, v.time if v.time is not None else when))
+                self.fresh.append((v, when if when is not None else v.time))
             counts[v.rule] += 1
             if v.condition == "" or not self._decided(v):
                 self.firm.setdefault(unit, set()).add(v.rule)

@@ -85,15 +85,20 @@ def _count(n: float) -> str:
 
 
 def violation_line(v: Violation, unit: str, verdict: str, when: float | None = None) -> str:
-    """One line for a violation: when (its time, else ``when``), verdict, unit, rule, title,
-    expected and observed."""
+    """One line for a violation: when it was found (``when``, the arrival of the message that
+    showed it; else its own time), verdict, unit, rule, title, expected and observed. A finding
+    whose evidence is older than its finding (a command unanswered by its deadline is stamped
+    when the command was sent) says when that was, before what a long line may lose: the
+    lines stay in time order."""
     rule = CATALOGUE.get(v.rule)
     title = rule.title if rule else ""
     what = (f"expected {shorten(v.expected)}, observed {shorten(v.observed)}"
             if v.expected or v.observed else "")
     where = (f" [{shorten(v.topic, NAME_CHARS)}]" if v.topic and not v.topic.startswith(unit + "/")
              else "")
-    t = v.time if v.time is not None else when
+    t = when if when is not None else v.time
+    if v.time is not None and t is not None and v.time < t and _clock(v.time) != _clock(t):
+        title += f" (its evidence sent at {_clock(v.time)})"
     return (f"{_clock(t)} {verdict:<4} {shorten(unit, NAME_CHARS)} {v.rule} {title}: "
             f"{what}{where}").rstrip(": ")
 

@@ -81,3 +81,24 @@ def test_commands_kept_cost_little_memory_each(stream):
         tracemalloc.stop()
     assert len(m.state(u).stash[CONVERSATIONS].commands) == 300
     assert grown < 300 * 1500, f"{grown / 299:.0f} bytes per command kept"
+
+
+def test_kept_evidence_full_of_decided_findings_keeps_room_for_one_that_fails():
+    """The evidence of a rule is capped (``MAX_EVIDENCE``): when it is full of decided
+    findings that only warn, a later finding of the rule's own words takes the place of the
+    latest of them, so what the verdict stands on is shown; the count counts all."""
+    from conformance.violation import Violation
+
+    record = rows.RuleRecord()
+    listed = [Violation.of("SI-004", condition="listed", expected="listed",
+                            observed=f"missing {i}")
+              for i in range(rows.MAX_EVIDENCE + 3)]
+    for v in listed:
+        record.add(v)
+    stated = Violation.of("SI-004", expected="published", observed="nothing on heading")
+    record.add(stated)
+    assert record.count == rows.MAX_EVIDENCE + 4 and record.firm == 1
+    assert len(record.evidence) == rows.MAX_EVIDENCE
+    assert record.evidence[-1] is stated and listed[rows.MAX_EVIDENCE - 1] not in record.evidence
+    record.add(Violation.of("SI-004", expected="published", observed="nothing on course"))
+    assert len(record.evidence) == rows.MAX_EVIDENCE and record.firm == 2

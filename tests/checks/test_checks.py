@@ -293,7 +293,8 @@ def test_agent_uuid_changing_again_without_silence_fails(stream):
     m = Monitor()
     stream.feed(m, msgs + [stream.heartbeat(15 + i, agent_uuid=newest) for i in range(5)])
     r = verdict(m, stream, "HB-006")
-    assert r.verdict is Verdict.FAIL and [v.condition for v in r.violations] == ["restarts", ""]
+    # The finding it fails on first, then the decided one (``judge.failing_first``).
+    assert r.verdict is Verdict.FAIL and [v.condition for v in r.violations] == ["", "restarts"]
 
 
 def test_one_fast_restart_is_a_reboot(stream):
@@ -501,6 +502,45 @@ def test_mandatory_sensors_published_but_not_listed_warn_as_5_2_s_examples_do(st
         r = verdict(m, stream, "SI-004")
         assert r.verdict is expected, r
         assert [v.condition for v in r.violations] == ["listed"]
+
+
+def test_mandatory_sensors_unpublished_fail_without_sensor_info(stream):
+    """6.1 makes the four sensors mandatory whether or not sensor_info is sent: a unit that
+    claims the sensor level and publishes only sensor/position, with no sensor_info at all
+    (the public drone operator), fails SI-004's own words once the window (3 heartbeat
+    periods) has passed; before it, the rule waits and says so."""
+    msgs = stream.alive(8, info=False, sensors=False)
+    msgs += [stream.position(58.4, 15.6, i + 0.03) for i in range(9)]
+    m = Monitor()
+    stream.feed(m, msgs)
+    r = verdict(m, stream, "SI-004")
+    assert r.verdict is Verdict.FAIL, r
+    assert [v.condition for v in r.violations] == [""]
+    assert "nothing on heading, course, speed" in r.violations[0].observed
+    early = Monitor()
+    stream.feed(early, [x for x in msgs if x.time < msgs[0].time + 1.5])
+    r = verdict(early, stream, "SI-004")
+    assert r.verdict is Verdict.SKIP and "need 3.0 s" in r.reason, r
+
+
+def test_mandatory_sensors_of_a_unit_that_claims_no_sensor_level_are_not_asked_for(stream):
+    """A unit that claims no sensor level and publishes no sensor: SI-004 does not apply."""
+    m = Monitor()
+    stream.feed(m, [stream.heartbeat(i, levels=["direct execution"]) for i in range(8)])
+    r = verdict(m, stream, "SI-004")
+    assert r.verdict is Verdict.SKIP and not r.violations, r
+
+
+def test_mandatory_sensors_are_judged_up_to_the_units_last_message(stream):
+    """A unit that dies publishes nothing after: the window is measured up to its last
+    message (its death is HB-012's finding), not up to the end of the observation."""
+    msgs = [stream.heartbeat(i) for i in range(2)]
+    msgs += [stream.position(58.4, 15.6, i + 0.03) for i in range(2)]
+    m = Monitor()
+    stream.feed(m, msgs)
+    m.finish(msgs[0].time + 40.0)  # the observation goes on long after
+    r = verdict(m, stream, "SI-004", finish=False)
+    assert r.verdict is Verdict.SKIP and "observed 1.0 s" in r.reason, r
 
 
 def test_unlisted_sensor_warns_once(stream):

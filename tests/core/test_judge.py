@@ -197,3 +197,21 @@ def test_lint_never_turns_a_skip_into_could_not_test() -> None:
     report = judge(claimed(a=RuleResult("EXEC-SEQ-001", Verdict.SKIP, UNSEEN)),
                    RunFacts(kind="lint"))
     assert report.units[UNIT].rules["EXEC-SEQ-001"].verdict is Verdict.SKIP
+
+
+def test_a_failed_rules_evidence_shows_what_fails_it_first() -> None:
+    """A decided finding (SI-004's 'listed') found before the stated one: the failed rule's
+    evidence holds the stated one first, the order every output shows; a strict run, in
+    which each fails the rule, and a warning keep the order found. ``keep`` cuts after."""
+    rule = CATALOGUE["SI-004"]
+    listed = Violation.of("SI-004", condition="listed", expected="listed", observed="missing")
+    stated = Violation.of("SI-004", expected="published", observed="nothing on heading")
+    found = judge_rule(rule, severity=Severity.ERROR, strict=False,
+                       violations=[listed, listed, stated], keep=2)
+    assert found.verdict is Verdict.FAIL and found.violations == [stated, listed]
+    assert found.reason == "3 violations"
+    strict = judge_rule(rule, severity=Severity.ERROR, strict=True, violations=[listed, stated])
+    assert strict.violations == [listed, stated]
+    warned = judge_rule(rule, severity=Severity.WARNING, strict=False,
+                        violations=[listed, stated])
+    assert warned.verdict is Verdict.WARN and warned.violations == [listed, stated]

@@ -359,3 +359,41 @@ def test_a_recording_whose_time_runs_backwards_is_refused_naming_the_line(
     run = run_lint(["--from", str(write_recording(tmp_path / "c.jsonl", back))],
                    reports_dir / "c")
     assert run.report is not None, run.out
+
+
+def test_a_failed_rule_shows_first_the_finding_it_fails_on_in_every_output(prefix: str
+                                                                           ) -> None:
+    """The public L1 agent lists only position and publishes only position: SI-004 fails on
+    6.1's words (heading, course, speed unpublished) and warns on its decided 'listed'
+    condition, found first. Lint's text, the HTML and the JSON report show the stated
+    finding first, under its own basis, not the decided one over '[fail]'."""
+    from conformance.checks import Monitor
+    from conformance.lint.runner import failures
+    from conformance.reporting import render_html
+    from conformance.reporting.jsonreport import dumps
+
+    m = Monitor()
+    for msg in unit_traffic(prefix, "l1", seconds=10):
+        if msg.topic.endswith(("/heading", "/course", "/speed")):
+            continue
+        if msg.topic.endswith("/sensor_info"):
+            info = orjson.loads(msg.payload)
+            info["sensor-data-provided"] = ["position"]
+            msg = Message(msg.time, msg.topic, orjson.dumps(info))
+        m.feed(msg)
+    m.finish()
+    report = m.report()
+    unit = f"{prefix}/unit/air/simulation/l1"
+    result = report.units[unit].rules["SI-004"]
+    assert result.verdict.value == "fail"
+    assert [v.condition for v in result.violations] == ["", "listed"]
+    text = failures(report)
+    block = text[text.index(f"{unit}\nSI-004 "):].split("\n\n")[0]
+    assert "observed  nothing on heading, course, speed" in block
+    assert 'basis     stated: "The following sensors are mandatory' in block
+    assert "decided" not in block and "(and 1 more violations of SI-004)" in block
+    page = render_html(report)
+    evidence = page[page.index('-SI-004"'):]
+    assert evidence.index("nothing on heading") < evidence.index("missing heading")
+    stored = orjson.loads(dumps(report))["units"][unit]["rules"]["SI-004"]["violations"]
+    assert [v.get("condition", "") for v in stored] == ["", "listed"]

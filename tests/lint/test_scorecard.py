@@ -251,3 +251,58 @@ def test_the_evidence_cap_never_cuts_a_death_for_a_rate(prefix: str) -> None:
     opening = render_verdicts(report, per_unit=1)
     assert opening.splitlines()[1].startswith("  FAIL ") and "zzz0" in opening.splitlines()[1]
     assert opening.splitlines()[2].split()[:2] == ["death", "HB-012"]
+
+
+def test_the_suites_probes_seen_live_are_shown_as_in_the_final_outputs(prefix: str) -> None:
+    """Lint beside a certification sees the suite's commands and its deliberately malformed
+    probes: they are no commander's fault (docs/ARCHITECTURE.md 'Whose fault it is') and the
+    final report has no row for them, so no live line shows them failing either."""
+    from conformance.checks.suite_commands import LABEL, SENDER, UNREADABLE
+
+    out = io.StringIO()
+    card = Scorecard(out, tty=False)
+    linter = Linter(Monitor(Profile(), kind="lint"), Profile())
+    msgs = unit_traffic(prefix, "dji0", seconds=6, agent_uuid=DJI0)
+    command = f"{prefix}/unit/air/simulation/dji0/exec/command"
+    msgs.append(Message(T0 + 2.1, command, orjson.dumps(
+        {"com-uuid": "not-a-uuid", "command": "no-such-command", "sender": SENDER})))
+    msgs += [Message(T0 + 2.2 + i * 0.01, command, payload)
+             for i, (_, payload) in enumerate(UNREADABLE)]
+    linter.feed(sorted(msgs, key=lambda m: m.time))
+    card.update(linter, force=True)
+    assert LABEL not in out.getvalue() and LABEL not in linter.by_unit
+    assert linter.failing_units() == []
+    linter.finish(T0 + 6.5)
+    assert LABEL not in linter.monitor.report().units
+
+
+def test_a_finding_judged_after_its_evidence_is_printed_in_time_order(prefix: str) -> None:
+    """A ping left unanswered is judged when the unit next answers, its finding stamped
+    when the ping was sent: the live line is printed at the time it was found, in order
+    with the others, and says when its evidence was sent."""
+    import time as time_module
+    import uuid
+
+    out = io.StringIO()
+    card = Scorecard(out, tty=False)
+    linter = Linter(Monitor(Profile(), kind="lint"), Profile())
+    base = f"{prefix}/unit/air/simulation/dji0"
+    first, second = str(uuid.uuid4()), str(uuid.uuid4())
+    msgs = unit_traffic(prefix, "dji0", seconds=12, agent_uuid=DJI0)
+    msgs += [Message(T0 + 2.0, f"{base}/exec/command", orjson.dumps(
+                 {"com-uuid": first, "command": "ping", "sender": "op0"})),
+             Message(T0 + 8.0, f"{base}/exec/command", orjson.dumps(
+                 {"com-uuid": second, "command": "ping", "sender": "op0"})),
+             Message(T0 + 8.1, f"{base}/exec/response", orjson.dumps(
+                 {"agent-uuid": DJI0, "com-uuid": str(uuid.uuid4()), "response": "pong",
+                  "response-to": second}))]
+    for m in sorted(msgs, key=lambda m: m.time):
+        linter.feed([m])
+        card.update(linter)
+    (line,) = [ln for ln in out.getvalue().splitlines() if " EXEC-PING-001 " in ln]
+
+    def clock(t: float) -> str:
+        return time_module.strftime("%H:%M:%S", time_module.localtime(t))
+
+    assert line.startswith(f"{clock(T0 + 8.1)} FAIL {base} EXEC-PING-001 "), line
+    assert f"(its evidence sent at {clock(T0 + 2.0)})" in line

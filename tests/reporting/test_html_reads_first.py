@@ -30,8 +30,9 @@ ARTEFACTS = Path(os.environ.get("WARAPS_TEST_ARTEFACTS",
 
 
 def certification(prefix: str, *, period: float, reboot: bool, gap: bool = False) -> RunReport:
-    """A judged certification of one sensor unit publishing heartbeats every ``period`` s
-    (it declares 1 Hz); without ``reboot`` the REBOOT rules could not be tested."""
+    """A judged certification of one sensor unit publishing heartbeats (and its four
+    mandatory sensors) every ``period`` s (it declares 1 Hz); without ``reboot`` the REBOOT
+    rules could not be tested."""
     unit = UnitAddress(prefix, "air", "simulation", "dji0")
     m = Monitor(kind="certification")
     agent = str(uuid.uuid4())
@@ -40,6 +41,11 @@ def certification(prefix: str, *, period: float, reboot: bool, gap: bool = False
         m.feed(Message(t, unit.topic("heartbeat"), orjson.dumps({
             "agent-type": "air", "agent-uuid": agent, "levels": ["sensor"], "name": "dji0",
             "rate": 1.0, "stamp": t, "type": "HeartBeat"})))
+        # 6.1's four mandatory sensors, which a unit of the sensor level publishes (SI-004)
+        m.feed(Message(t + 0.01, unit.topic("sensor/position"), orjson.dumps(
+            {"latitude": 58.4, "longitude": 15.6, "altitude": 10.0})))
+        for k, name in enumerate(("heading", "course", "speed")):
+            m.feed(Message(t + 0.02 + 0.01 * k, unit.topic(f"sensor/{name}"), b"1.0"))
     for rule in ("REBOOT-001", "REBOOT-002"):
         m.record(unit, rule, seen=Observed.EXAMINED if reboot else Observed.UNTESTABLE,
                  reason="rebooted" if reboot else REBOOT_REASON)
