@@ -70,9 +70,13 @@ def judge_rule(rule: Rule, *, severity: Severity, strict: bool, violations: list
         verdict = Verdict.FAIL if fails else Verdict.WARN
         risk = _risks(rule, violations) if lenient and not firm else ""
         noun = "violation" if count == 1 else "violations"
-        shown = failing_first(rule, violations, strict=strict) if fails else list(violations)
+        shown = (failing_first(rule, violations, strict=strict) if fails
+                 else list(violations))[:keep]
+        failing = -1 if strict or not fails else sum(
+            not rule.decided(v.condition) for v in shown)
+        failing = -1 if failing == len(shown) else failing  # -1: every one
         return RuleResult(rule.id, verdict, "; ".join(x for x in (f"{count} {noun}", risk) if x),
-                          shown[:keep])
+                          shown, failing=failing)
     if examined:
         noun = "time" if examined == 1 else "times"
         return RuleResult(rule.id, Verdict.PASS, f"examined {examined} {noun}", [])

@@ -201,6 +201,8 @@ class UnitReport:
 def _rule_result_to_dict(r: RuleResult) -> dict[str, Any]:
     out: dict[str, Any] = {"rule": r.rule, "verdict": r.verdict.value, "reason": r.reason,
            "violations": [v.to_dict() for v in r.violations]}
+    if r.failing >= 0:  # those after the first ``failing`` only warn (``RuleResult.shown_as``)
+        out["failing"] = r.failing
     rule = CATALOGUE.get(r.rule)
     if rule is not None and r.verdict in (Verdict.FAIL, Verdict.WARN):
         # A finding carries what its rule stands on (docs/ARCHITECTURE.md 'What a rule stands
@@ -224,7 +226,8 @@ def _condition_dict(rule: Rule, condition: str) -> dict[str, str]:
 
 def _rule_result_from_dict(d: dict[str, Any]) -> RuleResult:
     return RuleResult(d["rule"], Verdict(d["verdict"]), d.get("reason", ""),
-                      [Violation(**v) for v in d.get("violations", [])])
+                      [Violation(**v) for v in d.get("violations", [])],
+                      int(d.get("failing", -1)))
 
 
 @dataclass

@@ -131,3 +131,13 @@ class RuleResult:
     verdict: Verdict
     reason: str = ""
     violations: list[Violation] = field(default_factory=list)
+    failing: int = -1
+    """How many of a failed rule's ``violations``, from the first, fail it (the judge puts
+    them first); those after only warn (a decided condition the run does not adopt). -1:
+    every one (a strict run, a rule not failed)."""
+
+    def shown_as(self, index: int) -> Verdict:
+        """The verdict the ``index``-th violation is shown with: the rule's, or 'warn' for one
+        that alone would only warn (its own basis says why)."""
+        alone = 0 <= self.failing <= index
+        return Verdict.WARN if self.verdict is Verdict.FAIL and alone else self.verdict

@@ -80,8 +80,8 @@ def _testcase(report: RunReport, name: str, rid: str, result: RuleResult, at: st
     title = rule.title if rule else rid
     head = (f"\t\t<testcase name={_attr(f'{rid} {title}')}{at} "
             f"classname={_attr(name)} status={_attr(result.verdict.value)}")
-    text = "\n\n".join(render_violation(rid, v, name, verdict=result.verdict, report=report)
-                       for v in result.violations)
+    text = "\n\n".join(render_violation(rid, v, name, verdict=result.shown_as(i), report=report)
+                       for i, v in enumerate(result.violations))
     if result.verdict is Verdict.FAIL:
         first = result.violations[0] if result.violations else None
         message = (f"expected {first.expected}; observed {first.observed}"

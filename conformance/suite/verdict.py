@@ -31,7 +31,8 @@ def explain(certification: Certification, result: RuleResult) -> str:
     rule = CATALOGUE[result.rule]
     rerun = certification.rerun_command(result.rule)
     texts = [render_violation(rule, v, str(certification.unit), rerun_hint=rerun,
-                              verdict=result.verdict) for v in result.violations[:SHOWN]]
+                              verdict=result.shown_as(i))
+             for i, v in enumerate(result.violations[:SHOWN])]
     if not texts:
         # A verdict a scenario recorded without a violation (REBOOT-001's new name) quotes
         # the spec's words as every violation does.

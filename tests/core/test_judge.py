@@ -215,3 +215,25 @@ def test_a_failed_rules_evidence_shows_what_fails_it_first() -> None:
     warned = judge_rule(rule, severity=Severity.WARNING, strict=False,
                         violations=[listed, stated])
     assert warned.verdict is Verdict.WARN and warned.violations == [listed, stated]
+
+
+def test_a_decided_finding_under_a_failed_rule_is_shown_as_what_it_alone_would_be() -> None:
+    """The L1 agent's SI-004: the stated finding fails the rule, the decided 'listed' one
+    beside it only warns; every output labels each by what it alone would be ([fail], then
+    [warn]), and the JSON report keeps it (a strict run: each one fails)."""
+    from conformance.results import _rule_result_from_dict, _rule_result_to_dict
+    from conformance.rules import CATALOGUE, Severity
+    from conformance.violation import Verdict, Violation
+
+    rule = CATALOGUE["SI-004"]
+    listed = Violation.of("SI-004", expected="listed", observed="missing", condition="listed")
+    stated = Violation.of("SI-004", expected="published", observed="nothing on heading")
+    result = judge_rule(rule, severity=Severity.ERROR, strict=False, violations=[listed, stated])
+    assert result.verdict is Verdict.FAIL and result.violations == [stated, listed]
+    assert [result.shown_as(i) for i in range(2)] == [Verdict.FAIL, Verdict.WARN]
+    again = _rule_result_from_dict(_rule_result_to_dict(result))
+    assert [again.shown_as(i) for i in range(2)] == [Verdict.FAIL, Verdict.WARN]
+    assert again.failing == 1
+    strict = judge_rule(rule, severity=Severity.ERROR, strict=True, violations=[listed, stated])
+    assert [strict.shown_as(i) for i in range(2)] == [Verdict.FAIL, Verdict.FAIL]
+    assert "failing" not in _rule_result_to_dict(strict)
