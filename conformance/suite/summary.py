@@ -78,9 +78,8 @@ def exit_line(c: Certification, status: int) -> str:
     rules whose tests failed and that the whole run does not fail are named."""
     report = c.report()
     row = report.units.get(str(c.unit))
-    final = {r: res.verdict for r, res in row.rules.items()} if row else {}
-    failed_then = tuple(sorted(r for r, shown in c.evidence.enacted.items()
-                               if shown is Verdict.FAIL and final.get(r) is not Verdict.FAIL))
+    failed_then = tuple(r for r, shown, _ in judged_otherwise(c.evidence.enacted, row)
+                        if shown is Verdict.FAIL)
     text = last_line(report, conclusion_of(report), str(c.unit), status,
                      error_said=bool(c.error), failed_then=failed_then)
     return printable_lines(mask_password(text))
